@@ -1,0 +1,3 @@
+from surgopt.cli import main
+
+main()

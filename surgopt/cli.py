@@ -1,0 +1,155 @@
+"""Command line: thin Typer commands that parse, call the library and render.
+
+Heavy imports (numpy, numba, pyarrow) happen inside the commands so that
+``surgopt --help`` stays instant.
+"""
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+from typing import Annotated, Optional
+
+import typer
+
+app = typer.Typer(
+    name="surgopt",
+    help="Kinematic design studies of surgical robots, batch-run with a cached Parquet result store.\n\n"
+    "Each study command runs the paper's own setup when given no CONFIG. Results go to the store "
+    "(--store, $SURGOPT_STORE, or ./surgopt-store); an identical config is a cache hit and an "
+    "interrupted run resumes where it stopped.",
+    no_args_is_help=True,
+    add_completion=False,
+    pretty_exceptions_enable=False,
+)
+
+StoreOpt = Annotated[Optional[Path], typer.Option(
+    "--store", envvar="SURGOPT_STORE", help="Result store folder [default: ./surgopt-store].",
+    show_default=False)]
+JobsOpt = Annotated[int, typer.Option("--jobs", "-j", min=1, max=256,
+                                      help="Worker processes (joblib loky backend).")]
+ForceOpt = Annotated[bool, typer.Option("--force", help="Recompute even if the store holds this study.")]
+QuietOpt = Annotated[bool, typer.Option("--quiet", "-q", help="No progress bar.")]
+ChunkOpt = Annotated[Optional[int], typer.Option(
+    "--chunk-size", min=1, help="Design points per task (a resumed run keeps the size it started with).",
+    show_default=False)]
+
+
+def _fail(exc: BaseException, code: int) -> None:
+    typer.echo(f"surgopt: error: {exc}", err=True)
+    raise typer.Exit(code)
+
+
+def _load_study_config(study, config: Optional[Path]):
+    from surgopt.config import load_config, load_embedded
+
+    if config is None:
+        return load_embedded(study.DEFAULT_CONFIG, study.Config), f"embedded:{Path(study.DEFAULT_CONFIG).stem}"
+    return load_config(config, study.Config), config.stem
+
+
+@app.command("rcm-grid")
+def rcm_grid(
+    config: Annotated[Optional[Path], typer.Argument(
+        help="TOML or YAML config. Without it: the paper's setup (121 x 121 RCM candidates, "
+             "17^3-point 50 mm cube, PA10-7C, 587 mm tool).", show_default=False)] = None,
+    cull: Annotated[bool, typer.Option(
+        "--cull", help="Fast exact argmax with the Culling algorithm (Stocco & Salcudean) instead of "
+                       "the full GII map; culled candidates carry an upper bound.")] = False,
+    store: StoreOpt = None,
+    jobs: JobsOpt = 2,
+    force: ForceOpt = False,
+    quiet: QuietOpt = False,
+    chunk_size: ChunkOpt = None,
+) -> None:
+    """Global Isotropy Index of candidate remote-centre-of-motion locations for a PA10-7C
+    (Locke & Patel, ICRA 2007: eqs. 5-9, Fig. 3, Table I).
+
+    For every RCM candidate (x, z) the tool tip visits each point of a cube below the RCM with the
+    tool axis through the RCM; closed-form IK (S3 = W2 = 0) and the alternative Jacobian under the RCM
+    constraint give the reverse Jacobian J_r, scaled by the rated joint speeds. GII = min sigma_min /
+    max sigma_max over the cube (eq. 7); a candidate with any unreachable point is infeasible.
+    Rows: candidate_id, x_rcm_m, z_rcm_m, gii, feasible, sigma_min_m_per_s, sigma_max_m_per_s,
+    n_unreachable, n_singular, points_evaluated, gii_is_exact.
+    """
+    _run_study_command("rcm-grid", config, store, jobs, force, quiet, chunk_size,
+                       overrides={"search": "cull"} if cull else None)
+
+
+def _run_study_command(name, config, store, jobs, force, quiet, chunk_size, overrides=None):
+    from surgopt.errors import SurgoptError
+    from surgopt.runner import configure_numba_cache
+
+    configure_numba_cache()
+    try:
+        from surgopt.store import Store
+        from surgopt.studies import get_study
+        from surgopt.runner import run_study
+
+        study = get_study(name)
+        cfg, config_name = _load_study_config(study, config)
+        if overrides:
+            cfg = study.Config.model_validate({**cfg.model_dump(), **overrides})
+        result = run_study(study, cfg, config_name=config_name, store=Store(store), jobs=jobs,
+                           force=force, quiet=quiet, chunk=chunk_size,
+                           say=lambda m: typer.echo(m, err=True))
+    except SurgoptError as exc:
+        _fail(exc, exc.exit_code)
+    except KeyboardInterrupt:
+        typer.echo("surgopt: interrupted; finished chunks are stored, run the same command again to resume",
+                   err=True)
+        raise typer.Exit(130)
+    _report(study, result)
+
+
+def _report(study, result) -> None:
+    from rich.console import Console
+    from rich.table import Table
+
+    console = Console()
+    for m in result.messages:
+        console.print(m)
+    run = result.run
+    if result.cache_hit:
+        console.print(f"cache hit: {study.NAME} {run.key[:12]} already in {run.path}")
+    summary = study.summarize(result.table)
+    t = Table(title=f"{study.NAME} ({run.manifest['config_name']})", show_header=False)
+    for k, v in summary.items():
+        t.add_row(k, f"{v:.6g}" if isinstance(v, float) else str(v))
+    t.add_row("rows", str(result.table.num_rows))
+    t.add_row("time_s", f"{result.elapsed_s:.2f}")
+    t.add_row("store", f"{run.path}")
+    console.print(t)
+
+
+@app.command("runs")
+def runs(
+    store: StoreOpt = None,
+    study: Annotated[Optional[str], typer.Option("--study", help="Only this study.")] = None,
+) -> None:
+    """List the studies held in the store: study, key prefix, config, rows, state, created."""
+    from rich.console import Console
+    from rich.table import Table
+
+    from surgopt.store import Store
+
+    s = Store(store)
+    items = s.runs(study)
+    if not items:
+        typer.echo(f"no runs in {s.root}")
+        return
+    t = Table(title=f"runs in {s.root}")
+    for col in ("study", "key", "config", "rows", "state", "created"):
+        t.add_column(col)
+    for r in items:
+        state = "complete" if r.complete else f"partial {len(r.manifest['parts'])}/{r.manifest['n_tasks']}"
+        t.add_row(r.study, r.key[:12], r.manifest.get("config_name", "?"), str(r.rows), state,
+                  r.manifest.get("created", "?"))
+    Console(width=max(100, Console().width)).print(t)
+
+
+def main() -> None:
+    app()
+
+
+if __name__ == "__main__":
+    sys.exit(main())

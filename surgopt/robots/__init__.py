@@ -1,0 +1,1 @@
+"""Robot models as data: parameter tables with units and citations."""

@@ -1,0 +1,60 @@
+"""Mitsubishi PA10-7C: DH table, link lengths, joint limits, maximum joint speeds.
+
+Sources
+-------
+[MHI]  General Purpose Robot PA10 Series (PA10-7CE) Instruction Manual for
+       Installation, Maintenance and Safety, Mitsubishi Heavy Industries
+       (ref. [2] of Locke & Patel 2007). Values as commonly cited from it:
+       rated speeds S1, S2 57 deg/s (1 rad/s); S3, E1 114 deg/s (2 rad/s);
+       E2, W1, W2 360 deg/s (2 pi rad/s); joint ranges S1 +-177, S2 +-91,
+       S3 +-174, E1 +-137, E2 +-255, W1 +-165, W2 +-255 deg. The manual itself
+       could not be consulted here; the indirect check is that these speeds
+       as the scaling matrix Q reproduce Locke & Patel's Table I to four
+       digits in 11 of 15 rows (docs/reproduction.md), and that other speed
+       sets do visibly worse.
+[KIN]  Public PA10 kinematic models disagree on the link lengths:
+       d1, d3, d5, d7 = 0.317 / 0.45 / 0.48 / 0.07 m versus
+       0.315 / 0.45 / 0.50 / 0.08 m. The first set reproduces Table I and is
+       the default; the second is one config field away.
+[LP07] R. C. O. Locke, R. V. Patel, "Optimal remote center-of-motion location
+       for robotics-assisted minimally-invasive surgery", ICRA 2007: tool
+       (end-effector + instrument) length 587 mm, S3 and W2 held at zero.
+
+Standard (distal) DH, joints S1, S2, S3, E1, E2, W1, W2, angles zero with the
+arm pointing straight up:
+
+    joint  d       a   alpha
+    S1     d1      0   -90 deg
+    S2     0       0   +90 deg
+    S3     d3      0   -90 deg
+    E1     0       0   +90 deg
+    E2     d5      0   -90 deg
+    W1     0       0   +90 deg
+    W2     d7      0     0
+"""
+from __future__ import annotations
+
+import math
+
+JOINT_NAMES = ("S1", "S2", "S3", "E1", "E2", "W1", "W2")
+#: Joints moved in the RCM study (S3 = W2 = 0, [LP07] Sec. III-A).
+ACTIVE_JOINTS = ("S1", "S2", "E1", "E2", "W1")
+
+#: DH alpha of each joint (rad); d comes from the link lengths below.
+DH_ALPHA_RAD = (-math.pi / 2, math.pi / 2, -math.pi / 2, math.pi / 2,
+                -math.pi / 2, math.pi / 2, 0.0)
+
+#: Link lengths (m) [KIN]: (d1, d3, d5, d7).
+LINKS_BIELEFELD_M = (0.317, 0.45, 0.48, 0.07)
+LINKS_ROUNDED_M = (0.315, 0.45, 0.50, 0.08)
+
+#: Joint ranges (deg) [MHI].
+JOINT_LIMIT_DEG = {"S1": 177.0, "S2": 91.0, "S3": 174.0, "E1": 137.0,
+                   "E2": 255.0, "W1": 165.0, "W2": 255.0}
+
+#: Rated maximum joint speeds (rad/s) [MHI].
+MAX_JOINT_SPEED_RAD_S = {"S1": 1.0, "S2": 1.0, "S3": 2.0, "E1": 2.0,
+                         "E2": 2 * math.pi, "W1": 2 * math.pi, "W2": 2 * math.pi}
+
+#: End-effector + surgical tool length (m) [LP07] Sec. III-B.
+TOOL_LENGTH_M = 0.587

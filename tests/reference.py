@@ -1,0 +1,157 @@
+"""Slow, obviously-correct numpy reference implementations.
+
+Every numba kernel in ``surgopt.kinematics`` is tested against a function here.
+These use textbook formulations (4x4 DH matrices, angles via atan2/acos, dense
+``np.linalg`` inverse and SVD) that share no code with the kernels.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+# ---------------------------------------------------------------------------
+# PA10-7C (Locke & Patel 2007)
+# ---------------------------------------------------------------------------
+
+
+def dh_standard(theta, d, a, alpha):
+    """Standard (distal) DH transform Rz(theta) Tz(d) Tx(a) Rx(alpha)."""
+    ct, st = np.cos(theta), np.sin(theta)
+    ca, sa = np.cos(alpha), np.sin(alpha)
+    return np.array(
+        [
+            [ct, -st * ca, st * sa, a * ct],
+            [st, ct * ca, -ct * sa, a * st],
+            [0.0, sa, ca, d],
+            [0.0, 0.0, 0.0, 1.0],
+        ]
+    )
+
+
+def pa10_dh_table(d1, d3, d5, d7):
+    """(d, a, alpha) rows of the PA10-7C standard DH table, joints S1..W2."""
+    h = np.pi / 2
+    return [
+        (d1, 0.0, -h),
+        (0.0, 0.0, h),
+        (d3, 0.0, -h),
+        (0.0, 0.0, h),
+        (d5, 0.0, -h),
+        (0.0, 0.0, h),
+        (d7, 0.0, 0.0),
+    ]
+
+
+def pa10_frames(q7, links):
+    """All frames T_0..T_7 (list of 4x4) for the 7 joint angles."""
+    T = np.eye(4)
+    frames = [T.copy()]
+    for qi, (d, a, al) in zip(q7, pa10_dh_table(*links)):
+        T = T @ dh_standard(qi, d, a, al)
+        frames.append(T.copy())
+    return frames
+
+
+def pa10_tool_tip(q5, links, tool_m):
+    """Tool tip position and axis for the 5 active joints (S3 = W2 = 0)."""
+    q7 = np.array([q5[0], q5[1], 0.0, q5[2], q5[3], q5[4], 0.0])
+    T = pa10_frames(q7, links)[-1]
+    k = T[:3, 2]
+    return T[:3, 3] + tool_m * k, k
+
+
+def pa10_ik(p, k, links, tool_m, elbow_up=True):
+    """Closed-form IK (S3 = W2 = 0) with angles, for tip p and tool axis k."""
+    d1, d3, d5, d7 = links
+    w = p - (d7 + tool_m) * k
+    q1 = np.arctan2(w[1], w[0])
+    r = np.hypot(w[0], w[1])
+    h = w[2] - d1
+    c4 = (r * r + h * h - d3 * d3 - d5 * d5) / (2 * d3 * d5)
+    if abs(c4) > 1:
+        return None
+    q4 = np.arccos(c4) * (1.0 if elbow_up else -1.0)
+    q2 = np.arctan2(r, h) - np.arctan2(d5 * np.sin(q4), d3 + d5 * np.cos(q4))
+    q7 = np.array([q1, q2, 0.0, q4, 0.0, 0.0, 0.0])
+    R04 = pa10_frames(q7, links)[4][:3, :3]
+    k4 = R04.T @ k
+    q6 = np.arccos(np.clip(k4[2], -1, 1))
+    q5 = np.arctan2(k4[1], k4[0])
+    return np.array([q1, q2, q4, q5, q6])
+
+
+ACTIVE = (0, 1, 3, 4, 5)  # S1, S2, E1, E2, W1 (0-based DH joint index)
+
+
+def pa10_alternative_jacobian(q5, links, tool_m, rcm):
+    """J_a (eq. 8): d(x, y, z tip, e_x, e_y)/d(active joints).
+
+    e = x,y of the intersection of the tool line with the horizontal skin plane
+    through the RCM, minus the RCM (RCM frame axes parallel to the world's).
+    Differentiated with the geometric Jacobian: p_dot = w x (p - o),
+    k_dot = w x k for each revolute axis.
+    """
+    q7 = np.array([q5[0], q5[1], 0.0, q5[2], q5[3], q5[4], 0.0])
+    frames = pa10_frames(q7, links)
+    T = frames[-1]
+    k = T[:3, 2]
+    p = T[:3, 3] + tool_m * k
+    J = np.zeros((5, 5))
+    for col, j in enumerate(ACTIVE):
+        z = frames[j][:3, 2]
+        o = frames[j][:3, 3]
+        pd = np.cross(z, p - o)
+        kd = np.cross(z, k)
+        # q = p - s k with s = (p_z - c_z)/k_z
+        s = (p[2] - rcm[2]) / k[2]
+        sd = (pd[2] * k[2] - (p[2] - rcm[2]) * kd[2]) / k[2] ** 2
+        qd = pd - sd * k - s * kd
+        J[:3, col] = pd
+        J[3:, col] = qd[:2]
+    return J
+
+
+def pa10_alternative_fk(q5, links, tool_m, rcm):
+    """(x, y, z, e_x, e_y) for finite-difference checks of J_a."""
+    p, k = pa10_tool_tip(q5, links, tool_m)
+    s = (p[2] - rcm[2]) / k[2]
+    q = p - s * k
+    return np.concatenate([p, q[:2] - np.asarray(rcm)[:2]])
+
+
+def reverse_jacobian(Ja):
+    """J_r = first 3 columns of J_a^-1 (eqs. 5-6)."""
+    return np.linalg.inv(Ja)[:, :3]
+
+
+def scaled_singular_values(q5, links, tool_m, rcm, qdot_max):
+    """Singular values of Q^-1 J_r, Q = diag(max joint speeds)."""
+    Ja = pa10_alternative_jacobian(q5, links, tool_m, rcm)
+    M = np.diag(1.0 / np.asarray(qdot_max)) @ reverse_jacobian(Ja)
+    return np.linalg.svd(M, compute_uv=False)
+
+
+def workspace_cube(rcm, depth_m=0.1, side_m=0.05, n=17):
+    """Grid points of the cube centred depth_m below the RCM."""
+    c = np.asarray(rcm, float) - np.array([0.0, 0.0, depth_m])
+    t = np.linspace(-side_m / 2, side_m / 2, n)
+    X, Y, Z = np.meshgrid(t, t, t, indexing="ij")
+    return c + np.stack([X.ravel(), Y.ravel(), Z.ravel()], axis=1)
+
+
+def global_isotropy_index(smin, smax):
+    """GII = min sigma_min / max sigma_max (eq. 7)."""
+    return float(np.min(smin) / np.max(smax))
+
+
+def rcm_candidate_gii(rcm, links, tool_m, qdot_max, limits_rad, n=17, elbow_up=True):
+    """GII of one RCM candidate (None when any workspace point is unreachable)."""
+    smins, smaxs = [], []
+    for p in workspace_cube(rcm, n=n):
+        k = (p - rcm) / np.linalg.norm(p - rcm)
+        q = pa10_ik(p, k, links, tool_m, elbow_up)
+        if q is None or np.any(np.abs(q) > limits_rad):
+            return None
+        s = scaled_singular_values(q, links, tool_m, rcm, qdot_max)
+        smins.append(s[-1])
+        smaxs.append(s[0])
+    return global_isotropy_index(smins, smaxs)
