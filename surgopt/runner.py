@@ -78,7 +78,7 @@ def run_study(study, cfg, *, config_name: str, store: Store, jobs: int = DEFAULT
     schema = study.schema()
     key = study_key(study.NAME, cfg, study.KERNEL_VERSION)
     run = store.open(study.NAME, key)
-    if run is not None and run.complete and not force:
+    if run is not None and run.complete and not force and not store.bad_parts(run):
         table = run.read_table(schema)
         return RunResult(run, table, True, 0, time.perf_counter() - t0)
 

@@ -42,11 +42,14 @@ def _sha256(path: Path) -> str:
 
 def _atomic_write_bytes(path: Path, data: bytes) -> None:
     tmp = path.with_name(f".{path.name}.tmp-{os.getpid()}")
-    with open(tmp, "wb") as f:
-        f.write(data)
-        f.flush()
-        os.fsync(f.fileno())
-    os.replace(tmp, path)
+    try:
+        with open(tmp, "wb") as f:
+            f.write(data)
+            f.flush()
+            os.fsync(f.fileno())
+        os.replace(tmp, path)
+    finally:
+        tmp.unlink(missing_ok=True)
     _fsync_dir(path.parent)
 
 
@@ -153,15 +156,14 @@ class Store:
         """
         path = self.run_dir(study, key)
         run = None if force else self.open(study, key)
+        for f in path.glob(".*.tmp-*"):  # left by a killed writer; we hold the lock
+            f.unlink()
         if force:
             for f in path.glob("part-*.parquet"):
                 f.unlink()
         if run is not None and run.manifest.get("format") == FORMAT_VERSION:
-            parts = run.manifest["parts"]
-            for i in list(parts):
-                f = path / parts[i]["file"]
-                if not f.exists() or _sha256(f) != parts[i]["sha256"]:
-                    del parts[i]
+            for i in self.bad_parts(run):
+                del run.manifest["parts"][i]
             return run
         manifest = {
             "format": FORMAT_VERSION,
@@ -179,6 +181,15 @@ class Store:
         self._write_manifest(run)
         return run
 
+    def bad_parts(self, run: Run) -> list[str]:
+        """Manifest entries whose file is missing or fails its sha256."""
+        bad = []
+        for i, meta in run.manifest["parts"].items():
+            f = run.path / meta["file"]
+            if not f.exists() or _sha256(f) != meta["sha256"]:
+                bad.append(i)
+        return bad
+
     def write_part(self, run: Run, index: int, table) -> None:
         """Write one task's rows atomically and record them in the manifest."""
         import pyarrow.parquet as pq
@@ -186,10 +197,13 @@ class Store:
         name = f"part-{index:05d}.parquet"
         final = run.path / name
         tmp = run.path / f".{name}.tmp-{os.getpid()}"
-        pq.write_table(table, tmp, compression="zstd")
-        with open(tmp, "rb") as f:
-            os.fsync(f.fileno())
-        os.replace(tmp, final)
+        try:
+            pq.write_table(table, tmp, compression="zstd")
+            with open(tmp, "rb") as f:
+                os.fsync(f.fileno())
+            os.replace(tmp, final)
+        finally:
+            tmp.unlink(missing_ok=True)
         _fsync_dir(run.path)
         rows = pq.read_metadata(final).num_rows  # readable?
         if rows != table.num_rows:

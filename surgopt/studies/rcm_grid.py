@@ -8,12 +8,13 @@ the RCM, for a 121 x 121 x-z grid of candidates (Fig. 3) or a list (Table I).
 from __future__ import annotations
 
 import math
-from typing import Literal
+from typing import Annotated, Literal
 
 import numpy as np
 from pydantic import Field, model_validator
 
 from surgopt.config import StrictModel
+from surgopt.metrics import global_isotropy_index
 from surgopt.robots import pa10_7c
 
 NAME = "rcm-grid"
@@ -91,7 +92,8 @@ class Candidates(StrictModel):
 
     z_reference: Literal["shoulder", "base"] = "shoulder"
     grid: Grid | None = None
-    list_m: list[tuple[float, float]] | None = Field(None, min_length=1, max_length=1_000_000)
+    list_m: list[Annotated[list[float], Field(min_length=2, max_length=2)]] | None = Field(
+        None, min_length=1, max_length=1_000_000, description="[[x, z], ...] in metres")
 
     @model_validator(mode="after")
     def _one_kind(self):
@@ -207,7 +209,7 @@ def warm_up(cfg: RcmGridConfig) -> None:
 
 def _rows(ids, xz, lo, hi, n_unr, n_sing, n_eval, exact):
     feasible = n_unr == 0
-    gii = np.where(feasible & (hi > 0), lo / np.where(hi > 0, hi, 1.0), 0.0)
+    gii = global_isotropy_index(lo, hi, feasible)
     return {
         "candidate_id": ids.astype(np.int64),
         "x_rcm_m": xz[:, 0].copy(),
@@ -268,7 +270,7 @@ def cull_search(cfg: RcmGridConfig) -> dict:
     pick = sorted({0, n // 2, n - 1})
     sub = np.array([(i * n + j) * n + k for i in pick for j in pick for k in pick])
     lo, hi, n_unr, n_sing = rcm_candidates_extremes(rcms, offsets[sub], *args)
-    ub = np.where((n_unr == 0) & (hi > 0), lo / np.where(hi > 0, hi, 1.0), 0.0)
+    ub = global_isotropy_index(lo, hi, n_unr == 0)
     n_eval = np.full(xz.shape[0], sub.shape[0])
     exact = np.zeros(xz.shape[0], bool)
     best = 0.0
@@ -282,7 +284,7 @@ def cull_search(cfg: RcmGridConfig) -> dict:
         lo[i], hi[i], n_unr[i], n_sing[i], n_eval[i] = r
         if n_eval[i] == offsets.shape[0] and n_unr[i] == 0:
             exact[i] = True
-            best = max(best, lo[i] / hi[i] if hi[i] > 0 else 0.0)
+            best = max(best, float(global_isotropy_index(lo[i], hi[i])))
         elif n_unr[i] > 0:
             exact[i] = True
     return _rows(np.arange(xz.shape[0]), xz, lo, hi, n_unr, n_sing, n_eval, exact)

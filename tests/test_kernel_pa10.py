@@ -1,0 +1,171 @@
+"""Numba kernels against tests/reference.py."""
+import numpy as np
+import pytest
+
+import reference as R
+from surgopt.kinematics import pa10_rcm as K
+from surgopt.metrics import global_isotropy_index
+
+LINKS = (0.317, 0.45, 0.48, 0.07)
+TOOL = 0.587
+LINKS3 = np.array(LINKS[:3])
+OFFSET = LINKS[3] + TOOL
+QDOT = np.array([1.0, 1.0, 2.0, 2 * np.pi, 2 * np.pi])
+LIM = np.radians([177.0, 91.0, 137.0, 255.0, 165.0])
+COSLIM = np.cos(np.minimum(LIM, np.pi))
+
+
+def _points(rng, n, spread=0.05):
+    rcm = np.array([rng.uniform(0.25, 0.75), 0.0, rng.uniform(-0.6, 0.05) + LINKS[0]])
+    tips = rcm + np.column_stack([rng.uniform(-spread, spread, n), rng.uniform(-spread, spread, n),
+                                  -0.1 + rng.uniform(-spread, spread, n)])
+    return rcm, tips
+
+
+def _reference(rcm, tip):
+    k = (tip - rcm) / np.linalg.norm(tip - rcm)
+    q = R.pa10_ik(tip, k, LINKS, TOOL)
+    if q is None or np.any(np.abs(q) > LIM):
+        return None
+    return q, R.scaled_singular_values(q, LINKS, TOOL, rcm, QDOT)
+
+
+def test_pose_singular_values_match_reference():
+    rng = np.random.default_rng(10)
+    checked = 0
+    for _ in range(40):
+        rcm, tips = _points(rng, 25)
+        smin, smax, status = K.pose_singular_values(tips, rcm, LINKS3, OFFSET, 1.0, QDOT, COSLIM)
+        for t, lo, hi, st in zip(tips, smin, smax, status):
+            ref = _reference(rcm, t)
+            if ref is None:
+                assert st == K.STATUS_UNREACHABLE
+                continue
+            assert st == K.STATUS_OK
+            s = ref[1]  # singular values of Q^-1 J_r: reciprocals of the kernel's
+            assert lo == pytest.approx(1 / s[0], rel=1e-10)
+            assert hi == pytest.approx(1 / s[-1], rel=1e-10)
+            checked += 1
+    assert checked > 500
+
+
+def test_alternative_jacobian_matches_reference_and_finite_differences():
+    rng = np.random.default_rng(11)
+    for _ in range(20):
+        rcm, tips = _points(rng, 1, 0.025)
+        tip = tips[0]
+        ref = _reference(rcm, tip)
+        if ref is None:
+            continue
+        q = ref[0]
+        A, ok = K.alternative_jacobian(tip, rcm, LINKS3, OFFSET, 1.0, np.ones(5), COSLIM)
+        assert ok
+        h = 1e-6
+        Jfd = np.column_stack([
+            (R.pa10_alternative_fk(q + h * e, LINKS, TOOL, rcm) - R.pa10_alternative_fk(q - h * e, LINKS, TOOL, rcm)) / (2 * h)
+            for e in np.eye(5)])
+        assert np.allclose(A, Jfd, atol=1e-8)
+        # scaling: column j of J_a Q is qdot_max[j] times column j of J_a
+        As, _ = K.alternative_jacobian(tip, rcm, LINKS3, OFFSET, 1.0, QDOT, COSLIM)
+        assert np.allclose(As, A * QDOT, atol=1e-15)
+
+
+def test_worked_example_in_docstring():
+    rcm = np.array([0.535, 0.0, 0.107])
+    smin, smax, status = K.pose_singular_values(np.array([[0.535, 0.0, 0.007]]), rcm, LINKS3, OFFSET, 1.0, QDOT, COSLIM)
+    assert status[0] == K.STATUS_OK
+    assert smin[0] == pytest.approx(0.070968, abs=5e-7)
+    assert smax[0] == pytest.approx(1.019961, abs=5e-7)
+
+
+def test_unreachable_and_joint_limits_agree_with_reference():
+    # RCM candidates close to the shoulder and far away: many poses outside reach or limits
+    rng = np.random.default_rng(12)
+    seen = set()
+    for rcm in ([0.05, 0, 0.5], [0.9, 0, 0.0], [0.2, 0, 0.9], [0.75, 0, -0.35], [0.3, 0, -0.55]):
+        rcm = np.array(rcm, float)
+        tips = rcm + np.column_stack([rng.uniform(-0.1, 0.1, 200), rng.uniform(-0.1, 0.1, 200), rng.uniform(-0.3, -0.02, 200)])
+        _, _, status = K.pose_singular_values(tips, rcm, LINKS3, OFFSET, 1.0, QDOT, COSLIM)
+        for t, st in zip(tips, status):
+            ref = _reference(rcm, t)
+            assert (ref is None) == (st == K.STATUS_UNREACHABLE)
+            seen.add(ref is None)
+    assert seen == {True, False}
+
+
+def test_elbow_down_branch_matches_reference():
+    rng = np.random.default_rng(13)
+    rcm, tips = _points(rng, 30, 0.02)
+    smin, smax, status = K.pose_singular_values(tips, rcm, LINKS3, OFFSET, -1.0, QDOT, np.full(5, -1.0))
+    for t, lo, st in zip(tips, smin, status):
+        k = (t - rcm) / np.linalg.norm(t - rcm)
+        q = R.pa10_ik(t, k, LINKS, TOOL, elbow_up=False)
+        if q is None:
+            assert st == K.STATUS_UNREACHABLE
+            continue
+        s = R.scaled_singular_values(q, LINKS, TOOL, rcm, QDOT)
+        assert lo == pytest.approx(1 / s[0], rel=1e-10)
+
+
+@pytest.mark.parametrize("log_cond", [0, 2, 4, 6, 8])
+def test_singular_values_3x3_against_lapack(log_cond):
+    rng = np.random.default_rng(14 + log_cond)
+    for _ in range(200):
+        U, _ = np.linalg.qr(rng.normal(size=(3, 3)))
+        V, _ = np.linalg.qr(rng.normal(size=(3, 3)))
+        s = np.sort(10.0 ** rng.uniform(-log_cond, 0, 3))[::-1]
+        s[0], s[-1] = 1.0, 10.0 ** -log_cond
+        B = U @ np.diag(s) @ V.T
+        lo, hi = K.singular_values_3x3(*B.ravel())
+        ref = np.linalg.svd(B, compute_uv=False)
+        assert hi == pytest.approx(ref[0], rel=1e-13)
+        # one-sided Jacobi keeps relative accuracy of the smallest value
+        assert lo == pytest.approx(ref[-1], rel=1e-7 if log_cond >= 6 else 1e-10)
+
+
+def test_near_singular_wrist_against_reference():
+    """Tool axis nearly along the forearm (W1 -> 0): J_a nearly singular."""
+    q = np.array([0.0, 0.6, 1.2, 0.3, 1e-5])  # W1 = 1e-5 rad
+    p, k = R.pa10_tool_tip(q, LINKS, TOOL)
+    rcm = p - 0.1 * k  # RCM 0.1 m back along the tool
+    lo, hi, st = K.pose_singular_values(p[None, :], rcm, LINKS3, OFFSET, 1.0, QDOT, COSLIM)
+    s = R.scaled_singular_values(q, LINKS, TOOL, rcm, QDOT)
+    assert st[0] == K.STATUS_OK
+    assert 1 / s[0] < 1e-4 * (1 / s[-1])  # badly conditioned indeed
+    assert lo[0] == pytest.approx(1 / s[0], rel=1e-6)
+    assert hi[0] == pytest.approx(1 / s[-1], rel=1e-10)
+
+
+def test_exactly_singular_wrist_is_flagged_not_nan():
+    q = np.array([0.0, 0.6, 1.2, 0.3, 0.0])  # W1 = 0: E2 spins the tool about its own axis
+    p, k = R.pa10_tool_tip(q, LINKS, TOOL)
+    rcm = p - 0.1 * k
+    lo, hi, st = K.pose_singular_values(p[None, :], rcm, LINKS3, OFFSET, 1.0, QDOT, COSLIM)
+    assert st[0] == K.STATUS_SINGULAR
+    assert lo[0] == 0.0 and np.isfinite(hi[0])
+    assert global_isotropy_index(lo, hi)[0] == 0.0
+
+
+def test_candidates_extremes_equals_reference_gii():
+    cands = np.array([[0.535, 0, -0.21 + LINKS[0]], [0.26, 0, -0.14 + LINKS[0]], [0.9, 0, 0.3]])
+    off = R.workspace_cube(np.zeros(3), n=5)
+    lo, hi, n_unr, n_sing = K.rcm_candidates_extremes(cands, off, LINKS3, OFFSET, 1.0, QDOT, COSLIM)
+    for c, a, b, u in zip(cands, lo, hi, n_unr):
+        ref = R.rcm_candidate_gii(c, LINKS, TOOL, QDOT, LIM, n=5)
+        if ref is None:
+            assert u > 0
+        else:
+            assert u == 0
+            assert a / b == pytest.approx(ref, rel=1e-10)
+    assert n_unr[2] > 0
+
+
+def test_bounded_candidate_culls_and_completes():
+    c = np.array([0.535, 0, -0.21 + LINKS[0]])
+    off = R.workspace_cube(np.zeros(3), n=9)
+    full = K.rcm_candidate_bounded(c, off, LINKS3, OFFSET, 1.0, QDOT, COSLIM, 0.0, 16)
+    assert full[4] == off.shape[0]
+    gii = full[0] / full[1]
+    culled = K.rcm_candidate_bounded(c, off, LINKS3, OFFSET, 1.0, QDOT, COSLIM, gii * 1.5, 16)
+    assert culled[4] < off.shape[0]
+    assert culled[0] / culled[1] <= gii * 1.5
