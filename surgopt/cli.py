@@ -77,9 +77,9 @@ def rcm_grid(
 
 def _run_study_command(name, config, store, jobs, force, quiet, chunk_size, overrides=None):
     from surgopt.errors import SurgoptError
-    from surgopt.runner import configure_numba_cache
+    from surgopt.runner import configure_numba
 
-    configure_numba_cache()
+    configure_numba()
     try:
         from surgopt.store import Store
         from surgopt.studies import get_study

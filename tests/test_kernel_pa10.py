@@ -110,7 +110,8 @@ def test_elbow_down_branch_matches_reference():
 @pytest.mark.parametrize("log_cond", [0, 2, 4, 6, 8])
 def test_singular_values_3x3_against_lapack(log_cond):
     rng = np.random.default_rng(14 + log_cond)
-    for _ in range(200):
+    eps = np.finfo(float).eps
+    for _ in range(300):
         U, _ = np.linalg.qr(rng.normal(size=(3, 3)))
         V, _ = np.linalg.qr(rng.normal(size=(3, 3)))
         s = np.sort(10.0 ** rng.uniform(-log_cond, 0, 3))[::-1]
@@ -118,9 +119,37 @@ def test_singular_values_3x3_against_lapack(log_cond):
         B = U @ np.diag(s) @ V.T
         lo, hi = K.singular_values_3x3(*B.ravel())
         ref = np.linalg.svd(B, compute_uv=False)
-        assert hi == pytest.approx(ref[0], rel=1e-13)
-        # one-sided Jacobi keeps relative accuracy of the smallest value
-        assert lo == pytest.approx(ref[-1], rel=1e-7 if log_cond >= 6 else 1e-10)
+        assert hi == pytest.approx(ref[0], rel=1e-14)
+        # sigma_min = |det B| / (sigma_1 sigma_2): error ~ eps sigma_1^2 / sigma_2 absolute,
+        # i.e. relative eps * cond when only sigma_3 is small. (B^T B would give
+        # sqrt(eps) sigma_1 absolute: no digits at all at cond 1e8.)
+        assert abs(lo - ref[-1]) <= 1e-12 * ref[-1] + 16 * eps * ref[0] ** 2 / ref[1]
+
+
+def test_singular_values_3x3_special_cases():
+    # isotropic (triple singular value), rank one, zero, diagonal
+    Q, _ = np.linalg.qr(np.random.default_rng(5).normal(size=(3, 3)))
+    assert np.allclose(K.singular_values_3x3(*(2.5 * Q).ravel()), (2.5, 2.5), rtol=1e-14)
+    assert K.singular_values_3x3(*np.outer([1, 2, 3], [0, 1, 1]).ravel())[0] == 0.0
+    assert K.singular_values_3x3(*np.zeros(9)) == (0.0, 0.0)
+    lo, hi = K.singular_values_3x3(*np.diag([3.0, -0.5, 2.0]).ravel())
+    assert (lo, hi) == (pytest.approx(0.5, rel=1e-15), pytest.approx(3.0, rel=1e-15))
+
+
+def test_cos_third_acos_and_lambda_max():
+    x = np.linspace(-1, 1, 20001)
+    g = np.array([K.cos_third_acos(v) for v in x[::50]])
+    assert np.allclose(g, np.cos(np.arccos(x[::50]) / 3), rtol=1e-14, atol=0)
+    rng = np.random.default_rng(6)
+    for _ in range(200):
+        M = rng.normal(size=(3, 3))
+        S = M @ M.T
+        lam = K.sym3_lambda_max(S[0, 0], S[1, 1], S[2, 2], S[0, 1], S[0, 2], S[1, 2])
+        assert lam == pytest.approx(np.linalg.eigvalsh(S)[-1], rel=1e-13)
+    # a double largest eigenvalue (x -> -1, the hardest case for the series)
+    Q, _ = np.linalg.qr(rng.normal(size=(3, 3)))
+    S = Q @ np.diag([2.0, 2.0, 0.5]) @ Q.T
+    assert K.sym3_lambda_max(S[0, 0], S[1, 1], S[2, 2], S[0, 1], S[0, 2], S[1, 2]) == pytest.approx(2.0, rel=1e-13)
 
 
 def test_near_singular_wrist_against_reference():

@@ -44,57 +44,114 @@ def _cross(ax, ay, az, bx, by, bz):
     return ay * bz - az * by, az * bx - ax * bz, ax * by - ay * bx
 
 
-@njit(inline="always", **_JIT)
-def _jacobi_rotate(ax, ay, az, bx, by, bz):
-    """One Hestenes rotation making columns a, b orthogonal (branch-free).
+#: Chebyshev coefficients (in t = 2 s - 1, s = sqrt((1 + x) / 2)) of
+#: g(x) = cos(acos(x) / 3), the largest root of 4 g^3 - 3 g = x. g is analytic
+#: in s on [0, 1], so degree 16 reaches 4e-15 relative (least squares on 2000
+#: Chebyshev nodes against a long-double reference; tests re-check it).
+TRISECT_CHEB = (
+    0.7580911654351291,
+    0.24933602102708852,
+    -0.008021174548795217,
+    0.000655646818891204,
+    -6.892435632794781e-05,
+    8.188877173085825e-06,
+    -1.0466055459885706e-06,
+    1.4043322844539394e-07,
+    -1.9510326148143444e-08,
+    2.7823203915058586e-09,
+    -4.0493900533214715e-10,
+    5.990385568903754e-11,
+    -8.980916694323932e-12,
+    1.361526646093866e-12,
+    -2.0836966865110964e-13,
+    3.21376588840264e-14,
+    -4.917209605306292e-15,
+)
 
-    With d = |b|^2 - |a|^2, g = a.b, rho = sqrt(d^2 + 4 g^2) the rotation
-    angle has cos = (rho + |d|) / w and sin = 2 g sign(d) / w,
-    w = sqrt(2 rho (rho + |d|)): two square roots and one division, the
-    cheapest form we found (this loop is bound by the divide/sqrt unit).
+
+@njit(inline="always", **_JIT)
+def cos_third_acos(x):
+    """cos(acos(x) / 3) for x in [-1, 1] without trigonometric calls (vectorisable)."""
+    s = np.sqrt(0.5 * (1.0 + x))
+    t = 2.0 * s - 1.0
+    # Clenshaw recurrence, written out so that the caller's loop vectorises
+    c = TRISECT_CHEB
+    t2 = 2.0 * t
+    b1 = c[16]
+    b2 = 0.0
+    b1, b2 = t2 * b1 - b2 + c[15], b1
+    b1, b2 = t2 * b1 - b2 + c[14], b1
+    b1, b2 = t2 * b1 - b2 + c[13], b1
+    b1, b2 = t2 * b1 - b2 + c[12], b1
+    b1, b2 = t2 * b1 - b2 + c[11], b1
+    b1, b2 = t2 * b1 - b2 + c[10], b1
+    b1, b2 = t2 * b1 - b2 + c[9], b1
+    b1, b2 = t2 * b1 - b2 + c[8], b1
+    b1, b2 = t2 * b1 - b2 + c[7], b1
+    b1, b2 = t2 * b1 - b2 + c[6], b1
+    b1, b2 = t2 * b1 - b2 + c[5], b1
+    b1, b2 = t2 * b1 - b2 + c[4], b1
+    b1, b2 = t2 * b1 - b2 + c[3], b1
+    b1, b2 = t2 * b1 - b2 + c[2], b1
+    b1, b2 = t2 * b1 - b2 + c[1], b1
+    return t * b1 - b2 + c[0]
+
+
+@njit(inline="always", **_JIT)
+def sym3_lambda_max(a00, a11, a22, a01, a02, a12):
+    """Largest eigenvalue of a symmetric 3x3 matrix, closed form.
+
+    lambda_max = m + 2 sqrt(p) cos(acos(q / p^1.5) / 3) with m = tr / 3,
+    p = ||A - m I||_F^2 / 6, q = det(A - m I) / 2 (Smith 1961). Every term is
+    non-negative for the largest root, so there is no cancellation: relative
+    accuracy ~1e-15 even for repeated eigenvalues.
     """
-    alpha = ax * ax + ay * ay + az * az
-    beta = bx * bx + by * by + bz * bz
-    gamma = ax * bx + ay * by + az * bz
-    d = beta - alpha
-    ad = abs(d)
-    rho = np.sqrt(d * d + 4.0 * gamma * gamma)
-    w2 = 2.0 * rho * (rho + ad)
-    iw = 1.0 / np.sqrt(w2 + TINY)
-    c = (rho + ad) * iw if w2 > 0.0 else 1.0
-    s = 2.0 * gamma * iw if d >= 0.0 else -2.0 * gamma * iw
-    return (c * ax - s * bx, c * ay - s * by, c * az - s * bz,
-            s * ax + c * bx, s * ay + c * by, s * az + c * bz)
-
-
-@njit(inline="always", **_JIT)
-def _jacobi_sweep(a):
-    """One cyclic sweep (pairs 01, 02, 12) over the columns of a 3x3 matrix."""
-    ax, ay, az, bx, by, bz, cx, cy, cz = a
-    ax, ay, az, bx, by, bz = _jacobi_rotate(ax, ay, az, bx, by, bz)
-    ax, ay, az, cx, cy, cz = _jacobi_rotate(ax, ay, az, cx, cy, cz)
-    bx, by, bz, cx, cy, cz = _jacobi_rotate(bx, by, bz, cx, cy, cz)
-    return ax, ay, az, bx, by, bz, cx, cy, cz
+    m = (a00 + a11 + a22) * (1.0 / 3.0)
+    b00, b11, b22 = a00 - m, a11 - m, a22 - m
+    p = (b00 * b00 + b11 * b11 + b22 * b22 + 2.0 * (a01 * a01 + a02 * a02 + a12 * a12)) * (1.0 / 6.0)
+    q = 0.5 * (b00 * (b11 * b22 - a12 * a12) - a01 * (a01 * b22 - a12 * a02) + a02 * (a01 * a12 - b11 * a02))
+    sp = np.sqrt(p)
+    x = q / (p * sp + TINY)
+    x = min(1.0, max(-1.0, x))
+    return m + 2.0 * sp * cos_third_acos(x)
 
 
 @njit(inline="always", **_JIT)
 def singular_values_3x3(b00, b01, b02, b10, b11, b12, b20, b21, b22):
-    """Extreme singular values (min, max) of a 3x3 matrix by one-sided Jacobi.
+    """Extreme singular values (min, max) of a 3x3 matrix B, closed form.
 
-    Orthogonal rotations only, so small singular values keep their relative
-    accuracy (no squaring of the condition number as through B^T B).
-    Columns are (b00, b10, b20), (b01, b11, b21), (b02, b12, b22).
+    sigma_max^2 = lambda_max(B^T B). sigma_min = |det B| / sigma_max(cof B),
+    since the cofactor matrix has singular values sigma_i sigma_j and its
+    largest is sigma_1 sigma_2. Cofactors and the determinant are formed
+    from B itself, so sigma_min keeps a relative accuracy ~eps * cond(B)
+    (the Gram route B^T B alone would give eps * cond(B)^2). Five square
+    roots and two divisions, no iteration (the Jacobi SVD this replaced
+    spent 70% of the kernel's time).
     """
-    a = (b00, b10, b20, b01, b11, b21, b02, b12, b22)
-    # Four cyclic sweeps: relative error vs LAPACK <= 1e-11 for random
-    # matrices, ~1e-8 in sigma_min at condition 1e8 (tests/test_kernel_pa10.py). Written out: LLVM does not
-    # unroll a loop this large, and an inner loop stops the caller vectorising.
-    a = _jacobi_sweep(_jacobi_sweep(_jacobi_sweep(_jacobi_sweep(a))))
-    ax, ay, az, bx, by, bz, cx, cy, cz = a
-    na = ax * ax + ay * ay + az * az
-    nb = bx * bx + by * by + bz * bz
-    nc = cx * cx + cy * cy + cz * cz
-    return np.sqrt(min(na, min(nb, nc))), np.sqrt(max(na, max(nb, nc)))
+    smax2 = sym3_lambda_max(b00 * b00 + b10 * b10 + b20 * b20,
+                            b01 * b01 + b11 * b11 + b21 * b21,
+                            b02 * b02 + b12 * b12 + b22 * b22,
+                            b00 * b01 + b10 * b11 + b20 * b21,
+                            b00 * b02 + b10 * b12 + b20 * b22,
+                            b01 * b02 + b11 * b12 + b21 * b22)
+    c00 = b11 * b22 - b12 * b21
+    c01 = b12 * b20 - b10 * b22
+    c02 = b10 * b21 - b11 * b20
+    c10 = b02 * b21 - b01 * b22
+    c11 = b00 * b22 - b02 * b20
+    c12 = b01 * b20 - b00 * b21
+    c20 = b01 * b12 - b02 * b11
+    c21 = b02 * b10 - b00 * b12
+    c22 = b00 * b11 - b01 * b10
+    det = b00 * c00 + b01 * c01 + b02 * c02
+    cmax2 = sym3_lambda_max(c00 * c00 + c10 * c10 + c20 * c20,
+                            c01 * c01 + c11 * c11 + c21 * c21,
+                            c02 * c02 + c12 * c12 + c22 * c22,
+                            c00 * c01 + c10 * c11 + c20 * c21,
+                            c00 * c02 + c10 * c12 + c20 * c22,
+                            c01 * c02 + c11 * c12 + c21 * c22)
+    smin = abs(det) / (np.sqrt(cmax2) + TINY)
+    return smin, np.sqrt(smax2)
 
 
 @njit(inline="always", **_JIT)
@@ -163,16 +220,13 @@ def constrained_extremes(c0, c1, c2, c3, c4):
 
 
 @njit(inline="always", **_JIT)
-def rcm_pose_jacobian(
-    px, py, pz, cx, cy, cz, d1, d3, d5, tool_offset_m, elbow_sign,
-    q0, q1, q2, q3, q4, cl0, cl1, cl2, cl3, cl4,
-):
-    """Closed-form IK (eq. 9) and the columns of A = J_a Q (eq. 8) at one pose.
+def rcm_ik(px, py, pz, cx, cy, cz, d1, d3, d5, tool_offset_m, elbow_sign, cl0, cl1, cl2, cl3, cl4):
+    """Closed-form IK with the tool axis through the RCM (eq. 9), as geometry.
 
-    Tip p, RCM c (m). ``q0..q4`` are the maximum speeds (rad/s) of S1, S2,
-    E1, E2, W1 (use 1 for the unscaled J_a) and ``cl0..cl4`` cos(min(limit,
-    pi)) of their joint limits. Returns the five columns (5-tuples) and
-    whether the pose is reachable within the joint limits.
+    Tip p, RCM c (m); ``cl0..cl4`` are cos(min(limit, pi)) of the S1, S2,
+    E1, E2, W1 joint limits. Returns the tool axis k, wrist centre w, S2/E1
+    axis n, elbow e, forearm direction f (each as 3 scalars) and whether the
+    pose is reachable within the joint limits (S3 = W2 = 0, Sec. III-C).
     """
     # tool axis from RCM to tip (eq. 9) and the wrist centre
     kx, ky, kz = px - cx, py - cy, pz - cz
@@ -195,10 +249,6 @@ def rcm_pose_jacobian(
     ex, ey, ez = d3 * ax_, d3 * ay_, d1 + d3 * az_
     id5 = 1.0 / d5
     fx, fy, fz = (wx - ex) * id5, (wy - ey) * id5, (wz - ez) * id5
-    # W1 axis m = f x k / |f x k|
-    mx, my, mz = _cross(fx, fy, fz, kx, ky, kz)
-    il = 1.0 / (np.sqrt(mx * mx + my * my + mz * mz) + TINY)
-    mx, my, mz = mx * il, my * il, mz * il
     # joint limits as cosine tests: S1 atan2(wy,wx), S2 tilt of a, E1 a.f,
     # E2 atan2(k.n, k.(n x f)), W1 acos(k.f)
     bx, by, bz = _cross(nx, ny, nz, fx, fy, fz)
@@ -208,6 +258,26 @@ def rcm_pose_jacobian(
     ok = ((abs(cos_a) <= 1.0) & (wx >= cl0 * r) & (az_ >= cl1)
           & (ax_ * fx + ay_ * fy + az_ * fz >= cl2)
           & (k4x >= cl3 * np.sqrt(k4x * k4x + k4y * k4y)) & (k4z >= cl4))
+    return kx, ky, kz, wx, wy, wz, nx, ny, nz, ex, ey, ez, fx, fy, fz, ok
+
+
+@njit(inline="always", **_JIT)
+def rcm_pose_jacobian(
+    px, py, pz, cx, cy, cz, d1, d3, d5, tool_offset_m, elbow_sign,
+    q0, q1, q2, q3, q4, cl0, cl1, cl2, cl3, cl4,
+):
+    """Closed-form IK (eq. 9) and the columns of A = J_a Q (eq. 8) at one pose.
+
+    Arguments as ``rcm_ik``; ``q0..q4`` are the maximum speeds (rad/s) of S1,
+    S2, E1, E2, W1 (1 for the unscaled J_a). Returns the five columns
+    (5-tuples) and whether the pose is reachable within the joint limits.
+    """
+    kx, ky, kz, wx, wy, wz, nx, ny, nz, ex, ey, ez, fx, fy, fz, ok = rcm_ik(
+        px, py, pz, cx, cy, cz, d1, d3, d5, tool_offset_m, elbow_sign, cl0, cl1, cl2, cl3, cl4)
+    # W1 axis m = f x k / |f x k|
+    mx, my, mz = _cross(fx, fy, fz, kx, ky, kz)
+    il = 1.0 / (np.sqrt(mx * mx + my * my + mz * mz) + TINY)
+    mx, my, mz = mx * il, my * il, mz * il
     ikz = 1.0 / kz
     return (
         _jacobian_column(0.0, 0.0, 1.0, 0.0, 0.0, d1, px, py, pz, cx, cy, cz, kx, ky, kz, ikz, q0),
@@ -284,6 +354,18 @@ def _workspace_poses(cx, cy, cz, ox, oy, oz, d1, d3, d5, tool_offset_m, elbow_si
 
 
 @njit(**_JIT)
+def _count_unreachable(cx, cy, cz, ox, oy, oz, d1, d3, d5, tool_offset_m, elbow_sign,
+                       c0, c1, c2, c3, c4):
+    """Number of workspace points the IK cannot reach within the joint limits."""
+    n = 0
+    for j in range(ox.shape[0]):
+        ok = rcm_ik(cx + ox[j], cy + oy[j], cz + oz[j], cx, cy, cz,
+                    d1, d3, d5, tool_offset_m, elbow_sign, c0, c1, c2, c3, c4)[15]
+        n += not ok
+    return n
+
+
+@njit(**_JIT)
 def _reduce_extremes(smin, smax, status, n):
     lo = np.inf
     hi = 0.0
@@ -304,7 +386,9 @@ def rcm_candidates_extremes(rcms, offsets, links_m, tool_offset_m, elbow_sign, q
     ``rcms`` (M, 3) candidate RCMs, ``offsets`` (P, 3) workspace points
     relative to the RCM, ``links_m`` (d1, d3, d5). Returns (sigma_min (M,),
     sigma_max (M,), n_unreachable (M,), n_singular (M,)); the GII (eq. 7) is
-    sigma_min / sigma_max when n_unreachable == 0.
+    sigma_min / sigma_max when n_unreachable == 0. Reachability is checked
+    first (IK only, a fifth of the cost); an infeasible candidate gets
+    sigma = 0 and n_singular = 0 without evaluating its Jacobians.
     """
     m = rcms.shape[0]
     p = offsets.shape[0]
@@ -319,6 +403,12 @@ def rcm_candidates_extremes(rcms, offsets, links_m, tool_offset_m, elbow_sign, q
     smax = np.empty(p)
     status = np.empty(p, np.int64)
     for i in range(m):
+        n_unr = _count_unreachable(rcms[i, 0], rcms[i, 1], rcms[i, 2], ox, oy, oz,
+                                   links_m[0], links_m[1], links_m[2], tool_offset_m, elbow_sign,
+                                   cos_limit[0], cos_limit[1], cos_limit[2], cos_limit[3], cos_limit[4])
+        if n_unr > 0:
+            out_min[i], out_max[i], out_unr[i], out_sing[i] = 0.0, 0.0, n_unr, 0
+            continue
         _workspace_poses(rcms[i, 0], rcms[i, 1], rcms[i, 2], ox, oy, oz,
                          links_m[0], links_m[1], links_m[2], tool_offset_m, elbow_sign,
                          qdot_max[0], qdot_max[1], qdot_max[2], qdot_max[3], qdot_max[4],
