@@ -198,3 +198,28 @@ def test_bounded_candidate_culls_and_completes():
     culled = K.rcm_candidate_bounded(c, off, LINKS3, OFFSET, 1.0, QDOT, COSLIM, gii * 1.5, 16)
     assert culled[4] < off.shape[0]
     assert culled[0] / culled[1] <= gii * 1.5
+
+
+def test_kernel_ik_round_trip_through_reference_fk():
+    """Random joint angles (elbow up, within limits) -> reference FK -> kernel IK geometry."""
+    rng = np.random.default_rng(15)
+    n = 0
+    while n < 200:
+        q = np.array([rng.uniform(-1.5, 1.5), rng.uniform(-1.5, 1.5), rng.uniform(0.05, 2.3),
+                      rng.uniform(-3, 3), rng.uniform(0.05, 2.8)])
+        frames = R.pa10_frames(np.array([q[0], q[1], 0, q[2], q[3], q[4], 0]), LINKS)
+        p, k = R.pa10_tool_tip(q, LINKS, TOOL)
+        if k[2] > -0.05:  # the skin-plane RCM error needs a tool that crosses the skin plane
+            continue
+        w_ref = frames[5][:3, 3]
+        if w_ref[0] * np.cos(q[0]) + w_ref[1] * np.sin(q[0]) <= 0.01:
+            continue  # the other shoulder branch (S1 + pi, S2 and E1 negated): not the one we solve for
+        rcm = p - 0.12 * k
+        out = K.rcm_ik(*p, *rcm, *LINKS3, OFFSET, 1.0, *COSLIM)
+        kk, w, nn, e, f, ok = out[0:3], out[3:6], out[6:9], out[9:12], out[12:15], out[15]
+        assert np.allclose(kk, k, atol=1e-12)
+        assert np.allclose(w, frames[5][:3, 3], atol=1e-12)  # wrist centre
+        assert np.allclose(e, frames[3][:3, 3], atol=1e-12)  # elbow
+        assert np.allclose(abs(np.dot(nn, frames[1][:3, 2])), 1.0)  # S2 axis
+        assert ok == bool(np.all(np.abs(q) <= LIM))
+        n += 1
