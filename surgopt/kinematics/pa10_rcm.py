@@ -117,6 +117,17 @@ def sym3_lambda_max(a00, a11, a22, a01, a02, a12):
 
 
 @njit(inline="always", **_JIT)
+def gram_lambda_max(b00, b01, b02, b10, b11, b12, b20, b21, b22):
+    """Largest eigenvalue of B^T B, i.e. sigma_max(B)^2, for a 3x3 B."""
+    return sym3_lambda_max(b00 * b00 + b10 * b10 + b20 * b20,
+                           b01 * b01 + b11 * b11 + b21 * b21,
+                           b02 * b02 + b12 * b12 + b22 * b22,
+                           b00 * b01 + b10 * b11 + b20 * b21,
+                           b00 * b02 + b10 * b12 + b20 * b22,
+                           b01 * b02 + b11 * b12 + b21 * b22)
+
+
+@njit(inline="always", **_JIT)
 def singular_values_3x3(b00, b01, b02, b10, b11, b12, b20, b21, b22):
     """Extreme singular values (min, max) of a 3x3 matrix B, closed form.
 
@@ -128,12 +139,7 @@ def singular_values_3x3(b00, b01, b02, b10, b11, b12, b20, b21, b22):
     roots and two divisions, no iteration (the Jacobi SVD this replaced
     spent 70% of the kernel's time).
     """
-    smax2 = sym3_lambda_max(b00 * b00 + b10 * b10 + b20 * b20,
-                            b01 * b01 + b11 * b11 + b21 * b21,
-                            b02 * b02 + b12 * b12 + b22 * b22,
-                            b00 * b01 + b10 * b11 + b20 * b21,
-                            b00 * b02 + b10 * b12 + b20 * b22,
-                            b01 * b02 + b11 * b12 + b21 * b22)
+    smax2 = gram_lambda_max(b00, b01, b02, b10, b11, b12, b20, b21, b22)
     c00 = b11 * b22 - b12 * b21
     c01 = b12 * b20 - b10 * b22
     c02 = b10 * b21 - b11 * b20
@@ -144,12 +150,7 @@ def singular_values_3x3(b00, b01, b02, b10, b11, b12, b20, b21, b22):
     c21 = b02 * b10 - b00 * b12
     c22 = b00 * b11 - b01 * b10
     det = b00 * c00 + b01 * c01 + b02 * c02
-    cmax2 = sym3_lambda_max(c00 * c00 + c10 * c10 + c20 * c20,
-                            c01 * c01 + c11 * c11 + c21 * c21,
-                            c02 * c02 + c12 * c12 + c22 * c22,
-                            c00 * c01 + c10 * c11 + c20 * c21,
-                            c00 * c02 + c10 * c12 + c20 * c22,
-                            c01 * c02 + c11 * c12 + c21 * c22)
+    cmax2 = gram_lambda_max(c00, c01, c02, c10, c11, c12, c20, c21, c22)
     smin = abs(det) / (np.sqrt(cmax2) + TINY)
     return smin, np.sqrt(smax2)
 
