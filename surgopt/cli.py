@@ -75,6 +75,28 @@ def rcm_grid(
                        overrides={"search": "cull"} if cull else None)
 
 
+@app.command("suture-sim")
+def suture_sim(
+    config: Annotated[Optional[Path], typer.Argument(
+        help="TOML or YAML config. Without it: the paper's suturing simulation (W1 and W2, 550 and 800 mm "
+             "arms, 6 mm half circle at 0.5 mm/s, dt 0.01 s).", show_default=False)] = None,
+    store: StoreOpt = None,
+    jobs: JobsOpt = 2,
+    force: ForceOpt = False,
+    quiet: QuietOpt = False,
+) -> None:
+    """Suturing with one arm of the two-armed throat robot (Wei, Xu & Simaan: eqs. 2-32, Figs. 6-7).
+
+    Five-bar, Z-theta stage through the laryngoscope fulcrum, two constant-curvature snake segments:
+    8 inputs for the 6-DoF gripper pose. Each time step takes a weighted least-norm step
+    dq = W^-1 J^T (J W^-1 J^T)^-1 dx (eq. 32) with closed-loop correction. Every combination of weight
+    set, arm length, fulcrum position, task mode (spin | orbit_parallel | orbit_tangent), radius and
+    speed is one run. Rows: run settings, step, t_s, q1_rad..q8_rad (q3 in mm), q1_norm..q8_norm
+    (|q_i / q_imax|), pos_err_mm, rot_err_deg. Ends with the joint ranges of the weight sets side by side.
+    """
+    _run_study_command("suture-sim", config, store, jobs, force, quiet, None)
+
+
 def _run_study_command(name, config, store, jobs, force, quiet, chunk_size, overrides=None):
     from surgopt.errors import SurgoptError
     from surgopt.runner import configure_numba
@@ -119,6 +141,13 @@ def _report(study, result) -> None:
     t.add_row("time_s", f"{result.elapsed_s:.2f}")
     t.add_row("store", f"{run.path}")
     console.print(t)
+    for title, header, rows in study.tables(result.table):
+        extra = Table(title=title)
+        for h in header:
+            extra.add_column(h, justify="right" if h != header[0] else "left")
+        for r in rows:
+            extra.add_row(*r)
+        console.print(extra)
 
 
 @app.command("runs")

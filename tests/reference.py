@@ -155,3 +155,103 @@ def rcm_candidate_gii(rcm, links, tool_m, qdot_max, limits_rad, n=17, elbow_up=T
         smins.append(s[-1])
         smaxs.append(s[0])
     return global_isotropy_index(smins, smaxs)
+
+
+# ---------------------------------------------------------------------------
+# Throat-robot arm (Wei, Xu & Simaan)
+# ---------------------------------------------------------------------------
+
+
+def rz(a):
+    c, s = np.cos(a), np.sin(a)
+    return np.array([[c, -s, 0], [s, c, 0], [0, 0, 1.0]])
+
+
+def ry(a):
+    c, s = np.cos(a), np.sin(a)
+    return np.array([[c, 0, s], [0, 1.0, 0], [-s, 0, c]])
+
+
+def five_bar_point_c(q1, q2, links, branch=1.0):
+    """Five-bar: D, B, C by the law of cosines at D (angles, not the kernel's chord construction)."""
+    l1, l2, l3, l4, l5, l6 = links
+    D = np.array([l5 * np.sin(q1), l5 * np.cos(q1) - l1 / 2])
+    B = np.array([l2 * np.sin(q2), l2 * np.cos(q2) + l1 / 2])
+    db = B - D
+    d = np.hypot(*db)
+    gamma = np.arccos((l4 ** 2 + d ** 2 - l3 ** 2) / (2 * l4 * d))  # angle at D between DB and DC
+    heading = np.arctan2(db[1], db[0]) + branch * gamma
+    C = D + l4 * np.array([np.cos(heading), np.sin(heading)])
+    return D, B, C
+
+
+def five_bar_end(q1, q2, links, branch=1.0):
+    D, B, C = five_bar_point_c(q1, q2, links, branch)
+    u = (C - B) / links[2]
+    return B + links[5] * u, u
+
+
+def segment_by_quadrature(theta_l, delta, length, n=4001):
+    """Tip of a constant-curvature segment by integrating cos/sin of theta(s) numerically (eq. 10)."""
+    s = np.linspace(0, length, n)
+    theta = np.pi / 2 + (theta_l - np.pi / 2) * s / length
+    w = np.full(n, 2.0)
+    w[1:-1:2] = 4.0
+    w[0] = w[-1] = 1.0
+    h = length / (n - 1)
+    x = h / 3 * np.sum(w * np.cos(theta))
+    z = h / 3 * np.sum(w * np.sin(theta))
+    p = rz(-delta) @ np.array([x, 0, z])
+    R = rz(-delta) @ ry(np.pi / 2 - theta_l) @ rz(delta)
+    return p, R
+
+
+def throat_fk(q, links, arm_length, slu, pmu, fulcrum, branch=1.0):
+    """Platform pose by composing homogeneous transforms (eqs. 2-13)."""
+    P_U, u = five_bar_end(q[0], q[1], links, branch)
+    PU = np.array([P_U[0], P_U[1], 0.0])
+    xt = np.array([u[0], u[1], 0.0])
+    z = (fulcrum - PU) / np.linalg.norm(fulcrum - PU)
+    y = np.cross(z, xt)
+    y /= np.linalg.norm(y)
+    x = np.cross(y, z)
+    T = np.eye(4)
+    T[:3, :3] = np.column_stack([x, y, z])
+    T[:3, 3] = PU
+    Tz = np.eye(4)
+    Tz[:3, :3] = rz(q[3])
+    Tz[2, 3] = arm_length + q[2]
+    T = T @ Tz
+    for th, de, L in ((q[4], q[5], slu), (q[6], q[7], pmu)):
+        p, R = segment_by_quadrature(th, de, L)
+        Ts = np.eye(4)
+        Ts[:3, :3] = R
+        Ts[:3, 3] = p
+        T = T @ Ts
+    return T[:3, 3], T[:3, :3]
+
+
+def throat_jacobian_fd(q, *args, h=1e-6):
+    """6x8 Jacobian (v, omega in the world) by central differences of throat_fk."""
+    p0, R0 = throat_fk(q, *args)
+    J = np.zeros((6, 8))
+    for j in range(8):
+        e = np.zeros(8)
+        e[j] = h
+        pp, Rp = throat_fk(q + e, *args)
+        pm, Rm = throat_fk(q - e, *args)
+        J[:3, j] = (pp - pm) / (2 * h)
+        W = (Rp - Rm) / (2 * h) @ R0.T
+        J[3:, j] = [W[2, 1], W[0, 2], W[1, 0]]
+    return J
+
+
+def weighted_least_norm_kkt(J, w, dx):
+    """min dq^T W dq s.t. J dq = dx, solved as the KKT system [[W, J^T], [J, 0]]."""
+    n, m = J.shape[1], J.shape[0]
+    K = np.zeros((n + m, n + m))
+    K[:n, :n] = np.diag(w)
+    K[:n, n:] = J.T
+    K[n:, :n] = J
+    rhs = np.concatenate([np.zeros(n), dx])
+    return np.linalg.solve(K, rhs)[:n]

@@ -343,8 +343,10 @@ def suture_run(q0, geo, w_diag, mode, radius_mm, speed_mm_s, arc_rad, dt_s, gain
 
     Each step asks for dx = (x_d(t+dt) - x_d(t)) + gain (x_d(t) - x(q)), the
     rotational part as rotation vectors, so tracking errors do not drift.
-    Returns t (N+1), q (N+1, 8), position error (mm) and orientation error
-    (deg) after each step. N = round(arc * radius / (speed * dt)).
+    Returns t, q (rows, 8), position error (mm) and orientation error (deg)
+    after each step, N + 1 rows with N = round(arc * radius / (speed * dt)),
+    fewer if a step became non-finite (J W^-1 J^T singular: use damping > 0);
+    the rows stop before that step, so nothing returned is NaN.
     """
     omega = speed_mm_s / radius_mm
     n = int(np.round(arc_rad / omega / dt_s))
@@ -362,7 +364,10 @@ def suture_run(q0, geo, w_diag, mode, radius_mm, speed_mm_s, arc_rad, dt_s, gain
         dx = np.empty(6)
         dx[:3] = (pn - pd) + gain * (pd - p)
         dx[3:] = rotation_vector(_mm(Rn, Rd.T)) + gain * rotation_vector(_mm(Rd, R.T))
-        q = q + weighted_least_norm_step(jacobian(q, geo), w_diag, dx, damping)
+        dq = weighted_least_norm_step(jacobian(q, geo), w_diag, dx, damping)
+        if not np.all(np.isfinite(dq)):
+            return t[:k + 1], qs[:k + 1], pos_err[:k + 1], rot_err[:k + 1]
+        q = q + dq
         qs[k + 1] = q
         pd, Rd = pn, Rn
         p, R = forward_kinematics(q, geo)

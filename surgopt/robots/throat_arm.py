@@ -29,7 +29,8 @@ Not given by the paper, chosen here (docs/reproduction.md says why):
     before the holder tip (the seal near the laryngoscope's distal end);
     ``fulcrum_to_tip_mm`` moves it.
   - joint ranges |q_i| <= q_imax: q1, q2 pi rad (rotary actuators),
-    q3 100 mm (stage stroke), q4 pi rad, theta_L and phi_L' in [0, pi]
+    q3 100 mm (stage stroke), q4 2 pi rad (the stage turns the holder a
+    full turn either way), theta_L and phi_L' in [0, pi]
     (bends up to +-90 deg, so |q/q_max| = 0.5 when straight), delta and
     psi pi rad.
 """
@@ -46,4 +47,4 @@ SLU_LENGTH_MM = 25.0
 PMU_LENGTH_MM = 12.0
 FULCRUM_TO_TIP_MM = 150.0
 START_POSE = (1.4522, 2.4707, 50.0, 0.0, math.pi / 2, -math.pi / 3, 0.0, -math.pi / 3)
-Q_MAX = (math.pi, math.pi, 100.0, math.pi, math.pi, math.pi, math.pi, math.pi)
+Q_MAX = (math.pi, math.pi, 100.0, 2 * math.pi, math.pi, math.pi, math.pi, math.pi)

@@ -4,13 +4,14 @@ A study module provides:
   NAME, KERNEL_VERSION, Config (pydantic model), DEFAULT_CONFIG (file name in
   surgopt/defaults), SCHEMA (pyarrow schema, built lazily by ``schema()``),
   ``n_tasks(cfg, chunk)``, ``warm_up(cfg)``, ``compute_task(cfg, chunk, i)`` ->
-  dict of numpy columns, and ``summarize(table)``.
+  dict of numpy columns, ``summarize(table)`` -> dict and ``tables(table)`` ->
+  [(title, header, rows)] for the command's closing report.
 """
 from __future__ import annotations
 
 import importlib
 
-STUDIES = {"rcm-grid": "surgopt.studies.rcm_grid"}
+STUDIES = {"rcm-grid": "surgopt.studies.rcm_grid", "suture-sim": "surgopt.studies.suture_sim"}
 
 
 def get_study(name: str):

@@ -303,3 +303,14 @@ def summarize(table) -> dict:
     row = {k: exact[k][i].as_py() for k in ("x_rcm_m", "z_rcm_m", "gii")}
     return {"candidates": n, "feasible": feasible, "best_x_rcm_m": row["x_rcm_m"],
             "best_z_rcm_m": row["z_rcm_m"], "best_gii": row["gii"]}
+
+
+def tables(table) -> list[tuple[str, list[str], list[list[str]]]]:
+    """The five best candidates whose GII is exact."""
+    import pyarrow.compute as pc
+
+    exact = table.filter(table["gii_is_exact"])
+    top = exact.take(pc.sort_indices(exact["gii"], sort_keys=[("gii", "descending")])[:5])
+    rows = [[f"{x:.3f}", f"{z:.3f}", f"{g:.5f}"] for x, z, g in
+            zip(top["x_rcm_m"].to_pylist(), top["z_rcm_m"].to_pylist(), top["gii"].to_pylist())]
+    return [("best RCM candidates", ["x_rcm_m", "z_rcm_m", "gii"], rows)]

@@ -1,0 +1,249 @@
+"""Study ``suture-sim``: one throat-robot arm suturing with weighted least-norm redundancy resolution.
+
+Wei, Xu & Simaan (throat slave): the 8 inputs [q1, q2, q3, q4, theta_L,
+delta, phi_L', psi] drive the 6-DoF gripper pose (eq. 30); eq. 32 resolves
+the redundancy with a diagonal weight W. Every combination of weight set,
+snake-arm length, fulcrum position, task mode, suture radius and speed is one
+run (one task); rows are the time steps of every run.
+"""
+from __future__ import annotations
+
+import itertools
+import math
+from typing import Annotated, Literal
+
+import numpy as np
+from pydantic import Field, model_validator
+
+from surgopt.config import StrictModel
+from surgopt.robots import throat_arm as arm
+
+NAME = "suture-sim"
+KERNEL_VERSION = "throat-1"
+DEFAULT_CONFIG = "suture_wei_xu_simaan.toml"
+DEFAULT_CHUNK = 1  # one run per task
+
+MODES = ("spin", "orbit_parallel", "orbit_tangent")
+JOINT_COLUMNS = ("q1_rad", "q2_rad", "q3_mm", "q4_rad", "q5_rad", "q6_rad", "q7_rad", "q8_rad")
+NORM_COLUMNS = tuple(f"q{i}_norm" for i in range(1, 9))
+
+Positive = Annotated[float, Field(gt=0)]
+
+
+class FiveBar(StrictModel):
+    """Table I of the paper; l1 ground link, l5/l2 actuated, l4/l3 distal, l6 extension of l3."""
+
+    l1_mm: Positive = arm.FIVE_BAR_LINKS_MM[0]
+    l2_mm: Positive = arm.FIVE_BAR_LINKS_MM[1]
+    l3_mm: Positive = arm.FIVE_BAR_LINKS_MM[2]
+    l4_mm: Positive = arm.FIVE_BAR_LINKS_MM[3]
+    l5_mm: Positive = arm.FIVE_BAR_LINKS_MM[4]
+    l6_mm: Positive = arm.FIVE_BAR_LINKS_MM[5]
+    branch: Literal["left", "right"] = "left"
+
+
+class StartPose(StrictModel):
+    """Start pose of Sec. V-B: [1.4522, 2.4707, 50, 0, pi/2, -pi/3, 0, -pi/3]."""
+
+    q1_rad: float = arm.START_POSE[0]
+    q2_rad: float = arm.START_POSE[1]
+    q3_mm: float = arm.START_POSE[2]
+    q4_rad: float = arm.START_POSE[3]
+    theta_L_rad: float = arm.START_POSE[4]
+    delta_rad: float = arm.START_POSE[5]
+    phi_L_rad: float = arm.START_POSE[6]
+    psi_rad: float = arm.START_POSE[7]
+
+
+class JointMax(StrictModel):
+    """q_imax used for |q_i / q_imax| (Fig. 7) and the limit check (our choice; see the robot file)."""
+
+    q1_rad: Positive = arm.Q_MAX[0]
+    q2_rad: Positive = arm.Q_MAX[1]
+    q3_mm: Positive = arm.Q_MAX[2]
+    q4_rad: Positive = arm.Q_MAX[3]
+    theta_L_rad: Positive = arm.Q_MAX[4]
+    delta_rad: Positive = arm.Q_MAX[5]
+    phi_L_rad: Positive = arm.Q_MAX[6]
+    psi_rad: Positive = arm.Q_MAX[7]
+
+
+class Robot(StrictModel):
+    five_bar: FiveBar = FiveBar()
+    slu_length_mm: Positive = arm.SLU_LENGTH_MM
+    pmu_length_mm: Positive = arm.PMU_LENGTH_MM
+    start_pose: StartPose = StartPose()
+    joint_max: JointMax = JointMax()
+
+
+class Task(StrictModel):
+    modes: list[Literal["spin", "orbit_parallel", "orbit_tangent"]] = Field(["spin"], min_length=1)
+    radius_mm: list[Positive] = Field([6.0], min_length=1)
+    speed_mm_s: list[Positive] = Field([0.5], min_length=1)
+    arc_deg: float = Field(180.0, gt=0, le=360)
+    dt_s: float = Field(0.01, gt=0, le=1)
+    gain: float = Field(1.0, gt=0, le=1, description="closed-loop correction per step")
+    damping: float = Field(0.0, ge=0, description="weighted damped least squares; 0 = eq. 32 exactly")
+
+    @model_validator(mode="after")
+    def _not_too_long(self):
+        for r, v in itertools.product(self.radius_mm, self.speed_mm_s):
+            steps = math.radians(self.arc_deg) * r / v / self.dt_s
+            if steps > 1_000_000:
+                raise ValueError(f"radius {r} mm at {v} mm/s with dt {self.dt_s} s is {steps:.0f} steps (max 1e6)")
+        return self
+
+
+WeightVector = Annotated[list[Annotated[float, Field(gt=0)]], Field(min_length=8, max_length=8)]
+
+
+class SutureSimConfig(StrictModel):
+    robot: Robot = Robot()
+    task: Task = Task()
+    weights: dict[str, WeightVector] = Field(
+        default_factory=lambda: {"W1": [1.0] * 8, "W2": [1000.0, 1000.0] + [0.1] * 6}, min_length=1)
+    arm_length_mm: list[Positive] = Field(list(arm.SNAKE_ARM_LENGTHS_MM), min_length=1)
+    fulcrum_to_tip_mm: list[Positive] = Field([arm.FULCRUM_TO_TIP_MM], min_length=1)
+
+    @model_validator(mode="after")
+    def _fulcrum_inside_arm(self):
+        for la, f in itertools.product(self.arm_length_mm, self.fulcrum_to_tip_mm):
+            if f >= la + self.robot.start_pose.q3_mm:
+                raise ValueError(f"fulcrum_to_tip_mm {f} must be shorter than the holder ({la} mm + q3)")
+        return self
+
+
+Config = SutureSimConfig
+
+
+def run_grid(cfg: SutureSimConfig) -> list[dict]:
+    """Every combination, in a fixed order: one dict per run."""
+    t = cfg.task
+    combos = itertools.product(cfg.weights.items(), cfg.arm_length_mm, cfg.fulcrum_to_tip_mm,
+                               t.modes, t.radius_mm, t.speed_mm_s)
+    return [dict(run_id=i, weight_set=w, weights=np.array(wv), arm_length_mm=la, fulcrum_to_tip_mm=f,
+                 mode=m, radius_mm=r, speed_mm_s=v)
+            for i, ((w, wv), la, f, m, r, v) in enumerate(combos)]
+
+
+def start_q(cfg: SutureSimConfig) -> np.ndarray:
+    s = cfg.robot.start_pose
+    return np.array([s.q1_rad, s.q2_rad, s.q3_mm, s.q4_rad, s.theta_L_rad, s.delta_rad, s.phi_L_rad, s.psi_rad])
+
+
+def q_max(cfg: SutureSimConfig) -> np.ndarray:
+    m = cfg.robot.joint_max
+    return np.array([m.q1_rad, m.q2_rad, m.q3_mm, m.q4_rad, m.theta_L_rad, m.delta_rad, m.phi_L_rad, m.psi_rad])
+
+
+def geometry(cfg: SutureSimConfig, arm_length_mm: float, fulcrum_to_tip_mm: float) -> np.ndarray:
+    """The kernel's geometry vector; P_F on the arm axis (straight down at the start pose)."""
+    from surgopt.kinematics.throat import five_bar
+
+    fb = cfg.robot.five_bar
+    geo = np.array([fb.l1_mm, fb.l2_mm, fb.l3_mm, fb.l4_mm, fb.l5_mm, fb.l6_mm, arm_length_mm,
+                    cfg.robot.slu_length_mm, cfg.robot.pmu_length_mm, 0.0, 0.0, 0.0,
+                    1.0 if fb.branch == "left" else -1.0])
+    q0 = start_q(cfg)
+    P_U = five_bar(q0[0], q0[1], geo)[0]
+    if not np.all(np.isfinite(P_U)):
+        from surgopt.errors import ConfigError
+
+        raise ConfigError("config", "the five-bar cannot close at the start pose", "robot.start_pose")
+    geo[9:12] = [P_U[0], P_U[1], -(arm_length_mm + q0[2] - fulcrum_to_tip_mm)]
+    return geo
+
+
+def schema():
+    import pyarrow as pa
+
+    fields = [pa.field("run_id", pa.int64()), pa.field("weight_set", pa.string()),
+              pa.field("arm_length_mm", pa.float64()), pa.field("fulcrum_to_tip_mm", pa.float64()),
+              pa.field("mode", pa.string()), pa.field("radius_mm", pa.float64()),
+              pa.field("speed_mm_s", pa.float64()), pa.field("step", pa.int64()), pa.field("t_s", pa.float64())]
+    fields += [pa.field(c, pa.float64()) for c in JOINT_COLUMNS + NORM_COLUMNS]
+    fields += [pa.field("pos_err_mm", pa.float64()), pa.field("rot_err_deg", pa.float64()),
+               pa.field("run_completed", pa.bool_(), metadata={
+                   "meaning": "false: the run stopped where J W^-1 J^T became singular (set task.damping > 0)"})]
+    return pa.schema(fields)
+
+
+def n_tasks(cfg: SutureSimConfig, chunk: int) -> int:
+    return len(run_grid(cfg))
+
+
+def warm_up(cfg: SutureSimConfig) -> None:
+    from surgopt.kinematics.throat import suture_run
+
+    geo = geometry(cfg, cfg.arm_length_mm[0], cfg.fulcrum_to_tip_mm[0])
+    suture_run(start_q(cfg), geo, np.ones(8), 0, 6.0, 600.0, math.pi, 0.01, 1.0, 0.0)
+
+
+def compute_task(cfg: SutureSimConfig, chunk: int, index: int) -> dict:
+    """All time steps of run ``index``."""
+    from surgopt.kinematics.throat import suture_run
+
+    run = run_grid(cfg)[index]
+    t = cfg.task
+    geo = geometry(cfg, run["arm_length_mm"], run["fulcrum_to_tip_mm"])
+    ts, qs, pe, re = suture_run(start_q(cfg), geo, run["weights"], MODES.index(run["mode"]), run["radius_mm"],
+                                run["speed_mm_s"], math.radians(t.arc_deg), t.dt_s, t.gain, t.damping)
+    n = ts.shape[0]
+    cols = {"run_id": np.full(n, run["run_id"], np.int64), "weight_set": [run["weight_set"]] * n,
+            "arm_length_mm": np.full(n, run["arm_length_mm"]), "fulcrum_to_tip_mm": np.full(n, run["fulcrum_to_tip_mm"]),
+            "mode": [run["mode"]] * n, "radius_mm": np.full(n, run["radius_mm"]),
+            "speed_mm_s": np.full(n, run["speed_mm_s"]), "step": np.arange(n, dtype=np.int64), "t_s": ts}
+    qn = np.abs(qs / q_max(cfg))
+    for i, c in enumerate(JOINT_COLUMNS):
+        cols[c] = qs[:, i].copy()
+        cols[NORM_COLUMNS[i]] = qn[:, i].copy()
+    cols["pos_err_mm"] = pe
+    cols["rot_err_deg"] = re
+    expected = int(np.round(math.radians(t.arc_deg) * run["radius_mm"] / run["speed_mm_s"] / t.dt_s)) + 1
+    cols["run_completed"] = np.full(n, n == expected)
+    return cols
+
+
+RUN_KEYS = ["run_id", "weight_set", "arm_length_mm", "fulcrum_to_tip_mm", "mode", "radius_mm", "speed_mm_s"]
+
+
+def run_summary(table):
+    """One row per run: each joint's range and peak |q/q_max|, limit violations, max tracking errors."""
+    df = table.to_pandas()
+    g = df.groupby("run_id", sort=True)
+    out = g[RUN_KEYS[1:]].first()
+    for c, nc in zip(JOINT_COLUMNS, NORM_COLUMNS):
+        out[f"{c}_range"] = g[c].max() - g[c].min()
+        out[f"{nc}_peak"] = g[nc].max()
+    out["limit_violations"] = (df[list(NORM_COLUMNS)] > 1.0).any(axis=1).groupby(df["run_id"]).sum()
+    out["max_pos_err_mm"] = g["pos_err_mm"].max()
+    out["max_rot_err_deg"] = g["rot_err_deg"].max()
+    out["steps"] = g.size() - 1
+    out["stopped_early"] = ~g["run_completed"].first()
+    return out.reset_index()
+
+
+def summarize(table) -> dict:
+    s = run_summary(table)
+    return {"runs": len(s), "steps_total": int(s["steps"].sum()),
+            "max_pos_err_mm": float(s["max_pos_err_mm"].max()),
+            "max_rot_err_deg": float(s["max_rot_err_deg"].max()),
+            "runs_with_limit_violations": int((s["limit_violations"] > 0).sum()),
+            "runs_stopped_at_a_singularity": int(s["stopped_early"].sum())}
+
+
+def tables(table) -> list[tuple[str, list[str], list[list[str]]]]:
+    """Side-by-side joint ranges per weight set (Fig. 7's comparison), one table per other setting."""
+    s = run_summary(table)
+    out = []
+    others = ["arm_length_mm", "fulcrum_to_tip_mm", "mode", "radius_mm", "speed_mm_s"]
+    for key, grp in s.groupby(others, sort=False):
+        header = ["joint"] + [f"{w} range" for w in grp["weight_set"]] + [f"{w} peak |q/qmax|" for w in grp["weight_set"]]
+        rows = []
+        for c, nc in zip(JOINT_COLUMNS, NORM_COLUMNS):
+            rows.append([c] + [f"{v:.4g}" for v in grp[f"{c}_range"]] + [f"{v:.3f}" for v in grp[f"{nc}_peak"]])
+        rows.append(["max pos err (mm)"] + [f"{v:.2e}" for v in grp["max_pos_err_mm"]] + [""] * len(grp))
+        rows.append(["max rot err (deg)"] + [f"{v:.2e}" for v in grp["max_rot_err_deg"]] + [""] * len(grp))
+        title = "joint ranges: arm {} mm, fulcrum {} mm before the tip, {}, r {} mm, {} mm/s".format(*key)
+        out.append((title, header, rows))
+    return out
