@@ -1,0 +1,54 @@
+"""Regenerate the numbers of docs/reproduction.md, throat section (Wei, Xu & Simaan).
+
+Run:  python docs/reproduce_throat.py   (about 30 s; prints Markdown)
+"""
+from __future__ import annotations
+
+import pyarrow as pa
+
+from surgopt.runner import configure_numba
+
+configure_numba()
+
+from surgopt.config import load_embedded  # noqa: E402
+from surgopt.studies import suture_sim as S  # noqa: E402
+
+
+def summary(cfg):
+    parts = [S.compute_task(cfg, 1, i) for i in range(S.n_tasks(cfg, 1))]
+    table = pa.concat_tables([pa.Table.from_pydict(p, schema=S.schema()) for p in parts])
+    return S.run_summary(table)
+
+
+def ranges_table(s, label):
+    print(f"\n{label}\n")
+    runs = list(s.itertuples())
+    head = " | ".join(f"{r.weight_set} {r.arm_length_mm:.0f} mm" for r in runs)
+    print(f"| joint | {head} |")
+    print("|---|" + "---|" * len(runs))
+    for c, nc in zip(S.JOINT_COLUMNS, S.NORM_COLUMNS):
+        cells = " | ".join(f"{getattr(r, c + '_range'):.4g} ({getattr(r, nc + '_peak'):.2f})" for r in runs)
+        print(f"| {c} | {cells} |")
+    print("| max pos / rot error | " + " | ".join(
+        f"{r.max_pos_err_mm:.1e} mm / {r.max_rot_err_deg:.1e}°" for r in runs) + " |")
+
+
+def main():
+    base = load_embedded(S.DEFAULT_CONFIG, S.Config)
+    ranges_table(summary(base), "Default (spin mode): joint range, and peak |q/q_max| in brackets")
+    for mode in ("orbit_parallel", "orbit_tangent"):
+        cfg = S.Config.model_validate({**base.model_dump(), "task": {**base.task.model_dump(), "modes": [mode]}})
+        ranges_table(summary(cfg), f"Mode {mode}")
+    print("\nFulcrum position (550 mm arm, spin, W1 / W2): five-bar ranges q1, q2 (rad)\n")
+    print("| fulcrum before the holder tip (mm) | W1 q1 | W1 q2 | W2 q1 | W2 q2 | W1 q4 | W2 q4 |")
+    print("|---|---|---|---|---|---|---|")
+    for f in (75.0, 150.0, 300.0, 450.0):
+        cfg = S.Config.model_validate({**base.model_dump(), "arm_length_mm": [550.0], "fulcrum_to_tip_mm": [f]})
+        s = summary(cfg).set_index("weight_set")
+        print(f"| {f:.0f} | {s.loc['W1', 'q1_rad_range']:.4f} | {s.loc['W1', 'q2_rad_range']:.4f} "
+              f"| {s.loc['W2', 'q1_rad_range']:.2e} | {s.loc['W2', 'q2_rad_range']:.2e} "
+              f"| {s.loc['W1', 'q4_rad_range']:.3f} | {s.loc['W2', 'q4_rad_range']:.3f} |")
+
+
+if __name__ == "__main__":
+    main()
