@@ -17,6 +17,8 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
+from surgopt.kinematics.small_linalg import _dot, _mm, _mv, solve_spd
+
 _JIT = dict(cache=True, nogil=True, fastmath=False)
 
 #: theta_0 = phi_0 = pi/2: a straight segment (Simaan's notation).
@@ -24,70 +26,6 @@ THETA0 = np.pi / 2
 #: Below this |theta_L - theta_0| the segment formulas switch to their Taylor
 #: series (the closed forms are 0/0 at a straight segment).
 STRAIGHT_EPS = 1e-4
-
-
-@njit(**_JIT)
-def _mm(A, B):
-    """Small matrix product (numba's @ needs SciPy's BLAS, and BLAS is slow at 3x3)."""
-    n, k = A.shape
-    m = B.shape[1]
-    out = np.zeros((n, m))
-    for i in range(n):
-        for j in range(m):
-            acc = 0.0
-            for r in range(k):
-                acc += A[i, r] * B[r, j]
-            out[i, j] = acc
-    return out
-
-
-@njit(**_JIT)
-def _mv(A, v):
-    out = np.zeros(A.shape[0])
-    for i in range(A.shape[0]):
-        acc = 0.0
-        for r in range(A.shape[1]):
-            acc += A[i, r] * v[r]
-        out[i] = acc
-    return out
-
-
-@njit(**_JIT)
-def _dot(a, b):
-    acc = 0.0
-    for i in range(a.shape[0]):
-        acc += a[i] * b[i]
-    return acc
-
-
-@njit(**_JIT)
-def solve_spd(A, b):
-    """Solve A x = b for symmetric positive definite A (Cholesky, no pivoting needed)."""
-    n = A.shape[0]
-    L = np.zeros((n, n))
-    for j in range(n):
-        d = A[j, j]
-        for k in range(j):
-            d -= L[j, k] * L[j, k]
-        L[j, j] = np.sqrt(d)
-        for i in range(j + 1, n):
-            acc = A[i, j]
-            for k in range(j):
-                acc -= L[i, k] * L[j, k]
-            L[i, j] = acc / L[j, j]
-    y = np.zeros(n)
-    for i in range(n):
-        acc = b[i]
-        for k in range(i):
-            acc -= L[i, k] * y[k]
-        y[i] = acc / L[i, i]
-    x = np.zeros(n)
-    for i in range(n - 1, -1, -1):
-        acc = y[i]
-        for k in range(i + 1, n):
-            acc -= L[k, i] * x[k]
-        x[i] = acc / L[i, i]
-    return x
 
 
 @njit(**_JIT)

@@ -11,7 +11,8 @@ from __future__ import annotations
 
 import importlib
 
-STUDIES = {"rcm-grid": "surgopt.studies.rcm_grid", "suture-sim": "surgopt.studies.suture_sim"}
+STUDIES = {"rcm-grid": "surgopt.studies.rcm_grid", "suture-sim": "surgopt.studies.suture_sim",
+           "raven-sweep": "surgopt.studies.raven_sweep"}
 
 
 def get_study(name: str):

@@ -1,0 +1,87 @@
+"""Small fixed-size linear algebra for numba kernels.
+
+numba's ``@`` and ``np.linalg`` call SciPy's BLAS/LAPACK (SciPy is not a
+dependency), and BLAS is slower than plain loops at 3x3 to 6x6 anyway.
+"""
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+
+_JIT = dict(cache=True, nogil=True, fastmath=False)
+
+
+@njit(**_JIT)
+def _mm(A, B):
+    """Matrix product of small matrices."""
+    n, k = A.shape
+    m = B.shape[1]
+    out = np.zeros((n, m))
+    for i in range(n):
+        for j in range(m):
+            acc = 0.0
+            for r in range(k):
+                acc += A[i, r] * B[r, j]
+            out[i, j] = acc
+    return out
+
+
+@njit(**_JIT)
+def _mv(A, v):
+    out = np.zeros(A.shape[0])
+    for i in range(A.shape[0]):
+        acc = 0.0
+        for r in range(A.shape[1]):
+            acc += A[i, r] * v[r]
+        out[i] = acc
+    return out
+
+
+@njit(**_JIT)
+def _dot(a, b):
+    acc = 0.0
+    for i in range(a.shape[0]):
+        acc += a[i] * b[i]
+    return acc
+
+
+@njit(**_JIT)
+def solve_spd(A, b):
+    """Solve A x = b for symmetric positive definite A (Cholesky, no pivoting needed)."""
+    n = A.shape[0]
+    L = np.zeros((n, n))
+    for j in range(n):
+        d = A[j, j]
+        for k in range(j):
+            d -= L[j, k] * L[j, k]
+        L[j, j] = np.sqrt(d)
+        for i in range(j + 1, n):
+            acc = A[i, j]
+            for k in range(j):
+                acc -= L[i, k] * L[j, k]
+            L[i, j] = acc / L[j, j]
+    y = np.zeros(n)
+    for i in range(n):
+        acc = b[i]
+        for k in range(i):
+            acc -= L[i, k] * y[k]
+        y[i] = acc / L[i, i]
+    x = np.zeros(n)
+    for i in range(n - 1, -1, -1):
+        acc = y[i]
+        for k in range(i + 1, n):
+            acc -= L[k, i] * x[k]
+        x[i] = acc / L[i, i]
+    return x
+
+
+@njit(**_JIT)
+def rigid_inverse(T):
+    """Inverse of a 4x4 homogeneous transform: [R^T, -R^T p]."""
+    out = np.zeros((4, 4))
+    for i in range(3):
+        for j in range(3):
+            out[i, j] = T[j, i]
+        out[i, 3] = -(T[0, i] * T[0, 3] + T[1, i] * T[1, 3] + T[2, i] * T[2, 3])
+    out[3, 3] = 1.0
+    return out

@@ -1,0 +1,38 @@
+"""Raven IV arm: a spherical RCM mechanism (links alpha, beta) carrying a tool with a wrist.
+
+Source: Z. Li, D. Glozman, D. Milutinovic, J. Rosen, "Maximizing dexterous
+workspace and optimal port placement of a multi-arm surgical robot", ICRA 2011
+(Raven IV), Table I (standard DH) and joint ranges. Angles in rad, lengths mm.
+
+Standard DH rows (theta, d, a, alpha) per arm, joint variables theta1, theta2,
+theta3, d4, theta5, theta6:
+
+    left arms (1, 3)                         right arms (2, 4)
+    theta1,            0, 0,  pi - alpha     pi - theta1,        0, 0,  pi - alpha
+    -theta2,           0, 0,  -beta          theta2,             0, 0,  -beta
+    pi/2 - theta3,     0, 0,  0              3 pi/2 + theta3,    0, 0,  0
+    0,                 d4, 0, -pi/2          0,                  d4, 0, -pi/2
+    pi/2 - theta5,     0, a5, pi/2           pi/2 - theta5,      0, a5, pi/2
+    pi/2 + theta6,     0, 0,  -pi/2          pi/2 + theta6,      0, 0,  -pi/2
+
+(Table I lists rows 5-6 for the left arm only; the right arm uses the same
+wrist rows.) Ranges (Table I): theta2 in [20, 140] deg, theta3 and theta6 in
+[-86, 86] deg, d4 in [0, 250] mm; theta1 and theta5 unlisted (unlimited).
+
+Defaults for tests from the open-source Raven II code: link angles 75 / 52
+deg, wrist-to-jaw length a5 = 13 mm.
+"""
+from __future__ import annotations
+
+import math
+
+RAVEN_II_ALPHA_DEG = 75.0
+RAVEN_II_BETA_DEG = 52.0
+RAVEN_II_A5_MM = 13.0
+THETA2_RANGE_DEG = (20.0, 140.0)
+THETA3_RANGE_DEG = (-86.0, 86.0)
+THETA6_RANGE_DEG = (-86.0, 86.0)
+D4_RANGE_MM = (0.0, 250.0)
+REFERENCE_PLANE_DEPTH_MM = 150.0  # Sec. III-A
+
+HALF_PI = math.pi / 2
