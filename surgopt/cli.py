@@ -75,6 +75,33 @@ def rcm_grid(
                        overrides={"search": "cull"} if cull else None)
 
 
+@app.command("raven-sweep")
+def raven_sweep(
+    config: Annotated[Optional[Path], typer.Argument(
+        help="TOML or YAML config. Without it: the paper's Table II sweep (250,000 designs: alpha, beta "
+             "5-90 deg step 20; phi +-20 deg step 10; bx, by 50-200 mm step 50; Iso_min 0.1-0.9 step 0.2).",
+        show_default=False)] = None,
+    refine: Annotated[bool, typer.Option(
+        "--refine", help="After the grid, a compass search from the top-k designs inside the sweep's bounds; "
+                         "its rows are stored as a second run.")] = False,
+    store: StoreOpt = None,
+    jobs: JobsOpt = 2,
+    force: ForceOpt = False,
+    quiet: QuietOpt = False,
+    chunk_size: ChunkOpt = None,
+) -> None:
+    """Raven IV port placement and link design (Li, Glozman, Milutinovic, Rosen, ICRA 2011: eqs. 1-43,
+    Table II, Figs. 4, 6-8).
+
+    For every design (alpha, beta, phi_x, phi_y, phi_z, bx, by, Iso_min) the common workspace of all arms
+    on a plane 150 mm below the ports: a point belongs to an arm when its tool axis can point there with
+    theta2 in the range narrowed by Iso_min and d4 <= 250 mm. Rows: the eight parameters, area_cm2,
+    perimeter_cm, zeta_cm (eq. 33), iso_sum, iso_mean, iso_area_cm2, iso_min_actual, n_points,
+    cost (eq. 43), source (grid | refine). Ends with the top designs and the rank of the paper's optimum.
+    """
+    _run_study_command("raven-sweep", config, store, jobs, force, quiet, chunk_size, then_refine=refine)
+
+
 @app.command("suture-sim")
 def suture_sim(
     config: Annotated[Optional[Path], typer.Argument(
@@ -97,7 +124,7 @@ def suture_sim(
     _run_study_command("suture-sim", config, store, jobs, force, quiet, None)
 
 
-def _run_study_command(name, config, store, jobs, force, quiet, chunk_size, overrides=None):
+def _run_study_command(name, config, store, jobs, force, quiet, chunk_size, overrides=None, then_refine=False):
     from surgopt.errors import SurgoptError
     from surgopt.runner import configure_numba
 
@@ -111,16 +138,21 @@ def _run_study_command(name, config, store, jobs, force, quiet, chunk_size, over
         cfg, config_name = _load_study_config(study, config)
         if overrides:
             cfg = study.Config.model_validate({**cfg.model_dump(), **overrides})
+        say = lambda m: typer.echo(m, err=True)  # noqa: E731
         result = run_study(study, cfg, config_name=config_name, store=Store(store), jobs=jobs,
-                           force=force, quiet=quiet, chunk=chunk_size,
-                           say=lambda m: typer.echo(m, err=True))
+                           force=force, quiet=quiet, chunk=chunk_size, say=say)
+        _report(study, result)
+        if then_refine:
+            rcfg = study.refine_config(cfg, result.table)
+            refined = run_study(study, rcfg, config_name=f"{config_name}+refine", store=Store(store), jobs=jobs,
+                                force=force, quiet=quiet, chunk=1, say=say)
+            _report(study, refined)
     except SurgoptError as exc:
         _fail(exc, exc.exit_code)
     except KeyboardInterrupt:
         typer.echo("surgopt: interrupted; finished chunks are stored, run the same command again to resume",
                    err=True)
         raise typer.Exit(130)
-    _report(study, result)
 
 
 def _report(study, result) -> None:
@@ -128,6 +160,7 @@ def _report(study, result) -> None:
     from rich.table import Table
 
     console = Console()
+    console = Console(width=max(console.width, 150))  # wide tables stay readable when piped
     for m in result.messages:
         console.print(m)
     run = result.run

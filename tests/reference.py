@@ -255,3 +255,30 @@ def weighted_least_norm_kkt(J, w, dx):
     K[n:, :n] = J
     rhs = np.concatenate([np.zeros(n), dx])
     return np.linalg.solve(K, rhs)[:n]
+
+
+# ---------------------------------------------------------------------------
+# Raven IV (Li et al. 2011)
+# ---------------------------------------------------------------------------
+
+
+def raven_tool_axis(theta1, theta2, alpha, beta, left=True):
+    """z3 of the spherical mechanism (theta3 = 0) by plain DH matrix products."""
+    if left:
+        rows = [(theta1, np.pi - alpha), (-theta2, -beta), (np.pi / 2, 0.0)]
+    else:
+        rows = [(np.pi - theta1, np.pi - alpha), (theta2, -beta), (1.5 * np.pi, 0.0)]
+    T = np.eye(4)
+    for th, al in rows:
+        T = T @ dh_standard(th, 0.0, 0.0, al)
+    return T[:3, 2], T[:3, :3]
+
+
+def isotropy_2x2(M):
+    s = np.linalg.svd(M, compute_uv=False)
+    return s[-1] / s[0]
+
+
+def annulus_zeta_mm(r_in, r_out):
+    """Area / circumference of an annulus (both circles count): (r_out - r_in) / 2."""
+    return (np.pi * (r_out ** 2 - r_in ** 2)) / (2 * np.pi * (r_out + r_in))

@@ -1,0 +1,276 @@
+"""Raven IV: kinematics against DH matrices and finite differences, the workspace estimator
+against closed forms, and the sweep through the CLI."""
+import math
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+import reference as R
+from surgopt.kinematics import raven as K
+from surgopt.studies import raven_sweep as S
+
+AL, BE, A5 = math.radians(75), math.radians(52), 13.0  # Raven II link angles, wrist offset
+
+
+@pytest.mark.parametrize("left", [True, False])
+def test_fk_ik_round_trip(left):
+    rng = np.random.default_rng(30 + left)
+    for _ in range(300):
+        q = np.array([rng.uniform(-math.pi, math.pi), math.radians(rng.uniform(20, 140)),
+                      math.radians(rng.uniform(-86, 86)), rng.uniform(30, 250),
+                      rng.uniform(-1.0, 1.0), math.radians(rng.uniform(-86, 86))])
+        T = K.forward_kinematics(q, AL, BE, A5, left)
+        q2, ok = K.inverse_kinematics(T, AL, BE, A5, left)
+        assert ok
+        assert np.allclose(q2, q, atol=1e-8), (q, q2)
+
+
+def test_fk_matches_plain_dh_products():
+    rng = np.random.default_rng(32)
+    for left in (True, False):
+        for _ in range(20):
+            q = rng.uniform(-1, 1, 6)
+            q[3] = rng.uniform(10, 200)
+            z3, _ = R.raven_tool_axis(q[0], q[1], AL, BE, left)
+            T = K.forward_kinematics(np.array([q[0], q[1], 0.0, q[3], q[4], q[5]]), AL, BE, A5, left)
+            # the wrist sits d4 along the tool axis from the remote centre
+            T4 = K.forward_kinematics(np.array([q[0], q[1], 0.0, q[3], 0.0, 0.0]), AL, BE, 0.0, left)
+            assert np.allclose(T4[:3, 3], q[3] * z3, atol=1e-9)
+            assert np.isfinite(T).all()
+
+
+def test_ik_flags_poses_outside_the_joint_ranges():
+    q = np.array([0.3, math.radians(150), 0.2, 100.0, 0.1, 0.2])  # theta2 beyond 140 deg
+    _, ok = K.inverse_kinematics(K.forward_kinematics(q, AL, BE, A5, True), AL, BE, A5, True)
+    assert not ok
+
+
+@pytest.mark.parametrize("left", [True, False])
+def test_spherical_jacobian_against_tool_axis_finite_differences(left):
+    """J_s (eqs. 41-42) against d z3 / d(theta1, theta2) by finite differences.
+
+    The printed J_s (velocity propagation in frame 3 with the paper's simplified DH:
+    theta3 = 0, alpha4 = 0) is not the tool-axis Jacobian column for column, but the two
+    differ only by orthogonal factors: they share their singular values, which is all
+    the isotropy (eq. 35) uses."""
+    rng = np.random.default_rng(33)
+    h = 1e-6
+    for _ in range(30):
+        t1, t2 = rng.uniform(-3, 3), rng.uniform(0.2, 2.9)
+        al, be = rng.uniform(0.2, 1.5), rng.uniform(0.2, 1.5)
+        d1 = (R.raven_tool_axis(t1 + h, t2, al, be, left)[0] - R.raven_tool_axis(t1 - h, t2, al, be, left)[0]) / (2 * h)
+        d2 = (R.raven_tool_axis(t1, t2 + h, al, be, left)[0] - R.raven_tool_axis(t1, t2 - h, al, be, left)[0]) / (2 * h)
+        G_fd = np.array([[d1 @ d1, d1 @ d2], [d2 @ d1, d2 @ d2]])
+        Js = K.spherical_jacobian(t2, al, be, left)[:2, :2]
+        assert np.trace(Js.T @ Js) == pytest.approx(np.trace(G_fd), abs=1e-8)
+        sv_fd = np.linalg.svd(np.column_stack([d1, d2]), compute_uv=False)
+        assert np.allclose(np.linalg.svd(Js, compute_uv=False), sv_fd, atol=1e-8)
+        assert K.isotropy_at(t2, al, be) == pytest.approx(R.isotropy_2x2(Js), rel=1e-12)
+        # and the third column is the insertion: a unit vector along frame 3's z
+        assert np.allclose(K.spherical_jacobian(t2, al, be, left)[:, 2], [0, 0, 1])
+
+
+def test_isotropy_is_the_same_for_every_theta1():
+    # Fig. 6b: J_s depends on theta2 only
+    al, be = math.radians(55), math.radians(40)
+    t2 = 1.1
+    vals = []
+    h = 1e-6
+    for t1 in np.linspace(-3, 3, 7):
+        d1 = (R.raven_tool_axis(t1 + h, t2, al, be)[0] - R.raven_tool_axis(t1 - h, t2, al, be)[0]) / (2 * h)
+        d2 = (R.raven_tool_axis(t1, t2 + h, al, be)[0] - R.raven_tool_axis(t1, t2 - h, al, be)[0]) / (2 * h)
+        s = np.linalg.svd(np.column_stack([d1, d2]), compute_uv=False)
+        vals.append(s[-1] / s[0])
+    assert np.allclose(vals, K.isotropy_at(t2, al, be), rtol=1e-6)
+
+
+def test_isotropy_has_one_maximum_for_every_link_pair():
+    t = np.radians(np.linspace(0, 180, 1441))
+    for a in range(5, 91, 5):
+        for b in range(5, 91, 5):
+            v = np.array([K.isotropy_at(x, math.radians(a), math.radians(b)) for x in t])
+            d = np.sign(np.diff(v))
+            d = d[d != 0]
+            assert np.sum((d[1:] < 0) & (d[:-1] > 0)) <= 1
+
+
+def test_theta2_interval_fig6():
+    """Fig. 6a (alpha = 55, beta = 40 deg): the theta2 range shrinks as Iso_min grows."""
+    al, be = math.radians(55), math.radians(40)
+    t = np.radians(np.linspace(0, 180, 180001))
+    iso = np.array([K.isotropy_at(x, al, be) for x in t])
+    prev = (0.0, math.pi)
+    for m in (0.1, 0.3, 0.5, 0.7, 0.9):
+        lo, hi, ok = K.theta2_interval(al, be, m, 0.0, math.pi)
+        assert ok
+        dense = t[iso >= m]
+        assert lo == pytest.approx(dense.min(), abs=2e-5) and hi == pytest.approx(dense.max(), abs=2e-5)
+        assert K.isotropy_at(lo, al, be) == pytest.approx(m, abs=1e-9)
+        assert K.isotropy_at(hi, al, be) == pytest.approx(m, abs=1e-9)
+        assert prev[0] <= lo < hi <= prev[1]
+        prev = (lo, hi)
+    # the numbers, for docs/reproduction.md: Iso_min 0.5 keeps theta2 in [79.6, 153.7] deg
+    lo, hi, _ = K.theta2_interval(al, be, 0.5, 0.0, math.pi)
+    assert math.degrees(lo) == pytest.approx(79.6, abs=0.1) and math.degrees(hi) == pytest.approx(153.7, abs=0.1)
+    assert not K.theta2_interval(al, be, 0.99, 0.0, math.pi)[2]
+
+
+def _field(f, step, ext):
+    xs = np.arange(-ext, ext + step / 2, step)
+    X, Y = np.meshgrid(xs, xs, indexing="ij")
+    return f(np.hypot(X, Y)).ravel(), xs.size
+
+
+@pytest.mark.parametrize("radius", [20.0, 57.3, 150.0])
+def test_marching_squares_disc(radius):
+    m, n = _field(lambda r: radius - r, 2.0, radius + 10)
+    length, area = K.marching_squares(m, n, n, 2.0)
+    assert length == pytest.approx(2 * math.pi * radius, rel=0.01)
+    assert area == pytest.approx(math.pi * radius ** 2, rel=0.01)
+    # the 0/1 staircase would overestimate the perimeter by 4/pi
+    staircase = 2.0 * np.sum(np.abs(np.diff((m.reshape(n, n) > 0).astype(int), axis=0))) * 2
+    assert staircase / (2 * math.pi * radius) > 1.2
+
+
+def test_marching_squares_annulus():
+    r1, r2 = 40.0, 130.0
+    m, n = _field(lambda r: np.minimum(r - r1, r2 - r), 2.0, r2 + 10)
+    length, area = K.marching_squares(m, n, n, 2.0)
+    assert length == pytest.approx(2 * math.pi * (r1 + r2), rel=0.01)
+    assert area == pytest.approx(math.pi * (r2 ** 2 - r1 ** 2), rel=0.01)
+    assert area / length == pytest.approx(R.annulus_zeta_mm(r1, r2), rel=0.01)
+
+
+@pytest.mark.parametrize("a_deg, b_deg", [(15, 15), (20, 40), (30, 20), (65, 80)])
+def test_single_arm_workspace_is_the_closed_form_annulus(a_deg, b_deg):
+    """One arm, vertical shoulder axis, theta2 over [0, 180]: tool axes fill the cone band
+    |alpha - beta| .. alpha + beta around straight down, cut by d4 <= 250 mm."""
+    cfg = S.Config.model_validate({"geometry": {"n_arms": 1}, "sweep": {
+        "alpha_deg": [a_deg], "beta_deg": [b_deg], "phi_x_deg": [0], "phi_y_deg": [0], "phi_z_deg": [0],
+        "bx_mm": [0], "by_mm": [0], "iso_min": [0.0]}})
+    row = S.compute_task(cfg, 1, 0)
+    h = 150.0
+    r_in = h * math.tan(math.radians(abs(a_deg - b_deg)))
+    r_reach = math.sqrt(250.0 ** 2 - h ** 2)
+    r_out = r_reach if a_deg + b_deg >= 90 else min(r_reach, h * math.tan(math.radians(a_deg + b_deg)))
+    assert row["area_cm2"][0] == pytest.approx(math.pi * (r_out ** 2 - r_in ** 2) / 100, rel=0.01)
+    assert row["zeta_cm"][0] == pytest.approx(R.annulus_zeta_mm(r_in, r_out) / 10, rel=0.01)
+
+
+def test_fig4_two_arm_values_within_ten_percent():
+    from conftest import REPO
+    from surgopt.config import load_config
+
+    cfg = load_config(REPO / "configs" / "raven_fig4.toml", S.Config)
+    r = S.compute_task(cfg, 1, 0)
+    z = {(a, b): v for a, b, v in zip(r["alpha_deg"], r["beta_deg"], r["zeta_cm"])}
+    assert z[(15.0, 15.0)] == pytest.approx(2.23, rel=0.05)
+    assert z[(65.0, 80.0)] == pytest.approx(4.48, rel=0.10)
+
+
+def test_cost_formula_and_shared_geometry():
+    cfg = S.Config.model_validate({"sweep": {
+        "alpha_deg": [45, 85], "beta_deg": [65], "phi_x_deg": [20], "phi_y_deg": [10], "phi_z_deg": [-20],
+        "bx_mm": [100], "by_mm": [50], "iso_min": [0.3, 0.5]}})
+    r = S.compute_task(cfg, 1, 0)
+    for i in range(4):
+        a3 = math.radians(r["alpha_deg"][i]) ** 3 + math.radians(r["beta_deg"][i]) ** 3
+        assert r["cost"][i] == pytest.approx(r["zeta_cm"][i] * r["iso_sum"][i] * r["iso_min"][i] / a3)
+        if r["n_points"][i] == 0:
+            assert r["cost"][i] == 0 and r["zeta_cm"][i] == 0
+            continue
+        assert r["iso_min_actual"][i] >= r["iso_min"][i] - 1e-9  # every point meets Iso_min
+        assert r["iso_mean"][i] == pytest.approx(r["iso_sum"][i] / r["n_points"][i])
+        # a design evaluated alone equals the same design inside a shared geometry
+        alone = S.Config.model_validate({"sweep": {**{p: [r[p][i]] for p in S.PARAMS}}})
+        assert S.compute_task(alone, 1, 0)["cost"][0] == r["cost"][i]
+    assert (r["n_points"] > 0).sum() >= 2
+    # higher Iso_min narrows theta2: the workspace can only shrink
+    assert r["area_cm2"][1] <= r["area_cm2"][0] and r["area_cm2"][3] <= r["area_cm2"][2]
+
+
+def test_refine_improves_on_the_grid():
+    cfg = S.Config.model_validate({"sweep": {
+        "alpha_deg": {"start": 25, "stop": 85, "step": 30}, "beta_deg": {"start": 25, "stop": 85, "step": 30},
+        "phi_x_deg": [0], "phi_y_deg": [0], "phi_z_deg": [0], "bx_mm": [100], "by_mm": [50],
+        "iso_min": [0.5]}, "geometry": {"step_mm": 4.0}, "refine": {"top_k": 1, "max_evals": 60}})
+    import pyarrow as pa
+
+    grid = pa.Table.from_pydict(S.compute_task(cfg, 1, 0), schema=S.schema())
+    rcfg = S.refine_config(cfg, grid)
+    rows = S.compute_task(rcfg, 1, 0)
+    assert rows["cost"].max() > max(grid["cost"].to_pylist())
+    assert set(rows["source"]) == {"refine"}
+    for p, (lo, hi) in zip(S.PARAMS, S._bounds(cfg)):
+        assert rows[p].min() >= lo - 1e-9 and rows[p].max() <= hi + 1e-9
+
+
+def test_span_values_and_validation():
+    assert S.Span(start=5, stop=90, step=20).values() == [5, 25, 45, 65, 85]
+    assert S.Span(start=0.1, stop=0.9, step=0.2).values() == [0.1, 0.3, 0.5, 0.7, 0.9]
+    cfg = S.Config()
+    assert len(S.geometry_grid(cfg)) * 125 == 250_000
+    from surgopt.errors import ConfigError
+    from surgopt.config import validate
+
+    with pytest.raises(ConfigError, match="sweep"):
+        validate({"sweep": {"iso_min": [1.5]}}, S.Config, "x.toml")
+    with pytest.raises(ConfigError, match="geometry.n_arms"):
+        validate({"geometry": {"n_arms": 3}}, S.Config, "x.toml")
+
+
+SMALL = """
+[sweep]
+alpha_deg = [45.0, 65.0]
+beta_deg = [45.0, 65.0]
+phi_x_deg = {start = -20.0, stop = 20.0, step = 10.0}
+phi_y_deg = {start = -20.0, stop = 20.0, step = 10.0}
+phi_z_deg = [0.0, 10.0]
+bx_mm = [100.0]
+by_mm = [50.0]
+iso_min = [0.3, 0.5]
+[geometry]
+step_mm = 1.0
+"""
+
+
+def test_cli_sweep_stored_cached_and_resumed(tmp_path):
+    import json
+    import signal
+    import time
+
+    from surgopt.store import Store
+
+    cfg = tmp_path / "small.toml"
+    cfg.write_text(SMALL)
+    store = tmp_path / "store"
+    cmd = [sys.executable, "-m", "surgopt", "raven-sweep", str(cfg), "--store", str(store), "--quiet",
+           "--jobs", "1", "--chunk-size", "1"]
+    proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    t0 = time.time()
+    while time.time() - t0 < 120:
+        ms = list(store.glob("raven-sweep/*/manifest.json"))
+        if ms and len(json.loads(ms[0].read_text())["parts"]) >= 3:
+            break
+        assert proc.poll() is None, "finished before it could be interrupted"
+        time.sleep(0.01)
+    proc.send_signal(signal.SIGKILL)
+    proc.wait()
+    (run,) = Store(store).runs()
+    assert not run.complete
+    r = subprocess.run(cmd[:-4], capture_output=True, text=True, check=True)
+    assert "resuming" in r.stdout
+    (run,) = Store(store).runs()
+    resumed = run.read_table(S.schema())
+    assert resumed.num_rows == 50 * 8
+    fresh = S.Config.model_validate({"sweep": {"alpha_deg": [45.0, 65.0], "beta_deg": [45.0, 65.0],
+                                               "phi_x_deg": {"start": -20.0, "stop": 20.0, "step": 10.0},
+                                               "phi_y_deg": {"start": -20.0, "stop": 20.0, "step": 10.0},
+                                               "phi_z_deg": [0.0, 10.0], "bx_mm": [100.0], "by_mm": [50.0],
+                                               "iso_min": [0.3, 0.5]}, "geometry": {"step_mm": 1.0}})
+    direct = S.compute_task(fresh, 1000, 0)
+    assert np.array_equal(resumed["cost"].to_numpy(), direct["cost"])
+    r = subprocess.run(cmd[:-4], capture_output=True, text=True, check=True)
+    assert "cache hit" in r.stdout and "top designs" in r.stdout
