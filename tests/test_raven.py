@@ -147,7 +147,8 @@ def test_marching_squares_annulus():
 def test_single_arm_workspace_is_the_closed_form_annulus(a_deg, b_deg):
     """One arm, vertical shoulder axis, theta2 over [0, 180]: tool axes fill the cone band
     |alpha - beta| .. alpha + beta around straight down, cut by d4 <= 250 mm."""
-    cfg = S.Config.model_validate({"geometry": {"n_arms": 1}, "sweep": {
+    cfg = S.Config.model_validate({"geometry": {"n_arms": 1, "shoulder_tilt_deg": 0.0,
+                                                "theta2_range_deg": [0.0, 180.0]}, "sweep": {
         "alpha_deg": [a_deg], "beta_deg": [b_deg], "phi_x_deg": [0], "phi_y_deg": [0], "phi_z_deg": [0],
         "bx_mm": [0], "by_mm": [0], "iso_min": [0.0]}})
     row = S.compute_task(cfg, 1, 0)
@@ -274,3 +275,12 @@ def test_cli_sweep_stored_cached_and_resumed(tmp_path):
     assert np.array_equal(resumed["cost"].to_numpy(), direct["cost"])
     r = subprocess.run(cmd[:-4], capture_output=True, text=True, check=True)
     assert "cache hit" in r.stdout and "top designs" in r.stdout
+
+
+def test_embedded_default_is_table_ii():
+    from conftest import REPO
+    from surgopt.config import load_config, load_embedded
+
+    emb = load_embedded(S.DEFAULT_CONFIG, S.Config)
+    assert emb == load_config(REPO / "configs" / "raven_table2.toml", S.Config)
+    assert emb.sweep == S.Config().sweep and emb.geometry == S.Config().geometry

@@ -83,12 +83,14 @@ class Geometry(StrictModel):
     n_arms: Literal[1, 2, 4] = 4
     ports_mm: list[list[float]] | None = Field(None, description="[[x, y], ...] per arm; overrides bx/by")
     left_arms: list[bool] | None = Field(None, description="mirrored (left) arms; default 1 and 3")
-    shoulder_tilt_deg: float = Field(0.0, ge=-90, le=90, description="axis 1 from vertical at phi = 0, outward")
+    shoulder_tilt_deg: float = Field(90.0, ge=-90, le=90, description="axis 1 from vertical at phi = 0, outward")
+    shoulder_tilt_toward: Literal["x", "y"] = Field(
+        "x", description="outward along x (away from the other side) or y (away from the other pair)")
     mirror_left_phi: bool = True
     depth_mm: float = Field(raven_iv.REFERENCE_PLANE_DEPTH_MM, gt=0)
     step_mm: float = Field(2.0, gt=0.05, le=50)
     d4_max_mm: float = Field(raven_iv.D4_RANGE_MM[1], gt=0)
-    theta2_range_deg: list[float] = Field([0.0, 180.0], min_length=2, max_length=2)
+    theta2_range_deg: list[float] = Field(list(raven_iv.THETA2_RANGE_DEG), min_length=2, max_length=2)
 
     @model_validator(mode="after")
     def _consistent(self):
@@ -142,7 +144,8 @@ def arms(geo: Geometry, phi_x: float, phi_y: float, phi_z: float, bx: float, by:
     Ports: 4 arms at (-bx/2, +by/2), (+bx/2, +by/2), (-bx/2, -by/2), (+bx/2, -by/2)
     (arms 1-4, left arms 1 and 3), 2 arms at (-+bx/2, 0), 1 arm at 0.
     Axis 1 at phi = 0: vertical (out of the patient), tilted outward by
-    ``shoulder_tilt_deg``; then R = Rz(phi_z) Ry(phi_y) Rx(phi_x) about the
+    ``shoulder_tilt_deg`` along x (away from the other side's arms) or along y
+    (away from the other pair), per ``shoulder_tilt_toward``; then R = Rz(phi_z) Ry(phi_y) Rx(phi_x) about the
     port, with phi_y, phi_z negated for left arms when ``mirror_left_phi``
     (the mirror image of a right arm's rotation).
     """
@@ -159,8 +162,12 @@ def arms(geo: Geometry, phi_x: float, phi_y: float, phi_z: float, bx: float, by:
     A = np.empty((geo.n_arms, 3))
     t = math.radians(geo.shoulder_tilt_deg)
     for i, is_left in enumerate(left):
-        out = -1.0 if is_left else 1.0
-        u0 = np.array([out * math.sin(t), 0.0, math.cos(t)])
+        if geo.shoulder_tilt_toward == "x":
+            out = -1.0 if is_left else 1.0
+            u0 = np.array([out * math.sin(t), 0.0, math.cos(t)])
+        else:
+            out = 1.0 if P[i, 1] >= 0 else -1.0
+            u0 = np.array([0.0, out * math.sin(t), math.cos(t)])
         m = -1.0 if (is_left and geo.mirror_left_phi) else 1.0
         R = _rot(2, m * phi_z) @ _rot(1, m * phi_y) @ _rot(0, phi_x)
         A[i] = R @ u0
@@ -199,8 +206,12 @@ def psi_intervals(cfg: RavenSweepConfig, alphas, betas, isos):
     return plo, phi_, has
 
 
-def evaluate(cfg: RavenSweepConfig, geometry, alphas_deg, betas_deg, isos):
-    """Metrics (A*B*I, 6) of every design of one geometry (see ``evaluate_designs``)."""
+def evaluate(cfg: RavenSweepConfig, geometry, alphas_deg, betas_deg, isos, intervals=None):
+    """Metrics (A*B*I, 6) of every design of one geometry (see ``evaluate_designs``).
+
+    ``intervals``: ``psi_intervals`` for these alphas, betas, Iso_mins, when the
+    caller evaluates many geometries (they do not depend on the geometry).
+    """
     from surgopt.kinematics.raven import arm_cone_geometry, evaluate_designs
 
     geo = cfg.geometry
@@ -217,7 +228,7 @@ def evaluate(cfg: RavenSweepConfig, geometry, alphas_deg, betas_deg, isos):
     al = np.radians(np.asarray(alphas_deg, float))
     be = np.radians(np.asarray(betas_deg, float))
     iso = np.asarray(isos, float)
-    plo, phi_, has = psi_intervals(cfg, al, be, iso)
+    plo, phi_, has = intervals if intervals is not None else psi_intervals(cfg, al, be, iso)
     evaluate_designs(psi, dist, xs.size, ys.size, geo.step_mm, geo.d4_max_mm, al, be, iso, plo, phi_, has, out)
     return out
 
@@ -275,8 +286,9 @@ def compute_task(cfg: RavenSweepConfig, chunk: int, index: int) -> dict:
     g0, g1 = index * chunk, min(len(geos), (index + 1) * chunk)
     params, metrics = [], []
     design = np.array(list(itertools.product(al, be, iso)))  # (per_geo, 3)
+    intervals = psi_intervals(cfg, np.radians(al), np.radians(be), np.asarray(iso, float))
     for g in geos[g0:g1]:
-        metrics.append(evaluate(cfg, g, al, be, iso))
+        metrics.append(evaluate(cfg, g, al, be, iso, intervals))
         p = np.empty((per_geo, 8))
         p[:, 0], p[:, 1], p[:, 7] = design[:, 0], design[:, 1], design[:, 2]
         p[:, 2:7] = g

@@ -1,0 +1,141 @@
+"""raven-sweep throughput: numba kernel vs plain vectorised numpy, full Table II sweep, end to end.
+
+Run:  python benchmarks/bench_raven.py [--quick]
+Prints designs/second of the kernel (one core, one geometry's 125 designs at
+the default 2 mm step) and of a numpy version of the same math (broadcast cone
+margins, isotropy and a vectorised marching squares), their ratio from the
+same run, the full 250,000-design Table II sweep on 2 workers, and
+`surgopt raven-sweep configs/raven_table2.toml` end to end with a warm JIT cache.
+"""
+from __future__ import annotations
+
+import argparse
+import math
+import os
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+REPO = Path(__file__).resolve().parents[1]
+
+
+def numpy_marching_squares(m, nx, ny, step):
+    """Contour length of m = 0 over all cells, vectorised (saddles by the centre value)."""
+    g = m.reshape(nx, ny)
+    v = [g[:-1, :-1], g[1:, :-1], g[1:, 1:], g[:-1, 1:]]
+    px = [0.0, 1.0, 1.0, 0.0]
+    py = [0.0, 0.0, 1.0, 1.0]
+    pts = []
+    for k in range(4):
+        a, b = v[k], v[(k + 1) % 4]
+        cross = (a > 0) != (b > 0)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            t = np.where(cross, a / (a - b), np.nan)
+        pts.append((px[k] + t * (px[(k + 1) % 4] - px[k]), py[k] + t * (py[(k + 1) % 4] - py[k])))
+    X = np.stack([p[0] for p in pts])
+    Y = np.stack([p[1] for p in pts])
+    n = np.sum(~np.isnan(X), axis=0)
+    two = n == 2
+    order = np.argsort(np.isnan(X), axis=0, kind="stable")[:2]
+    xa = np.take_along_axis(X, order[:1], 0)[0]
+    ya = np.take_along_axis(Y, order[:1], 0)[0]
+    xb = np.take_along_axis(X, order[1:2], 0)[0]
+    yb = np.take_along_axis(Y, order[1:2], 0)[0]
+    length = np.nansum(np.where(two, np.hypot(xb - xa, yb - ya), 0.0))
+    four = n == 4
+    if four.any():
+        c = 0.25 * (v[0] + v[1] + v[2] + v[3])
+        same = (c > 0) == (v[0] > 0)
+        d01 = np.hypot(X[1] - X[0], Y[1] - Y[0]) + np.hypot(X[3] - X[2], Y[3] - Y[2])
+        d30 = np.hypot(X[3] - X[0], Y[3] - Y[0]) + np.hypot(X[2] - X[1], Y[2] - Y[1])
+        length += np.sum(np.where(four, np.where(same, d01, d30), 0.0))
+    return length * step
+
+
+def numpy_designs(psi, dist, nx, ny, step, d4_max, al, be, iso, plo, phi, has):
+    reach = np.min(d4_max - dist, axis=0)
+    cos_psi = np.cos(psi)
+    out = []
+    for ia, a in enumerate(al):
+        for ib, b in enumerate(be):
+            sa, ca, sb, cb = math.sin(a), math.cos(a), math.sin(b), math.cos(b)
+            c2 = np.clip((cos_psi + ca * cb) / (sa * sb), -1, 1)
+            s2 = np.sqrt(1 - c2 * c2)
+            A = c2 * cb * sa + sb * ca
+            C = s2 * sa
+            S = A * A + sb * sb + C * C
+            D = np.abs(sb * C)
+            iso_node = np.min(2 * D / (S + np.sqrt(np.maximum(0, S * S - 4 * D * D)) + 1e-300), axis=0)
+            for k in range(len(iso)):
+                if not has[ia, ib, k]:
+                    out.append((0.0, 0, 0.0))
+                    continue
+                m = np.minimum(reach, np.min(np.minimum((psi - plo[ia, ib, k]) * dist,
+                                                        (phi[ia, ib, k] - psi) * dist), axis=0))
+                inside = m > 0
+                out.append((numpy_marching_squares(m, nx, ny, step), int(inside.sum()), float(iso_node[inside].sum())))
+    return out
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--quick", action="store_true", help="skip the full sweep and the end-to-end run")
+    args = ap.parse_args()
+    from surgopt.runner import configure_numba
+
+    configure_numba()
+    from surgopt.config import load_embedded
+    from surgopt.kinematics.raven import arm_cone_geometry, evaluate_designs
+    from surgopt.studies import raven_sweep as S
+
+    cfg = load_embedded(S.DEFAULT_CONFIG, S.Config)
+    t = time.perf_counter()
+    S.warm_up(cfg)
+    print(f"JIT load/compile: {time.perf_counter() - t:.2f} s")
+    geo = cfg.geometry
+    ports, axes = S.arms(geo, 20.0, 10.0, -20.0, 100.0, 50.0)
+    xs, ys = S.plane_grid(geo, ports)
+    n = xs.size * ys.size
+    psi, dist = np.empty((4, n)), np.empty((4, n))
+    for a in range(4):
+        arm_cone_geometry(xs, ys, geo.depth_mm, ports[a], axes[a], psi[a], dist[a])
+    al = np.radians(S.values(cfg.sweep.alpha_deg))
+    be = np.radians(S.values(cfg.sweep.beta_deg))
+    iso = np.array(S.values(cfg.sweep.iso_min))
+    plo, phi, has = S.psi_intervals(cfg, al, be, iso)
+    out = np.zeros((125, 6))
+    reps = 5
+    t = time.perf_counter()
+    for _ in range(reps):
+        evaluate_designs(psi, dist, xs.size, ys.size, geo.step_mm, geo.d4_max_mm, al, be, iso, plo, phi, has, out)
+    t_nb = (time.perf_counter() - t) / reps
+    t = time.perf_counter()
+    ref = numpy_designs(psi, dist, xs.size, ys.size, geo.step_mm, geo.d4_max_mm, al, be, iso, plo, phi, has)
+    t_np = time.perf_counter() - t
+    agree = max(abs(r[0] - o[1]) / max(o[1], 1) + abs(r[1] - o[2]) for r, o in zip(ref, out))
+    print(f"one geometry ({n:,} plane nodes x 4 arms, 125 designs): numba {t_nb * 1e3:.1f} ms "
+          f"({125 / t_nb:,.0f} designs/s, one core); numpy {t_np * 1e3:.0f} ms ({125 / t_np:,.0f} designs/s)")
+    print(f"ratio numba / numpy: {t_np / t_nb:.0f}x (max relative perimeter difference + point-count difference {agree:.1e})")
+    if args.quick:
+        return
+    from surgopt.runner import run_study
+    from surgopt.store import Store
+
+    with tempfile.TemporaryDirectory() as tmp:
+        t = time.perf_counter()
+        res = run_study(S, cfg, config_name="bench", store=Store(tmp), jobs=2, quiet=True)
+        dt = time.perf_counter() - t
+        print(f"Table II sweep, {res.table.num_rows:,} designs on 2 workers (store writes included): {dt:.1f} s "
+              f"({res.table.num_rows / dt:,.0f} designs/s)")
+        t = time.perf_counter()
+        subprocess.run([sys.executable, "-m", "surgopt", "raven-sweep", str(REPO / "configs" / "raven_table2.toml"),
+                        "--quiet", "--force", "--store", tmp], check=True, capture_output=True, env=dict(os.environ))
+        print(f"`surgopt raven-sweep configs/raven_table2.toml` end to end, warm JIT cache: {time.perf_counter() - t:.1f} s")
+
+
+if __name__ == "__main__":
+    main()
