@@ -183,12 +183,19 @@ def _report(study, result) -> None:
         console.print(extra)
 
 
-@app.command("runs")
+runs_app = typer.Typer(help="List and delete stored runs.", no_args_is_help=False)
+app.add_typer(runs_app, name="runs")
+
+
+@runs_app.callback(invoke_without_command=True)
 def runs(
+    ctx: typer.Context,
     store: StoreOpt = None,
     study: Annotated[Optional[str], typer.Option("--study", help="Only this study.")] = None,
 ) -> None:
     """List the studies held in the store: study, key prefix, config, rows, state, created."""
+    if ctx.invoked_subcommand is not None:
+        return
     from rich.console import Console
     from rich.table import Table
 
@@ -207,6 +214,169 @@ def runs(
         t.add_row(r.study, r.key[:12], r.manifest.get("config_name", "?"), str(r.rows), state,
                   r.manifest.get("created", "?"))
     Console(width=max(100, Console().width)).print(t)
+
+
+@runs_app.command("rm")
+def runs_rm(
+    key: Annotated[str, typer.Argument(help="Key prefix of the run (see `surgopt runs`).")],
+    store: StoreOpt = None,
+) -> None:
+    """Delete one stored run (only ever inside the store root)."""
+    from surgopt.errors import SurgoptError
+    from surgopt.store import Store
+
+    s = Store(store)
+    matches = [r for r in s.runs() if r.key.startswith(key)]
+    if len(matches) != 1:
+        _fail(f"{key}: matches {len(matches)} runs in {s.root}", 2)
+    try:
+        s.remove(matches[0])
+    except SurgoptError as exc:
+        _fail(exc, exc.exit_code)
+    typer.echo(f"removed {matches[0].study} {matches[0].key[:12]}")
+
+
+@runs_app.command("gc")
+def runs_gc(store: StoreOpt = None) -> None:
+    """Delete partial (interrupted) runs and temporary files left by killed writers."""
+    from surgopt.store import Store
+
+    s = Store(store)
+    removed = s.gc()
+    typer.echo(f"removed {len(removed)} item(s)" + "".join(f"\n  {p}" for p in removed))
+
+
+RunRef = Annotated[Optional[str], typer.Argument(
+    help="A key prefix from `surgopt runs`, or the config that produced the run. Default: the latest run.",
+    show_default=False)]
+StudyOpt = Annotated[Optional[str], typer.Option("--study", help="Study name, when a config fits several.")]
+
+
+@app.command("summarize")
+def summarize(
+    run: RunRef = None,
+    store: StoreOpt = None,
+    study: StudyOpt = None,
+    fmt: Annotated[str, typer.Option("--format", help="table, csv, json or markdown.")] = "table",
+    top: Annotated[int, typer.Option("--top", min=1, help="How many designs to list.")] = 10,
+    sort: Annotated[Optional[str], typer.Option("--sort", help="Column to rank by (default: the study's objective).",
+                                                show_default=False)] = None,
+) -> None:
+    """Summary of a stored run: top designs by the study's objective, its distribution, feasibility,
+    and for suture runs the weight-set comparison. Works on partial runs and says so."""
+    from surgopt.errors import SurgoptError
+
+    if fmt not in ("table", "csv", "json", "markdown"):
+        _fail(f"--format: {fmt!r} is not one of table, csv, json, markdown", 2)
+    try:
+        from surgopt.report import render, summary_sections
+        from surgopt.results import resolve_run
+        from surgopt.store import Store
+
+        st, r = resolve_run(Store(store), run, study)
+        sections = summary_sections(st, r, r.read_table(st.schema()), top=top, sort=sort)
+    except SurgoptError as exc:
+        _fail(exc, exc.exit_code)
+    if fmt != "table":
+        typer.echo(render(sections, fmt))
+        return
+    from rich.console import Console
+    from rich.table import Table
+
+    console = Console(width=max(Console().width, 150))
+    for title, header, rows in sections:
+        t = Table(title=title)
+        for h in header:
+            t.add_column(str(h))
+        for row in rows:
+            t.add_row(*[str(v) for v in row])
+        console.print(t)
+
+
+@app.command("plot")
+def plot(
+    run: RunRef = None,
+    out: Annotated[Path, typer.Option("--out", help="Folder for the PNG figures.")] = Path("figures"),
+    store: StoreOpt = None,
+    study: StudyOpt = None,
+    design: Annotated[Optional[int], typer.Option(
+        "--design", help="raven-sweep: design_id of the workspace figure (default: the best by cost).",
+        show_default=False)] = None,
+) -> None:
+    """PNG figures of a stored run in the style of the papers: rcm-grid GII map (Fig. 3) and Table I
+    scatter; raven-sweep common workspace (Figs. 4, 8), zeta over alpha-beta (Fig. 7), theta2 range against
+    Iso_min (Fig. 6); suture-sim |q_i/q_imax| against time per weight set (Fig. 7) and the tracked path."""
+    from surgopt.errors import SurgoptError
+    from surgopt.runner import configure_numba
+
+    configure_numba()
+    try:
+        from surgopt.report import figures
+        from surgopt.results import config_of, resolve_run
+        from surgopt.store import Store
+
+        st, r = resolve_run(Store(store), run, study)
+        table = r.read_table(st.schema())
+        if table.num_rows == 0:
+            _fail(f"{r.key[:12]}: the run has no rows yet", 1)
+        paths = figures(st, config_of(st, r), table, out, design)
+    except SurgoptError as exc:
+        _fail(exc, exc.exit_code)
+    for p in paths:
+        typer.echo(str(p))
+
+
+@app.command("check")
+def check(
+    config: Annotated[Path, typer.Argument(help="Config of the study to run (or reuse from the store).")],
+    baseline: Annotated[Path, typer.Option("--baseline", help="Parquet baseline to compare with.")],
+    rtol: Annotated[float, typer.Option("--rtol", min=0, help="Relative tolerance on float columns.")] = 1e-9,
+    atol: Annotated[float, typer.Option("--atol", min=0, help="Absolute tolerance on float columns.")] = 1e-12,
+    write: Annotated[bool, typer.Option("--write", help="(Re)create the baseline from this run instead.")] = False,
+    store: StoreOpt = None,
+    study: StudyOpt = None,
+    jobs: JobsOpt = 2,
+    quiet: QuietOpt = True,
+) -> None:
+    """Run (or reuse) a study and compare it with a stored Parquet baseline: key columns exactly, float
+    columns within rtol/atol, after sorting by the key. Exit 0 within tolerance, 1 when not, 2 on bad input."""
+    from surgopt.errors import SurgoptError
+    from surgopt.runner import configure_numba
+
+    configure_numba()
+    try:
+        import pyarrow.parquet as pq
+
+        from surgopt.results import compare_tables, study_of_config, write_baseline
+        from surgopt.runner import run_study
+        from surgopt.store import Store
+
+        st, cfg = study_of_config(config, study)
+        if not write and not baseline.is_file():
+            _fail(f"{baseline}: baseline not found (create it with --write)", 2)
+        res = run_study(st, cfg, config_name=config.stem, store=Store(store), jobs=jobs, quiet=quiet,
+                        say=lambda m: typer.echo(m, err=True))
+        if write:
+            write_baseline(res.table, st.KEY_COLUMNS, baseline)
+            typer.echo(f"wrote {baseline} ({res.table.num_rows} rows)")
+            return
+        try:
+            base = pq.read_table(baseline)
+        except Exception as exc:  # noqa: BLE001 - any unreadable file is bad input
+            _fail(f"{baseline}: not a readable Parquet file ({exc})", 2)
+        problems, diffs = compare_tables(res.table, base, st.KEY_COLUMNS, rtol, atol)
+    except SurgoptError as exc:
+        _fail(exc, exc.exit_code)
+    for p in problems:
+        typer.echo(f"FAIL: {p}")
+    if diffs:
+        typer.echo(f"FAIL: {len(diffs)} value(s) differ beyond rtol={rtol:g}, atol={atol:g}; worst:")
+        for d in diffs[:8]:
+            typer.echo(f"  {d.column} at {dict(zip(st.KEY_COLUMNS, d.key))}: baseline {d.baseline!r}, now "
+                       f"{d.current!r} (relative {d.rel:.3g})")
+    if problems or diffs:
+        raise typer.Exit(1)
+    typer.echo(f"OK: {res.table.num_rows} rows match {baseline} (rtol={rtol:g}, atol={atol:g})")
 
 
 def main() -> None:

@@ -226,6 +226,20 @@ class Store:
                 out.append(Run(mpath.parent, json.loads(mpath.read_text())))
         return sorted(out, key=lambda r: r.manifest.get("created", ""))
 
+    def gc(self) -> list[Path]:
+        """Delete partial runs and stray temporary files; returns what was removed."""
+        removed = []
+        if not self.root.exists():
+            return removed
+        for run in self.runs():
+            if not run.complete:
+                self.remove(run)
+                removed.append(run.path)
+        for tmp in self.root.glob("*/*/.*.tmp-*"):
+            tmp.unlink(missing_ok=True)
+            removed.append(tmp)
+        return removed
+
     def remove(self, run: Run) -> None:
         root = self.root.resolve()
         target = run.path.resolve()

@@ -21,6 +21,8 @@ NAME = "raven-sweep"
 KERNEL_VERSION = "raven-1"
 DEFAULT_CONFIG = "raven_table2.toml"
 DEFAULT_CHUNK = 20  # geometries per task
+OBJECTIVE = "cost"
+KEY_COLUMNS = ("design_id", "source")
 PARAMS = ("alpha_deg", "beta_deg", "phi_x_deg", "phi_y_deg", "phi_z_deg", "bx_mm", "by_mm", "iso_min")
 #: The optimum of the paper's Table II (C_max = 526.3).
 PAPER_OPTIMUM = dict(alpha_deg=85.0, beta_deg=65.0, phi_x_deg=20.0, phi_y_deg=10.0, phi_z_deg=-20.0,
@@ -375,6 +377,13 @@ def paper_optimum_rank(table):
     return rank, {k: hit[k][0].as_py() for k in hit.column_names}
 
 
+def feasibility(table) -> dict:
+    import pyarrow.compute as pc
+
+    f = int(pc.sum(pc.greater(table["n_points"], 0)).as_py() or 0)
+    return {"with_common_workspace": f, "without": table.num_rows - f}
+
+
 def summarize(table) -> dict:
     import pyarrow.compute as pc
 
@@ -396,3 +405,36 @@ def tables(table):
     cols = list(PARAMS) + ["zeta_cm", "area_cm2", "iso_mean", "cost"]
     rows = [[f"{top[c][i].as_py():.4g}" for c in cols] for i in range(top.num_rows)]
     return [("top designs by cost C (eq. 43)", cols, rows)]
+
+
+def design_fields(cfg: RavenSweepConfig, params: dict):
+    """Plane grid and margins of one design, per arm and common (for figures).
+
+    Returns xs, ys (mm), per-arm margin (arms, nx, ny) and the common margin
+    (nx, ny); a margin is positive inside, zero on the boundary (mm).
+    """
+    from surgopt.kinematics.raven import arm_cone_geometry
+
+    geo = cfg.geometry
+    g = tuple(params[p] for p in ("phi_x_deg", "phi_y_deg", "phi_z_deg", "bx_mm", "by_mm"))
+    ports, axes = arms(geo, *g)
+    reach = math.sqrt(geo.d4_max_mm ** 2 - geo.depth_mm ** 2)
+    s = geo.step_mm
+    lo = ports[:, :2].min(axis=0) - reach
+    hi = ports[:, :2].max(axis=0) + reach
+    xs = np.arange(math.floor(lo[0] / s) - 2, math.ceil(hi[0] / s) + 3) * s
+    ys = np.arange(math.floor(lo[1] / s) - 2, math.ceil(hi[1] / s) + 3) * s
+    n = xs.size * ys.size
+    al, be = math.radians(params["alpha_deg"]), math.radians(params["beta_deg"])
+    plo, phi_, has = psi_intervals(cfg, np.array([al]), np.array([be]), np.array([params["iso_min"]]))
+    margins = np.empty((len(ports), xs.size, ys.size))
+    for a in range(len(ports)):
+        psi, dist = np.empty(n), np.empty(n)
+        arm_cone_geometry(xs, ys, geo.depth_mm, ports[a], axes[a], psi, dist)
+        m = np.minimum(geo.d4_max_mm - dist, np.minimum((psi - plo[0, 0, 0]) * dist, (phi_[0, 0, 0] - psi) * dist))
+        margins[a] = (m if has[0, 0, 0] else np.full(n, -1.0)).reshape(xs.size, ys.size)
+    return xs, ys, ports, margins, margins.min(axis=0)
+
+
+def feasible_mask(table):
+    return table["n_points"].to_numpy() > 0

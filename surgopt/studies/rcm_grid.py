@@ -23,6 +23,16 @@ KERNEL_VERSION = "pa10-rcm-1"
 DEFAULT_CONFIG = "rcm_locke_patel_2007.toml"
 #: Candidates per task: ~0.3 s of work per chunk on one core.
 DEFAULT_CHUNK = 512
+#: Column to rank designs by (descending) and key columns for baseline checks.
+OBJECTIVE = "gii"
+KEY_COLUMNS = ("candidate_id",)
+#: Locke & Patel's Table I: (x, z) m with z from the shoulder, and the printed GII.
+PAPER_TABLE_I = (
+    (0.550, -0.540, 0.0357), (0.630, -0.570, 0.0351), (0.715, -0.630, 0.0148),
+    (0.530, -0.410, 0.0421), (0.630, -0.390, 0.0340), (0.720, -0.370, 0.0107),
+    (0.460, -0.300, 0.0356), (0.535, -0.210, 0.0440), (0.650, -0.160, 0.0139),
+    (0.350, -0.210, 0.0228), (0.400, -0.110, 0.0293), (0.430, 0.010, 0.0332),
+    (0.260, -0.140, 0.0110), (0.260, -0.060, 0.0111), (0.260, 0.030, 0.0111))
 
 
 class JointLimitsDeg(StrictModel):
@@ -290,6 +300,13 @@ def cull_search(cfg: RcmGridConfig) -> dict:
     return _rows(np.arange(xz.shape[0]), xz, lo, hi, n_unr, n_sing, n_eval, exact)
 
 
+def feasibility(table) -> dict:
+    import pyarrow.compute as pc
+
+    f = int(pc.sum(table["feasible"]).as_py() or 0)
+    return {"feasible": f, "infeasible": table.num_rows - f}
+
+
 def summarize(table) -> dict:
     """Best candidate, its GII and the feasible count of a stored table."""
     import pyarrow.compute as pc
@@ -314,3 +331,7 @@ def tables(table) -> list[tuple[str, list[str], list[list[str]]]]:
     rows = [[f"{x:.3f}", f"{z:.3f}", f"{g:.5f}"] for x, z, g in
             zip(top["x_rcm_m"].to_pylist(), top["z_rcm_m"].to_pylist(), top["gii"].to_pylist())]
     return [("best RCM candidates", ["x_rcm_m", "z_rcm_m", "gii"], rows)]
+
+
+def feasible_mask(table):
+    return table["feasible"].to_numpy(zero_copy_only=False)

@@ -22,6 +22,8 @@ NAME = "suture-sim"
 KERNEL_VERSION = "throat-1"
 DEFAULT_CONFIG = "suture_wei_xu_simaan.toml"
 DEFAULT_CHUNK = 1  # one run per task
+OBJECTIVE = None  # runs are compared side by side, not ranked
+KEY_COLUMNS = ("run_id", "step")
 
 MODES = ("spin", "orbit_parallel", "orbit_tangent")
 JOINT_COLUMNS = ("q1_rad", "q2_rad", "q3_mm", "q4_rad", "q5_rad", "q6_rad", "q7_rad", "q8_rad")
@@ -221,6 +223,12 @@ def run_summary(table):
     out["steps"] = g.size() - 1
     out["stopped_early"] = ~g["run_completed"].first()
     return out.reset_index()
+
+
+def feasibility(table) -> dict:
+    s = run_summary(table)
+    ok = int(((s["limit_violations"] == 0) & ~s["stopped_early"]).sum())
+    return {"runs_within_limits": ok, "runs_violating_or_stopped": len(s) - ok}
 
 
 def summarize(table) -> dict:

@@ -1,0 +1,150 @@
+"""summarize, plot, check and runs rm/gc on stored runs; CI regression against the Parquet baselines."""
+import json
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pyarrow as pa
+import pyarrow.parquet as pq
+import pytest
+
+from surgopt.store import Store
+
+BASE = Path(__file__).parent / "baselines"
+STUDY_OF = {"rcm_small": "rcm-grid", "raven_small": "raven-sweep", "suture_small": "suture-sim"}
+
+
+def cli(*args, check=True):
+    r = subprocess.run([sys.executable, "-m", "surgopt", *map(str, args)], capture_output=True, text=True)
+    if check and r.returncode != 0:
+        raise AssertionError(f"exit {r.returncode}\n{r.stdout}\n{r.stderr}")
+    return r
+
+
+@pytest.fixture(scope="module")
+def store(tmp_path_factory):
+    """One store with a run of each baseline config."""
+    s = tmp_path_factory.mktemp("reports") / "store"
+    for name, study in STUDY_OF.items():
+        cli(study, BASE / f"{name}.toml", "--store", s, "--quiet")
+    return s
+
+
+@pytest.mark.parametrize("name", sorted(STUDY_OF))
+def test_check_passes_on_the_stored_baseline(store, name):
+    r = cli("check", BASE / f"{name}.toml", "--baseline", BASE / f"{name}.parquet", "--store", store)
+    assert r.stdout.startswith("OK:")
+
+
+@pytest.mark.parametrize("name", sorted(STUDY_OF))
+def test_check_fails_on_a_perturbed_baseline(store, tmp_path, name):
+    t = pq.read_table(BASE / f"{name}.parquet")
+    col = {"rcm_small": "gii", "raven_small": "zeta_cm", "suture_small": "q4_rad"}[name]
+    v = t[col].to_numpy().copy()
+    i = int(np.argmax(np.abs(v)))
+    v[i] *= 1 + 1e-6
+    bad = tmp_path / "bad.parquet"
+    pq.write_table(t.set_column(t.column_names.index(col), col, pa.array(v)), bad)
+    r = cli("check", BASE / f"{name}.toml", "--baseline", bad, "--store", store, check=False)
+    assert r.returncode == 1
+    assert "FAIL: 1 value(s) differ" in r.stdout and col in r.stdout
+    # a looser tolerance accepts it
+    assert cli("check", BASE / f"{name}.toml", "--baseline", bad, "--store", store, "--rtol", "1e-5").returncode == 0
+
+
+def test_check_structural_failures_and_bad_input(store, tmp_path):
+    t = pq.read_table(BASE / "rcm_small.parquet")
+    pq.write_table(t.slice(0, 100), tmp_path / "short.parquet")
+    r = cli("check", BASE / "rcm_small.toml", "--baseline", tmp_path / "short.parquet", "--store", store, check=False)
+    assert r.returncode == 1 and "row count differs" in r.stdout
+    r = cli("check", BASE / "rcm_small.toml", "--baseline", tmp_path / "missing.parquet", "--store", store, check=False)
+    assert r.returncode == 2 and "baseline not found" in r.stderr
+    (tmp_path / "junk.parquet").write_text("not parquet")
+    r = cli("check", BASE / "rcm_small.toml", "--baseline", tmp_path / "junk.parquet", "--store", store, check=False)
+    assert r.returncode == 2 and "not a readable Parquet file" in r.stderr
+    (tmp_path / "bad.toml").write_text("[workspace]\npoints_per_side = -1\n")
+    r = cli("check", tmp_path / "bad.toml", "--baseline", BASE / "rcm_small.parquet", "--store", store, check=False)
+    assert r.returncode == 2
+
+
+def test_baselines_are_small_and_explicit():
+    total = sum(p.stat().st_size for p in BASE.glob("*.parquet"))
+    assert total < 300_000
+    for p in BASE.glob("*.parquet"):
+        schema = pq.read_schema(p)
+        assert not any(pa.types.is_temporal(f.type) for f in schema)
+        assert all(pa.types.is_float64(f.type) for f in schema if pa.types.is_floating(f.type))
+        assert 100 <= pq.read_metadata(p).num_rows <= 500
+
+
+def test_summarize_formats(store):
+    r = cli("summarize", BASE / "rcm_small.toml", "--store", store, "--format", "json", "--top", "3")
+    data = json.loads(r.stdout)
+    assert len(data["top 3 by gii"]) == 3
+    gii = [row["gii"] for row in data["top 3 by gii"]]
+    assert gii == sorted(gii, reverse=True)
+    stats = {row["rows"]: row for row in data["distribution of gii"]}
+    assert stats["all"]["count"] == 150 and stats["feasible"]["max"] == gii[0]
+    assert {"feasible", "infeasible"} <= {row["field"] for row in data["run"]}
+    r = cli("summarize", BASE / "raven_small.toml", "--store", store, "--format", "csv", "--sort", "zeta_cm", "--top", "2")
+    assert "# top 2 by zeta_cm" in r.stdout and "alpha_deg" in r.stdout
+    r = cli("summarize", BASE / "suture_small.toml", "--store", store, "--format", "markdown")
+    assert "W1 range" in r.stdout and "W2 range" in r.stdout and "\\|q/qmax\\|" in r.stdout
+    r = cli("summarize", "--store", store, "--study", "rcm-grid")
+    assert "top 10 by gii" in r.stdout
+    assert cli("summarize", "--store", store, "--sort", "nope", "--study", "rcm-grid", check=False).returncode == 2
+    assert cli("summarize", "ffffffffff", "--store", store, check=False).returncode == 2
+    assert cli("summarize", "--store", store, "--format", "xml", check=False).returncode == 2
+
+
+def test_summarize_says_when_a_run_is_partial(store, tmp_path):
+    s2 = tmp_path / "store"
+    shutil.copytree(store, s2)
+    run = next(r for r in Store(s2).runs() if r.study == "rcm-grid")
+    manifest = json.loads((run.path / "manifest.json").read_text())
+    manifest["n_tasks"] = len(manifest["parts"]) + 3  # three chunks still to come
+    (run.path / "manifest.json").write_text(json.dumps(manifest))
+    r = cli("summarize", run.key[:10], "--store", s2)
+    assert "PARTIAL" in r.stdout
+    # runs lists it as partial; gc removes it and nothing else
+    assert "partial" in cli("runs", "--store", s2).stdout
+    cli("runs", "gc", "--store", s2)
+    left = Store(s2).runs()
+    assert len(left) == 2 and all(r.complete for r in left)
+
+
+def test_runs_filter_and_rm(store, tmp_path):
+    s2 = tmp_path / "store"
+    shutil.copytree(store, s2)
+    out = cli("runs", "--store", s2, "--study", "suture-sim").stdout
+    assert "suture-sim" in out and "rcm-grid" not in out
+    key = next(r.key for r in Store(s2).runs() if r.study == "raven-sweep")
+    cli("runs", "rm", key[:12], "--store", s2)
+    assert {r.study for r in Store(s2).runs()} == {"rcm-grid", "suture-sim"}
+    assert cli("runs", "rm", "zzzz", "--store", s2, check=False).returncode == 2
+
+
+def _png_ok(path, min_px=300):
+    import matplotlib.image as mpimg
+
+    img = mpimg.imread(path)
+    assert img.shape[0] >= min_px and img.shape[1] >= min_px
+    assert img[..., :3].std() > 0.05  # not blank
+
+
+def test_plots(store, tmp_path):
+    for name in STUDY_OF:
+        out = tmp_path / name
+        r = cli("plot", BASE / f"{name}.toml", "--store", store, "--out", out)
+        paths = [Path(p) for p in r.stdout.split()]
+        assert paths and all(p.parent == out for p in paths)
+        for p in paths:
+            _png_ok(p)
+    names = {p.name for p in (tmp_path / "rcm_small").iterdir()}
+    assert "rcm_gii_map.png" in names
+    names = {p.name for p in (tmp_path / "raven_small").iterdir()}
+    assert {"raven_workspace.png", "raven_zeta_alpha_beta.png", "raven_theta2_iso.png"} <= names
+    names = {p.name for p in (tmp_path / "suture_small").iterdir()}
+    assert {"suture_joints_0.png", "suture_path_0.png"} <= names
