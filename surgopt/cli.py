@@ -29,6 +29,12 @@ JobsOpt = Annotated[int, typer.Option("--jobs", "-j", min=1, max=256,
                                       help="Worker processes (joblib loky backend).")]
 ForceOpt = Annotated[bool, typer.Option("--force", help="Recompute even if the store holds this study.")]
 QuietOpt = Annotated[bool, typer.Option("--quiet", "-q", help="No progress bar.")]
+BackendOpt = Annotated[str, typer.Option(
+    "--backend", help="loky (local worker processes) or dask (a distributed cluster through joblib's dask "
+                      "backend; needs pip install 'surgopt[dask]').")]
+SchedulerOpt = Annotated[Optional[str], typer.Option(
+    "--scheduler", help="With --backend dask: the scheduler address (tcp://host:8786). Without it, a "
+                        "LocalCluster of --jobs single-threaded workers.", show_default=False)]
 ChunkOpt = Annotated[Optional[int], typer.Option(
     "--chunk-size", min=1, help="Design points per task (a resumed run keeps the size it started with).",
     show_default=False)]
@@ -60,6 +66,8 @@ def rcm_grid(
     force: ForceOpt = False,
     quiet: QuietOpt = False,
     chunk_size: ChunkOpt = None,
+    backend: BackendOpt = "loky",
+    scheduler: SchedulerOpt = None,
 ) -> None:
     """Global Isotropy Index of candidate remote-centre-of-motion locations for a PA10-7C
     (Locke & Patel, ICRA 2007: eqs. 5-9, Fig. 3, Table I).
@@ -71,7 +79,7 @@ def rcm_grid(
     Rows: candidate_id, x_rcm_m, z_rcm_m, gii, feasible, sigma_min_m_per_s, sigma_max_m_per_s,
     n_unreachable, n_singular, points_evaluated, gii_is_exact.
     """
-    _run_study_command("rcm-grid", config, store, jobs, force, quiet, chunk_size,
+    _run_study_command("rcm-grid", config, store, jobs, force, quiet, chunk_size, backend, scheduler,
                        overrides={"search": "cull"} if cull else None)
 
 
@@ -89,6 +97,8 @@ def raven_sweep(
     force: ForceOpt = False,
     quiet: QuietOpt = False,
     chunk_size: ChunkOpt = None,
+    backend: BackendOpt = "loky",
+    scheduler: SchedulerOpt = None,
 ) -> None:
     """Raven IV port placement and link design (Li, Glozman, Milutinovic, Rosen, ICRA 2011: eqs. 1-43,
     Table II, Figs. 4, 6-8).
@@ -99,7 +109,8 @@ def raven_sweep(
     perimeter_cm, zeta_cm (eq. 33), iso_sum, iso_mean, iso_area_cm2, iso_min_actual, n_points,
     cost (eq. 43), source (grid | refine). Ends with the top designs and the rank of the paper's optimum.
     """
-    _run_study_command("raven-sweep", config, store, jobs, force, quiet, chunk_size, then_refine=refine)
+    _run_study_command("raven-sweep", config, store, jobs, force, quiet, chunk_size, backend, scheduler,
+                       then_refine=refine)
 
 
 @app.command("suture-sim")
@@ -111,6 +122,8 @@ def suture_sim(
     jobs: JobsOpt = 2,
     force: ForceOpt = False,
     quiet: QuietOpt = False,
+    backend: BackendOpt = "loky",
+    scheduler: SchedulerOpt = None,
 ) -> None:
     """Suturing with one arm of the two-armed throat robot (Wei, Xu & Simaan: eqs. 2-32, Figs. 6-7).
 
@@ -121,10 +134,11 @@ def suture_sim(
     speed is one run. Rows: run settings, step, t_s, q1_rad..q8_rad (q3 in mm), q1_norm..q8_norm
     (|q_i / q_imax|), pos_err_mm, rot_err_deg. Ends with the joint ranges of the weight sets side by side.
     """
-    _run_study_command("suture-sim", config, store, jobs, force, quiet, None)
+    _run_study_command("suture-sim", config, store, jobs, force, quiet, None, backend, scheduler)
 
 
-def _run_study_command(name, config, store, jobs, force, quiet, chunk_size, overrides=None, then_refine=False):
+def _run_study_command(name, config, store, jobs, force, quiet, chunk_size, backend="loky", scheduler=None,
+                       overrides=None, then_refine=False):
     from surgopt.errors import SurgoptError
     from surgopt.runner import configure_numba
 
@@ -140,12 +154,13 @@ def _run_study_command(name, config, store, jobs, force, quiet, chunk_size, over
             cfg = study.Config.model_validate({**cfg.model_dump(), **overrides})
         say = lambda m: typer.echo(m, err=True)  # noqa: E731
         result = run_study(study, cfg, config_name=config_name, store=Store(store), jobs=jobs,
-                           force=force, quiet=quiet, chunk=chunk_size, say=say)
+                           force=force, quiet=quiet, chunk=chunk_size, backend=backend, scheduler=scheduler,
+                           say=say)
         _report(study, result)
         if then_refine:
             rcfg = study.refine_config(cfg, result.table)
             refined = run_study(study, rcfg, config_name=f"{config_name}+refine", store=Store(store), jobs=jobs,
-                                force=force, quiet=quiet, chunk=1, say=say)
+                                force=force, quiet=quiet, chunk=1, backend=backend, scheduler=scheduler, say=say)
             _report(study, refined)
     except SurgoptError as exc:
         _fail(exc, exc.exit_code)

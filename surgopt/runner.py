@@ -5,12 +5,14 @@ Knows nothing of kinematics: a study module supplies ``n_tasks``,
 """
 from __future__ import annotations
 
+import contextlib
 import os
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
 
 from surgopt.config import study_key
+from surgopt.errors import UsageError
 from surgopt.store import Run, Store
 
 DEFAULT_JOBS = 2
@@ -72,10 +74,24 @@ def _progress(quiet: bool):
     return progress
 
 
+BACKENDS = ("loky", "dask")
+
+
 def run_study(study, cfg, *, config_name: str, store: Store, jobs: int = DEFAULT_JOBS,
               force: bool = False, quiet: bool = False, chunk: int | None = None,
-              say=print) -> RunResult:
-    """Compute (or fetch from the store) the table of one study config."""
+              backend: str = "loky", scheduler: str | None = None, say=print) -> RunResult:
+    """Compute (or fetch from the store) the table of one study config.
+
+    ``backend`` "loky" (local processes) or "dask" (joblib's dask backend on
+    a ``distributed`` cluster: ``scheduler`` address, or a LocalCluster of
+    ``jobs`` single-threaded workers). Either way the same chunks run the same
+    kernels and only this process writes to the store, part by part as chunks
+    complete, so memory does not grow with the design grid.
+    """
+    if backend not in BACKENDS:
+        raise UsageError(f"--backend: {backend!r} is not one of {', '.join(BACKENDS)}")
+    if backend == "dask":
+        _require_distributed()
     import pyarrow as pa
 
     t0 = time.perf_counter()
@@ -87,7 +103,7 @@ def run_study(study, cfg, *, config_name: str, store: Store, jobs: int = DEFAULT
         return RunResult(run, table, True, 0, time.perf_counter() - t0)
 
     with store.lock(study.NAME, key, on_wait=lambda who: say(f"waiting for {who} to finish this study ...")):
-        chunk = chunk or study.DEFAULT_CHUNK
+        chunk = chunk or study.auto_chunk(cfg)
         existing = None if force else store.open(study.NAME, key)
         if existing is not None:
             chunk = existing.manifest["chunk"]  # parts already cut this way
@@ -101,12 +117,13 @@ def run_study(study, cfg, *, config_name: str, store: Store, jobs: int = DEFAULT
             messages.append(f"resuming: {total - len(missing)} of {total} chunks already stored")
         if missing:
             study.warm_up(cfg)  # compile once in the parent; workers load the cache
-            _dispatch(study, cfg, chunk, missing, run, store, jobs, quiet, total, schema, pa)
+            _dispatch(study, cfg, chunk, missing, run, store, jobs, quiet, total, schema, pa, backend, scheduler)
         table = run.read_table(schema)
     return RunResult(run, table, False, len(missing), time.perf_counter() - t0, messages)
 
 
-def _dispatch(study, cfg, chunk, missing, run, store, jobs, quiet, total, schema, pa):
+def _dispatch(study, cfg, chunk, missing, run, store, jobs, quiet, total, schema, pa, backend="loky",
+              scheduler=None):
     progress = _progress(quiet)
     t_start = time.perf_counter()
     with progress:
@@ -120,15 +137,77 @@ def _dispatch(study, cfg, chunk, missing, run, store, jobs, quiet, total, schema
             dt = time.perf_counter() - t_start
             progress.update(bar, advance=1, rate=f"{done_now / dt:.1f} chunks/s" if dt > 0 else "")
 
-        if jobs == 1 or len(missing) == 1:
+        if backend == "loky" and (jobs == 1 or len(missing) == 1):
             for i in missing:
                 record(*_compute(study.NAME, cfg, chunk, i))
             return
         from joblib import Parallel, delayed, parallel_config
 
-        with parallel_config(backend="loky", n_jobs=jobs, inner_max_num_threads=1):
-            results = Parallel(return_as="generator_unordered")(
-                delayed(_compute)(study.NAME, cfg, chunk, i) for i in missing)
-            for index, cols in results:
-                record(index, cols)
+        tasks = (delayed(_compute)(study.NAME, cfg, chunk, i) for i in missing)
+        if backend == "loky":
+            with parallel_config(backend="loky", n_jobs=jobs, inner_max_num_threads=1):
+                for index, cols in Parallel(return_as="generator_unordered")(tasks):
+                    record(index, cols)
+            return
+        with _dask_client(scheduler, jobs) as client:
+            _prepare_dask_workers(client, study.NAME, cfg)
+            with parallel_config(backend="dask"):
+                for index, cols in Parallel(return_as="generator_unordered")(tasks):
+                    record(index, cols)
+
+
+DASK_HINT = "--backend dask needs the optional extra: pip install 'surgopt[dask]'"
+
+
+def _require_distributed() -> None:
+    try:
+        import distributed  # noqa: F401
+    except ImportError:
+        raise UsageError(DASK_HINT) from None
+
+
+@contextlib.contextmanager
+def _dask_client(scheduler: str | None, jobs: int):
+    """A distributed.Client on ``scheduler``, or on a LocalCluster of ``jobs`` one-thread workers."""
+    from distributed import Client, LocalCluster
+
+    if scheduler:
+        client = Client(scheduler)
+        try:
+            yield client
+        finally:
+            client.close()
+        return
+    # worker processes inherit this environment: one numba thread each, our numba cache
+    os.environ.setdefault("NUMBA_NUM_THREADS", "1")
+    cluster = LocalCluster(n_workers=jobs, threads_per_worker=1, processes=True, dashboard_address=None)
+    client = Client(cluster)
+    try:
+        yield client
+    finally:
+        client.close()
+        cluster.close()
+
+
+def _worker_setup(cache_dir: str, study_name: str, cfg) -> str:
+    """On a dask worker: one numba thread (dask does not set NUMBA_NUM_THREADS), a numba cache, compiled kernels."""
+    os.environ.setdefault("NUMBA_CACHE_DIR", cache_dir)
+    import numba
+
+    numba.set_num_threads(1)
+    from surgopt.studies import get_study
+
+    get_study(study_name).warm_up(cfg)
+    return os.environ["NUMBA_CACHE_DIR"]
+
+
+def _prepare_dask_workers(client, study_name: str, cfg) -> None:
+    """Compile or load the kernels on one worker first, then on the rest, so that workers sharing a
+    cache folder find it written instead of all compiling into it at once."""
+    workers = sorted(client.scheduler_info()["workers"])
+    cache = str(numba_cache_dir())
+    if workers:
+        client.run(_worker_setup, cache, study_name, cfg, workers=workers[:1])
+    if len(workers) > 1:
+        client.run(_worker_setup, cache, study_name, cfg, workers=workers[1:])
 

@@ -20,7 +20,8 @@ from surgopt.robots import raven_iv
 NAME = "raven-sweep"
 KERNEL_VERSION = "raven-1"
 DEFAULT_CONFIG = "raven_table2.toml"
-DEFAULT_CHUNK = 20  # geometries per task
+#: Cost model for choosing chunks: ~5 ns per plane node and design on one core (docs/performance.md).
+NS_PER_NODE_DESIGN = 5.0
 OBJECTIVE = "cost"
 KEY_COLUMNS = ("design_id", "source")
 PARAMS = ("alpha_deg", "beta_deg", "phi_x_deg", "phi_y_deg", "phi_z_deg", "bx_mm", "by_mm", "iso_min")
@@ -265,6 +266,19 @@ def schema():
                                              "iso_area_cm2", "iso_min_actual")] +
         [pa.field("n_points", pa.int64()), pa.field("cost", pa.float64(), metadata={"eq": "43"}),
          pa.field("source", pa.string())])
+
+
+def auto_chunk(cfg: RavenSweepConfig) -> int:
+    """Geometries per task: about one second of single-core work, and at least 8 tasks."""
+    from surgopt.studies import chunk_for_seconds
+
+    sw, geo = cfg.sweep, cfg.geometry
+    if cfg.search == "refine":
+        return 1
+    reach = math.sqrt(geo.d4_max_mm ** 2 - geo.depth_mm ** 2)
+    nodes = (2 * reach / geo.step_mm) ** 2
+    designs = len(values(sw.alpha_deg)) * len(values(sw.beta_deg)) * len(values(sw.iso_min))
+    return chunk_for_seconds(len(geometry_grid(cfg)), nodes * designs * NS_PER_NODE_DESIGN * 1e-9)
 
 
 def n_tasks(cfg: RavenSweepConfig, chunk: int) -> int:

@@ -21,8 +21,8 @@ NAME = "rcm-grid"
 #: Bump when a kernel change alters results: stored runs then miss the cache.
 KERNEL_VERSION = "pa10-rcm-1"
 DEFAULT_CONFIG = "rcm_locke_patel_2007.toml"
-#: Candidates per task: ~0.3 s of work per chunk on one core.
-DEFAULT_CHUNK = 512
+#: Cost model for choosing chunks: ~50 ns per pose on one core (docs/performance.md).
+NS_PER_POSE = 50.0
 #: Column to rank designs by (descending) and key columns for baseline checks.
 OBJECTIVE = "gii"
 KEY_COLUMNS = ("candidate_id",)
@@ -197,6 +197,14 @@ def schema():
                      metadata={"meaning": "false for candidates culled by --cull: gii is then an upper bound"}),
         ]
     )
+
+
+def auto_chunk(cfg: RcmGridConfig) -> int:
+    """Candidates per task: about one second of single-core work, and at least 8 tasks."""
+    from surgopt.studies import chunk_for_seconds
+
+    m = candidate_xz(cfg).shape[0]
+    return chunk_for_seconds(m, cfg.workspace.points_per_side ** 3 * NS_PER_POSE * 1e-9)
 
 
 def n_tasks(cfg: RcmGridConfig, chunk: int) -> int:

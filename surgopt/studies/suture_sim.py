@@ -21,7 +21,6 @@ from surgopt.robots import throat_arm as arm
 NAME = "suture-sim"
 KERNEL_VERSION = "throat-1"
 DEFAULT_CONFIG = "suture_wei_xu_simaan.toml"
-DEFAULT_CHUNK = 1  # one run per task
 OBJECTIVE = None  # runs are compared side by side, not ranked
 KEY_COLUMNS = ("run_id", "step")
 
@@ -168,6 +167,11 @@ def schema():
                pa.field("run_completed", pa.bool_(), metadata={
                    "meaning": "false: the run stopped where J W^-1 J^T became singular (set task.damping > 0)"})]
     return pa.schema(fields)
+
+
+def auto_chunk(cfg: SutureSimConfig) -> int:
+    """One run per task (a paper run is ~0.05 s; runs are the natural unit of resumption)."""
+    return 1
 
 
 def n_tasks(cfg: SutureSimConfig, chunk: int) -> int:

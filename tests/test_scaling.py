@@ -1,0 +1,83 @@
+"""Backends, worker counts and chunk sizes give the same rows; the dask backend through joblib."""
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from surgopt.config import load_config
+from surgopt.errors import UsageError
+from surgopt.runner import run_study
+from surgopt.store import Store
+from surgopt.studies import get_study
+
+BASE = Path(__file__).parent / "baselines"
+CONFIGS = {"rcm-grid": "rcm_small", "raven-sweep": "raven_small", "suture-sim": "suture_small"}
+
+
+def _run(tmp_path, name, tag, **kw):
+    study = get_study(name)
+    cfg = load_config(BASE / f"{CONFIGS[name]}.toml", study.Config)
+    return run_study(study, cfg, config_name=tag, store=Store(tmp_path / tag), quiet=True, **kw).table
+
+
+@pytest.mark.parametrize("name", sorted(CONFIGS))
+def test_rows_independent_of_jobs_and_chunk_size(tmp_path, name):
+    a = _run(tmp_path, name, "j1", jobs=1, chunk=1)
+    b = _run(tmp_path, name, "j2", jobs=2, chunk=7)
+    c = _run(tmp_path, name, "auto", jobs=2)
+    assert a.equals(b) and a.equals(c)
+
+
+@pytest.fixture(scope="module")
+def dask_cluster():
+    distributed = pytest.importorskip("distributed", reason="dask[distributed] not installed (pip install 'surgopt[dask]')")
+    cluster = distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None)
+    yield cluster
+    cluster.close()
+
+
+@pytest.mark.parametrize("name", sorted(CONFIGS))
+def test_dask_local_cluster_equals_loky(tmp_path, name, dask_cluster):
+    loky = _run(tmp_path, name, "loky", jobs=2)
+    dask = _run(tmp_path, name, "dask", jobs=2, backend="dask", scheduler=dask_cluster.scheduler_address, chunk=3)
+    assert loky.equals(dask)
+
+
+def test_cli_dask_backend_with_its_own_local_cluster(tmp_path):
+    pytest.importorskip("distributed", reason="dask[distributed] not installed")
+    r = subprocess.run([sys.executable, "-m", "surgopt", "suture-sim", str(BASE / "suture_small.toml"), "--store",
+                        str(tmp_path / "s"), "--backend", "dask", "--jobs", "2", "--quiet"],
+                       capture_output=True, text=True)
+    assert r.returncode == 0, r.stderr
+    (run,) = Store(tmp_path / "s").runs()
+    assert run.read_table(get_study("suture-sim").schema()).equals(_run(tmp_path, "suture-sim", "ref", jobs=1))
+
+
+def test_dask_backend_without_distributed_says_how_to_install(tmp_path, monkeypatch):
+    monkeypatch.setitem(sys.modules, "distributed", None)  # import distributed -> ImportError
+    with pytest.raises(UsageError, match=r"pip install 'surgopt\[dask\]'"):
+        _run(tmp_path, "rcm-grid", "x", backend="dask")
+    with pytest.raises(UsageError, match="--backend"):
+        _run(tmp_path, "rcm-grid", "y", backend="spark")
+
+
+def test_cli_unknown_backend_exits_2(tmp_path):
+    r = subprocess.run([sys.executable, "-m", "surgopt", "rcm-grid", str(BASE / "rcm_small.toml"), "--store",
+                        str(tmp_path / "s"), "--backend", "spark"], capture_output=True, text=True)
+    assert r.returncode == 2 and "--backend" in r.stderr
+    assert not (tmp_path / "s").exists()
+
+
+def test_auto_chunk_aims_at_seconds_and_enough_tasks():
+    from surgopt.config import load_embedded
+
+    for name in ("rcm-grid", "raven-sweep"):
+        study = get_study(name)
+        cfg = load_embedded(study.DEFAULT_CONFIG, study.Config)
+        chunk = study.auto_chunk(cfg)
+        assert study.n_tasks(cfg, chunk) >= 8
+    raven = get_study("raven-sweep")
+    cfg = load_embedded(raven.DEFAULT_CONFIG, raven.Config)
+    # Table II: 2000 geometries, ~0.02 s each -> ~50 per task
+    assert 10 <= raven.auto_chunk(cfg) <= 250
