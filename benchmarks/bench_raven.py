@@ -56,9 +56,8 @@ def numpy_marching_squares(m, nx, ny, step):
     return length * step
 
 
-def numpy_designs(psi, dist, nx, ny, step, d4_max, al, be, iso, plo, phi, has):
+def numpy_designs(cos_psi, dist, nx, ny, step, d4_max, al, be, iso, plo, phi, has):
     reach = np.min(d4_max - dist, axis=0)
-    cos_psi = np.cos(psi)
     out = []
     for ia, a in enumerate(al):
         for ib, b in enumerate(be):
@@ -74,8 +73,8 @@ def numpy_designs(psi, dist, nx, ny, step, d4_max, al, be, iso, plo, phi, has):
                 if not has[ia, ib, k]:
                     out.append((0.0, 0, 0.0))
                     continue
-                m = np.minimum(reach, np.min(np.minimum((psi - plo[ia, ib, k]) * dist,
-                                                        (phi[ia, ib, k] - psi) * dist), axis=0))
+                c_lo, c_hi = math.cos(phi[ia, ib, k]), math.cos(plo[ia, ib, k])
+                m = np.minimum(reach, np.min(np.minimum((cos_psi - c_lo) * dist, (c_hi - cos_psi) * dist), axis=0))
                 inside = m > 0
                 out.append((numpy_marching_squares(m, nx, ny, step), int(inside.sum()), float(iso_node[inside].sum())))
     return out
@@ -100,9 +99,9 @@ def main():
     ports, axes = S.arms(geo, 20.0, 10.0, -20.0, 100.0, 50.0)
     xs, ys = S.plane_grid(geo, ports)
     n = xs.size * ys.size
-    psi, dist = np.empty((4, n)), np.empty((4, n))
+    cos_psi, dist = np.empty((4, n)), np.empty((4, n))
     for a in range(4):
-        arm_cone_geometry(xs, ys, geo.depth_mm, ports[a], axes[a], psi[a], dist[a])
+        arm_cone_geometry(xs, ys, geo.depth_mm, ports[a], axes[a], cos_psi[a], dist[a])
     al = np.radians(S.values(cfg.sweep.alpha_deg))
     be = np.radians(S.values(cfg.sweep.beta_deg))
     iso = np.array(S.values(cfg.sweep.iso_min))
@@ -111,10 +110,10 @@ def main():
     reps = 5
     t = time.perf_counter()
     for _ in range(reps):
-        evaluate_designs(psi, dist, xs.size, ys.size, geo.step_mm, geo.d4_max_mm, al, be, iso, plo, phi, has, out)
+        evaluate_designs(cos_psi, dist, xs.size, ys.size, geo.step_mm, geo.d4_max_mm, al, be, iso, plo, phi, has, out)
     t_nb = (time.perf_counter() - t) / reps
     t = time.perf_counter()
-    ref = numpy_designs(psi, dist, xs.size, ys.size, geo.step_mm, geo.d4_max_mm, al, be, iso, plo, phi, has)
+    ref = numpy_designs(cos_psi, dist, xs.size, ys.size, geo.step_mm, geo.d4_max_mm, al, be, iso, plo, phi, has)
     t_np = time.perf_counter() - t
     agree = max(abs(r[0] - o[1]) / max(o[1], 1) + abs(r[1] - o[2]) for r, o in zip(ref, out))
     print(f"one geometry ({n:,} plane nodes x 4 arms, 125 designs): numba {t_nb * 1e3:.1f} ms "

@@ -232,11 +232,13 @@ def cone_angle(theta2, alpha, beta):
 
 
 @njit(**_VJIT)
-def arm_cone_geometry(xs, ys, depth, port, axis, psi, dist):
-    """Per grid node: angle psi between the shoulder axis and the direction to the node, and distance.
+def arm_cone_geometry(xs, ys, depth, port, axis, cos_psi, dist):
+    """Per grid node: cos of the angle psi between the shoulder axis and the direction to the node, and distance.
 
-    Node (xs[i], ys[j], -depth); fills psi[i*ny + j], dist[i*ny + j]. These are
-    independent of alpha, beta and Iso_min, so one geometry serves 125 designs.
+    Node (xs[i], ys[j], -depth); fills cos_psi[i*ny + j], dist[i*ny + j]. These
+    are independent of alpha, beta and Iso_min, so one geometry serves 125
+    designs. (cos psi, not psi: no acos, and cos is what eq. 22 and the
+    isotropy need.)
     """
     ny = ys.shape[0]
     for i in range(xs.shape[0]):
@@ -244,7 +246,7 @@ def arm_cone_geometry(xs, ys, depth, port, axis, psi, dist):
             vx, vy, vz = xs[i] - port[0], ys[j] - port[1], -depth - port[2]
             r = math.sqrt(vx * vx + vy * vy + vz * vz)
             c = (vx * axis[0] + vy * axis[1] + vz * axis[2]) / r
-            psi[i * ny + j] = math.acos(min(1.0, max(-1.0, c)))
+            cos_psi[i * ny + j] = min(1.0, max(-1.0, c))
             dist[i * ny + j] = r
 
 
@@ -328,77 +330,114 @@ def marching_squares(m, nx, ny, step, i0=0, i1=-1, j0=0, j1=-1):
 
 
 @njit(**_VJIT)
-def _margin_update(margin, psi, dist, lo, hi):
-    """margin = min(margin, (psi - lo) dist, (hi - psi) dist), a vectorisable loop."""
+def _margin_update(margin, cos_psi, dist, c_lo, c_hi):
+    """margin = min(margin, (cos psi - c_lo) dist, (c_hi - cos psi) dist), a vectorisable loop.
+
+    psi in [psi_lo, psi_hi] <=> cos psi in [cos psi_hi, cos psi_lo] = [c_lo, c_hi];
+    the margin is smooth and zero on the cone boundary, which is all marching
+    squares needs (about dist * sin(psi) * angle: mm-like near the boundary).
+    """
     for j in range(margin.shape[0]):
         r = dist[j]
-        p = psi[j]
-        margin[j] = min(margin[j], min((p - lo) * r, (hi - p) * r))
+        c = cos_psi[j]
+        margin[j] = min(margin[j], min((c - c_lo) * r, (c_hi - c) * r))
 
 
 @njit(**_JIT)
-def evaluate_designs(psi, dist, nx, ny, step, d4_max, alphas, betas, iso_mins, psi_lo, psi_hi, has, out):
+def _box_margin(margin, reach, cos_psi, dist, c_lo, c_hi, ny, i0, i1, j0, j1):
+    """Margin of one design on the node box [i0, i1] x [j0, j1] (inclusive), row by row."""
+    for i in range(i0, i1 + 1):
+        s, e = i * ny + j0, i * ny + j1 + 1
+        margin[s:e] = reach[s:e]
+        for a in range(cos_psi.shape[0]):
+            _margin_update(margin[s:e], cos_psi[a, s:e], dist[a, s:e], c_lo, c_hi)
+
+
+@njit(**_JIT)
+def _box_members(margin, iso_node, ny, i0, i1, j0, j1):
+    """Count, isotropy sum and minimum, and bounding box of the nodes with margin > 0."""
+    count = 0
+    total = 0.0
+    mn = 1.0
+    b0, b1, c0, c1 = i1 + 1, i0 - 1, j1 + 1, j0 - 1
+    for i in range(i0, i1 + 1):
+        for j in range(j0, j1 + 1):
+            if margin[i * ny + j] > 0.0:
+                v = iso_node[i * ny + j]
+                count += 1
+                total += v
+                mn = min(mn, v)
+                b0, b1 = min(b0, i), max(b1, i)
+                c0, c1 = min(c0, j), max(c1, j)
+    return count, total, mn, b0, b1, c0, c1
+
+
+@njit(**_JIT)
+def evaluate_designs(cos_psi, dist, nx, ny, step, d4_max, alphas, betas, iso_mins, psi_lo, psi_hi, has, out):
     """All (alpha, beta, Iso_min) designs of one geometry (ports and shoulder axes fixed).
 
-    ``psi``, ``dist``: (arms, nx*ny) from ``arm_cone_geometry``. ``psi_lo``,
+    ``cos_psi``, ``dist``: (arms, nx*ny) from ``arm_cone_geometry``. ``psi_lo``,
     ``psi_hi``, ``has``: (A, B, I) cone-angle interval allowed by the theta2
     range narrowed by Iso_min (``has`` False: no theta2 qualifies). A node is in
     the common workspace when for every arm psi_lo <= psi <= psi_hi and
     dist <= d4_max (theta1 unlimited); its margin, the smallest of
-    (psi - psi_lo) dist, (psi_hi - psi) dist and d4_max - dist over arms (mm,
-    zero on the boundary), feeds marching squares. A node's isotropy is the
-    minimum over the arms. ``out`` (A*B*I, 6): area_mm2, perimeter_mm,
-    n_points, iso_sum, iso_min_actual, 1 if any point.
+    (cos psi - cos psi_hi) dist, (cos psi_lo - cos psi) dist and d4_max - dist
+    over arms (zero on the boundary), feeds marching squares. A node's
+    isotropy is the minimum over the arms. ``out`` (A*B*I, 6): area_mm2,
+    perimeter_mm, n_points, iso_sum, iso_min_actual, 1 if any point.
+
+    Work sharing: a higher Iso_min only narrows the interval, so for each
+    (alpha, beta) the loosest Iso_min is evaluated on the whole grid first;
+    the stricter ones (and the isotropy) only inside the box around its
+    workspace, and not at all when it is empty.
     """
-    n_arms, n = psi.shape
+    n_arms, n = cos_psi.shape
     reach = np.empty(n)
     for j in range(n):
         reach[j] = d4_max - dist[0, j]
     for a in range(1, n_arms):
         for j in range(n):
             reach[j] = min(reach[j], d4_max - dist[a, j])
-    cos_psi = np.cos(psi)
-    iso_arm = np.empty(n)
+    iso_arm = np.empty(ny)
     iso_node = np.empty(n)
     margin = np.empty(n)
-    row = 0
+    order = np.argsort(iso_mins)
+    n_iso = iso_mins.shape[0]
     for ia in range(alphas.shape[0]):
         for ib in range(betas.shape[0]):
-            iso_node[:] = 1.0
-            for a in range(n_arms):
-                arm_isotropy(cos_psi[a], alphas[ia], betas[ib], iso_arm)
-                for j in range(n):
-                    iso_node[j] = min(iso_node[j], iso_arm[j])
-            for k in range(iso_mins.shape[0]):
+            base = (ia * betas.shape[0] + ib) * n_iso
+            box = (0, -1, 0, -1)
+            first = True
+            for k in order:
+                row = base + k
+                out[row, :] = 0.0
                 if not has[ia, ib, k]:
-                    out[row, :] = 0.0
-                    row += 1
                     continue
-                lo, hi = psi_lo[ia, ib, k], psi_hi[ia, ib, k]
-                margin[:] = reach
-                for a in range(n_arms):
-                    _margin_update(margin, psi[a], dist[a], lo, hi)
-                count = 0
-                s = 0.0
-                mn = 1.0
-                i0, i1, j0, j1 = nx, -1, ny, -1
-                for i in range(nx):
-                    for j in range(ny):
-                        if margin[i * ny + j] > 0.0:
-                            v = iso_node[i * ny + j]
-                            count += 1
-                            s += v
-                            mn = min(mn, v)
-                            i0, i1 = min(i0, i), max(i1, i)
-                            j0, j1 = min(j0, j), max(j1, j)
-                if count > 0:
-                    length, area = marching_squares(margin, nx, ny, step, i0 - 1, i1 + 1, j0 - 1, j1 + 1)
+                c_lo, c_hi = math.cos(psi_hi[ia, ib, k]), math.cos(psi_lo[ia, ib, k])
+                if first:  # loosest Iso_min: the whole grid
+                    first = False
+                    _box_margin(margin, reach, cos_psi, dist, c_lo, c_hi, ny, 0, nx - 1, 0, ny - 1)
+                    iso_node[:] = 1.0  # not used for counting; bounding box only
+                    c, _, _, b0, b1, c0, c1 = _box_members(margin, iso_node, ny, 0, nx - 1, 0, ny - 1)
+                    if c == 0:
+                        break  # every stricter Iso_min is empty too
+                    box = (max(0, b0 - 1), min(nx - 1, b1 + 1), max(0, c0 - 1), min(ny - 1, c1 + 1))
+                    for i in range(box[0], box[1] + 1):
+                        s, e = i * ny + box[2], i * ny + box[3] + 1
+                        iso_node[s:e] = 1.0
+                        for a in range(n_arms):
+                            arm_isotropy(cos_psi[a, s:e], alphas[ia], betas[ib], iso_arm[:e - s])
+                            for j in range(e - s):
+                                iso_node[s + j] = min(iso_node[s + j], iso_arm[j])
                 else:
-                    length, area = 0.0, 0.0
+                    _box_margin(margin, reach, cos_psi, dist, c_lo, c_hi, ny, box[0], box[1], box[2], box[3])
+                count, total, mn, b0, b1, c0, c1 = _box_members(margin, iso_node, ny, box[0], box[1], box[2], box[3])
+                if count == 0:
+                    continue
+                length, area = marching_squares(margin, nx, ny, step, b0 - 1, b1 + 1, c0 - 1, c1 + 1)
                 out[row, 0] = area
                 out[row, 1] = length
                 out[row, 2] = count
-                out[row, 3] = s
-                out[row, 4] = mn if count > 0 else 0.0
-                out[row, 5] = 1.0 if count > 0 else 0.0
-                row += 1
+                out[row, 3] = total
+                out[row, 4] = mn
+                out[row, 5] = 1.0

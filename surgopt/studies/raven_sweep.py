@@ -18,7 +18,7 @@ from surgopt.config import StrictModel
 from surgopt.robots import raven_iv
 
 NAME = "raven-sweep"
-KERNEL_VERSION = "raven-1"
+KERNEL_VERSION = "raven-2"
 DEFAULT_CONFIG = "raven_table2.toml"
 #: Cost model for choosing chunks: ~5 ns per plane node and design on one core (docs/performance.md).
 NS_PER_NODE_DESIGN = 5.0
@@ -224,15 +224,15 @@ def evaluate(cfg: RavenSweepConfig, geometry, alphas_deg, betas_deg, isos, inter
     if xs.size == 0:
         return out
     n = xs.size * ys.size
-    psi = np.empty((len(ports), n))
+    cos_psi = np.empty((len(ports), n))
     dist = np.empty((len(ports), n))
     for a in range(len(ports)):
-        arm_cone_geometry(xs, ys, geo.depth_mm, ports[a], axes[a], psi[a], dist[a])
+        arm_cone_geometry(xs, ys, geo.depth_mm, ports[a], axes[a], cos_psi[a], dist[a])
     al = np.radians(np.asarray(alphas_deg, float))
     be = np.radians(np.asarray(betas_deg, float))
     iso = np.asarray(isos, float)
     plo, phi_, has = intervals if intervals is not None else psi_intervals(cfg, al, be, iso)
-    evaluate_designs(psi, dist, xs.size, ys.size, geo.step_mm, geo.d4_max_mm, al, be, iso, plo, phi_, has, out)
+    evaluate_designs(cos_psi, dist, xs.size, ys.size, geo.step_mm, geo.d4_max_mm, al, be, iso, plo, phi_, has, out)
     return out
 
 
@@ -443,9 +443,10 @@ def design_fields(cfg: RavenSweepConfig, params: dict):
     plo, phi_, has = psi_intervals(cfg, np.array([al]), np.array([be]), np.array([params["iso_min"]]))
     margins = np.empty((len(ports), xs.size, ys.size))
     for a in range(len(ports)):
-        psi, dist = np.empty(n), np.empty(n)
-        arm_cone_geometry(xs, ys, geo.depth_mm, ports[a], axes[a], psi, dist)
-        m = np.minimum(geo.d4_max_mm - dist, np.minimum((psi - plo[0, 0, 0]) * dist, (phi_[0, 0, 0] - psi) * dist))
+        c, dist = np.empty(n), np.empty(n)
+        arm_cone_geometry(xs, ys, geo.depth_mm, ports[a], axes[a], c, dist)
+        c_lo, c_hi = math.cos(phi_[0, 0, 0]), math.cos(plo[0, 0, 0])
+        m = np.minimum(geo.d4_max_mm - dist, np.minimum((c - c_lo) * dist, (c_hi - c) * dist))
         margins[a] = (m if has[0, 0, 0] else np.full(n, -1.0)).reshape(xs.size, ys.size)
     return xs, ys, ports, margins, margins.min(axis=0)
 
