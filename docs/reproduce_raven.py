@@ -1,6 +1,6 @@
 """Regenerate the numbers of docs/reproduction.md, Raven section (Li et al., ICRA 2011).
 
-Run:  python docs/reproduce_raven.py   (about 3 minutes on 2 cores: nine full Table II sweeps)
+Run:  python docs/reproduce_raven.py   (about 90 s on 2 cores: nine full Table II sweeps)
 """
 from __future__ import annotations
 
