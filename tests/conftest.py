@@ -21,3 +21,22 @@ def numba_cache(tmp_path_factory):
 @pytest.fixture
 def store_dir(tmp_path):
     return tmp_path / "store"
+
+
+def wait_for_parts(store, study, n, proc, timeout=120):
+    """Block until a run of ``study`` in ``store`` has n parts; fail if ``proc`` ends first."""
+    import json
+    import time
+
+    t0 = time.time()
+    while time.time() - t0 < timeout:
+        for m in Path(store).glob(f"{study}/*/manifest.json"):
+            try:
+                if len(json.loads(m.read_text())["parts"]) >= n:
+                    return
+            except (OSError, ValueError):
+                pass
+        if proc.poll() is not None:
+            raise AssertionError("finished before it could be interrupted")
+        time.sleep(0.005)
+    raise AssertionError("no parts appeared")

@@ -220,6 +220,7 @@ def test_kernel_ik_round_trip_through_reference_fk():
         assert np.allclose(kk, k, atol=1e-12)
         assert np.allclose(w, frames[5][:3, 3], atol=1e-12)  # wrist centre
         assert np.allclose(e, frames[3][:3, 3], atol=1e-12)  # elbow
+        assert np.allclose(f, frames[4][:3, 2], atol=1e-12)  # forearm = E2 axis
         assert np.allclose(abs(np.dot(nn, frames[1][:3, 2])), 1.0)  # S2 axis
         assert ok == bool(np.all(np.abs(q) <= LIM))
         n += 1

@@ -238,10 +238,9 @@ step_mm = 1.0
 
 
 def test_cli_sweep_stored_cached_and_resumed(tmp_path):
-    import json
     import signal
-    import time
 
+    from conftest import wait_for_parts
     from surgopt.store import Store
 
     cfg = tmp_path / "small.toml"
@@ -250,13 +249,7 @@ def test_cli_sweep_stored_cached_and_resumed(tmp_path):
     cmd = [sys.executable, "-m", "surgopt", "raven-sweep", str(cfg), "--store", str(store), "--quiet",
            "--jobs", "1", "--chunk-size", "1"]
     proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
-    t0 = time.time()
-    while time.time() - t0 < 120:
-        ms = list(store.glob("raven-sweep/*/manifest.json"))
-        if ms and len(json.loads(ms[0].read_text())["parts"]) >= 3:
-            break
-        assert proc.poll() is None, "finished before it could be interrupted"
-        time.sleep(0.01)
+    wait_for_parts(store, "raven-sweep", 3, proc)
     proc.send_signal(signal.SIGKILL)
     proc.wait()
     (run,) = Store(store).runs()

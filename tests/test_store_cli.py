@@ -1,5 +1,4 @@
 """Store and CLI end to end: cache hit, real interruption and resume, force, lock, parity."""
-import json
 import os
 import signal
 import subprocess
@@ -14,6 +13,8 @@ from surgopt.config import load_config
 from surgopt.runner import run_study
 from surgopt.store import Store
 from surgopt.studies import rcm_grid as S
+
+from conftest import wait_for_parts
 
 SMALL = """
 [workspace]
@@ -103,21 +104,6 @@ def test_store_from_environment(tmp_path, small_cfg):
     assert "rcm-grid" in r.stdout and "complete" in r.stdout and "small" in r.stdout
 
 
-def _wait_for_parts(store, n, proc, timeout=60):
-    t0 = time.time()
-    while time.time() - t0 < timeout:
-        for m in store.glob("rcm-grid/*/manifest.json"):
-            try:
-                if len(json.loads(m.read_text())["parts"]) >= n:
-                    return
-            except (OSError, ValueError):
-                pass
-        if proc.poll() is not None:
-            raise AssertionError("finished before it could be interrupted")
-        time.sleep(0.005)
-    raise AssertionError("no parts appeared")
-
-
 @pytest.mark.parametrize("how", ["SIGKILL", "SIGINT"])
 def test_interrupted_run_resumes_to_the_same_table(tmp_path, how):
     cfg = tmp_path / "slow.toml"
@@ -127,7 +113,7 @@ def test_interrupted_run_resumes_to_the_same_table(tmp_path, how):
     proc = subprocess.Popen([sys.executable, "-m", "surgopt", "rcm-grid", str(cfg), "--store", str(store),
                              "--quiet", "--jobs", jobs, "--chunk-size", "40"],
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
-    _wait_for_parts(store, 3, proc)
+    wait_for_parts(store, "rcm-grid", 3, proc)
     proc.send_signal(getattr(signal, how))
     _, err = proc.communicate(timeout=60)
     if how == "SIGINT":
@@ -166,7 +152,7 @@ def test_two_processes_on_one_key(tmp_path):
     cmd = [sys.executable, "-m", "surgopt", "rcm-grid", str(cfg), "--store", str(store), "--quiet",
            "--jobs", "1", "--chunk-size", "40"]
     a = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
-    _wait_for_parts(store, 1, a)
+    wait_for_parts(store, "rcm-grid", 1, a)
     b = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     out_a, err_a = a.communicate(timeout=120)
     out_b, err_b = b.communicate(timeout=120)

@@ -11,7 +11,7 @@ import math
 import numpy as np
 from numba import njit
 
-from surgopt.kinematics.small_linalg import _mm, _mv, rigid_inverse
+from surgopt.kinematics.small_linalg import _mm, rigid_inverse
 
 _JIT = dict(cache=True, nogil=True, fastmath=False)
 _VJIT = dict(cache=True, nogil=True, fastmath=False, error_model="numpy")
@@ -175,6 +175,22 @@ THETA2_TOL_RAD = 1e-12
 
 
 @njit(**_JIT)
+def _iso_crossing(end, inside, alpha, beta, iso_min):
+    """Between an interval end and a point where Iso >= iso_min: the end itself if it qualifies,
+    else the crossing Iso = iso_min found by bisection (to THETA2_TOL_RAD)."""
+    if isotropy_at(end, alpha, beta) >= iso_min:
+        return end
+    out, good = end, inside
+    while abs(good - out) > THETA2_TOL_RAD:
+        m = 0.5 * (out + good)
+        if isotropy_at(m, alpha, beta) >= iso_min:
+            good = m
+        else:
+            out = m
+    return good
+
+
+@njit(**_JIT)
 def theta2_interval(alpha, beta, iso_min, lo, hi):
     """The theta2 interval within [lo, hi] where Iso >= iso_min (Fig. 6a).
 
@@ -193,29 +209,8 @@ def theta2_interval(alpha, beta, iso_min, lo, hi):
             best, best_t = v, t
     if best < iso_min:
         return lo, lo, False
-    # left end
-    if isotropy_at(lo, alpha, beta) >= iso_min:
-        t_lo = lo
-    else:
-        a, b = lo, best_t
-        while b - a > THETA2_TOL_RAD:
-            m = 0.5 * (a + b)
-            if isotropy_at(m, alpha, beta) >= iso_min:
-                b = m
-            else:
-                a = m
-        t_lo = b
-    if isotropy_at(hi, alpha, beta) >= iso_min:
-        t_hi = hi
-    else:
-        a, b = best_t, hi
-        while b - a > THETA2_TOL_RAD:
-            m = 0.5 * (a + b)
-            if isotropy_at(m, alpha, beta) >= iso_min:
-                a = m
-            else:
-                b = m
-        t_hi = a
+    t_lo = _iso_crossing(lo, best_t, alpha, beta, iso_min)
+    t_hi = _iso_crossing(hi, best_t, alpha, beta, iso_min)
     return t_lo, t_hi, True
 
 

@@ -151,19 +151,32 @@ def arm_frame(P_U, u, geo):
 
 
 @njit(**_JIT)
-def forward_kinematics(q, geo):
-    """Platform (end-effector) position (mm) and rotation in {w} for joints q (eqs. 2-13)."""
-    P_U, u, _, _, _ = five_bar(q[0], q[1], geo)
-    PU, _, x, y, z, _, _ = arm_frame(P_U, u, geo)
+def arm_chain(q, geo):
+    """Every frame along the chain, shared by the kinematics and the Jacobian.
+
+    Returns (five-bar rates dP, du; arm frame PU, x_t, x, y, z, rho, |z x x_t|;
+    R_b, P_D; SLU tip p1, rotation R1 and rates; P_L, R_g; PMU tip p2,
+    rotation R2 and rates; platform position P_E and rotation R_E).
+    """
+    P_U, u, dP, du, _ = five_bar(q[0], q[1], geo)
+    PU, xt, x, y, z, rho, ny = arm_frame(P_U, u, geo)
     Rd = np.empty((3, 3))
     Rd[:, 0], Rd[:, 1], Rd[:, 2] = x, y, z
     Rb = _mm(Rd, rot_z(q[3]))
     PD = PU + (geo[6] + q[2]) * z
-    p1, R1, _, _, _, _ = segment_kinematics(q[4], q[5], geo[7])
-    PL = PD + _mv(Rb, p1)
-    Rg = _mm(Rb, R1)
-    p2, R2, _, _, _, _ = segment_kinematics(q[6], q[7], geo[8])
-    return PL + _mv(Rg, p2), _mm(Rg, R2)
+    seg1 = segment_kinematics(q[4], q[5], geo[7])
+    PL = PD + _mv(Rb, seg1[0])
+    Rg = _mm(Rb, seg1[1])
+    seg2 = segment_kinematics(q[6], q[7], geo[8])
+    PE = PL + _mv(Rg, seg2[0])
+    return dP, du, PU, xt, x, y, z, rho, ny, Rb, PD, seg1, PL, Rg, seg2, PE, _mm(Rg, seg2[1])
+
+
+@njit(**_JIT)
+def forward_kinematics(q, geo):
+    """Platform (end-effector) position (mm) and rotation in {w} for joints q (eqs. 2-13)."""
+    chain = arm_chain(q, geo)
+    return chain[15], chain[16]
 
 
 @njit(**_JIT)
@@ -176,17 +189,9 @@ def jacobian(q, geo):
     columns: eqs. 22-29. The delta (psi) column vanishes for a straight SLU
     (PMU); nothing divides by it.
     """
-    P_U, u, dP, du, _ = five_bar(q[0], q[1], geo)
-    PU, xt, x, y, z, rho, ny = arm_frame(P_U, u, geo)
-    Rd = np.empty((3, 3))
-    Rd[:, 0], Rd[:, 1], Rd[:, 2] = x, y, z
-    Rb = _mm(Rd, rot_z(q[3]))
-    PD = PU + (geo[6] + q[2]) * z
-    p1, R1, dp1_dt, dp1_dd, w1_t, w1_d = segment_kinematics(q[4], q[5], geo[7])
-    PL = PD + _mv(Rb, p1)
-    Rg = _mm(Rb, R1)
-    p2, R2, dp2_dt, dp2_dd, w2_t, w2_d = segment_kinematics(q[6], q[7], geo[8])
-    PE = PL + _mv(Rg, p2)
+    dP, du, PU, xt, x, y, z, rho, ny, Rb, PD, seg1, PL, Rg, seg2, PE, _ = arm_chain(q, geo)
+    _, _, dp1_dt, dp1_dd, w1_t, w1_d = seg1
+    _, _, dp2_dt, dp2_dd, w2_t, w2_d = seg2
     J = np.zeros((6, 8))
     for j in range(2):
         dPU = np.array([dP[0, j], dP[1, j], 0.0])
