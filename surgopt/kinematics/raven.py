@@ -393,6 +393,15 @@ def evaluate_designs(cos_psi, dist, nx, ny, step, d4_max, alphas, betas, iso_min
     for a in range(1, n_arms):
         for j in range(n):
             reach[j] = min(reach[j], d4_max - dist[a, j])
+    # range of cos psi over the nodes every arm can reach: a design whose cone interval misses it
+    # for some arm has no common workspace, whatever the grid says (checked before any grid pass)
+    c_min = np.full(n_arms, 2.0)
+    c_max = np.full(n_arms, -2.0)
+    for a in range(n_arms):
+        for j in range(n):
+            if reach[j] > 0.0:
+                c_min[a] = min(c_min[a], cos_psi[a, j])
+                c_max[a] = max(c_max[a], cos_psi[a, j])
     iso_arm = np.empty(ny)
     iso_node = np.empty(n)
     margin = np.empty(n)
@@ -411,6 +420,11 @@ def evaluate_designs(cos_psi, dist, nx, ny, step, d4_max, alphas, betas, iso_min
                 c_lo, c_hi = math.cos(psi_hi[ia, ib, k]), math.cos(psi_lo[ia, ib, k])
                 if first:  # loosest Iso_min: the whole grid
                     first = False
+                    missed = False
+                    for a in range(n_arms):
+                        missed = missed or c_hi < c_min[a] or c_lo > c_max[a]
+                    if missed:
+                        break  # this and every stricter Iso_min are empty
                     _box_margin(margin, reach, cos_psi, dist, c_lo, c_hi, ny, 0, nx - 1, 0, ny - 1)
                     iso_node[:] = 1.0  # not used for counting; bounding box only
                     c, _, _, b0, b1, c0, c1 = _box_members(margin, iso_node, ny, 0, nx - 1, 0, ny - 1)
