@@ -268,6 +268,10 @@ def marching_squares(m, nx, ny, step, i0=0, i1=-1, j0=0, j1=-1):
     """
     length = 0.0
     area = 0.0
+    cx = np.empty(8)  # scratch, allocated once: the inside polygon of a cell
+    cy = np.empty(8)
+    ex = np.empty(4)  # and its edge crossings
+    ey = np.empty(4)
     i1 = nx - 1 if i1 < 0 else min(i1, nx - 1)
     j1 = ny - 1 if j1 < 0 else min(j1, ny - 1)
     for i in range(max(0, i0), i1):
@@ -284,14 +288,10 @@ def marching_squares(m, nx, ny, step, i0=0, i1=-1, j0=0, j1=-1):
                 area += 1.0
                 continue
             # polygon of the inside part, walking the square 0 -> 1 -> 2 -> 3
-            cx = np.empty(8)
-            cy = np.empty(8)
             npts = 0
             vs = (v0, v1, v2, v3)
             px = (0.0, 1.0, 1.0, 0.0)
             py = (0.0, 0.0, 1.0, 1.0)
-            ex = np.empty(4)
-            ey = np.empty(4)
             ne = 0
             for k in range(4):
                 a, b = vs[k], vs[(k + 1) % 4]
