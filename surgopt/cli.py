@@ -26,7 +26,7 @@ StoreOpt = Annotated[Optional[Path], typer.Option(
     "--store", envvar="SURGOPT_STORE", help="Result store folder [default: ./surgopt-store].",
     show_default=False)]
 JobsOpt = Annotated[int, typer.Option("--jobs", "-j", min=1, max=256,
-                                      help="Worker processes (joblib loky backend).")]
+                                      help="Worker processes (loky), or LocalCluster workers (dask).")]
 ForceOpt = Annotated[bool, typer.Option("--force", help="Recompute even if the store holds this study.")]
 QuietOpt = Annotated[bool, typer.Option("--quiet", "-q", help="No progress bar.")]
 BackendOpt = Annotated[str, typer.Option(
@@ -170,12 +170,27 @@ def _run_study_command(name, config, store, jobs, force, quiet, chunk_size, back
         raise typer.Exit(130)
 
 
-def _report(study, result) -> None:
+def _console(min_width: int = 150):
     from rich.console import Console
+
+    return Console(width=max(Console().width, min_width))  # wide tables stay readable when piped
+
+
+def _print_table(console, title, header, rows) -> None:
     from rich.table import Table
 
-    console = Console()
-    console = Console(width=max(console.width, 150))  # wide tables stay readable when piped
+    t = Table(title=title)
+    for h in header:
+        t.add_column(str(h), justify="left" if h == header[0] else "right")
+    for row in rows:
+        t.add_row(*[str(v) for v in row])
+    console.print(t)
+
+
+def _report(study, result) -> None:
+    from rich.table import Table
+
+    console = _console()
     for m in result.messages:
         console.print(m)
     run = result.run
@@ -190,12 +205,7 @@ def _report(study, result) -> None:
     t.add_row("store", f"{run.path}")
     console.print(t)
     for title, header, rows in study.tables(result.table):
-        extra = Table(title=title)
-        for h in header:
-            extra.add_column(h, justify="right" if h != header[0] else "left")
-        for r in rows:
-            extra.add_row(*r)
-        console.print(extra)
+        _print_table(console, title, header, rows)
 
 
 runs_app = typer.Typer(help="List and delete stored runs.", no_args_is_help=False)
@@ -295,17 +305,9 @@ def summarize(
     if fmt != "table":
         typer.echo(render(sections, fmt))
         return
-    from rich.console import Console
-    from rich.table import Table
-
-    console = Console(width=max(Console().width, 150))
+    console = _console(260)  # the top-k table has every parameter and metric
     for title, header, rows in sections:
-        t = Table(title=title)
-        for h in header:
-            t.add_column(str(h))
-        for row in rows:
-            t.add_row(*[str(v) for v in row])
-        console.print(t)
+        _print_table(console, title, header, rows)
 
 
 @app.command("plot")
