@@ -20,7 +20,7 @@ def get_study(name: str):
 
 
 #: Work per task the automatic chunk size aims at (s on one core), and the fewest tasks it makes.
-TARGET_TASK_S = 1.0
+TARGET_TASK_S = 2.0
 MIN_TASKS = 8
 
 
