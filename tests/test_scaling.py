@@ -76,7 +76,7 @@ def test_auto_chunk_aims_at_seconds_and_enough_tasks():
         study = get_study(name)
         cfg = load_embedded(study.DEFAULT_CONFIG, study.Config)
         chunk = study.auto_chunk(cfg)
-        assert study.n_tasks(cfg, chunk) >= 8
+        assert study.n_tasks(cfg, chunk) >= 32
     raven = get_study("raven-sweep")
     cfg = load_embedded(raven.DEFAULT_CONFIG, raven.Config)
     # Table II: 2000 geometries, ~0.02 s each -> ~50 per task

@@ -21,7 +21,7 @@ def get_study(name: str):
 
 #: Work per task the automatic chunk size aims at (s on one core), and the fewest tasks it makes.
 TARGET_TASK_S = 2.0
-MIN_TASKS = 8
+MIN_TASKS = 32
 
 
 def chunk_for_seconds(n_items: int, seconds_per_item: float) -> int:

@@ -269,7 +269,7 @@ def schema():
 
 
 def auto_chunk(cfg: RavenSweepConfig) -> int:
-    """Geometries per task: about two seconds of single-core work, and at least 8 tasks."""
+    """Geometries per task: about two seconds of single-core work, and at least 32 tasks."""
     from surgopt.studies import chunk_for_seconds
 
     sw, geo = cfg.sweep, cfg.geometry

@@ -200,7 +200,7 @@ def schema():
 
 
 def auto_chunk(cfg: RcmGridConfig) -> int:
-    """Candidates per task: about two seconds of single-core work, and at least 8 tasks."""
+    """Candidates per task: about two seconds of single-core work, and at least 32 tasks."""
     from surgopt.studies import chunk_for_seconds
 
     m = candidate_xz(cfg).shape[0]
