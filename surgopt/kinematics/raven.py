@@ -12,9 +12,16 @@ import numpy as np
 from numba import njit
 
 from surgopt.kinematics.small_linalg import _mm, rigid_inverse
+from surgopt.robots import raven_iv
 
 _JIT = dict(cache=True, nogil=True, fastmath=False)
 _VJIT = dict(cache=True, nogil=True, fastmath=False, error_model="numpy")
+
+# joint ranges of Table I (surgopt/robots/raven_iv.py), as compile-time constants
+THETA2_MIN_RAD, THETA2_MAX_RAD = (math.radians(v) for v in raven_iv.THETA2_RANGE_DEG)
+THETA3_MAX_RAD = math.radians(raven_iv.THETA3_RANGE_DEG[1])
+THETA6_MAX_RAD = math.radians(raven_iv.THETA6_RANGE_DEG[1])
+D4_MIN_MM, D4_MAX_MM = raven_iv.D4_RANGE_MM
 
 
 # ---------------------------------------------------------------------------
@@ -120,9 +127,8 @@ def inverse_kinematics(T06, alpha, beta, a5, left):
     q[2] = (q[2] + math.pi) % (2 * math.pi) - math.pi
     q[0] = (q[0] + math.pi) % (2 * math.pi) - math.pi
     q[3], q[4], q[5] = d4, th5, th6
-    lim = math.radians(86.0)
-    ok = (math.radians(20.0) <= q[1] <= math.radians(140.0) and abs(q[2]) <= lim and abs(q[5]) <= lim
-          and 0.0 <= d4 <= 250.0)
+    ok = (THETA2_MIN_RAD <= q[1] <= THETA2_MAX_RAD and abs(q[2]) <= THETA3_MAX_RAD
+          and abs(q[5]) <= THETA6_MAX_RAD and D4_MIN_MM <= d4 <= D4_MAX_MM)
     return q, ok
 
 

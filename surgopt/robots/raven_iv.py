@@ -24,8 +24,6 @@ deg, wrist-to-jaw length a5 = 13 mm.
 """
 from __future__ import annotations
 
-import math
-
 RAVEN_II_ALPHA_DEG = 75.0
 RAVEN_II_BETA_DEG = 52.0
 RAVEN_II_A5_MM = 13.0
@@ -34,5 +32,3 @@ THETA3_RANGE_DEG = (-86.0, 86.0)
 THETA6_RANGE_DEG = (-86.0, 86.0)
 D4_RANGE_MM = (0.0, 250.0)
 REFERENCE_PLANE_DEPTH_MM = 150.0  # Sec. III-A
-
-HALF_PI = math.pi / 2
