@@ -26,12 +26,13 @@ StoreOpt = Annotated[Optional[Path], typer.Option(
     "--store", envvar="SURGOPT_STORE", help="Result store folder [default: ./surgopt-store].",
     show_default=False)]
 JobsOpt = Annotated[int, typer.Option("--jobs", "-j", min=1, max=256,
-                                      help="Worker processes (loky), or LocalCluster workers (dask).")]
+                                      help="Parallel workers: threads (threads), worker processes (loky), or LocalCluster workers (dask).")]
 ForceOpt = Annotated[bool, typer.Option("--force", help="Recompute even if the store holds this study.")]
 QuietOpt = Annotated[bool, typer.Option("--quiet", "-q", help="No progress bar.")]
 BackendOpt = Annotated[str, typer.Option(
-    "--backend", help="loky (local worker processes) or dask (a distributed cluster through joblib's dask "
-                      "backend; needs pip install 'surgopt[dask]').")]
+    "--backend", help="threads (joblib threads in this process: the kernels release the GIL, so they run "
+                      "in parallel with no worker start-up), loky (local worker processes) or dask (a "
+                      "distributed cluster through joblib's dask backend; needs pip install 'surgopt[dask]').")]
 SchedulerOpt = Annotated[Optional[str], typer.Option(
     "--scheduler", help="With --backend dask: the scheduler address (tcp://host:8786). Without it, a "
                         "LocalCluster of --jobs single-threaded workers.", show_default=False)]
@@ -66,7 +67,7 @@ def rcm_grid(
     force: ForceOpt = False,
     quiet: QuietOpt = False,
     chunk_size: ChunkOpt = None,
-    backend: BackendOpt = "loky",
+    backend: BackendOpt = "threads",
     scheduler: SchedulerOpt = None,
 ) -> None:
     """Global Isotropy Index of candidate remote-centre-of-motion locations for a PA10-7C
@@ -97,7 +98,7 @@ def raven_sweep(
     force: ForceOpt = False,
     quiet: QuietOpt = False,
     chunk_size: ChunkOpt = None,
-    backend: BackendOpt = "loky",
+    backend: BackendOpt = "threads",
     scheduler: SchedulerOpt = None,
 ) -> None:
     """Raven IV port placement and link design (Li, Glozman, Milutinovic, Rosen, ICRA 2011: eqs. 1-43,
@@ -122,7 +123,7 @@ def suture_sim(
     jobs: JobsOpt = 2,
     force: ForceOpt = False,
     quiet: QuietOpt = False,
-    backend: BackendOpt = "loky",
+    backend: BackendOpt = "threads",
     scheduler: SchedulerOpt = None,
 ) -> None:
     """Suturing with one arm of the two-armed throat robot (Wei, Xu & Simaan: eqs. 2-32, Figs. 6-7).
@@ -137,7 +138,7 @@ def suture_sim(
     _run_study_command("suture-sim", config, store, jobs, force, quiet, None, backend, scheduler)
 
 
-def _run_study_command(name, config, store, jobs, force, quiet, chunk_size, backend="loky", scheduler=None,
+def _run_study_command(name, config, store, jobs, force, quiet, chunk_size, backend="threads", scheduler=None,
                        overrides=None, then_refine=False):
     from surgopt.errors import SurgoptError
     from surgopt.runner import configure_numba

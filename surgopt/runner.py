@@ -74,17 +74,19 @@ def _progress(quiet: bool):
     return progress
 
 
-BACKENDS = ("loky", "dask")
+BACKENDS = ("threads", "loky", "dask")
 
 
 def run_study(study, cfg, *, config_name: str, store: Store, jobs: int = DEFAULT_JOBS,
               force: bool = False, quiet: bool = False, chunk: int | None = None,
-              backend: str = "loky", scheduler: str | None = None, say=print) -> RunResult:
+              backend: str = "threads", scheduler: str | None = None, say=print) -> RunResult:
     """Compute (or fetch from the store) the table of one study config.
 
-    ``backend`` "loky" (local processes) or "dask" (joblib's dask backend on
-    a ``distributed`` cluster: ``scheduler`` address, or a LocalCluster of
-    ``jobs`` single-threaded workers). Either way the same chunks run the same
+    ``backend`` "threads" (joblib threads in this process; every kernel is
+    compiled ``nogil``, so chunks run in parallel and nothing has to start or
+    load kernels), "loky" (local worker processes) or "dask" (joblib's dask
+    backend on a ``distributed`` cluster: ``scheduler`` address, or a
+    LocalCluster of ``jobs`` single-threaded workers). Either way the same chunks run the same
     kernels and only this process writes to the store, part by part as chunks
     complete, so memory does not grow with the design grid.
     """
@@ -122,7 +124,7 @@ def run_study(study, cfg, *, config_name: str, store: Store, jobs: int = DEFAULT
     return RunResult(run, table, False, len(missing), time.perf_counter() - t0, messages)
 
 
-def _dispatch(study, cfg, chunk, missing, run, store, jobs, quiet, total, schema, pa, backend="loky",
+def _dispatch(study, cfg, chunk, missing, run, store, jobs, quiet, total, schema, pa, backend="threads",
               scheduler=None):
     progress = _progress(quiet)
     t_start = time.perf_counter()
@@ -137,13 +139,18 @@ def _dispatch(study, cfg, chunk, missing, run, store, jobs, quiet, total, schema
             dt = time.perf_counter() - t_start
             progress.update(bar, advance=1, rate=f"{done_now / dt:.1f} chunks/s" if dt > 0 else "")
 
-        if backend == "loky" and (jobs == 1 or len(missing) == 1):
+        if backend in ("threads", "loky") and (jobs == 1 or len(missing) == 1):
             for i in missing:
                 record(*_compute(study.NAME, cfg, chunk, i))
             return
         from joblib import Parallel, delayed, parallel_config
 
         tasks = (delayed(_compute)(study.NAME, cfg, chunk, i) for i in missing)
+        if backend == "threads":
+            with parallel_config(backend="threading", n_jobs=jobs):
+                for index, cols in Parallel(return_as="generator_unordered")(tasks):
+                    record(index, cols)
+            return
         if backend == "loky":
             with parallel_config(backend="loky", n_jobs=jobs, inner_max_num_threads=1):
                 for index, cols in Parallel(return_as="generator_unordered")(tasks):

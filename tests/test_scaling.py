@@ -22,11 +22,12 @@ def _run(tmp_path, name, tag, **kw):
 
 
 @pytest.mark.parametrize("name", sorted(CONFIGS))
-def test_rows_independent_of_jobs_and_chunk_size(tmp_path, name):
+def test_rows_independent_of_backend_jobs_and_chunk_size(tmp_path, name):
     a = _run(tmp_path, name, "j1", jobs=1, chunk=1)
-    b = _run(tmp_path, name, "j2", jobs=2, chunk=7)
+    b = _run(tmp_path, name, "j2", jobs=2, chunk=7)  # threads, the default
     c = _run(tmp_path, name, "auto", jobs=2)
-    assert a.equals(b) and a.equals(c)
+    d = _run(tmp_path, name, "loky", jobs=2, chunk=5, backend="loky")
+    assert a.equals(b) and a.equals(c) and a.equals(d)
 
 
 @pytest.fixture(scope="module")
@@ -38,10 +39,10 @@ def dask_cluster():
 
 
 @pytest.mark.parametrize("name", sorted(CONFIGS))
-def test_dask_local_cluster_equals_loky(tmp_path, name, dask_cluster):
-    loky = _run(tmp_path, name, "loky", jobs=2)
+def test_dask_local_cluster_equals_threads(tmp_path, name, dask_cluster):
+    threads = _run(tmp_path, name, "threads", jobs=2)
     dask = _run(tmp_path, name, "dask", jobs=2, backend="dask", scheduler=dask_cluster.scheduler_address, chunk=3)
-    assert loky.equals(dask)
+    assert threads.equals(dask)
 
 
 def test_cli_dask_backend_with_its_own_local_cluster(tmp_path):
