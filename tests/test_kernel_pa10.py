@@ -224,3 +224,58 @@ def test_kernel_ik_round_trip_through_reference_fk():
         assert np.allclose(abs(np.dot(nn, frames[1][:3, 2])), 1.0)  # S2 axis
         assert ok == bool(np.all(np.abs(q) <= LIM))
         n += 1
+
+
+def _cube(n, side=0.05, depth=0.1):
+    t = np.linspace(-side / 2, side / 2, n)
+    t = 0.5 * (t - t[::-1])
+    X, Y, Z = np.meshgrid(t, t, t - depth, indexing="ij")
+    return np.stack([X.ravel(), Y.ravel(), Z.ravel()], axis=1)
+
+
+def test_mirror_half_keeps_y_nonnegative_points_with_multiplicity():
+    off = _cube(5)
+    half, mult = K.mirror_half(off)
+    assert half.shape[0] == 5 * 3 * 5 and np.all(half[:, 1] >= 0)
+    assert mult.sum() == off.shape[0] and set(mult[half[:, 1] == 0]) == {1} and set(mult[half[:, 1] > 0]) == {2}
+    # not symmetric: unchanged, multiplicity one
+    skew = off + np.array([0.0, 1e-9, 0.0])
+    same, ones = K.mirror_half(skew)
+    assert np.array_equal(same, skew) and np.all(ones == 1)
+
+
+def test_mirror_reduction_equals_the_whole_cube():
+    """The y >= 0 half with multiplicity gives the full cube's extremes and counts (mirror symmetry)."""
+    off = _cube(7)
+    rng = np.random.default_rng(21)
+    cands = np.column_stack([rng.uniform(0.15, 0.85, 60), np.zeros(60), rng.uniform(-0.65, 0.1, 60) + LINKS[0]])
+    cands = np.vstack([cands, [[0.535, 0, -0.21 + LINKS[0]], [0.26, 0, -0.14 + LINKS[0]]]])
+    full = K.rcm_candidates_extremes(cands, off, LINKS3, OFFSET, 1.0, QDOT, COSLIM, mirror=False)
+    half = K.rcm_candidates_extremes(cands, off, LINKS3, OFFSET, 1.0, QDOT, COSLIM, mirror=True)
+    feasible = full[2] == 0
+    assert 5 < feasible.sum() < 60  # both kinds are exercised
+    assert np.array_equal(full[2], half[2]) and np.array_equal(full[3], half[3])
+    assert np.allclose(half[0], full[0], rtol=1e-12, atol=0) and np.allclose(half[1], full[1], rtol=1e-12, atol=0)
+    # the corner/face probes only choose the order of work: without them the result is the same
+    g = K.workspace_geometry(off, OFFSET)
+    args = (LINKS3[0], LINKS3[1], LINKS3[2], 1.0, QDOT, COSLIM)
+    no_probe = K._candidates_extremes(cands, g, np.ones(off.shape[0], np.int64), np.empty(0, np.int64), *args)
+    for a, b in zip(full, no_probe):
+        assert np.array_equal(a, b)
+
+
+def test_partially_reachable_candidate_counts_every_unreachable_point():
+    """Probes all reachable, some interior/edge points not: the full pass still counts them exactly."""
+    off = _cube(9)
+    rng = np.random.default_rng(22)
+    for _ in range(400):
+        c = np.array([rng.uniform(0.15, 0.9), 0.0, rng.uniform(-0.7, 0.2) + LINKS[0]])
+        _, _, st = K.pose_singular_values(c + off, c, LINKS3, OFFSET, 1.0, QDOT, COSLIM)
+        n_bad = int(np.sum(st == K.STATUS_UNREACHABLE))
+        probes = K._probe_points(off)
+        if 0 < n_bad and np.all(st[probes] != K.STATUS_UNREACHABLE):
+            break
+    else:
+        pytest.skip("no candidate with reachable probes but unreachable points found")
+    lo, hi, n_unr, n_sing = K.rcm_candidates_extremes(c[None], off, LINKS3, OFFSET, 1.0, QDOT, COSLIM)
+    assert n_unr[0] == n_bad and lo[0] == 0.0 and hi[0] == 0.0

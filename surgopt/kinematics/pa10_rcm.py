@@ -14,6 +14,9 @@ Conventions (see ``surgopt/robots/pa10_7c.py``):
   - the skin normal k_rcm is the world z axis; e_x, e_y are the x, y
     components of (tool line ∩ skin plane) − RCM (eq. 8, Fig. 2).
 
+Floating point: kernels allow FMA contraction (``fastmath={"contract"}``,
+nothing else), so a machine without FMA differs in the last bits (~1e-14).
+
 The per-pose quantity returned is the pair of extreme singular values of
 B = A_x N, where A = J_a Q is the alternative Jacobian (eq. 8) with columns
 scaled by the maximum joint speeds Q (Stocco & Salcudean), A_x its three tip
@@ -26,6 +29,7 @@ from __future__ import annotations
 
 import numpy as np
 from numba import njit
+from numpy.polynomial import chebyshev as _chebyshev
 
 #: J_a counts as singular when a pivot falls below this fraction of its size.
 SINGULAR_RTOL = 1e-12
@@ -36,7 +40,7 @@ STATUS_OK = 0
 STATUS_UNREACHABLE = 1  # out of reach or outside a joint limit
 STATUS_SINGULAR = 2  # J_a rank deficient (eq. 5 text): GII contribution 0
 
-_JIT = dict(cache=True, nogil=True, fastmath=False, error_model="numpy")
+_JIT = dict(cache=True, nogil=True, fastmath={"contract"}, error_model="numpy")
 
 
 @njit(inline="always", **_JIT)
@@ -67,6 +71,9 @@ TRISECT_CHEB = (
     3.21376588840264e-14,
     -4.917209605306292e-15,
 )
+#: The same polynomial in monomial form (Horner is a third of Clenshaw's work;
+#: coefficients fall ~3.5x per degree, so the conversion loses nothing: tested).
+TRISECT_POLY = tuple(float(v) for v in _chebyshev.cheb2poly(np.array(TRISECT_CHEB)))
 
 
 @njit(inline="always", **_JIT)
@@ -74,27 +81,25 @@ def cos_third_acos(x):
     """cos(acos(x) / 3) for x in [-1, 1] without trigonometric calls (vectorisable)."""
     s = np.sqrt(0.5 * (1.0 + x))
     t = 2.0 * s - 1.0
-    # Clenshaw recurrence, written out so that the caller's loop vectorises
-    c = TRISECT_CHEB
-    t2 = 2.0 * t
-    b1 = c[16]
-    b2 = 0.0
-    b1, b2 = t2 * b1 - b2 + c[15], b1
-    b1, b2 = t2 * b1 - b2 + c[14], b1
-    b1, b2 = t2 * b1 - b2 + c[13], b1
-    b1, b2 = t2 * b1 - b2 + c[12], b1
-    b1, b2 = t2 * b1 - b2 + c[11], b1
-    b1, b2 = t2 * b1 - b2 + c[10], b1
-    b1, b2 = t2 * b1 - b2 + c[9], b1
-    b1, b2 = t2 * b1 - b2 + c[8], b1
-    b1, b2 = t2 * b1 - b2 + c[7], b1
-    b1, b2 = t2 * b1 - b2 + c[6], b1
-    b1, b2 = t2 * b1 - b2 + c[5], b1
-    b1, b2 = t2 * b1 - b2 + c[4], b1
-    b1, b2 = t2 * b1 - b2 + c[3], b1
-    b1, b2 = t2 * b1 - b2 + c[2], b1
-    b1, b2 = t2 * b1 - b2 + c[1], b1
-    return t * b1 - b2 + c[0]
+    # Horner in t (monomial coefficients of the same series): 16 fused multiply-adds
+    c = TRISECT_POLY
+    h = c[16]
+    h = h * t + c[15]
+    h = h * t + c[14]
+    h = h * t + c[13]
+    h = h * t + c[12]
+    h = h * t + c[11]
+    h = h * t + c[10]
+    h = h * t + c[9]
+    h = h * t + c[8]
+    h = h * t + c[7]
+    h = h * t + c[6]
+    h = h * t + c[5]
+    h = h * t + c[4]
+    h = h * t + c[3]
+    h = h * t + c[2]
+    h = h * t + c[1]
+    return h * t + c[0]
 
 
 @njit(inline="always", **_JIT)
@@ -128,16 +133,15 @@ def gram_lambda_max(b00, b01, b02, b10, b11, b12, b20, b21, b22):
 
 
 @njit(inline="always", **_JIT)
-def singular_values_3x3(b00, b01, b02, b10, b11, b12, b20, b21, b22):
-    """Extreme singular values (min, max) of a 3x3 matrix B, closed form.
+def singular_values_3x3_sq(b00, b01, b02, b10, b11, b12, b20, b21, b22):
+    """Squared extreme singular values (sigma_min^2, sigma_max^2) of a 3x3 B, closed form.
 
     sigma_max^2 = lambda_max(B^T B). sigma_min = |det B| / sigma_max(cof B),
     since the cofactor matrix has singular values sigma_i sigma_j and its
     largest is sigma_1 sigma_2. Cofactors and the determinant are formed
     from B itself, so sigma_min keeps a relative accuracy ~eps * cond(B)
-    (the Gram route B^T B alone would give eps * cond(B)^2). Five square
-    roots and two divisions, no iteration (the Jacobi SVD this replaced
-    spent 70% of the kernel's time).
+    (the Gram route B^T B alone would give eps * cond(B)^2). Squares, so
+    that a caller reducing over many poses takes the roots once.
     """
     smax2 = gram_lambda_max(b00, b01, b02, b10, b11, b12, b20, b21, b22)
     c00 = b11 * b22 - b12 * b21
@@ -151,8 +155,18 @@ def singular_values_3x3(b00, b01, b02, b10, b11, b12, b20, b21, b22):
     c22 = b00 * b11 - b01 * b10
     det = b00 * c00 + b01 * c01 + b02 * c02
     cmax2 = gram_lambda_max(c00, c01, c02, c10, c11, c12, c20, c21, c22)
-    smin = abs(det) / (np.sqrt(cmax2) + TINY)
-    return smin, np.sqrt(smax2)
+    return det * det / (cmax2 + TINY), smax2
+
+
+@njit(inline="always", **_JIT)
+def singular_values_3x3(b00, b01, b02, b10, b11, b12, b20, b21, b22):
+    """Extreme singular values (sigma_min, sigma_max) of a 3x3 matrix B, closed form.
+
+    See ``singular_values_3x3_sq``: no iteration (the Jacobi SVD this
+    replaced spent 70% of the kernel's time).
+    """
+    smin2, smax2 = singular_values_3x3_sq(b00, b01, b02, b10, b11, b12, b20, b21, b22)
+    return np.sqrt(smin2), np.sqrt(smax2)
 
 
 @njit(inline="always", **_JIT)
@@ -169,39 +183,26 @@ def _reflect5(row, v, two_over_vv):
 
 
 @njit(inline="always", **_JIT)
-def _jacobian_column(zx, zy, zz, ox, oy, oz, px, py, pz, cx, cy, cz, kx, ky, kz, ikz, q):
-    """Column of A = J_a Q for a revolute axis z through o (eq. 8).
-
-    Rows 0-2: tip velocity z x (p - o). Rows 3-4: rate of the RCM error
-    e_x, e_y, i.e. of the x, y of (tool line ∩ skin plane z = c_z); with the
-    body point at c moving at g = z x (c - o) this is g_xy - (g_z / k_z) k_xy.
-    """
-    tx, ty, tz = _cross(zx, zy, zz, px - ox, py - oy, pz - oz)
-    gx, gy, gz = _cross(zx, zy, zz, cx - ox, cy - oy, cz - oz)
-    return (q * tx, q * ty, q * tz, q * (gx - gz * ikz * kx), q * (gy - gz * ikz * ky))
-
-
-@njit(inline="always", **_JIT)
 def constrained_extremes(c0, c1, c2, c3, c4):
-    """Extreme singular values of B = A_x N from the five columns of A.
+    """Squared extreme singular values of B = A_x N from the five columns of A.
 
     Two Householder reflections, applied from the right, map the constraint
     rows A[3], A[4] onto the first two coordinates; what remains of the tip
     rows in the last three coordinates is B (eqs. 5-6 without forming J_a^-1).
-    Returns (0, sigma_max, singular) when J_a is rank deficient.
+    Only the null space of the constraint rows matters, so any invertible
+    combination of them gives the same B. Returns (sigma_min^2, sigma_max^2,
+    singular); sigma_min^2 is 0 when J_a is rank deficient, i.e. a constraint
+    row or sigma_min falls below ``SINGULAR_RTOL`` times sigma_max.
     """
     r0 = (c0[0], c1[0], c2[0], c3[0], c4[0])
     r1 = (c0[1], c1[1], c2[1], c3[1], c4[1])
     r2 = (c0[2], c1[2], c2[2], c3[2], c4[2])
     r3 = (c0[3], c1[3], c2[3], c3[3], c4[3])
     r4 = (c0[4], c1[4], c2[4], c3[4], c4[4])
-    scale = max(max(max(abs(r0[0]), abs(r0[1])), max(abs(r0[2]), abs(r0[3]))), abs(r0[4]))
-    for r in (r1, r2, r3, r4):
-        scale = max(scale, max(max(max(abs(r[0]), abs(r[1])), max(abs(r[2]), abs(r[3]))), abs(r[4])))
-    # reflection 1: row 3 -> (-+|r3|, 0, 0, 0, 0)
+    # reflection 1: row 3 -> (-+|r3|, 0, 0, 0, 0); v.v = 2 |r3| (|r3| + |r3_0|)
     n3 = np.sqrt(_dot5(r3, r3))
     v = (r3[0] + (n3 if r3[0] >= 0.0 else -n3), r3[1], r3[2], r3[3], r3[4])
-    vv = 2.0 / (_dot5(v, v) + TINY)
+    vv = 1.0 / (n3 * (n3 + abs(r3[0])) + TINY)
     r0 = _reflect5(r0, v, vv)
     r1 = _reflect5(r1, v, vv)
     r2 = _reflect5(r2, v, vv)
@@ -209,219 +210,348 @@ def constrained_extremes(c0, c1, c2, c3, c4):
     # reflection 2: row 4 (coordinates 1..4) -> (*, -+|.|, 0, 0, 0)
     n4 = np.sqrt(r4[1] * r4[1] + r4[2] * r4[2] + r4[3] * r4[3] + r4[4] * r4[4])
     v = (0.0, r4[1] + (n4 if r4[1] >= 0.0 else -n4), r4[2], r4[3], r4[4])
-    vv = 2.0 / (_dot5(v, v) + TINY)
+    vv = 1.0 / (n4 * (n4 + abs(r4[1])) + TINY)
     r0 = _reflect5(r0, v, vv)
     r1 = _reflect5(r1, v, vv)
     r2 = _reflect5(r2, v, vv)
-    smin, smax = singular_values_3x3(r0[2], r0[3], r0[4], r1[2], r1[3], r1[4],
-                                     r2[2], r2[3], r2[4])
-    tol = SINGULAR_RTOL * scale
-    singular = (n3 <= tol) or (n4 <= tol) or (smin <= tol)
-    return (0.0 if singular else smin), smax, singular
+    smin2, smax2 = singular_values_3x3_sq(r0[2], r0[3], r0[4], r1[2], r1[3], r1[4],
+                                          r2[2], r2[3], r2[4])
+    tol2 = SINGULAR_RTOL * SINGULAR_RTOL * smax2
+    singular = (n3 * n3 <= tol2) or (n4 * n4 <= tol2) or (smin2 <= tol2)
+    return (0.0 if singular else smin2), smax2, singular
+
+
+@njit(inline="always", **_JIT)
+def tool_axis_and_wrist(ox, oy, oz, tool_offset_m):
+    """Tool axis and wrist centre for a tip at RCM + o (eq. 9).
+
+    The tool passes through the RCM, so its unit axis is k = o / |o| and the
+    wrist centre sits ``tool_offset_m`` back along it: w - RCM = o - T k.
+    Neither depends on where the RCM is, so a workspace cube shares them
+    across all candidates (``workspace_geometry``).
+    """
+    il = 1.0 / (np.sqrt(ox * ox + oy * oy + oz * oz) + TINY)
+    kx, ky, kz = ox * il, oy * il, oz * il
+    return kx, ky, kz, ox - tool_offset_m * kx, oy - tool_offset_m * ky, oz - tool_offset_m * kz
+
+
+@njit(inline="always", **_JIT)
+def arm_ik(kx, ky, kz, wx, wy, wz, d1, d3, d5, elbow_sign, cl0, cl1, cl2, cl3, cl4):
+    """Closed-form IK of S1, S2, E1 for wrist centre w, and the wrist's limits (Sec. III-C).
+
+    Tool axis k, wrist centre w (m); ``cl0..cl4`` are cos(min(limit, pi)) of
+    the S1, S2, E1, E2, W1 limits. Returns the S2/E1 axis n (n_z = 0, so two
+    scalars), elbow e, forearm direction f and whether the pose is reachable
+    within the joint limits (S3 = W2 = 0). Limits are tested as cosines: S1
+    atan2(wy, wx), S2 the tilt of the upper arm a, E1 a.f, E2 atan2(k.n,
+    k.(n x f)), W1 acos(k.f).
+    """
+    # S1: the arm plane holds the z axis and w; S2/E1: planar two-link IK in it
+    r2 = wx * wx + wy * wy
+    r = np.sqrt(r2) + TINY
+    sz = wz - d1
+    dist = np.sqrt(r2 + sz * sz) + TINY
+    inv = 1.0 / (r * dist)  # one division for 1/r and 1/dist
+    ir = dist * inv
+    idist = r * inv
+    nx, ny = -wy * ir, wx * ir
+    ux, uy, uz = wx * idist, wy * idist, sz * idist
+    cos_a = (d3 * d3 - d5 * d5 + dist * dist) * (0.5 / d3) * idist
+    sin_a = elbow_sign * np.sqrt(max(0.0, 1.0 - cos_a * cos_a))
+    vx, vy, vz = -uz * ny, uz * nx, ux * ny - uy * nx  # u x n: in-plane normal, "up"
+    ax_, ay_, az_ = cos_a * ux + sin_a * vx, cos_a * uy + sin_a * vy, cos_a * uz + sin_a * vz
+    ex, ey, ez = d3 * ax_, d3 * ay_, d1 + d3 * az_
+    id5 = 1.0 / d5
+    fx, fy, fz = (wx - ex) * id5, (wy - ey) * id5, (wz - ez) * id5
+    bx, by, bz = ny * fz, -nx * fz, nx * fy - ny * fx  # n x f
+    k4x = kx * bx + ky * by + kz * bz
+    k4y = kx * nx + ky * ny
+    k4z = kx * fx + ky * fy + kz * fz
+    # E2: k4x >= cl3 |(k4x, k4y)|, squared (the sign of cl3 picks the form)
+    e2_sq = k4x * k4x >= cl3 * cl3 * (k4x * k4x + k4y * k4y)
+    e2_ok = ((k4x >= 0.0) & e2_sq) if cl3 >= 0.0 else ((k4x >= 0.0) | ~e2_sq)
+    ok = ((abs(cos_a) <= 1.0) & (wx >= cl0 * r) & (az_ >= cl1)
+          & (ax_ * fx + ay_ * fy + az_ * fz >= cl2) & e2_ok & (k4z >= cl4))
+    return nx, ny, ex, ey, ez, fx, fy, fz, ok
 
 
 @njit(inline="always", **_JIT)
 def rcm_ik(px, py, pz, cx, cy, cz, d1, d3, d5, tool_offset_m, elbow_sign, cl0, cl1, cl2, cl3, cl4):
     """Closed-form IK with the tool axis through the RCM (eq. 9), as geometry.
 
-    Tip p, RCM c (m); ``cl0..cl4`` are cos(min(limit, pi)) of the S1, S2,
-    E1, E2, W1 joint limits. Returns the tool axis k, wrist centre w, S2/E1
-    axis n, elbow e, forearm direction f (each as 3 scalars) and whether the
-    pose is reachable within the joint limits (S3 = W2 = 0, Sec. III-C).
+    Tip p, RCM c (m). Returns the tool axis k, wrist centre w, S2/E1 axis n,
+    elbow e, forearm direction f (each as 3 scalars) and reachability.
     """
-    # tool axis from RCM to tip (eq. 9) and the wrist centre
-    kx, ky, kz = px - cx, py - cy, pz - cz
-    il = 1.0 / (np.sqrt(kx * kx + ky * ky + kz * kz) + TINY)
-    kx, ky, kz = kx * il, ky * il, kz * il
-    wx, wy, wz = px - tool_offset_m * kx, py - tool_offset_m * ky, pz - tool_offset_m * kz
-    # S1: arm plane through the z axis and the wrist centre
-    r = np.sqrt(wx * wx + wy * wy)
-    ir = 1.0 / (r + TINY)
-    nx, ny, nz = -wy * ir, wx * ir, 0.0  # S2 and E1 axis
-    # S2/E1: planar two-link IK in the arm plane, elbow above the s-w line
-    sx, sy, sz = wx, wy, wz - d1
-    dist = np.sqrt(sx * sx + sy * sy + sz * sz) + TINY
-    idist = 1.0 / dist
-    ux, uy, uz = sx * idist, sy * idist, sz * idist
-    cos_a = (d3 * d3 + dist * dist - d5 * d5) * (0.5 / d3) * idist
-    sin_a = elbow_sign * np.sqrt(max(0.0, 1.0 - cos_a * cos_a))
-    vx, vy, vz = _cross(ux, uy, uz, nx, ny, nz)  # in-plane normal, "up"
-    ax_, ay_, az_ = cos_a * ux + sin_a * vx, cos_a * uy + sin_a * vy, cos_a * uz + sin_a * vz
-    ex, ey, ez = d3 * ax_, d3 * ay_, d1 + d3 * az_
-    id5 = 1.0 / d5
-    fx, fy, fz = (wx - ex) * id5, (wy - ey) * id5, (wz - ez) * id5
-    # joint limits as cosine tests: S1 atan2(wy,wx), S2 tilt of a, E1 a.f,
-    # E2 atan2(k.n, k.(n x f)), W1 acos(k.f)
-    bx, by, bz = _cross(nx, ny, nz, fx, fy, fz)
-    k4x = kx * bx + ky * by + kz * bz
-    k4y = kx * nx + ky * ny + kz * nz
-    k4z = kx * fx + ky * fy + kz * fz
-    ok = ((abs(cos_a) <= 1.0) & (wx >= cl0 * r) & (az_ >= cl1)
-          & (ax_ * fx + ay_ * fy + az_ * fz >= cl2)
-          & (k4x >= cl3 * np.sqrt(k4x * k4x + k4y * k4y)) & (k4z >= cl4))
-    return kx, ky, kz, wx, wy, wz, nx, ny, nz, ex, ey, ez, fx, fy, fz, ok
+    kx, ky, kz, vx, vy, vz = tool_axis_and_wrist(px - cx, py - cy, pz - cz, tool_offset_m)
+    wx, wy, wz = cx + vx, cy + vy, cz + vz
+    nx, ny, ex, ey, ez, fx, fy, fz, ok = arm_ik(kx, ky, kz, wx, wy, wz, d1, d3, d5, elbow_sign,
+                                                cl0, cl1, cl2, cl3, cl4)
+    return kx, ky, kz, wx, wy, wz, nx, ny, 0.0, ex, ey, ez, fx, fy, fz, ok
 
 
 @njit(inline="always", **_JIT)
-def rcm_pose_jacobian(
-    px, py, pz, cx, cy, cz, d1, d3, d5, tool_offset_m, elbow_sign,
-    q0, q1, q2, q3, q4, cl0, cl1, cl2, cl3, cl4,
-):
-    """Closed-form IK (eq. 9) and the columns of A = J_a Q (eq. 8) at one pose.
+def _constraint_rows(gx, gy, gz, kx, ky, kz):
+    """x, y of g x k: k_z (de_y/dt, -de_x/dt) for the body point at the RCM moving at g (eq. 8)."""
+    return gy * kz - gz * ky, gz * kx - gx * kz
 
-    Arguments as ``rcm_ik``; ``q0..q4`` are the maximum speeds (rad/s) of S1,
-    S2, E1, E2, W1 (1 for the unscaled J_a). Returns the five columns
-    (5-tuples) and whether the pose is reachable within the joint limits.
+
+@njit(inline="always", **_JIT)
+def jacobian_columns(px, py, pz, cx, cy, cz, kx, ky, kz, wx, wy, wz, nx, ny, ex, ey, ez, fx, fy, fz,
+                     d1, q0, q1, q2, q3, q4):
+    """The five columns of A = J_a Q (eq. 8), each a 5-tuple.
+
+    Joint axis z (scaled by the joint's maximum speed) through o moves the
+    tip at z x (p - o) (rows 0-2) and the body point at the RCM at
+    g = z x (c - o). The RCM error e_x, e_y of eq. 8 changes at
+    g_xy - (g_z / k_z) k_xy; rows 3-4 hold that pair times k_z, rotated:
+    the x, y of g x k, which spans the same constraint without a division
+    (only its null space enters B). ``alternative_jacobian`` gives eq. 8's rows.
+    Axes: S1 e_z through the origin; S2, E1 n (n_z = 0) through the shoulder
+    (0, 0, d1) and the elbow e; E2 f and W1 m = f x k / |f x k| through w.
     """
-    kx, ky, kz, wx, wy, wz, nx, ny, nz, ex, ey, ez, fx, fy, fz, ok = rcm_ik(
-        px, py, pz, cx, cy, cz, d1, d3, d5, tool_offset_m, elbow_sign, cl0, cl1, cl2, cl3, cl4)
-    # W1 axis m = f x k / |f x k|
+    # S1
+    c0 = (-q0 * py, q0 * px, 0.0) + _constraint_rows(-q0 * cy, q0 * cx, 0.0, kx, ky, kz)
+    # S2
+    ax, ay = q1 * nx, q1 * ny
+    pzs, czs = pz - d1, cz - d1
+    c1 = ((ay * pzs, -ax * pzs, ax * py - ay * px)
+          + _constraint_rows(ay * czs, -ax * czs, ax * cy - ay * cx, kx, ky, kz))
+    # E1
+    ax, ay = q2 * nx, q2 * ny
+    pze, cze = pz - ez, cz - ez
+    c2 = ((ay * pze, -ax * pze, ax * (py - ey) - ay * (px - ex))
+          + _constraint_rows(ay * cze, -ax * cze, ax * (cy - ey) - ay * (cx - ex), kx, ky, kz))
+    # E2 and W1 turn about axes through the wrist centre
+    dpx, dpy, dpz = px - wx, py - wy, pz - wz
+    dcx, dcy, dcz = cx - wx, cy - wy, cz - wz
+    ax, ay, az = q3 * fx, q3 * fy, q3 * fz
+    gx, gy, gz = _cross(ax, ay, az, dcx, dcy, dcz)
+    c3 = _cross(ax, ay, az, dpx, dpy, dpz) + _constraint_rows(gx, gy, gz, kx, ky, kz)
     mx, my, mz = _cross(fx, fy, fz, kx, ky, kz)
-    il = 1.0 / (np.sqrt(mx * mx + my * my + mz * mz) + TINY)
+    il = q4 / (np.sqrt(mx * mx + my * my + mz * mz) + TINY)
     mx, my, mz = mx * il, my * il, mz * il
-    ikz = 1.0 / kz
-    return (
-        _jacobian_column(0.0, 0.0, 1.0, 0.0, 0.0, d1, px, py, pz, cx, cy, cz, kx, ky, kz, ikz, q0),
-        _jacobian_column(nx, ny, nz, 0.0, 0.0, d1, px, py, pz, cx, cy, cz, kx, ky, kz, ikz, q1),
-        _jacobian_column(nx, ny, nz, ex, ey, ez, px, py, pz, cx, cy, cz, kx, ky, kz, ikz, q2),
-        _jacobian_column(fx, fy, fz, wx, wy, wz, px, py, pz, cx, cy, cz, kx, ky, kz, ikz, q3),
-        _jacobian_column(mx, my, mz, wx, wy, wz, px, py, pz, cx, cy, cz, kx, ky, kz, ikz, q4),
-        ok,
-    )
+    gx, gy, gz = _cross(mx, my, mz, dcx, dcy, dcz)
+    c4 = _cross(mx, my, mz, dpx, dpy, dpz) + _constraint_rows(gx, gy, gz, kx, ky, kz)
+    return c0, c1, c2, c3, c4
 
 
 @njit(inline="always", **_JIT)
-def rcm_pose_singular_values(
-    px, py, pz, cx, cy, cz, d1, d3, d5, tool_offset_m, elbow_sign,
-    q0, q1, q2, q3, q4, cl0, cl1, cl2, cl3, cl4,
-):
-    """Extreme singular values of B at one pose: (sigma_min, sigma_max, status).
+def pose_extremes_sq(cx, cy, cz, px, py, pz, kx, ky, kz, wx, wy, wz, d1, d3, d5, elbow_sign,
+                     q0, q1, q2, q3, q4, cl0, cl1, cl2, cl3, cl4):
+    """(sigma_min^2, sigma_max^2, status) of B at one pose: IK, A (eq. 8), null space, extremes.
 
-    Arguments as ``rcm_pose_jacobian``. Worked example (checked in tests):
-    links 0.317/0.45/0.48/0.07 m, tool 0.587 m from the flange, PA10 speeds,
-    RCM (0.535, 0, 0.107) m, tip 0.1 m straight below it:
-    sigma_min = 0.070968 m/s, sigma_max = 1.019961 m/s.
+    RCM c, tip p, tool axis k and wrist centre w from ``tool_axis_and_wrist``.
     """
-    c0, c1, c2, c3, c4, ok = rcm_pose_jacobian(
-        px, py, pz, cx, cy, cz, d1, d3, d5, tool_offset_m, elbow_sign,
-        q0, q1, q2, q3, q4, cl0, cl1, cl2, cl3, cl4)
-    smin, smax, singular = constrained_extremes(c0, c1, c2, c3, c4)
+    nx, ny, ex, ey, ez, fx, fy, fz, ok = arm_ik(kx, ky, kz, wx, wy, wz, d1, d3, d5, elbow_sign,
+                                                cl0, cl1, cl2, cl3, cl4)
+    c0, c1, c2, c3, c4 = jacobian_columns(px, py, pz, cx, cy, cz, kx, ky, kz, wx, wy, wz,
+                                          nx, ny, ex, ey, ez, fx, fy, fz, d1, q0, q1, q2, q3, q4)
+    smin2, smax2, singular = constrained_extremes(c0, c1, c2, c3, c4)
     status = STATUS_OK if ok else STATUS_UNREACHABLE
     status = STATUS_SINGULAR if (ok and singular) else status
-    return smin, smax, status
+    return smin2, smax2, status
 
 
 @njit(**_JIT)
 def alternative_jacobian(p, c, links_m, tool_offset_m, elbow_sign, qdot_max, cos_limit):
-    """J_a Q (5x5, eq. 8) at tip p about RCM c, and reachability: for tests and tools."""
-    c0, c1, c2, c3, c4, ok = rcm_pose_jacobian(p[0], p[1], p[2], c[0], c[1], c[2],
-                             links_m[0], links_m[1], links_m[2], tool_offset_m, elbow_sign,
-                             qdot_max[0], qdot_max[1], qdot_max[2], qdot_max[3], qdot_max[4],
-                             cos_limit[0], cos_limit[1], cos_limit[2], cos_limit[3], cos_limit[4])
+    """J_a Q (5x5, eq. 8: rows x, y, z, e_x, e_y) at tip p about RCM c, and reachability."""
+    kx, ky, kz, wx, wy, wz, nx, ny, _, ex, ey, ez, fx, fy, fz, ok = rcm_ik(
+        p[0], p[1], p[2], c[0], c[1], c[2], links_m[0], links_m[1], links_m[2], tool_offset_m, elbow_sign,
+        cos_limit[0], cos_limit[1], cos_limit[2], cos_limit[3], cos_limit[4])
+    cols = jacobian_columns(p[0], p[1], p[2], c[0], c[1], c[2], kx, ky, kz, wx, wy, wz,
+                            nx, ny, ex, ey, ez, fx, fy, fz, links_m[0],
+                            qdot_max[0], qdot_max[1], qdot_max[2], qdot_max[3], qdot_max[4])
     A = np.empty((5, 5))
-    for i in range(5):
-        A[i, 0], A[i, 1], A[i, 2], A[i, 3], A[i, 4] = c0[i], c1[i], c2[i], c3[i], c4[i]
+    for j in range(5):
+        col = cols[j]
+        A[0, j], A[1, j], A[2, j] = col[0], col[1], col[2]
+        A[3, j], A[4, j] = -col[4] / kz, col[3] / kz  # back from k_z (e_y', -e_x') to (e_x', e_y')
     return A, ok
 
 
 @njit(**_JIT)
-def pose_singular_values(points, rcm, links_m, tool_offset_m, elbow_sign, qdot_max, cos_limit):
-    """Per-point (sigma_min, sigma_max, status) for tips ``points`` (N, 3) about one RCM."""
-    n = points.shape[0]
-    smin = np.empty(n)
-    smax = np.empty(n)
-    status = np.empty(n, np.int64)
-    _workspace_poses(rcm[0], rcm[1], rcm[2], points[:, 0] - rcm[0], points[:, 1] - rcm[1],
-                     points[:, 2] - rcm[2], links_m[0], links_m[1], links_m[2],
-                     tool_offset_m, elbow_sign,
-                     qdot_max[0], qdot_max[1], qdot_max[2], qdot_max[3], qdot_max[4],
-                     cos_limit[0], cos_limit[1], cos_limit[2], cos_limit[3], cos_limit[4],
-                     smin, smax, status)
-    return smin, smax, status
+def _workspace_poses(cx, cy, cz, geom, d1, d3, d5, elbow_sign,
+                     q0, q1, q2, q3, q4, c0, c1, c2, c3, c4, smin2, smax2, status):
+    """Per-point squared extremes for one RCM c over the workspace ``geom`` (``workspace_geometry``).
 
-
-@njit(**_JIT)
-def _workspace_poses(cx, cy, cz, ox, oy, oz, d1, d3, d5, tool_offset_m, elbow_sign,
-                     q0, q1, q2, q3, q4, c0, c1, c2, c3, c4, smin, smax, status):
-    """Per-point extremes for one RCM over tips c + (ox, oy, oz)[j].
-
-    A call- and branch-free loop over structure-of-arrays inputs: with (N, 3)
-    rows LLVM keeps it scalar (3.5x slower, measured).
+    A call- and branch-free loop over structure-of-arrays inputs, so that
+    LLVM vectorises it (with (N, 3) rows it stays scalar: 3.5x slower).
     """
+    ox, oy, oz, kx, ky, kz, vx, vy, vz = geom[0], geom[1], geom[2], geom[3], geom[4], geom[5], geom[6], geom[7], geom[8]
     for j in range(ox.shape[0]):
-        smin[j], smax[j], status[j] = rcm_pose_singular_values(
-            cx + ox[j], cy + oy[j], cz + oz[j], cx, cy, cz,
-            d1, d3, d5, tool_offset_m, elbow_sign, q0, q1, q2, q3, q4, c0, c1, c2, c3, c4)
+        smin2[j], smax2[j], status[j] = pose_extremes_sq(
+            cx, cy, cz, cx + ox[j], cy + oy[j], cz + oz[j], kx[j], ky[j], kz[j],
+            cx + vx[j], cy + vy[j], cz + vz[j], d1, d3, d5, elbow_sign,
+            q0, q1, q2, q3, q4, c0, c1, c2, c3, c4)
 
 
 @njit(**_JIT)
-def _count_unreachable(cx, cy, cz, ox, oy, oz, d1, d3, d5, tool_offset_m, elbow_sign,
-                       c0, c1, c2, c3, c4):
-    """Number of workspace points the IK cannot reach within the joint limits."""
+def _count_unreachable(cx, cy, cz, geom, mult, d1, d3, d5, elbow_sign, c0, c1, c2, c3, c4):
+    """Workspace points (with multiplicity) the IK cannot reach within the joint limits."""
+    kx, ky, kz, vx, vy, vz = geom[3], geom[4], geom[5], geom[6], geom[7], geom[8]
     n = 0
-    for j in range(ox.shape[0]):
-        ok = rcm_ik(cx + ox[j], cy + oy[j], cz + oz[j], cx, cy, cz,
-                    d1, d3, d5, tool_offset_m, elbow_sign, c0, c1, c2, c3, c4)[15]
-        n += not ok
+    for j in range(kx.shape[0]):
+        ok = arm_ik(kx[j], ky[j], kz[j], cx + vx[j], cy + vy[j], cz + vz[j],
+                    d1, d3, d5, elbow_sign, c0, c1, c2, c3, c4)[8]
+        n += 0 if ok else mult[j]
     return n
 
 
 @njit(**_JIT)
-def _reduce_extremes(smin, smax, status, n):
+def _reduce_extremes(smin2, smax2, status, mult, n):
+    """(min sigma_min^2, max sigma_max^2, unreachable, singular) over n points, counts with multiplicity."""
     lo = np.inf
     hi = 0.0
     n_unr = 0
     n_sing = 0
     for j in range(n):
-        lo = min(lo, smin[j])
-        hi = max(hi, smax[j])
-        n_unr += status[j] == STATUS_UNREACHABLE
-        n_sing += status[j] == STATUS_SINGULAR
+        lo = min(lo, smin2[j])
+        hi = max(hi, smax2[j])
+        n_unr += mult[j] if status[j] == STATUS_UNREACHABLE else 0
+        n_sing += mult[j] if status[j] == STATUS_SINGULAR else 0
     return lo, hi, n_unr, n_sing
 
 
-@njit(**_JIT)
-def rcm_candidates_extremes(rcms, offsets, links_m, tool_offset_m, elbow_sign, qdot_max, cos_limit):
-    """For each RCM candidate: min sigma_min, max sigma_max over the workspace.
+def mirror_half(offsets):
+    """Points with y >= 0 and their multiplicity, when the set is mirror symmetric in y.
 
-    ``rcms`` (M, 3) candidate RCMs, ``offsets`` (P, 3) workspace points
-    relative to the RCM, ``links_m`` (d1, d3, d5). Returns (sigma_min (M,),
-    sigma_max (M,), n_unreachable (M,), n_singular (M,)); the GII (eq. 7) is
-    sigma_min / sigma_max when n_unreachable == 0. Reachability is checked
-    first (IK only, a fifth of the cost); an infeasible candidate gets
-    sigma = 0 and n_singular = 0 without evaluating its Jacobians.
+    With the RCM on the x-z plane (y = 0), S3 = W2 = 0 and symmetric joint
+    limits, the arm's pose for the mirror image (x, -y, z) of a tip is the
+    mirror image of its pose: S1, E2 change sign, every limit test and every
+    singular value is unchanged. So a workspace symmetric in y needs only its
+    y >= 0 half, each y > 0 point counted twice. Returns ``(offsets, ones)``
+    when the set is not exactly symmetric.
     """
-    m = rcms.shape[0]
+    offsets = np.ascontiguousarray(offsets, dtype=np.float64)
+    y = offsets[:, 1]
+    pos, neg = offsets[y > 0], offsets[y < 0] * np.array([1.0, -1.0, 1.0])
+    if pos.shape != neg.shape or not np.array_equal(pos[np.lexsort(pos.T)], neg[np.lexsort(neg.T)]):
+        return offsets, np.ones(offsets.shape[0], np.int64)
+    keep = y >= 0
+    return np.ascontiguousarray(offsets[keep]), np.where(y[keep] > 0, 2, 1).astype(np.int64)
+
+
+@njit(**_JIT)
+def workspace_geometry(offsets, tool_offset_m):
+    """(9, P) rows o_x, o_y, o_z, k_x, k_y, k_z, (w - c)_x, _y, _z for tips at RCM + o (eq. 9)."""
     p = offsets.shape[0]
+    g = np.empty((9, p))
+    for j in range(p):
+        ox, oy, oz = offsets[j, 0], offsets[j, 1], offsets[j, 2]
+        kx, ky, kz, vx, vy, vz = tool_axis_and_wrist(ox, oy, oz, tool_offset_m)
+        g[0, j], g[1, j], g[2, j], g[3, j], g[4, j], g[5, j], g[6, j], g[7, j], g[8, j] = \
+            ox, oy, oz, kx, ky, kz, vx, vy, vz
+    return g
+
+
+def _probe_points(offsets):
+    """Indices of the 8 corner-most and 6 face-most points: where a workspace is left first."""
+    signs = np.array([[sx, sy, sz] for sx in (-1, 1) for sy in (-1, 1) for sz in (-1, 1)]
+                     + [[s if i == a else 0 for i in range(3)] for a in range(3) for s in (-1, 1)], float)
+    centred = offsets - offsets.mean(axis=0)
+    return np.unique(np.argmax(centred @ signs.T, axis=0)).astype(np.int64)
+
+
+def pose_singular_values(points, rcm, links_m, tool_offset_m, elbow_sign, qdot_max, cos_limit):
+    """Per-point (sigma_min, sigma_max, status) for tips ``points`` (N, 3) about one RCM."""
+    points = np.asarray(points, dtype=np.float64).reshape(-1, 3)
+    rcm = np.asarray(rcm, dtype=np.float64)
+    geom = workspace_geometry(np.ascontiguousarray(points - rcm), tool_offset_m)
+    n = points.shape[0]
+    smin2, smax2, status = np.empty(n), np.empty(n), np.empty(n, np.int64)
+    _workspace_poses(rcm[0], rcm[1], rcm[2], geom, links_m[0], links_m[1], links_m[2], elbow_sign,
+                     *qdot_max[:5], *cos_limit[:5], smin2, smax2, status)
+    return np.sqrt(smin2), np.sqrt(smax2), status
+
+
+@njit(**_JIT)
+def _candidates_extremes(rcms, geom, mult, probes, d1, d3, d5, elbow_sign, q, cl):
+    m = rcms.shape[0]
+    p = geom.shape[1]
     out_min = np.empty(m)
     out_max = np.empty(m)
     out_unr = np.empty(m, np.int64)
     out_sing = np.empty(m, np.int64)
-    ox = offsets[:, 0].copy()
-    oy = offsets[:, 1].copy()
-    oz = offsets[:, 2].copy()
-    smin = np.empty(p)
-    smax = np.empty(p)
+    smin2 = np.empty(p)
+    smax2 = np.empty(p)
     status = np.empty(p, np.int64)
     for i in range(m):
-        n_unr = _count_unreachable(rcms[i, 0], rcms[i, 1], rcms[i, 2], ox, oy, oz,
-                                   links_m[0], links_m[1], links_m[2], tool_offset_m, elbow_sign,
-                                   cos_limit[0], cos_limit[1], cos_limit[2], cos_limit[3], cos_limit[4])
-        if n_unr > 0:
+        cx, cy, cz = rcms[i, 0], rcms[i, 1], rcms[i, 2]
+        probe_ok = True
+        for j in probes:
+            probe_ok &= arm_ik(geom[3, j], geom[4, j], geom[5, j], cx + geom[6, j], cy + geom[7, j],
+                               cz + geom[8, j], d1, d3, d5, elbow_sign, cl[0], cl[1], cl[2], cl[3], cl[4])[8]
+        if not probe_ok:
+            n_unr = _count_unreachable(cx, cy, cz, geom, mult, d1, d3, d5, elbow_sign,
+                                       cl[0], cl[1], cl[2], cl[3], cl[4])
             out_min[i], out_max[i], out_unr[i], out_sing[i] = 0.0, 0.0, n_unr, 0
             continue
-        _workspace_poses(rcms[i, 0], rcms[i, 1], rcms[i, 2], ox, oy, oz,
-                         links_m[0], links_m[1], links_m[2], tool_offset_m, elbow_sign,
-                         qdot_max[0], qdot_max[1], qdot_max[2], qdot_max[3], qdot_max[4],
-                         cos_limit[0], cos_limit[1], cos_limit[2], cos_limit[3], cos_limit[4],
-                         smin, smax, status)
-        out_min[i], out_max[i], out_unr[i], out_sing[i] = _reduce_extremes(smin, smax, status, p)
+        _workspace_poses(cx, cy, cz, geom, d1, d3, d5, elbow_sign, q[0], q[1], q[2], q[3], q[4],
+                         cl[0], cl[1], cl[2], cl[3], cl[4], smin2, smax2, status)
+        lo, hi, n_unr, n_sing = _reduce_extremes(smin2, smax2, status, mult, p)
+        if n_unr > 0:
+            out_min[i], out_max[i], out_unr[i], out_sing[i] = 0.0, 0.0, n_unr, 0
+        else:
+            out_min[i], out_max[i], out_unr[i], out_sing[i] = np.sqrt(lo), np.sqrt(hi), 0, n_sing
     return out_min, out_max, out_unr, out_sing
 
 
+def rcm_candidates_extremes(rcms, offsets, links_m, tool_offset_m, elbow_sign, qdot_max, cos_limit,
+                            mirror=True):
+    """For each RCM candidate: min sigma_min, max sigma_max over the workspace.
+
+    ``rcms`` (M, 3) candidate RCMs (y = 0 for ``mirror``), ``offsets`` (P, 3)
+    workspace points relative to the RCM, ``links_m`` (d1, d3, d5). Returns
+    (sigma_min (M,), sigma_max (M,), n_unreachable (M,), n_singular (M,));
+    the GII (eq. 7) is sigma_min / sigma_max when n_unreachable == 0. The
+    workspace's corner and face points are tried first (IK only); when one
+    is out of reach the candidate only gets its unreachable count (IK only,
+    a fifth of the cost) and sigma = 0, n_singular = 0. With ``mirror``
+    and RCMs on y = 0, a y-symmetric workspace is evaluated on its y >= 0
+    half (``mirror_half``): 9 of 17 layers for the paper's cube.
+    """
+    rcms = np.ascontiguousarray(rcms, dtype=np.float64).reshape(-1, 3)
+    offsets = np.ascontiguousarray(offsets, dtype=np.float64).reshape(-1, 3)
+    if mirror and np.all(rcms[:, 1] == 0.0):
+        offsets, mult = mirror_half(offsets)
+    else:
+        mult = np.ones(offsets.shape[0], np.int64)
+    geom = workspace_geometry(offsets, tool_offset_m)
+    return _candidates_extremes(rcms, geom, mult, _probe_points(offsets), links_m[0], links_m[1], links_m[2],
+                                elbow_sign, np.asarray(qdot_max, np.float64), np.asarray(cos_limit, np.float64))
+
+
 @njit(**_JIT)
+def _candidate_bounded(cx, cy, cz, geom, mult, d1, d3, d5, elbow_sign, q, cl, gii_to_beat, block):
+    p = geom.shape[1]
+    smin2 = np.empty(block)
+    smax2 = np.empty(block)
+    status = np.empty(block, np.int64)
+    lo = np.inf
+    hi = 0.0
+    n_unr = 0
+    n_sing = 0
+    done = 0
+    n_eval = 0
+    while done < p:
+        end = min(p, done + block)
+        _workspace_poses(cx, cy, cz, geom[:, done:end], d1, d3, d5, elbow_sign, q[0], q[1], q[2], q[3], q[4],
+                         cl[0], cl[1], cl[2], cl[3], cl[4], smin2, smax2, status)
+        b_lo, b_hi, b_unr, b_sing = _reduce_extremes(smin2, smax2, status, mult[done:end], end - done)
+        lo = min(lo, b_lo)
+        hi = max(hi, b_hi)
+        n_unr += b_unr
+        n_sing += b_sing
+        for j in range(done, end):
+            n_eval += mult[j]
+        done = end
+        if n_unr > 0 or lo <= gii_to_beat * gii_to_beat * hi:
+            break
+    return np.sqrt(lo), np.sqrt(hi), n_unr, n_sing, n_eval
+
+
 def rcm_candidate_bounded(rcm, offsets, links_m, tool_offset_m, elbow_sign, qdot_max,
-                          cos_limit, gii_to_beat, block):
+                          cos_limit, gii_to_beat, block, mirror=True):
     """Culling step (Stocco & Salcudean): evaluate one candidate block by block.
 
     The running ratio min sigma_min / max sigma_max over the points seen so
@@ -429,33 +559,16 @@ def rcm_candidate_bounded(rcm, offsets, links_m, tool_offset_m, elbow_sign, qdot
     above; evaluation stops as soon as that bound is <= ``gii_to_beat`` or a
     point is unreachable. Returns (sigma_min, sigma_max, n_unreachable,
     n_singular, points_evaluated); points_evaluated < P means culled.
-    Put the points most likely to be worst first in ``offsets``.
+    Put the points most likely to be worst first in ``offsets`` (the mirror
+    reduction keeps their order).
     """
-    p = offsets.shape[0]
-    ox = offsets[:, 0].copy()
-    oy = offsets[:, 1].copy()
-    oz = offsets[:, 2].copy()
-    smin = np.empty(block)
-    smax = np.empty(block)
-    status = np.empty(block, np.int64)
-    lo = np.inf
-    hi = 0.0
-    n_unr = 0
-    n_sing = 0
-    done = 0
-    while done < p:
-        end = min(p, done + block)
-        _workspace_poses(rcm[0], rcm[1], rcm[2], ox[done:end], oy[done:end], oz[done:end],
-                         links_m[0], links_m[1], links_m[2], tool_offset_m, elbow_sign,
-                         qdot_max[0], qdot_max[1], qdot_max[2], qdot_max[3], qdot_max[4],
-                         cos_limit[0], cos_limit[1], cos_limit[2], cos_limit[3], cos_limit[4],
-                         smin, smax, status)
-        b_lo, b_hi, b_unr, b_sing = _reduce_extremes(smin, smax, status, end - done)
-        lo = min(lo, b_lo)
-        hi = max(hi, b_hi)
-        n_unr += b_unr
-        n_sing += b_sing
-        done = end
-        if n_unr > 0 or lo <= gii_to_beat * hi:
-            break
-    return lo, hi, n_unr, n_sing, done
+    rcm = np.asarray(rcm, dtype=np.float64)
+    offsets = np.ascontiguousarray(offsets, dtype=np.float64).reshape(-1, 3)
+    if mirror and rcm[1] == 0.0:
+        offsets, mult = mirror_half(offsets)
+    else:
+        mult = np.ones(offsets.shape[0], np.int64)
+    geom = workspace_geometry(offsets, tool_offset_m)
+    return _candidate_bounded(rcm[0], rcm[1], rcm[2], geom, mult, links_m[0], links_m[1], links_m[2],
+                              elbow_sign, np.asarray(qdot_max, np.float64), np.asarray(cos_limit, np.float64),
+                              float(gii_to_beat), int(block))
