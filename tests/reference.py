@@ -282,3 +282,60 @@ def isotropy_2x2(M):
 def annulus_zeta_mm(r_in, r_out):
     """Area / circumference of an annulus (both circles count): (r_out - r_in) / 2."""
     return (np.pi * (r_out ** 2 - r_in ** 2)) / (2 * np.pi * (r_out + r_in))
+
+
+def cell_inside_polygon(v):
+    """Inside part of a unit cell with corner values v = (v0 (0,0), v1 (1,0), v2 (1,1), v3 (0,1)):
+    walk the square, keep inside corners and linearly interpolated edge crossings. Returns the
+    polygon (k, 2) and the crossings (ordered from edge 0-1 on)."""
+    px, py = [0.0, 1.0, 1.0, 0.0], [0.0, 0.0, 1.0, 1.0]
+    poly, cross = [], []
+    for k in range(4):
+        a, b = v[k], v[(k + 1) % 4]
+        if a > 0:
+            poly.append((px[k], py[k]))
+        if (a > 0) != (b > 0):
+            t = a / (a - b)
+            p = (px[k] + t * (px[(k + 1) % 4] - px[k]), py[k] + t * (py[(k + 1) % 4] - py[k]))
+            poly.append(p)
+            cross.append(p)
+    return np.array(poly).reshape(-1, 2), np.array(cross).reshape(-1, 2)
+
+
+def cell_contour(v):
+    """(contour length, inside area) of one cell by shoelace on ``cell_inside_polygon``; a saddle's
+    crossings are paired by the sign of the corner mean."""
+    poly, e = cell_inside_polygon(v)
+    area = 0.0
+    if len(poly):
+        x, y = poly[:, 0], poly[:, 1]
+        area = 0.5 * abs(np.sum(x * np.roll(y, -1) - np.roll(x, -1) * y))
+    if len(e) == 2:
+        return float(np.hypot(*(e[1] - e[0]))), area
+    if len(e) == 4:
+        if (np.mean(v) > 0) == (v[0] > 0):
+            pairs = [(0, 1), (2, 3)]
+        else:
+            pairs = [(0, 3), (1, 2)]
+        return float(sum(np.hypot(*(e[i] - e[j])) for i, j in pairs)), area
+    return 0.0, area
+
+
+def raven_cone_fields(xs, ys, depth, ports, axes):
+    """(arms, nx*ny) cos psi between each shoulder axis and the direction to each plane node, and distance."""
+    X, Y = np.meshgrid(xs, ys, indexing="ij")
+    v = np.stack([X.ravel(), Y.ravel(), np.full(X.size, -depth)], axis=1)[None] - ports[:, None, :]
+    dist = np.linalg.norm(v, axis=2)
+    return np.clip(np.einsum("anj,aj->an", v, axes) / dist, -1, 1), dist
+
+
+def raven_isotropy_from_cos_psi(cos_psi, alpha, beta):
+    """Iso (eq. 35) by an SVD of J_s at theta2 = acos((cos psi + ca cb) / (sa sb)) (eq. 22), any shape."""
+    sa, ca, sb, cb = np.sin(alpha), np.cos(alpha), np.sin(beta), np.cos(beta)
+    t2 = np.arccos(np.clip((np.asarray(cos_psi) + ca * cb) / (sa * sb), -1, 1))
+    out = np.empty(t2.shape)
+    for idx, t in np.ndenumerate(t2):
+        c2, s2 = np.cos(t), np.sin(t)
+        J = np.array([[c2 * cb * sa + sb * ca, sb], [s2 * sa, 0.0]])  # eq. 41's top-left block
+        out[idx] = isotropy_2x2(J)
+    return out

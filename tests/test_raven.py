@@ -277,3 +277,107 @@ def test_embedded_default_is_table_ii():
     emb = load_embedded(S.DEFAULT_CONFIG, S.Config)
     assert emb == load_config(REPO / "configs" / "raven_table2.toml", S.Config)
     assert emb.sweep == S.Config().sweep and emb.geometry == S.Config().geometry
+
+
+def test_cell_contour_matches_polygon_clipping():
+    """The closed-form cell routine against a shoelace on the walked inside polygon (tests/reference.py)."""
+    rng = np.random.default_rng(40)
+    cases = rng.normal(size=(4000, 4))
+    cases[:200] = np.sign(cases[:200]) * rng.uniform(1e-9, 1e-6, (200, 4))  # near-degenerate crossings
+    cases[200:300] = [[1, -1, 1, -1], [-1, 1, -1, 1], [2, -1, 3, -0.5], [-2, 1, -3, 0.5]] * 25  # saddles
+    for v in cases:
+        length, area = K.marching_squares(np.array([v[0], v[3], v[1], v[2]]), 2, 2, 1.0)  # rows are x
+        ref_len, ref_area = R.cell_contour(v)
+        assert length == pytest.approx(ref_len, rel=1e-12, abs=1e-14)
+        assert area == pytest.approx(ref_area, rel=1e-12, abs=1e-14)
+
+
+def test_node_isotropy_is_the_minimum_over_the_arms():
+    """Iso is unimodal in theta2, so the minimum over the arms sits at the lowest or highest cos psi."""
+    rng = np.random.default_rng(41)
+    for a_deg, b_deg in [(5, 5), (25, 85), (55, 40), (85, 85), (90, 45), (15, 75)]:
+        al, be = math.radians(a_deg), math.radians(b_deg)
+        lo_c, hi_c = -math.cos(al - be), -math.cos(al + be)  # theta2 = 180 and 0 deg (eq. 22)
+        cos_psi = rng.uniform(lo_c, hi_c, (4, 500))  # reachable cone angles of four arms
+        out = np.empty(500)
+        K.node_isotropy(cos_psi.min(axis=0), cos_psi.max(axis=0), al, be, out)
+        ref = R.raven_isotropy_from_cos_psi(cos_psi, al, be).min(axis=0)
+        assert np.allclose(out, ref, rtol=1e-12, atol=1e-14)
+
+
+def _brute_force_designs(cfg, geometry):
+    """Every design of one geometry from per-arm fields: membership per arm, Iso by SVD (reference)."""
+    geo = cfg.geometry
+    ports, axes = S.arms(geo, *geometry)
+    xs, ys = S.plane_grid(geo, ports)
+    cos_psi, dist = R.raven_cone_fields(xs, ys, geo.depth_mm, ports, axes)
+    lo, hi = cos_psi.min(axis=0), cos_psi.max(axis=0)
+    cols = np.arange(lo.size)
+    d_lo, d_hi = dist[cos_psi.argmin(axis=0), cols], dist[cos_psi.argmax(axis=0), cols]
+    reach = (geo.d4_max_mm - dist).min(axis=0)
+    al = [math.radians(v) for v in S.values(cfg.sweep.alpha_deg)]
+    be = [math.radians(v) for v in S.values(cfg.sweep.beta_deg)]
+    iso = S.values(cfg.sweep.iso_min)
+    plo, phi, has = S.psi_intervals(cfg, np.array(al), np.array(be), np.array(iso))
+    rows = []
+    for ia, a in enumerate(al):
+        for ib, b in enumerate(be):
+            iso_node = R.raven_isotropy_from_cos_psi(cos_psi, a, b).min(axis=0)
+            for k in range(len(iso)):
+                c_lo, c_hi = math.cos(phi[ia, ib, k]), math.cos(plo[ia, ib, k])
+                inside = has[ia, ib, k] & np.all((cos_psi > c_lo) & (cos_psi < c_hi) & (dist < geo.d4_max_mm), axis=0)
+                margin = np.minimum(reach, np.minimum((lo - c_lo) * d_lo, (c_hi - hi) * d_hi))
+                length, area = K.marching_squares(margin, xs.size, ys.size, geo.step_mm) if inside.any() else (0, 0)
+                rows.append((area, length, inside.sum(), iso_node[inside].sum(), iso_node[inside].min(initial=1.0)))
+    return np.array(rows)
+
+
+@pytest.mark.parametrize("geometry", [(0, 10, -20, 100, 50), (10, -20, 0, 150, 100), (0, 0, 0, 50, 50)])
+def test_designs_of_a_geometry_equal_a_brute_force_evaluation(geometry):
+    """The level-sharing kernel against per-design, per-arm membership and SVD isotropy."""
+    cfg = S.Config.model_validate({"geometry": {"step_mm": 4.0}, "sweep": {
+        "alpha_deg": [25, 65, 85], "beta_deg": [45, 85], "phi_x_deg": [geometry[0]], "phi_y_deg": [geometry[1]],
+        "phi_z_deg": [geometry[2]], "bx_mm": [geometry[3]], "by_mm": [geometry[4]], "iso_min": [0.1, 0.5, 0.3, 0.9]}})
+    got = S.compute_task(cfg, 1, 0)
+    ref = _brute_force_designs(cfg, geometry)
+    assert np.array_equal(got["n_points"], ref[:, 2])
+    assert (ref[:, 2] > 0).sum() >= 6  # non-trivial
+    assert np.allclose(got["iso_sum"], ref[:, 3], rtol=1e-11, atol=1e-12)
+    nonempty = ref[:, 2] > 0
+    assert np.allclose(got["iso_min_actual"][nonempty], ref[nonempty, 4], rtol=1e-11)
+    assert np.allclose(got["area_cm2"] * 100, ref[:, 0], rtol=1e-11, atol=1e-9)
+    assert np.allclose(got["perimeter_cm"] * 10, ref[:, 1], rtol=1e-11, atol=1e-9)
+
+
+def test_plane_grid_covers_every_reachable_node():
+    geo = S.Config().geometry
+    for g in [(0, 0, 0, 50, 50), (20, -10, 10, 200, 150), (0, 0, 0, 200, 200)]:
+        ports, _ = S.arms(geo, *g)
+        xs, ys = S.plane_grid(geo, ports)
+        reach = math.sqrt(geo.d4_max_mm ** 2 - geo.depth_mm ** 2)
+        X, Y = np.meshgrid(np.arange(-400, 400.1, 2.0), np.arange(-400, 400.1, 2.0), indexing="ij")
+        ok = np.all([(X - p[0]) ** 2 + (Y - p[1]) ** 2 <= reach ** 2 for p in ports], axis=0)
+        if ok.any():
+            assert xs.min() < X[ok].min() and xs.max() > X[ok].max()
+            assert ys.min() < Y[ok].min() and ys.max() > Y[ok].max()
+            assert np.allclose(np.diff(xs), geo.step_mm) and np.allclose(np.diff(ys), geo.step_mm)
+
+
+def test_identical_geometries_share_one_evaluation():
+    """Horizontal shoulder axes along x: phi_x turns them about themselves, so its rows coincide;
+    the memo hands them over, and memo hits equal fresh evaluations."""
+    cfg = S.Config.model_validate({"geometry": {"step_mm": 4.0}, "sweep": {
+        "alpha_deg": [45, 85], "beta_deg": [65], "phi_x_deg": [-20, 0, 20], "phi_y_deg": [10], "phi_z_deg": [-20],
+        "bx_mm": [100], "by_mm": [50], "iso_min": [0.3, 0.7]}})
+    S._MEMO.clear()
+    a = S.compute_task(cfg, 3, 0)
+    per = 4
+    for c in ("area_cm2", "perimeter_cm", "iso_sum", "n_points", "cost"):
+        v = np.asarray(a[c]).reshape(3, per)
+        assert np.array_equal(v[0], v[1]) and np.array_equal(v[0], v[2])
+    b = S.compute_task(cfg, 3, 0)  # all from the memo now
+    S._MEMO.clear()
+    c = S.compute_task(cfg, 1, 2)  # the last geometry alone, computed afresh
+    for k in ("area_cm2", "perimeter_cm", "iso_sum", "cost"):
+        assert np.array_equal(a[k], b[k])
+        assert np.array_equal(np.asarray(a[k])[2 * per:], c[k])

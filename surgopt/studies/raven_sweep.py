@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import itertools
 import math
+import threading
 from typing import Literal
 
 import numpy as np
@@ -18,7 +19,7 @@ from surgopt.config import StrictModel
 from surgopt.robots import raven_iv
 
 NAME = "raven-sweep"
-KERNEL_VERSION = "raven-2"
+KERNEL_VERSION = "raven-3"
 DEFAULT_CONFIG = "raven_table2.toml"
 #: Cost model for choosing chunks: ~5 ns per plane node and design on one core (docs/performance.md).
 NS_PER_NODE_DESIGN = 5.0
@@ -132,8 +133,15 @@ Config = RavenSweepConfig
 # ---------------------------------------------------------------------------
 
 
+def _cos_sin_deg(deg: float) -> tuple[float, float]:
+    """cos and sin of an angle in degrees, exact at multiples of 90 (cos 90 deg is 0, not 6e-17)."""
+    if deg % 90 == 0:
+        return ((1.0, 0.0), (0.0, 1.0), (-1.0, 0.0), (0.0, -1.0))[int(deg // 90) % 4]
+    return math.cos(math.radians(deg)), math.sin(math.radians(deg))
+
+
 def _rot(axis: int, deg: float) -> np.ndarray:
-    c, s = math.cos(math.radians(deg)), math.sin(math.radians(deg))
+    c, s = _cos_sin_deg(deg)
     if axis == 0:
         return np.array([[1, 0, 0], [0, c, -s], [0, s, c]])
     if axis == 1:
@@ -163,14 +171,14 @@ def arms(geo: Geometry, phi_x: float, phi_y: float, phi_z: float, bx: float, by:
     left = geo.left_arms if geo.left_arms is not None else [i % 2 == 0 for i in range(geo.n_arms)]
     P = np.array([[x, y, 0.0] for x, y in ports])
     A = np.empty((geo.n_arms, 3))
-    t = math.radians(geo.shoulder_tilt_deg)
+    ct, st = _cos_sin_deg(geo.shoulder_tilt_deg)
     for i, is_left in enumerate(left):
         if geo.shoulder_tilt_toward == "x":
             out = -1.0 if is_left else 1.0
-            u0 = np.array([out * math.sin(t), 0.0, math.cos(t)])
+            u0 = np.array([out * st, 0.0, ct])
         else:
             out = 1.0 if P[i, 1] >= 0 else -1.0
-            u0 = np.array([0.0, out * math.sin(t), math.cos(t)])
+            u0 = np.array([0.0, out * st, ct])
         m = -1.0 if (is_left and geo.mirror_left_phi) else 1.0
         R = _rot(2, m * phi_z) @ _rot(1, m * phi_y) @ _rot(0, phi_x)
         A[i] = R @ u0
@@ -179,15 +187,10 @@ def arms(geo: Geometry, phi_x: float, phi_y: float, phi_z: float, bx: float, by:
 
 def plane_grid(geo: Geometry, ports: np.ndarray):
     """Node coordinates covering every point all arms can reach (|X - port| <= d4_max)."""
-    reach = math.sqrt(geo.d4_max_mm ** 2 - geo.depth_mm ** 2)
-    s = geo.step_mm
-    lo = ports[:, :2].max(axis=0) - reach
-    hi = ports[:, :2].min(axis=0) + reach
-    if np.any(hi <= lo):
-        return np.zeros(0), np.zeros(0)
-    xs = np.arange(math.floor(lo[0] / s) - 2, math.ceil(hi[0] / s) + 3) * s
-    ys = np.arange(math.floor(lo[1] / s) - 2, math.ceil(hi[1] / s) + 3) * s
-    return xs, ys
+    from surgopt.kinematics.raven import plane_grid as kernel_plane_grid
+
+    return kernel_plane_grid(np.ascontiguousarray(ports, dtype=np.float64), float(geo.depth_mm),
+                             float(geo.d4_max_mm), float(geo.step_mm))
 
 
 def geometry_grid(cfg: RavenSweepConfig) -> list[tuple[float, float, float, float, float]]:
@@ -210,29 +213,64 @@ def psi_intervals(cfg: RavenSweepConfig, alphas, betas, isos):
 
 
 def evaluate(cfg: RavenSweepConfig, geometry, alphas_deg, betas_deg, isos, intervals=None):
-    """Metrics (A*B*I, 6) of every design of one geometry (see ``evaluate_designs``).
+    """Metrics (A*B*I, 6) of every design of one geometry (see ``evaluate_designs``)."""
+    return evaluate_many(cfg, [geometry], alphas_deg, betas_deg, isos, intervals)
 
-    ``intervals``: ``psi_intervals`` for these alphas, betas, Iso_mins, when the
-    caller evaluates many geometries (they do not depend on the geometry).
+
+#: Metrics of geometries already evaluated in this process, keyed by everything they depend on
+#: (see ``evaluate_many``); cleared when it holds MEMO_MAX geometries (~24 MB at 125 designs each).
+_MEMO: dict[bytes, np.ndarray] = {}
+_MEMO_LOCK = threading.Lock()
+MEMO_MAX = 4096
+
+
+def evaluate_many(cfg: RavenSweepConfig, geometries, alphas_deg, betas_deg, isos, intervals=None):
+    """Metrics (G*A*B*I, 6) of every design of G geometries, geometry-major (``evaluate_geometries``).
+
+    Geometries whose ports and shoulder axes come out identical share one
+    evaluation: in this batch, and across batches of this process (a memo
+    keyed by the exact ports, axes, plane and design lists). In the paper's
+    Table II with horizontal shoulder axes along x, phi_x turns each axis
+    about itself, so its five values give one geometry: 400 of the 2000 are
+    distinct. ``intervals``: ``psi_intervals`` for these alphas, betas,
+    Iso_mins, when already known (they do not depend on the geometry).
     """
-    from surgopt.kinematics.raven import arm_cone_geometry, evaluate_designs
+    from surgopt.kinematics.raven import evaluate_geometries
 
     geo = cfg.geometry
-    ports, axes = arms(geo, *geometry)
-    xs, ys = plane_grid(geo, ports)
-    out = np.zeros((len(alphas_deg) * len(betas_deg) * len(isos), 6))
-    if xs.size == 0:
-        return out
-    n = xs.size * ys.size
-    cos_psi = np.empty((len(ports), n))
-    dist = np.empty((len(ports), n))
-    for a in range(len(ports)):
-        arm_cone_geometry(xs, ys, geo.depth_mm, ports[a], axes[a], cos_psi[a], dist[a])
+    per = len(alphas_deg) * len(betas_deg) * len(isos)
+    pa = [arms(geo, *g) for g in geometries]
+    ports = np.array([p for p, _ in pa], dtype=np.float64).reshape(len(pa), geo.n_arms, 3) + 0.0  # -0.0 -> 0.0
+    axes = np.array([a for _, a in pa], dtype=np.float64).reshape(len(pa), geo.n_arms, 3) + 0.0
     al = np.radians(np.asarray(alphas_deg, float))
     be = np.radians(np.asarray(betas_deg, float))
     iso = np.asarray(isos, float)
+    context = np.concatenate([[geo.depth_mm, geo.step_mm, geo.d4_max_mm, *geo.theta2_range_deg, len(al), len(be)],
+                              al, be, iso]).tobytes()
+    keys = [context + ports[g].tobytes() + axes[g].tobytes() for g in range(len(pa))]
+    out = np.zeros((len(pa) * per, 6))
+    todo: dict[bytes, list[int]] = {}
+    with _MEMO_LOCK:
+        for g, key in enumerate(keys):
+            if key in _MEMO:
+                out[g * per:(g + 1) * per] = _MEMO[key]
+            else:
+                todo.setdefault(key, []).append(g)
+    if not todo:
+        return out
+    first = [gs[0] for gs in todo.values()]
     plo, phi_, has = intervals if intervals is not None else psi_intervals(cfg, al, be, iso)
-    evaluate_designs(cos_psi, dist, xs.size, ys.size, geo.step_mm, geo.d4_max_mm, al, be, iso, plo, phi_, has, out)
+    fresh = np.zeros((len(first) * per, 6))
+    evaluate_geometries(np.ascontiguousarray(ports[first]), np.ascontiguousarray(axes[first]), float(geo.depth_mm),
+                        float(geo.step_mm), float(geo.d4_max_mm), al, be, iso, plo, phi_, has, fresh)
+    with _MEMO_LOCK:
+        if len(_MEMO) + len(todo) > MEMO_MAX:
+            _MEMO.clear()
+        for u, (key, gs) in enumerate(todo.items()):
+            block = fresh[u * per:(u + 1) * per]
+            _MEMO[key] = block
+            for g in gs:
+                out[g * per:(g + 1) * per] = block
     return out
 
 
@@ -300,17 +338,16 @@ def compute_task(cfg: RavenSweepConfig, chunk: int, index: int) -> dict:
     per_geo = len(al) * len(be) * len(iso)
     geos = geometry_grid(cfg)
     g0, g1 = index * chunk, min(len(geos), (index + 1) * chunk)
-    params, metrics = [], []
+    params = []
     design = np.array(list(itertools.product(al, be, iso)))  # (per_geo, 3)
-    intervals = psi_intervals(cfg, np.radians(al), np.radians(be), np.asarray(iso, float))
     for g in geos[g0:g1]:
-        metrics.append(evaluate(cfg, g, al, be, iso, intervals))
         p = np.empty((per_geo, 8))
         p[:, 0], p[:, 1], p[:, 7] = design[:, 0], design[:, 1], design[:, 2]
         p[:, 2:7] = g
         params.append(p)
+    metrics = evaluate_many(cfg, geos[g0:g1], al, be, iso)
     ids = np.arange(g0 * per_geo, g1 * per_geo)
-    return _rows(np.vstack(params), np.vstack(metrics), cfg.geometry.step_mm, ids, "grid")
+    return _rows(np.vstack(params), metrics, cfg.geometry.step_mm, ids, "grid")
 
 
 def _bounds(cfg: RavenSweepConfig):
