@@ -1,9 +1,9 @@
-"""Scaling of each study with the size of its design grid, on loky (1 and 2 workers) and dask.
+"""Scaling of each study with the size of its design grid: threads (1 and 2), loky (2 workers), dask.
 
-Run:  python benchmarks/bench_scaling.py      (about 4 minutes on 2 cores)
+Run:  python benchmarks/bench_scaling.py      (about 3 minutes on 2 cores)
 For each study, 3-4 grid sizes spanning at least 16x in work, each run as
 `surgopt STUDY CONFIG --force` in a fresh process with a warm numba cache,
-on loky with --jobs 1, loky with --jobs 2 and a 2-worker dask LocalCluster.
+with 1 and 2 threads (the default backend), 2 loky workers and a 2-worker dask LocalCluster.
 Prints wall time and the peak resident memory of the largest process
 (GNU time's %M), and a Markdown table for docs/performance.md.
 """
@@ -50,7 +50,8 @@ CASES = {
                                                      by="[50.0, 100.0, 150.0, 200.0]"), 2000)],
     "suture-sim": [(f"{k} runs", SUTURE.format(radii=[6.0 + 0.5 * i for i in range(k)]), k) for k in (1, 4, 16)],
 }
-MODES = [("loky, 1 worker", ["--jobs", "1"]), ("loky, 2 workers", ["--jobs", "2"]),
+MODES = [("threads, 1", ["--jobs", "1"]), ("threads, 2", ["--jobs", "2"]),
+         ("loky, 2 workers", ["--backend", "loky", "--jobs", "2"]),
          ("dask LocalCluster, 2 workers", ["--backend", "dask", "--jobs", "2"])]
 
 
@@ -79,7 +80,7 @@ def main():
                     cells.append((wall, rss))
                     print(f"{study:12s} {label:18s} {mode:30s} {wall:7.2f} s  {rss:6.0f} MB", flush=True)
                 rows.append((study, label, cells))
-    print("\n| study | size | " + " | ".join(f"{m}: s / MB" for m, _ in MODES) + " | 2 workers vs 1 |")
+    print("\n| study | size | " + " | ".join(f"{m}: s / MB" for m, _ in MODES) + " | 2 threads vs 1 |")
     print("|---|---|" + "---|" * (len(MODES) + 1))
     for study, label, cells in rows:
         print(f"| {study} | {label} | " + " | ".join(f"{w:.2f} / {r:.0f}" for w, r in cells)
