@@ -220,6 +220,11 @@ def test_span_values_and_validation():
         validate({"sweep": {"iso_min": [1.5]}}, S.Config, "x.toml")
     with pytest.raises(ConfigError, match="geometry.n_arms"):
         validate({"geometry": {"n_arms": 3}}, S.Config, "x.toml")
+    ports = {"ports_mm": [[-50, 25], [50, 25], [-50, -25], [50, -25]]}
+    with pytest.raises(ConfigError, match=r"x.toml: .*sweep.bx_mm .*ports_mm"):
+        validate({"geometry": ports, "sweep": {"bx_mm": [50, 100]}}, S.Config, "x.toml")
+    fixed = validate({"geometry": ports, "sweep": {"bx_mm": [50], "by_mm": [50]}}, S.Config, "x.toml")
+    assert len(S.geometry_grid(fixed)) == 125
 
 
 SMALL = """

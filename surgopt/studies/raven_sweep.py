@@ -124,6 +124,15 @@ class RavenSweepConfig(StrictModel):
     search: Literal["grid", "refine"] = "grid"
     refine: Refine = Refine()
 
+    @model_validator(mode="after")
+    def _ports_fix_bx_by(self):
+        if self.geometry.ports_mm is not None:
+            for name in ("bx_mm", "by_mm"):
+                if len(values(getattr(self.sweep, name))) > 1:
+                    raise ValueError(f"sweep.{name} has several values, but geometry.ports_mm fixes the ports "
+                                     f"(bx_mm, by_mm are not used then): give one value")
+        return self
+
 
 Config = RavenSweepConfig
 
