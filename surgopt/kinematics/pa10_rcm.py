@@ -24,6 +24,10 @@ rows and N an orthonormal basis of the null space of its two constraint rows.
 B is the constrained forward map from normalised joint speeds to tip velocity
 (m/s); its singular values are the reciprocals of those of Q^-1 J_r (eqs. 5-6),
 so GII = min sigma_min(B) / max sigma_max(B) equals eq. 7 on Q^-1 J_r.
+
+Per candidate, the tool axis and wrist offset of every workspace point are
+shared (they do not depend on the RCM: ``workspace_geometry``), and a cube
+symmetric in y is evaluated on its y >= 0 half (``mirror_half``).
 """
 from __future__ import annotations
 
@@ -31,7 +35,7 @@ import numpy as np
 from numba import njit
 from numpy.polynomial import chebyshev as _chebyshev
 
-#: J_a counts as singular when a pivot falls below this fraction of its size.
+#: J_a counts as singular when a constraint row or sigma_min of B falls below this fraction of sigma_max.
 SINGULAR_RTOL = 1e-12
 #: Guards against 0/0 in branch-free normalisations.
 TINY = 1e-300
