@@ -227,10 +227,10 @@ def evaluate(cfg: RavenSweepConfig, geometry, alphas_deg, betas_deg, isos, inter
 
 
 #: Metrics of geometries already evaluated in this process, keyed by everything they depend on
-#: (see ``evaluate_many``); cleared when it holds MEMO_MAX geometries (~24 MB at 125 designs each).
+#: (see ``evaluate_many``); cleared when it would grow past MEMO_MAX_BYTES.
 _MEMO: dict[bytes, np.ndarray] = {}
 _MEMO_LOCK = threading.Lock()
-MEMO_MAX = 4096
+MEMO_MAX_BYTES = 64 * 2 ** 20
 
 
 def evaluate_many(cfg: RavenSweepConfig, geometries, alphas_deg, betas_deg, isos, intervals=None):
@@ -273,7 +273,7 @@ def evaluate_many(cfg: RavenSweepConfig, geometries, alphas_deg, betas_deg, isos
     evaluate_geometries(np.ascontiguousarray(ports[first]), np.ascontiguousarray(axes[first]), float(geo.depth_mm),
                         float(geo.step_mm), float(geo.d4_max_mm), al, be, iso, plo, phi_, has, fresh)
     with _MEMO_LOCK:
-        if len(_MEMO) + len(todo) > MEMO_MAX:
+        if (len(_MEMO) + len(todo)) * fresh.itemsize * per * 6 > MEMO_MAX_BYTES:
             _MEMO.clear()
         for u, (key, gs) in enumerate(todo.items()):
             block = fresh[u * per:(u + 1) * per]
