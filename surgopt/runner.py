@@ -38,11 +38,16 @@ def configure_numba() -> Path:
     """
     path = numba_cache_dir()
     os.environ["NUMBA_CACHE_DIR"] = str(path)
+    use_wide_vectors()
+    return path
+
+
+def use_wide_vectors() -> None:
+    """Set NUMBA_CPU_FEATURES for 8-wide vectors on AVX-512 hosts, unless the user chose otherwise."""
     if "NUMBA_CPU_FEATURES" not in os.environ and os.environ.get("SURGOPT_WIDE_VECTORS", "1") != "0":
         features = wide_vector_features()
         if features:
             os.environ["NUMBA_CPU_FEATURES"] = features
-    return path
 
 
 def wide_vector_features() -> str | None:
@@ -168,13 +173,10 @@ def _dispatch(study, cfg, chunk, missing, run, store, jobs, quiet, total, schema
         from joblib import Parallel, delayed, parallel_config
 
         tasks = (delayed(_compute)(study.NAME, cfg, chunk, i) for i in missing)
-        if backend == "threads":
-            with parallel_config(backend="threading", n_jobs=jobs):
-                for index, cols in Parallel(return_as="generator_unordered")(tasks):
-                    record(index, cols)
-            return
-        if backend == "loky":
-            with parallel_config(backend="loky", n_jobs=jobs, inner_max_num_threads=1):
+        if backend in ("threads", "loky"):
+            local = (dict(backend="threading", n_jobs=jobs) if backend == "threads"
+                     else dict(backend="loky", n_jobs=jobs, inner_max_num_threads=1))
+            with parallel_config(**local):
                 for index, cols in Parallel(return_as="generator_unordered")(tasks):
                     record(index, cols)
             return

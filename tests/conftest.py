@@ -11,12 +11,9 @@ REPO = HERE.parent
 
 # the CLI's numba settings (8-wide vectors on AVX-512) before any test imports numba,
 # so that tests and CLI subprocesses compile the same kernels into one cache
-if "NUMBA_CPU_FEATURES" not in os.environ and os.environ.get("SURGOPT_WIDE_VECTORS", "1") != "0":
-    from surgopt.runner import wide_vector_features
+from surgopt.runner import use_wide_vectors  # noqa: E402
 
-    _features = wide_vector_features()
-    if _features:
-        os.environ["NUMBA_CPU_FEATURES"] = _features
+use_wide_vectors()
 
 
 @pytest.fixture(scope="session", autouse=True)

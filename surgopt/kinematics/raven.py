@@ -243,12 +243,8 @@ def arm_cone_geometry(xs, ys, depth, port, axis, cos_psi, dist):
     """
     ny = ys.shape[0]
     for i in range(xs.shape[0]):
-        for j in range(ny):
-            vx, vy, vz = xs[i] - port[0], ys[j] - port[1], -depth - port[2]
-            r = math.sqrt(vx * vx + vy * vy + vz * vz)
-            c = (vx * axis[0] + vy * axis[1] + vz * axis[2]) / r
-            cos_psi[i * ny + j] = min(1.0, max(-1.0, c))
-            dist[i * ny + j] = r
+        _arm_row(xs[i], ys, depth, port[0], port[1], port[2], axis[0], axis[1], axis[2],
+                 cos_psi[i * ny:(i + 1) * ny], dist[i * ny:(i + 1) * ny])
 
 
 @njit(inline="always", **_JIT)
@@ -389,7 +385,8 @@ def _node_margin(lo, hi, d_lo, d_hi, reach, k, c_lo, c_hi):
 
 @njit(**_VJIT)
 def _arm_row(x, ys, depth, px, py, pz, ax, ay, az, c_row, r_row):
-    """cos psi and distance of the nodes (x, ys[j], -depth) seen from one port (``arm_cone_geometry``)."""
+    """cos psi between the shoulder axis a and the direction to the nodes (x, ys[j], -depth) from port p,
+    and their distance (one grid row of ``arm_cone_geometry``)."""
     for j in range(ys.shape[0]):
         vx, vy, vz = x - px, ys[j] - py, -depth - pz
         r = math.sqrt(vx * vx + vy * vy + vz * vz)
