@@ -30,7 +30,7 @@ JobsOpt = Annotated[int, typer.Option("--jobs", "-j", min=1, max=256,
 ForceOpt = Annotated[bool, typer.Option("--force", help="Recompute even if the store holds this study.")]
 QuietOpt = Annotated[bool, typer.Option("--quiet", "-q", help="No progress bar.")]
 BackendOpt = Annotated[str, typer.Option(
-    "--backend", help="threads (joblib threads in this process: the kernels release the GIL, so they run "
+    "--backend", help="threads (a thread pool in this process: the kernels release the GIL, so they run "
                       "in parallel with no worker start-up), loky (local worker processes) or dask (a "
                       "distributed cluster through joblib's dask backend; needs pip install 'surgopt[dask]').")]
 SchedulerOpt = Annotated[Optional[str], typer.Option(

@@ -109,7 +109,7 @@ def run_study(study, cfg, *, config_name: str, store: Store, jobs: int = DEFAULT
               backend: str = "threads", scheduler: str | None = None, say=print) -> RunResult:
     """Compute (or fetch from the store) the table of one study config.
 
-    ``backend`` "threads" (joblib threads in this process; every kernel is
+    ``backend`` "threads" (a thread pool in this process; every kernel is
     compiled ``nogil``, so chunks run in parallel and nothing has to start or
     load kernels), "loky" (local worker processes) or "dask" (joblib's dask
     backend on a ``distributed`` cluster: ``scheduler`` address, or a
@@ -170,13 +170,14 @@ def _dispatch(study, cfg, chunk, missing, run, store, jobs, quiet, total, schema
             for i in missing:
                 record(*_compute(study.NAME, cfg, chunk, i))
             return
+        if backend == "threads":
+            _dispatch_threads(study.NAME, cfg, chunk, missing, jobs, record)
+            return
         from joblib import Parallel, delayed, parallel_config
 
         tasks = (delayed(_compute)(study.NAME, cfg, chunk, i) for i in missing)
-        if backend in ("threads", "loky"):
-            local = (dict(backend="threading", n_jobs=jobs) if backend == "threads"
-                     else dict(backend="loky", n_jobs=jobs, inner_max_num_threads=1))
-            with parallel_config(**local):
+        if backend == "loky":
+            with parallel_config(backend="loky", n_jobs=jobs, inner_max_num_threads=1):
                 for index, cols in Parallel(return_as="generator_unordered")(tasks):
                     record(index, cols)
             return
@@ -185,6 +186,24 @@ def _dispatch(study, cfg, chunk, missing, run, store, jobs, quiet, total, schema
             with parallel_config(backend="dask"):
                 for index, cols in Parallel(return_as="generator_unordered")(tasks):
                     record(index, cols)
+
+
+def _dispatch_threads(study_name, cfg, chunk, missing, jobs, record):
+    """Chunks on ``jobs`` threads of this process; rows recorded here, in the calling thread.
+
+    On an interrupt (Ctrl-C) the chunks not started are cancelled and the running ones are waited
+    for before the exception goes on: a thread still inside a compiled kernel when the interpreter
+    shuts down would abort the process (SIGABRT) instead of letting it exit with code 130.
+    """
+    from concurrent.futures import ThreadPoolExecutor, as_completed
+
+    pool = ThreadPoolExecutor(max_workers=jobs, thread_name_prefix="surgopt")
+    futures = [pool.submit(_compute, study_name, cfg, chunk, i) for i in missing]
+    try:
+        for f in as_completed(futures):
+            record(*f.result())
+    finally:
+        pool.shutdown(wait=True, cancel_futures=True)
 
 
 DASK_HINT = "--backend dask needs the optional extra: pip install 'surgopt[dask]'"
