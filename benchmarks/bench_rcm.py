@@ -6,6 +6,7 @@ same math (batched over poses: IK, J_a as an (N, 5, 5) stack, np.linalg.inv,
 np.linalg.svd), their ratio measured in the same run, the wall time of the
 paper's full 121 x 121 x 17^3 map on 2 workers, the --cull argmax time on the
 5 mm grid, and `surgopt rcm-grid` end to end with a warm JIT cache.
+benchmarks/rcm_floor.py says how far the per-pose ratio can go on this machine.
 """
 from __future__ import annotations
 
