@@ -24,19 +24,8 @@ from __future__ import annotations
 import collections
 import re
 import sys
-import time
 
 import numpy as np
-
-
-def best_of(fn, repeat, inner=1):
-    best = float("inf")
-    for _ in range(repeat):
-        t = time.perf_counter()
-        for _ in range(inner):
-            fn()
-        best = min(best, (time.perf_counter() - t) / inner)
-    return best
 
 
 def vector_op_counts(asm, reg="zmm"):
@@ -69,7 +58,7 @@ def main():
     from surgopt.studies import rcm_grid as S
 
     sys.path.insert(0, __file__.rsplit("/", 1)[0])
-    from bench_rcm import numpy_rcm_singular_values
+    from bench_rcm import best_of, numpy_rcm_singular_values
 
     cfg = load_embedded(S.DEFAULT_CONFIG, S.Config)
     links, tool, elbow, qdot, cl = S.kernel_args(cfg)
@@ -118,9 +107,9 @@ def main():
     rates = {}
     for name, fn, ops in (("fp", fma_peak, 128), ("sqrt", sqrt_rate, 16), ("div", div_rate, 16)):
         fn(x, y)
-        rates[name] = best_of(lambda: fn(x, y), 15, 20) / (n * ops) * 1e9  # ns per operation per element
+        rates[name] = best_of(lambda: [fn(x, y) for _ in range(20)], 15) / 20 / (n * ops) * 1e9  # ns per operation per element
 
-    t_kernel = best_of(lambda: kernel(*args), 7, 20) / n * 1e9
+    t_kernel = best_of(lambda: [kernel(*args) for _ in range(20)], 7) / 20 / n * 1e9
     tips = rcm + off
     t_numpy = best_of(lambda: numpy_rcm_singular_values(tips, rcm, links, tool, qdot), 5) / n * 1e9
 
