@@ -63,7 +63,7 @@ def main():
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--quick", action="store_true", help="skip the full-map and end-to-end timings")
     args = ap.parse_args()
-    from surgopt.runner import configure_numba
+    from surgopt.jit import configure_numba
 
     configure_numba()
     from surgopt.config import load_embedded

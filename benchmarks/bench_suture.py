@@ -42,7 +42,7 @@ def numpy_suture_run(q0, geo, w, radius, speed, arc, dt):
 
 
 def main():
-    from surgopt.runner import configure_numba
+    from surgopt.jit import configure_numba
 
     configure_numba()
     from surgopt.config import load_embedded

@@ -48,7 +48,7 @@ def vector_op_counts(asm, reg="zmm"):
 
 
 def main():
-    from surgopt.runner import configure_numba
+    from surgopt.jit import CONTRACT, configure_numba
 
     configure_numba()  # before numba is imported: it reads NUMBA_CPU_FEATURES once
     from numba import njit
@@ -67,7 +67,7 @@ def main():
     n = off.shape[0]
     geom = K.workspace_geometry(off, tool)
     out = (np.empty(n), np.empty(n), np.empty(n, np.int64))
-    opts = {k: v for k, v in K._JIT.items() if k != "cache"}
+    opts = {k: v for k, v in CONTRACT.items() if k != "cache"}
     kernel = njit(**opts)(K._workspace_poses.py_func)
     args = (rcm[0], rcm[1], rcm[2], geom, *links, elbow, *qdot, *cl, *out)
     kernel(*args)

@@ -9,12 +9,8 @@ from pathlib import Path
 
 import numpy as np
 
-from surgopt.runner import configure_numba
-
-configure_numba()
-
-from surgopt.config import load_config, load_embedded  # noqa: E402
-from surgopt.studies import rcm_grid as S  # noqa: E402
+from surgopt.config import load_config, load_embedded
+from surgopt.studies import rcm_grid as S
 
 REPO = Path(__file__).resolve().parents[1]
 PAPER_GII = np.array([0.0357, 0.0351, 0.0148, 0.0421, 0.0340, 0.0107, 0.0356, 0.0440, 0.0139,

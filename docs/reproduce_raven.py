@@ -10,14 +10,10 @@ from pathlib import Path
 
 import numpy as np
 
-from surgopt.runner import configure_numba
-
-configure_numba()
-
-from surgopt.config import load_config, load_embedded  # noqa: E402
-from surgopt.runner import run_study  # noqa: E402
-from surgopt.store import Store  # noqa: E402
-from surgopt.studies import raven_sweep as S  # noqa: E402
+from surgopt.config import load_config, load_embedded
+from surgopt.runner import run_study
+from surgopt.store import Store
+from surgopt.studies import raven_sweep as S
 
 REPO = Path(__file__).resolve().parents[1]
 

@@ -6,12 +6,8 @@ from __future__ import annotations
 
 import pyarrow as pa
 
-from surgopt.runner import configure_numba
-
-configure_numba()
-
-from surgopt.config import load_embedded  # noqa: E402
-from surgopt.studies import suture_sim as S  # noqa: E402
+from surgopt.config import load_embedded
+from surgopt.studies import suture_sim as S
 
 
 def summary(cfg):

@@ -141,9 +141,6 @@ def suture_sim(
 def _run_study_command(name, config, store, jobs, force, quiet, chunk_size, backend="threads", scheduler=None,
                        overrides=None, then_refine=False):
     from surgopt.errors import SurgoptError
-    from surgopt.runner import configure_numba
-
-    configure_numba()
     try:
         from surgopt.store import Store
         from surgopt.studies import get_study
@@ -325,9 +322,6 @@ def plot(
     scatter; raven-sweep common workspace (Figs. 4, 8), zeta over alpha-beta (Fig. 7), theta2 range against
     Iso_min (Fig. 6); suture-sim |q_i/q_imax| against time per weight set (Fig. 7) and the tracked path."""
     from surgopt.errors import SurgoptError
-    from surgopt.runner import configure_numba
-
-    configure_numba()
     try:
         from surgopt.report import figures
         from surgopt.results import config_of, resolve_run
@@ -359,9 +353,6 @@ def check(
     """Run (or reuse) a study and compare it with a stored Parquet baseline: key columns exactly, float
     columns within rtol/atol, after sorting by the key. Exit 0 within tolerance, 1 when not, 2 on bad input."""
     from surgopt.errors import SurgoptError
-    from surgopt.runner import configure_numba
-
-    configure_numba()
     try:
         import pyarrow.parquet as pq
 

@@ -13,55 +13,10 @@ from pathlib import Path
 
 from surgopt.config import study_key
 from surgopt.errors import UsageError
+from surgopt.jit import numba_cache_dir
 from surgopt.store import Run, Store
 
 DEFAULT_JOBS = 2
-
-
-def numba_cache_dir() -> Path:
-    """Where numba keeps compiled kernels: $NUMBA_CACHE_DIR or ~/.cache/surgopt/numba."""
-    if os.environ.get("NUMBA_CACHE_DIR"):
-        return Path(os.environ["NUMBA_CACHE_DIR"])
-    base = Path(os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache")
-    return base / "surgopt" / "numba"
-
-
-def configure_numba() -> Path:
-    """Set numba's environment before numba is imported (worker processes inherit it).
-
-    NUMBA_CACHE_DIR: compiled kernels persist across runs. NUMBA_CPU_FEATURES:
-    on an AVX-512 machine, let LLVM use 8-wide vectors (it prefers 4-wide by
-    default). The rcm-grid kernel is 1.3x faster that way here, the others
-    unchanged, and rows are identical (same operations per lane, no
-    reassociation). A NUMBA_CPU_FEATURES already set, or SURGOPT_WIDE_VECTORS=0,
-    leaves numba's default.
-    """
-    path = numba_cache_dir()
-    os.environ["NUMBA_CACHE_DIR"] = str(path)
-    use_wide_vectors()
-    return path
-
-
-def use_wide_vectors() -> None:
-    """Set NUMBA_CPU_FEATURES for 8-wide vectors on AVX-512 hosts, unless the user chose otherwise."""
-    if "NUMBA_CPU_FEATURES" not in os.environ and os.environ.get("SURGOPT_WIDE_VECTORS", "1") != "0":
-        features = wide_vector_features()
-        if features:
-            os.environ["NUMBA_CPU_FEATURES"] = features
-
-
-def wide_vector_features() -> str | None:
-    """The host's LLVM feature string without the 256-bit vector preference, if it has AVX-512."""
-    try:
-        import llvmlite.binding as ll
-
-        features = ll.get_host_cpu_features().flatten()
-    except Exception:  # noqa: BLE001 - no llvmlite or no host information: keep numba's default
-        return None
-    have = set(features.split(","))
-    if not {"+avx512f", "+avx512vl", "+avx512dq"} <= have:
-        return None
-    return features + ",-prefer-256-bit"
 
 
 @dataclass

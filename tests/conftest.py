@@ -11,9 +11,7 @@ REPO = HERE.parent
 
 # the CLI's numba settings (8-wide vectors on AVX-512) before any test imports numba,
 # so that tests and CLI subprocesses compile the same kernels into one cache
-from surgopt.runner import use_wide_vectors  # noqa: E402
-
-use_wide_vectors()
+import surgopt.kinematics  # noqa: E402,F401  (configures numba on import)
 
 
 @pytest.fixture(scope="session", autouse=True)

@@ -35,6 +35,9 @@ import numpy as np
 from numba import njit
 from numpy.polynomial import chebyshev as _chebyshev
 
+from surgopt.jit import CONTRACT
+from surgopt.kinematics.small_linalg import cross_components
+
 #: J_a counts as singular when a constraint row or sigma_min of B falls below this fraction of sigma_max.
 SINGULAR_RTOL = 1e-12
 #: Guards against 0/0 in branch-free normalisations.
@@ -44,12 +47,6 @@ STATUS_OK = 0
 STATUS_UNREACHABLE = 1  # out of reach or outside a joint limit
 STATUS_SINGULAR = 2  # J_a rank deficient (eq. 5 text): GII contribution 0
 
-_JIT = dict(cache=True, nogil=True, fastmath={"contract"}, error_model="numpy")
-
-
-@njit(inline="always", **_JIT)
-def _cross(ax, ay, az, bx, by, bz):
-    return ay * bz - az * by, az * bx - ax * bz, ax * by - ay * bx
 
 
 #: Chebyshev coefficients (in t = 2 s - 1, s = sqrt((1 + x) / 2)) of
@@ -80,7 +77,7 @@ TRISECT_CHEB = (
 TRISECT_POLY = tuple(float(v) for v in _chebyshev.cheb2poly(np.array(TRISECT_CHEB)))
 
 
-@njit(inline="always", **_JIT)
+@njit(inline="always", **CONTRACT)
 def cos_third_acos(x):
     """cos(acos(x) / 3) for x in [-1, 1] without trigonometric calls (vectorisable)."""
     s = np.sqrt(0.5 * (1.0 + x))
@@ -106,7 +103,7 @@ def cos_third_acos(x):
     return h * t + c[0]
 
 
-@njit(inline="always", **_JIT)
+@njit(inline="always", **CONTRACT)
 def sym3_lambda_max(a00, a11, a22, a01, a02, a12):
     """Largest eigenvalue of a symmetric 3x3 matrix, closed form.
 
@@ -125,7 +122,7 @@ def sym3_lambda_max(a00, a11, a22, a01, a02, a12):
     return m + 2.0 * sp * cos_third_acos(x)
 
 
-@njit(inline="always", **_JIT)
+@njit(inline="always", **CONTRACT)
 def gram_lambda_max(b00, b01, b02, b10, b11, b12, b20, b21, b22):
     """Largest eigenvalue of B^T B, i.e. sigma_max(B)^2, for a 3x3 B."""
     return sym3_lambda_max(b00 * b00 + b10 * b10 + b20 * b20,
@@ -136,7 +133,7 @@ def gram_lambda_max(b00, b01, b02, b10, b11, b12, b20, b21, b22):
                            b01 * b02 + b11 * b12 + b21 * b22)
 
 
-@njit(inline="always", **_JIT)
+@njit(inline="always", **CONTRACT)
 def singular_values_3x3_sq(b00, b01, b02, b10, b11, b12, b20, b21, b22):
     """Squared extreme singular values (sigma_min^2, sigma_max^2) of a 3x3 B, closed form.
 
@@ -162,7 +159,7 @@ def singular_values_3x3_sq(b00, b01, b02, b10, b11, b12, b20, b21, b22):
     return det * det / (cmax2 + TINY), smax2
 
 
-@njit(inline="always", **_JIT)
+@njit(inline="always", **CONTRACT)
 def singular_values_3x3(b00, b01, b02, b10, b11, b12, b20, b21, b22):
     """Extreme singular values (sigma_min, sigma_max) of a 3x3 matrix B, closed form.
 
@@ -173,12 +170,12 @@ def singular_values_3x3(b00, b01, b02, b10, b11, b12, b20, b21, b22):
     return np.sqrt(smin2), np.sqrt(smax2)
 
 
-@njit(inline="always", **_JIT)
+@njit(inline="always", **CONTRACT)
 def _dot5(a, b):
     return a[0] * b[0] + a[1] * b[1] + a[2] * b[2] + a[3] * b[3] + a[4] * b[4]
 
 
-@njit(inline="always", **_JIT)
+@njit(inline="always", **CONTRACT)
 def _reflect5(row, v, two_over_vv):
     """Householder reflection (I - 2 v v^T / v^T v) applied to a row 5-tuple."""
     f = two_over_vv * _dot5(row, v)
@@ -186,7 +183,7 @@ def _reflect5(row, v, two_over_vv):
             row[3] - f * v[3], row[4] - f * v[4])
 
 
-@njit(inline="always", **_JIT)
+@njit(inline="always", **CONTRACT)
 def constrained_extremes(c0, c1, c2, c3, c4):
     """Squared extreme singular values of B = A_x N from the five columns of A.
 
@@ -225,7 +222,7 @@ def constrained_extremes(c0, c1, c2, c3, c4):
     return (0.0 if singular else smin2), smax2, singular
 
 
-@njit(inline="always", **_JIT)
+@njit(inline="always", **CONTRACT)
 def tool_axis_and_wrist(ox, oy, oz, tool_offset_m):
     """Tool axis and wrist centre for a tip at RCM + o (eq. 9).
 
@@ -239,7 +236,7 @@ def tool_axis_and_wrist(ox, oy, oz, tool_offset_m):
     return kx, ky, kz, ox - tool_offset_m * kx, oy - tool_offset_m * ky, oz - tool_offset_m * kz
 
 
-@njit(inline="always", **_JIT)
+@njit(inline="always", **CONTRACT)
 def arm_ik(kx, ky, kz, wx, wy, wz, d1, d3, d5, elbow_sign, cl0, cl1, cl2, cl3, cl4):
     """Closed-form IK of S1, S2, E1 for wrist centre w, and the wrist's limits (Sec. III-C).
 
@@ -279,7 +276,7 @@ def arm_ik(kx, ky, kz, wx, wy, wz, d1, d3, d5, elbow_sign, cl0, cl1, cl2, cl3, c
     return nx, ny, ex, ey, ez, fx, fy, fz, ok
 
 
-@njit(inline="always", **_JIT)
+@njit(inline="always", **CONTRACT)
 def rcm_ik(px, py, pz, cx, cy, cz, d1, d3, d5, tool_offset_m, elbow_sign, cl0, cl1, cl2, cl3, cl4):
     """Closed-form IK with the tool axis through the RCM (eq. 9), as geometry.
 
@@ -293,13 +290,13 @@ def rcm_ik(px, py, pz, cx, cy, cz, d1, d3, d5, tool_offset_m, elbow_sign, cl0, c
     return kx, ky, kz, wx, wy, wz, nx, ny, 0.0, ex, ey, ez, fx, fy, fz, ok
 
 
-@njit(inline="always", **_JIT)
+@njit(inline="always", **CONTRACT)
 def _constraint_rows(gx, gy, gz, kx, ky, kz):
     """x, y of g x k: k_z (de_y/dt, -de_x/dt) for the body point at the RCM moving at g (eq. 8)."""
     return gy * kz - gz * ky, gz * kx - gx * kz
 
 
-@njit(inline="always", **_JIT)
+@njit(inline="always", **CONTRACT)
 def jacobian_columns(px, py, pz, cx, cy, cz, kx, ky, kz, wx, wy, wz, nx, ny, ex, ey, ez, fx, fy, fz,
                      d1, q0, q1, q2, q3, q4):
     """The five columns of A = J_a Q (eq. 8), each a 5-tuple.
@@ -329,17 +326,17 @@ def jacobian_columns(px, py, pz, cx, cy, cz, kx, ky, kz, wx, wy, wz, nx, ny, ex,
     dpx, dpy, dpz = px - wx, py - wy, pz - wz
     dcx, dcy, dcz = cx - wx, cy - wy, cz - wz
     ax, ay, az = q3 * fx, q3 * fy, q3 * fz
-    gx, gy, gz = _cross(ax, ay, az, dcx, dcy, dcz)
-    c3 = _cross(ax, ay, az, dpx, dpy, dpz) + _constraint_rows(gx, gy, gz, kx, ky, kz)
-    mx, my, mz = _cross(fx, fy, fz, kx, ky, kz)
+    gx, gy, gz = cross_components(ax, ay, az, dcx, dcy, dcz)
+    c3 = cross_components(ax, ay, az, dpx, dpy, dpz) + _constraint_rows(gx, gy, gz, kx, ky, kz)
+    mx, my, mz = cross_components(fx, fy, fz, kx, ky, kz)
     il = q4 / (np.sqrt(mx * mx + my * my + mz * mz) + TINY)
     mx, my, mz = mx * il, my * il, mz * il
-    gx, gy, gz = _cross(mx, my, mz, dcx, dcy, dcz)
-    c4 = _cross(mx, my, mz, dpx, dpy, dpz) + _constraint_rows(gx, gy, gz, kx, ky, kz)
+    gx, gy, gz = cross_components(mx, my, mz, dcx, dcy, dcz)
+    c4 = cross_components(mx, my, mz, dpx, dpy, dpz) + _constraint_rows(gx, gy, gz, kx, ky, kz)
     return c0, c1, c2, c3, c4
 
 
-@njit(inline="always", **_JIT)
+@njit(inline="always", **CONTRACT)
 def pose_extremes_sq(cx, cy, cz, px, py, pz, kx, ky, kz, wx, wy, wz, d1, d3, d5, elbow_sign,
                      q0, q1, q2, q3, q4, cl0, cl1, cl2, cl3, cl4):
     """(sigma_min^2, sigma_max^2, status) of B at one pose: IK, A (eq. 8), null space, extremes.
@@ -356,7 +353,7 @@ def pose_extremes_sq(cx, cy, cz, px, py, pz, kx, ky, kz, wx, wy, wz, d1, d3, d5,
     return smin2, smax2, status
 
 
-@njit(**_JIT)
+@njit(**CONTRACT)
 def alternative_jacobian(p, c, links_m, tool_offset_m, elbow_sign, qdot_max, cos_limit):
     """J_a Q (5x5, eq. 8: rows x, y, z, e_x, e_y) at tip p about RCM c, and reachability."""
     kx, ky, kz, wx, wy, wz, nx, ny, _, ex, ey, ez, fx, fy, fz, ok = rcm_ik(
@@ -373,7 +370,7 @@ def alternative_jacobian(p, c, links_m, tool_offset_m, elbow_sign, qdot_max, cos
     return A, ok
 
 
-@njit(**_JIT)
+@njit(**CONTRACT)
 def _workspace_poses(cx, cy, cz, geom, d1, d3, d5, elbow_sign,
                      q0, q1, q2, q3, q4, c0, c1, c2, c3, c4, smin2, smax2, status):
     """Per-point squared extremes for one RCM c over the workspace ``geom`` (``workspace_geometry``).
@@ -389,7 +386,7 @@ def _workspace_poses(cx, cy, cz, geom, d1, d3, d5, elbow_sign,
             q0, q1, q2, q3, q4, c0, c1, c2, c3, c4)
 
 
-@njit(**_JIT)
+@njit(**CONTRACT)
 def _count_unreachable(cx, cy, cz, geom, mult, d1, d3, d5, elbow_sign, c0, c1, c2, c3, c4):
     """Workspace points (with multiplicity) the IK cannot reach within the joint limits."""
     kx, ky, kz, vx, vy, vz = geom[3], geom[4], geom[5], geom[6], geom[7], geom[8]
@@ -401,7 +398,7 @@ def _count_unreachable(cx, cy, cz, geom, mult, d1, d3, d5, elbow_sign, c0, c1, c
     return n
 
 
-@njit(**_JIT)
+@njit(**CONTRACT)
 def _reduce_extremes(smin2, smax2, status, mult, n):
     """(min sigma_min^2, max sigma_max^2, unreachable, singular) over n points, counts with multiplicity."""
     lo = np.inf
@@ -435,7 +432,7 @@ def mirror_half(offsets):
     return np.ascontiguousarray(offsets[keep]), np.where(y[keep] > 0, 2, 1).astype(np.int64)
 
 
-@njit(**_JIT)
+@njit(**CONTRACT)
 def workspace_geometry(offsets, tool_offset_m):
     """(9, P) rows o_x, o_y, o_z, k_x, k_y, k_z, (w - c)_x, _y, _z for tips at RCM + o (eq. 9)."""
     p = offsets.shape[0]
@@ -468,7 +465,7 @@ def pose_singular_values(points, rcm, links_m, tool_offset_m, elbow_sign, qdot_m
     return np.sqrt(smin2), np.sqrt(smax2), status
 
 
-@njit(**_JIT)
+@njit(**CONTRACT)
 def _candidates_extremes(rcms, geom, mult, probes, d1, d3, d5, elbow_sign, q, cl):
     m = rcms.shape[0]
     p = geom.shape[1]
@@ -525,7 +522,7 @@ def rcm_candidates_extremes(rcms, offsets, links_m, tool_offset_m, elbow_sign, q
                                 elbow_sign, np.asarray(qdot_max, np.float64), np.asarray(cos_limit, np.float64))
 
 
-@njit(**_JIT)
+@njit(**CONTRACT)
 def _candidate_bounded(cx, cy, cz, geom, mult, d1, d3, d5, elbow_sign, q, cl, gii_to_beat, block):
     p = geom.shape[1]
     smin2 = np.empty(block)

@@ -11,11 +11,11 @@ import math
 import numpy as np
 from numba import njit
 
-from surgopt.kinematics.small_linalg import _mm, rigid_inverse
+from surgopt.jit import EXACT, VECTOR
+
+from surgopt.kinematics.small_linalg import mat_mul, rigid_inverse
 from surgopt.robots import raven_iv
 
-_JIT = dict(cache=True, nogil=True, fastmath=False)
-_VJIT = dict(cache=True, nogil=True, fastmath=False, error_model="numpy")
 
 # joint ranges of Table I (surgopt/robots/raven_iv.py), as compile-time constants
 THETA2_MIN_RAD, THETA2_MAX_RAD = (math.radians(v) for v in raven_iv.THETA2_RANGE_DEG)
@@ -29,7 +29,7 @@ D4_MIN_MM, D4_MAX_MM = raven_iv.D4_RANGE_MM
 # ---------------------------------------------------------------------------
 
 
-@njit(**_JIT)
+@njit(**EXACT)
 def dh_transform(theta, d, a, alpha):
     """Standard DH: Rz(theta) Tz(d) Tx(a) Rx(alpha)."""
     ct, st, ca, sa = math.cos(theta), math.sin(theta), math.cos(alpha), math.sin(alpha)
@@ -41,7 +41,7 @@ def dh_transform(theta, d, a, alpha):
     return T
 
 
-@njit(**_JIT)
+@njit(**EXACT)
 def dh_angles(q, left):
     """DH theta of rows 1-3 from the joint variables (Table I)."""
     if left:
@@ -49,25 +49,25 @@ def dh_angles(q, left):
     return math.pi - q[0], q[1], 1.5 * math.pi + q[2]
 
 
-@njit(**_JIT)
+@njit(**EXACT)
 def wrist_transform(d4, theta5, theta6, a5):
     """3T6 = T4 T5 T6 (Table I rows 4-6)."""
     T = dh_transform(0.0, d4, 0.0, -math.pi / 2)
-    T = _mm(T, dh_transform(math.pi / 2 - theta5, 0.0, a5, math.pi / 2))
-    return _mm(T, dh_transform(math.pi / 2 + theta6, 0.0, 0.0, -math.pi / 2))
+    T = mat_mul(T, dh_transform(math.pi / 2 - theta5, 0.0, a5, math.pi / 2))
+    return mat_mul(T, dh_transform(math.pi / 2 + theta6, 0.0, 0.0, -math.pi / 2))
 
 
-@njit(**_JIT)
+@njit(**EXACT)
 def forward_kinematics(q, alpha, beta, a5, left):
     """0T6 for q = [theta1, theta2, theta3, d4, theta5, theta6] (eq. 1)."""
     t1, t2, t3 = dh_angles(q, left)
     T = dh_transform(t1, 0.0, 0.0, math.pi - alpha)
-    T = _mm(T, dh_transform(t2, 0.0, 0.0, -beta))
-    T = _mm(T, dh_transform(t3, 0.0, 0.0, 0.0))
-    return _mm(T, wrist_transform(q[3], q[4], q[5], a5))
+    T = mat_mul(T, dh_transform(t2, 0.0, 0.0, -beta))
+    T = mat_mul(T, dh_transform(t3, 0.0, 0.0, 0.0))
+    return mat_mul(T, wrist_transform(q[3], q[4], q[5], a5))
 
 
-@njit(**_JIT)
+@njit(**EXACT)
 def inverse_kinematics(T06, alpha, beta, a5, left):
     """Analytic IK following Sec. II-B; returns q (6,) and whether it is within the joint ranges.
 
@@ -92,7 +92,7 @@ def inverse_kinematics(T06, alpha, beta, a5, left):
     k = a5 - d4 * c5
     th6 = math.atan2(P[0] / k, P[2] / k)
     th5 = math.atan2(s5, c5)
-    T03 = _mm(T06, rigid_inverse(wrist_transform(d4, th5, th6, a5)))
+    T03 = mat_mul(T06, rigid_inverse(wrist_transform(d4, th5, th6, a5)))
     sa, ca, sb, cb = math.sin(alpha), math.cos(alpha), math.sin(beta), math.cos(beta)
     c2 = min(1.0, max(-1.0, (T03[2, 2] + ca * cb) / (sa * sb)))
     t2abs = math.acos(c2)
@@ -115,9 +115,9 @@ def inverse_kinematics(T06, alpha, beta, a5, left):
             best_err = err
             best_t3 = t3c
     t3 = best_t3
-    M = _mm(_mm(dh_transform(0.0, 0.0, 0.0, math.pi - alpha), dh_transform(t2, 0.0, 0.0, -beta)),
+    M = mat_mul(mat_mul(dh_transform(0.0, 0.0, 0.0, math.pi - alpha), dh_transform(t2, 0.0, 0.0, -beta)),
             dh_transform(t3, 0.0, 0.0, 0.0))
-    R01 = _mm(T03[:3, :3], M[:3, :3].T.copy())
+    R01 = mat_mul(T03[:3, :3], M[:3, :3].T.copy())
     t1 = math.atan2(R01[1, 0], R01[0, 0])
     q = np.empty(6)
     if left:
@@ -137,7 +137,7 @@ def inverse_kinematics(T06, alpha, beta, a5, left):
 # ---------------------------------------------------------------------------
 
 
-@njit(**_JIT)
+@njit(**EXACT)
 def spherical_jacobian(theta2, alpha, beta, left):
     """3J of eqs. 41 (left) / 42 (right): columns theta1, theta2, d4 in frame 3."""
     s2, c2 = math.sin(theta2), math.cos(theta2)
@@ -153,7 +153,7 @@ def spherical_jacobian(theta2, alpha, beta, left):
     return J
 
 
-@njit(inline="always", **_VJIT)
+@njit(inline="always", **VECTOR)
 def isotropy(c2, s2, sa, ca, sb, cb):
     """Iso = 1/cond(J_s) of the 2x2 top-left block of eq. 41 (eq. 35), closed form.
 
@@ -168,7 +168,7 @@ def isotropy(c2, s2, sa, ca, sb, cb):
     return 2.0 * D / (S + math.sqrt(max(0.0, S * S - 4.0 * D * D)) + 1e-300)
 
 
-@njit(**_JIT)
+@njit(**EXACT)
 def isotropy_at(theta2, alpha, beta):
     return isotropy(math.cos(theta2), math.sin(theta2), math.sin(alpha), math.cos(alpha),
                     math.sin(beta), math.cos(beta))
@@ -180,7 +180,7 @@ THETA2_SCAN_RAD = math.radians(0.25)
 THETA2_TOL_RAD = 1e-12
 
 
-@njit(**_JIT)
+@njit(**EXACT)
 def _iso_crossing(end, inside, alpha, beta, iso_min):
     """Between an interval end and a point where Iso >= iso_min: the end itself if it qualifies,
     else the crossing Iso = iso_min found by bisection (to THETA2_TOL_RAD)."""
@@ -196,7 +196,7 @@ def _iso_crossing(end, inside, alpha, beta, iso_min):
     return good
 
 
-@njit(**_JIT)
+@njit(**EXACT)
 def theta2_interval(alpha, beta, iso_min, lo, hi):
     """The theta2 interval within [lo, hi] where Iso >= iso_min (Fig. 6a).
 
@@ -220,7 +220,7 @@ def theta2_interval(alpha, beta, iso_min, lo, hi):
     return t_lo, t_hi, True
 
 
-@njit(**_JIT)
+@njit(**EXACT)
 def cone_angle(theta2, alpha, beta):
     """Angle psi between shoulder axis z0 and the tool axis z3: cos psi = sa sb c2 - ca cb (eq. 22)."""
     c = math.sin(alpha) * math.sin(beta) * math.cos(theta2) - math.cos(alpha) * math.cos(beta)
@@ -232,7 +232,7 @@ def cone_angle(theta2, alpha, beta):
 # ---------------------------------------------------------------------------
 
 
-@njit(**_VJIT)
+@njit(**VECTOR)
 def arm_cone_geometry(xs, ys, depth, port, axis, cos_psi, dist):
     """Per grid node: cos of the angle psi between the shoulder axis and the direction to the node, and distance.
 
@@ -247,7 +247,7 @@ def arm_cone_geometry(xs, ys, depth, port, axis, cos_psi, dist):
                  cos_psi[i * ny:(i + 1) * ny], dist[i * ny:(i + 1) * ny])
 
 
-@njit(inline="always", **_JIT)
+@njit(inline="always", **EXACT)
 def _iso_parts(cos_psi, sa, ca, sb, cb, k):
     """(D^2, S + sqrt(S^2 - 4 D^2)) of ``isotropy`` at the theta2 of cos psi (eq. 22): Iso = 2 D / (S + ...)."""
     c2 = min(1.0, max(-1.0, (cos_psi + ca * cb) * k))
@@ -258,7 +258,7 @@ def _iso_parts(cos_psi, sa, ca, sb, cb, k):
     return D2, S + math.sqrt(max(0.0, S * S - 4.0 * D2))
 
 
-@njit(**_VJIT)
+@njit(**VECTOR)
 def node_isotropy(lo, hi, alpha, beta, out):
     """min(Iso at cos psi = lo[j], Iso at hi[j]) per node: the minimum over the arms (eq. 35).
 
@@ -279,7 +279,7 @@ def node_isotropy(lo, hi, alpha, beta, out):
         out[j] = 2.0 * math.sqrt(d) / (m + 1e-300)
 
 
-@njit(inline="always", **_JIT)
+@njit(inline="always", **EXACT)
 def _cell_contour(v0, v1, v2, v3):
     """(length, area) in cell units of the zero contour and of {m > 0} inside one cell.
 
@@ -339,7 +339,7 @@ def _cell_contour(v0, v1, v2, v3):
     return math.hypot(1.0, a - b), 0.5 * (a + b)
 
 
-@njit(**_JIT)
+@njit(**EXACT)
 def marching_squares(m, nx, ny, step, i0=0, i1=-1, j0=0, j1=-1):
     """Length and enclosed area of the zero contour of a node field m (nx*ny, row i = x).
 
@@ -370,7 +370,7 @@ def marching_squares(m, nx, ny, step, i0=0, i1=-1, j0=0, j1=-1):
     return length * step, area * step * step
 
 
-@njit(inline="always", **_JIT)
+@njit(inline="always", **EXACT)
 def _node_margin(lo, hi, d_lo, d_hi, reach, k, c_lo, c_hi):
     """Membership margin of node k for the cone interval [c_lo, c_hi] of cos psi.
 
@@ -383,7 +383,7 @@ def _node_margin(lo, hi, d_lo, d_hi, reach, k, c_lo, c_hi):
     return min(reach[k], min((lo[k] - c_lo) * d_lo[k], (c_hi - hi[k]) * d_hi[k]))
 
 
-@njit(**_VJIT)
+@njit(**VECTOR)
 def _arm_row(x, ys, depth, px, py, pz, ax, ay, az, c_row, r_row):
     """cos psi between the shoulder axis a and the direction to the nodes (x, ys[j], -depth) from port p,
     and their distance (one grid row of ``arm_cone_geometry``)."""
@@ -394,13 +394,13 @@ def _arm_row(x, ys, depth, px, py, pz, ax, ay, az, c_row, r_row):
         r_row[j] = r
 
 
-@njit(**_VJIT)
+@njit(**VECTOR)
 def _bounds_init(c_row, r_row, d4_max, lo, hi, d_lo, d_hi, reach):
     for j in range(c_row.shape[0]):
         lo[j], hi[j], d_lo[j], d_hi[j], reach[j] = c_row[j], c_row[j], r_row[j], r_row[j], d4_max - r_row[j]
 
 
-@njit(**_VJIT)
+@njit(**VECTOR)
 def _bounds_update(c_row, r_row, d4_max, lo, hi, d_lo, d_hi, reach):
     for j in range(c_row.shape[0]):
         c, r = c_row[j], r_row[j]
@@ -411,13 +411,13 @@ def _bounds_update(c_row, r_row, d4_max, lo, hi, d_lo, d_hi, reach):
         reach[j] = min(reach[j], d4_max - r)
 
 
-@njit(**_VJIT)
+@njit(**VECTOR)
 def _member_lo(lo, reach, member):
     for j in range(lo.shape[0]):
         member[j] = lo[j] if reach[j] > 0.0 else -2.0
 
 
-@njit(**_JIT)
+@njit(**EXACT)
 def plane_node_bounds(xs, ys, depth, ports, axes, d4_max):
     """Per node of the plane grid: the arms' lowest and highest cos psi, those arms' distances, reach.
 
@@ -447,7 +447,7 @@ def plane_node_bounds(xs, ys, depth, ports, axes, d4_max):
     return lo, hi, d_lo, d_hi, reach, member
 
 
-@njit(**_JIT)
+@njit(**EXACT)
 def plane_grid(ports, depth, d4_max, step):
     """Node coordinates (xs, ys) covering every point all arms can reach (|X - port| <= d4_max), 2 nodes of margin."""
     reach = math.sqrt(d4_max * d4_max - depth * depth)
@@ -463,7 +463,7 @@ def plane_grid(ports, depth, d4_max, step):
     return xs, ys
 
 
-@njit(**_VJIT)
+@njit(**VECTOR)
 def _row_extent(lo, hi, c_lo, c_hi):
     """First and last index j with c_lo < lo[j] and hi[j] < c_hi; (n, -1) if none (vectorisable)."""
     n = lo.shape[0]
@@ -475,7 +475,7 @@ def _row_extent(lo, hi, c_lo, c_hi):
     return first, last
 
 
-@njit(**_JIT)
+@njit(**EXACT)
 def _bounding_box(lo, hi, c_lo, c_hi, nx, ny):
     """Node index box (i0, i1, j0, j1) of {c_lo < lo, hi < c_hi}; i1 < i0 when empty."""
     b0, b1, c0, c1 = nx, -1, ny, -1
@@ -487,7 +487,7 @@ def _bounding_box(lo, hi, c_lo, c_hi, nx, ny):
     return b0, b1, c0, c1
 
 
-@njit(**_VJIT)
+@njit(**VECTOR)
 def _row_levels(lo, hi, c_los, c_his, n_lev, level):
     """level[j] = how many of the nested intervals (c_los[m], c_his[m]) hold the node with lo[j], hi[j]."""
     for j in range(level.shape[0]):
@@ -498,7 +498,7 @@ def _row_levels(lo, hi, c_los, c_his, n_lev, level):
             level[j] += (lo[j] > c_lo) & (hi[j] < c_hi)
 
 
-@njit(**_VJIT)
+@njit(**VECTOR)
 def _row_cell_levels(row0, row1, lmin, lmax):
     """Lowest and highest corner level of the cells between node rows row0 and row1 (len(lmin) cells);
     returns how many cells have lmin != lmax (boundary cells)."""
@@ -513,7 +513,7 @@ def _row_cell_levels(row0, row1, lmin, lmax):
     return n_edge
 
 
-@njit(**_VJIT)
+@njit(**VECTOR)
 def _count_above(lmin, m):
     """Number of entries > m (vectorisable)."""
     n = 0
@@ -522,7 +522,7 @@ def _count_above(lmin, m):
     return n
 
 
-@njit(**_JIT)
+@njit(**EXACT)
 def evaluate_designs(bounds, nx, ny, step, alphas, betas, iso_mins, psi_lo, psi_hi, has, out):
     """All (alpha, beta, Iso_min) designs of one geometry (ports and shoulder axes fixed).
 
@@ -641,7 +641,7 @@ def evaluate_designs(bounds, nx, ny, step, alphas, betas, iso_mins, psi_lo, psi_
                 out[row, 5] = 1.0
 
 
-@njit(**_JIT)
+@njit(**EXACT)
 def evaluate_geometries(ports, axes, depth, step, d4_max, alphas, betas, iso_mins, psi_lo, psi_hi, has, out):
     """``evaluate_designs`` for G geometries: ``ports``, ``axes`` (G, arms, 3); ``out`` (G*A*B*I, 6).
 

@@ -8,11 +8,12 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-_JIT = dict(cache=True, nogil=True, fastmath=False)
+from surgopt.jit import EXACT
 
 
-@njit(**_JIT)
-def _mm(A, B):
+
+@njit(**EXACT)
+def mat_mul(A, B):
     """Matrix product of small matrices."""
     n, k = A.shape
     m = B.shape[1]
@@ -26,8 +27,9 @@ def _mm(A, B):
     return out
 
 
-@njit(**_JIT)
-def _mv(A, v):
+@njit(**EXACT)
+def mat_vec(A, v):
+    """Matrix-vector product A v."""
     out = np.zeros(A.shape[0])
     for i in range(A.shape[0]):
         acc = 0.0
@@ -37,15 +39,29 @@ def _mv(A, v):
     return out
 
 
-@njit(**_JIT)
-def _dot(a, b):
+@njit(**EXACT)
+def dot(a, b):
+    """Inner product of two vectors."""
     acc = 0.0
     for i in range(a.shape[0]):
         acc += a[i] * b[i]
     return acc
 
 
-@njit(**_JIT)
+@njit(inline="always", **EXACT)
+def cross_components(ax, ay, az, bx, by, bz):
+    """a x b from components (inlined: the caller's compile flags apply)."""
+    return ay * bz - az * by, az * bx - ax * bz, ax * by - ay * bx
+
+
+@njit(**EXACT)
+def cross(a, b):
+    """a x b of two 3-vectors (arrays)."""
+    x, y, z = cross_components(a[0], a[1], a[2], b[0], b[1], b[2])
+    return np.array([x, y, z])
+
+
+@njit(**EXACT)
 def solve_spd(A, b):
     """Solve A x = b for symmetric positive definite A (Cholesky, no pivoting needed)."""
     n = A.shape[0]
@@ -75,7 +91,7 @@ def solve_spd(A, b):
     return x
 
 
-@njit(**_JIT)
+@njit(**EXACT)
 def rigid_inverse(T):
     """Inverse of a 4x4 homogeneous transform: [R^T, -R^T p]."""
     out = np.zeros((4, 4))

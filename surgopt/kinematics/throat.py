@@ -17,9 +17,10 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from surgopt.kinematics.small_linalg import _dot, _mm, _mv, solve_spd
+from surgopt.jit import EXACT
 
-_JIT = dict(cache=True, nogil=True, fastmath=False)
+from surgopt.kinematics.small_linalg import cross, dot, mat_mul, mat_vec, solve_spd
+
 
 #: theta_0 = phi_0 = pi/2: a straight segment (Simaan's notation).
 THETA0 = np.pi / 2
@@ -28,19 +29,19 @@ THETA0 = np.pi / 2
 STRAIGHT_EPS = 1e-4
 
 
-@njit(**_JIT)
+@njit(**EXACT)
 def rot_z(a):
     c, s = np.cos(a), np.sin(a)
     return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
 
 
-@njit(**_JIT)
+@njit(**EXACT)
 def rot_y(a):
     c, s = np.cos(a), np.sin(a)
     return np.array([[c, 0.0, s], [0.0, 1.0, 0.0], [-s, 0.0, c]])
 
 
-@njit(**_JIT)
+@njit(**EXACT)
 def segment_tip_in_plane(theta_l, length):
     """(x, z, dx/dtheta_L, dz/dtheta_L) of a constant-curvature segment in its bending plane.
 
@@ -64,7 +65,7 @@ def segment_tip_in_plane(theta_l, length):
     return x, z, dx, dz
 
 
-@njit(**_JIT)
+@njit(**EXACT)
 def segment_kinematics(theta_l, delta, length):
     """Tip position, end rotation and their rates for one snake segment (eqs. 10-11, 22-23).
 
@@ -77,16 +78,16 @@ def segment_kinematics(theta_l, delta, length):
     """
     x, z, dx, dz = segment_tip_in_plane(theta_l, length)
     Rd = rot_z(-delta)
-    p = _mv(Rd, np.array([x, 0.0, z]))
-    R = _mm(_mm(Rd, rot_y(THETA0 - theta_l)), rot_z(delta))
-    dp_dtheta = _mv(Rd, np.array([dx, 0.0, dz]))
+    p = mat_vec(Rd, np.array([x, 0.0, z]))
+    R = mat_mul(mat_mul(Rd, rot_y(THETA0 - theta_l)), rot_z(delta))
+    dp_dtheta = mat_vec(Rd, np.array([dx, 0.0, dz]))
     dp_ddelta = np.array([p[1], -p[0], 0.0])  # -z x p
-    w_theta = _mv(Rd, np.array([0.0, -1.0, 0.0]))
+    w_theta = mat_vec(Rd, np.array([0.0, -1.0, 0.0]))
     w_delta = R[:, 2] - np.array([0.0, 0.0, 1.0])
     return p, R, dp_dtheta, dp_ddelta, w_theta, w_delta
 
 
-@njit(**_JIT)
+@njit(**EXACT)
 def five_bar(q1, q2, geo):
     """Five-bar forward kinematics and rates (eqs. 2-6, 14-18).
 
@@ -130,27 +131,22 @@ def five_bar(q1, q2, geo):
     return P, u, dP, du, det
 
 
-@njit(**_JIT)
-def _cross(a, b):
-    return np.array([a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]])
-
-
-@njit(**_JIT)
+@njit(**EXACT)
 def arm_frame(P_U, u, geo):
     """Snake-arm frame {d}: z_d from P_U through P_F, y_d = z_d x x_t / |.|, x_d = y_d x z_d (eq. 7)."""
     PU = np.array([P_U[0], P_U[1], 0.0])
     xt = np.array([u[0], u[1], 0.0])
     r = geo[9:12] - PU
-    rho = np.sqrt(_dot(r, r))
+    rho = np.sqrt(dot(r, r))
     z = r / rho
-    yr = _cross(z, xt)
-    ny = np.sqrt(_dot(yr, yr))
+    yr = cross(z, xt)
+    ny = np.sqrt(dot(yr, yr))
     y = yr / ny
-    x = _cross(y, z)
+    x = cross(y, z)
     return PU, xt, x, y, z, rho, ny
 
 
-@njit(**_JIT)
+@njit(**EXACT)
 def arm_chain(q, geo):
     """Every frame along the chain, shared by the kinematics and the Jacobian.
 
@@ -162,24 +158,24 @@ def arm_chain(q, geo):
     PU, xt, x, y, z, rho, ny = arm_frame(P_U, u, geo)
     Rd = np.empty((3, 3))
     Rd[:, 0], Rd[:, 1], Rd[:, 2] = x, y, z
-    Rb = _mm(Rd, rot_z(q[3]))
+    Rb = mat_mul(Rd, rot_z(q[3]))
     PD = PU + (geo[6] + q[2]) * z
     seg1 = segment_kinematics(q[4], q[5], geo[7])
-    PL = PD + _mv(Rb, seg1[0])
-    Rg = _mm(Rb, seg1[1])
+    PL = PD + mat_vec(Rb, seg1[0])
+    Rg = mat_mul(Rb, seg1[1])
     seg2 = segment_kinematics(q[6], q[7], geo[8])
-    PE = PL + _mv(Rg, seg2[0])
-    return dP, du, PU, xt, x, y, z, rho, ny, Rb, PD, seg1, PL, Rg, seg2, PE, _mm(Rg, seg2[1])
+    PE = PL + mat_vec(Rg, seg2[0])
+    return dP, du, PU, xt, x, y, z, rho, ny, Rb, PD, seg1, PL, Rg, seg2, PE, mat_mul(Rg, seg2[1])
 
 
-@njit(**_JIT)
+@njit(**EXACT)
 def forward_kinematics(q, geo):
     """Platform (end-effector) position (mm) and rotation in {w} for joints q (eqs. 2-13)."""
     chain = arm_chain(q, geo)
     return chain[15], chain[16]
 
 
-@njit(**_JIT)
+@njit(**EXACT)
 def jacobian(q, geo):
     """6x8 Jacobian in {w}: rows (v, omega) of the platform, columns q1..psi (eq. 30).
 
@@ -196,28 +192,28 @@ def jacobian(q, geo):
     for j in range(2):
         dPU = np.array([dP[0, j], dP[1, j], 0.0])
         dxt = np.array([du[0, j], du[1, j], 0.0])
-        dz = -(dPU - z * _dot(z, dPU)) / rho
-        dyr = _cross(dz, xt) + _cross(z, dxt)
-        dy = (dyr - y * _dot(y, dyr)) / ny
-        dx = _cross(dy, z) + _cross(y, dz)
-        w = _dot(dy, z) * x + _dot(dz, x) * y + _dot(dx, y) * z
+        dz = -(dPU - z * dot(z, dPU)) / rho
+        dyr = cross(dz, xt) + cross(z, dxt)
+        dy = (dyr - y * dot(y, dyr)) / ny
+        dx = cross(dy, z) + cross(y, dz)
+        w = dot(dy, z) * x + dot(dz, x) * y + dot(dx, y) * z
         dPD = dPU + (geo[6] + q[2]) * dz
-        J[:3, j] = dPD + _cross(w, PE - PD)
+        J[:3, j] = dPD + cross(w, PE - PD)
         J[3:, j] = w
     J[:3, 2] = z
-    J[:3, 3] = _cross(z, PE - PD)
+    J[:3, 3] = cross(z, PE - PD)
     J[3:, 3] = z
     for j, (dp, w) in enumerate(((dp1_dt, w1_t), (dp1_dd, w1_d))):
-        ww = _mv(Rb, w)
-        J[:3, 4 + j] = _mv(Rb, dp) + _cross(ww, PE - PL)
+        ww = mat_vec(Rb, w)
+        J[:3, 4 + j] = mat_vec(Rb, dp) + cross(ww, PE - PL)
         J[3:, 4 + j] = ww
     for j, (dp, w) in enumerate(((dp2_dt, w2_t), (dp2_dd, w2_d))):
-        J[:3, 6 + j] = _mv(Rg, dp)
-        J[3:, 6 + j] = _mv(Rg, w)
+        J[:3, 6 + j] = mat_vec(Rg, dp)
+        J[3:, 6 + j] = mat_vec(Rg, w)
     return J
 
 
-@njit(**_JIT)
+@njit(**EXACT)
 def weighted_least_norm_step(J, w_diag, dx, damping):
     """dq = W^-1 J^T (J W^-1 J^T + damping^2 I)^-1 dx (eq. 32; damped when damping > 0).
 
@@ -229,29 +225,29 @@ def weighted_least_norm_step(J, w_diag, dx, damping):
     for i in range(J.shape[1]):
         for j in range(J.shape[0]):
             Winv_Jt[i, j] = J[j, i] / w_diag[i]
-    A = _mm(J, Winv_Jt)
+    A = mat_mul(J, Winv_Jt)
     for i in range(A.shape[0]):
         A[i, i] += damping * damping
-    return _mv(Winv_Jt, solve_spd(A, dx))
+    return mat_vec(Winv_Jt, solve_spd(A, dx))
 
 
-@njit(**_JIT)
+@njit(**EXACT)
 def rotation_vector(R):
     """Axis * angle of a rotation matrix (log map), accurate near angle 0."""
     c = min(1.0, max(-1.0, 0.5 * (R[0, 0] + R[1, 1] + R[2, 2] - 1.0)))
     v = 0.5 * np.array([R[2, 1] - R[1, 2], R[0, 2] - R[2, 0], R[1, 0] - R[0, 1]])
-    s = np.sqrt(_dot(v, v))
+    s = np.sqrt(dot(v, v))
     angle = np.arctan2(s, c)
     if s < 1e-12:
         return v  # angle ~ s, axis * angle ~ v
     return v * (angle / s)
 
 
-@njit(**_JIT)
+@njit(**EXACT)
 def _axis_rotation(axis, a):
     """Rodrigues rotation matrix about a unit axis."""
     K = np.array([[0.0, -axis[2], axis[1]], [axis[2], 0.0, -axis[0]], [-axis[1], axis[0], 0.0]])
-    return np.eye(3) + np.sin(a) * K + (1 - np.cos(a)) * _mm(K, K)
+    return np.eye(3) + np.sin(a) * K + (1 - np.cos(a)) * mat_mul(K, K)
 
 
 MODE_SPIN = 0
@@ -259,7 +255,7 @@ MODE_ORBIT_PARALLEL = 1
 MODE_ORBIT_TANGENT = 2
 
 
-@njit(**_JIT)
+@njit(**EXACT)
 def suture_target(mode, p0, R0, radius, angle):
     """Desired platform pose after turning ``angle`` along the suture (Sec. IV, Fig. 6).
 
@@ -272,15 +268,15 @@ def suture_target(mode, p0, R0, radius, angle):
     """
     x0, y0, z0 = R0[:, 0], R0[:, 1], R0[:, 2]
     if mode == MODE_SPIN:
-        return p0.copy(), _mm(R0, rot_z(angle))
+        return p0.copy(), mat_mul(R0, rot_z(angle))
     if mode == MODE_ORBIT_PARALLEL:
         c = p0 - radius * x0
         return c + radius * (np.cos(angle) * x0 + np.sin(angle) * y0), R0.copy()
     c = p0 - radius * y0
-    return c + radius * (np.cos(angle) * y0 + np.sin(angle) * z0), _mm(_axis_rotation(x0, angle), R0)
+    return c + radius * (np.cos(angle) * y0 + np.sin(angle) * z0), mat_mul(_axis_rotation(x0, angle), R0)
 
 
-@njit(**_JIT)
+@njit(**EXACT)
 def suture_run(q0, geo, w_diag, mode, radius_mm, speed_mm_s, arc_rad, dt_s, gain, damping):
     """Track the suture path with weighted least-norm steps (eq. 32), closed loop.
 
@@ -306,7 +302,7 @@ def suture_run(q0, geo, w_diag, mode, radius_mm, speed_mm_s, arc_rad, dt_s, gain
         pn, Rn = suture_target(mode, p0, R0, radius_mm, min(arc_rad, omega * t[k + 1]))
         dx = np.empty(6)
         dx[:3] = (pn - pd) + gain * (pd - p)
-        dx[3:] = rotation_vector(_mm(Rn, Rd.T)) + gain * rotation_vector(_mm(Rd, R.T))
+        dx[3:] = rotation_vector(mat_mul(Rn, Rd.T)) + gain * rotation_vector(mat_mul(Rd, R.T))
         dq = weighted_least_norm_step(jacobian(q, geo), w_diag, dx, damping)
         if not np.all(np.isfinite(dq)):
             return t[:k + 1], qs[:k + 1], pos_err[:k + 1], rot_err[:k + 1]
@@ -315,7 +311,7 @@ def suture_run(q0, geo, w_diag, mode, radius_mm, speed_mm_s, arc_rad, dt_s, gain
         pd, Rd = pn, Rn
         p, R = forward_kinematics(q, geo)
         e = pd - p
-        pos_err[k + 1] = np.sqrt(_dot(e, e))
-        rv = rotation_vector(_mm(Rd, R.T))
-        rot_err[k + 1] = np.degrees(np.sqrt(_dot(rv, rv)))
+        pos_err[k + 1] = np.sqrt(dot(e, e))
+        rv = rotation_vector(mat_mul(Rd, R.T))
+        rot_err[k + 1] = np.degrees(np.sqrt(dot(rv, rv)))
     return t, qs, pos_err, rot_err

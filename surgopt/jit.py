@@ -1,0 +1,69 @@
+"""Numba settings in one place: the compile flags every kernel uses and the process environment.
+
+``configure_numba()`` must run before numba is imported (numba reads NUMBA_CACHE_DIR and
+NUMBA_CPU_FEATURES once, at import): ``surgopt.kinematics`` calls it first thing, so importing any
+kernel, the Python API or the CLI configures numba without the caller doing anything.
+
+Flag sets (every kernel is ``nogil`` so the threads backend runs chunks in parallel, and ``cache``d
+on disk so a second run loads instead of compiling):
+
+- ``EXACT``: IEEE semantics, Python's error model (raises on division by zero). Scalar and small
+  matrix code whose results are compared bit for bit with baselines.
+- ``VECTOR``: as ``EXACT`` with numpy's error model, which lets LLVM vectorise loops that divide.
+- ``CONTRACT``: as ``VECTOR`` and fused multiply-add allowed (the rcm-grid kernel: 1 rounding
+  instead of 2 per a*b+c, no reassociation, so rows do not depend on the vector width).
+"""
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+EXACT = dict(cache=True, nogil=True, fastmath=False)
+VECTOR = dict(cache=True, nogil=True, fastmath=False, error_model="numpy")
+CONTRACT = dict(cache=True, nogil=True, fastmath={"contract"}, error_model="numpy")
+
+
+def numba_cache_dir() -> Path:
+    """Where numba keeps compiled kernels: $NUMBA_CACHE_DIR or ~/.cache/surgopt/numba."""
+    if os.environ.get("NUMBA_CACHE_DIR"):
+        return Path(os.environ["NUMBA_CACHE_DIR"])
+    base = Path(os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache")
+    return base / "surgopt" / "numba"
+
+
+def configure_numba() -> Path:
+    """Set numba's environment before numba is imported (worker processes inherit it).
+
+    NUMBA_CACHE_DIR: compiled kernels persist across runs. NUMBA_CPU_FEATURES:
+    on an AVX-512 machine, let LLVM use 8-wide vectors (it prefers 4-wide by
+    default). The rcm-grid kernel is 1.3x faster that way here, the others
+    unchanged, and rows are identical (same operations per lane, no
+    reassociation). A NUMBA_CPU_FEATURES already set, or SURGOPT_WIDE_VECTORS=0,
+    leaves numba's default.
+    """
+    path = numba_cache_dir()
+    os.environ["NUMBA_CACHE_DIR"] = str(path)
+    use_wide_vectors()
+    return path
+
+
+def use_wide_vectors() -> None:
+    """Set NUMBA_CPU_FEATURES for 8-wide vectors on AVX-512 hosts, unless the user chose otherwise."""
+    if "NUMBA_CPU_FEATURES" not in os.environ and os.environ.get("SURGOPT_WIDE_VECTORS", "1") != "0":
+        features = wide_vector_features()
+        if features:
+            os.environ["NUMBA_CPU_FEATURES"] = features
+
+
+def wide_vector_features() -> str | None:
+    """The host's LLVM feature string without the 256-bit vector preference, if it has AVX-512."""
+    try:
+        import llvmlite.binding as ll
+
+        features = ll.get_host_cpu_features().flatten()
+    except Exception:  # noqa: BLE001 - no llvmlite or no host information: keep numba's default
+        return None
+    have = set(features.split(","))
+    if not {"+avx512f", "+avx512vl", "+avx512dq"} <= have:
+        return None
+    return features + ",-prefer-256-bit"
