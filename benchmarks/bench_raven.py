@@ -103,7 +103,8 @@ def main():
 
     configure_numba()
     from surgopt.config import load_config, load_embedded
-    from surgopt.kinematics.raven import evaluate_geometries
+    from surgopt.kinematics import raven_workspace as W
+    from surgopt.kinematics.raven import evaluate_geometries, plane_grid
     from surgopt.studies import raven_sweep as S
 
     cfg = load_embedded(S.DEFAULT_CONFIG, S.Config)
@@ -111,19 +112,21 @@ def main():
     S.warm_up(cfg)
     print(f"JIT load/compile: {time.perf_counter() - t:.2f} s")
     geo = cfg.geometry
-    ports, axes = S.arms(geo, 20.0, 10.0, -20.0, 100.0, 50.0)
-    xs, ys = S.plane_grid(geo, ports)
+    layout, plane = S.arm_layout(geo), S.plane(geo)
+    ports, axes = W.arms(layout, 20.0, 10.0, -20.0, 100.0, 50.0)
+    xs, ys = plane_grid(ports, geo.depth_mm, geo.d4_max_mm, geo.step_mm)
     n = xs.size * ys.size
     al = np.radians(S.values(cfg.sweep.alpha_deg))
     be = np.radians(S.values(cfg.sweep.beta_deg))
     iso = np.array(S.values(cfg.sweep.iso_min))
-    plo, phi, has = S.psi_intervals(cfg, al, be, iso)
+    designs = W.cone_angle_intervals(al, be, iso, geo.theta2_range_deg)
+    plo, phi, has = designs.psi_lo_rad, designs.psi_hi_rad, designs.has_interval
     out = np.zeros((125, 6))
     P, A = ports[None].copy(), axes[None].copy()
     reps = 20
     t = time.perf_counter()
     for _ in range(reps):
-        evaluate_geometries(P, A, geo.depth_mm, geo.step_mm, geo.d4_max_mm, al, be, iso, plo, phi, has, out)
+        evaluate_geometries(P, A, plane, designs, out)
     t_nb = (time.perf_counter() - t) / reps
     t = time.perf_counter()
     cos_psi, dist = numpy_cone_geometry(xs, ys, geo.depth_mm, ports, axes)
@@ -135,44 +138,43 @@ def main():
     print(f"ratio numba / numpy: {t_np / t_nb:.0f}x (max relative perimeter difference + point-count difference {agree:.1e})")
     if args.quick:
         return
+    from concurrent.futures import ThreadPoolExecutor
+
     from surgopt.runner import run_study
     from surgopt.store import Store
-
-    from concurrent.futures import ThreadPoolExecutor
 
     table2 = load_config(REPO / "configs" / "raven_table2.toml", S.Config)
     geo2, sw = table2.geometry, table2.sweep
     al2, be2, iso2 = S.values(sw.alpha_deg), S.values(sw.beta_deg), S.values(sw.iso_min)
-    ints = S.psi_intervals(table2, np.radians(al2), np.radians(be2), np.asarray(iso2, float))
-    pa = [S.arms(geo2, *g) for g in S.geometry_grid(table2)]
-    P2 = np.ascontiguousarray(np.array([p for p, _ in pa]))
-    A2 = np.ascontiguousarray(np.array([a for _, a in pa]))
-    halves = [slice(0, len(pa) // 2), slice(len(pa) // 2, len(pa))]
+    designs2 = W.cone_angle_intervals(np.radians(al2), np.radians(be2), np.asarray(iso2, float), geo2.theta2_range_deg)
+    placed = [W.arms(S.arm_layout(geo2), *g) for g in S.geometry_grid(table2)]
+    P2 = np.ascontiguousarray(np.array([p for p, _ in placed]))
+    A2 = np.ascontiguousarray(np.array([a for _, a in placed]))
+    halves = [slice(0, len(placed) // 2), slice(len(placed) // 2, len(placed))]
     outs = [np.zeros(((h.stop - h.start) * 125, 6)) for h in halves]
 
     def kernel_half(k):
-        evaluate_geometries(P2[halves[k]], A2[halves[k]], geo2.depth_mm, geo2.step_mm, geo2.d4_max_mm,
-                            np.radians(al2), np.radians(be2), np.asarray(iso2, float), *ints, outs[k])
+        evaluate_geometries(P2[halves[k]], A2[halves[k]], S.plane(geo2), designs2, outs[k])
 
     with ThreadPoolExecutor(2) as pool:
         t = time.perf_counter()
         list(pool.map(kernel_half, range(2)))
         dt = time.perf_counter() - t
-    print(f"Table II, all {len(pa):,} geometries evaluated (no sharing of identical ones), 250,000 designs on "
+    print(f"Table II, all {len(placed):,} geometries evaluated (no sharing of identical ones), 250,000 designs on "
           f"2 threads: {dt:.2f} s ({250_000 / dt:,.0f} designs/s)")
     chunk = S.auto_chunk(table2)
     tasks = range(S.n_tasks(table2, chunk))
-    S._MEMO.clear()
+    W.clear_memo()
     with ThreadPoolExecutor(2) as pool:
         t = time.perf_counter()
         rows = sum(len(r["design_id"]) for r in pool.map(lambda i: S.compute_task(table2, chunk, i), tasks))
         dt = time.perf_counter() - t
     print(f"Table II sweep as the study computes it ({rows:,} designs; identical geometries evaluated once), "
           f"2 threads, no store: {dt:.2f} s ({rows / dt:,.0f} designs/s)")
-    S._MEMO.clear()
+    W.clear_memo()
     with tempfile.TemporaryDirectory() as tmp:
         t = time.perf_counter()
-        res = run_study(S, table2, config_name="bench", store=Store(tmp), jobs=2, quiet=True)
+        res = run_study(S.STUDY, table2, config_name="bench", store=Store(tmp), jobs=2, quiet=True)
         dt = time.perf_counter() - t
         print(f"Table II sweep through the runner, {res.table.num_rows:,} designs on 2 threads (store writes and "
               f"reading the table back included): {dt:.2f} s ({res.table.num_rows / dt:,.0f} designs/s)")

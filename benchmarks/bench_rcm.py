@@ -71,7 +71,8 @@ def main():
     from surgopt.studies import rcm_grid as S
 
     cfg = load_embedded(S.DEFAULT_CONFIG, S.Config)
-    links, tool, elbow, qdot, cl = S.kernel_args(cfg)
+    arm = S.arm_model(cfg)
+    links, tool, elbow, qdot, cl = arm
     off = S.workspace_offsets(cfg.workspace)
     rcm = np.array([0.535, 0.0, -0.21 + cfg.robot.link_d1_m])  # the paper's optimum: every pose reachable
     tips = rcm + off
@@ -100,8 +101,8 @@ def main():
     # the full map's kernel work on one core, in-process
     rcms = S.candidate_rcms(cfg, S.candidate_xz(cfg))
     sub = np.ascontiguousarray(rcms[::16])
-    K.rcm_candidates_extremes(sub[:1], off, links, tool, elbow, qdot, cl)  # load this signature
-    t_map1 = best_of(lambda: K.rcm_candidates_extremes(sub, off, links, tool, elbow, qdot, cl), 1)
+    K.rcm_candidates_extremes(sub[:1], off, arm)  # load this signature
+    t_map1 = best_of(lambda: K.rcm_candidates_extremes(sub, off, arm), 1)
     est = t_map1 * rcms.shape[0] / sub.shape[0]
     print(f"full map kernel work, one core (every 16th candidate, scaled): {est:.2f} s "
           f"for {rcms.shape[0] * off.shape[0] / 1e6:.0f} M poses (mirror half of the cube; "
@@ -119,7 +120,7 @@ def main():
 
     with tempfile.TemporaryDirectory() as tmp:
         t = time.perf_counter()
-        res = run_study(S, cfg, config_name="bench", store=Store(tmp), jobs=2, quiet=True, force=True)
+        res = run_study(S.STUDY, cfg, config_name="bench", store=Store(tmp), jobs=2, quiet=True, force=True)
         print(f"full 121 x 121 x 17^3 map on 2 threads (store writes included): {time.perf_counter() - t:.2f} s, "
               f"{res.table.num_rows} rows")
         for extra, label in (([], "full map"), (["--cull"], "--cull")):

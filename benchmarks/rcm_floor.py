@@ -61,7 +61,8 @@ def main():
     from bench_rcm import best_of, numpy_rcm_singular_values
 
     cfg = load_embedded(S.DEFAULT_CONFIG, S.Config)
-    links, tool, elbow, qdot, cl = S.kernel_args(cfg)
+    arm = S.arm_model(cfg)
+    links, tool, elbow, qdot, cl = arm
     off = S.workspace_offsets(cfg.workspace)
     rcm = np.array([0.535, 0.0, -0.21 + cfg.robot.link_d1_m])
     n = off.shape[0]

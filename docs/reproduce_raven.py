@@ -66,7 +66,7 @@ def main():
     with tempfile.TemporaryDirectory() as tmp:
         for name, ch in variants.items():
             cfg = changed(base, **ch) if ch else base
-            res = run_study(S, cfg, config_name=name, store=Store(tmp), jobs=2, quiet=True)
+            res = run_study(S.STUDY, cfg, config_name=name, store=Store(tmp), jobs=2, quiet=True)
             t = res.table
             rank, row = S.paper_optimum_rank(t)
             i = int(np.argmax(t["cost"].to_numpy()))
@@ -75,7 +75,7 @@ def main():
             if not ch:
                 default_table = t
                 res_cfg = cfg
-        refine = run_study(S, S.refine_config(res_cfg, default_table), config_name="refine", store=Store(tmp),
+        refine = run_study(S.STUDY, S.refine_config(res_cfg, default_table), config_name="refine", store=Store(tmp),
                            jobs=2, quiet=True, chunk=1)
         t = refine.table
         i = int(np.argmax(t["cost"].to_numpy()))

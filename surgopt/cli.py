@@ -50,122 +50,80 @@ def _load_study_config(study, config: Optional[Path]):
     from surgopt.config import load_config, load_embedded
 
     if config is None:
-        return load_embedded(study.DEFAULT_CONFIG, study.Config), f"embedded:{Path(study.DEFAULT_CONFIG).stem}"
-    return load_config(config, study.Config), config.stem
+        return load_embedded(study.default_config, study.config_model), f"embedded:{Path(study.default_config).stem}"
+    return load_config(config, study.config_model), config.stem
 
 
-@app.command("rcm-grid")
-def rcm_grid(
-    config: Annotated[Optional[Path], typer.Argument(
-        help="TOML or YAML config. Without it: the paper's setup (121 x 121 RCM candidates, "
-             "17^3-point 50 mm cube, PA10-7C, 587 mm tool).", show_default=False)] = None,
-    cull: Annotated[bool, typer.Option(
-        "--cull", help="Fast exact argmax with the Culling algorithm (Stocco & Salcudean) instead of "
-                       "the full GII map; culled candidates carry an upper bound.")] = False,
-    store: StoreOpt = None,
-    jobs: JobsOpt = 2,
-    force: ForceOpt = False,
-    quiet: QuietOpt = False,
-    chunk_size: ChunkOpt = None,
-    backend: BackendOpt = "threads",
-    scheduler: SchedulerOpt = None,
-) -> None:
-    """Global Isotropy Index of candidate remote-centre-of-motion locations for a PA10-7C
-    (Locke & Patel, ICRA 2007: eqs. 5-9, Fig. 3, Table I).
+def _study_command(study) -> None:
+    """Register ``surgopt <study.name>``: its CONFIG argument, its own flags, and the shared options.
 
-    For every RCM candidate (x, z) the tool tip visits each point of a cube below the RCM with the
-    tool axis through the RCM; closed-form IK (S3 = W2 = 0) and the alternative Jacobian under the RCM
-    constraint give the reverse Jacobian J_r, scaled by the rated joint speeds. GII = min sigma_min /
-    max sigma_max over the cube (eq. 7); a candidate with any unreachable point is infeasible.
-    Rows: candidate_id, x_rcm_m, z_rcm_m, gii, feasible, sigma_min_m_per_s, sigma_max_m_per_s,
-    n_unreachable, n_singular, points_evaluated, gii_is_exact.
+    The command's signature is built from the study's declaration (``Study.flags``, ``Study.chunked``),
+    so this module names no study.
     """
-    _run_study_command("rcm-grid", config, store, jobs, force, quiet, chunk_size, backend, scheduler,
-                       overrides={"search": "cull"} if cull else None)
+    import inspect
+
+    P = inspect.Parameter
+    params = [P("config", P.KEYWORD_ONLY, default=None, annotation=Annotated[Optional[Path], typer.Argument(
+        help=study.config_help, show_default=False)])]
+    params += [P(f.dest, P.KEYWORD_ONLY, default=False, annotation=Annotated[bool, typer.Option(f.option, help=f.help)])
+               for f in study.flags]
+    shared = [("store", StoreOpt, None), ("jobs", JobsOpt, 2), ("force", ForceOpt, False), ("quiet", QuietOpt, False)]
+    if study.chunked:
+        shared.append(("chunk_size", ChunkOpt, None))
+    shared += [("backend", BackendOpt, "threads"), ("scheduler", SchedulerOpt, None)]
+    params += [P(name, P.KEYWORD_ONLY, default=default, annotation=ann) for name, ann, default in shared]
+
+    def command(**kw) -> None:
+        flags = [f for f in study.flags if kw.pop(f.dest)]
+        _run_study_command(study, flags=flags, **kw)
+
+    command.__signature__ = inspect.Signature(params)
+    command.__annotations__ = {p.name: p.annotation for p in params}
+    command.__doc__ = study.help
+    command.__name__ = study.name.replace("-", "_")
+    app.command(study.name)(command)
 
 
-@app.command("raven-sweep")
-def raven_sweep(
-    config: Annotated[Optional[Path], typer.Argument(
-        help="TOML or YAML config. Without it: the paper's Table II sweep (250,000 designs: alpha, beta "
-             "5-90 deg step 20; phi +-20 deg step 10; bx, by 50-200 mm step 50; Iso_min 0.1-0.9 step 0.2).",
-        show_default=False)] = None,
-    refine: Annotated[bool, typer.Option(
-        "--refine", help="After the grid, a compass search from the top-k designs inside the sweep's bounds; "
-                         "its rows are stored as a second run.")] = False,
-    store: StoreOpt = None,
-    jobs: JobsOpt = 2,
-    force: ForceOpt = False,
-    quiet: QuietOpt = False,
-    chunk_size: ChunkOpt = None,
-    backend: BackendOpt = "threads",
-    scheduler: SchedulerOpt = None,
-) -> None:
-    """Raven IV port placement and link design (Li, Glozman, Milutinovic, Rosen, ICRA 2011: eqs. 1-43,
-    Table II, Figs. 4, 6-8).
-
-    For every design (alpha, beta, phi_x, phi_y, phi_z, bx, by, Iso_min) the common workspace of all arms
-    on a plane 150 mm below the ports: a point belongs to an arm when its tool axis can point there with
-    theta2 in the range narrowed by Iso_min and d4 <= 250 mm. Rows: the eight parameters, area_cm2,
-    perimeter_cm, zeta_cm (eq. 33), iso_sum, iso_mean, iso_area_cm2, iso_min_actual, n_points,
-    cost (eq. 43), source (grid | refine). Ends with the top designs and the rank of the paper's optimum.
-    """
-    _run_study_command("raven-sweep", config, store, jobs, force, quiet, chunk_size, backend, scheduler,
-                       then_refine=refine)
-
-
-@app.command("suture-sim")
-def suture_sim(
-    config: Annotated[Optional[Path], typer.Argument(
-        help="TOML or YAML config. Without it: the paper's suturing simulation (W1 and W2, 550 and 800 mm "
-             "arms, 6 mm half circle at 0.5 mm/s, dt 0.01 s).", show_default=False)] = None,
-    store: StoreOpt = None,
-    jobs: JobsOpt = 2,
-    force: ForceOpt = False,
-    quiet: QuietOpt = False,
-    backend: BackendOpt = "threads",
-    scheduler: SchedulerOpt = None,
-) -> None:
-    """Suturing with one arm of the two-armed throat robot (Wei, Xu & Simaan: eqs. 2-32, Figs. 6-7).
-
-    Five-bar, Z-theta stage through the laryngoscope fulcrum, two constant-curvature snake segments:
-    8 inputs for the 6-DoF gripper pose. Each time step takes a weighted least-norm step
-    dq = W^-1 J^T (J W^-1 J^T)^-1 dx (eq. 32) with closed-loop correction. Every combination of weight
-    set, arm length, fulcrum position, task mode (spin | orbit_parallel | orbit_tangent), radius and
-    speed is one run. Rows: run settings, step, t_s, q1_rad..q8_rad (q3 in mm), q1_norm..q8_norm
-    (|q_i / q_imax|), pos_err_mm, rot_err_deg. Ends with the joint ranges of the weight sets side by side.
-    """
-    _run_study_command("suture-sim", config, store, jobs, force, quiet, None, backend, scheduler)
-
-
-def _run_study_command(name, config, store, jobs, force, quiet, chunk_size, backend="threads", scheduler=None,
-                       overrides=None, then_refine=False):
+def _run_study_command(study, config, store, jobs, force, quiet, chunk_size=None, backend="threads", scheduler=None,
+                       flags=()):
     from surgopt.errors import SurgoptError
-    try:
-        from surgopt.store import Store
-        from surgopt.studies import get_study
-        from surgopt.runner import run_study
 
-        study = get_study(name)
+    try:
+        from surgopt.runner import run_study
+        from surgopt.store import Store
+
         cfg, config_name = _load_study_config(study, config)
-        if overrides:
-            cfg = study.Config.model_validate({**cfg.model_dump(), **overrides})
+        updates = {k: v for f in flags if f.config_update for k, v in f.config_update.items()}
+        if updates:
+            cfg = study.config_model.model_validate({**cfg.model_dump(), **updates})
         say = lambda m: typer.echo(m, err=True)  # noqa: E731
         result = run_study(study, cfg, config_name=config_name, store=Store(store), jobs=jobs,
                            force=force, quiet=quiet, chunk=chunk_size, backend=backend, scheduler=scheduler,
                            say=say)
         _report(study, result)
-        if then_refine:
-            rcfg = study.refine_config(cfg, result.table)
-            refined = run_study(study, rcfg, config_name=f"{config_name}+refine", store=Store(store), jobs=jobs,
-                                force=force, quiet=quiet, chunk=1, backend=backend, scheduler=scheduler, say=say)
-            _report(study, refined)
+        for f in flags:
+            if f.follow_up is None:
+                continue
+            follow = run_study(study, f.follow_up(cfg, result.table), config_name=config_name + f.follow_up_suffix,
+                               store=Store(store), jobs=jobs, force=force, quiet=quiet, backend=backend,
+                               scheduler=scheduler, say=say)
+            _report(study, follow)
     except SurgoptError as exc:
         _fail(exc, exc.exit_code)
     except KeyboardInterrupt:
         typer.echo("surgopt: interrupted; finished chunks are stored, run the same command again to resume",
                    err=True)
         raise typer.Exit(130)
+
+
+def _register_studies() -> None:
+    from surgopt.studies import STUDIES, get_study
+
+    for name in STUDIES:
+        _study_command(get_study(name))
+
+
+_register_studies()
 
 
 def _console(min_width: int = 150):
@@ -193,16 +151,16 @@ def _report(study, result) -> None:
         console.print(m)
     run = result.run
     if result.cache_hit:
-        console.print(f"cache hit: {study.NAME} {run.key[:12]} already in {run.path}")
-    summary = study.summarize(result.table)
-    t = Table(title=f"{study.NAME} ({run.manifest['config_name']})", show_header=False)
-    for k, v in summary.items():
+        console.print(f"cache hit: {study.name} {run.key[:12]} already in {run.path}")
+    summary = study.summary(result.table)
+    t = Table(title=f"{study.name} ({run.manifest['config_name']})", show_header=False)
+    for k, v in summary.headline.items():
         t.add_row(k, f"{v:.6g}" if isinstance(v, float) else str(v))
     t.add_row("rows", str(result.table.num_rows))
     t.add_row("time_s", f"{result.elapsed_s:.2f}")
     t.add_row("store", f"{run.path}")
     console.print(t)
-    for title, header, rows in study.tables(result.table):
+    for title, header, rows in summary.tables:
         _print_table(console, title, header, rows)
 
 
@@ -286,7 +244,7 @@ def summarize(
                                                 show_default=False)] = None,
 ) -> None:
     """Summary of a stored run: top designs by the study's objective, its distribution, feasibility,
-    and for suture runs the weight-set comparison. Works on partial runs and says so."""
+    and for studies without an objective their own comparison tables. Works on partial runs and says so."""
     from surgopt.errors import SurgoptError
 
     if fmt not in ("table", "csv", "json", "markdown"):
@@ -315,15 +273,14 @@ def plot(
     store: StoreOpt = None,
     study: StudyOpt = None,
     design: Annotated[Optional[int], typer.Option(
-        "--design", help="raven-sweep: design_id of the workspace figure (default: the best by cost).",
+        "--design", help="The design_id of a study's per-design figure (raven-sweep's common workspace; "
+                         "default: the best by the study's objective).",
         show_default=False)] = None,
 ) -> None:
-    """PNG figures of a stored run in the style of the papers: rcm-grid GII map (Fig. 3) and Table I
-    scatter; raven-sweep common workspace (Figs. 4, 8), zeta over alpha-beta (Fig. 7), theta2 range against
-    Iso_min (Fig. 6); suture-sim |q_i/q_imax| against time per weight set (Fig. 7) and the tracked path."""
+    """PNG figures of a stored run in the style of its paper (each study's own; docs/figures shows them
+    for the paper setups)."""
     from surgopt.errors import SurgoptError
     try:
-        from surgopt.report import figures
         from surgopt.results import config_of, resolve_run
         from surgopt.store import Store
 
@@ -331,7 +288,8 @@ def plot(
         table = r.read_table(st.schema())
         if table.num_rows == 0:
             _fail(f"{r.key[:12]}: the run has no rows yet", 1)
-        paths = figures(st, config_of(st, r), table, out, design)
+        out.mkdir(parents=True, exist_ok=True)
+        paths = st.figures(config_of(st, r), table, out, design)
     except SurgoptError as exc:
         _fail(exc, exc.exit_code)
     for p in paths:
@@ -366,14 +324,14 @@ def check(
         res = run_study(st, cfg, config_name=config.stem, store=Store(store), jobs=jobs, quiet=quiet,
                         say=lambda m: typer.echo(m, err=True))
         if write:
-            write_baseline(res.table, st.KEY_COLUMNS, baseline)
+            write_baseline(res.table, st.key_columns, baseline)
             typer.echo(f"wrote {baseline} ({res.table.num_rows} rows)")
             return
         try:
             base = pq.read_table(baseline)
         except Exception as exc:  # noqa: BLE001 - any unreadable file is bad input
             _fail(f"{baseline}: not a readable Parquet file ({exc})", 2)
-        problems, diffs = compare_tables(res.table, base, st.KEY_COLUMNS, rtol, atol)
+        problems, diffs = compare_tables(res.table, base, st.key_columns, rtol, atol)
     except SurgoptError as exc:
         _fail(exc, exc.exit_code)
     for p in problems:
@@ -381,7 +339,7 @@ def check(
     if diffs:
         typer.echo(f"FAIL: {len(diffs)} value(s) differ beyond rtol={rtol:g}, atol={atol:g}; worst:")
         for d in diffs[:8]:
-            typer.echo(f"  {d.column} at {dict(zip(st.KEY_COLUMNS, d.key))}: baseline {d.baseline!r}, now "
+            typer.echo(f"  {d.column} at {dict(zip(st.key_columns, d.key))}: baseline {d.baseline!r}, now "
                        f"{d.current!r} (relative {d.rel:.3g})")
     if problems or diffs:
         raise typer.Exit(1)

@@ -1,6 +1,6 @@
 """Finding stored runs from a key prefix or a config, and comparing tables with baselines.
 
-Orchestration only: no kinematics. A study module supplies Config, KEY_COLUMNS and schema().
+Orchestration only: no kinematics. Studies are read through their ``Study`` declaration.
 """
 from __future__ import annotations
 
@@ -16,17 +16,17 @@ from surgopt.studies import STUDIES, get_study
 
 
 def study_of_config(path: Path, study_name: str | None):
-    """(study module, validated config) for a config file; the study is inferred when unambiguous."""
+    """(study, validated config) for a config file; the study is inferred when unambiguous."""
     if study_name is not None:
         if study_name not in STUDIES:
             raise UsageError(f"--study: unknown study {study_name!r} (one of {', '.join(STUDIES)})")
         study = get_study(study_name)
-        return study, load_config(path, study.Config)
+        return study, load_config(path, study.config_model)
     fits, errors = [], []
     for name in STUDIES:
         study = get_study(name)
         try:
-            fits.append((study, load_config(path, study.Config)))
+            fits.append((study, load_config(path, study.config_model)))
         except ConfigError as exc:
             if "file not found" in str(exc) or "not valid" in str(exc) or "unknown config format" in str(exc):
                 raise
@@ -35,17 +35,17 @@ def study_of_config(path: Path, study_name: str | None):
         return fits[0]
     if not fits:
         raise ConfigError(str(path), "fits no study's config: " + " | ".join(errors))
-    raise UsageError(f"{path}: fits several studies ({', '.join(s.NAME for s, _ in fits)}); add --study NAME")
+    raise UsageError(f"{path}: fits several studies ({', '.join(s.name for s, _ in fits)}); add --study NAME")
 
 
 def resolve_run(store: Store, ref: str | None, study_name: str | None = None):
     """(study, run) for a key prefix, a config file, or (ref None) the latest run."""
     if ref is not None and Path(ref).is_file():
         study, cfg = study_of_config(Path(ref), study_name)
-        run = store.open(study.NAME, study_key(study.NAME, cfg, study.KERNEL_VERSION))
+        run = store.open(study.name, study_key(study.name, cfg, study.kernel_version))
         if run is None:
-            raise UsageError(f"{ref}: no stored {study.NAME} run for this config in {store.root}; "
-                             f"run `surgopt {study.NAME} {ref}` first")
+            raise UsageError(f"{ref}: no stored {study.name} run for this config in {store.root}; "
+                             f"run `surgopt {study.name} {ref}` first")
         return study, run
     runs = store.runs(study_name)
     if ref is not None:
@@ -61,7 +61,7 @@ def resolve_run(store: Store, ref: str | None, study_name: str | None = None):
 
 
 def config_of(study, run: Run):
-    return study.Config.model_validate(run.manifest["config"])
+    return study.config_model.model_validate(run.manifest["config"])
 
 
 @dataclass

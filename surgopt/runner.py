@@ -1,7 +1,7 @@
 """Runner: tasks -> joblib workers -> progress bar -> single writer (the parent).
 
-Knows nothing of kinematics: a study module supplies ``n_tasks``,
-``warm_up``, ``compute_task`` and ``schema`` (see ``surgopt.studies``).
+Knows nothing of kinematics: a ``Study`` (``surgopt.studies``) supplies ``n_tasks``,
+``warm_up``, ``compute_task`` and ``schema``; workers look the study up by name.
 """
 from __future__ import annotations
 
@@ -9,7 +9,6 @@ import contextlib
 import os
 import time
 from dataclasses import dataclass, field
-from pathlib import Path
 
 from surgopt.config import study_key
 from surgopt.errors import UsageError
@@ -38,8 +37,14 @@ def _compute(study_name: str, cfg, chunk: int, index: int):
 
 def _progress(quiet: bool):
     from rich.console import Console
-    from rich.progress import (BarColumn, MofNCompleteColumn, Progress, TextColumn,
-                               TimeElapsedColumn, TimeRemainingColumn)
+    from rich.progress import (
+        BarColumn,
+        MofNCompleteColumn,
+        Progress,
+        TextColumn,
+        TimeElapsedColumn,
+        TimeRemainingColumn,
+    )
 
     progress = Progress(
         TextColumn("[bold]{task.description}"),
@@ -80,19 +85,19 @@ def run_study(study, cfg, *, config_name: str, store: Store, jobs: int = DEFAULT
 
     t0 = time.perf_counter()
     schema = study.schema()
-    key = study_key(study.NAME, cfg, study.KERNEL_VERSION)
-    run = store.open(study.NAME, key)
+    key = study_key(study.name, cfg, study.kernel_version)
+    run = store.open(study.name, key)
     if run is not None and run.complete and not force and not store.bad_parts(run):
         table = run.read_table(schema)
         return RunResult(run, table, True, 0, time.perf_counter() - t0)
 
-    with store.lock(study.NAME, key, on_wait=lambda who: say(f"waiting for {who} to finish this study ...")):
+    with store.lock(study.name, key, on_wait=lambda who: say(f"waiting for {who} to finish this study ...")):
         chunk = chunk or study.auto_chunk(cfg)
-        existing = None if force else store.open(study.NAME, key)
+        existing = None if force else store.open(study.name, key)
         if existing is not None:
             chunk = existing.manifest["chunk"]  # parts already cut this way
-        run = store.begin(study.NAME, key, config=cfg.model_dump(mode="json"),
-                          config_name=config_name, kernel_version=study.KERNEL_VERSION,
+        run = store.begin(study.name, key, config=cfg.model_dump(mode="json"),
+                          config_name=config_name, kernel_version=study.kernel_version,
                           n_tasks=study.n_tasks(cfg, chunk), chunk=chunk, force=force)
         total = run.manifest["n_tasks"]
         missing = [i for i in range(total) if i not in run.done_tasks()]
@@ -111,7 +116,7 @@ def _dispatch(study, cfg, chunk, missing, run, store, jobs, quiet, total, schema
     progress = _progress(quiet)
     t_start = time.perf_counter()
     with progress:
-        bar = progress.add_task(study.NAME, total=total, completed=total - len(missing), rate="")
+        bar = progress.add_task(study.name, total=total, completed=total - len(missing), rate="")
         done_now = 0
 
         def record(index, cols):
@@ -123,21 +128,21 @@ def _dispatch(study, cfg, chunk, missing, run, store, jobs, quiet, total, schema
 
         if backend in ("threads", "loky") and (jobs == 1 or len(missing) == 1):
             for i in missing:
-                record(*_compute(study.NAME, cfg, chunk, i))
+                record(*_compute(study.name, cfg, chunk, i))
             return
         if backend == "threads":
-            _dispatch_threads(study.NAME, cfg, chunk, missing, jobs, record)
+            _dispatch_threads(study.name, cfg, chunk, missing, jobs, record)
             return
         from joblib import Parallel, delayed, parallel_config
 
-        tasks = (delayed(_compute)(study.NAME, cfg, chunk, i) for i in missing)
+        tasks = (delayed(_compute)(study.name, cfg, chunk, i) for i in missing)
         if backend == "loky":
             with parallel_config(backend="loky", n_jobs=jobs, inner_max_num_threads=1):
                 for index, cols in Parallel(return_as="generator_unordered")(tasks):
                     record(index, cols)
             return
         with _dask_client(scheduler, jobs) as client:
-            _prepare_dask_workers(client, study.NAME, cfg)
+            _prepare_dask_workers(client, study.name, cfg)
             with parallel_config(backend="dask"):
                 for index, cols in Parallel(return_as="generator_unordered")(tasks):
                     record(index, cols)

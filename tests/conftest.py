@@ -44,3 +44,13 @@ def wait_for_parts(store, study, n, proc, timeout=120):
             raise AssertionError("finished before it could be interrupted")
         time.sleep(0.005)
     raise AssertionError("no parts appeared")
+
+
+def cli(*args, check=True, **kw):
+    """Run ``python -m surgopt ARGS`` in a subprocess; with ``check``, fail on a non-zero exit."""
+    import subprocess
+
+    r = subprocess.run([sys.executable, "-m", "surgopt", *map(str, args)], capture_output=True, text=True, **kw)
+    if check and r.returncode != 0:
+        raise AssertionError(f"exit {r.returncode}\n{r.stdout}\n{r.stderr}")
+    return r

@@ -2,11 +2,14 @@
 
 Every numba kernel in ``surgopt.kinematics`` is tested against a function here.
 These use textbook formulations (4x4 DH matrices, angles via atan2/acos, dense
-``np.linalg`` inverse and SVD) that share no code with the kernels.
+``np.linalg`` inverse and SVD, bisection, per-cell polygons) that share no code with the kernels
+or the studies: only the robots' parameter tables (``surgopt/robots``, data) are read.
 """
 from __future__ import annotations
 
 import numpy as np
+
+from surgopt.robots import pa10_7c, raven_iv
 
 # ---------------------------------------------------------------------------
 # PA10-7C (Locke & Patel 2007)
@@ -28,17 +31,11 @@ def dh_standard(theta, d, a, alpha):
 
 
 def pa10_dh_table(d1, d3, d5, d7):
-    """(d, a, alpha) rows of the PA10-7C standard DH table, joints S1..W2."""
-    h = np.pi / 2
-    return [
-        (d1, 0.0, -h),
-        (0.0, 0.0, h),
-        (d3, 0.0, -h),
-        (0.0, 0.0, h),
-        (d5, 0.0, -h),
-        (0.0, 0.0, h),
-        (d7, 0.0, 0.0),
-    ]
+    """(d, a, alpha) rows of the PA10-7C standard DH table, joints S1..W2, read from the robot's
+    model file (``surgopt/robots/pa10_7c.py``: data, no code shared with the kernels)."""
+    links = (d1, d3, d5, d7)
+    return [(0.0 if k is None else links[k], 0.0, np.radians(alpha))
+            for k, alpha in zip(pa10_7c.DH_D_LINK, pa10_7c.DH_ALPHA_DEG)]
 
 
 def pa10_frames(q7, links):
@@ -264,10 +261,8 @@ def weighted_least_norm_kkt(J, w, dx):
 
 def raven_tool_axis(theta1, theta2, alpha, beta, left=True):
     """z3 of the spherical mechanism (theta3 = 0) by plain DH matrix products."""
-    if left:
-        rows = [(theta1, np.pi - alpha), (-theta2, -beta), (np.pi / 2, 0.0)]
-    else:
-        rows = [(np.pi - theta1, np.pi - alpha), (theta2, -beta), (1.5 * np.pi, 0.0)]
+    (s1, o1), (s2, o2), (s3, o3) = raven_iv.DH_THETA_ROWS["left" if left else "right"]
+    rows = [(s1 * theta1 + o1, np.pi - alpha), (s2 * theta2 + o2, -beta), (o3, 0.0)]
     T = np.eye(4)
     for th, al in rows:
         T = T @ dh_standard(th, 0.0, 0.0, al)
@@ -339,3 +334,117 @@ def raven_isotropy_from_cos_psi(cos_psi, alpha, beta):
         J = np.array([[c2 * cb * sa + sb * ca, sb], [s2 * sa, 0.0]])  # eq. 41's top-left block
         out[idx] = isotropy_2x2(J)
     return out
+
+
+def raven_isotropy_at(theta2, alpha, beta):
+    """Iso (eq. 35) at one theta2: 1/cond of eq. 41's top-left block by SVD."""
+    c2, s2 = np.cos(theta2), np.sin(theta2)
+    sa, ca, sb, cb = np.sin(alpha), np.cos(alpha), np.sin(beta), np.cos(beta)
+    return isotropy_2x2(np.array([[c2 * cb * sa + sb * ca, sb], [s2 * sa, 0.0]]))
+
+
+def raven_theta2_interval(alpha, beta, iso_min, lo, hi, n_scan=4001, tol=1e-13):
+    """{theta2 in [lo, hi] : Iso >= iso_min} as (t_lo, t_hi), or None: a dense scan finds the
+    qualifying samples, bisection on the SVD isotropy refines each end."""
+    t = np.linspace(lo, hi, n_scan)
+    ok = np.array([raven_isotropy_at(x, alpha, beta) >= iso_min for x in t])
+    if not ok.any():
+        return None
+    idx = np.flatnonzero(ok)
+
+    def crossing(good, bad):
+        while abs(good - bad) > tol:
+            m = 0.5 * (good + bad)
+            if raven_isotropy_at(m, alpha, beta) >= iso_min:
+                good = m
+            else:
+                bad = m
+        return good
+
+    t_lo = t[idx[0]] if idx[0] == 0 else crossing(t[idx[0]], t[idx[0] - 1])
+    t_hi = t[idx[-1]] if idx[-1] == n_scan - 1 else crossing(t[idx[-1]], t[idx[-1] + 1])
+    return t_lo, t_hi
+
+
+def _rotation(axis, deg):
+    """Rotation about a coordinate axis by Rodrigues' formula, entries below 1e-15 set to zero."""
+    k = np.zeros(3)
+    k[axis] = 1.0
+    K = np.array([[0, -k[2], k[1]], [k[2], 0, -k[0]], [-k[1], k[0], 0]])
+    a = np.radians(deg)
+    R = np.eye(3) + np.sin(a) * K + (1 - np.cos(a)) * K @ K
+    R[np.abs(R) < 1e-15] = 0.0
+    return R
+
+
+def raven_four_arm_frames(bx, by, phi_x, phi_y, phi_z, tilt_deg=90.0):
+    """Ports and shoulder axes of the four-arm layout (ports (-+bx/2, +-by/2), arms 1 and 3 on the left,
+    axes tilted outward along x by ``tilt_deg`` from vertical, turned by Rz Ry Rx with phi_y, phi_z
+    mirrored for the left arms): the layout docs/reproduction.md describes, written out."""
+    ports = np.array([[-bx / 2, by / 2, 0], [bx / 2, by / 2, 0], [-bx / 2, -by / 2, 0], [bx / 2, -by / 2, 0]], float)
+    axes = []
+    for left in (True, False, True, False):
+        out = -1.0 if left else 1.0
+        u = np.array([out * np.sin(np.radians(tilt_deg)), 0.0, np.cos(np.radians(tilt_deg))])
+        u[np.abs(u) < 1e-15] = 0.0
+        m = -1.0 if left else 1.0
+        axes.append(_rotation(2, m * phi_z) @ _rotation(1, m * phi_y) @ _rotation(0, phi_x) @ u)
+    return ports, np.array(axes)
+
+
+def raven_plane_nodes(ports, depth, d4_max, step):
+    """Multiples of ``step`` from two below to two above the box where every arm reaches the plane."""
+    r = np.sqrt(d4_max ** 2 - depth ** 2)
+    lo = (ports[:, :2] - r).max(axis=0)
+    hi = (ports[:, :2] + r).min(axis=0)
+    return [np.arange(np.floor(lo[i] / step) - 2, np.ceil(hi[i] / step) + 3) * step for i in (0, 1)]
+
+
+def zero_contour(margin, step):
+    """(length, area) of {margin > 0} on a grid (rows = x) with linearly interpolated edges:
+    ``cell_contour`` on each cell that straddles the boundary, whole cells inside counted as 1."""
+    v0, v1, v2, v3 = margin[:-1, :-1], margin[1:, :-1], margin[1:, 1:], margin[:-1, 1:]
+    n_in = (v0 > 0).astype(int) + (v1 > 0) + (v2 > 0) + (v3 > 0)
+    length, area = 0.0, float((n_in == 4).sum())
+    for i, j in zip(*np.nonzero((n_in > 0) & (n_in < 4))):
+        dl, da = cell_contour((v0[i, j], v1[i, j], v2[i, j], v3[i, j]))
+        length += dl
+        area += da
+    return length * step, area * step * step
+
+
+def raven_designs_brute_force(ports, axes, depth, step, d4_max, alphas, betas, isos, theta2_range):
+    """Every (alpha, beta, Iso_min) design of one geometry, design by design and arm by arm.
+
+    A node of the plane belongs to the common workspace when, for every arm, the angle psi between its
+    shoulder axis and the direction to the node lies strictly inside the cone interval that theta2's
+    range narrowed by Iso_min allows (eq. 22), and the node is within d4_max. Isotropy of a node: the
+    minimum over the arms of the SVD isotropy. The boundary is the zero contour of the margin
+    min((lo - c_lo) d_lo, (c_hi - hi) d_hi, min(d4_max - dist)), lo and hi the arms' lowest and
+    highest cos psi and d_lo, d_hi those arms' distances. Rows (area mm^2, perimeter mm, points,
+    iso sum, iso min).
+    """
+    xs, ys = raven_plane_nodes(ports, depth, d4_max, step)
+    cos_psi, dist = raven_cone_fields(xs, ys, depth, ports, axes)
+    lo, hi = cos_psi.min(axis=0), cos_psi.max(axis=0)
+    cols = np.arange(lo.size)
+    d_lo, d_hi = dist[cos_psi.argmin(axis=0), cols], dist[cos_psi.argmax(axis=0), cols]
+    reach = (d4_max - dist).min(axis=0)
+    lo2, hi2 = np.radians(theta2_range[0]), np.radians(theta2_range[1])
+    rows = []
+    for a in alphas:
+        for b in betas:
+            iso_node = raven_isotropy_from_cos_psi(cos_psi, a, b).min(axis=0)
+            for m in isos:
+                span = raven_theta2_interval(a, b, m, lo2, hi2)
+                if span is None:
+                    rows.append((0.0, 0.0, 0, 0.0, 1.0))
+                    continue
+                psi = [np.arccos(np.clip(np.sin(a) * np.sin(b) * np.cos(t) - np.cos(a) * np.cos(b), -1, 1))
+                       for t in span]
+                c_lo, c_hi = np.cos(psi[1]), np.cos(psi[0])
+                inside = np.all((cos_psi > c_lo) & (cos_psi < c_hi) & (dist < d4_max), axis=0)
+                margin = np.minimum(reach, np.minimum((lo - c_lo) * d_lo, (c_hi - hi) * d_hi))
+                length, area = zero_contour(margin.reshape(xs.size, ys.size), step) if inside.any() else (0.0, 0.0)
+                rows.append((area, length, int(inside.sum()), iso_node[inside].sum(), iso_node[inside].min(initial=1.0)))
+    return np.array(rows, dtype=float)

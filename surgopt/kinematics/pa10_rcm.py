@@ -31,12 +31,30 @@ symmetric in y is evaluated on its y >= 0 half (``mirror_half``).
 """
 from __future__ import annotations
 
+from typing import NamedTuple
+
 import numpy as np
 from numba import njit
 from numpy.polynomial import chebyshev as _chebyshev
 
 from surgopt.jit import CONTRACT
 from surgopt.kinematics.small_linalg import cross_components
+
+
+class Pa10Arm(NamedTuple):
+    """The PA10-7C as the RCM kernels see it (``surgopt/robots/pa10_7c.py``; S3 = W2 = 0).
+
+    ``links_m``: (d1, d3, d5); ``tool_offset_m``: wrist centre to tool tip along the tool axis;
+    ``elbow_sign``: +1 elbow up, -1 down; ``qdot_max``: rated speeds of S1, S2, E1, E2, W1 (rad/s),
+    the diagonal of Q; ``cos_limit``: cos of each of those joints' symmetric range (-1: unlimited).
+    """
+
+    links_m: np.ndarray
+    tool_offset_m: float
+    elbow_sign: float
+    qdot_max: np.ndarray
+    cos_limit: np.ndarray
+
 
 #: J_a counts as singular when a constraint row or sigma_min of B falls below this fraction of sigma_max.
 SINGULAR_RTOL = 1e-12
@@ -354,8 +372,9 @@ def pose_extremes_sq(cx, cy, cz, px, py, pz, kx, ky, kz, wx, wy, wz, d1, d3, d5,
 
 
 @njit(**CONTRACT)
-def alternative_jacobian(p, c, links_m, tool_offset_m, elbow_sign, qdot_max, cos_limit):
-    """J_a Q (5x5, eq. 8: rows x, y, z, e_x, e_y) at tip p about RCM c, and reachability."""
+def alternative_jacobian(p, c, arm):
+    """J_a Q (5x5, eq. 8: rows x, y, z, e_x, e_y) at tip p about RCM c for a ``Pa10Arm``, and reachability."""
+    links_m, tool_offset_m, elbow_sign, qdot_max, cos_limit = arm
     kx, ky, kz, wx, wy, wz, nx, ny, _, ex, ey, ez, fx, fy, fz, ok = rcm_ik(
         p[0], p[1], p[2], c[0], c[1], c[2], links_m[0], links_m[1], links_m[2], tool_offset_m, elbow_sign,
         cos_limit[0], cos_limit[1], cos_limit[2], cos_limit[3], cos_limit[4])
@@ -445,7 +464,7 @@ def workspace_geometry(offsets, tool_offset_m):
     return g
 
 
-def _probe_points(offsets):
+def probe_points(offsets):
     """Indices of the 8 corner-most and 6 face-most points: where a workspace is left first."""
     signs = np.array([[sx, sy, sz] for sx in (-1, 1) for sy in (-1, 1) for sz in (-1, 1)]
                      + [[s if i == a else 0 for i in range(3)] for a in range(3) for s in (-1, 1)], float)
@@ -453,8 +472,14 @@ def _probe_points(offsets):
     return np.unique(np.argmax(centred @ signs.T, axis=0)).astype(np.int64)
 
 
-def pose_singular_values(points, rcm, links_m, tool_offset_m, elbow_sign, qdot_max, cos_limit):
-    """Per-point (sigma_min, sigma_max, status) for tips ``points`` (N, 3) about one RCM."""
+def pose_singular_values(points, rcm, arm: Pa10Arm):
+    """Per-point (sigma_min, sigma_max, status) for tips ``points`` (N, 3) about one RCM.
+
+    Worked example (tests): the paper's best RCM (0.535, 0, -0.210) m from the shoulder, i.e.
+    (0.535, 0, 0.107) m in the base frame, tip 0.1 m straight below it, the default arm
+    (587 mm tool from the flange, Table I speeds): sigma_min 0.070968, sigma_max 1.019961 m/s.
+    """
+    links_m, tool_offset_m, elbow_sign, qdot_max, cos_limit = arm
     points = np.asarray(points, dtype=np.float64).reshape(-1, 3)
     rcm = np.asarray(rcm, dtype=np.float64)
     geom = workspace_geometry(np.ascontiguousarray(points - rcm), tool_offset_m)
@@ -497,20 +522,21 @@ def _candidates_extremes(rcms, geom, mult, probes, d1, d3, d5, elbow_sign, q, cl
     return out_min, out_max, out_unr, out_sing
 
 
-def rcm_candidates_extremes(rcms, offsets, links_m, tool_offset_m, elbow_sign, qdot_max, cos_limit,
-                            mirror=True):
+def rcm_candidates_extremes(rcms, offsets, arm: Pa10Arm, mirror=True, probe_first=True):
     """For each RCM candidate: min sigma_min, max sigma_max over the workspace.
 
     ``rcms`` (M, 3) candidate RCMs (y = 0 for ``mirror``), ``offsets`` (P, 3)
-    workspace points relative to the RCM, ``links_m`` (d1, d3, d5). Returns
+    workspace points relative to the RCM, ``arm`` a ``Pa10Arm``. Returns
     (sigma_min (M,), sigma_max (M,), n_unreachable (M,), n_singular (M,));
     the GII (eq. 7) is sigma_min / sigma_max when n_unreachable == 0. The
     workspace's corner and face points are tried first (IK only); when one
     is out of reach the candidate only gets its unreachable count (IK only,
     a fifth of the cost) and sigma = 0, n_singular = 0. With ``mirror``
     and RCMs on y = 0, a y-symmetric workspace is evaluated on its y >= 0
-    half (``mirror_half``): 9 of 17 layers for the paper's cube.
+    half (``mirror_half``): 9 of 17 layers for the paper's cube. ``probe_first`` False skips the
+    corner and face probes (the result is the same; only the order of work differs).
     """
+    links_m, tool_offset_m, elbow_sign, qdot_max, cos_limit = arm
     rcms = np.ascontiguousarray(rcms, dtype=np.float64).reshape(-1, 3)
     offsets = np.ascontiguousarray(offsets, dtype=np.float64).reshape(-1, 3)
     if mirror and np.all(rcms[:, 1] == 0.0):
@@ -518,7 +544,8 @@ def rcm_candidates_extremes(rcms, offsets, links_m, tool_offset_m, elbow_sign, q
     else:
         mult = np.ones(offsets.shape[0], np.int64)
     geom = workspace_geometry(offsets, tool_offset_m)
-    return _candidates_extremes(rcms, geom, mult, _probe_points(offsets), links_m[0], links_m[1], links_m[2],
+    probes = probe_points(offsets) if probe_first else np.empty(0, np.int64)
+    return _candidates_extremes(rcms, geom, mult, probes, links_m[0], links_m[1], links_m[2],
                                 elbow_sign, np.asarray(qdot_max, np.float64), np.asarray(cos_limit, np.float64))
 
 
@@ -551,8 +578,7 @@ def _candidate_bounded(cx, cy, cz, geom, mult, d1, d3, d5, elbow_sign, q, cl, gi
     return np.sqrt(lo), np.sqrt(hi), n_unr, n_sing, n_eval
 
 
-def rcm_candidate_bounded(rcm, offsets, links_m, tool_offset_m, elbow_sign, qdot_max,
-                          cos_limit, gii_to_beat, block, mirror=True):
+def rcm_candidate_bounded(rcm, offsets, arm: Pa10Arm, gii_to_beat, block, mirror=True):
     """Culling step (Stocco & Salcudean): evaluate one candidate block by block.
 
     The running ratio min sigma_min / max sigma_max over the points seen so
@@ -563,6 +589,7 @@ def rcm_candidate_bounded(rcm, offsets, links_m, tool_offset_m, elbow_sign, qdot
     Put the points most likely to be worst first in ``offsets`` (the mirror
     reduction keeps their order).
     """
+    links_m, tool_offset_m, elbow_sign, qdot_max, cos_limit = arm
     rcm = np.asarray(rcm, dtype=np.float64)
     offsets = np.ascontiguousarray(offsets, dtype=np.float64).reshape(-1, 3)
     if mirror and rcm[1] == 0.0:

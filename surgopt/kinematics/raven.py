@@ -7,21 +7,47 @@ arms 1 and 3, False for 2 and 4 (``surgopt/robots/raven_iv.py``).
 from __future__ import annotations
 
 import math
+from typing import NamedTuple
 
 import numpy as np
 from numba import njit
 
 from surgopt.jit import EXACT, VECTOR
-
 from surgopt.kinematics.small_linalg import mat_mul, rigid_inverse
 from surgopt.robots import raven_iv
-
 
 # joint ranges of Table I (surgopt/robots/raven_iv.py), as compile-time constants
 THETA2_MIN_RAD, THETA2_MAX_RAD = (math.radians(v) for v in raven_iv.THETA2_RANGE_DEG)
 THETA3_MAX_RAD = math.radians(raven_iv.THETA3_RANGE_DEG[1])
 THETA6_MAX_RAD = math.radians(raven_iv.THETA6_RANGE_DEG[1])
 D4_MIN_MM, D4_MAX_MM = raven_iv.D4_RANGE_MM
+# DH theta of rows 1-3 as sign * q + offset (surgopt/robots/raven_iv.py)
+(_L1S, _L1O), (_L2S, _L2O), (_L3S, _L3O) = raven_iv.DH_THETA_ROWS["left"]
+(_R1S, _R1O), (_R2S, _R2O), (_R3S, _R3O) = raven_iv.DH_THETA_ROWS["right"]
+
+
+class PlaneGrid(NamedTuple):
+    """The reference plane the common workspace is measured on (Sec. III-A)."""
+
+    depth_mm: float  # below the ports
+    step_mm: float  # node spacing
+    d4_max_mm: float  # tool insertion limit: the reach of every arm
+
+
+class DesignGrid(NamedTuple):
+    """The (alpha, beta, Iso_min) designs evaluated for each geometry, with their cone-angle intervals.
+
+    ``psi_lo_rad``, ``psi_hi_rad``, ``has_interval`` are (A, B, I): the angle psi between the shoulder
+    axis and the tool axis that theta2's range, narrowed by Iso_min, allows (``cone_angle_intervals``
+    in ``surgopt.kinematics.raven_workspace``); ``has_interval`` False where no theta2 qualifies.
+    """
+
+    alphas_rad: np.ndarray
+    betas_rad: np.ndarray
+    iso_mins: np.ndarray
+    psi_lo_rad: np.ndarray
+    psi_hi_rad: np.ndarray
+    has_interval: np.ndarray
 
 
 # ---------------------------------------------------------------------------
@@ -43,10 +69,18 @@ def dh_transform(theta, d, a, alpha):
 
 @njit(**EXACT)
 def dh_angles(q, left):
-    """DH theta of rows 1-3 from the joint variables (Table I)."""
+    """DH theta of rows 1-3 from the joint variables (Table I; ``raven_iv.DH_THETA_ROWS``)."""
     if left:
-        return q[0], -q[1], math.pi / 2 - q[2]
-    return math.pi - q[0], q[1], 1.5 * math.pi + q[2]
+        return _dh_theta(q[0], _L1S, _L1O), _dh_theta(q[1], _L2S, _L2O), _dh_theta(q[2], _L3S, _L3O)
+    return _dh_theta(q[0], _R1S, _R1O), _dh_theta(q[1], _R2S, _R2O), _dh_theta(q[2], _R3S, _R3O)
+
+
+@njit(inline="always", **EXACT)
+def _dh_theta(q, sign, offset):
+    """sign * q + offset, with q's own zero sign kept when there is no offset."""
+    if offset == 0.0:
+        return q if sign > 0 else -q
+    return offset + q if sign > 0 else offset - q
 
 
 @njit(**EXACT)
@@ -458,9 +492,33 @@ def plane_grid(ports, depth, d4_max, step):
         hi_x, hi_y = min(hi_x, ports[a, 0] + reach), min(hi_y, ports[a, 1] + reach)
     if hi_x <= lo_x or hi_y <= lo_y:
         return np.zeros(0), np.zeros(0)
-    xs = np.arange(math.floor(lo_x / step) - 2, math.ceil(hi_x / step) + 3) * step
-    ys = np.arange(math.floor(lo_y / step) - 2, math.ceil(hi_y / step) + 3) * step
-    return xs, ys
+    return _grid_axis(lo_x, hi_x, step), _grid_axis(lo_y, hi_y, step)
+
+
+@njit(**EXACT)
+def covering_plane_grid(ports, depth, d4_max, step):
+    """Node coordinates (xs, ys) covering every point some arm can reach, 2 nodes of margin (figures)."""
+    reach = math.sqrt(d4_max * d4_max - depth * depth)
+    lo_x, lo_y = np.inf, np.inf
+    hi_x, hi_y = -np.inf, -np.inf
+    for a in range(ports.shape[0]):
+        lo_x, lo_y = min(lo_x, ports[a, 0] - reach), min(lo_y, ports[a, 1] - reach)
+        hi_x, hi_y = max(hi_x, ports[a, 0] + reach), max(hi_y, ports[a, 1] + reach)
+    return _grid_axis(lo_x, hi_x, step), _grid_axis(lo_y, hi_y, step)
+
+
+@njit(inline="always", **EXACT)
+def _grid_axis(lo, hi, step):
+    """Multiples of step from 2 below floor(lo / step) to 2 above ceil(hi / step)."""
+    return np.arange(math.floor(lo / step) - 2, math.ceil(hi / step) + 3) * step
+
+
+@njit(**VECTOR)
+def node_margins(bounds, c_lo, c_hi, out):
+    """``_node_margin`` of every node for the cone interval [c_lo, c_hi] of cos psi (figures)."""
+    lo, hi, d_lo, d_hi, reach, _ = bounds
+    for k in range(out.shape[0]):
+        out[k] = _node_margin(lo, hi, d_lo, d_hi, reach, k, c_lo, c_hi)
 
 
 @njit(**VECTOR)
@@ -523,12 +581,11 @@ def _count_above(lmin, m):
 
 
 @njit(**EXACT)
-def evaluate_designs(bounds, nx, ny, step, alphas, betas, iso_mins, psi_lo, psi_hi, has, out):
+def evaluate_designs(bounds, nx, ny, step, designs, out):
     """All (alpha, beta, Iso_min) designs of one geometry (ports and shoulder axes fixed).
 
-    ``bounds``: ``plane_node_bounds`` of the geometry's plane grid. ``psi_lo``,
-    ``psi_hi``, ``has``: (A, B, I) cone-angle interval allowed by the theta2
-    range narrowed by Iso_min (``has`` False: no theta2 qualifies). A node is in
+    ``bounds``: ``plane_node_bounds`` of the geometry's plane grid; ``designs``:
+    a ``DesignGrid`` (the designs and the cone-angle interval of each). A node is in
     the common workspace when for every arm psi_lo < psi < psi_hi and
     dist < d4_max (theta1 unlimited); marching squares runs on the margin of
     ``_node_margin`` (zero on the boundary). A node's isotropy is the minimum
@@ -546,6 +603,8 @@ def evaluate_designs(bounds, nx, ny, step, alphas, betas, iso_mins, psi_lo, psi_
     margin of each design whose boundary crosses them.
     """
     lo, hi, d_lo, d_hi, reach, member = bounds
+    alphas, betas, iso_mins = designs.alphas_rad, designs.betas_rad, designs.iso_mins
+    psi_lo, psi_hi, has = designs.psi_lo_rad, designs.psi_hi_rad, designs.has_interval
     n_iso = iso_mins.shape[0]
     order = np.argsort(iso_mins)
     level = np.zeros(nx * ny, np.int64)
@@ -642,12 +701,14 @@ def evaluate_designs(bounds, nx, ny, step, alphas, betas, iso_mins, psi_lo, psi_
 
 
 @njit(**EXACT)
-def evaluate_geometries(ports, axes, depth, step, d4_max, alphas, betas, iso_mins, psi_lo, psi_hi, has, out):
-    """``evaluate_designs`` for G geometries: ``ports``, ``axes`` (G, arms, 3); ``out`` (G*A*B*I, 6).
+def evaluate_geometries(ports, axes, plane, designs, out):
+    """``evaluate_designs`` for G geometries: ``ports``, ``axes`` (G, arms, 3) mm and unit vectors,
+    ``plane`` a ``PlaneGrid``, ``designs`` a ``DesignGrid``; ``out`` (G*A*B*I, 6).
 
     The loop over geometries runs here, without the interpreter (and the GIL).
     """
-    per = alphas.shape[0] * betas.shape[0] * iso_mins.shape[0]
+    depth, step, d4_max = plane.depth_mm, plane.step_mm, plane.d4_max_mm
+    per = designs.alphas_rad.shape[0] * designs.betas_rad.shape[0] * designs.iso_mins.shape[0]
     for g in range(ports.shape[0]):
         block = out[g * per:(g + 1) * per]
         block[:, :] = 0.0
@@ -655,4 +716,4 @@ def evaluate_geometries(ports, axes, depth, step, d4_max, alphas, betas, iso_min
         if xs.shape[0] == 0:
             continue
         bounds = plane_node_bounds(xs, ys, depth, ports[g], axes[g], d4_max)
-        evaluate_designs(bounds, xs.shape[0], ys.shape[0], step, alphas, betas, iso_mins, psi_lo, psi_hi, has, block)
+        evaluate_designs(bounds, xs.shape[0], ys.shape[0], step, designs, block)

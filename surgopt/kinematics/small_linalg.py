@@ -11,7 +11,6 @@ from numba import njit
 from surgopt.jit import EXACT
 
 
-
 @njit(**EXACT)
 def mat_mul(A, B):
     """Matrix product of small matrices."""

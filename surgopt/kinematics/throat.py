@@ -1,8 +1,7 @@
 """Throat-robot arm (Wei, Xu & Simaan): five-bar, Z-theta stage, two snake segments.
 
-Kernels only (numba). Lengths in mm, angles in rad. The geometry vector
-``geo`` holds [l1, l2, l3, l4, l5, l6, La, L_slu, L_pmu, PF_x, PF_y, PF_z,
-branch] (see ``surgopt/robots/throat_arm.py``); joint vector q =
+Kernels only (numba). Lengths in mm, angles in rad. The arm's geometry travels as a
+``ThroatGeometry`` named tuple (see ``surgopt/robots/throat_arm.py``); joint vector q =
 [q1, q2, q3, q4, theta_L, delta, phi_L', psi].
 
 Frames follow the paper's Sec. III-A: {w} at the five-bar base (z normal to
@@ -14,13 +13,35 @@ the end-effector.
 """
 from __future__ import annotations
 
+from typing import NamedTuple
+
 import numpy as np
 from numba import njit
 
 from surgopt.jit import EXACT
-
 from surgopt.kinematics.small_linalg import cross, dot, mat_mul, mat_vec, solve_spd
+from surgopt.kinematics.throat_modes import SutureMode
 
+
+class ThroatGeometry(NamedTuple):
+    """One arm's fixed geometry (mm): five-bar links (Table I), holder and segment lengths, fulcrum."""
+
+    l1_mm: float  # ground link
+    l2_mm: float  # actuated (q2)
+    l3_mm: float  # distal, on the l2 side
+    l4_mm: float  # distal, on the l5 side
+    l5_mm: float  # actuated (q1)
+    l6_mm: float  # extension of l3 to the end-effector P_U
+    arm_length_mm: float  # DDU holder La
+    slu_length_mm: float
+    pmu_length_mm: float
+    fulcrum_mm: np.ndarray  # P_F (3,) in {w}
+    branch: float  # +1: C left of the directed line D -> B, -1: right
+
+
+MODE_SPIN = int(SutureMode.SPIN)
+MODE_ORBIT_PARALLEL = int(SutureMode.ORBIT_PARALLEL)
+MODE_ORBIT_TANGENT = int(SutureMode.ORBIT_TANGENT)
 
 #: theta_0 = phi_0 = pi/2: a straight segment (Simaan's notation).
 THETA0 = np.pi / 2
@@ -93,12 +114,12 @@ def five_bar(q1, q2, geo):
 
     D = [l5 sin q1, l5 cos q1 - l1/2] (eq. 3), B = [l2 sin q2, l2 cos q2 +
     l1/2] (eq. 4), C at distance l4 from D and l3 from B on the side of the
-    line D -> B given by geo[12] (+1 left, -1 right), P_U = B + l6 u with
+    line D -> B given by geo.branch (+1 left, -1 right), P_U = B + l6 u with
     u = (C - B)/l3 = x_t (eqs. 5-6). Returns P_U (2), u (2), dP_U/dq (2x2),
     du/dq (2x2), and the closure determinant (0 at a five-bar singularity,
     NaN when the loop cannot close).
     """
-    l1, l2, l3, l4, l5, l6 = geo[0], geo[1], geo[2], geo[3], geo[4], geo[5]
+    l1, l2, l3, l4, l5, l6 = geo.l1_mm, geo.l2_mm, geo.l3_mm, geo.l4_mm, geo.l5_mm, geo.l6_mm
     s1, c1, s2, c2 = np.sin(q1), np.cos(q1), np.sin(q2), np.cos(q2)
     D = np.array([l5 * s1, l5 * c1 - l1 / 2])
     B = np.array([l2 * s2, l2 * c2 + l1 / 2])
@@ -107,7 +128,7 @@ def five_bar(q1, q2, geo):
     a = (l4 * l4 - l3 * l3 + d * d) / (2 * d)
     h = np.sqrt(l4 * l4 - a * a)  # NaN when the loop cannot close
     eh = e / d
-    C = D + a * eh + geo[12] * h * np.array([-eh[1], eh[0]])
+    C = D + a * eh + geo.branch * h * np.array([-eh[1], eh[0]])
     u = (C - B) / l3
     P = B + l6 * u
     # rates: (C-D).(dC - dD) = 0, (C-B).(dC - dB) = 0
@@ -136,7 +157,7 @@ def arm_frame(P_U, u, geo):
     """Snake-arm frame {d}: z_d from P_U through P_F, y_d = z_d x x_t / |.|, x_d = y_d x z_d (eq. 7)."""
     PU = np.array([P_U[0], P_U[1], 0.0])
     xt = np.array([u[0], u[1], 0.0])
-    r = geo[9:12] - PU
+    r = geo.fulcrum_mm - PU
     rho = np.sqrt(dot(r, r))
     z = r / rho
     yr = cross(z, xt)
@@ -159,11 +180,11 @@ def arm_chain(q, geo):
     Rd = np.empty((3, 3))
     Rd[:, 0], Rd[:, 1], Rd[:, 2] = x, y, z
     Rb = mat_mul(Rd, rot_z(q[3]))
-    PD = PU + (geo[6] + q[2]) * z
-    seg1 = segment_kinematics(q[4], q[5], geo[7])
+    PD = PU + (geo.arm_length_mm + q[2]) * z
+    seg1 = segment_kinematics(q[4], q[5], geo.slu_length_mm)
     PL = PD + mat_vec(Rb, seg1[0])
     Rg = mat_mul(Rb, seg1[1])
-    seg2 = segment_kinematics(q[6], q[7], geo[8])
+    seg2 = segment_kinematics(q[6], q[7], geo.pmu_length_mm)
     PE = PL + mat_vec(Rg, seg2[0])
     return dP, du, PU, xt, x, y, z, rho, ny, Rb, PD, seg1, PL, Rg, seg2, PE, mat_mul(Rg, seg2[1])
 
@@ -197,7 +218,7 @@ def jacobian(q, geo):
         dy = (dyr - y * dot(y, dyr)) / ny
         dx = cross(dy, z) + cross(y, dz)
         w = dot(dy, z) * x + dot(dz, x) * y + dot(dx, y) * z
-        dPD = dPU + (geo[6] + q[2]) * dz
+        dPD = dPU + (geo.arm_length_mm + q[2]) * dz
         J[:3, j] = dPD + cross(w, PE - PD)
         J[3:, j] = w
     J[:3, 2] = z
@@ -248,11 +269,6 @@ def _axis_rotation(axis, a):
     """Rodrigues rotation matrix about a unit axis."""
     K = np.array([[0.0, -axis[2], axis[1]], [axis[2], 0.0, -axis[0]], [-axis[1], axis[0], 0.0]])
     return np.eye(3) + np.sin(a) * K + (1 - np.cos(a)) * mat_mul(K, K)
-
-
-MODE_SPIN = 0
-MODE_ORBIT_PARALLEL = 1
-MODE_ORBIT_TANGENT = 2
 
 
 @njit(**EXACT)

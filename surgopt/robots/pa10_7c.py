@@ -40,13 +40,15 @@ JOINT_NAMES = ("S1", "S2", "S3", "E1", "E2", "W1", "W2")
 #: Joints moved in the RCM study (S3 = W2 = 0, [LP07] Sec. III-A).
 ACTIVE_JOINTS = ("S1", "S2", "E1", "E2", "W1")
 
-#: DH alpha of each joint (rad); d comes from the link lengths below.
-DH_ALPHA_RAD = (-math.pi / 2, math.pi / 2, -math.pi / 2, math.pi / 2,
-                -math.pi / 2, math.pi / 2, 0.0)
+#: Standard DH alpha of each joint (deg); a = 0 for every joint, d from the link lengths below
+#: (d1 on S1, d3 on S3, d5 on E2, d7 on W2, zero elsewhere). Read by tests/reference.py.
+DH_ALPHA_DEG = (-90.0, 90.0, -90.0, 90.0, -90.0, 90.0, 0.0)
+#: Which link length (index into LINKS_BIELEFELD_M) is each joint's DH d, or None for d = 0.
+DH_D_LINK = (0, None, 1, None, 2, None, 3)
 
-#: Link lengths (m) [KIN]: (d1, d3, d5, d7).
+#: Link lengths (m) [KIN]: (d1, d3, d5, d7). The other published set, (0.315, 0.45, 0.50, 0.08),
+#: is one config field away (robot.link_d*_m); docs/reproduction.md compares the two.
 LINKS_BIELEFELD_M = (0.317, 0.45, 0.48, 0.07)
-LINKS_ROUNDED_M = (0.315, 0.45, 0.50, 0.08)
 
 #: Joint ranges (deg) [MHI].
 JOINT_LIMIT_DEG = {"S1": 177.0, "S2": 91.0, "S3": 174.0, "E1": 137.0,

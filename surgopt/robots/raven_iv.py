@@ -19,14 +19,20 @@ theta3, d4, theta5, theta6:
 wrist rows.) Ranges (Table I): theta2 in [20, 140] deg, theta3 and theta6 in
 [-86, 86] deg, d4 in [0, 250] mm; theta1 and theta5 unlisted (unlimited).
 
-Defaults for tests from the open-source Raven II code: link angles 75 / 52
-deg, wrist-to-jaw length a5 = 13 mm.
+The kernels read the theta columns of rows 1-3 from ``DH_THETA_ROWS`` below
+(theta_i = sign * q_i + offset) and the ranges from the constants; the rest
+of each row (d, a, alpha) is fixed by the mechanism and written out in
+``surgopt.kinematics.raven``.
 """
 from __future__ import annotations
 
-RAVEN_II_ALPHA_DEG = 75.0
-RAVEN_II_BETA_DEG = 52.0
-RAVEN_II_A5_MM = 13.0
+import math
+
+#: DH theta of rows 1-3 as (sign, offset rad) applied to theta1, theta2, theta3, per arm side (Table I).
+DH_THETA_ROWS = {
+    "left": ((1.0, 0.0), (-1.0, 0.0), (-1.0, math.pi / 2)),
+    "right": ((-1.0, math.pi), (1.0, 0.0), (1.0, 1.5 * math.pi)),
+}
 THETA2_RANGE_DEG = (20.0, 140.0)
 THETA3_RANGE_DEG = (-86.0, 86.0)
 THETA6_RANGE_DEG = (-86.0, 86.0)

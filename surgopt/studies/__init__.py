@@ -1,22 +1,92 @@
-"""One module per study: config -> tasks (chunks) -> kernel calls -> Arrow table; summaries.
+"""Studies: each one declared object (``Study``) that turns a config into tasks and tasks into rows.
 
-A study module provides:
-  NAME, KERNEL_VERSION, Config (pydantic model), DEFAULT_CONFIG (file name in
-  surgopt/defaults), SCHEMA (pyarrow schema, built lazily by ``schema()``),
-  ``auto_chunk(cfg)``, ``n_tasks(cfg, chunk)``, ``warm_up(cfg)``, ``compute_task(cfg, chunk, i)`` ->
-  dict of numpy columns, ``summarize(table)`` -> dict and ``tables(table)`` ->
-  [(title, header, rows)] for the command's closing report.
+The orchestration (``runner``, ``store``, ``results``, ``report``, ``cli``) reads a study only
+through this protocol and knows no study by name; the registry below is the one place that lists
+them. A new study is a module under ``surgopt/studies`` that defines ``STUDY = Study(...)``, its
+figures under ``surgopt/studies/figures``, an embedded default config in ``surgopt/defaults``, and
+one line in ``STUDIES`` (docs/architecture.md, "Adding a study").
 """
 from __future__ import annotations
 
 import importlib
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Callable, Mapping
 
-STUDIES = {"rcm-grid": "surgopt.studies.rcm_grid", "suture-sim": "surgopt.studies.suture_sim",
-           "raven-sweep": "surgopt.studies.raven_sweep"}
+#: Study name (the CLI command) -> module defining ``STUDY``.
+STUDIES = {"rcm-grid": "surgopt.studies.rcm_grid", "raven-sweep": "surgopt.studies.raven_sweep",
+           "suture-sim": "surgopt.studies.suture_sim"}
 
 
-def get_study(name: str):
-    return importlib.import_module(STUDIES[name])
+@dataclass(frozen=True)
+class Summary:
+    """What a study says about a table, computed once: the closing report, ``summarize`` and ``check``
+    all read it.
+
+    ``headline``: the run's headline numbers (snake_case keys, units in the names);
+    ``feasibility``: counts of feasible and infeasible designs (or runs);
+    ``tables``: study-specific tables as (title, header, rows).
+    """
+
+    headline: dict[str, Any]
+    feasibility: dict[str, int]
+    tables: list[tuple[str, list[str], list[list]]] = field(default_factory=list)
+
+
+@dataclass(frozen=True)
+class Flag:
+    """A boolean command-line flag of one study.
+
+    ``config_update`` is merged into the config before the run (``--cull``: ``{"search": "cull"}``);
+    ``follow_up(cfg, table)`` returns the config of a second run made after the first and stored
+    beside it (``--refine``), named ``<config name><follow_up_suffix>``.
+    """
+
+    option: str
+    help: str
+    config_update: Mapping[str, Any] | None = None
+    follow_up: Callable[[Any, Any], Any] | None = None
+    follow_up_suffix: str = ""
+
+    @property
+    def dest(self) -> str:
+        return self.option.lstrip("-").replace("-", "_")
+
+
+@dataclass(frozen=True)
+class Study:
+    """One study: config model -> tasks -> rows (a dict of numpy columns per task) -> summary, figures.
+
+    ``compute_task(cfg, chunk, index)`` must be a pure function of its arguments (it runs in threads,
+    worker processes or on a cluster); ``warm_up(cfg)`` compiles the kernels in the parent first.
+    ``objective`` ranks designs (descending) in ``summarize``; None compares runs side by side.
+    ``figures(cfg, table, out_dir, design_id)`` writes PNG files and returns their paths.
+    """
+
+    name: str
+    kernel_version: str
+    config_model: type
+    default_config: str
+    help: str
+    config_help: str
+    schema: Callable[[], Any]
+    key_columns: tuple[str, ...]
+    objective: str | None
+    auto_chunk: Callable[[Any], int]
+    n_tasks: Callable[[Any, int], int]
+    warm_up: Callable[[Any], None]
+    compute_task: Callable[[Any, int, int], dict]
+    summary: Callable[[Any], Summary]
+    feasible_mask: Callable[[Any], Any]
+    figures: Callable[[Any, Any, Path, int | None], list[Path]]
+    flags: tuple[Flag, ...] = ()
+    chunked: bool = True  # False: one task per run, no --chunk-size
+
+
+def get_study(name: str) -> Study:
+    """The declared study of that name (``KeyError`` for an unknown one)."""
+    return importlib.import_module(STUDIES[name]).STUDY
 
 
 #: Work per task the automatic chunk size aims at (s on one core), and the fewest tasks it makes.
@@ -26,8 +96,6 @@ MIN_TASKS = 32
 
 def chunk_for_seconds(n_items: int, seconds_per_item: float) -> int:
     """Items per task for ~TARGET_TASK_S of work each, but at least MIN_TASKS tasks when possible."""
-    import math
-
     by_time = max(1, int(TARGET_TASK_S / max(seconds_per_item, 1e-12)))
     by_count = max(1, math.ceil(n_items / MIN_TASKS))
     return min(by_time, by_count)

@@ -3,22 +3,37 @@
 config -> geometries (phi_x, phi_y, phi_z, bx, by) -> chunks -> per geometry all
 (alpha, beta, Iso_min) designs share the per-node cone angles -> one row per
 design: common workspace on the reference plane, zeta = area / circumference
-(eq. 33), isotropy sum and cost C (eq. 43).
+(eq. 33), isotropy sum and cost C (eq. 43). The workspace itself is computed by
+``surgopt.kinematics.raven_workspace``; this module holds the config, the rows
+and the study's declaration.
 """
 from __future__ import annotations
 
 import itertools
 import math
-import threading
 from typing import Literal
 
 import numpy as np
 from pydantic import Field, model_validator
 
 from surgopt.config import StrictModel
+from surgopt.metrics import raven_cost, workspace_compactness
 from surgopt.robots import raven_iv
+from surgopt.studies import Flag, Study, Summary
+from surgopt.studies.search import compass_search
 
 NAME = "raven-sweep"
+HELP = """Raven IV port placement and link design (Li, Glozman, Milutinovic, Rosen, ICRA 2011: eqs. 1-43,
+    Table II, Figs. 4, 6-8).
+
+    For every design (alpha, beta, phi_x, phi_y, phi_z, bx, by, Iso_min) the common workspace of all arms
+    on a plane 150 mm below the ports: a point belongs to an arm when its tool axis can point there with
+    theta2 in the range narrowed by Iso_min and d4 <= 250 mm. Rows: the eight parameters, area_cm2,
+    perimeter_cm, zeta_cm (eq. 33), iso_sum, iso_mean, iso_area_cm2, iso_min_actual, n_points,
+    cost (eq. 43), source (grid | refine). Ends with the top designs and the rank of the paper's optimum.
+    """
+CONFIG_HELP = ("TOML or YAML config. Without it: the paper's Table II sweep (250,000 designs: alpha, beta "
+             "5-90 deg step 20; phi +-20 deg step 10; bx, by 50-200 mm step 50; Iso_min 0.1-0.9 step 0.2).")
 KERNEL_VERSION = "raven-3"
 DEFAULT_CONFIG = "raven_table2.toml"
 #: Cost model for choosing chunks: ~5 ns per plane node and design on one core (docs/performance.md).
@@ -138,158 +153,57 @@ Config = RavenSweepConfig
 
 
 # ---------------------------------------------------------------------------
-# geometry
+# config -> the workspace driver's inputs
 # ---------------------------------------------------------------------------
 
 
-def _cos_sin_deg(deg: float) -> tuple[float, float]:
-    """cos and sin of an angle in degrees, exact at multiples of 90 (cos 90 deg is 0, not 6e-17)."""
-    if deg % 90 == 0:
-        return ((1.0, 0.0), (0.0, 1.0), (-1.0, 0.0), (0.0, -1.0))[int(deg // 90) % 4]
-    return math.cos(math.radians(deg)), math.sin(math.radians(deg))
+def arm_layout(geo: Geometry):
+    """The workspace driver's ``ArmLayout`` for this geometry."""
+    from surgopt.kinematics.raven_workspace import ArmLayout
+
+    return ArmLayout(geo.n_arms, None if geo.ports_mm is None else tuple(tuple(p) for p in geo.ports_mm),
+                     None if geo.left_arms is None else tuple(geo.left_arms), geo.shoulder_tilt_deg,
+                     geo.shoulder_tilt_toward, geo.mirror_left_phi)
 
 
-def _rot(axis: int, deg: float) -> np.ndarray:
-    c, s = _cos_sin_deg(deg)
-    if axis == 0:
-        return np.array([[1, 0, 0], [0, c, -s], [0, s, c]])
-    if axis == 1:
-        return np.array([[c, 0, s], [0, 1, 0], [-s, 0, c]])
-    return np.array([[c, -s, 0], [s, c, 0], [0, 0, 1]])
+def plane(geo: Geometry):
+    """The kernels' ``PlaneGrid`` for this geometry."""
+    from surgopt.kinematics.raven import PlaneGrid
 
-
-def arms(geo: Geometry, phi_x: float, phi_y: float, phi_z: float, bx: float, by: float):
-    """Ports (n, 3) and shoulder-axis directions (n, 3) in the world frame.
-
-    Ports: 4 arms at (-bx/2, +by/2), (+bx/2, +by/2), (-bx/2, -by/2), (+bx/2, -by/2)
-    (arms 1-4, left arms 1 and 3), 2 arms at (-+bx/2, 0), 1 arm at 0.
-    Axis 1 at phi = 0: vertical (out of the patient), tilted outward by
-    ``shoulder_tilt_deg`` along x (away from the other side's arms) or along y
-    (away from the other pair), per ``shoulder_tilt_toward``; then R = Rz(phi_z) Ry(phi_y) Rx(phi_x) about the
-    port, with phi_y, phi_z negated for left arms when ``mirror_left_phi``
-    (the mirror image of a right arm's rotation).
-    """
-    if geo.ports_mm is not None:
-        ports = [(p[0], p[1]) for p in geo.ports_mm]
-    elif geo.n_arms == 4:
-        ports = [(-bx / 2, by / 2), (bx / 2, by / 2), (-bx / 2, -by / 2), (bx / 2, -by / 2)]
-    elif geo.n_arms == 2:
-        ports = [(-bx / 2, 0.0), (bx / 2, 0.0)]
-    else:
-        ports = [(0.0, 0.0)]
-    left = geo.left_arms if geo.left_arms is not None else [i % 2 == 0 for i in range(geo.n_arms)]
-    P = np.array([[x, y, 0.0] for x, y in ports])
-    A = np.empty((geo.n_arms, 3))
-    ct, st = _cos_sin_deg(geo.shoulder_tilt_deg)
-    for i, is_left in enumerate(left):
-        if geo.shoulder_tilt_toward == "x":
-            out = -1.0 if is_left else 1.0
-            u0 = np.array([out * st, 0.0, ct])
-        else:
-            out = 1.0 if P[i, 1] >= 0 else -1.0
-            u0 = np.array([0.0, out * st, ct])
-        m = -1.0 if (is_left and geo.mirror_left_phi) else 1.0
-        R = _rot(2, m * phi_z) @ _rot(1, m * phi_y) @ _rot(0, phi_x)
-        A[i] = R @ u0
-    return P, A
-
-
-def plane_grid(geo: Geometry, ports: np.ndarray):
-    """Node coordinates covering every point all arms can reach (|X - port| <= d4_max)."""
-    from surgopt.kinematics.raven import plane_grid as kernel_plane_grid
-
-    return kernel_plane_grid(np.ascontiguousarray(ports, dtype=np.float64), float(geo.depth_mm),
-                             float(geo.d4_max_mm), float(geo.step_mm))
+    return PlaneGrid(geo.depth_mm, geo.step_mm, geo.d4_max_mm)
 
 
 def geometry_grid(cfg: RavenSweepConfig) -> list[tuple[float, float, float, float, float]]:
+    """Every (phi_x, phi_y, phi_z, bx, by) of the sweep, in a fixed order."""
     sw = cfg.sweep
     return list(itertools.product(values(sw.phi_x_deg), values(sw.phi_y_deg), values(sw.phi_z_deg),
                                   values(sw.bx_mm), values(sw.by_mm)))
 
 
-def psi_intervals(cfg: RavenSweepConfig, alphas, betas, isos):
-    """Cone-angle interval per (alpha, beta, Iso_min) from the theta2 range narrowed by Iso_min."""
-    from surgopt.kinematics.raven import cone_angle, theta2_interval
-
-    lo2, hi2 = (math.radians(v) for v in cfg.geometry.theta2_range_deg)
-    shape = (len(alphas), len(betas), len(isos))
-    plo, phi_, has = np.zeros(shape), np.zeros(shape), np.zeros(shape, bool)
-    for (i, a), (j, b), (k, m) in itertools.product(enumerate(alphas), enumerate(betas), enumerate(isos)):
-        t_lo, t_hi, ok = theta2_interval(a, b, m, lo2, hi2)
-        plo[i, j, k], phi_[i, j, k], has[i, j, k] = cone_angle(t_lo, a, b), cone_angle(t_hi, a, b), ok
-    return plo, phi_, has
-
-
-def evaluate(cfg: RavenSweepConfig, geometry, alphas_deg, betas_deg, isos, intervals=None):
-    """Metrics (A*B*I, 6) of every design of one geometry (see ``evaluate_designs``)."""
-    return evaluate_many(cfg, [geometry], alphas_deg, betas_deg, isos, intervals)
-
-
-#: Metrics of geometries already evaluated in this process, keyed by everything they depend on
-#: (see ``evaluate_many``); cleared when it would grow past MEMO_MAX_BYTES.
-_MEMO: dict[bytes, np.ndarray] = {}
-_MEMO_LOCK = threading.Lock()
-MEMO_MAX_BYTES = 64 * 2 ** 20
-
-
-def evaluate_many(cfg: RavenSweepConfig, geometries, alphas_deg, betas_deg, isos, intervals=None):
-    """Metrics (G*A*B*I, 6) of every design of G geometries, geometry-major (``evaluate_geometries``).
-
-    Geometries whose ports and shoulder axes come out identical share one
-    evaluation: in this batch, and across batches of this process (a memo
-    keyed by the exact ports, axes, plane and design lists). In the paper's
-    Table II with horizontal shoulder axes along x, phi_x turns each axis
-    about itself, so its five values give one geometry: 400 of the 2000 are
-    distinct. ``intervals``: ``psi_intervals`` for these alphas, betas,
-    Iso_mins, when already known (they do not depend on the geometry).
-    """
-    from surgopt.kinematics.raven import evaluate_geometries
+def evaluate(cfg: RavenSweepConfig, geometries, alphas_deg, betas_deg, isos) -> np.ndarray:
+    """Metrics (G*A*B*I, 6) of every design of these geometries (``evaluate_many``)."""
+    from surgopt.kinematics.raven_workspace import evaluate_many
 
     geo = cfg.geometry
-    per = len(alphas_deg) * len(betas_deg) * len(isos)
-    pa = [arms(geo, *g) for g in geometries]
-    ports = np.array([p for p, _ in pa], dtype=np.float64).reshape(len(pa), geo.n_arms, 3) + 0.0  # -0.0 -> 0.0
-    axes = np.array([a for _, a in pa], dtype=np.float64).reshape(len(pa), geo.n_arms, 3) + 0.0
-    al = np.radians(np.asarray(alphas_deg, float))
-    be = np.radians(np.asarray(betas_deg, float))
-    iso = np.asarray(isos, float)
-    context = np.concatenate([[geo.depth_mm, geo.step_mm, geo.d4_max_mm, *geo.theta2_range_deg, len(al), len(be)],
-                              al, be, iso]).tobytes()
-    keys = [context + ports[g].tobytes() + axes[g].tobytes() for g in range(len(pa))]
-    out = np.zeros((len(pa) * per, 6))
-    todo: dict[bytes, list[int]] = {}
-    with _MEMO_LOCK:
-        for g, key in enumerate(keys):
-            if key in _MEMO:
-                out[g * per:(g + 1) * per] = _MEMO[key]
-            else:
-                todo.setdefault(key, []).append(g)
-    if not todo:
-        return out
-    first = [gs[0] for gs in todo.values()]
-    plo, phi_, has = intervals if intervals is not None else psi_intervals(cfg, al, be, iso)
-    fresh = np.zeros((len(first) * per, 6))
-    evaluate_geometries(np.ascontiguousarray(ports[first]), np.ascontiguousarray(axes[first]), float(geo.depth_mm),
-                        float(geo.step_mm), float(geo.d4_max_mm), al, be, iso, plo, phi_, has, fresh)
-    with _MEMO_LOCK:
-        if (len(_MEMO) + len(todo)) * fresh.itemsize * per * 6 > MEMO_MAX_BYTES:
-            _MEMO.clear()
-        for u, (key, gs) in enumerate(todo.items()):
-            block = fresh[u * per:(u + 1) * per]
-            _MEMO[key] = block
-            for g in gs:
-                out[g * per:(g + 1) * per] = block
-    return out
+    return evaluate_many(arm_layout(geo), plane(geo), geo.theta2_range_deg, geometries, alphas_deg, betas_deg, isos)
+
+
+def design_fields(cfg: RavenSweepConfig, params: dict):
+    """xs, ys, ports, per-arm and common margins of one design (``raven_workspace.design_fields``)."""
+    from surgopt.kinematics.raven_workspace import design_fields as workspace_fields
+
+    geo = cfg.geometry
+    g = tuple(params[p] for p in ("phi_x_deg", "phi_y_deg", "phi_z_deg", "bx_mm", "by_mm"))
+    return workspace_fields(arm_layout(geo), plane(geo), geo.theta2_range_deg, g, params["alpha_deg"],
+                             params["beta_deg"], params["iso_min"])
 
 
 def _rows(params: np.ndarray, metrics: np.ndarray, step_mm: float, ids: np.ndarray, source: str) -> dict:
     area_cm2 = metrics[:, 0] / 100.0
     per_cm = metrics[:, 1] / 10.0
-    zeta = np.where(per_cm > 0, area_cm2 / np.where(per_cm > 0, per_cm, 1.0), 0.0)
+    zeta = workspace_compactness(area_cm2, per_cm)
     n_pts = metrics[:, 2]
     iso_sum = metrics[:, 3]
-    a3 = np.radians(params[:, 0]) ** 3 + np.radians(params[:, 1]) ** 3
     cols = {"design_id": ids.astype(np.int64)}
     for i, p in enumerate(PARAMS):
         cols[p] = params[:, i].copy()
@@ -298,10 +212,15 @@ def _rows(params: np.ndarray, metrics: np.ndarray, step_mm: float, ids: np.ndarr
         "iso_mean": np.where(n_pts > 0, iso_sum / np.where(n_pts > 0, n_pts, 1.0), 0.0),
         "iso_area_cm2": iso_sum * step_mm * step_mm / 100.0,
         "iso_min_actual": metrics[:, 4], "n_points": n_pts.astype(np.int64),
-        "cost": zeta * iso_sum * params[:, 7] / a3,
+        "cost": raven_cost(zeta, iso_sum, params[:, 7], np.radians(params[:, 0]), np.radians(params[:, 1])),
         "source": [source] * len(ids),
     })
     return cols
+
+
+# ---------------------------------------------------------------------------
+# tasks
+# ---------------------------------------------------------------------------
 
 
 def schema():
@@ -336,7 +255,7 @@ def n_tasks(cfg: RavenSweepConfig, chunk: int) -> int:
 
 def warm_up(cfg: RavenSweepConfig) -> None:
     small = cfg.model_copy(update={"geometry": cfg.geometry.model_copy(update={"step_mm": 20.0})})
-    evaluate(small, (0.0, 0.0, 0.0, 100.0, 50.0), [45.0], [45.0], [0.5])
+    evaluate(small, [(0.0, 0.0, 0.0, 100.0, 50.0)], [45.0], [45.0], [0.5])
 
 
 def compute_task(cfg: RavenSweepConfig, chunk: int, index: int) -> dict:
@@ -354,62 +273,42 @@ def compute_task(cfg: RavenSweepConfig, chunk: int, index: int) -> dict:
         p[:, 0], p[:, 1], p[:, 7] = design[:, 0], design[:, 1], design[:, 2]
         p[:, 2:7] = g
         params.append(p)
-    metrics = evaluate_many(cfg, geos[g0:g1], al, be, iso)
+    metrics = evaluate(cfg, geos[g0:g1], al, be, iso)
     ids = np.arange(g0 * per_geo, g1 * per_geo)
     return _rows(np.vstack(params), metrics, cfg.geometry.step_mm, ids, "grid")
 
 
-def _bounds(cfg: RavenSweepConfig):
+# ---------------------------------------------------------------------------
+# refine: a compass search from the grid's best designs
+# ---------------------------------------------------------------------------
+
+
+def sweep_bounds(cfg: RavenSweepConfig) -> list[tuple[float, float]]:
+    """(lowest, highest) value of each parameter in the sweep, in PARAMS order."""
     return [(min(values(getattr(cfg.sweep, p))), max(values(getattr(cfg.sweep, p)))) for p in PARAMS]
 
 
-def _cost_of(cfg: RavenSweepConfig, x) -> tuple[float, np.ndarray]:
-    m = evaluate(cfg, tuple(x[2:7]), [x[0]], [x[1]], [x[7]])
-    row = _rows(np.asarray([x]), m, cfg.geometry.step_mm, np.zeros(1), "refine")
-    return float(row["cost"][0]), m[0]
-
-
 def refine_from(cfg: RavenSweepConfig, start, index: int) -> dict:
-    """Compass (coordinate) search inside the sweep's bounds from one grid design.
+    """Compass search (``surgopt.studies.search``) inside the sweep's bounds from one grid design.
 
-    Each parameter is tried at +-step; an improvement moves there; when no
-    direction improves every step halves. Steps start at half the grid
-    spacing (or 1/8 of the range for listed values). Stops after
-    ``refine.max_evals`` evaluations or when steps fall below 1e-3 of the range.
+    Steps start at half the grid spacing (or 1/8 of the range for listed values);
+    ``refine.max_evals`` evaluations at most. One row per evaluated design.
     """
-    bounds = _bounds(cfg)
-    x = np.array(start, float)
+    bounds = sweep_bounds(cfg)
     steps = []
     for p, (lo, hi) in zip(PARAMS, bounds):
         spec = getattr(cfg.sweep, p)
         steps.append(spec.step / 2 if isinstance(spec, Span) else (hi - lo) / 8 or 0.0)
-    steps = np.array(steps)
-    best, best_m = _cost_of(cfg, x)
-    params, metrics = [x.copy()], [best_m]
-    evals = 1
-    while evals < cfg.refine.max_evals and np.any(steps > 1e-3 * np.maximum(1e-9, [hi - lo for lo, hi in bounds])):
-        improved = False
-        for i in range(8):
-            if steps[i] == 0:
-                continue
-            for sgn in (1.0, -1.0):
-                y = x.copy()
-                y[i] = min(bounds[i][1], max(bounds[i][0], y[i] + sgn * steps[i]))
-                if y[i] == x[i]:
-                    continue
-                c, m = _cost_of(cfg, y)
-                evals += 1
-                params.append(y.copy())
-                metrics.append(m)
-                if c > best:
-                    best, x, improved = c, y, True
-                    break
-            if evals >= cfg.refine.max_evals:
-                break
-        if not improved:
-            steps = steps / 2
-    ids = np.arange(len(params)) + index * 1_000_000
-    return _rows(np.vstack(params), np.vstack(metrics), cfg.geometry.step_mm, ids, "refine")
+    metrics = []
+
+    def cost(x):
+        m = evaluate(cfg, [tuple(x[2:7])], [x[0]], [x[1]], [x[7]])
+        metrics.append(m[0])
+        return float(_rows(np.asarray([x]), m, cfg.geometry.step_mm, np.zeros(1), "refine")["cost"][0])
+
+    visited = compass_search(cost, start, bounds, steps, cfg.refine.max_evals)
+    ids = np.arange(len(visited)) + index * 1_000_000
+    return _rows(np.vstack(visited), np.vstack(metrics), cfg.geometry.step_mm, ids, "refine")
 
 
 def refine_config(cfg: RavenSweepConfig, table) -> RavenSweepConfig:
@@ -419,6 +318,11 @@ def refine_config(cfg: RavenSweepConfig, table) -> RavenSweepConfig:
     top = table.take(pc.sort_indices(table["cost"], sort_keys=[("cost", "descending")])[:cfg.refine.top_k])
     starts = [[top[p][i].as_py() for p in PARAMS] for i in range(top.num_rows)]
     return cfg.model_copy(update={"search": "refine", "refine": cfg.refine.model_copy(update={"starts": starts})})
+
+
+# ---------------------------------------------------------------------------
+# summary
+# ---------------------------------------------------------------------------
 
 
 def paper_optimum_rank(table):
@@ -437,65 +341,41 @@ def paper_optimum_rank(table):
     return rank, {k: hit[k][0].as_py() for k in hit.column_names}
 
 
-def feasibility(table) -> dict:
+def summary(table) -> Summary:
+    """Designs with a common workspace, the best design by cost, the paper optimum's rank, the top 10."""
     import pyarrow.compute as pc
 
-    f = int(pc.sum(pc.greater(table["n_points"], 0)).as_py() or 0)
-    return {"with_common_workspace": f, "without": table.num_rows - f}
-
-
-def summarize(table) -> dict:
-    import pyarrow.compute as pc
-
-    out = {"designs": table.num_rows, "with_common_workspace": int(pc.sum(pc.greater(table["n_points"], 0)).as_py() or 0)}
+    with_ws = int(pc.sum(pc.greater(table["n_points"], 0)).as_py() or 0)
+    headline = {"designs": table.num_rows, "with_common_workspace": with_ws}
     if table.num_rows:
         i = int(pc.index(table["cost"], pc.max(table["cost"])).as_py())
-        out.update({f"best_{p}": table[p][i].as_py() for p in PARAMS})
-        out.update({"best_cost": table["cost"][i].as_py(), "best_zeta_cm": table["zeta_cm"][i].as_py()})
+        headline.update({f"best_{p}": table[p][i].as_py() for p in PARAMS})
+        headline.update({"best_cost": table["cost"][i].as_py(), "best_zeta_cm": table["zeta_cm"][i].as_py()})
     r = paper_optimum_rank(table)
     if r is not None:
-        out.update({"paper_optimum_rank": r[0], "paper_optimum_cost": r[1]["cost"]})
-    return out
-
-
-def tables(table):
-    import pyarrow.compute as pc
-
+        headline.update({"paper_optimum_rank": r[0], "paper_optimum_cost": r[1]["cost"]})
     top = table.take(pc.sort_indices(table["cost"], sort_keys=[("cost", "descending")])[:10])
     cols = list(PARAMS) + ["zeta_cm", "area_cm2", "iso_mean", "cost"]
     rows = [[f"{top[c][i].as_py():.4g}" for c in cols] for i in range(top.num_rows)]
-    return [("top designs by cost C (eq. 43)", cols, rows)]
-
-
-def design_fields(cfg: RavenSweepConfig, params: dict):
-    """Plane grid and margins of one design, per arm and common (for figures).
-
-    Returns xs, ys (mm), per-arm margin (arms, nx, ny) and the common margin
-    (nx, ny); a margin is positive inside, zero on the boundary (mm).
-    """
-    from surgopt.kinematics.raven import arm_cone_geometry
-
-    geo = cfg.geometry
-    g = tuple(params[p] for p in ("phi_x_deg", "phi_y_deg", "phi_z_deg", "bx_mm", "by_mm"))
-    ports, axes = arms(geo, *g)
-    reach = math.sqrt(geo.d4_max_mm ** 2 - geo.depth_mm ** 2)
-    s = geo.step_mm
-    lo = ports[:, :2].min(axis=0) - reach
-    hi = ports[:, :2].max(axis=0) + reach
-    xs = np.arange(math.floor(lo[0] / s) - 2, math.ceil(hi[0] / s) + 3) * s
-    ys = np.arange(math.floor(lo[1] / s) - 2, math.ceil(hi[1] / s) + 3) * s
-    n = xs.size * ys.size
-    al, be = math.radians(params["alpha_deg"]), math.radians(params["beta_deg"])
-    plo, phi_, has = psi_intervals(cfg, np.array([al]), np.array([be]), np.array([params["iso_min"]]))
-    margins = np.empty((len(ports), xs.size, ys.size))
-    for a in range(len(ports)):
-        c, dist = np.empty(n), np.empty(n)
-        arm_cone_geometry(xs, ys, geo.depth_mm, ports[a], axes[a], c, dist)
-        c_lo, c_hi = math.cos(phi_[0, 0, 0]), math.cos(plo[0, 0, 0])
-        m = np.minimum(geo.d4_max_mm - dist, np.minimum((c - c_lo) * dist, (c_hi - c) * dist))
-        margins[a] = (m if has[0, 0, 0] else np.full(n, -1.0)).reshape(xs.size, ys.size)
-    return xs, ys, ports, margins, margins.min(axis=0)
+    return Summary(headline, {"with_common_workspace": with_ws, "without": table.num_rows - with_ws},
+                   [("top designs by cost C (eq. 43)", cols, rows)])
 
 
 def feasible_mask(table):
     return table["n_points"].to_numpy() > 0
+
+
+def _figures(cfg, table, out, design_id=None):
+    from surgopt.studies.figures.raven_sweep import figures
+
+    return figures(cfg, table, out, design_id)
+
+
+STUDY = Study(
+    name=NAME, kernel_version=KERNEL_VERSION, config_model=RavenSweepConfig, default_config=DEFAULT_CONFIG,
+    help=HELP, config_help=CONFIG_HELP, schema=schema, key_columns=KEY_COLUMNS, objective=OBJECTIVE,
+    auto_chunk=auto_chunk, n_tasks=n_tasks, warm_up=warm_up, compute_task=compute_task, summary=summary,
+    feasible_mask=feasible_mask, figures=_figures,
+    flags=(Flag("--refine", "After the grid, a compass search from the top-k designs inside the sweep's bounds; "
+                            "its rows are stored as a second run.",
+                follow_up=refine_config, follow_up_suffix="+refine"),))

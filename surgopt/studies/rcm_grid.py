@@ -16,8 +16,21 @@ from pydantic import Field, model_validator
 from surgopt.config import StrictModel
 from surgopt.metrics import global_isotropy_index
 from surgopt.robots import pa10_7c
+from surgopt.studies import Flag, Study, Summary
 
 NAME = "rcm-grid"
+HELP = """Global Isotropy Index of candidate remote-centre-of-motion locations for a PA10-7C
+    (Locke & Patel, ICRA 2007: eqs. 5-9, Fig. 3, Table I).
+
+    For every RCM candidate (x, z) the tool tip visits each point of a cube below the RCM with the
+    tool axis through the RCM; closed-form IK (S3 = W2 = 0) and the alternative Jacobian under the RCM
+    constraint give the reverse Jacobian J_r, scaled by the rated joint speeds. GII = min sigma_min /
+    max sigma_max over the cube (eq. 7); a candidate with any unreachable point is infeasible.
+    Rows: candidate_id, x_rcm_m, z_rcm_m, gii, feasible, sigma_min_m_per_s, sigma_max_m_per_s,
+    n_unreachable, n_singular, points_evaluated, gii_is_exact.
+    """
+CONFIG_HELP = ("TOML or YAML config. Without it: the paper's setup (121 x 121 RCM candidates, "
+             "17^3-point 50 mm cube, PA10-7C, 587 mm tool).")
 #: Bump when a kernel change alters results: stored runs then miss the cache.
 KERNEL_VERSION = "pa10-rcm-2"
 DEFAULT_CONFIG = "rcm_locke_patel_2007.toml"
@@ -160,8 +173,10 @@ def workspace_offsets(ws: Workspace) -> np.ndarray:
     return np.ascontiguousarray(np.stack([X.ravel(), Y.ravel(), Z.ravel()], axis=1))
 
 
-def kernel_args(cfg: RcmGridConfig):
-    """(links_m, tool_offset_m, elbow_sign, qdot_max, cos_limit) for the kernels."""
+def arm_model(cfg: RcmGridConfig):
+    """The kernels' ``Pa10Arm`` for this config."""
+    from surgopt.kinematics.pa10_rcm import Pa10Arm
+
     r = cfg.robot
     lim = r.joint_limit_deg
     spd = r.max_joint_speed_rad_s
@@ -169,7 +184,7 @@ def kernel_args(cfg: RcmGridConfig):
     cos_limit = np.array([math.cos(min(math.radians(getattr(lim, j)), math.pi)) for j in names])
     qdot = np.array([getattr(spd, j) for j in names], dtype=np.float64)
     links = np.array([r.link_d1_m, r.link_d3_m, r.link_d5_m])
-    return links, r.tool_offset_m, 1.0 if r.elbow == "up" else -1.0, qdot, cos_limit
+    return Pa10Arm(links, r.tool_offset_m, 1.0 if r.elbow == "up" else -1.0, qdot, cos_limit)
 
 
 # ---------------------------------------------------------------------------
@@ -219,12 +234,12 @@ def warm_up(cfg: RcmGridConfig) -> None:
     """Compile (or load from the on-disk cache) the kernels in the parent."""
     from surgopt.kinematics import pa10_rcm as k
 
-    links, tool, elbow, qdot, cl = kernel_args(cfg)
+    arm = arm_model(cfg)
     rcm = np.array([[0.5, 0.0, 0.1]])
     off = np.array([[0.0, 0.0, -0.1]])
-    k.rcm_candidates_extremes(rcm, off, links, tool, elbow, qdot, cl)
+    k.rcm_candidates_extremes(rcm, off, arm)
     if cfg.search == "cull":
-        k.rcm_candidate_bounded(rcm[0], off, links, tool, elbow, qdot, cl, 0.0, 64)
+        k.rcm_candidate_bounded(rcm[0], off, arm, 0.0, 64)
 
 
 def _rows(ids, xz, lo, hi, n_unr, n_sing, n_eval, exact):
@@ -255,7 +270,7 @@ def compute_task(cfg: RcmGridConfig, chunk: int, index: int) -> dict:
     ids = np.arange(index * chunk, min(xz_all.shape[0], (index + 1) * chunk))
     xz = xz_all[ids]
     offsets = workspace_offsets(cfg.workspace)
-    lo, hi, n_unr, n_sing = rcm_candidates_extremes(candidate_rcms(cfg, xz), offsets, *kernel_args(cfg))
+    lo, hi, n_unr, n_sing = rcm_candidates_extremes(candidate_rcms(cfg, xz), offsets, arm_model(cfg))
     n_eval = np.full(ids.shape[0], offsets.shape[0])
     return _rows(ids, xz, lo, hi, n_unr, n_sing, n_eval, np.ones(ids.shape[0], bool))
 
@@ -276,11 +291,14 @@ def cull_search(cfg: RcmGridConfig) -> dict:
     Rows: every candidate, ``gii_is_exact`` false where culled (gii is then
     the upper bound reached when it was dropped).
     """
-    from surgopt.kinematics.pa10_rcm import rcm_candidate_bounded, rcm_candidates_extremes
+    from surgopt.kinematics.pa10_rcm import (
+        rcm_candidate_bounded,
+        rcm_candidates_extremes,
+    )
 
     xz = candidate_xz(cfg)
     rcms = candidate_rcms(cfg, xz)
-    args = kernel_args(cfg)
+    arm = arm_model(cfg)
     n = cfg.workspace.points_per_side
     offsets = workspace_offsets(cfg.workspace)
     # worst points first: corners, then edges, faces, centre
@@ -289,7 +307,7 @@ def cull_search(cfg: RcmGridConfig) -> dict:
     offsets_sorted = np.ascontiguousarray(offsets[order])
     pick = sorted({0, n // 2, n - 1})
     sub = np.array([(i * n + j) * n + k for i in pick for j in pick for k in pick])
-    lo, hi, n_unr, n_sing = rcm_candidates_extremes(rcms, offsets[sub], *args)
+    lo, hi, n_unr, n_sing = rcm_candidates_extremes(rcms, offsets[sub], arm)
     ub = global_isotropy_index(lo, hi, n_unr == 0)
     n_eval = np.full(xz.shape[0], sub.shape[0])
     exact = np.zeros(xz.shape[0], bool)
@@ -300,7 +318,7 @@ def cull_search(cfg: RcmGridConfig) -> dict:
             continue
         if ub[i] <= best:
             continue
-        r = rcm_candidate_bounded(rcms[i], offsets_sorted, *args, best, CULL_BLOCK)
+        r = rcm_candidate_bounded(rcms[i], offsets_sorted, arm, best, CULL_BLOCK)
         lo[i], hi[i], n_unr[i], n_sing[i], n_eval[i] = r
         if n_eval[i] == offsets.shape[0] and n_unr[i] == 0:
             exact[i] = True
@@ -310,38 +328,39 @@ def cull_search(cfg: RcmGridConfig) -> dict:
     return _rows(np.arange(xz.shape[0]), xz, lo, hi, n_unr, n_sing, n_eval, exact)
 
 
-def feasibility(table) -> dict:
-    import pyarrow.compute as pc
-
-    f = int(pc.sum(table["feasible"]).as_py() or 0)
-    return {"feasible": f, "infeasible": table.num_rows - f}
-
-
-def summarize(table) -> dict:
-    """Best candidate, its GII and the feasible count of a stored table."""
+def summary(table) -> Summary:
+    """Feasible count, the best candidate whose GII is exact, and the five best such candidates."""
     import pyarrow.compute as pc
 
     n = table.num_rows
     feasible = int(pc.sum(table["feasible"]).as_py() or 0)
+    counts = {"feasible": feasible, "infeasible": n - feasible}
+    headline = {"candidates": n, "feasible": feasible}
     exact = table.filter(table["gii_is_exact"])
-    if exact.num_rows == 0:
-        return {"candidates": n, "feasible": feasible}
-    i = int(pc.index(exact["gii"], pc.max(exact["gii"])).as_py())
-    row = {k: exact[k][i].as_py() for k in ("x_rcm_m", "z_rcm_m", "gii")}
-    return {"candidates": n, "feasible": feasible, "best_x_rcm_m": row["x_rcm_m"],
-            "best_z_rcm_m": row["z_rcm_m"], "best_gii": row["gii"]}
-
-
-def tables(table) -> list[tuple[str, list[str], list[list[str]]]]:
-    """The five best candidates whose GII is exact."""
-    import pyarrow.compute as pc
-
-    exact = table.filter(table["gii_is_exact"])
+    if exact.num_rows:
+        i = int(pc.index(exact["gii"], pc.max(exact["gii"])).as_py())
+        headline.update({f"best_{k}": exact[k][i].as_py() for k in ("x_rcm_m", "z_rcm_m", "gii")})
     top = exact.take(pc.sort_indices(exact["gii"], sort_keys=[("gii", "descending")])[:5])
     rows = [[f"{x:.3f}", f"{z:.3f}", f"{g:.5f}"] for x, z, g in
             zip(top["x_rcm_m"].to_pylist(), top["z_rcm_m"].to_pylist(), top["gii"].to_pylist())]
-    return [("best RCM candidates", ["x_rcm_m", "z_rcm_m", "gii"], rows)]
+    return Summary(headline, counts, [("best RCM candidates", ["x_rcm_m", "z_rcm_m", "gii"], rows)])
 
 
 def feasible_mask(table):
     return table["feasible"].to_numpy(zero_copy_only=False)
+
+
+def _figures(cfg, table, out, design_id=None):
+    from surgopt.studies.figures.rcm_grid import figures
+
+    return figures(cfg, table, out, design_id)
+
+
+STUDY = Study(
+    name=NAME, kernel_version=KERNEL_VERSION, config_model=RcmGridConfig, default_config=DEFAULT_CONFIG,
+    help=HELP, config_help=CONFIG_HELP, schema=schema, key_columns=KEY_COLUMNS, objective=OBJECTIVE,
+    auto_chunk=auto_chunk, n_tasks=n_tasks, warm_up=warm_up, compute_task=compute_task, summary=summary,
+    feasible_mask=feasible_mask, figures=_figures,
+    flags=(Flag("--cull", "Fast exact argmax with the Culling algorithm (Stocco & Salcudean) instead of "
+                          "the full GII map; culled candidates carry an upper bound.",
+                config_update={"search": "cull"}),))

@@ -10,22 +10,33 @@ from __future__ import annotations
 
 import itertools
 import math
-import weakref
 from typing import Annotated, Literal
 
 import numpy as np
 from pydantic import Field, model_validator
 
 from surgopt.config import StrictModel
+from surgopt.kinematics.throat_modes import MODE_NAMES, SutureMode
 from surgopt.robots import throat_arm as arm
+from surgopt.studies import Study, Summary
 
 NAME = "suture-sim"
+HELP = """Suturing with one arm of the two-armed throat robot (Wei, Xu & Simaan: eqs. 2-32, Figs. 6-7).
+
+    Five-bar, Z-theta stage through the laryngoscope fulcrum, two constant-curvature snake segments:
+    8 inputs for the 6-DoF gripper pose. Each time step takes a weighted least-norm step
+    dq = W^-1 J^T (J W^-1 J^T)^-1 dx (eq. 32) with closed-loop correction. Every combination of weight
+    set, arm length, fulcrum position, task mode (spin | orbit_parallel | orbit_tangent), radius and
+    speed is one run. Rows: run settings, step, t_s, q1_rad..q8_rad (q3 in mm), q1_norm..q8_norm
+    (|q_i / q_imax|), pos_err_mm, rot_err_deg. Ends with the joint ranges of the weight sets side by side.
+    """
+CONFIG_HELP = ("TOML or YAML config. Without it: the paper's suturing simulation (W1 and W2, 550 and 800 mm "
+             "arms, 6 mm half circle at 0.5 mm/s, dt 0.01 s).")
 KERNEL_VERSION = "throat-1"
 DEFAULT_CONFIG = "suture_wei_xu_simaan.toml"
 OBJECTIVE = None  # runs are compared side by side, not ranked
 KEY_COLUMNS = ("run_id", "step")
 
-MODES = ("spin", "orbit_parallel", "orbit_tangent")
 JOINT_COLUMNS = ("q1_rad", "q2_rad", "q3_mm", "q4_rad", "q5_rad", "q6_rad", "q7_rad", "q8_rad")
 NORM_COLUMNS = tuple(f"q{i}_norm" for i in range(1, 9))
 
@@ -79,7 +90,7 @@ class Robot(StrictModel):
 
 
 class Task(StrictModel):
-    modes: list[Literal["spin", "orbit_parallel", "orbit_tangent"]] = Field(["spin"], min_length=1)
+    modes: list[Literal[MODE_NAMES]] = Field(["spin"], min_length=1)
     radius_mm: list[Positive] = Field([6.0], min_length=1)
     speed_mm_s: list[Positive] = Field([0.5], min_length=1)
     arc_deg: float = Field(180.0, gt=0, le=360)
@@ -138,22 +149,21 @@ def q_max(cfg: SutureSimConfig) -> np.ndarray:
     return np.array([m.q1_rad, m.q2_rad, m.q3_mm, m.q4_rad, m.theta_L_rad, m.delta_rad, m.phi_L_rad, m.psi_rad])
 
 
-def geometry(cfg: SutureSimConfig, arm_length_mm: float, fulcrum_to_tip_mm: float) -> np.ndarray:
-    """The kernel's geometry vector; P_F on the arm axis (straight down at the start pose)."""
-    from surgopt.kinematics.throat import five_bar
+def geometry(cfg: SutureSimConfig, arm_length_mm: float, fulcrum_to_tip_mm: float):
+    """The kernel's ``ThroatGeometry``; P_F on the arm axis (straight down at the start pose)."""
+    from surgopt.kinematics.throat import ThroatGeometry, five_bar
 
     fb = cfg.robot.five_bar
-    geo = np.array([fb.l1_mm, fb.l2_mm, fb.l3_mm, fb.l4_mm, fb.l5_mm, fb.l6_mm, arm_length_mm,
-                    cfg.robot.slu_length_mm, cfg.robot.pmu_length_mm, 0.0, 0.0, 0.0,
-                    1.0 if fb.branch == "left" else -1.0])
+    geo = ThroatGeometry(fb.l1_mm, fb.l2_mm, fb.l3_mm, fb.l4_mm, fb.l5_mm, fb.l6_mm, float(arm_length_mm),
+                         cfg.robot.slu_length_mm, cfg.robot.pmu_length_mm, np.zeros(3),
+                         1.0 if fb.branch == "left" else -1.0)
     q0 = start_q(cfg)
     P_U = five_bar(q0[0], q0[1], geo)[0]
     if not np.all(np.isfinite(P_U)):
         from surgopt.errors import ConfigError
 
         raise ConfigError("config", "the five-bar cannot close at the start pose", "robot.start_pose")
-    geo[9:12] = [P_U[0], P_U[1], -(arm_length_mm + q0[2] - fulcrum_to_tip_mm)]
-    return geo
+    return geo._replace(fulcrum_mm=np.array([P_U[0], P_U[1], -(arm_length_mm + q0[2] - fulcrum_to_tip_mm)]))
 
 
 def schema():
@@ -193,7 +203,7 @@ def compute_task(cfg: SutureSimConfig, chunk: int, index: int) -> dict:
     run = run_grid(cfg)[index]
     t = cfg.task
     geo = geometry(cfg, run["arm_length_mm"], run["fulcrum_to_tip_mm"])
-    ts, qs, pe, re = suture_run(start_q(cfg), geo, run["weights"], MODES.index(run["mode"]), run["radius_mm"],
+    ts, qs, pe, re = suture_run(start_q(cfg), geo, run["weights"], int(SutureMode[run["mode"].upper()]), run["radius_mm"],
                                 run["speed_mm_s"], math.radians(t.arc_deg), t.dt_s, t.gain, t.damping)
     n = ts.shape[0]
     cols = {"run_id": np.full(n, run["run_id"], np.int64), "weight_set": [run["weight_set"]] * n,
@@ -214,24 +224,8 @@ def compute_task(cfg: SutureSimConfig, chunk: int, index: int) -> dict:
 RUN_KEYS = ["run_id", "weight_set", "arm_length_mm", "fulcrum_to_tip_mm", "mode", "radius_mm", "speed_mm_s"]
 
 
-_SUMMARY_CACHE: list = [None, None]  # (weak reference to the last table, its run summary)
-
-
 def run_summary(table):
-    """One row per run: each joint's range and peak |q/q_max|, limit violations, max tracking errors.
-
-    The closing report asks for it three times (feasibility, summarize, tables): the last table's
-    summary is kept while that table lives.
-    """
-    ref, cached = _SUMMARY_CACHE
-    if ref is not None and ref() is table:
-        return cached.copy()
-    out = _run_summary(table)
-    _SUMMARY_CACHE[:] = [weakref.ref(table), out]
-    return out.copy()
-
-
-def _run_summary(table):
+    """One row per run: each joint's range and peak |q/q_max|, limit violations, max tracking errors."""
     df = table.to_pandas()
     g = df.groupby("run_id", sort=True)
     out = g[RUN_KEYS[1:]].first()
@@ -246,24 +240,16 @@ def _run_summary(table):
     return out.reset_index()
 
 
-def feasibility(table) -> dict:
+def summary(table) -> Summary:
+    """Runs within the joint limits, the worst tracking errors, and the joint ranges of the weight
+    sets side by side (Fig. 7's comparison), one table per other setting."""
     s = run_summary(table)
     ok = int(((s["limit_violations"] == 0) & ~s["stopped_early"]).sum())
-    return {"runs_within_limits": ok, "runs_violating_or_stopped": len(s) - ok}
-
-
-def summarize(table) -> dict:
-    s = run_summary(table)
-    return {"runs": len(s), "steps_total": int(s["steps"].sum()),
-            "max_pos_err_mm": float(s["max_pos_err_mm"].max()),
-            "max_rot_err_deg": float(s["max_rot_err_deg"].max()),
-            "runs_with_limit_violations": int((s["limit_violations"] > 0).sum()),
-            "runs_stopped_at_a_singularity": int(s["stopped_early"].sum())}
-
-
-def tables(table) -> list[tuple[str, list[str], list[list[str]]]]:
-    """Side-by-side joint ranges per weight set (Fig. 7's comparison), one table per other setting."""
-    s = run_summary(table)
+    headline = {"runs": len(s), "steps_total": int(s["steps"].sum()),
+                "max_pos_err_mm": float(s["max_pos_err_mm"].max()),
+                "max_rot_err_deg": float(s["max_rot_err_deg"].max()),
+                "runs_with_limit_violations": int((s["limit_violations"] > 0).sum()),
+                "runs_stopped_at_a_singularity": int(s["stopped_early"].sum())}
     out = []
     others = ["arm_length_mm", "fulcrum_to_tip_mm", "mode", "radius_mm", "speed_mm_s"]
     for key, grp in s.groupby(others, sort=False):
@@ -275,4 +261,24 @@ def tables(table) -> list[tuple[str, list[str], list[list[str]]]]:
         rows.append(["max rot err (deg)"] + [f"{v:.2e}" for v in grp["max_rot_err_deg"]] + [""] * len(grp))
         title = "joint ranges: arm {} mm, fulcrum {} mm before the tip, {}, r {} mm, {} mm/s".format(*key)
         out.append((title, header, rows))
-    return out
+    return Summary(headline, {"runs_within_limits": ok, "runs_violating_or_stopped": len(s) - ok}, out)
+
+
+def feasible_mask(table):
+    """Rows of runs that stayed within the joint limits and completed."""
+    s = run_summary(table)
+    good = set(s["run_id"][(s["limit_violations"] == 0) & ~s["stopped_early"]])
+    return np.isin(table["run_id"].to_numpy(), list(good))
+
+
+def _figures(cfg, table, out, design_id=None):
+    from surgopt.studies.figures.suture_sim import figures
+
+    return figures(cfg, table, out, design_id)
+
+
+STUDY = Study(
+    name=NAME, kernel_version=KERNEL_VERSION, config_model=SutureSimConfig, default_config=DEFAULT_CONFIG,
+    help=HELP, config_help=CONFIG_HELP, schema=schema, key_columns=KEY_COLUMNS, objective=OBJECTIVE,
+    auto_chunk=auto_chunk, n_tasks=n_tasks, warm_up=warm_up, compute_task=compute_task, summary=summary,
+    feasible_mask=feasible_mask, figures=_figures, chunked=False)

@@ -1,23 +1,48 @@
-"""Backends, worker counts and chunk sizes give the same rows; the dask backend through joblib."""
+"""The runner (surgopt/runner.py): same rows on every backend, job count and chunk size; resume after
+interrupts; automatic chunking."""
+import signal
 import subprocess
 import sys
 from pathlib import Path
 
 import pytest
+from conftest import cli, wait_for_parts
 
 from surgopt.config import load_config
 from surgopt.errors import UsageError
 from surgopt.runner import run_study
 from surgopt.store import Store
 from surgopt.studies import get_study
+from surgopt.studies import rcm_grid as S
 
 BASE = Path(__file__).parent / "baselines"
 CONFIGS = {"rcm-grid": "rcm_small", "raven-sweep": "raven_small", "suture-sim": "suture_small"}
+SMALL = """
+[workspace]
+points_per_side = 5
+[candidates.grid]
+x_min_m = 0.3
+x_max_m = 0.7
+x_count = 9
+z_min_m = -0.5
+z_max_m = 0.0
+z_count = 6
+"""
+# ~3 s of single-core work in 124 chunks: long enough to interrupt for real
+SLOW = """
+[candidates.grid]
+x_min_m = 0.2
+x_max_m = 0.8
+x_count = 121
+z_min_m = -0.4
+z_max_m = 0.0
+z_count = 41
+"""
 
 
 def _run(tmp_path, name, tag, **kw):
     study = get_study(name)
-    cfg = load_config(BASE / f"{CONFIGS[name]}.toml", study.Config)
+    cfg = load_config(BASE / f"{CONFIGS[name]}.toml", study.config_model)
     return run_study(study, cfg, config_name=tag, store=Store(tmp_path / tag), quiet=True, **kw).table
 
 
@@ -75,10 +100,50 @@ def test_auto_chunk_aims_at_seconds_and_enough_tasks():
 
     for name in ("rcm-grid", "raven-sweep"):
         study = get_study(name)
-        cfg = load_embedded(study.DEFAULT_CONFIG, study.Config)
+        cfg = load_embedded(study.default_config, study.config_model)
         chunk = study.auto_chunk(cfg)
         assert study.n_tasks(cfg, chunk) >= 32
     raven = get_study("raven-sweep")
-    cfg = load_embedded(raven.DEFAULT_CONFIG, raven.Config)
+    cfg = load_embedded(raven.default_config, raven.config_model)
     # Table II: 2000 geometries, ~0.02 s each -> ~50 per task
     assert 10 <= raven.auto_chunk(cfg) <= 250
+
+
+def _single_run(store):
+    runs = Store(store).runs()
+    assert len(runs) == 1
+    return runs[0]
+
+
+def _table(store):
+    return _single_run(store).read_table(S.schema())
+
+
+@pytest.mark.parametrize("how", ["SIGKILL", "SIGINT"])
+def test_interrupted_run_resumes_to_the_same_table(tmp_path, how):
+    cfg = tmp_path / "slow.toml"
+    cfg.write_text(SLOW)
+    store = tmp_path / "store"
+    jobs = "1" if how == "SIGKILL" else "2"
+    proc = subprocess.Popen([sys.executable, "-m", "surgopt", "rcm-grid", str(cfg), "--store", str(store),
+                             "--quiet", "--jobs", jobs, "--chunk-size", "40"],
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    wait_for_parts(store, "rcm-grid", 3, proc)
+    proc.send_signal(getattr(signal, how))
+    _, err = proc.communicate(timeout=60)
+    if how == "SIGINT":
+        assert proc.returncode == 130, err
+        assert "resume" in err
+    else:
+        assert proc.returncode == -signal.SIGKILL
+    run = _single_run(store)
+    assert not run.complete
+    done = len(run.manifest["parts"])
+    assert 3 <= done < run.manifest["n_tasks"]
+    r = cli("rcm-grid", cfg, "--store", store, "--quiet", "--jobs", "2")
+    assert f"resuming: {done} of {run.manifest['n_tasks']} chunks already stored" in r.stdout
+    resumed = _table(store)
+    fresh_store = tmp_path / "fresh"
+    cli("rcm-grid", cfg, "--store", fresh_store, "--quiet", "--chunk-size", "40")
+    assert resumed.equals(_table(fresh_store))
+    assert not list(store.glob("rcm-grid/*/.*.tmp-*"))

@@ -1,26 +1,18 @@
 """summarize, plot, check and runs rm/gc on stored runs; CI regression against the Parquet baselines."""
 import json
 import shutil
-import subprocess
-import sys
 from pathlib import Path
 
 import numpy as np
 import pyarrow as pa
 import pyarrow.parquet as pq
 import pytest
+from conftest import cli
 
 from surgopt.store import Store
 
 BASE = Path(__file__).parent / "baselines"
 STUDY_OF = {"rcm_small": "rcm-grid", "raven_small": "raven-sweep", "suture_small": "suture-sim"}
-
-
-def cli(*args, check=True):
-    r = subprocess.run([sys.executable, "-m", "surgopt", *map(str, args)], capture_output=True, text=True)
-    if check and r.returncode != 0:
-        raise AssertionError(f"exit {r.returncode}\n{r.stdout}\n{r.stderr}")
-    return r
 
 
 @pytest.fixture(scope="module")

@@ -1,8 +1,8 @@
-"""Numba kernels against tests/reference.py."""
+"""PA10 RCM kernels (surgopt/kinematics/pa10_rcm.py) against the numpy reference and closed forms."""
 import numpy as np
 import pytest
-
 import reference as R
+
 from surgopt.kinematics import pa10_rcm as K
 from surgopt.metrics import global_isotropy_index
 
@@ -13,7 +13,7 @@ OFFSET = LINKS[3] + TOOL
 QDOT = np.array([1.0, 1.0, 2.0, 2 * np.pi, 2 * np.pi])
 LIM = np.radians([177.0, 91.0, 137.0, 255.0, 165.0])
 COSLIM = np.cos(np.minimum(LIM, np.pi))
-
+ARM = K.Pa10Arm(LINKS3, OFFSET, 1.0, QDOT, COSLIM)
 
 def _points(rng, n, spread=0.05):
     rcm = np.array([rng.uniform(0.25, 0.75), 0.0, rng.uniform(-0.6, 0.05) + LINKS[0]])
@@ -35,7 +35,7 @@ def test_pose_singular_values_match_reference():
     checked = 0
     for _ in range(40):
         rcm, tips = _points(rng, 25)
-        smin, smax, status = K.pose_singular_values(tips, rcm, LINKS3, OFFSET, 1.0, QDOT, COSLIM)
+        smin, smax, status = K.pose_singular_values(tips, rcm, ARM)
         for t, lo, hi, st in zip(tips, smin, smax, status):
             ref = _reference(rcm, t)
             if ref is None:
@@ -58,7 +58,7 @@ def test_alternative_jacobian_matches_reference_and_finite_differences():
         if ref is None:
             continue
         q = ref[0]
-        A, ok = K.alternative_jacobian(tip, rcm, LINKS3, OFFSET, 1.0, np.ones(5), COSLIM)
+        A, ok = K.alternative_jacobian(tip, rcm, ARM._replace(qdot_max=np.ones(5)))
         assert ok
         h = 1e-6
         Jfd = np.column_stack([
@@ -66,13 +66,13 @@ def test_alternative_jacobian_matches_reference_and_finite_differences():
             for e in np.eye(5)])
         assert np.allclose(A, Jfd, atol=1e-8)
         # scaling: column j of J_a Q is qdot_max[j] times column j of J_a
-        As, _ = K.alternative_jacobian(tip, rcm, LINKS3, OFFSET, 1.0, QDOT, COSLIM)
+        As, _ = K.alternative_jacobian(tip, rcm, ARM)
         assert np.allclose(As, A * QDOT, atol=1e-15)
 
 
 def test_worked_example_in_docstring():
     rcm = np.array([0.535, 0.0, 0.107])
-    smin, smax, status = K.pose_singular_values(np.array([[0.535, 0.0, 0.007]]), rcm, LINKS3, OFFSET, 1.0, QDOT, COSLIM)
+    smin, smax, status = K.pose_singular_values(np.array([[0.535, 0.0, 0.007]]), rcm, ARM)
     assert status[0] == K.STATUS_OK
     assert smin[0] == pytest.approx(0.070968, abs=5e-7)
     assert smax[0] == pytest.approx(1.019961, abs=5e-7)
@@ -85,7 +85,7 @@ def test_unreachable_and_joint_limits_agree_with_reference():
     for rcm in ([0.05, 0, 0.5], [0.9, 0, 0.0], [0.2, 0, 0.9], [0.75, 0, -0.35], [0.3, 0, -0.55]):
         rcm = np.array(rcm, float)
         tips = rcm + np.column_stack([rng.uniform(-0.1, 0.1, 200), rng.uniform(-0.1, 0.1, 200), rng.uniform(-0.3, -0.02, 200)])
-        _, _, status = K.pose_singular_values(tips, rcm, LINKS3, OFFSET, 1.0, QDOT, COSLIM)
+        _, _, status = K.pose_singular_values(tips, rcm, ARM)
         for t, st in zip(tips, status):
             ref = _reference(rcm, t)
             assert (ref is None) == (st == K.STATUS_UNREACHABLE)
@@ -96,7 +96,7 @@ def test_unreachable_and_joint_limits_agree_with_reference():
 def test_elbow_down_branch_matches_reference():
     rng = np.random.default_rng(13)
     rcm, tips = _points(rng, 30, 0.02)
-    smin, smax, status = K.pose_singular_values(tips, rcm, LINKS3, OFFSET, -1.0, QDOT, np.full(5, -1.0))
+    smin, smax, status = K.pose_singular_values(tips, rcm, K.Pa10Arm(LINKS3, OFFSET, -1.0, QDOT, np.full(5, -1.0)))
     for t, lo, st in zip(tips, smin, status):
         k = (t - rcm) / np.linalg.norm(t - rcm)
         q = R.pa10_ik(t, k, LINKS, TOOL, elbow_up=False)
@@ -157,7 +157,7 @@ def test_near_singular_wrist_against_reference():
     q = np.array([0.0, 0.6, 1.2, 0.3, 1e-5])  # W1 = 1e-5 rad
     p, k = R.pa10_tool_tip(q, LINKS, TOOL)
     rcm = p - 0.1 * k  # RCM 0.1 m back along the tool
-    lo, hi, st = K.pose_singular_values(p[None, :], rcm, LINKS3, OFFSET, 1.0, QDOT, COSLIM)
+    lo, hi, st = K.pose_singular_values(p[None, :], rcm, ARM)
     s = R.scaled_singular_values(q, LINKS, TOOL, rcm, QDOT)
     assert st[0] == K.STATUS_OK
     assert 1 / s[0] < 1e-4 * (1 / s[-1])  # badly conditioned indeed
@@ -169,7 +169,7 @@ def test_exactly_singular_wrist_is_flagged_not_nan():
     q = np.array([0.0, 0.6, 1.2, 0.3, 0.0])  # W1 = 0: E2 spins the tool about its own axis
     p, k = R.pa10_tool_tip(q, LINKS, TOOL)
     rcm = p - 0.1 * k
-    lo, hi, st = K.pose_singular_values(p[None, :], rcm, LINKS3, OFFSET, 1.0, QDOT, COSLIM)
+    lo, hi, st = K.pose_singular_values(p[None, :], rcm, ARM)
     assert st[0] == K.STATUS_SINGULAR
     assert lo[0] == 0.0 and np.isfinite(hi[0])
     assert global_isotropy_index(lo, hi)[0] == 0.0
@@ -178,7 +178,7 @@ def test_exactly_singular_wrist_is_flagged_not_nan():
 def test_candidates_extremes_equals_reference_gii():
     cands = np.array([[0.535, 0, -0.21 + LINKS[0]], [0.26, 0, -0.14 + LINKS[0]], [0.9, 0, 0.3]])
     off = R.workspace_cube(np.zeros(3), n=5)
-    lo, hi, n_unr, n_sing = K.rcm_candidates_extremes(cands, off, LINKS3, OFFSET, 1.0, QDOT, COSLIM)
+    lo, hi, n_unr, n_sing = K.rcm_candidates_extremes(cands, off, ARM)
     for c, a, b, u in zip(cands, lo, hi, n_unr):
         ref = R.rcm_candidate_gii(c, LINKS, TOOL, QDOT, LIM, n=5)
         if ref is None:
@@ -192,10 +192,10 @@ def test_candidates_extremes_equals_reference_gii():
 def test_bounded_candidate_culls_and_completes():
     c = np.array([0.535, 0, -0.21 + LINKS[0]])
     off = R.workspace_cube(np.zeros(3), n=9)
-    full = K.rcm_candidate_bounded(c, off, LINKS3, OFFSET, 1.0, QDOT, COSLIM, 0.0, 16)
+    full = K.rcm_candidate_bounded(c, off, ARM, 0.0, 16)
     assert full[4] == off.shape[0]
     gii = full[0] / full[1]
-    culled = K.rcm_candidate_bounded(c, off, LINKS3, OFFSET, 1.0, QDOT, COSLIM, gii * 1.5, 16)
+    culled = K.rcm_candidate_bounded(c, off, ARM, gii * 1.5, 16)
     assert culled[4] < off.shape[0]
     assert culled[0] / culled[1] <= gii * 1.5
 
@@ -250,16 +250,14 @@ def test_mirror_reduction_equals_the_whole_cube():
     rng = np.random.default_rng(21)
     cands = np.column_stack([rng.uniform(0.15, 0.85, 60), np.zeros(60), rng.uniform(-0.65, 0.1, 60) + LINKS[0]])
     cands = np.vstack([cands, [[0.535, 0, -0.21 + LINKS[0]], [0.26, 0, -0.14 + LINKS[0]]]])
-    full = K.rcm_candidates_extremes(cands, off, LINKS3, OFFSET, 1.0, QDOT, COSLIM, mirror=False)
-    half = K.rcm_candidates_extremes(cands, off, LINKS3, OFFSET, 1.0, QDOT, COSLIM, mirror=True)
+    full = K.rcm_candidates_extremes(cands, off, ARM, mirror=False)
+    half = K.rcm_candidates_extremes(cands, off, ARM, mirror=True)
     feasible = full[2] == 0
     assert 5 < feasible.sum() < 60  # both kinds are exercised
     assert np.array_equal(full[2], half[2]) and np.array_equal(full[3], half[3])
     assert np.allclose(half[0], full[0], rtol=1e-12, atol=0) and np.allclose(half[1], full[1], rtol=1e-12, atol=0)
     # the corner/face probes only choose the order of work: without them the result is the same
-    g = K.workspace_geometry(off, OFFSET)
-    args = (LINKS3[0], LINKS3[1], LINKS3[2], 1.0, QDOT, COSLIM)
-    no_probe = K._candidates_extremes(cands, g, np.ones(off.shape[0], np.int64), np.empty(0, np.int64), *args)
+    no_probe = K.rcm_candidates_extremes(cands, off, ARM, mirror=False, probe_first=False)
     for a, b in zip(full, no_probe):
         assert np.array_equal(a, b)
 
@@ -270,12 +268,12 @@ def test_partially_reachable_candidate_counts_every_unreachable_point():
     rng = np.random.default_rng(22)
     for _ in range(400):
         c = np.array([rng.uniform(0.15, 0.9), 0.0, rng.uniform(-0.7, 0.2) + LINKS[0]])
-        _, _, st = K.pose_singular_values(c + off, c, LINKS3, OFFSET, 1.0, QDOT, COSLIM)
+        _, _, st = K.pose_singular_values(c + off, c, ARM)
         n_bad = int(np.sum(st == K.STATUS_UNREACHABLE))
-        probes = K._probe_points(off)
+        probes = K.probe_points(off)
         if 0 < n_bad and np.all(st[probes] != K.STATUS_UNREACHABLE):
             break
     else:
         pytest.skip("no candidate with reachable probes but unreachable points found")
-    lo, hi, n_unr, n_sing = K.rcm_candidates_extremes(c[None], off, LINKS3, OFFSET, 1.0, QDOT, COSLIM)
+    lo, hi, n_unr, n_sing = K.rcm_candidates_extremes(c[None], off, ARM)
     assert n_unr[0] == n_bad and lo[0] == 0.0 and hi[0] == 0.0

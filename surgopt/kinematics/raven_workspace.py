@@ -1,0 +1,202 @@
+"""Raven IV common workspace: the public driver of the ``surgopt.kinematics.raven`` kernels.
+
+From port layout and design lists to the kernels' named tuples, and back to per-design metrics:
+ports and shoulder axes of every arm (``arms``), the cone-angle interval of each (alpha, beta,
+Iso_min) (``cone_angle_intervals``), the metrics of many geometries at once with identical ones
+shared (``evaluate_many``), and the plane fields of one design for figures (``design_fields``).
+Lengths mm, angles in degrees at this interface (radians inside the kernels).
+"""
+from __future__ import annotations
+
+import itertools
+import math
+import threading
+from typing import NamedTuple, Sequence
+
+import numpy as np
+
+from surgopt.kinematics.raven import (
+    DesignGrid,
+    PlaneGrid,
+    cone_angle,
+    covering_plane_grid,
+    evaluate_geometries,
+    node_margins,
+    plane_node_bounds,
+    theta2_interval,
+)
+
+
+class ArmLayout(NamedTuple):
+    """Where the ports are and how each shoulder axis points at phi = 0 (the paper's Fig. 3 choices)."""
+
+    n_arms: int
+    ports_mm: tuple | None  # ((x, y), ...) per arm, or None: from bx, by
+    left_arms: tuple | None  # mirrored (left) arms, or None: arms 1 and 3
+    shoulder_tilt_deg: float  # axis 1 from vertical at phi = 0, outward
+    shoulder_tilt_toward: str  # "x" or "y"
+    mirror_left_phi: bool  # left arms turn by -phi_y, -phi_z
+
+
+def cos_sin_deg(deg: float) -> tuple[float, float]:
+    """cos and sin of an angle in degrees, exact at multiples of 90 (cos 90 deg is 0, not 6e-17)."""
+    if deg % 90 == 0:
+        return ((1.0, 0.0), (0.0, 1.0), (-1.0, 0.0), (0.0, -1.0))[int(deg // 90) % 4]
+    return math.cos(math.radians(deg)), math.sin(math.radians(deg))
+
+
+def rotation_deg(axis: int, deg: float) -> np.ndarray:
+    """Rotation matrix about the x (0), y (1) or z (2) axis by ``deg`` degrees."""
+    c, s = cos_sin_deg(deg)
+    if axis == 0:
+        return np.array([[1, 0, 0], [0, c, -s], [0, s, c]])
+    if axis == 1:
+        return np.array([[c, 0, s], [0, 1, 0], [-s, 0, c]])
+    return np.array([[c, -s, 0], [s, c, 0], [0, 0, 1]])
+
+
+def arms(layout: ArmLayout, phi_x: float, phi_y: float, phi_z: float, bx: float, by: float):
+    """Ports (n, 3) and shoulder-axis directions (n, 3) in the world frame.
+
+    Ports: 4 arms at (-bx/2, +by/2), (+bx/2, +by/2), (-bx/2, -by/2), (+bx/2, -by/2)
+    (arms 1-4, left arms 1 and 3), 2 arms at (-+bx/2, 0), 1 arm at 0.
+    Axis 1 at phi = 0: vertical (out of the patient), tilted outward by
+    ``shoulder_tilt_deg`` along x (away from the other side's arms) or along y
+    (away from the other pair), per ``shoulder_tilt_toward``; then R = Rz(phi_z) Ry(phi_y) Rx(phi_x) about the
+    port, with phi_y, phi_z negated for left arms when ``mirror_left_phi``
+    (the mirror image of a right arm's rotation).
+    """
+    if layout.ports_mm is not None:
+        ports = [(p[0], p[1]) for p in layout.ports_mm]
+    elif layout.n_arms == 4:
+        ports = [(-bx / 2, by / 2), (bx / 2, by / 2), (-bx / 2, -by / 2), (bx / 2, -by / 2)]
+    elif layout.n_arms == 2:
+        ports = [(-bx / 2, 0.0), (bx / 2, 0.0)]
+    else:
+        ports = [(0.0, 0.0)]
+    left = layout.left_arms if layout.left_arms is not None else [i % 2 == 0 for i in range(layout.n_arms)]
+    P = np.array([[x, y, 0.0] for x, y in ports])
+    A = np.empty((layout.n_arms, 3))
+    ct, st = cos_sin_deg(layout.shoulder_tilt_deg)
+    for i, is_left in enumerate(left):
+        if layout.shoulder_tilt_toward == "x":
+            out = -1.0 if is_left else 1.0
+            u0 = np.array([out * st, 0.0, ct])
+        else:
+            out = 1.0 if P[i, 1] >= 0 else -1.0
+            u0 = np.array([0.0, out * st, ct])
+        m = -1.0 if (is_left and layout.mirror_left_phi) else 1.0
+        R = rotation_deg(2, m * phi_z) @ rotation_deg(1, m * phi_y) @ rotation_deg(0, phi_x)
+        A[i] = R @ u0
+    return P, A
+
+
+def cone_angle_intervals(alphas_rad, betas_rad, iso_mins, theta2_range_deg) -> DesignGrid:
+    """The ``DesignGrid`` of these designs: per (alpha, beta, Iso_min) the interval of psi (eq. 22) over
+    the theta2 range narrowed by Iso_min (``theta2_interval``)."""
+    lo2, hi2 = (math.radians(v) for v in theta2_range_deg)
+    al, be, iso = (np.asarray(v, dtype=np.float64) for v in (alphas_rad, betas_rad, iso_mins))
+    shape = (len(al), len(be), len(iso))
+    psi_lo, psi_hi, has = np.zeros(shape), np.zeros(shape), np.zeros(shape, bool)
+    for (i, a), (j, b), (k, m) in itertools.product(enumerate(al), enumerate(be), enumerate(iso)):
+        t_lo, t_hi, ok = theta2_interval(a, b, m, lo2, hi2)
+        psi_lo[i, j, k], psi_hi[i, j, k], has[i, j, k] = cone_angle(t_lo, a, b), cone_angle(t_hi, a, b), ok
+    return DesignGrid(al, be, iso, psi_lo, psi_hi, has)
+
+
+class _MetricsMemo:
+    """Metrics of geometries already evaluated in this process, keyed by everything they depend on;
+    cleared when it would grow past ``max_bytes``. Shared by the threads of the threads backend."""
+
+    def __init__(self, max_bytes: int):
+        self.max_bytes = max_bytes
+        self.blocks: dict[bytes, np.ndarray] = {}
+        self.lock = threading.Lock()
+
+    def clear(self) -> None:
+        with self.lock:
+            self.blocks.clear()
+
+
+#: 64 MB of metrics: bounded in bytes, so large design lists cannot grow it without bound.
+MEMO = _MetricsMemo(64 * 2 ** 20)
+
+
+def clear_memo() -> None:
+    """Forget every memoised geometry (benchmarks and tests that time or check fresh evaluations)."""
+    MEMO.clear()
+
+
+def evaluate_many(layout: ArmLayout, plane: PlaneGrid, theta2_range_deg: Sequence[float],
+                  geometries, alphas_deg, betas_deg, isos, designs: DesignGrid | None = None) -> np.ndarray:
+    """Metrics (G*A*B*I, 6) of every design of G geometries (phi_x, phi_y, phi_z, bx, by), geometry-major.
+
+    Columns as ``evaluate_designs``: area_mm2, perimeter_mm, n_points, iso_sum, iso_min_actual, any.
+    Geometries whose ports and shoulder axes come out identical share one
+    evaluation: in this batch, and across batches of this process (a memo
+    keyed by the exact ports, axes, plane and design lists). In the paper's
+    Table II with horizontal shoulder axes along x, phi_x turns each axis
+    about itself, so its five values give one geometry: 400 of the 2000 are
+    distinct. ``designs``: ``cone_angle_intervals`` of these alphas, betas and
+    Iso_mins, when already known (they do not depend on the geometry).
+    """
+    per = len(alphas_deg) * len(betas_deg) * len(isos)
+    placed = [arms(layout, *g) for g in geometries]
+    ports = np.array([p for p, _ in placed], dtype=np.float64).reshape(len(placed), layout.n_arms, 3) + 0.0  # -0.0 -> 0.0
+    axes = np.array([a for _, a in placed], dtype=np.float64).reshape(len(placed), layout.n_arms, 3) + 0.0
+    al = np.radians(np.asarray(alphas_deg, float))
+    be = np.radians(np.asarray(betas_deg, float))
+    iso = np.asarray(isos, float)
+    context = np.concatenate([[plane.depth_mm, plane.step_mm, plane.d4_max_mm, *theta2_range_deg, len(al), len(be)],
+                              al, be, iso]).tobytes()
+    keys = [context + ports[g].tobytes() + axes[g].tobytes() for g in range(len(placed))]
+    out = np.zeros((len(placed) * per, 6))
+    todo: dict[bytes, list[int]] = {}
+    with MEMO.lock:
+        for g, key in enumerate(keys):
+            if key in MEMO.blocks:
+                out[g * per:(g + 1) * per] = MEMO.blocks[key]
+            else:
+                todo.setdefault(key, []).append(g)
+    if not todo:
+        return out
+    first = [gs[0] for gs in todo.values()]
+    if designs is None:
+        designs = cone_angle_intervals(al, be, iso, theta2_range_deg)
+    fresh = np.zeros((len(first) * per, 6))
+    plane = PlaneGrid(float(plane.depth_mm), float(plane.step_mm), float(plane.d4_max_mm))
+    evaluate_geometries(np.ascontiguousarray(ports[first]), np.ascontiguousarray(axes[first]), plane, designs, fresh)
+    with MEMO.lock:
+        if (len(MEMO.blocks) + len(todo)) * fresh.itemsize * per * 6 > MEMO.max_bytes:
+            MEMO.blocks.clear()
+        for u, (key, gs) in enumerate(todo.items()):
+            block = fresh[u * per:(u + 1) * per]
+            MEMO.blocks[key] = block
+            for g in gs:
+                out[g * per:(g + 1) * per] = block
+    return out
+
+
+def design_fields(layout: ArmLayout, plane: PlaneGrid, theta2_range_deg, geometry, alpha_deg, beta_deg, iso_min):
+    """Plane grid and membership margins of one design, per arm and common (for figures).
+
+    Returns xs, ys (mm), ports (arms, 3), the per-arm margin (arms, nx, ny) and the common margin
+    (nx, ny), computed by the sweep's own kernels (``plane_node_bounds``, ``node_margins``) on a grid
+    that covers every arm's reach. A margin is positive inside, zero on the boundary (mm-like).
+    """
+    ports, axes = arms(layout, *geometry)
+    ports, axes = np.ascontiguousarray(ports + 0.0), np.ascontiguousarray(axes + 0.0)
+    xs, ys = covering_plane_grid(ports, float(plane.depth_mm), float(plane.d4_max_mm), float(plane.step_mm))
+    d = cone_angle_intervals([math.radians(alpha_deg)], [math.radians(beta_deg)], [iso_min], theta2_range_deg)
+    c_lo, c_hi = math.cos(d.psi_hi_rad[0, 0, 0]), math.cos(d.psi_lo_rad[0, 0, 0])
+    n = xs.size * ys.size
+
+    def margin(p, a):
+        if not d.has_interval[0, 0, 0]:
+            return np.full((xs.size, ys.size), -1.0)
+        out = np.empty(n)
+        node_margins(plane_node_bounds(xs, ys, float(plane.depth_mm), p, a, float(plane.d4_max_mm)), c_lo, c_hi, out)
+        return out.reshape(xs.size, ys.size)
+
+    per_arm = np.stack([margin(ports[i:i + 1], axes[i:i + 1]) for i in range(len(ports))])
+    return xs, ys, ports, per_arm, margin(ports, axes)

@@ -1,0 +1,54 @@
+"""rcm-grid figures: the GII map of Locke & Patel's Fig. 3 and the Table I scatter."""
+from __future__ import annotations
+
+import numpy as np
+
+from surgopt.studies.figures import columns, pyplot, save
+from surgopt.studies.rcm_grid import PAPER_TABLE_I
+
+
+def figures(cfg, table, out, design_id=None):
+    plt = pyplot()
+    c = columns(table)
+    paths = []
+    exact = c["gii_is_exact"]
+    if cfg.candidates.grid is not None and cfg.search == "full":
+        g = cfg.candidates.grid
+        gii = np.full((g.x_count, g.z_count), np.nan)
+        ids = c["candidate_id"]
+        vals = np.where(c["feasible"], c["gii"], np.nan)
+        gii.ravel()[ids] = vals
+        xs = np.linspace(g.x_min_m, g.x_max_m, g.x_count)
+        zs = np.linspace(g.z_min_m, g.z_max_m, g.z_count)
+        fig, ax = plt.subplots(figsize=(6.4, 5.6))
+        im = ax.pcolormesh(xs, zs, gii.T, shading="nearest", cmap="viridis")
+        fig.colorbar(im, ax=ax, label="GII")
+        cs = ax.contour(xs, zs, np.nan_to_num(gii.T, nan=0.0), levels=[0.01, 0.02, 0.03, 0.04], colors="white",
+                        linewidths=0.8)
+        ax.clabel(cs, fmt="%.2f", fontsize=7)
+        i = int(np.nanargmax(np.where(exact, c["gii"], np.nan)))
+        ax.plot(c["x_rcm_m"][i], c["z_rcm_m"][i], "wx", ms=10, mew=2)
+        ax.annotate(f"best ({c['x_rcm_m'][i]:.3f}, {c['z_rcm_m'][i]:.3f}) m\nGII {c['gii'][i]:.4f}",
+                    (c["x_rcm_m"][i], c["z_rcm_m"][i]), xytext=(8, 8), textcoords="offset points", color="white",
+                    fontsize=8)
+        ax.set_xlabel("x_rcm (m)")
+        ax.set_ylabel(f"z_rcm (m, from the {cfg.candidates.z_reference})")
+        ax.set_title("GII of candidate RCM locations\n(white: part of the workspace unreachable)", fontsize=10)
+        ax.set_aspect("equal")
+        paths.append(save(fig, out / "rcm_gii_map.png"))
+    paper = {(round(x, 3), round(z, 3)): g for x, z, g in PAPER_TABLE_I}
+    pairs = [(paper[(round(x, 3), round(z, 3))], g) for x, z, g in zip(c["x_rcm_m"], c["z_rcm_m"], c["gii"])
+             if (round(x, 3), round(z, 3)) in paper]
+    if pairs:
+        p, o = np.array(pairs).T
+        fig, ax = plt.subplots(figsize=(5, 5))
+        ax.plot(p, o, "o")
+        lim = [0, max(p.max(), o.max()) * 1.1]
+        ax.plot(lim, lim, "k--", lw=0.8, label="equal")
+        ax.set_xlabel("paper's GII (Table I)")
+        ax.set_ylabel("surgopt GII")
+        r = np.corrcoef(p, o)[0, 1]
+        ax.set_title(f"Table I: {len(p)} RCM locations, Pearson r = {r:.4f}")
+        ax.legend()
+        paths.append(save(fig, out / "rcm_table1_scatter.png"))
+    return paths

@@ -1,0 +1,90 @@
+"""Raven common workspace driver (surgopt/kinematics/raven_workspace.py) against the brute-force
+reference of tests/reference.py, plane grids, the memo and the figure fields."""
+import math
+
+import numpy as np
+import pytest
+import reference as R
+
+from surgopt.kinematics import raven as K
+from surgopt.kinematics import raven_workspace as W
+from surgopt.studies import raven_sweep as S
+
+PLANE = K.PlaneGrid(150.0, 4.0, 250.0)
+THETA2 = (20.0, 140.0)
+
+
+def _layout(**kw):
+    return S.arm_layout(S.Geometry(**kw))
+
+
+@pytest.mark.parametrize("geometry", [(0, 10, -20, 100, 50), (10, -20, 0, 150, 100), (0, 0, 0, 50, 50)])
+def test_designs_of_a_geometry_equal_a_brute_force_evaluation(geometry):
+    """The level-sharing kernel against per-design, per-arm membership, SVD isotropy, bisected theta2
+    intervals and per-cell contour polygons, with ports and axes laid out independently."""
+    al, be, iso = [25.0, 65.0, 85.0], [45.0, 85.0], [0.1, 0.5, 0.3, 0.9]
+    got = W.evaluate_many(_layout(), PLANE, THETA2, [geometry], al, be, iso)
+    ports, axes = R.raven_four_arm_frames(geometry[3], geometry[4], *geometry[:3])
+    ref = R.raven_designs_brute_force(ports, axes, PLANE.depth_mm, PLANE.step_mm, PLANE.d4_max_mm,
+                                      np.radians(al), np.radians(be), iso, THETA2)
+    assert np.array_equal(got[:, 2], ref[:, 2])
+    assert (ref[:, 2] > 0).sum() >= 6  # non-trivial
+    assert np.allclose(got[:, 3], ref[:, 3], rtol=1e-11, atol=1e-12)
+    nonempty = ref[:, 2] > 0
+    assert np.allclose(got[nonempty, 4], ref[nonempty, 4], rtol=1e-11)
+    assert np.allclose(got[:, 0], ref[:, 0], rtol=1e-11, atol=1e-9)
+    assert np.allclose(got[:, 1], ref[:, 1], rtol=1e-11, atol=1e-9)
+
+
+def test_arm_frames_equal_the_written_out_layout():
+    for g in [(0, 0, 0, 100, 50), (20, 10, -20, 100, 50), (-15, 35, 80, 60, 170)]:
+        ports, axes = W.arms(_layout(), *g)
+        rp, ra = R.raven_four_arm_frames(g[3], g[4], *g[:3])
+        assert np.allclose(ports, rp, atol=1e-12) and np.allclose(axes, ra, atol=1e-12)
+        assert np.allclose(np.linalg.norm(axes, axis=1), 1.0)
+
+
+def test_plane_grid_covers_every_reachable_node():
+    geo = S.Config().geometry
+    for g in [(0, 0, 0, 50, 50), (20, -10, 10, 200, 150), (0, 0, 0, 200, 200)]:
+        ports, _ = W.arms(S.arm_layout(geo), *g)
+        xs, ys = K.plane_grid(ports, geo.depth_mm, geo.d4_max_mm, geo.step_mm)
+        reach = math.sqrt(geo.d4_max_mm ** 2 - geo.depth_mm ** 2)
+        X, Y = np.meshgrid(np.arange(-400, 400.1, 2.0), np.arange(-400, 400.1, 2.0), indexing="ij")
+        ok = np.all([(X - p[0]) ** 2 + (Y - p[1]) ** 2 <= reach ** 2 for p in ports], axis=0)
+        if ok.any():
+            assert xs.min() < X[ok].min() and xs.max() > X[ok].max()
+            assert ys.min() < Y[ok].min() and ys.max() > Y[ok].max()
+            assert np.allclose(np.diff(xs), geo.step_mm) and np.allclose(np.diff(ys), geo.step_mm)
+            rx, ry = R.raven_plane_nodes(ports, geo.depth_mm, geo.d4_max_mm, geo.step_mm)
+            assert np.array_equal(xs, rx) and np.array_equal(ys, ry)
+
+
+def test_identical_geometries_share_one_evaluation():
+    """Horizontal shoulder axes along x: phi_x turns them about themselves, so its rows coincide;
+    the memo hands them over, and memo hits equal fresh evaluations."""
+    geos = [(-20, 10, -20, 100, 50), (0, 10, -20, 100, 50), (20, 10, -20, 100, 50)]
+    args = ([45, 85], [65], [0.3, 0.7])
+    W.clear_memo()
+    a = W.evaluate_many(_layout(), PLANE, THETA2, geos, *args)
+    per = 4
+    v = a.reshape(3, per, 6)
+    assert np.array_equal(v[0], v[1]) and np.array_equal(v[0], v[2])
+    b = W.evaluate_many(_layout(), PLANE, THETA2, geos, *args)  # all from the memo now
+    W.clear_memo()
+    c = W.evaluate_many(_layout(), PLANE, THETA2, geos[2:], *args)  # the last geometry alone, afresh
+    assert np.array_equal(a, b)
+    assert np.array_equal(a[2 * per:], c)
+
+
+def test_design_fields_agree_with_the_sweep():
+    """The figure's fields come from the sweep's kernels: the common margin is positive exactly on the
+    nodes the sweep counts, and each arm's margin contains the common one."""
+    g = (20.0, 10.0, -20.0, 100.0, 50.0)
+    xs, ys, ports, per_arm, common = W.design_fields(_layout(), PLANE, THETA2, g, 65.0, 45.0, 0.5)
+    metrics = W.evaluate_many(_layout(), PLANE, THETA2, [g], [65.0], [45.0], [0.5])
+    assert int((common > 0).sum()) == int(metrics[0, 2]) > 0
+    assert per_arm.shape == (4, xs.size, ys.size)
+    assert np.all(per_arm.min(axis=0)[common > 0] > 0)
+    # no interval (Iso_min above the mechanism's best): nothing inside
+    assert np.all(W.design_fields(_layout(), PLANE, THETA2, g, 65.0, 45.0, 0.999)[4] < 0)
