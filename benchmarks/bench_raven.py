@@ -104,7 +104,7 @@ def main():
     configure_numba()
     from surgopt.config import load_config, load_embedded
     from surgopt.kinematics import raven_workspace as W
-    from surgopt.kinematics.raven import evaluate_geometries, plane_grid
+    from surgopt.kinematics.raven_plane import evaluate_geometries, plane_grid
     from surgopt.studies import raven_sweep as S
 
     cfg = load_embedded(S.DEFAULT_CONFIG, S.Config)

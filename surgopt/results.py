@@ -113,14 +113,11 @@ def compare_tables(current, baseline, keys, rtol: float, atol: float):
 
 
 def write_baseline(table, keys, path: Path) -> None:
-    import os
-
+    """The table sorted by its key columns, written atomically as a Parquet baseline."""
     import pyarrow.parquet as pq
 
+    from surgopt.store import atomic_write
+
     path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_name(f".{path.name}.tmp-{os.getpid()}")
-    try:
-        pq.write_table(table.sort_by([(k, "ascending") for k in keys]), tmp, compression="zstd")
-        os.replace(tmp, path)
-    finally:
-        tmp.unlink(missing_ok=True)
+    atomic_write(path, lambda tmp: pq.write_table(table.sort_by([(k, "ascending") for k in keys]), tmp,
+                                                  compression="zstd"))

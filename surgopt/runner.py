@@ -81,8 +81,6 @@ def run_study(study, cfg, *, config_name: str, store: Store, jobs: int = DEFAULT
         raise UsageError(f"--backend: {backend!r} is not one of {', '.join(BACKENDS)}")
     if backend == "dask":
         _require_distributed()
-    import pyarrow as pa
-
     t0 = time.perf_counter()
     schema = study.schema()
     key = study_key(study.name, cfg, study.kernel_version)
@@ -106,13 +104,15 @@ def run_study(study, cfg, *, config_name: str, store: Store, jobs: int = DEFAULT
             messages.append(f"resuming: {total - len(missing)} of {total} chunks already stored")
         if missing:
             study.warm_up(cfg)  # compile once in the parent; workers load the cache
-            _dispatch(study, cfg, chunk, missing, run, store, jobs, quiet, total, schema, pa, backend, scheduler)
+            _dispatch(study, cfg, chunk, missing, run, store, jobs, quiet, total, schema, backend, scheduler)
         table = run.read_table(schema)
     return RunResult(run, table, False, len(missing), time.perf_counter() - t0, messages)
 
 
-def _dispatch(study, cfg, chunk, missing, run, store, jobs, quiet, total, schema, pa, backend="threads",
+def _dispatch(study, cfg, chunk, missing, run, store, jobs, quiet, total, schema, backend="threads",
               scheduler=None):
+    import pyarrow as pa
+
     progress = _progress(quiet)
     t_start = time.perf_counter()
     with progress:

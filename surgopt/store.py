@@ -40,12 +40,14 @@ def _sha256(path: Path) -> str:
     return h.hexdigest()
 
 
-def _atomic_write_bytes(path: Path, data: bytes) -> None:
+def atomic_write(path: Path, write) -> None:
+    """Create or replace ``path`` atomically: ``write(tmp)`` fills a temporary file beside it, which is
+    fsynced and renamed into place (readers see the old file or the new one, never a part), then the
+    folder is fsynced. The temporary file is removed if anything fails."""
     tmp = path.with_name(f".{path.name}.tmp-{os.getpid()}")
     try:
-        with open(tmp, "wb") as f:
-            f.write(data)
-            f.flush()
+        write(tmp)
+        with open(tmp, "rb") as f:
             os.fsync(f.fileno())
         os.replace(tmp, path)
     finally:
@@ -196,15 +198,7 @@ class Store:
 
         name = f"part-{index:05d}.parquet"
         final = run.path / name
-        tmp = run.path / f".{name}.tmp-{os.getpid()}"
-        try:
-            pq.write_table(table, tmp, compression="zstd")
-            with open(tmp, "rb") as f:
-                os.fsync(f.fileno())
-            os.replace(tmp, final)
-        finally:
-            tmp.unlink(missing_ok=True)
-        _fsync_dir(run.path)
+        atomic_write(final, lambda tmp: pq.write_table(table, tmp, compression="zstd"))
         rows = pq.read_metadata(final).num_rows  # readable?
         if rows != table.num_rows:
             raise StoreError(f"{final}: wrote {table.num_rows} rows, read back {rows}")
@@ -215,7 +209,7 @@ class Store:
 
     def _write_manifest(self, run: Run) -> None:
         data = json.dumps(run.manifest, indent=1, sort_keys=True).encode()
-        _atomic_write_bytes(run.path / MANIFEST, data)
+        atomic_write(run.path / MANIFEST, lambda tmp: tmp.write_bytes(data))
 
     def runs(self, study: str | None = None) -> list[Run]:
         if not self.root.exists():

@@ -22,6 +22,55 @@ def numba_cache(tmp_path_factory):
     yield os.environ["NUMBA_CACHE_DIR"]
 
 
+#: A small rcm-grid config (54 candidates, 5^3 points): the store and CLI tests' workhorse.
+RCM_SMALL = """
+[workspace]
+points_per_side = 5
+[candidates.grid]
+x_min_m = 0.3
+x_max_m = 0.7
+x_count = 9
+z_min_m = -0.5
+z_max_m = 0.0
+z_count = 6
+"""
+#: rcm-grid, ~3 s of single-core work in 124 chunks: long enough to interrupt for real
+RCM_SLOW = """
+[candidates.grid]
+x_min_m = 0.2
+x_max_m = 0.8
+x_count = 121
+z_min_m = -0.4
+z_max_m = 0.0
+z_count = 41
+"""
+
+
+@pytest.fixture
+def small_cfg(tmp_path):
+    """RCM_SMALL written to a file."""
+    p = tmp_path / "small.toml"
+    p.write_text(RCM_SMALL)
+    return p
+
+
+def single_run(store):
+    """The one run in a store (fails if there are several)."""
+    from surgopt.store import Store
+
+    runs = Store(store).runs()
+    assert len(runs) == 1
+    return runs[0]
+
+
+def single_table(store):
+    """The table of the one run in a store, read with its study's schema."""
+    from surgopt.studies import get_study
+
+    run = single_run(store)
+    return run.read_table(get_study(run.study).schema())
+
+
 @pytest.fixture
 def store_dir(tmp_path):
     return tmp_path / "store"

@@ -6,66 +6,27 @@ import sys
 import time
 
 import numpy as np
-import pytest
-from conftest import cli
 
 from surgopt.config import load_config
 from surgopt.runner import run_study
 from surgopt.store import Store
 from surgopt.studies import rcm_grid as S
 
-SMALL = """
-[workspace]
-points_per_side = 5
-[candidates.grid]
-x_min_m = 0.3
-x_max_m = 0.7
-x_count = 9
-z_min_m = -0.5
-z_max_m = 0.0
-z_count = 6
-"""
-# ~3 s of single-core work in 124 chunks: long enough to interrupt for real
-SLOW = """
-[candidates.grid]
-x_min_m = 0.2
-x_max_m = 0.8
-x_count = 121
-z_min_m = -0.4
-z_max_m = 0.0
-z_count = 41
-"""
-
-
-def _single_run(store):
-    runs = Store(store).runs()
-    assert len(runs) == 1
-    return runs[0]
-
-
-def _table(store):
-    return _single_run(store).read_table(S.schema())
-
-
-@pytest.fixture
-def small_cfg(tmp_path):
-    p = tmp_path / "small.toml"
-    p.write_text(SMALL)
-    return p
+from conftest import cli, single_run, single_table
 
 
 def test_cli_stores_table_equal_to_library_call(tmp_path, small_cfg):
     store = tmp_path / "store"
     r = cli("rcm-grid", small_cfg, "--store", store, "--quiet", "--chunk-size", "7")
     assert "best_gii" in r.stdout
-    cli_table = _table(store)
+    cli_table = single_table(store)
     cfg = load_config(small_cfg, S.Config)
     lib = run_study(S.STUDY, cfg, config_name="x", store=Store(tmp_path / "lib"), jobs=1, quiet=True, chunk=1000)
     assert cli_table.equals(lib.table)
     # parts are plain Parquet: pandas reads them without surgopt
     import pandas as pd
 
-    df = pd.concat([pd.read_parquet(f) for f in _single_run(store).part_files()], ignore_index=True)
+    df = pd.concat([pd.read_parquet(f) for f in single_run(store).part_files()], ignore_index=True)
     assert np.array_equal(df["gii"].to_numpy(), cli_table["gii"].to_numpy())
     assert df["candidate_id"].dtype == np.int64 and df["feasible"].dtype == bool
 
@@ -73,17 +34,17 @@ def test_cli_stores_table_equal_to_library_call(tmp_path, small_cfg):
 def test_cache_hit_is_fast_and_says_so(tmp_path, small_cfg):
     store = tmp_path / "store"
     cli("rcm-grid", small_cfg, "--store", store, "--quiet")
-    mtimes = {f: f.stat().st_mtime_ns for f in _single_run(store).part_files()}
+    mtimes = {f: f.stat().st_mtime_ns for f in single_run(store).part_files()}
     t = time.perf_counter()
     r = cli("rcm-grid", small_cfg, "--store", store, "--quiet")
     assert time.perf_counter() - t < 5  # interpreter start + pyarrow read, no compute
     assert "cache hit" in r.stdout
-    assert {f: f.stat().st_mtime_ns for f in _single_run(store).part_files()} == mtimes
+    assert {f: f.stat().st_mtime_ns for f in single_run(store).part_files()} == mtimes
     # --force recomputes (parts rewritten), same rows
-    before = _table(store)
+    before = single_table(store)
     r = cli("rcm-grid", small_cfg, "--store", store, "--quiet", "--force")
     assert "cache hit" not in r.stdout
-    assert _table(store).equals(before)
+    assert single_table(store).equals(before)
     assert any(f.stat().st_mtime_ns != m for f, m in mtimes.items())
 
 

@@ -3,11 +3,12 @@ import subprocess
 import sys
 
 import pytest
-from conftest import REPO
 
 from surgopt.config import canonical_json, load_config, load_embedded, study_key
 from surgopt.errors import ConfigError
 from surgopt.studies import rcm_grid as S
+
+from conftest import REPO
 
 
 def test_embedded_default_equals_shipped_config():

@@ -1,10 +1,11 @@
 """PA10 RCM kernels (surgopt/kinematics/pa10_rcm.py) against the numpy reference and closed forms."""
 import numpy as np
 import pytest
-import reference as R
 
 from surgopt.kinematics import pa10_rcm as K
 from surgopt.metrics import global_isotropy_index
+
+import reference as R
 
 LINKS = (0.317, 0.45, 0.48, 0.07)
 TOOL = 0.587

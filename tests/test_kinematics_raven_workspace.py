@@ -4,13 +4,14 @@ import math
 
 import numpy as np
 import pytest
-import reference as R
 
-from surgopt.kinematics import raven as K
+from surgopt.kinematics import raven_plane as P
 from surgopt.kinematics import raven_workspace as W
 from surgopt.studies import raven_sweep as S
 
-PLANE = K.PlaneGrid(150.0, 4.0, 250.0)
+import reference as R
+
+PLANE = P.PlaneGrid(150.0, 4.0, 250.0)
 THETA2 = (20.0, 140.0)
 
 
@@ -48,7 +49,7 @@ def test_plane_grid_covers_every_reachable_node():
     geo = S.Config().geometry
     for g in [(0, 0, 0, 50, 50), (20, -10, 10, 200, 150), (0, 0, 0, 200, 200)]:
         ports, _ = W.arms(S.arm_layout(geo), *g)
-        xs, ys = K.plane_grid(ports, geo.depth_mm, geo.d4_max_mm, geo.step_mm)
+        xs, ys = P.plane_grid(ports, geo.depth_mm, geo.d4_max_mm, geo.step_mm)
         reach = math.sqrt(geo.d4_max_mm ** 2 - geo.depth_mm ** 2)
         X, Y = np.meshgrid(np.arange(-400, 400.1, 2.0), np.arange(-400, 400.1, 2.0), indexing="ij")
         ok = np.all([(X - p[0]) ** 2 + (Y - p[1]) ** 2 <= reach ** 2 for p in ports], axis=0)

@@ -1,9 +1,10 @@
 """Throat-arm kernels (surgopt/kinematics/throat.py) against the reference, quadrature and finite differences."""
 import numpy as np
 import pytest
-import reference as R
 
 from surgopt.kinematics import throat as T
+
+import reference as R
 
 LINKS = (60.0, 60.0, 110.0, 90.0, 80.0, 180.0)
 Q0 = np.array([1.4522, 2.4707, 50, 0, np.pi / 2, -np.pi / 3, 0, -np.pi / 3])

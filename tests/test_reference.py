@@ -1,6 +1,7 @@
 """The references themselves (tests/reference.py) against hand-checked poses and finite differences."""
 import numpy as np
 import pytest
+
 import reference as R
 
 LINKS = (0.317, 0.45, 0.48, 0.07)

@@ -7,9 +7,10 @@ import numpy as np
 import pyarrow as pa
 import pyarrow.parquet as pq
 import pytest
-from conftest import cli
 
 from surgopt.store import Store
+
+from conftest import cli
 
 BASE = Path(__file__).parent / "baselines"
 STUDY_OF = {"rcm_small": "rcm-grid", "raven_small": "raven-sweep", "suture_small": "suture-sim"}

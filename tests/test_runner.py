@@ -6,38 +6,17 @@ import sys
 from pathlib import Path
 
 import pytest
-from conftest import cli, wait_for_parts
 
 from surgopt.config import load_config
 from surgopt.errors import UsageError
 from surgopt.runner import run_study
 from surgopt.store import Store
 from surgopt.studies import get_study
-from surgopt.studies import rcm_grid as S
+
+from conftest import RCM_SLOW, cli, single_run, single_table, wait_for_parts
 
 BASE = Path(__file__).parent / "baselines"
 CONFIGS = {"rcm-grid": "rcm_small", "raven-sweep": "raven_small", "suture-sim": "suture_small"}
-SMALL = """
-[workspace]
-points_per_side = 5
-[candidates.grid]
-x_min_m = 0.3
-x_max_m = 0.7
-x_count = 9
-z_min_m = -0.5
-z_max_m = 0.0
-z_count = 6
-"""
-# ~3 s of single-core work in 124 chunks: long enough to interrupt for real
-SLOW = """
-[candidates.grid]
-x_min_m = 0.2
-x_max_m = 0.8
-x_count = 121
-z_min_m = -0.4
-z_max_m = 0.0
-z_count = 41
-"""
 
 
 def _run(tmp_path, name, tag, **kw):
@@ -109,20 +88,10 @@ def test_auto_chunk_aims_at_seconds_and_enough_tasks():
     assert 10 <= raven.auto_chunk(cfg) <= 250
 
 
-def _single_run(store):
-    runs = Store(store).runs()
-    assert len(runs) == 1
-    return runs[0]
-
-
-def _table(store):
-    return _single_run(store).read_table(S.schema())
-
-
 @pytest.mark.parametrize("how", ["SIGKILL", "SIGINT"])
 def test_interrupted_run_resumes_to_the_same_table(tmp_path, how):
     cfg = tmp_path / "slow.toml"
-    cfg.write_text(SLOW)
+    cfg.write_text(RCM_SLOW)
     store = tmp_path / "store"
     jobs = "1" if how == "SIGKILL" else "2"
     proc = subprocess.Popen([sys.executable, "-m", "surgopt", "rcm-grid", str(cfg), "--store", str(store),
@@ -136,14 +105,14 @@ def test_interrupted_run_resumes_to_the_same_table(tmp_path, how):
         assert "resume" in err
     else:
         assert proc.returncode == -signal.SIGKILL
-    run = _single_run(store)
+    run = single_run(store)
     assert not run.complete
     done = len(run.manifest["parts"])
     assert 3 <= done < run.manifest["n_tasks"]
     r = cli("rcm-grid", cfg, "--store", store, "--quiet", "--jobs", "2")
     assert f"resuming: {done} of {run.manifest['n_tasks']} chunks already stored" in r.stdout
-    resumed = _table(store)
+    resumed = single_table(store)
     fresh_store = tmp_path / "fresh"
     cli("rcm-grid", cfg, "--store", fresh_store, "--quiet", "--chunk-size", "40")
-    assert resumed.equals(_table(fresh_store))
+    assert resumed.equals(single_table(fresh_store))
     assert not list(store.glob("rcm-grid/*/.*.tmp-*"))

@@ -6,11 +6,11 @@ import sys
 
 import numpy as np
 import pytest
-import reference as R
 
 from surgopt.studies import raven_sweep as S
 
-AL, BE, A5 = math.radians(75), math.radians(52), 13.0  # Raven II link angles, wrist offset
+import reference as R
+
 SMALL = """
 [sweep]
 alpha_deg = [45.0, 65.0]
@@ -44,9 +44,9 @@ def test_single_arm_workspace_is_the_closed_form_annulus(a_deg, b_deg):
 
 
 def test_fig4_two_arm_values_within_ten_percent():
-    from conftest import REPO
-
     from surgopt.config import load_config
+
+    from conftest import REPO
 
     cfg = load_config(REPO / "configs" / "raven_fig4.toml", S.Config)
     r = S.compute_task(cfg, 1, 0)
@@ -114,9 +114,9 @@ def test_span_values_and_validation():
 def test_cli_sweep_stored_cached_and_resumed(tmp_path):
     import signal
 
-    from conftest import wait_for_parts
-
     from surgopt.store import Store
+
+    from conftest import wait_for_parts
 
     cfg = tmp_path / "small.toml"
     cfg.write_text(SMALL)
@@ -146,9 +146,9 @@ def test_cli_sweep_stored_cached_and_resumed(tmp_path):
 
 
 def test_embedded_default_is_table_ii():
-    from conftest import REPO
-
     from surgopt.config import load_config, load_embedded
+
+    from conftest import REPO
 
     emb = load_embedded(S.DEFAULT_CONFIG, S.Config)
     assert emb == load_config(REPO / "configs" / "raven_table2.toml", S.Config)

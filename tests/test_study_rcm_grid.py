@@ -1,10 +1,11 @@
 """Study rcm-grid (surgopt/studies/rcm_grid.py): Table I, the cull search, chunking, candidates."""
 import numpy as np
 import pytest
-from conftest import REPO
 
 from surgopt.config import load_config, load_embedded
 from surgopt.studies import rcm_grid as S
+
+from conftest import REPO
 
 # Locke & Patel 2007, Table I: x, z (m, z from the shoulder), GII
 TABLE_I = np.array([

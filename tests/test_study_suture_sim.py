@@ -57,9 +57,9 @@ def test_gain_closes_the_loop():
 
 
 def test_embedded_default_equals_shipped_config():
-    from conftest import REPO
-
     from surgopt.config import load_config
+
+    from conftest import REPO
 
     assert load_embedded(S.DEFAULT_CONFIG, S.Config) == load_config(REPO / "configs" / S.DEFAULT_CONFIG, S.Config)
     assert load_embedded(S.DEFAULT_CONFIG, S.Config) == S.Config()

@@ -28,6 +28,12 @@ so GII = min sigma_min(B) / max sigma_max(B) equals eq. 7 on Q^-1 J_r.
 Per candidate, the tool axis and wrist offset of every workspace point are
 shared (they do not depend on the RCM: ``workspace_geometry``), and a cube
 symmetric in y is evaluated on its y >= 0 half (``mirror_half``).
+
+Public drivers: ``pose_singular_values``, ``rcm_candidates_extremes``, ``rcm_candidate_bounded``
+(arrays and a ``Pa10Arm`` in, arrays out); the ``_``-prefixed functions are their compiled loops.
+One module of ~600 lines: the closed-form IK, the alternative Jacobian, the 3x3 singular values and
+the null-space reduction are inline functions compiled into one vectorised per-pose loop
+(``_workspace_poses``); they are one computation, read together with the paper's Sec. III.
 """
 from __future__ import annotations
 

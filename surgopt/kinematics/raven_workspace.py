@@ -15,15 +15,14 @@ from typing import NamedTuple, Sequence
 
 import numpy as np
 
-from surgopt.kinematics.raven import (
+from surgopt.kinematics.raven import cone_angle, theta2_interval
+from surgopt.kinematics.raven_plane import (
     DesignGrid,
     PlaneGrid,
-    cone_angle,
     covering_plane_grid,
     evaluate_geometries,
     node_margins,
     plane_node_bounds,
-    theta2_interval,
 )
 
 
@@ -97,11 +96,11 @@ def cone_angle_intervals(alphas_rad, betas_rad, iso_mins, theta2_range_deg) -> D
     lo2, hi2 = (math.radians(v) for v in theta2_range_deg)
     al, be, iso = (np.asarray(v, dtype=np.float64) for v in (alphas_rad, betas_rad, iso_mins))
     shape = (len(al), len(be), len(iso))
-    psi_lo, psi_hi, has = np.zeros(shape), np.zeros(shape), np.zeros(shape, bool)
+    psi_lo, psi_hi, has_interval = np.zeros(shape), np.zeros(shape), np.zeros(shape, bool)
     for (i, a), (j, b), (k, m) in itertools.product(enumerate(al), enumerate(be), enumerate(iso)):
         t_lo, t_hi, ok = theta2_interval(a, b, m, lo2, hi2)
-        psi_lo[i, j, k], psi_hi[i, j, k], has[i, j, k] = cone_angle(t_lo, a, b), cone_angle(t_hi, a, b), ok
-    return DesignGrid(al, be, iso, psi_lo, psi_hi, has)
+        psi_lo[i, j, k], psi_hi[i, j, k], has_interval[i, j, k] = cone_angle(t_lo, a, b), cone_angle(t_hi, a, b), ok
+    return DesignGrid(al, be, iso, psi_lo, psi_hi, has_interval)
 
 
 class _MetricsMemo:

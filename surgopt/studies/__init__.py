@@ -84,6 +84,16 @@ class Study:
     chunked: bool = True  # False: one task per run, no --chunk-size
 
 
+def figures_in(module: str) -> Callable:
+    """``Study.figures`` for ``surgopt.studies.figures.<module>``, imported on the first call (so that
+    matplotlib loads only when a figure is drawn)."""
+
+    def figures(cfg, table, out_dir: Path, design_id: int | None = None) -> list[Path]:
+        return importlib.import_module(f"surgopt.studies.figures.{module}").figures(cfg, table, out_dir, design_id)
+
+    return figures
+
+
 def get_study(name: str) -> Study:
     """The declared study of that name (``KeyError`` for an unknown one)."""
     return importlib.import_module(STUDIES[name]).STUDY

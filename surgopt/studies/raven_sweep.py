@@ -19,7 +19,7 @@ from pydantic import Field, model_validator
 from surgopt.config import StrictModel
 from surgopt.metrics import raven_cost, workspace_compactness
 from surgopt.robots import raven_iv
-from surgopt.studies import Flag, Study, Summary
+from surgopt.studies import Flag, Study, Summary, figures_in
 from surgopt.studies.search import compass_search
 
 NAME = "raven-sweep"
@@ -168,7 +168,7 @@ def arm_layout(geo: Geometry):
 
 def plane(geo: Geometry):
     """The kernels' ``PlaneGrid`` for this geometry."""
-    from surgopt.kinematics.raven import PlaneGrid
+    from surgopt.kinematics.raven_plane import PlaneGrid
 
     return PlaneGrid(geo.depth_mm, geo.step_mm, geo.d4_max_mm)
 
@@ -365,17 +365,11 @@ def feasible_mask(table):
     return table["n_points"].to_numpy() > 0
 
 
-def _figures(cfg, table, out, design_id=None):
-    from surgopt.studies.figures.raven_sweep import figures
-
-    return figures(cfg, table, out, design_id)
-
-
 STUDY = Study(
     name=NAME, kernel_version=KERNEL_VERSION, config_model=RavenSweepConfig, default_config=DEFAULT_CONFIG,
     help=HELP, config_help=CONFIG_HELP, schema=schema, key_columns=KEY_COLUMNS, objective=OBJECTIVE,
     auto_chunk=auto_chunk, n_tasks=n_tasks, warm_up=warm_up, compute_task=compute_task, summary=summary,
-    feasible_mask=feasible_mask, figures=_figures,
+    feasible_mask=feasible_mask, figures=figures_in("raven_sweep"),
     flags=(Flag("--refine", "After the grid, a compass search from the top-k designs inside the sweep's bounds; "
                             "its rows are stored as a second run.",
                 follow_up=refine_config, follow_up_suffix="+refine"),))

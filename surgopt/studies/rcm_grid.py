@@ -16,7 +16,7 @@ from pydantic import Field, model_validator
 from surgopt.config import StrictModel
 from surgopt.metrics import global_isotropy_index
 from surgopt.robots import pa10_7c
-from surgopt.studies import Flag, Study, Summary
+from surgopt.studies import Flag, Study, Summary, figures_in
 
 NAME = "rcm-grid"
 HELP = """Global Isotropy Index of candidate remote-centre-of-motion locations for a PA10-7C
@@ -350,17 +350,11 @@ def feasible_mask(table):
     return table["feasible"].to_numpy(zero_copy_only=False)
 
 
-def _figures(cfg, table, out, design_id=None):
-    from surgopt.studies.figures.rcm_grid import figures
-
-    return figures(cfg, table, out, design_id)
-
-
 STUDY = Study(
     name=NAME, kernel_version=KERNEL_VERSION, config_model=RcmGridConfig, default_config=DEFAULT_CONFIG,
     help=HELP, config_help=CONFIG_HELP, schema=schema, key_columns=KEY_COLUMNS, objective=OBJECTIVE,
     auto_chunk=auto_chunk, n_tasks=n_tasks, warm_up=warm_up, compute_task=compute_task, summary=summary,
-    feasible_mask=feasible_mask, figures=_figures,
+    feasible_mask=feasible_mask, figures=figures_in("rcm_grid"),
     flags=(Flag("--cull", "Fast exact argmax with the Culling algorithm (Stocco & Salcudean) instead of "
                           "the full GII map; culled candidates carry an upper bound.",
                 config_update={"search": "cull"}),))

@@ -18,7 +18,7 @@ from pydantic import Field, model_validator
 from surgopt.config import StrictModel
 from surgopt.kinematics.throat_modes import MODE_NAMES, SutureMode
 from surgopt.robots import throat_arm as arm
-from surgopt.studies import Study, Summary
+from surgopt.studies import Study, Summary, figures_in
 
 NAME = "suture-sim"
 HELP = """Suturing with one arm of the two-armed throat robot (Wei, Xu & Simaan: eqs. 2-32, Figs. 6-7).
@@ -271,14 +271,8 @@ def feasible_mask(table):
     return np.isin(table["run_id"].to_numpy(), list(good))
 
 
-def _figures(cfg, table, out, design_id=None):
-    from surgopt.studies.figures.suture_sim import figures
-
-    return figures(cfg, table, out, design_id)
-
-
 STUDY = Study(
     name=NAME, kernel_version=KERNEL_VERSION, config_model=SutureSimConfig, default_config=DEFAULT_CONFIG,
     help=HELP, config_help=CONFIG_HELP, schema=schema, key_columns=KEY_COLUMNS, objective=OBJECTIVE,
     auto_chunk=auto_chunk, n_tasks=n_tasks, warm_up=warm_up, compute_task=compute_task, summary=summary,
-    feasible_mask=feasible_mask, figures=_figures, chunked=False)
+    feasible_mask=feasible_mask, figures=figures_in("suture_sim"), chunked=False)
