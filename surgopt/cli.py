@@ -5,6 +5,8 @@ Heavy imports (numpy, numba, pyarrow) happen inside the commands so that
 """
 from __future__ import annotations
 
+import contextlib
+import signal
 import sys
 from pathlib import Path
 from typing import Annotated, Optional
@@ -36,6 +38,12 @@ BackendOpt = Annotated[str, typer.Option(
 SchedulerOpt = Annotated[Optional[str], typer.Option(
     "--scheduler", help="With --backend dask: the scheduler address (tcp://host:8786). Without it, a "
                         "LocalCluster of --jobs single-threaded workers.", show_default=False)]
+MaxHoursOpt = Annotated[float, typer.Option(
+    "--max-hours", min=0.0, help="Refuse a config whose estimated work exceeds this many hours on --jobs cores "
+                                 "(the estimate is printed; raise this to run it anyway).")]
+MaxMemoryOpt = Annotated[Optional[float], typer.Option(
+    "--max-memory-gb", min=0.0, help="Refuse a config whose estimated peak memory exceeds this "
+                                     "[default: half of this machine's memory].", show_default=False)]
 ChunkOpt = Annotated[Optional[int], typer.Option(
     "--chunk-size", min=1, help="Design points per task (a resumed run keeps the size it started with).",
     show_default=False)]
@@ -44,6 +52,48 @@ ChunkOpt = Annotated[Optional[int], typer.Option(
 def _fail(exc: BaseException, code: int) -> None:
     typer.echo(f"surgopt: error: {exc}", err=True)
     raise typer.Exit(code)
+
+
+class Stopped(KeyboardInterrupt):
+    """SIGTERM or SIGHUP (what cluster schedulers send before SIGKILL), handled like Ctrl-C."""
+
+    def __init__(self, signum: int):
+        super().__init__(signum)
+        self.signum = signum
+
+
+def _stop_on(signum, _frame):
+    raise Stopped(signum)
+
+
+RESUME = "finished chunks are stored, run the same command again to resume"
+
+
+@contextlib.contextmanager
+def _guard():
+    """Every failure a command can meet ends in one line on stderr and an exit code: 2 bad input,
+    1 a failed run or store, 130 / 143 / 129 interrupted by SIGINT / SIGTERM / SIGHUP."""
+    from surgopt.errors import SurgoptError
+
+    try:
+        yield
+    except SurgoptError as exc:
+        _fail(exc, exc.exit_code)
+    except Stopped as exc:
+        typer.echo(f"surgopt: stopped by {signal.Signals(exc.signum).name}; {RESUME}", err=True)
+        raise typer.Exit(128 + exc.signum)
+    except KeyboardInterrupt:
+        typer.echo(f"surgopt: interrupted; {RESUME}", err=True)
+        raise typer.Exit(130)
+    except MemoryError:
+        _fail(f"out of memory; {RESUME} (a smaller config, or --jobs 1)", 1)
+    except OSError as exc:
+        from surgopt.store import is_disk_full
+
+        where = f" writing {exc.filename}" if exc.filename else ""
+        if is_disk_full(exc):
+            _fail(f"the disk is full{where}; {RESUME} once there is space", 1)
+        _fail(f"{exc.strerror or exc}{where}", 1)
 
 
 def _load_study_config(study, config: Optional[Path]):
@@ -70,7 +120,8 @@ def _study_command(study) -> None:
     shared = [("store", StoreOpt, None), ("jobs", JobsOpt, 2), ("force", ForceOpt, False), ("quiet", QuietOpt, False)]
     if study.chunked:
         shared.append(("chunk_size", ChunkOpt, None))
-    shared += [("backend", BackendOpt, "threads"), ("scheduler", SchedulerOpt, None)]
+    shared += [("backend", BackendOpt, "threads"), ("scheduler", SchedulerOpt, None),
+               ("max_hours", MaxHoursOpt, 1.0), ("max_memory_gb", MaxMemoryOpt, None)]
     params += [P(name, P.KEYWORD_ONLY, default=default, annotation=ann) for name, ann, default in shared]
 
     def command(**kw) -> None:
@@ -85,10 +136,8 @@ def _study_command(study) -> None:
 
 
 def _run_study_command(study, config, store, jobs, force, quiet, chunk_size=None, backend="threads", scheduler=None,
-                       flags=()):
-    from surgopt.errors import SurgoptError
-
-    try:
+                       max_hours=1.0, max_memory_gb=None, flags=()):
+    with _guard():
         from surgopt.runner import run_study
         from surgopt.store import Store
 
@@ -97,23 +146,18 @@ def _run_study_command(study, config, store, jobs, force, quiet, chunk_size=None
         if updates:
             cfg = study.config_model.model_validate({**cfg.model_dump(), **updates})
         say = lambda m: typer.echo(m, err=True)  # noqa: E731
+        budget = dict(max_hours=max_hours, max_memory_bytes=None if max_memory_gb is None else int(max_memory_gb * 2 ** 30))
         result = run_study(study, cfg, config_name=config_name, store=Store(store), jobs=jobs,
                            force=force, quiet=quiet, chunk=chunk_size, backend=backend, scheduler=scheduler,
-                           say=say)
+                           say=say, **budget)
         _report(study, result)
         for f in flags:
             if f.follow_up is None:
                 continue
             follow = run_study(study, f.follow_up(cfg, result.table), config_name=config_name + f.follow_up_suffix,
                                store=Store(store), jobs=jobs, force=force, quiet=quiet, backend=backend,
-                               scheduler=scheduler, say=say)
+                               scheduler=scheduler, say=say, **budget)
             _report(study, follow)
-    except SurgoptError as exc:
-        _fail(exc, exc.exit_code)
-    except KeyboardInterrupt:
-        typer.echo("surgopt: interrupted; finished chunks are stored, run the same command again to resume",
-                   err=True)
-        raise typer.Exit(130)
 
 
 def _register_studies() -> None:
@@ -180,20 +224,35 @@ def runs(
     from rich.console import Console
     from rich.table import Table
 
-    from surgopt.store import Store
+    with _guard():
+        from surgopt.store import Store
+        from surgopt.studies import STUDIES
 
-    s = Store(store)
-    items = s.runs(study)
-    if not items:
+        if study is not None and study not in STUDIES:
+            _fail(f"--study: unknown study {study!r} (one of {', '.join(STUDIES)})", 2)
+        s = Store(store)
+        items = s.runs(study)
+        broken = s.unreadable(study)
+    if not items and not broken:
         typer.echo(f"no runs in {s.root}")
         return
     t = Table(title=f"runs in {s.root}")
     for col in ("study", "key", "config", "rows", "state", "created"):
         t.add_column(col)
     for r in items:
-        state = "complete" if r.complete else f"partial {len(r.manifest['parts'])}/{r.manifest['n_tasks']}"
+        damaged = r.damaged()
+        if damaged:
+            state = f"DAMAGED: {damaged[0][0]} {damaged[0][1]}" + (f" (+{len(damaged) - 1} more)" if len(damaged) > 1 else "")
+        elif r.complete:
+            state = "complete"
+        else:
+            state = f"partial {len(r.manifest['parts'])}/{r.manifest['n_tasks']}"
+        who = s.holder(r.study, r.key)
+        state += f", being written by {who}" if who else ""
         t.add_row(r.study, r.key[:12], r.manifest.get("config_name", "?"), str(r.rows), state,
                   r.manifest.get("created", "?"))
+    for path, why in broken:
+        t.add_row(path.parent.name, path.name[:12], "?", "?", f"UNREADABLE: {why}", "?")
     Console(width=max(100, Console().width)).print(t)
 
 
@@ -202,28 +261,36 @@ def runs_rm(
     key: Annotated[str, typer.Argument(help="Key prefix of the run (see `surgopt runs`).")],
     store: StoreOpt = None,
 ) -> None:
-    """Delete one stored run (only ever inside the store root)."""
-    from surgopt.errors import SurgoptError
-    from surgopt.store import Store
+    """Delete one stored run (only ever inside the store root; refused while a study is writing it)."""
+    import shutil
 
-    s = Store(store)
-    matches = [r for r in s.runs() if r.key.startswith(key)]
-    if len(matches) != 1:
-        _fail(f"{key}: matches {len(matches)} runs in {s.root}", 2)
-    try:
+    with _guard():
+        from surgopt.store import Store
+
+        if len(key) < 4 or any(c not in "0123456789abcdef" for c in key):
+            _fail(f"{key!r}: give at least 4 hex digits of a key (see `surgopt runs`)", 2)
+        s = Store(store)
+        matches = [r for r in s.runs() if r.key.startswith(key)]
+        broken = [p for p, _ in s.unreadable() if p.name.startswith(key)]
+        if len(matches) + len(broken) != 1:
+            _fail(f"{key}: matches {len(matches) + len(broken)} runs in {s.root}", 2)
+        if broken:
+            shutil.rmtree(broken[0])
+            typer.echo(f"removed {broken[0].parent.name} {broken[0].name[:12]} (its manifest was unreadable)")
+            return
         s.remove(matches[0])
-    except SurgoptError as exc:
-        _fail(exc, exc.exit_code)
     typer.echo(f"removed {matches[0].study} {matches[0].key[:12]}")
 
 
 @runs_app.command("gc")
 def runs_gc(store: StoreOpt = None) -> None:
-    """Delete partial (interrupted) runs and temporary files left by killed writers."""
-    from surgopt.store import Store
+    """Delete partial (interrupted) runs, stray part and temporary files left by killed writers, and
+    abandoned --force rebuilds. Runs that a study is writing now (their lock is held) are left alone."""
+    with _guard():
+        from surgopt.store import Store
 
-    s = Store(store)
-    removed = s.gc()
+        s = Store(store)
+        removed = s.gc()
     typer.echo(f"removed {len(removed)} item(s)" + "".join(f"\n  {p}" for p in removed))
 
 
@@ -245,19 +312,15 @@ def summarize(
 ) -> None:
     """Summary of a stored run: top designs by the study's objective, its distribution, feasibility,
     and for studies without an objective their own comparison tables. Works on partial runs and says so."""
-    from surgopt.errors import SurgoptError
-
     if fmt not in ("table", "csv", "json", "markdown"):
         _fail(f"--format: {fmt!r} is not one of table, csv, json, markdown", 2)
-    try:
+    with _guard():
         from surgopt.report import render, summary_sections
         from surgopt.results import resolve_run
         from surgopt.store import Store
 
         st, r = resolve_run(Store(store), run, study)
         sections = summary_sections(st, r, r.read_table(st.schema()), top=top, sort=sort)
-    except SurgoptError as exc:
-        _fail(exc, exc.exit_code)
     if fmt != "table":
         typer.echo(render(sections, fmt))
         return
@@ -279,8 +342,9 @@ def plot(
 ) -> None:
     """PNG figures of a stored run in the style of its paper (each study's own; docs/figures shows them
     for the paper setups)."""
-    from surgopt.errors import SurgoptError
-    try:
+    if out.exists() and not out.is_dir():
+        _fail(f"--out: {out} is a file; give a folder for the figures", 2)
+    with _guard():
         from surgopt.results import config_of, resolve_run
         from surgopt.store import Store
 
@@ -288,10 +352,11 @@ def plot(
         table = r.read_table(st.schema())
         if table.num_rows == 0:
             _fail(f"{r.key[:12]}: the run has no rows yet", 1)
+        id_column = st.key_columns[0]
+        if design is not None and design not in set(table[id_column].to_pylist()):
+            _fail(f"--design: no {id_column} {design} in run {r.key[:12]}", 2)
         out.mkdir(parents=True, exist_ok=True)
         paths = st.figures(config_of(st, r), table, out, design)
-    except SurgoptError as exc:
-        _fail(exc, exc.exit_code)
     for p in paths:
         typer.echo(str(p))
 
@@ -310,8 +375,7 @@ def check(
 ) -> None:
     """Run (or reuse) a study and compare it with a stored Parquet baseline: key columns exactly, float
     columns within rtol/atol, after sorting by the key. Exit 0 within tolerance, 1 when not, 2 on bad input."""
-    from surgopt.errors import SurgoptError
-    try:
+    with _guard():
         import pyarrow.parquet as pq
 
         from surgopt.results import compare_tables, study_of_config, write_baseline
@@ -332,8 +396,6 @@ def check(
         except Exception as exc:  # noqa: BLE001 - any unreadable file is bad input
             _fail(f"{baseline}: not a readable Parquet file ({exc})", 2)
         problems, diffs = compare_tables(res.table, base, st.key_columns, rtol, atol)
-    except SurgoptError as exc:
-        _fail(exc, exc.exit_code)
     for p in problems:
         typer.echo(f"FAIL: {p}")
     if diffs:
@@ -347,6 +409,8 @@ def check(
 
 
 def main() -> None:
+    for sig in (signal.SIGTERM, signal.SIGHUP):
+        signal.signal(sig, _stop_on)
     app()
 
 

@@ -21,12 +21,46 @@ M = TypeVar("M", bound=BaseModel)
 
 
 class StrictModel(BaseModel):
-    """Base for config sections: unknown keys are errors, values are not coerced silently."""
+    """Base for config sections: unknown keys are errors, values are not coerced silently, and every
+    float is finite (NaN and infinity are refused wherever a number is expected)."""
 
-    model_config = ConfigDict(extra="forbid", strict=True, frozen=True)
+    model_config = ConfigDict(extra="forbid", strict=True, frozen=True, allow_inf_nan=False)
+
+
+#: Longest value quoted back in an error message (a huge list is cut, not printed whole).
+MAX_QUOTED_CHARS = 120
+#: How many validation errors one message lists.
+MAX_ERRORS_LISTED = 5
+
+
+def _quote(value: Any) -> str:
+    text = repr(value)
+    return text if len(text) <= MAX_QUOTED_CHARS else text[:MAX_QUOTED_CHARS] + f"... ({len(text):,} characters)"
+
+
+def _yaml_loader():
+    """yaml.SafeLoader that refuses duplicate keys (plain PyYAML keeps the last one silently)."""
+    import yaml
+
+    class StrictLoader(yaml.SafeLoader):
+        pass
+
+    def mapping(loader, node, deep=False):
+        seen = set()
+        for key_node, _ in node.value:
+            key = loader.construct_object(key_node, deep=deep)
+            if key in seen:
+                raise yaml.constructor.ConstructorError(
+                    None, None, f"duplicate key {key!r}", key_node.start_mark)
+            seen.add(key)
+        return loader.construct_mapping(node, deep=deep)
+
+    StrictLoader.add_constructor(yaml.resolver.BaseResolver.DEFAULT_MAPPING_TAG, mapping)
+    return StrictLoader
 
 
 def _parse_text(text: str, source: str, suffix: str) -> Any:
+    """TOML or YAML text -> data. An empty file (or one with comments only) is an empty table in both."""
     if suffix == ".toml":
         try:
             return tomllib.loads(text)
@@ -36,10 +70,11 @@ def _parse_text(text: str, source: str, suffix: str) -> Any:
         import yaml
 
         try:
-            return yaml.safe_load(text)
+            data = yaml.load(text, Loader=_yaml_loader())  # noqa: S506 - a SafeLoader subclass
         except yaml.YAMLError as exc:
             msg = " ".join(str(exc).split())
             raise ConfigError(source, f"not valid YAML: {msg}") from None
+        return {} if data is None else data
     raise ConfigError(source, "unknown config format (use .toml, .yaml or .yml)")
 
 
@@ -50,24 +85,39 @@ def _field_path(loc: tuple) -> str:
     return out or "(top level)"
 
 
+def _error_text(err: dict) -> str:
+    msg = err["msg"].removeprefix("Value error, ")
+    if err["type"] == "extra_forbidden":
+        return "unknown key"
+    if err["type"] == "finite_number":
+        return f"must be a finite number (got {_quote(err.get('input'))})"
+    if "input" in err and err["type"] not in ("missing",) and not isinstance(err["input"], dict):
+        return f"{msg} (got {_quote(err['input'])})"
+    return msg
+
+
+def _loc(err: dict) -> tuple:
+    """The error's location without the union-form tags of a discriminated field ('<span>', '<list>')."""
+    return tuple(p for p in err["loc"] if not (isinstance(p, str) and p.startswith("<")))
+
+
 def validate(data: Any, model: type[M], source: str) -> M:
-    """Validate parsed data; the first error becomes one ConfigError naming the field."""
+    """Validate parsed data; errors become one ConfigError naming the file and each field (up to
+    MAX_ERRORS_LISTED of them, in one line)."""
     if not isinstance(data, dict):
         raise ConfigError(source, "expected a table of settings at the top level")
     try:
         return model.model_validate(data)
     except ValidationError as exc:
-        err = exc.errors()[0]
-        field = _field_path(err["loc"])
-        msg = err["msg"]
-        if err["type"] == "extra_forbidden":
-            msg = "unknown key"
-        elif "input" in err and err["type"] not in ("missing",):
-            msg = f"{msg} (got {err['input']!r})"
-        more = len(exc.errors()) - 1
-        if more:
-            msg += f" (and {more} more error{'s' if more > 1 else ''})"
-        raise ConfigError(source, msg, field) from None
+        errors = exc.errors()
+        first = errors[0]
+        msg = _error_text(first)
+        others = [f"{_field_path(_loc(e))}: {_error_text(e)}" for e in errors[1:MAX_ERRORS_LISTED]]
+        if others:
+            msg += "; also " + "; ".join(others)
+        if len(errors) > MAX_ERRORS_LISTED:
+            msg += f" (and {len(errors) - MAX_ERRORS_LISTED} more)"
+        raise ConfigError(source, msg, _field_path(_loc(first))) from None
 
 
 def load_config(path: str | Path, model: type[M]) -> M:

@@ -6,16 +6,21 @@ Knows nothing of kinematics: a ``Study`` (``surgopt.studies``) supplies ``n_task
 from __future__ import annotations
 
 import contextlib
+import math
 import os
 import time
 from dataclasses import dataclass, field
 
 from surgopt.config import study_key
-from surgopt.errors import UsageError
+from surgopt.errors import SurgoptError, UsageError
 from surgopt.jit import numba_cache_dir
 from surgopt.store import Run, Store
 
 DEFAULT_JOBS = 2
+
+
+class WorkerLost(SurgoptError):
+    """Worker processes kept dying (exit code 1)."""
 
 
 @dataclass
@@ -64,9 +69,54 @@ def _progress(quiet: bool):
 BACKENDS = ("threads", "loky", "dask")
 
 
+#: Work a run may imply without the user saying so (--max-hours), in hours of wall time on --jobs cores.
+DEFAULT_MAX_HOURS = 1.0
+#: Share of this machine's memory a run may need without the user saying so (--max-memory-gb).
+DEFAULT_MEMORY_SHARE = 0.5
+
+
+def physical_memory_bytes() -> int | None:
+    try:
+        return os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES")
+    except (ValueError, OSError, AttributeError):
+        return None
+
+
+def _duration(seconds: float) -> str:
+    if seconds < 120:
+        return f"{seconds:.0f} s"
+    if seconds < 7200:
+        return f"{seconds / 60:.0f} min"
+    if seconds < 2 * 86400:
+        return f"{int(seconds // 3600)} h {int(seconds % 3600 // 60)} min"
+    return f"{seconds / 86400:,.0f} days"
+
+
+def check_budget(study, cfg, jobs: int, max_hours: float | None, max_memory_bytes: int | None) -> None:
+    """Refuse, before anything runs or is written, a config whose estimated work or memory is past the
+    budget; the message gives the estimate and the flag that lifts the limit."""
+    if study.estimate is None:
+        return
+    est = study.estimate(cfg)
+    wall = est.seconds_one_core / max(1, min(jobs, os.cpu_count() or 1))
+    if max_hours is not None and wall > max_hours * 3600:
+        raise UsageError(f"this config is {est.items:,} {est.what}, about {_duration(wall)} on {jobs} core(s) "
+                         f"(estimate), past the {max_hours:g} h budget; pass --max-hours "
+                         f"{math.ceil(wall / 3600 * 1.2)} to run it anyway, or make it smaller")
+    if max_memory_bytes is None:
+        ram = physical_memory_bytes()
+        max_memory_bytes = int(ram * DEFAULT_MEMORY_SHARE) if ram else None
+    if max_memory_bytes is not None and est.peak_bytes > max_memory_bytes:
+        raise UsageError(f"this config is {est.items:,} {est.what} ({est.rows:,} rows), about "
+                         f"{est.peak_bytes / 2 ** 30:,.1f} GiB of memory (estimate), past the "
+                         f"{max_memory_bytes / 2 ** 30:,.1f} GiB budget; pass --max-memory-gb "
+                         f"{math.ceil(est.peak_bytes / 2 ** 30 * 1.2)} to run it anyway, or make it smaller")
+
+
 def run_study(study, cfg, *, config_name: str, store: Store, jobs: int = DEFAULT_JOBS,
               force: bool = False, quiet: bool = False, chunk: int | None = None,
-              backend: str = "threads", scheduler: str | None = None, say=print) -> RunResult:
+              backend: str = "threads", scheduler: str | None = None, say=print,
+              max_hours: float | None = DEFAULT_MAX_HOURS, max_memory_bytes: int | None = None) -> RunResult:
     """Compute (or fetch from the store) the table of one study config.
 
     ``backend`` "threads" (a thread pool in this process; every kernel is
@@ -75,42 +125,98 @@ def run_study(study, cfg, *, config_name: str, store: Store, jobs: int = DEFAULT
     backend on a ``distributed`` cluster: ``scheduler`` address, or a
     LocalCluster of ``jobs`` single-threaded workers). Either way the same chunks run the same
     kernels and only this process writes to the store, part by part as chunks
-    complete, so memory does not grow with the design grid.
+    complete. ``max_hours``, ``max_memory_bytes`` (None: half this machine's memory): the
+    budget ``check_budget`` holds the study's estimate to before it starts.
     """
     if backend not in BACKENDS:
         raise UsageError(f"--backend: {backend!r} is not one of {', '.join(BACKENDS)}")
+    if scheduler is not None and backend != "dask":
+        raise UsageError(f"--scheduler goes with --backend dask (the {backend} backend runs on this machine)")
     if backend == "dask":
         _require_distributed()
     t0 = time.perf_counter()
     schema = study.schema()
     key = study_key(study.name, cfg, study.kernel_version)
-    run = store.open(study.name, key)
-    if run is not None and run.complete and not force and not store.bad_parts(run):
-        table = run.read_table(schema)
-        return RunResult(run, table, True, 0, time.perf_counter() - t0)
+    check_budget(study, cfg, jobs, max_hours, max_memory_bytes)
+    if not force:
+        hit = _stored_table(store, study, key, schema, say)
+        if hit is not None:
+            return RunResult(hit[0], hit[1], True, 0, time.perf_counter() - t0)
 
-    with store.lock(study.name, key, on_wait=lambda who: say(f"waiting for {who} to finish this study ...")):
+    lock = store.lock(study.name, key, on_wait=lambda who: say(f"waiting for {who} to finish this study ..."))
+    cluster = _dask_client(scheduler, jobs) if backend == "dask" else contextlib.nullcontext()
+    with lock, cluster as dask:  # connect to the cluster before anything is written
         chunk = chunk or study.auto_chunk(cfg)
-        existing = None if force else store.open(study.name, key)
+        existing = None if force else _open_or_discard(store, study.name, key, say)
         if existing is not None:
             chunk = existing.manifest["chunk"]  # parts already cut this way
         run = store.begin(study.name, key, config=cfg.model_dump(mode="json"),
                           config_name=config_name, kernel_version=study.kernel_version,
-                          n_tasks=study.n_tasks(cfg, chunk), chunk=chunk, force=force)
+                          n_tasks=study.n_tasks(cfg, chunk), chunk=chunk, force=force, fresh=existing is None)
         total = run.manifest["n_tasks"]
         missing = [i for i in range(total) if i not in run.done_tasks()]
         messages = []
         if len(missing) < total:
             messages.append(f"resuming: {total - len(missing)} of {total} chunks already stored")
+        computed = len(missing)
         if missing:
             study.warm_up(cfg)  # compile once in the parent; workers load the cache
-            _dispatch(study, cfg, chunk, missing, run, store, jobs, quiet, total, schema, backend, scheduler)
+            for attempt in range(WORKER_RETRIES + 1):
+                try:
+                    _dispatch(study, cfg, chunk, missing, run, store, jobs, quiet, total, schema, backend, dask)
+                    break
+                except Exception as exc:  # noqa: BLE001 - only a lost worker is retried
+                    if not _worker_died(exc):
+                        raise
+                    missing = [i for i in range(total) if i not in run.done_tasks()]
+                    if attempt == WORKER_RETRIES:
+                        raise WorkerLost(f"a worker process died {WORKER_RETRIES + 1} times "
+                                         f"({exc.__class__.__name__}); the {total - len(missing)} finished "
+                                         f"chunks are stored, run the same command again to resume") from None
+                    say(f"a worker process died ({exc.__class__.__name__}); retrying its "
+                        f"{len(missing)} unfinished chunk(s)")
+        run = store.finish(run)
         table = run.read_table(schema)
-    return RunResult(run, table, False, len(missing), time.perf_counter() - t0, messages)
+    return RunResult(run, table, False, computed, time.perf_counter() - t0, messages)
+
+
+#: How many times the chunks of a worker process that died (killed, out of memory) are retried.
+WORKER_RETRIES = 2
+
+
+def _worker_died(exc: BaseException) -> bool:
+    """A worker process that ended under joblib/loky (TerminatedWorkerError, BrokenProcessPool)."""
+    names = {c.__name__ for c in type(exc).__mro__}
+    return bool(names & {"TerminatedWorkerError", "BrokenProcessPool", "BrokenExecutor"})
+
+
+def _stored_table(store: Store, study, key: str, schema, say):
+    """(run, table) if the store holds this run complete and every part checks out, else None."""
+    from surgopt.errors import StoreError
+
+    try:
+        run = store.open(study.name, key)
+        if run is None or not run.complete:
+            return None
+        return run, run.read_table(schema)
+    except StoreError as exc:
+        say(f"{exc}".split("; run `")[0] + "; recomputing what is damaged")
+        return None
+
+
+def _open_or_discard(store: Store, study_name: str, key: str, say):
+    """The stored run, or None (and a message) when its manifest is unusable: it is then rebuilt."""
+    from surgopt.errors import StoreError
+
+    try:
+        return store.open(study_name, key)
+    except StoreError as exc:
+        say(f"{exc}".split(";")[0] + "; starting this run anew")
+        return None
 
 
 def _dispatch(study, cfg, chunk, missing, run, store, jobs, quiet, total, schema, backend="threads",
-              scheduler=None):
+              dask_client=None):
     import pyarrow as pa
 
     progress = _progress(quiet)
@@ -141,11 +247,10 @@ def _dispatch(study, cfg, chunk, missing, run, store, jobs, quiet, total, schema
                 for index, cols in Parallel(return_as="generator_unordered")(tasks):
                     record(index, cols)
             return
-        with _dask_client(scheduler, jobs) as client:
-            _prepare_dask_workers(client, study.name, cfg)
-            with parallel_config(backend="dask"):
-                for index, cols in Parallel(return_as="generator_unordered")(tasks):
-                    record(index, cols)
+        _prepare_dask_workers(dask_client, study.name, cfg)
+        with parallel_config(backend="dask"):
+            for index, cols in Parallel(return_as="generator_unordered")(tasks):
+                record(index, cols)
 
 
 def _dispatch_threads(study_name, cfg, chunk, missing, jobs, record):
@@ -176,13 +281,21 @@ def _require_distributed() -> None:
         raise UsageError(DASK_HINT) from None
 
 
+#: How long --scheduler may take to answer before the run is refused (s).
+SCHEDULER_TIMEOUT_S = 10
+
+
 @contextlib.contextmanager
 def _dask_client(scheduler: str | None, jobs: int):
     """A distributed.Client on ``scheduler``, or on a LocalCluster of ``jobs`` one-thread workers."""
     from distributed import Client, LocalCluster
 
     if scheduler:
-        client = Client(scheduler)
+        try:
+            client = Client(scheduler, timeout=SCHEDULER_TIMEOUT_S)
+        except (OSError, TimeoutError, ValueError, TypeError) as exc:
+            msg = " ".join(str(exc).split())[:200] or exc.__class__.__name__
+            raise UsageError(f"--scheduler {scheduler}: cannot connect ({msg}); nothing was written") from None
         try:
             yield client
         finally:

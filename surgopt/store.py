@@ -1,16 +1,25 @@
 """Content-addressed Parquet result store.
 
-Layout: ``STORE/<study>/<key>/manifest.json`` + ``part-00000.parquet`` ...
-A part counts as done only once it was written to a temporary file, fsynced,
-renamed into place, read back, and listed in the manifest (itself replaced
-atomically) with its row count and sha256. Only the parent process writes.
-An exclusive ``flock`` on ``<key>/.lock`` keeps two processes from writing
-one key at once; the second waits and then finds the parts the first wrote.
+Layout: ``STORE/<study>/<key>/manifest.json`` + ``part-00000.parquet`` ..., and one lock file per
+key in ``STORE/<study>/.locks/<key>.lock`` (outside the run folder, so that replacing or deleting a
+run never touches a lock someone holds).
+
+A part counts as done only once it was written to a temporary file, fsynced, renamed into place,
+read back, and listed in the manifest (itself replaced atomically) with its row count, size and
+sha256. Only the parent process writes. An exclusive ``flock`` on the key's lock keeps two
+processes from writing one key at once; the second waits and then finds the parts the first wrote.
+
+Readers verify what they read: every part against its size and sha256 in the manifest (hashed from
+the same bytes that are parsed, so one read per part); a damaged run is an error that names the
+part and the command that repairs it. ``--force`` builds the new run in ``STORE/<study>/.staging/``
+and swaps it in when complete, so a reader of the old run is never left with half of each; a reader
+that loses the race re-reads the manifest. Clean-up (``gc``, ``remove``) leaves locked runs alone.
 """
 from __future__ import annotations
 
 import contextlib
 import datetime as _dt
+import errno
 import fcntl
 import hashlib
 import json
@@ -19,25 +28,36 @@ import shutil
 from dataclasses import dataclass
 from pathlib import Path
 
-from surgopt.errors import StoreError
+from surgopt.errors import StoreError, UsageError
 
 DEFAULT_STORE = "surgopt-store"
 MANIFEST = "manifest.json"
-LOCK = ".lock"
+LOCKS = ".locks"
+STAGING = ".staging"
 FORMAT_VERSION = 1
+#: How often a reader re-reads a run whose parts were replaced under it (a --force rerun) before giving up.
+READ_RETRIES = 3
 
 
 def store_root(path: str | os.PathLike | None = None) -> Path:
-    """--store flag > SURGOPT_STORE > ./surgopt-store."""
-    return Path(path or os.environ.get("SURGOPT_STORE") or DEFAULT_STORE)
+    """--store flag > SURGOPT_STORE > ./surgopt-store. An empty path is refused (it would mean '.')."""
+    if path is not None and str(path) == "":
+        raise UsageError("--store: an empty path; give a folder (it is created if missing)")
+    env = os.environ.get("SURGOPT_STORE")
+    if path is None and env is not None and env == "":
+        raise UsageError("$SURGOPT_STORE is set but empty; unset it or give a folder")
+    root = Path(path or env or DEFAULT_STORE)
+    for p in (root, *root.parents):
+        if p.exists():
+            if not p.is_dir():
+                what = "is a file" if p == root else f"is under {p}, which is a file"
+                raise UsageError(f"--store: {root} {what}; give a folder")
+            break
+    return root
 
 
-def _sha256(path: Path) -> str:
-    h = hashlib.sha256()
-    with open(path, "rb") as f:
-        for block in iter(lambda: f.read(1 << 20), b""):
-            h.update(block)
-    return h.hexdigest()
+def _sha256_bytes(data: bytes) -> str:
+    return hashlib.sha256(data).hexdigest()
 
 
 def atomic_write(path: Path, write) -> None:
@@ -65,6 +85,27 @@ def _fsync_dir(path: Path) -> None:
 
 def _now() -> str:
     return _dt.datetime.now(_dt.timezone.utc).replace(microsecond=0).isoformat()
+
+
+def check_manifest(manifest, where: Path) -> dict:
+    """The manifest if it has the shape this version writes, else a StoreError naming what is wrong."""
+    def bad(what):
+        return StoreError(f"{where}: not a valid surgopt manifest ({what}); delete the run "
+                          f"(`surgopt runs rm KEY`) or its folder and run the study again")
+
+    if not isinstance(manifest, dict):
+        raise bad("not a JSON object")
+    for k, t in (("format", int), ("study", str), ("key", str), ("n_tasks", int), ("chunk", int),
+                 ("parts", dict), ("config", dict)):
+        if not isinstance(manifest.get(k), t) or isinstance(manifest.get(k), bool):
+            raise bad(f"'{k}' missing or not a {t.__name__}")
+    for i, meta in manifest["parts"].items():
+        if not (isinstance(i, str) and i.isdigit() and isinstance(meta, dict)
+                and isinstance(meta.get("file"), str) and isinstance(meta.get("rows"), int)
+                and isinstance(meta.get("sha256"), str)
+                and Path(meta["file"]).name == meta["file"] and meta["file"].startswith("part-")):
+            raise bad(f"part entry {i!r} malformed")
+    return manifest
 
 
 @dataclass
@@ -97,17 +138,88 @@ class Run:
         parts = self.manifest["parts"]
         return [self.path / parts[i]["file"] for i in sorted(parts, key=int)]
 
+    def repair_hint(self) -> str:
+        """The command that recomputes this run's damaged or missing parts."""
+        name = self.manifest.get("config_name", "")
+        if name.startswith("embedded:"):
+            return f"`surgopt {self.study}`"
+        return f"`surgopt {self.study} CONFIG` with the config it was made from ({name or 'unknown'})"
+
+    def part_problem(self, index: str) -> tuple[str | None, bytes | None]:
+        """(problem, bytes) of one listed part: problem None when its size and sha256 match."""
+        meta = self.manifest["parts"][index]
+        f = self.path / meta["file"]
+        try:
+            data = f.read_bytes()
+        except FileNotFoundError:
+            return "missing", None
+        except IsADirectoryError:
+            return "a folder, not a file", None
+        except OSError as exc:
+            return f"unreadable ({exc.strerror})", None
+        if "bytes" in meta and len(data) != meta["bytes"]:
+            return f"{len(data)} bytes, the manifest says {meta['bytes']}", None
+        if _sha256_bytes(data) != meta["sha256"]:
+            return "its sha256 differs from the manifest's (damaged or replaced)", None
+        return None, data
+
+    def damaged(self) -> list[tuple[str, str]]:
+        """(part file, problem) of every listed part that fails its check."""
+        out = []
+        for i in sorted(self.manifest["parts"], key=int):
+            problem, _ = self.part_problem(i)
+            if problem:
+                out.append((self.manifest["parts"][i]["file"], problem))
+        return out
+
     def read_table(self, schema=None):
-        """All parts in task order as one Arrow table."""
+        """All parts in task order as one Arrow table, each verified against the manifest.
+
+        A part that fails its check raises StoreError naming it and the command that repairs it.
+        If the run was replaced while being read (a ``--force`` rerun), the manifest is read again.
+        """
         import pyarrow as pa
         import pyarrow.parquet as pq
 
-        files = self.part_files()
-        if not files:
+        for attempt in range(READ_RETRIES + 1):
+            tables, gone = [], False
+            for i in sorted(self.manifest["parts"], key=int):
+                problem, data = self.part_problem(i)
+                if problem == "missing" and attempt < READ_RETRIES and self._reload():
+                    gone = True
+                    break
+                if problem:
+                    raise StoreError(f"{self.study} run {self.key[:12]} is damaged: {self.manifest['parts'][i]['file']} "
+                                     f"is {problem}; run {self.repair_hint()} again to recompute it "
+                                     f"(the parts that check out are kept)")
+                try:
+                    tables.append(pq.read_table(pa.BufferReader(data), schema=schema))
+                except (pa.ArrowException, ValueError) as exc:
+                    raise StoreError(f"{self.path / self.manifest['parts'][i]['file']}: passes its checksum but "
+                                     f"does not match the study's schema ({exc})") from None
+            if not gone:
+                break
+        if not tables:
             if schema is None:
                 raise StoreError(f"{self.path}: no parts written yet")
             return schema.empty_table()
-        return pa.concat_tables([pq.read_table(f, schema=schema) for f in files])
+        return pa.concat_tables(tables)
+
+    def _reload(self) -> bool:
+        """Re-read the manifest from disk; True if it changed (the run was replaced)."""
+        try:
+            fresh = check_manifest(json.loads((self.path / MANIFEST).read_text()), self.path / MANIFEST)
+        except (OSError, ValueError, StoreError):
+            import time
+
+            time.sleep(0.05)  # between the two renames of a swap
+            try:
+                fresh = check_manifest(json.loads((self.path / MANIFEST).read_text()), self.path / MANIFEST)
+            except (OSError, ValueError, StoreError):
+                return False
+        changed = fresh != self.manifest
+        self.manifest = fresh
+        return changed
 
 
 class Store:
@@ -117,6 +229,9 @@ class Store:
     def run_dir(self, study: str, key: str) -> Path:
         return self.root / study / key
 
+    def lock_path(self, study: str, key: str) -> Path:
+        return self.root / study / LOCKS / f"{key}.lock"
+
     def open(self, study: str, key: str) -> Run | None:
         path = self.run_dir(study, key)
         mpath = path / MANIFEST
@@ -124,16 +239,25 @@ class Store:
             return None
         try:
             manifest = json.loads(mpath.read_text())
-        except (OSError, json.JSONDecodeError) as exc:
+        except (OSError, json.JSONDecodeError, UnicodeDecodeError) as exc:
             raise StoreError(f"{mpath}: unreadable manifest ({exc}); delete the folder to recompute") from None
-        return Run(path, manifest)
+        return Run(path, check_manifest(manifest, mpath))
+
+    def _mkdir(self, path: Path) -> None:
+        try:
+            path.mkdir(parents=True, exist_ok=True)
+        except (PermissionError, OSError) as exc:
+            raise StoreError(f"cannot create {path} in the store ({exc.strerror or exc}); "
+                             f"give a writable --store") from None
+        if not os.access(path, os.W_OK):
+            raise StoreError(f"the store {self.root} is not writable ({path}); give a writable --store")
 
     @contextlib.contextmanager
     def lock(self, study: str, key: str, on_wait=None):
         """Exclusive lock on one key; ``on_wait(holder)`` is called before blocking."""
-        path = self.run_dir(study, key)
-        path.mkdir(parents=True, exist_ok=True)
-        fd = os.open(path / LOCK, os.O_RDWR | os.O_CREAT, 0o644)
+        path = self.lock_path(study, key)
+        self._mkdir(path.parent)
+        fd = os.open(path, os.O_RDWR | os.O_CREAT, 0o644)
         try:
             try:
                 fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
@@ -149,24 +273,48 @@ class Store:
             fcntl.flock(fd, fcntl.LOCK_UN)
             os.close(fd)
 
-    def begin(self, study: str, key: str, *, config: dict, config_name: str,
-              kernel_version: str, n_tasks: int, chunk: int, force: bool) -> Run:
-        """Open (or with ``force`` reset) a run for writing; call under ``lock``.
+    def holder(self, study: str, key: str) -> str | None:
+        """Who holds the key's lock ("pid N"), or None when nobody does."""
+        path = self.lock_path(study, key)
+        try:
+            fd = os.open(path, os.O_RDWR)
+        except OSError:
+            return None
+        try:
+            try:
+                fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+            except BlockingIOError:
+                return os.pread(fd, 64, 0).decode(errors="replace").strip() or "another process"
+            fcntl.flock(fd, fcntl.LOCK_UN)
+            return None
+        finally:
+            os.close(fd)
 
-        Parts listed in the manifest are checked (present, sha256); a part that
-        fails the check is dropped from the manifest and will be recomputed.
+    def begin(self, study: str, key: str, *, config: dict, config_name: str,
+              kernel_version: str, n_tasks: int, chunk: int, force: bool, fresh: bool = False) -> Run:
+        """Open (or with ``force`` start anew, beside the old run) a run for writing; call under ``lock``.
+
+        Parts listed in the manifest are checked (present, size, sha256); a part that fails the check
+        is dropped from the manifest and will be recomputed. Part files the manifest does not list
+        (left by an older manifest or another chunk size) are deleted. ``fresh``: start a new manifest
+        in place, whatever is there (the caller found no usable one).
         """
         path = self.run_dir(study, key)
-        run = None if force else self.open(study, key)
+        run = None if (force or fresh) else self.open(study, key)
+        if force:
+            path = self.root / study / STAGING / f"{key}-{os.getpid()}"
+            if path.exists():
+                shutil.rmtree(path)
+        self._mkdir(path)
         for f in path.glob(".*.tmp-*"):  # left by a killed writer; we hold the lock
             f.unlink()
-        if force:
-            for f in path.glob("part-*.parquet"):
-                f.unlink()
         if run is not None and run.manifest.get("format") == FORMAT_VERSION:
-            for i in self.bad_parts(run):
+            for i in [i for i in run.manifest["parts"] if run.part_problem(i)[0]]:
                 del run.manifest["parts"][i]
+            self._remove_unlisted_parts(run)
             return run
+        for f in path.glob("part-*"):
+            _remove_path(f)
         manifest = {
             "format": FORMAT_VERSION,
             "study": study,
@@ -183,14 +331,29 @@ class Store:
         self._write_manifest(run)
         return run
 
+    def finish(self, run: Run) -> Run:
+        """A run built in the staging area (``--force``) replaces the stored one; call under ``lock``."""
+        if run.path.parent.name != STAGING:
+            return run
+        final = self.run_dir(run.study, run.key)
+        trash = run.path.with_name(f"{run.key}-old-{os.getpid()}")
+        if final.exists():
+            os.rename(final, trash)
+        os.rename(run.path, final)
+        _fsync_dir(final.parent)
+        shutil.rmtree(trash, ignore_errors=True)
+        return Run(final, run.manifest)
+
+    def _remove_unlisted_parts(self, run: Run) -> list[Path]:
+        listed = {m["file"] for m in run.manifest["parts"].values()}
+        stale = [f for f in run.path.glob("part-*") if f.name not in listed]
+        for f in stale:
+            _remove_path(f)
+        return stale
+
     def bad_parts(self, run: Run) -> list[str]:
-        """Manifest entries whose file is missing or fails its sha256."""
-        bad = []
-        for i, meta in run.manifest["parts"].items():
-            f = run.path / meta["file"]
-            if not f.exists() or _sha256(f) != meta["sha256"]:
-                bad.append(i)
-        return bad
+        """Manifest entries whose file is missing or fails its size or sha256."""
+        return [i for i in run.manifest["parts"] if run.part_problem(i)[0]]
 
     def write_part(self, run: Run, index: int, table) -> None:
         """Write one task's rows atomically and record them in the manifest."""
@@ -199,10 +362,12 @@ class Store:
         name = f"part-{index:05d}.parquet"
         final = run.path / name
         atomic_write(final, lambda tmp: pq.write_table(table, tmp, compression="zstd"))
+        data = final.read_bytes()
         rows = pq.read_metadata(final).num_rows  # readable?
         if rows != table.num_rows:
             raise StoreError(f"{final}: wrote {table.num_rows} rows, read back {rows}")
-        run.manifest["parts"][str(index)] = {"file": name, "rows": rows, "sha256": _sha256(final)}
+        run.manifest["parts"][str(index)] = {"file": name, "rows": rows, "bytes": len(data),
+                                             "sha256": _sha256_bytes(data)}
         if run.complete:
             run.manifest["completed"] = _now()
         self._write_manifest(run)
@@ -212,31 +377,74 @@ class Store:
         atomic_write(run.path / MANIFEST, lambda tmp: tmp.write_bytes(data))
 
     def runs(self, study: str | None = None) -> list[Run]:
+        """Every run with a valid manifest, oldest first (``unreadable`` lists the others)."""
         if not self.root.exists():
             return []
         out = []
         for mpath in sorted(self.root.glob(f"{study or '*'}/*/{MANIFEST}")):
-            with contextlib.suppress(OSError, json.JSONDecodeError):
-                out.append(Run(mpath.parent, json.loads(mpath.read_text())))
+            with contextlib.suppress(OSError, ValueError, StoreError):
+                out.append(Run(mpath.parent, check_manifest(json.loads(mpath.read_text()), mpath)))
         return sorted(out, key=lambda r: r.manifest.get("created", ""))
 
+    def unreadable(self, study: str | None = None) -> list[tuple[Path, str]]:
+        """(run folder, why) of run folders whose manifest cannot be used."""
+        if not self.root.exists():
+            return []
+        out = []
+        for mpath in sorted(self.root.glob(f"{study or '*'}/*/{MANIFEST}")):
+            try:
+                check_manifest(json.loads(mpath.read_text()), mpath)
+            except (OSError, ValueError) as exc:
+                out.append((mpath.parent, f"unreadable manifest ({exc.__class__.__name__})"))
+            except StoreError as exc:
+                out.append((mpath.parent, str(exc).split(": ", 1)[-1].split(";")[0]))
+        return out
+
     def gc(self) -> list[Path]:
-        """Delete partial runs and stray temporary files; returns what was removed."""
-        removed = []
+        """Delete partial runs, stray part and temporary files, and abandoned --force staging folders.
+
+        A run whose lock is held (a study writing it now) is skipped. Returns what was removed.
+        """
+        removed: list[Path] = []
         if not self.root.exists():
             return removed
         for run in self.runs():
+            if self.holder(run.study, run.key):
+                continue
             if not run.complete:
                 self.remove(run)
                 removed.append(run.path)
-        for tmp in self.root.glob("*/*/.*.tmp-*"):
-            tmp.unlink(missing_ok=True)
-            removed.append(tmp)
+                continue
+            removed += self._remove_unlisted_parts(run)
+            for tmp in run.path.glob(".*.tmp-*"):
+                tmp.unlink(missing_ok=True)
+                removed.append(tmp)
+        for staged in self.root.glob(f"*/{STAGING}/*"):
+            key = staged.name.split("-")[0]
+            if not self.holder(staged.parent.parent.name, key):
+                shutil.rmtree(staged, ignore_errors=True)
+                removed.append(staged)
         return removed
 
     def remove(self, run: Run) -> None:
+        """Delete one run; refused while a study holds its lock."""
         root = self.root.resolve()
         target = run.path.resolve()
         if root not in target.parents:
             raise StoreError(f"{target} is not inside the store {root}")
+        who = self.holder(run.study, run.key)
+        if who:
+            raise StoreError(f"{run.study} run {run.key[:12]} is being written now ({who} holds its lock); "
+                             f"wait for it to finish or stop it first")
         shutil.rmtree(target)
+
+
+def _remove_path(p: Path) -> None:
+    if p.is_dir() and not p.is_symlink():
+        shutil.rmtree(p)
+    else:
+        p.unlink(missing_ok=True)
+
+
+def is_disk_full(exc: BaseException) -> bool:
+    return isinstance(exc, OSError) and exc.errno in (errno.ENOSPC, errno.EDQUOT)

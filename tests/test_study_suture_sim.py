@@ -16,11 +16,22 @@ def _runs(cfg):
 
 
 def test_five_bar_that_cannot_close_is_a_config_error():
+    from surgopt.config import validate
     from surgopt.errors import ConfigError
 
-    cfg = S.Config.model_validate({"robot": {"five_bar": {"l3_mm": 10.0, "l4_mm": 10.0}}})
-    with pytest.raises(ConfigError, match="cannot close"):
-        S.geometry(cfg, 550.0, 150.0)
+    with pytest.raises(ConfigError, match=r"^x.toml: robot: the five-bar cannot close at the start pose"):
+        validate({"robot": {"five_bar": {"l3_mm": 10.0, "l4_mm": 10.0}}}, S.Config, "x.toml")
+    # the closed form agrees with the kernel on where closing stops: just inside and just outside
+    from surgopt.kinematics.throat import five_bar
+
+    for l3, closes in ((10.0, False), (80.0, True)):
+        try:
+            cfg = validate({"robot": {"five_bar": {"l3_mm": l3, "l4_mm": l3}}}, S.Config, "x.toml")
+        except ConfigError:
+            assert not closes
+            continue
+        assert closes and np.all(np.isfinite(five_bar(cfg.robot.start_pose.q1_rad, cfg.robot.start_pose.q2_rad,
+                                                       S.geometry(cfg, 550.0, 150.0))[0]))
 
 
 def test_paper_suture_runs_track_within_accuracy_and_w2_cuts_five_bar_motion():

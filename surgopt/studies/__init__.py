@@ -35,6 +35,30 @@ class Summary:
 
 
 @dataclass(frozen=True)
+class Estimate:
+    """What a config implies before it runs: ``items`` (designs, candidates or time steps, named by
+    ``what``), rows stored, single-core seconds and the parent's peak memory in bytes."""
+
+    items: int
+    what: str
+    rows: int
+    seconds_one_core: float
+    peak_bytes: int
+
+
+#: Resident memory of a study process before any work: Python, numpy, numba, pyarrow (measured: 270 MB).
+BASE_PROCESS_BYTES = 280 * 2 ** 20
+#: The parent holds the finished table about three times over at the end (Arrow table, the columns the
+#: summary converts, the report), measured on the paper setups (docs/reliability.md).
+TABLE_COPIES = 3
+
+
+def peak_bytes(rows: int, bytes_per_row: int, working_bytes: int = 0) -> int:
+    """The parent's peak memory for a table of ``rows`` rows plus per-task working memory."""
+    return BASE_PROCESS_BYTES + TABLE_COPIES * rows * bytes_per_row + working_bytes
+
+
+@dataclass(frozen=True)
 class Flag:
     """A boolean command-line flag of one study.
 
@@ -62,6 +86,7 @@ class Study:
     worker processes or on a cluster); ``warm_up(cfg)`` compiles the kernels in the parent first.
     ``objective`` ranks designs (descending) in ``summarize``; None compares runs side by side.
     ``figures(cfg, table, out_dir, design_id)`` writes PNG files and returns their paths.
+    ``estimate(cfg)`` says what the config costs before anything runs (an ``Estimate``).
     """
 
     name: str
@@ -82,6 +107,7 @@ class Study:
     figures: Callable[[Any, Any, Path, int | None], list[Path]]
     flags: tuple[Flag, ...] = ()
     chunked: bool = True  # False: one task per run, no --chunk-size
+    estimate: Callable[[Any], Estimate] | None = None  # work and memory, checked before a run starts
 
 
 def figures_in(module: str) -> Callable:

@@ -11,15 +11,15 @@ from __future__ import annotations
 
 import itertools
 import math
-from typing import Literal
+from typing import Annotated, Literal, Union
 
 import numpy as np
-from pydantic import Field, model_validator
+from pydantic import Discriminator, Field, Tag, model_validator
 
 from surgopt.config import StrictModel
 from surgopt.metrics import raven_cost, workspace_compactness
 from surgopt.robots import raven_iv
-from surgopt.studies import Flag, Study, Summary, figures_in
+from surgopt.studies import Estimate, Flag, Study, Summary, figures_in, peak_bytes
 from surgopt.studies.search import compass_search
 
 NAME = "raven-sweep"
@@ -66,7 +66,15 @@ class Span(StrictModel):
         return [round(self.start + i * self.step, 10) for i in range(n + 1)]
 
 
-ParamSpec = list[float] | Span
+def _spec_form(value) -> str:
+    """Which form a sweep parameter takes: a table {start, stop, step} or a list of values."""
+    return "<span>" if isinstance(value, (dict, Span)) else "<list>"
+
+
+#: A sweep parameter: a list of values, or a span {start, stop, step}. The discriminator picks the
+#: form from the input, so an error is reported for that form only (not "Input should be a valid list").
+ParamSpec = Annotated[Union[Annotated[list[float], Field(min_length=1, max_length=10_000), Tag("<list>")],
+                            Annotated[Span, Tag("<span>")]], Discriminator(_spec_form)]
 
 
 def values(spec: ParamSpec) -> list[float]:
@@ -130,7 +138,9 @@ class Geometry(StrictModel):
 class Refine(StrictModel):
     top_k: int = Field(5, ge=1, le=100)
     max_evals: int = Field(300, ge=10, le=100_000)
-    starts: list[list[float]] | None = Field(None, description="filled by --refine from the grid's top designs")
+    starts: list[Annotated[list[float], Field(min_length=len(PARAMS), max_length=len(PARAMS))]] | None = Field(
+        None, min_length=1, max_length=100,
+        description="designs [alpha, beta, phi_x, phi_y, phi_z, bx, by, Iso_min] to start from; --refine fills it")
 
 
 class RavenSweepConfig(StrictModel):
@@ -138,6 +148,12 @@ class RavenSweepConfig(StrictModel):
     geometry: Geometry = Geometry()
     search: Literal["grid", "refine"] = "grid"
     refine: Refine = Refine()
+
+    @model_validator(mode="after")
+    def _refine_has_starts(self):
+        if self.search == "refine" and not self.refine.starts:
+            raise ValueError("search = 'refine' needs refine.starts (or run the grid with --refine, which fills them)")
+        return self
 
     @model_validator(mode="after")
     def _ports_fix_bx_by(self):
@@ -173,11 +189,29 @@ def plane(geo: Geometry):
     return PlaneGrid(geo.depth_mm, geo.step_mm, geo.d4_max_mm)
 
 
+GEOMETRY_PARAMS = ("phi_x_deg", "phi_y_deg", "phi_z_deg", "bx_mm", "by_mm")
+
+
+def geometry_axes(cfg: RavenSweepConfig) -> list[list[float]]:
+    """The values of each geometry parameter (phi_x, phi_y, phi_z, bx, by)."""
+    return [values(getattr(cfg.sweep, p)) for p in GEOMETRY_PARAMS]
+
+
+def n_geometries(cfg: RavenSweepConfig) -> int:
+    return math.prod(len(v) for v in geometry_axes(cfg))
+
+
+def geometries(cfg: RavenSweepConfig, start: int, stop: int) -> list[tuple[float, float, float, float, float]]:
+    """Geometries start..stop-1 of the sweep in ``itertools.product`` order, without listing the others
+    (a sweep can hold far more geometries than fit in memory as Python tuples)."""
+    axes = geometry_axes(cfg)
+    idx = np.unravel_index(np.arange(start, min(stop, n_geometries(cfg))), [len(v) for v in axes])
+    return list(zip(*[[axis[k] for k in ks] for axis, ks in zip(axes, idx)]))
+
+
 def geometry_grid(cfg: RavenSweepConfig) -> list[tuple[float, float, float, float, float]]:
     """Every (phi_x, phi_y, phi_z, bx, by) of the sweep, in a fixed order."""
-    sw = cfg.sweep
-    return list(itertools.product(values(sw.phi_x_deg), values(sw.phi_y_deg), values(sw.phi_z_deg),
-                                  values(sw.bx_mm), values(sw.by_mm)))
+    return geometries(cfg, 0, n_geometries(cfg))
 
 
 def evaluate(cfg: RavenSweepConfig, geometries, alphas_deg, betas_deg, isos) -> np.ndarray:
@@ -238,19 +272,36 @@ def auto_chunk(cfg: RavenSweepConfig) -> int:
     """Geometries per task: about two seconds of single-core work, and at least 32 tasks."""
     from surgopt.studies import chunk_for_seconds
 
-    sw, geo = cfg.sweep, cfg.geometry
+    sw = cfg.sweep
     if cfg.search == "refine":
         return 1
-    reach = math.sqrt(geo.d4_max_mm ** 2 - geo.depth_mm ** 2)
-    nodes = (2 * reach / geo.step_mm) ** 2
     designs = len(values(sw.alpha_deg)) * len(values(sw.beta_deg)) * len(values(sw.iso_min))
-    return chunk_for_seconds(len(geometry_grid(cfg)), nodes * designs * NS_PER_NODE_DESIGN * 1e-9)
+    return chunk_for_seconds(n_geometries(cfg), _plane_nodes(cfg.geometry) * designs * NS_PER_NODE_DESIGN * 1e-9)
+
+
+def _plane_nodes(geo: Geometry) -> float:
+    """Nodes of the plane grid one geometry evaluates (the square around one arm's reach)."""
+    reach = math.sqrt(geo.d4_max_mm ** 2 - geo.depth_mm ** 2)
+    return (2 * reach / geo.step_mm) ** 2
+
+
+def estimate(cfg: RavenSweepConfig) -> Estimate:
+    """Geometries x plane nodes x designs at NS_PER_NODE_DESIGN; a row is ~160 bytes; the memo 64 MB."""
+    sw = cfg.sweep
+    if cfg.search == "refine":
+        n = len(cfg.refine.starts or []) * cfg.refine.max_evals
+        return Estimate(n, "designs evaluated by the compass search", n,
+                        n * _plane_nodes(cfg.geometry) * NS_PER_NODE_DESIGN * 1e-9, peak_bytes(n, 160))
+    per = len(values(sw.alpha_deg)) * len(values(sw.beta_deg)) * len(values(sw.iso_min))
+    g = n_geometries(cfg)
+    return Estimate(g * per, "designs", g * per, g * per * _plane_nodes(cfg.geometry) * NS_PER_NODE_DESIGN * 1e-9,
+                    peak_bytes(g * per, 160, working_bytes=64 * 2 ** 20))
 
 
 def n_tasks(cfg: RavenSweepConfig, chunk: int) -> int:
     if cfg.search == "refine":
         return len(cfg.refine.starts or [])
-    return max(1, math.ceil(len(geometry_grid(cfg)) / chunk))
+    return max(1, math.ceil(n_geometries(cfg) / chunk))
 
 
 def warm_up(cfg: RavenSweepConfig) -> None:
@@ -264,16 +315,16 @@ def compute_task(cfg: RavenSweepConfig, chunk: int, index: int) -> dict:
     sw = cfg.sweep
     al, be, iso = values(sw.alpha_deg), values(sw.beta_deg), values(sw.iso_min)
     per_geo = len(al) * len(be) * len(iso)
-    geos = geometry_grid(cfg)
-    g0, g1 = index * chunk, min(len(geos), (index + 1) * chunk)
+    g0, g1 = index * chunk, min(n_geometries(cfg), (index + 1) * chunk)
+    geos = geometries(cfg, g0, g1)
     params = []
     design = np.array(list(itertools.product(al, be, iso)))  # (per_geo, 3)
-    for g in geos[g0:g1]:
+    for g in geos:
         p = np.empty((per_geo, 8))
         p[:, 0], p[:, 1], p[:, 7] = design[:, 0], design[:, 1], design[:, 2]
         p[:, 2:7] = g
         params.append(p)
-    metrics = evaluate(cfg, geos[g0:g1], al, be, iso)
+    metrics = evaluate(cfg, geos, al, be, iso)
     ids = np.arange(g0 * per_geo, g1 * per_geo)
     return _rows(np.vstack(params), metrics, cfg.geometry.step_mm, ids, "grid")
 
@@ -369,7 +420,7 @@ STUDY = Study(
     name=NAME, kernel_version=KERNEL_VERSION, config_model=RavenSweepConfig, default_config=DEFAULT_CONFIG,
     help=HELP, config_help=CONFIG_HELP, schema=schema, key_columns=KEY_COLUMNS, objective=OBJECTIVE,
     auto_chunk=auto_chunk, n_tasks=n_tasks, warm_up=warm_up, compute_task=compute_task, summary=summary,
-    feasible_mask=feasible_mask, figures=figures_in("raven_sweep"),
+    feasible_mask=feasible_mask, figures=figures_in("raven_sweep"), estimate=estimate,
     flags=(Flag("--refine", "After the grid, a compass search from the top-k designs inside the sweep's bounds; "
                             "its rows are stored as a second run.",
                 follow_up=refine_config, follow_up_suffix="+refine"),))

@@ -16,7 +16,7 @@ from pydantic import Field, model_validator
 from surgopt.config import StrictModel
 from surgopt.metrics import global_isotropy_index
 from surgopt.robots import pa10_7c
-from surgopt.studies import Flag, Study, Summary, figures_in
+from surgopt.studies import Estimate, Flag, Study, Summary, figures_in, peak_bytes
 
 NAME = "rcm-grid"
 HELP = """Global Isotropy Index of candidate remote-centre-of-motion locations for a PA10-7C
@@ -224,6 +224,14 @@ def auto_chunk(cfg: RcmGridConfig) -> int:
     return chunk_for_seconds(m, cfg.workspace.points_per_side ** 3 * NS_PER_POSE * 1e-9)
 
 
+def estimate(cfg: RcmGridConfig) -> Estimate:
+    """Candidates x cube points at NS_PER_POSE; a row is ~75 bytes."""
+    m = candidate_xz(cfg).shape[0]
+    p = cfg.workspace.points_per_side ** 3
+    return Estimate(items=m, what="RCM candidates", rows=m, seconds_one_core=m * p * NS_PER_POSE * 1e-9,
+                    peak_bytes=peak_bytes(m, 75, working_bytes=m * 64 + p * 200))
+
+
 def n_tasks(cfg: RcmGridConfig, chunk: int) -> int:
     if cfg.search == "cull":
         return 1
@@ -354,7 +362,7 @@ STUDY = Study(
     name=NAME, kernel_version=KERNEL_VERSION, config_model=RcmGridConfig, default_config=DEFAULT_CONFIG,
     help=HELP, config_help=CONFIG_HELP, schema=schema, key_columns=KEY_COLUMNS, objective=OBJECTIVE,
     auto_chunk=auto_chunk, n_tasks=n_tasks, warm_up=warm_up, compute_task=compute_task, summary=summary,
-    feasible_mask=feasible_mask, figures=figures_in("rcm_grid"),
+    feasible_mask=feasible_mask, figures=figures_in("rcm_grid"), estimate=estimate,
     flags=(Flag("--cull", "Fast exact argmax with the Culling algorithm (Stocco & Salcudean) instead of "
                           "the full GII map; culled candidates carry an upper bound.",
                 config_update={"search": "cull"}),))

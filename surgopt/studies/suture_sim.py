@@ -18,7 +18,7 @@ from pydantic import Field, model_validator
 from surgopt.config import StrictModel
 from surgopt.kinematics.throat_modes import MODE_NAMES, SutureMode
 from surgopt.robots import throat_arm as arm
-from surgopt.studies import Study, Summary, figures_in
+from surgopt.studies import Estimate, Study, Summary, figures_in, peak_bytes
 
 NAME = "suture-sim"
 HELP = """Suturing with one arm of the two-armed throat robot (Wei, Xu & Simaan: eqs. 2-32, Figs. 6-7).
@@ -87,6 +87,19 @@ class Robot(StrictModel):
     pmu_length_mm: Positive = arm.PMU_LENGTH_MM
     start_pose: StartPose = StartPose()
     joint_max: JointMax = JointMax()
+
+    @model_validator(mode="after")
+    def _five_bar_closes_at_the_start_pose(self):
+        """|B - D| must lie in [|l4 - l3|, l3 + l4] for the distal links to meet (eqs. 3-5)."""
+        fb, s = self.five_bar, self.start_pose
+        dx = fb.l2_mm * math.sin(s.q2_rad) - fb.l5_mm * math.sin(s.q1_rad)
+        dy = fb.l2_mm * math.cos(s.q2_rad) + fb.l1_mm / 2 - (fb.l5_mm * math.cos(s.q1_rad) - fb.l1_mm / 2)
+        d = math.hypot(dx, dy)
+        if not abs(fb.l4_mm - fb.l3_mm) <= d <= fb.l3_mm + fb.l4_mm:
+            raise ValueError(f"the five-bar cannot close at the start pose: its actuated links' ends are {d:.1f} mm "
+                             f"apart, the distal links l3, l4 reach {abs(fb.l4_mm - fb.l3_mm):g} to "
+                             f"{fb.l3_mm + fb.l4_mm:g} mm (change robot.five_bar or robot.start_pose q1_rad, q2_rad)")
+        return self
 
 
 class Task(StrictModel):
@@ -180,6 +193,22 @@ def schema():
     return pa.schema(fields)
 
 
+#: Cost model: one weighted least-norm step with FK, Jacobian and 8x6 solve, ~14 us on one core
+#: (docs/performance.md: 73,000 steps/s); a stored step is ~220 bytes.
+US_PER_STEP = 14.0
+
+
+def run_steps(cfg: SutureSimConfig, run: dict) -> int:
+    """Time steps of one run: round(arc * radius / (speed * dt)), plus the start row."""
+    t = cfg.task
+    return int(np.round(math.radians(t.arc_deg) * run["radius_mm"] / run["speed_mm_s"] / t.dt_s)) + 1
+
+
+def estimate(cfg: SutureSimConfig) -> Estimate:
+    steps = sum(run_steps(cfg, r) for r in run_grid(cfg))
+    return Estimate(steps, "time steps", steps, steps * US_PER_STEP * 1e-6, peak_bytes(steps, 220))
+
+
 def auto_chunk(cfg: SutureSimConfig) -> int:
     """One run per task (a paper run is ~0.05 s; runs are the natural unit of resumption)."""
     return 1
@@ -216,8 +245,7 @@ def compute_task(cfg: SutureSimConfig, chunk: int, index: int) -> dict:
         cols[NORM_COLUMNS[i]] = qn[:, i].copy()
     cols["pos_err_mm"] = pe
     cols["rot_err_deg"] = re
-    expected = int(np.round(math.radians(t.arc_deg) * run["radius_mm"] / run["speed_mm_s"] / t.dt_s)) + 1
-    cols["run_completed"] = np.full(n, n == expected)
+    cols["run_completed"] = np.full(n, n == run_steps(cfg, run))
     return cols
 
 
@@ -275,4 +303,4 @@ STUDY = Study(
     name=NAME, kernel_version=KERNEL_VERSION, config_model=SutureSimConfig, default_config=DEFAULT_CONFIG,
     help=HELP, config_help=CONFIG_HELP, schema=schema, key_columns=KEY_COLUMNS, objective=OBJECTIVE,
     auto_chunk=auto_chunk, n_tasks=n_tasks, warm_up=warm_up, compute_task=compute_task, summary=summary,
-    feasible_mask=feasible_mask, figures=figures_in("suture_sim"), chunked=False)
+    feasible_mask=feasible_mask, figures=figures_in("suture_sim"), chunked=False, estimate=estimate)
