@@ -24,7 +24,7 @@ app = typer.Typer(
     pretty_exceptions_enable=False,
 )
 
-StoreOpt = Annotated[Optional[Path], typer.Option(
+StoreOpt = Annotated[Optional[str], typer.Option(
     "--store", envvar="SURGOPT_STORE", help="Result store folder [default: ./surgopt-store].",
     show_default=False)]
 JobsOpt = Annotated[int, typer.Option("--jobs", "-j", min=1, max=256,

@@ -55,7 +55,9 @@ def resolve_run(store: Store, ref: str | None, study_name: str | None = None):
         if len(runs) > 1:
             raise UsageError(f"{ref}: matches {len(runs)} runs; give more of the key")
     if not runs:
-        raise UsageError(f"no runs in {store.root}")
+        broken = store.unreadable(study_name)
+        extra = f" ({len(broken)} with an unusable manifest: see `surgopt runs`)" if broken else ""
+        raise UsageError(f"no runs in {store.root}{extra}")
     run = runs[-1]
     return get_study(run.study), run
 

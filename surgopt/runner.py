@@ -8,6 +8,7 @@ from __future__ import annotations
 import contextlib
 import math
 import os
+import signal
 import time
 from dataclasses import dataclass, field
 
@@ -145,7 +146,7 @@ def run_study(study, cfg, *, config_name: str, store: Store, jobs: int = DEFAULT
 
     lock = store.lock(study.name, key, on_wait=lambda who: say(f"waiting for {who} to finish this study ..."))
     cluster = _dask_client(scheduler, jobs) if backend == "dask" else contextlib.nullcontext()
-    with lock, cluster as dask:  # connect to the cluster before anything is written
+    with cluster as dask, lock:  # connect to the cluster before anything is written
         chunk = chunk or study.auto_chunk(cfg)
         existing = None if force else _open_or_discard(store, study.name, key, say)
         if existing is not None:
@@ -196,8 +197,11 @@ def _stored_table(store: Store, study, key: str, schema, say):
 
     try:
         run = store.open(study.name, key)
-        if run is None or not run.complete:
-            return None
+    except StoreError:
+        return None  # an unusable manifest: the locked path says so and starts anew
+    if run is None or not run.complete:
+        return None
+    try:
         return run, run.read_table(schema)
     except StoreError as exc:
         say(f"{exc}".split("; run `")[0] + "; recomputing what is damaged")
@@ -239,14 +243,12 @@ def _dispatch(study, cfg, chunk, missing, run, store, jobs, quiet, total, schema
         if backend == "threads":
             _dispatch_threads(study.name, cfg, chunk, missing, jobs, record)
             return
+        if backend == "loky":
+            _dispatch_loky(study.name, cfg, chunk, missing, jobs, record)
+            return
         from joblib import Parallel, delayed, parallel_config
 
         tasks = (delayed(_compute)(study.name, cfg, chunk, i) for i in missing)
-        if backend == "loky":
-            with parallel_config(backend="loky", n_jobs=jobs, inner_max_num_threads=1):
-                for index, cols in Parallel(return_as="generator_unordered")(tasks):
-                    record(index, cols)
-            return
         _prepare_dask_workers(dask_client, study.name, cfg)
         with parallel_config(backend="dask"):
             for index, cols in Parallel(return_as="generator_unordered")(tasks):
@@ -269,6 +271,46 @@ def _dispatch_threads(study_name, cfg, chunk, missing, jobs, record):
             record(*f.result())
     finally:
         pool.shutdown(wait=True, cancel_futures=True)
+
+
+def _die_with_parent(parent_pid: int) -> None:
+    """loky worker initializer: end this worker when the parent dies, even by kill -9 (Linux
+    PR_SET_PDEATHSIG; elsewhere loky's own idle timeout ends it)."""
+    try:
+        import ctypes
+
+        ctypes.CDLL("libc.so.6", use_errno=True).prctl(1, signal.SIGKILL)  # PR_SET_PDEATHSIG
+    except (OSError, AttributeError):
+        return
+    if os.getppid() != parent_pid:  # the parent died before the call above took effect
+        os._exit(1)
+
+
+#: Environment of loky workers: one thread per numerical library (the workers are the parallelism).
+WORKER_ENV = {v: "1" for v in ("NUMBA_NUM_THREADS", "OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS")}
+
+
+def _dispatch_loky(study_name, cfg, chunk, missing, jobs, record):
+    """Chunks on ``jobs`` loky worker processes that die with this process; rows recorded here.
+
+    A worker that dies (killed, out of memory) breaks the pool: the exception reaches ``run_study``,
+    which retries the chunks not yet stored on a fresh pool. On Ctrl-C the workers are killed.
+    """
+    from concurrent.futures import as_completed
+
+    from joblib.externals.loky import get_reusable_executor
+
+    pool = get_reusable_executor(max_workers=jobs, timeout=30, initializer=_die_with_parent,
+                                 initargs=(os.getpid(),), env=WORKER_ENV)
+    futures = [pool.submit(_compute, study_name, cfg, chunk, i) for i in missing]
+    try:
+        for f in as_completed(futures):
+            record(*f.result())
+    except BaseException:
+        for f in futures:
+            f.cancel()
+        pool.shutdown(wait=False, kill_workers=True)
+        raise
 
 
 DASK_HINT = "--backend dask needs the optional extra: pip install 'surgopt[dask]'"

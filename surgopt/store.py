@@ -98,7 +98,7 @@ def check_manifest(manifest, where: Path) -> dict:
     for k, t in (("format", int), ("study", str), ("key", str), ("n_tasks", int), ("chunk", int),
                  ("parts", dict), ("config", dict)):
         if not isinstance(manifest.get(k), t) or isinstance(manifest.get(k), bool):
-            raise bad(f"'{k}' missing or not a {t.__name__}")
+            raise bad(f"'{k}' is missing or of the wrong type")
     for i, meta in manifest["parts"].items():
         if not (isinstance(i, str) and i.isdigit() and isinstance(meta, dict)
                 and isinstance(meta.get("file"), str) and isinstance(meta.get("rows"), int)
@@ -152,15 +152,15 @@ class Run:
         try:
             data = f.read_bytes()
         except FileNotFoundError:
-            return "missing", None
+            return "is missing", None
         except IsADirectoryError:
-            return "a folder, not a file", None
+            return "is a folder, not a file", None
         except OSError as exc:
-            return f"unreadable ({exc.strerror})", None
+            return f"cannot be read ({exc.strerror})", None
         if "bytes" in meta and len(data) != meta["bytes"]:
-            return f"{len(data)} bytes, the manifest says {meta['bytes']}", None
+            return f"has {len(data)} bytes where the manifest says {meta['bytes']}", None
         if _sha256_bytes(data) != meta["sha256"]:
-            return "its sha256 differs from the manifest's (damaged or replaced)", None
+            return "fails its sha256 check (damaged or replaced)", None
         return None, data
 
     def damaged(self) -> list[tuple[str, str]]:
@@ -185,12 +185,12 @@ class Run:
             tables, gone = [], False
             for i in sorted(self.manifest["parts"], key=int):
                 problem, data = self.part_problem(i)
-                if problem == "missing" and attempt < READ_RETRIES and self._reload():
-                    gone = True
+                if problem and attempt < READ_RETRIES and self._reload():
+                    gone = True  # the run was replaced while we read it: start again from its new manifest
                     break
                 if problem:
                     raise StoreError(f"{self.study} run {self.key[:12]} is damaged: {self.manifest['parts'][i]['file']} "
-                                     f"is {problem}; run {self.repair_hint()} again to recompute it "
+                                     f"{problem}; run {self.repair_hint()} again to recompute it "
                                      f"(the parts that check out are kept)")
                 try:
                     tables.append(pq.read_table(pa.BufferReader(data), schema=schema))
@@ -310,7 +310,7 @@ class Store:
             f.unlink()
         if run is not None and run.manifest.get("format") == FORMAT_VERSION:
             for i in [i for i in run.manifest["parts"] if run.part_problem(i)[0]]:
-                del run.manifest["parts"][i]
+                _remove_path(path / run.manifest["parts"].pop(i)["file"])
             self._remove_unlisted_parts(run)
             return run
         for f in path.glob("part-*"):

@@ -9,6 +9,13 @@ sys.path.insert(0, str(HERE))  # tests/reference.py
 
 REPO = HERE.parent
 
+# property tests: the same examples on every CI run (locally, new ones each run)
+from hypothesis import settings as _hypothesis_settings  # noqa: E402
+
+_hypothesis_settings.register_profile("ci", derandomize=True, print_blob=True)
+if os.environ.get("CI"):
+    _hypothesis_settings.load_profile("ci")
+
 # the CLI's numba settings (8-wide vectors on AVX-512) before any test imports numba,
 # so that tests and CLI subprocesses compile the same kernels into one cache
 import surgopt.kinematics  # noqa: E402,F401  (configures numba on import)

@@ -14,7 +14,7 @@ import math
 from typing import Annotated, Literal, Union
 
 import numpy as np
-from pydantic import Discriminator, Field, Tag, model_validator
+from pydantic import Discriminator, Field, Tag, field_validator, model_validator
 
 from surgopt.config import StrictModel
 from surgopt.metrics import raven_cost, workspace_compactness
@@ -81,6 +81,11 @@ def values(spec: ParamSpec) -> list[float]:
     return spec.values() if isinstance(spec, Span) else list(spec)
 
 
+#: Allowed range of each sweep parameter (link angles also > 0).
+PARAM_RANGES = {"alpha_deg": (0, 180), "beta_deg": (0, 180), "phi_x_deg": (-90, 90), "phi_y_deg": (-90, 90),
+                "phi_z_deg": (-180, 180), "bx_mm": (0, 2000), "by_mm": (0, 2000), "iso_min": (0, 1)}
+
+
 class Sweep(StrictModel):
     alpha_deg: ParamSpec = Span(start=5, stop=90, step=20)
     beta_deg: ParamSpec = Span(start=5, stop=90, step=20)
@@ -91,17 +96,17 @@ class Sweep(StrictModel):
     by_mm: ParamSpec = Span(start=50, stop=200, step=50)
     iso_min: ParamSpec = Span(start=0.1, stop=0.9, step=0.2)
 
-    @model_validator(mode="after")
-    def _ranges(self):
-        checks = {"alpha_deg": (0, 180), "beta_deg": (0, 180), "phi_x_deg": (-90, 90), "phi_y_deg": (-90, 90),
-                  "phi_z_deg": (-180, 180), "bx_mm": (0, 2000), "by_mm": (0, 2000), "iso_min": (0, 1)}
-        for name, (lo, hi) in checks.items():
-            vs = values(getattr(self, name))
-            if not vs:
-                raise ValueError(f"{name}: no values")
-            if min(vs) < lo or max(vs) > hi or (name in ("alpha_deg", "beta_deg") and min(vs) <= 0):
-                raise ValueError(f"{name}: values must lie in [{lo}, {hi}]")
-        return self
+    @field_validator(*PARAMS)
+    @classmethod
+    def _in_range(cls, spec, info):
+        lo, hi = PARAM_RANGES[info.field_name]
+        vs = values(spec)
+        if not vs:
+            raise ValueError("no values")
+        if min(vs) < lo or max(vs) > hi or (info.field_name in ("alpha_deg", "beta_deg") and min(vs) <= 0):
+            raise ValueError(f"values must lie in [{lo}, {hi}]" + (" and be > 0" if lo == 0 and info.field_name
+                                                                    in ("alpha_deg", "beta_deg") else ""))
+        return spec
 
 
 class Geometry(StrictModel):

@@ -1,0 +1,310 @@
+"""Fault injection: damaged stores, clean-up racing a run, a --force rerun under a reader, signals,
+dead workers, disk full, and bad command-line uses. Bounded: every case is a small rcm-grid run of
+a second or less; the kill -9 trials are a few per backend. docs/reliability.md tabulates them."""
+import errno
+import json
+import os
+import shutil
+import signal
+import subprocess
+import sys
+import threading
+import time
+
+import pytest
+from typer.testing import CliRunner
+
+from surgopt.cli import app
+from surgopt.config import load_config
+from surgopt.runner import run_study
+from surgopt.store import Store
+from surgopt.studies import get_study
+
+from conftest import RCM_SLOW, RCM_SMALL, cli, single_run, single_table, wait_for_parts
+
+RCM = get_study("rcm-grid")
+
+
+def invoke(*args):
+    """The CLI in this process (no start-up cost): (exit code, stdout + stderr)."""
+    r = CliRunner().invoke(app, [str(a) for a in args])
+    return r.exit_code, r.output
+
+
+@pytest.fixture
+def stored(tmp_path):
+    """A complete small rcm-grid run in 15 parts, and its table."""
+    cfg = tmp_path / "small.toml"
+    cfg.write_text(RCM_SMALL)
+    store = tmp_path / "store"
+    res = run_study(RCM, load_config(cfg, RCM.config_model), config_name="small", store=Store(store),
+                    jobs=1, quiet=True, chunk=4)
+    return cfg, store, res.table
+
+
+def _flip(p):
+    b = bytearray(p.read_bytes())
+    b[len(b) // 2] ^= 0xFF
+    p.write_bytes(bytes(b))
+
+
+DAMAGE = {
+    "bytes flipped": lambda run: _flip(run.part_files()[1]),
+    "truncated": lambda run: run.part_files()[2].write_bytes(run.part_files()[2].read_bytes()[:-40]),
+    "copied over another": lambda run: shutil.copy(run.part_files()[0], run.part_files()[3]),
+    "deleted": lambda run: run.part_files()[4].unlink(),
+    "replaced by a folder": lambda run: (run.part_files()[5].unlink(), run.part_files()[5].mkdir()),
+}
+
+
+@pytest.mark.parametrize("how", sorted(DAMAGE))
+def test_readers_refuse_a_damaged_part_and_the_study_repairs_it(stored, how):
+    cfg, store, table = stored
+    run = single_run(store)
+    DAMAGE[how](run)
+    code, out = invoke("summarize", "--store", store)
+    assert code == 1 and "is damaged: part-0000" in out and "surgopt rcm-grid" in out, out
+    assert len(out.strip().splitlines()) == 1
+    code, out = invoke("plot", "--store", store, "--out", store.parent / "fig")
+    assert code == 1 and "is damaged" in out
+    code, out = invoke("runs", "--store", store)
+    assert code == 0 and "DAMAGED" in out
+    res = run_study(RCM, load_config(cfg, RCM.config_model), config_name="small", store=Store(store), jobs=1,
+                    quiet=True, say=lambda m: None)
+    assert not res.cache_hit and 1 <= res.computed_tasks <= 2
+    assert res.table.equals(table)
+    assert single_table(store).equals(table)
+
+
+MANIFESTS = {"empty object": "{}", "no parts": None, "parts as a list": [], "not JSON": "{nope", "a list": "[1, 2]"}
+
+
+@pytest.mark.parametrize("how", sorted(MANIFESTS))
+def test_a_manifest_of_the_wrong_shape_is_one_line_and_rebuilt(stored, how):
+    cfg, store, table = stored
+    mpath = single_run(store).path / "manifest.json"
+    m = json.loads(mpath.read_text())
+    value = MANIFESTS[how]
+    if how == "no parts":
+        del m["parts"]
+        mpath.write_text(json.dumps(m))
+    elif how == "parts as a list":
+        m["parts"] = value
+        mpath.write_text(json.dumps(m))
+    else:
+        mpath.write_text(value)
+    code, out = invoke("runs", "--store", store)
+    assert code == 0 and "UNREADABLE" in out, out
+    code, out = invoke("summarize", "--store", store)
+    assert code == 2 and "unusable manifest" in out and "Traceback" not in out, out
+    res = run_study(RCM, load_config(cfg, RCM.config_model), config_name="small", store=Store(store), jobs=1,
+                    quiet=True, say=lambda m: None)
+    assert res.table.equals(table)
+    assert json.loads(mpath.read_text())["parts"]
+
+
+def test_stale_parts_not_in_the_manifest_are_removed(stored):
+    cfg, store, table = stored
+    run = single_run(store)
+    (run.path / "part-00099.parquet").write_bytes(run.part_files()[0].read_bytes())
+    code, out = invoke("runs", "gc", "--store", store)
+    assert code == 0 and "part-00099.parquet" in out
+    assert len(list(run.path.glob("part-*"))) == run.manifest["n_tasks"]
+
+
+def test_clean_up_leaves_a_run_that_is_being_written_alone(stored):
+    cfg, store, _ = stored
+    s = Store(store)
+    run = single_run(store)
+    run.manifest["parts"].pop("3")  # partial, as if interrupted, but its lock is held below
+    (run.path / "manifest.json").write_text(json.dumps(run.manifest))
+    with s.lock(run.study, run.key):
+        assert invoke("runs", "gc", "--store", store)[0] == 0
+        assert (run.path / "manifest.json").exists()  # gc skipped it
+        code, out = invoke("runs", "rm", run.key[:8], "--store", store)
+        assert code == 1 and "being written now" in out
+        listing = invoke("runs", "--store", store)[1]
+        assert "written" in listing and f"pid {os.getpid()}" in listing
+    assert invoke("runs", "gc", "--store", store)[0] == 0
+    assert not run.path.exists()  # partial and unlocked: removed
+
+
+def test_a_force_rerun_never_pulls_parts_from_under_a_reader(tmp_path):
+    cfg = tmp_path / "slow.toml"
+    cfg.write_text(RCM_SLOW)
+    store = tmp_path / "store"
+    cli("rcm-grid", cfg, "--store", store, "--quiet", "--chunk-size", "200")
+    base = single_table(store)
+    errors, reads = [], [0]
+    proc = subprocess.Popen([sys.executable, "-m", "surgopt", "rcm-grid", str(cfg), "--store", str(store), "--quiet",
+                             "--force", "--chunk-size", "40"], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+
+    def reader():
+        while proc.poll() is None:
+            try:
+                run = Store(store).runs()[0]
+                assert run.read_table(RCM.schema()).equals(base)
+                reads[0] += 1
+            except Exception as exc:  # noqa: BLE001 - any failure of a reader is the bug
+                errors.append(repr(exc))
+
+    t = threading.Thread(target=reader)
+    t.start()
+    proc.communicate(timeout=120)
+    t.join()
+    assert proc.returncode == 0
+    assert not errors, errors[:3]
+    assert reads[0] > 0
+    assert single_run(store).manifest["chunk"] == 40  # the rebuilt run replaced the old one
+    assert single_table(store).equals(base)
+    assert not list((store / "rcm-grid").glob(".staging/*"))
+
+
+@pytest.mark.parametrize("sig, code", [(signal.SIGTERM, 143), (signal.SIGHUP, 129)])
+def test_sigterm_and_sighup_stop_like_ctrl_c(tmp_path, sig, code):
+    cfg = tmp_path / "slow.toml"
+    cfg.write_text(RCM_SLOW)
+    store = tmp_path / "store"
+    proc = subprocess.Popen([sys.executable, "-m", "surgopt", "rcm-grid", str(cfg), "--store", str(store),
+                             "--quiet", "--chunk-size", "40"], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    wait_for_parts(store, "rcm-grid", 2, proc)
+    proc.send_signal(sig)
+    _, err = proc.communicate(timeout=60)
+    assert proc.returncode == code, err
+    assert f"stopped by {signal.Signals(sig).name}" in err and "resume" in err
+    assert len(err.strip().splitlines()) == 1
+    r = cli("rcm-grid", cfg, "--store", store, "--quiet")
+    assert "resuming" in r.stdout
+
+
+@pytest.mark.parametrize("backend", ["threads", "loky", "dask"])
+def test_kill_9_resumes_to_the_same_table_on_every_backend(tmp_path, backend):
+    cfg = tmp_path / "slow.toml"
+    cfg.write_text(RCM_SLOW)
+    ref = tmp_path / "ref"
+    cli("rcm-grid", cfg, "--store", ref, "--quiet", "--chunk-size", "40")
+    store = tmp_path / "store"
+    for trial in range(2):  # killed twice, at different points
+        proc = subprocess.Popen([sys.executable, "-m", "surgopt", "rcm-grid", str(cfg), "--store", str(store),
+                                 "--quiet", "--chunk-size", "40", "--backend", backend],
+                                stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+        try:
+            wait_for_parts(store, "rcm-grid", 2 + 3 * trial, proc, timeout=90)
+        except AssertionError:
+            proc.wait()
+            break  # finished before it could be killed: nothing left to resume
+        proc.kill()
+        proc.wait()
+    cli("rcm-grid", cfg, "--store", store, "--quiet", "--backend", backend)
+    run = single_run(store)
+    assert run.complete and run.rows == single_run(ref).rows
+    assert single_table(store).equals(single_table(ref))
+
+
+def _children(pid):
+    try:
+        return [int(c) for c in open(f"/proc/{pid}/task/{pid}/children").read().split()]
+    except OSError:
+        return []
+
+
+def _loky_workers(pid):
+    out = []
+    for c in _children(pid):
+        try:
+            if b"LokyProcess" in open(f"/proc/{c}/cmdline", "rb").read():
+                out.append(c)
+        except OSError:
+            pass
+    return out
+
+
+def test_a_worker_that_dies_is_retried_and_the_table_is_whole(tmp_path):
+    """loky: the workers killed mid-run; their chunks are recomputed on a fresh pool."""
+    cfg = tmp_path / "slow.toml"
+    cfg.write_text("[workspace]\npoints_per_side = 29\n" + RCM_SLOW)  # ~15 s of work: time to kill mid-run
+    store = tmp_path / "store"
+    proc = subprocess.Popen([sys.executable, "-m", "surgopt", "rcm-grid", str(cfg), "--store", str(store),
+                             "--quiet", "--backend", "loky", "--chunk-size", "40"],
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    wait_for_parts(store, "rcm-grid", 2, proc)
+    workers = _loky_workers(proc.pid)
+    assert workers, "no loky worker found"
+    for w in workers:  # both: one of them is busy for sure
+        os.kill(w, signal.SIGKILL)
+    _, err = proc.communicate(timeout=120)
+    assert proc.returncode == 0, err
+    assert "a worker process died" in err and "retrying" in err
+    ref = tmp_path / "ref"
+    cli("rcm-grid", cfg, "--store", ref, "--quiet", "--chunk-size", "40")
+    assert single_table(store).equals(single_table(ref))
+
+
+def test_loky_workers_exit_when_the_parent_is_killed(tmp_path):
+    cfg = tmp_path / "slow.toml"
+    cfg.write_text(RCM_SLOW)
+    store = tmp_path / "store"
+    proc = subprocess.Popen([sys.executable, "-m", "surgopt", "rcm-grid", str(cfg), "--store", str(store),
+                             "--quiet", "--backend", "loky", "--chunk-size", "40"],
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    wait_for_parts(store, "rcm-grid", 2, proc)
+    family = _children(proc.pid)
+    assert _loky_workers(proc.pid)
+    proc.kill()
+    proc.wait()
+    deadline = time.time() + 20
+    alive = family
+    while alive and time.time() < deadline:
+        time.sleep(0.2)
+        alive = [c for c in family if os.path.exists(f"/proc/{c}") and
+                 open(f"/proc/{c}/stat").read().split()[2] != "Z"]
+    assert not alive, f"still running 20 s after the parent died: {alive}"
+
+
+def test_disk_full_is_one_line_and_keeps_finished_chunks(stored, monkeypatch):
+    cfg, store, _ = stored
+    import pyarrow.parquet as pq
+
+    real = pq.write_table
+    calls = [0]
+
+    def full_after_three(table, where, **kw):
+        calls[0] += 1
+        if calls[0] > 3:
+            raise OSError(errno.ENOSPC, "No space left on device", str(where))
+        return real(table, where, **kw)
+
+    monkeypatch.setattr(pq, "write_table", full_after_three)
+    code, out = invoke("rcm-grid", cfg, "--store", store, "--quiet", "--force", "--jobs", "1", "--chunk-size", "4")
+    assert code == 1 and "the disk is full" in out and "finished chunks are stored" in out, out
+    assert len(out.strip().splitlines()) == 1
+    staged = list((store / "rcm-grid" / ".staging").glob("*/part-*.parquet"))
+    assert len(staged) == 3  # the chunks written before the disk filled are kept
+
+
+BAD_USES = {
+    "--store is a file": (["rcm-grid", "{cfg}", "--store", "{file}"], "is a file"),
+    "--store under a file": (["rcm-grid", "{cfg}", "--store", "{file}/store"], "which is a file"),
+    "--store empty": (["rcm-grid", "{cfg}", "--store", ""], "empty path"),
+    "runs rm empty": (["runs", "rm", "", "--store", "{store}"], "at least 4 hex digits"),
+    "plot --out a file": (["plot", "--store", "{store}", "--out", "{file}"], "is a file"),
+    "plot --design unknown": (["plot", "--store", "{store}", "--design", "99999"], "no candidate_id 99999"),
+    "runs --study unknown": (["runs", "--study", "nosuch", "--store", "{store}"], "unknown study"),
+    "--scheduler with threads": (["rcm-grid", "{cfg}", "--store", "{store}", "--scheduler", "tcp://x:1"],
+                                 "--scheduler goes with --backend dask"),
+    "--scheduler malformed": (["rcm-grid", "{cfg}", "--store", "{new}", "--backend", "dask", "--scheduler", "nota://"],
+                              "cannot connect"),
+}
+
+
+@pytest.mark.parametrize("case", sorted(BAD_USES))
+def test_bad_command_line_uses_are_one_line_exit_2(stored, tmp_path, case):
+    cfg, store, _ = stored
+    file = tmp_path / "a-file"
+    file.write_text("x")
+    args, words = BAD_USES[case]
+    args = [a.format(cfg=cfg, store=store, file=file, new=tmp_path / "new") for a in args]
+    code, out = invoke(*args)
+    assert code == 2, out
+    assert words in out and "Traceback" not in out, out
+    assert not (tmp_path / "new").exists()  # nothing half-written
