@@ -154,7 +154,7 @@ def _run_study_command(study, config, store, jobs, force, quiet, chunk_size=None
         for f in flags:
             if f.follow_up is None:
                 continue
-            follow = run_study(study, f.follow_up(cfg, result.table), config_name=config_name + f.follow_up_suffix,
+            follow = run_study(study, f.follow_up(cfg, result.parts), config_name=config_name + f.follow_up_suffix,
                                store=Store(store), jobs=jobs, force=force, quiet=quiet, backend=backend,
                                scheduler=scheduler, say=say, **budget)
             _report(study, follow)
@@ -196,11 +196,11 @@ def _report(study, result) -> None:
     run = result.run
     if result.cache_hit:
         console.print(f"cache hit: {study.name} {run.key[:12]} already in {run.path}")
-    summary = study.summary(result.table)
+    summary = study.summary(result.parts)
     t = Table(title=f"{study.name} ({run.manifest['config_name']})", show_header=False)
     for k, v in summary.headline.items():
         t.add_row(k, f"{v:.6g}" if isinstance(v, float) else str(v))
-    t.add_row("rows", str(result.table.num_rows))
+    t.add_row("rows", str(result.parts.num_rows))
     t.add_row("time_s", f"{result.elapsed_s:.2f}")
     t.add_row("store", f"{run.path}")
     console.print(t)
@@ -320,7 +320,7 @@ def summarize(
         from surgopt.store import Store
 
         st, r = resolve_run(Store(store), run, study)
-        sections = summary_sections(st, r, r.read_table(st.schema()), top=top, sort=sort)
+        sections = summary_sections(st, r, r.parts(st.schema()), top=top, sort=sort)
     if fmt != "table":
         typer.echo(render(sections, fmt))
         return
@@ -395,7 +395,8 @@ def check(
             base = pq.read_table(baseline)
         except Exception as exc:  # noqa: BLE001 - any unreadable file is bad input
             _fail(f"{baseline}: not a readable Parquet file ({exc})", 2)
-        problems, diffs = compare_tables(res.table, base, st.key_columns, rtol, atol)
+        current = res.table
+        problems, diffs = compare_tables(current, base, st.key_columns, rtol, atol)
     for p in problems:
         typer.echo(f"FAIL: {p}")
     if diffs:
@@ -405,7 +406,7 @@ def check(
                        f"{d.current!r} (relative {d.rel:.3g})")
     if problems or diffs:
         raise typer.Exit(1)
-    typer.echo(f"OK: {res.table.num_rows} rows match {baseline} (rtol={rtol:g}, atol={atol:g})")
+    typer.echo(f"OK: {current.num_rows} rows match {baseline} (rtol={rtol:g}, atol={atol:g})")
 
 
 def main() -> None:

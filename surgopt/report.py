@@ -13,29 +13,38 @@ from surgopt.studies.figures import columns
 STATS = ("count", "min", "p25", "median", "p75", "max", "mean")
 
 
-def summary_sections(study, run, table, top: int = 10, sort: str | None = None) -> list[tuple[str, list[str], list[list]]]:
-    """Study-aware summary: header, top designs, objective statistics, feasibility, study tables."""
+def summary_sections(study, run, parts, top: int = 10, sort: str | None = None) -> list[tuple[str, list[str], list[list]]]:
+    """Study-aware summary: header, top designs, objective statistics, feasibility, study tables.
+
+    ``parts``: the run's rows (``surgopt.parts.Parts``, or one Arrow table), read part by part: memory
+    holds one part, the top rows and the objective column, not the run.
+    """
+    from surgopt.parts import Parts
+
+    if not isinstance(parts, Parts):
+        parts = Parts.of_table(parts)
     done, total = len(run.manifest["parts"]), run.manifest["n_tasks"]
     state = "complete" if done == total else f"PARTIAL: {done} of {total} chunks stored (rerun the study to finish)"
-    summary = study.summary(table) if table.num_rows else None
+    summary = study.summary(parts) if parts.num_rows else None
     head = [["study", study.name], ["key", run.key[:12]], ["config", run.manifest.get("config_name", "?")],
-            ["rows", table.num_rows], ["state", state], ["created", run.manifest.get("created", "?")]]
+            ["rows", parts.num_rows], ["state", state], ["created", run.manifest.get("created", "?")]]
     head += [[k, v] for k, v in summary.feasibility.items()] if summary else []
     sections = [("run", ["field", "value"], head)]
     objective = sort or study.objective
-    cols = columns(table)
-    if objective is not None and table.num_rows:
-        if objective not in cols:
+    if objective is not None and parts.num_rows:
+        names_all = parts.schema.names
+        if objective not in names_all:
             from surgopt.errors import UsageError
 
-            raise UsageError(f"--sort: no column {objective!r}; columns: {', '.join(table.column_names)}")
-        order = np.argsort(-cols[objective].astype(float), kind="stable")[:top]
-        names = [c for c in table.column_names if cols[c].dtype != object or c in study.key_columns]
-        sections.append((f"top {len(order)} by {objective}", names,
-                         [[_fmt(cols[c][i]) for c in names] for i in order]))
+            raise UsageError(f"--sort: no column {objective!r}; columns: {', '.join(names_all)}")
+        best = parts.top(objective, top)
+        cols = columns(best)
+        names = [c for c in names_all if cols[c].dtype != object or c in study.key_columns]
+        sections.append((f"top {best.num_rows} by {objective}", names,
+                         [[_fmt(cols[c][i]) for c in names] for i in range(best.num_rows)]))
         rows = []
-        for label, v in (("all", cols[objective].astype(float)),
-                         ("feasible", cols[objective].astype(float)[study.feasible_mask(table)])):
+        for label, v in (("all", parts.column(objective).astype(float)),
+                         ("feasible", parts.column(objective, where=study.feasible_mask).astype(float))):
             if v.size:
                 q = np.percentile(v, [0, 25, 50, 75, 100])
                 rows.append([label, len(v)] + [_fmt(x) for x in q] + [_fmt(v.mean())])

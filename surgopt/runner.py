@@ -26,12 +26,19 @@ class WorkerLost(SurgoptError):
 
 @dataclass
 class RunResult:
+    """A stored run: ``parts`` streams its rows (what reports use); ``table`` reads them all at once."""
+
     run: Run
-    table: object  # pyarrow.Table
+    parts: object  # surgopt.parts.Parts
     cache_hit: bool
     computed_tasks: int
     elapsed_s: float
     messages: list[str] = field(default_factory=list)
+
+    @property
+    def table(self):
+        """The whole run as one Arrow table (read, and verified, on each access)."""
+        return self.parts.table()
 
 
 def _compute(study_name: str, cfg, chunk: int, index: int):
@@ -140,9 +147,9 @@ def run_study(study, cfg, *, config_name: str, store: Store, jobs: int = DEFAULT
     key = study_key(study.name, cfg, study.kernel_version)
     check_budget(study, cfg, jobs, max_hours, max_memory_bytes)
     if not force:
-        hit = _stored_table(store, study, key, schema, say)
-        if hit is not None:
-            return RunResult(hit[0], hit[1], True, 0, time.perf_counter() - t0)
+        run = _stored_run(store, study, key, say)
+        if run is not None:
+            return RunResult(run, run.parts(schema), True, 0, time.perf_counter() - t0)
 
     lock = store.lock(study.name, key, on_wait=lambda who: say(f"waiting for {who} to finish this study ..."))
     cluster = _dask_client(scheduler, jobs) if backend == "dask" else contextlib.nullcontext()
@@ -177,8 +184,7 @@ def run_study(study, cfg, *, config_name: str, store: Store, jobs: int = DEFAULT
                     say(f"a worker process died ({exc.__class__.__name__}); retrying its "
                         f"{len(missing)} unfinished chunk(s)")
         run = store.finish(run)
-        table = run.read_table(schema)
-    return RunResult(run, table, False, computed, time.perf_counter() - t0, messages)
+    return RunResult(run, run.parts(schema), False, computed, time.perf_counter() - t0, messages)
 
 
 #: How many times the chunks of a worker process that died (killed, out of memory) are retried.
@@ -191,8 +197,8 @@ def _worker_died(exc: BaseException) -> bool:
     return bool(names & {"TerminatedWorkerError", "BrokenProcessPool", "BrokenExecutor"})
 
 
-def _stored_table(store: Store, study, key: str, schema, say):
-    """(run, table) if the store holds this run complete and every part checks out, else None."""
+def _stored_run(store: Store, study, key: str, say):
+    """The run if the store holds it complete and every part checks out (size, sha256), else None."""
     from surgopt.errors import StoreError
 
     try:
@@ -201,11 +207,12 @@ def _stored_table(store: Store, study, key: str, schema, say):
         return None  # an unusable manifest: the locked path says so and starts anew
     if run is None or not run.complete:
         return None
-    try:
-        return run, run.read_table(schema)
-    except StoreError as exc:
-        say(f"{exc}".split("; run `")[0] + "; recomputing what is damaged")
+    damaged = run.damaged()
+    if damaged:
+        say(f"{study.name} run {key[:12]} is damaged: {damaged[0][0]} {damaged[0][1]}"
+            + (f" (and {len(damaged) - 1} more)" if len(damaged) > 1 else "") + "; recomputing what is damaged")
         return None
+    return run
 
 
 def _open_or_discard(store: Store, study_name: str, key: str, say):

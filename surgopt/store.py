@@ -205,6 +205,44 @@ class Run:
             return schema.empty_table()
         return pa.concat_tables(tables)
 
+    def parts(self, schema=None):
+        """The rows part by part (``surgopt.parts.Parts``), each part verified as it is read: what
+        summaries use, so that memory does not grow with the run."""
+        from surgopt.parts import Parts
+
+        return Parts(lambda: self._iter_tables(schema), self.rows,
+                     schema if schema is not None else self._first_schema())
+
+    def _first_schema(self):
+        import pyarrow as pa
+        import pyarrow.parquet as pq
+
+        for i in sorted(self.manifest["parts"], key=int):
+            return pq.read_schema(pa.BufferReader(self._verified(i)))
+        raise StoreError(f"{self.path}: no parts written yet")
+
+    def _verified(self, i: str) -> bytes:
+        problem, data = self.part_problem(i)
+        if problem and self._reload():
+            raise StoreError(f"{self.study} run {self.key[:12]} was replaced while it was read (a --force rerun); "
+                             f"read it again")
+        if problem:
+            raise StoreError(f"{self.study} run {self.key[:12]} is damaged: {self.manifest['parts'][i]['file']} "
+                             f"{problem}; run {self.repair_hint()} again to recompute it "
+                             f"(the parts that check out are kept)")
+        return data
+
+    def _iter_tables(self, schema):
+        import pyarrow as pa
+        import pyarrow.parquet as pq
+
+        for i in sorted(self.manifest["parts"], key=int):
+            try:
+                yield pq.read_table(pa.BufferReader(self._verified(i)), schema=schema)
+            except (pa.ArrowException, ValueError) as exc:
+                raise StoreError(f"{self.path / self.manifest['parts'][i]['file']}: passes its checksum but "
+                                 f"does not match the study's schema ({exc})") from None
+
     def _reload(self) -> bool:
         """Re-read the manifest from disk; True if it changed (the run was replaced)."""
         try:

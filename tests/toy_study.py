@@ -27,9 +27,9 @@ def compute_task(cfg, chunk, index):
     return {"i": i, "x": x.astype(float), "square": (x * x).astype(float)}
 
 
-def summary(table):
-    s = table["square"].to_numpy()
-    return Summary({"rows": table.num_rows, "best_square": float(s.max())},
+def summary(parts):
+    s = parts.column("square")
+    return Summary({"rows": parts.num_rows, "best_square": float(s.max())},
                    {"positive": int((s > 0).sum()), "zero": int((s == 0).sum())})
 
 

@@ -367,11 +367,12 @@ def refine_from(cfg: RavenSweepConfig, start, index: int) -> dict:
     return _rows(np.vstack(visited), np.vstack(metrics), cfg.geometry.step_mm, ids, "refine")
 
 
-def refine_config(cfg: RavenSweepConfig, table) -> RavenSweepConfig:
-    """The refine study for a grid table: starts at its top-k designs by cost."""
-    import pyarrow.compute as pc
+def refine_config(cfg: RavenSweepConfig, parts) -> RavenSweepConfig:
+    """The refine study for a grid run (``Parts`` or a table): starts at its top-k designs by cost."""
+    from surgopt.parts import Parts
 
-    top = table.take(pc.sort_indices(table["cost"], sort_keys=[("cost", "descending")])[:cfg.refine.top_k])
+    parts = parts if isinstance(parts, Parts) else Parts.of_table(parts)
+    top = parts.top("cost", cfg.refine.top_k)
     starts = [[top[p][i].as_py() for p in PARAMS] for i in range(top.num_rows)]
     return cfg.model_copy(update={"search": "refine", "refine": cfg.refine.model_copy(update={"starts": starts})})
 
@@ -381,39 +382,40 @@ def refine_config(cfg: RavenSweepConfig, table) -> RavenSweepConfig:
 # ---------------------------------------------------------------------------
 
 
-def paper_optimum_rank(table):
-    """(rank by cost, row) of the Table II optimum in a grid table, or None if not in the grid."""
-    import pyarrow.compute as pc
-
-    mask = None
+def _is_paper_optimum(t):
+    mask = np.ones(t.num_rows, bool)
     for p, v in PAPER_OPTIMUM.items():
-        m = pc.less(pc.abs(pc.subtract(table[p], v)), 1e-9)
-        mask = m if mask is None else pc.and_(mask, m)
-    hit = table.filter(mask)
+        mask &= np.abs(t[p].to_numpy() - v) < 1e-9
+    return mask
+
+
+def paper_optimum_rank(parts):
+    """(rank by cost, row) of the Table II optimum in a grid run (``Parts`` or a table), or None."""
+    from surgopt.parts import Parts
+
+    parts = parts if isinstance(parts, Parts) else Parts.of_table(parts)
+    hit = parts.filter(_is_paper_optimum)
     if hit.num_rows == 0:
         return None
     c = hit["cost"][0].as_py()
-    rank = int(pc.sum(pc.greater(table["cost"], c)).as_py()) + 1
-    return rank, {k: hit[k][0].as_py() for k in hit.column_names}
+    return parts.count(lambda t: t["cost"].to_numpy() > c) + 1, {k: hit[k][0].as_py() for k in hit.column_names}
 
 
-def summary(table) -> Summary:
-    """Designs with a common workspace, the best design by cost, the paper optimum's rank, the top 10."""
-    import pyarrow.compute as pc
-
-    with_ws = int(pc.sum(pc.greater(table["n_points"], 0)).as_py() or 0)
-    headline = {"designs": table.num_rows, "with_common_workspace": with_ws}
-    if table.num_rows:
-        i = int(pc.index(table["cost"], pc.max(table["cost"])).as_py())
-        headline.update({f"best_{p}": table[p][i].as_py() for p in PARAMS})
-        headline.update({"best_cost": table["cost"][i].as_py(), "best_zeta_cm": table["zeta_cm"][i].as_py()})
-    r = paper_optimum_rank(table)
+def summary(parts) -> Summary:
+    """Designs with a common workspace, the best design by cost, the paper optimum's rank, the top 10
+    (``parts``: a ``surgopt.parts.Parts``, read part by part)."""
+    with_ws = parts.count(lambda t: t["n_points"].to_numpy() > 0)
+    headline = {"designs": parts.num_rows, "with_common_workspace": with_ws}
+    top = parts.top("cost", 10)
+    if top.num_rows:
+        headline.update({f"best_{p}": top[p][0].as_py() for p in PARAMS})
+        headline.update({"best_cost": top["cost"][0].as_py(), "best_zeta_cm": top["zeta_cm"][0].as_py()})
+    r = paper_optimum_rank(parts)
     if r is not None:
         headline.update({"paper_optimum_rank": r[0], "paper_optimum_cost": r[1]["cost"]})
-    top = table.take(pc.sort_indices(table["cost"], sort_keys=[("cost", "descending")])[:10])
     cols = list(PARAMS) + ["zeta_cm", "area_cm2", "iso_mean", "cost"]
     rows = [[f"{top[c][i].as_py():.4g}" for c in cols] for i in range(top.num_rows)]
-    return Summary(headline, {"with_common_workspace": with_ws, "without": table.num_rows - with_ws},
+    return Summary(headline, {"with_common_workspace": with_ws, "without": parts.num_rows - with_ws},
                    [("top designs by cost C (eq. 43)", cols, rows)])
 
 

@@ -336,19 +336,16 @@ def cull_search(cfg: RcmGridConfig) -> dict:
     return _rows(np.arange(xz.shape[0]), xz, lo, hi, n_unr, n_sing, n_eval, exact)
 
 
-def summary(table) -> Summary:
-    """Feasible count, the best candidate whose GII is exact, and the five best such candidates."""
-    import pyarrow.compute as pc
-
-    n = table.num_rows
-    feasible = int(pc.sum(table["feasible"]).as_py() or 0)
+def summary(parts) -> Summary:
+    """Feasible count, the best candidate whose GII is exact, and the five best such candidates
+    (``parts``: a ``surgopt.parts.Parts``, read part by part)."""
+    n = parts.num_rows
+    feasible = parts.count(lambda t: t["feasible"])
     counts = {"feasible": feasible, "infeasible": n - feasible}
     headline = {"candidates": n, "feasible": feasible}
-    exact = table.filter(table["gii_is_exact"])
-    if exact.num_rows:
-        i = int(pc.index(exact["gii"], pc.max(exact["gii"])).as_py())
-        headline.update({f"best_{k}": exact[k][i].as_py() for k in ("x_rcm_m", "z_rcm_m", "gii")})
-    top = exact.take(pc.sort_indices(exact["gii"], sort_keys=[("gii", "descending")])[:5])
+    top = parts.top("gii", 5, where=lambda t: t["gii_is_exact"])
+    if top.num_rows:
+        headline.update({f"best_{k}": top[k][0].as_py() for k in ("x_rcm_m", "z_rcm_m", "gii")})
     rows = [[f"{x:.3f}", f"{z:.3f}", f"{g:.5f}"] for x, z, g in
             zip(top["x_rcm_m"].to_pylist(), top["z_rcm_m"].to_pylist(), top["gii"].to_pylist())]
     return Summary(headline, counts, [("best RCM candidates", ["x_rcm_m", "z_rcm_m", "gii"], rows)])

@@ -252,8 +252,21 @@ def compute_task(cfg: SutureSimConfig, chunk: int, index: int) -> dict:
 RUN_KEYS = ["run_id", "weight_set", "arm_length_mm", "fulcrum_to_tip_mm", "mode", "radius_mm", "speed_mm_s"]
 
 
-def run_summary(table):
-    """One row per run: each joint's range and peak |q/q_max|, limit violations, max tracking errors."""
+def run_summary(parts):
+    """One row per run: each joint's range and peak |q/q_max|, limit violations, max tracking errors.
+
+    ``parts``: a ``Parts`` (each stored part holds whole runs: one run per task) or one table.
+    """
+    import pandas as pd
+
+    from surgopt.parts import Parts
+
+    if not isinstance(parts, Parts):
+        return _run_summary(parts)
+    return pd.concat([_run_summary(t) for t in parts]).sort_values("run_id").reset_index(drop=True)
+
+
+def _run_summary(table):
     df = table.to_pandas()
     g = df.groupby("run_id", sort=True)
     out = g[RUN_KEYS[1:]].first()
@@ -268,10 +281,10 @@ def run_summary(table):
     return out.reset_index()
 
 
-def summary(table) -> Summary:
+def summary(parts) -> Summary:
     """Runs within the joint limits, the worst tracking errors, and the joint ranges of the weight
     sets side by side (Fig. 7's comparison), one table per other setting."""
-    s = run_summary(table)
+    s = run_summary(parts)
     ok = int(((s["limit_violations"] == 0) & ~s["stopped_early"]).sum())
     headline = {"runs": len(s), "steps_total": int(s["steps"].sum()),
                 "max_pos_err_mm": float(s["max_pos_err_mm"].max()),

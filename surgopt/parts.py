@@ -1,0 +1,88 @@
+"""A run's rows, part by part: what summaries read so that memory stays flat as the work grows.
+
+``Parts`` yields one verified Arrow table per stored part (or wraps one in-memory table) and offers
+the streaming reductions summaries need: counts, the top rows by a column, one column whole, and
+rows matching a filter. Only one part (plus the running top-k) is in memory at a time; a whole
+column is 8 bytes a row.
+"""
+from __future__ import annotations
+
+from typing import Callable, Iterable, Iterator
+
+import numpy as np
+
+
+class Parts:
+    """Re-iterable sequence of Arrow tables sharing one schema."""
+
+    def __init__(self, tables: Callable[[], Iterable], num_rows: int, schema):
+        self._tables = tables
+        self.num_rows = num_rows
+        self.schema = schema
+
+    @classmethod
+    def of_table(cls, table) -> "Parts":
+        """One in-memory table as Parts (tests, the Python API, small runs)."""
+        return cls(lambda: [table], table.num_rows, table.schema)
+
+    def __iter__(self) -> Iterator:
+        return iter(self._tables())
+
+    def table(self):
+        """Everything as one table (only where the whole run must be in memory, e.g. baselines)."""
+        import pyarrow as pa
+
+        tables = list(self)
+        return pa.concat_tables(tables) if tables else self.schema.empty_table()
+
+    def count(self, predicate: Callable) -> int:
+        """Rows where ``predicate(part)`` (a boolean array or Arrow mask) is true."""
+        return int(sum(int(np.count_nonzero(_np(predicate(t)))) for t in self))
+
+    def column(self, name: str, where: Callable | None = None) -> np.ndarray:
+        """One column over all parts (optionally only rows where ``where(part)``) as a numpy array."""
+        chunks = []
+        for t in self:
+            v = t[name].to_numpy(zero_copy_only=False)
+            chunks.append(v[_np(where(t))] if where is not None else v)
+        return np.concatenate(chunks) if chunks else np.zeros(0)
+
+    def top(self, column: str, k: int, where: Callable | None = None):
+        """The k rows with the largest ``column`` (first occurrence wins ties, as a stable sort of the
+        whole table would), over rows where ``where(part)`` if given; an Arrow table, best first."""
+        import pyarrow as pa
+
+        best, offset = None, 0
+        for t in self:
+            n = t.num_rows
+            if where is not None:
+                mask = _np(where(t))
+                pos = np.flatnonzero(mask)
+                t = t.filter(pa.array(mask))
+            else:
+                pos = np.arange(n)
+            cand = t.append_column("__order", pa.array(pos + offset, pa.int64()))
+            offset += n
+            best = cand if best is None else pa.concat_tables([best, cand])
+            best = _top_k(best, column, k)
+        if best is None:
+            return self.schema.empty_table()
+        return best.drop_columns(["__order"])
+
+    def filter(self, where: Callable):
+        """All rows where ``where(part)`` as one table (for rows known to be few)."""
+        import pyarrow as pa
+
+        kept = [t.filter(pa.array(_np(where(t)))) for t in self]
+        return pa.concat_tables(kept) if kept else self.schema.empty_table()
+
+
+def _np(mask) -> np.ndarray:
+    return np.asarray(mask.to_numpy(zero_copy_only=False) if hasattr(mask, "to_numpy") else mask, dtype=bool)
+
+
+def _top_k(table, column: str, k: int):
+    v = table[column].to_numpy(zero_copy_only=False).astype(float)
+    order = table["__order"].to_numpy()
+    idx = np.lexsort((order, -v))[:k]  # by value descending, then first occurrence
+    return table.take(idx)
