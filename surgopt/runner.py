@@ -269,15 +269,40 @@ def _dispatch_threads(study_name, cfg, chunk, missing, jobs, record):
     for before the exception goes on: a thread still inside a compiled kernel when the interpreter
     shuts down would abort the process (SIGABRT) instead of letting it exit with code 130.
     """
-    from concurrent.futures import ThreadPoolExecutor, as_completed
+    from concurrent.futures import ThreadPoolExecutor
 
     pool = ThreadPoolExecutor(max_workers=jobs, thread_name_prefix="surgopt")
-    futures = [pool.submit(_compute, study_name, cfg, chunk, i) for i in missing]
     try:
-        for f in as_completed(futures):
-            record(*f.result())
+        _run_bounded(pool, study_name, cfg, chunk, missing, jobs, record)
     finally:
         pool.shutdown(wait=True, cancel_futures=True)
+
+
+#: Chunks submitted ahead per worker: enough to keep workers busy, few enough that finished rows
+#: waiting to be written never pile up in memory.
+IN_FLIGHT_PER_WORKER = 2
+
+
+def _run_bounded(pool, study_name, cfg, chunk, missing, jobs, record):
+    """Submit chunks a few at a time and record each as it finishes, dropping it right after: memory
+    holds about ``jobs * IN_FLIGHT_PER_WORKER`` chunks' rows, whatever the number of chunks."""
+    from concurrent.futures import FIRST_COMPLETED, wait
+
+    todo = iter(missing)
+    running = set()
+    for i in todo:
+        running.add(pool.submit(_compute, study_name, cfg, chunk, i))
+        if len(running) >= jobs * IN_FLIGHT_PER_WORKER:
+            break
+    while running:
+        done, running = wait(running, return_when=FIRST_COMPLETED)
+        for f in done:
+            record(*f.result())
+        for i in todo:
+            running.add(pool.submit(_compute, study_name, cfg, chunk, i))
+            if len(running) >= jobs * IN_FLIGHT_PER_WORKER:
+                break
+        del done
 
 
 def _die_with_parent(parent_pid: int) -> None:
@@ -303,19 +328,13 @@ def _dispatch_loky(study_name, cfg, chunk, missing, jobs, record):
     A worker that dies (killed, out of memory) breaks the pool: the exception reaches ``run_study``,
     which retries the chunks not yet stored on a fresh pool. On Ctrl-C the workers are killed.
     """
-    from concurrent.futures import as_completed
-
     from joblib.externals.loky import get_reusable_executor
 
     pool = get_reusable_executor(max_workers=jobs, timeout=30, initializer=_die_with_parent,
                                  initargs=(os.getpid(),), env=WORKER_ENV)
-    futures = [pool.submit(_compute, study_name, cfg, chunk, i) for i in missing]
     try:
-        for f in as_completed(futures):
-            record(*f.result())
+        _run_bounded(pool, study_name, cfg, chunk, missing, jobs, record)
     except BaseException:
-        for f in futures:
-            f.cancel()
         pool.shutdown(wait=False, kill_workers=True)
         raise
 

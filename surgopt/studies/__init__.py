@@ -48,14 +48,14 @@ class Estimate:
 
 #: Resident memory of a study process before any work: Python, numpy, numba, pyarrow (measured: 270 MB).
 BASE_PROCESS_BYTES = 280 * 2 ** 20
-#: The parent holds the finished table about three times over at the end (Arrow table, the columns the
-#: summary converts, the report), measured on the paper setups (docs/reliability.md).
-TABLE_COPIES = 3
+#: The parent streams the table: it holds one column of it (8 bytes a row, for summarize's statistics)
+#: and a few chunks in flight (at least 32 chunks, 2 per worker in flight: ~1/8 of the rows' bytes).
+IN_FLIGHT_SHARE = 1 / 8
 
 
 def peak_bytes(rows: int, bytes_per_row: int, working_bytes: int = 0) -> int:
-    """The parent's peak memory for a table of ``rows`` rows plus per-task working memory."""
-    return BASE_PROCESS_BYTES + TABLE_COPIES * rows * bytes_per_row + working_bytes
+    """The parent's peak memory for a run of ``rows`` rows plus other working memory (docs/reliability.md)."""
+    return int(BASE_PROCESS_BYTES + rows * (8 + bytes_per_row * IN_FLIGHT_SHARE) + working_bytes)
 
 
 @dataclass(frozen=True)
