@@ -21,9 +21,9 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
 
-from conftest import RCM_SLOW  # noqa: E402
-
 from surgopt.store import Store  # noqa: E402
+
+from conftest import RCM_SLOW  # noqa: E402
 
 
 def table(store):
