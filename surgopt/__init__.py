@@ -1,3 +1,16 @@
-"""surgopt: kinematic design studies of surgical robots, batch-run with a cached result store."""
+"""surgopt: kinematic design studies of surgical robots, batch-run with a cached result store.
+
+The Python API (``surgopt.run``, ``surgopt.load``, ``surgopt.runs``) is in ``surgopt.api``; it is
+imported on first use so that ``import surgopt`` (and the CLI's --help) stays light.
+"""
 
 __version__ = "0.1.0"
+__all__ = ["run", "load", "runs", "__version__"]
+
+
+def __getattr__(name):
+    if name in ("run", "load", "runs"):
+        from surgopt import api
+
+        return getattr(api, name)
+    raise AttributeError(f"module 'surgopt' has no attribute {name!r}")

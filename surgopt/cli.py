@@ -6,6 +6,7 @@ Heavy imports (numpy, numba, pyarrow) happen inside the commands so that
 from __future__ import annotations
 
 import contextlib
+import enum
 import signal
 import sys
 from pathlib import Path
@@ -20,21 +21,35 @@ app = typer.Typer(
     "(--store, $SURGOPT_STORE, or ./surgopt-store); an identical config is a cache hit and an "
     "interrupted run resumes where it stopped.",
     no_args_is_help=True,
-    add_completion=False,
+    add_completion=True,
     pretty_exceptions_enable=False,
 )
 
 StoreOpt = Annotated[Optional[str], typer.Option(
-    "--store", envvar="SURGOPT_STORE", help="Result store folder [default: ./surgopt-store].",
+    "--store", envvar="SURGOPT_STORE", help="Result store folder \\[default: ./surgopt-store].",
     show_default=False)]
 JobsOpt = Annotated[int, typer.Option("--jobs", "-j", min=1, max=256,
                                       help="Parallel workers: threads (threads), worker processes (loky), or LocalCluster workers (dask).")]
 ForceOpt = Annotated[bool, typer.Option("--force", help="Recompute even if the store holds this study.")]
+MultirunOpt = Annotated[bool, typer.Option("--multirun", "-m", help="Overrides with comma lists (a=1,2 b=x,y) run "
+                                                                  "every combination, each its own stored run, and end "
+                                                                  "with one table of them.")]
+PrintConfigOpt = Annotated[bool, typer.Option("--print-config", help="Print the effective validated config as TOML "
+                                                                     "(what is hashed into the store key) and exit.")]
+DryRunOpt = Annotated[bool, typer.Option("--dry-run", help="Say what would run (size, chunks, store key, whether it "
+                                                           "is stored, estimated time and memory) and exit; nothing "
+                                                           "is computed or written.")]
 QuietOpt = Annotated[bool, typer.Option("--quiet", "-q", help="No progress bar.")]
-BackendOpt = Annotated[str, typer.Option(
+class Backend(str, enum.Enum):
+    threads = "threads"
+    loky = "loky"
+    dask = "dask"
+
+
+BackendOpt = Annotated[Backend, typer.Option(
     "--backend", help="threads (a thread pool in this process: the kernels release the GIL, so they run "
                       "in parallel with no worker start-up), loky (local worker processes) or dask (a "
-                      "distributed cluster through joblib's dask backend; needs pip install 'surgopt[dask]').")]
+                      "distributed cluster through joblib's dask backend; needs pip install 'surgopt\\[dask]').")]
 SchedulerOpt = Annotated[Optional[str], typer.Option(
     "--scheduler", help="With --backend dask: the scheduler address (tcp://host:8786). Without it, a "
                         "LocalCluster of --jobs single-threaded workers.", show_default=False)]
@@ -47,6 +62,35 @@ MaxMemoryOpt = Annotated[Optional[float], typer.Option(
 ChunkOpt = Annotated[Optional[int], typer.Option(
     "--chunk-size", min=1, help="Design points per task (a resumed run keeps the size it started with).",
     show_default=False)]
+
+
+def _version(value: bool) -> None:
+    if value:
+        from surgopt import __version__
+
+        typer.echo(f"surgopt {__version__}")
+        raise typer.Exit()
+
+
+@app.callback()
+def _main_options(
+    version: Annotated[bool, typer.Option("--version", callback=_version, is_eager=True,
+                                          help="Print the version and exit.")] = False,
+    verbose: Annotated[int, typer.Option("--verbose", "-v", count=True,
+                                         help="Say what the runner and store do (resumed parts, cache hits, chunk "
+                                              "sizes) on stderr; -vv for every part.")] = 0,
+) -> None:
+    """Kinematic design studies of surgical robots, batch-run with a cached Parquet result store.
+
+    Each study command runs the paper's own setup when given no CONFIG. Results go to the store (--store,
+    $SURGOPT_STORE, or ./surgopt-store); an identical config is a cache hit and an interrupted run resumes
+    where it stopped.
+    """
+    if verbose:
+        import logging
+
+        logging.basicConfig(level=logging.DEBUG if verbose > 1 else logging.INFO, stream=sys.stderr,
+                            format="surgopt: %(message)s")
 
 
 def _fail(exc: BaseException, code: int) -> None:
@@ -96,16 +140,8 @@ def _guard():
         _fail(f"{exc.strerror or exc}{where}", 1)
 
 
-def _load_study_config(study, config: Optional[Path]):
-    from surgopt.config import load_config, load_embedded
-
-    if config is None:
-        return load_embedded(study.default_config, study.config_model), f"embedded:{Path(study.default_config).stem}"
-    return load_config(config, study.config_model), config.stem
-
-
 def _study_command(study) -> None:
-    """Register ``surgopt <study.name>``: its CONFIG argument, its own flags, and the shared options.
+    """Register ``surgopt <study.name>``: CONFIG and KEY=VALUE overrides, its own flags, the shared options.
 
     The command's signature is built from the study's declaration (``Study.flags``, ``Study.chunked``),
     so this module names no study.
@@ -113,14 +149,16 @@ def _study_command(study) -> None:
     import inspect
 
     P = inspect.Parameter
-    params = [P("config", P.KEYWORD_ONLY, default=None, annotation=Annotated[Optional[Path], typer.Argument(
-        help=study.config_help, show_default=False)])]
+    params = [P("args", P.KEYWORD_ONLY, default=None, annotation=Annotated[Optional[list[str]], typer.Argument(
+        help=f"{study.config_help} Then any KEY=VALUE overrides (dotted keys, e.g. workspace.points_per_side=9; "
+             f"a comma list with --multirun).", show_default=False, metavar="[CONFIG] [KEY=VALUE]")])]
     params += [P(f.dest, P.KEYWORD_ONLY, default=False, annotation=Annotated[bool, typer.Option(f.option, help=f.help)])
                for f in study.flags]
-    shared = [("store", StoreOpt, None), ("jobs", JobsOpt, 2), ("force", ForceOpt, False), ("quiet", QuietOpt, False)]
+    shared = [("multirun", MultirunOpt, False), ("print_config", PrintConfigOpt, False), ("dry_run", DryRunOpt, False),
+              ("store", StoreOpt, None), ("jobs", JobsOpt, 2), ("force", ForceOpt, False), ("quiet", QuietOpt, False)]
     if study.chunked:
         shared.append(("chunk_size", ChunkOpt, None))
-    shared += [("backend", BackendOpt, "threads"), ("scheduler", SchedulerOpt, None),
+    shared += [("backend", BackendOpt, Backend.threads), ("scheduler", SchedulerOpt, None),
                ("max_hours", MaxHoursOpt, 1.0), ("max_memory_gb", MaxMemoryOpt, None)]
     params += [P(name, P.KEYWORD_ONLY, default=default, annotation=ann) for name, ann, default in shared]
 
@@ -130,34 +168,117 @@ def _study_command(study) -> None:
 
     command.__signature__ = inspect.Signature(params)
     command.__annotations__ = {p.name: p.annotation for p in params}
-    command.__doc__ = study.help
+    command.__doc__ = _reflow(study.help)
     command.__name__ = study.name.replace("-", "_")
     app.command(study.name)(command)
 
 
-def _run_study_command(study, config, store, jobs, force, quiet, chunk_size=None, backend="threads", scheduler=None,
-                       max_hours=1.0, max_memory_gb=None, flags=()):
+def _reflow(text: str) -> str:
+    """A docstring's paragraphs as single lines (the help renderer wraps them to the terminal)."""
+    import inspect
+
+    return "\n\n".join(" ".join(p.split()) for p in inspect.cleandoc(text).split("\n\n"))
+
+
+def _split_args(args: list[str] | None) -> tuple[Optional[str], list[str]]:
+    """[CONFIG] [KEY=VALUE ...]: the first argument is the config when it is not an override."""
+    args = list(args or [])
+    config = args.pop(0) if args and "=" not in args[0] else None
+    bad = [a for a in args if "=" not in a]
+    if bad:
+        from surgopt.errors import UsageError
+
+        raise UsageError(f"{bad[0]!r}: after CONFIG only KEY=VALUE overrides are allowed")
+    return config, args
+
+
+def _run_study_command(study, args, store, jobs, force, quiet, chunk_size=None, backend="threads", scheduler=None,
+                       max_hours=1.0, max_memory_gb=None, flags=(), multirun=False, print_config=False,
+                       dry_run=False):
     with _guard():
+        from surgopt.compose import variants
         from surgopt.runner import run_study
         from surgopt.store import Store
 
-        cfg, config_name = _load_study_config(study, config)
+        backend = getattr(backend, "value", backend)
+        config, overrides = _split_args(args)
         updates = {k: v for f in flags if f.config_update for k, v in f.config_update.items()}
-        if updates:
-            cfg = study.config_model.model_validate({**cfg.model_dump(), **updates})
-        say = lambda m: typer.echo(m, err=True)  # noqa: E731
+        todo = variants(study, config, overrides, updates, multirun=multirun)
+        if print_config:
+            _print_configs(todo)
+            return
         budget = dict(max_hours=max_hours, max_memory_bytes=None if max_memory_gb is None else int(max_memory_gb * 2 ** 30))
-        result = run_study(study, cfg, config_name=config_name, store=Store(store), jobs=jobs,
-                           force=force, quiet=quiet, chunk=chunk_size, backend=backend, scheduler=scheduler,
-                           say=say, **budget)
-        _report(study, result)
-        for f in flags:
-            if f.follow_up is None:
-                continue
-            follow = run_study(study, f.follow_up(cfg, result.parts), config_name=config_name + f.follow_up_suffix,
-                               store=Store(store), jobs=jobs, force=force, quiet=quiet, backend=backend,
-                               scheduler=scheduler, say=say, **budget)
-            _report(study, follow)
+        if dry_run:
+            _dry_run(study, todo, Store(store), jobs, chunk_size, budget)
+            return
+        say = lambda m: typer.echo(m, err=True)  # noqa: E731
+        finished = []
+        for v in todo:
+            result = run_study(study, v.config, config_name=v.config_name, store=Store(store), jobs=jobs,
+                               force=force, quiet=quiet, chunk=chunk_size, backend=backend, scheduler=scheduler,
+                               say=say, **budget)
+            summary = _report(study, result, brief=len(todo) > 1)
+            finished.append((v, result, summary))
+            for f in flags:
+                if f.follow_up is None:
+                    continue
+                follow = run_study(study, f.follow_up(v.config, result.parts),
+                                   config_name=v.config_name + f.follow_up_suffix, store=Store(store), jobs=jobs,
+                                   force=force, quiet=quiet, backend=backend, scheduler=scheduler, say=say, **budget)
+                _report(study, follow)
+        if len(todo) > 1:
+            _multirun_table(study, finished)
+
+
+def _print_configs(todo) -> None:
+    """The effective validated configs as TOML: exactly what is hashed (``--print-config``)."""
+    from surgopt.config import to_toml
+
+    for v in todo:
+        if len(todo) > 1:
+            typer.echo(f"# {v.config_name}")
+        typer.echo(to_toml(v.config.model_dump(mode="json")))
+
+
+def _dry_run(study, todo, store, jobs, chunk_size, budget) -> None:
+    """What each run would be: size, chunks, store key and state, estimated time and memory."""
+    from surgopt.config import study_key
+    from surgopt.runner import _duration, check_budget
+
+    rows = []
+    for v in todo:
+        key = study_key(study.name, v.config, study.kernel_version)
+        try:
+            run = store.open(study.name, key)
+        except Exception:  # noqa: BLE001 - an unusable manifest is "would be rebuilt"
+            run = None
+        state = "not stored" if run is None else ("stored (a cache hit)" if run.complete
+                                                  else f"partial {len(run.manifest['parts'])}/{run.manifest['n_tasks']}")
+        chunk = chunk_size or (run.manifest["chunk"] if run else study.auto_chunk(v.config))
+        est = study.estimate(v.config) if study.estimate else None
+        try:
+            check_budget(study, v.config, jobs, budget["max_hours"], budget["max_memory_bytes"])
+            verdict = "within budget"
+        except Exception as exc:  # noqa: BLE001 - shown, not raised: this is a dry run
+            verdict = f"REFUSED: {str(exc).split(';')[0]}"
+        wall = est.seconds_one_core / max(1, min(jobs, __import__("os").cpu_count() or 1)) if est else None
+        rows.append([v.config_name, f"{est.items:,} {est.what}" if est else "?", study.n_tasks(v.config, chunk),
+                     key[:12], state, _duration(wall) if est else "?",
+                     f"{est.peak_bytes / 2 ** 20:,.0f} MB" if est else "?", verdict])
+    _print_table(_console(), f"{study.name} --dry-run (nothing computed or written)",
+                 ["config", "size", "chunks", "key", "store", f"time on {jobs} core(s)", "peak memory", "budget"], rows)
+
+
+def _multirun_table(study, finished) -> None:
+    """One row per run of a --multirun: the varied values and the run's headline numbers."""
+    keys = [k for k in finished[0][0].varied if len({repr(v.varied[k]) for v, _, _ in finished}) > 1]
+    heads = [k for k, v in finished[0][2].headline.items() if isinstance(v, (int, float)) and not isinstance(v, bool)]
+    rows = []
+    for v, result, summary in finished:
+        rows.append([str(v.varied[k]) for k in keys] + [result.run.key[:12]]
+                    + [f"{summary.headline.get(h):.6g}" if isinstance(summary.headline.get(h), float)
+                       else str(summary.headline.get(h, "")) for h in heads])
+    _print_table(_console(), f"{study.name} --multirun: {len(finished)} runs", keys + ["key"] + heads, rows)
 
 
 def _register_studies() -> None:
@@ -181,13 +302,14 @@ def _print_table(console, title, header, rows) -> None:
 
     t = Table(title=title)
     for h in header:
-        t.add_column(str(h), justify="left" if h == header[0] else "right")
+        t.add_column(str(h), justify="left" if h == header[0] else "right", overflow="fold")
     for row in rows:
         t.add_row(*[str(v) for v in row])
     console.print(t)
 
 
-def _report(study, result) -> None:
+def _report(study, result, brief: bool = False):
+    """The closing report of one run (``brief``: headline only, for each run of a --multirun)."""
     from rich.table import Table
 
     console = _console()
@@ -204,12 +326,19 @@ def _report(study, result) -> None:
     t.add_row("time_s", f"{result.elapsed_s:.2f}")
     t.add_row("store", f"{run.path}")
     console.print(t)
-    for title, header, rows in summary.tables:
-        _print_table(console, title, header, rows)
+    if not brief:
+        for title, header, rows in summary.tables:
+            _print_table(console, title, header, rows)
+    return summary
 
 
 runs_app = typer.Typer(help="List and delete stored runs.", no_args_is_help=False)
 app.add_typer(runs_app, name="runs")
+
+
+class ListFormat(str, enum.Enum):
+    table = "table"
+    json = "json"
 
 
 @runs_app.callback(invoke_without_command=True)
@@ -217,43 +346,41 @@ def runs(
     ctx: typer.Context,
     store: StoreOpt = None,
     study: Annotated[Optional[str], typer.Option("--study", help="Only this study.")] = None,
+    fmt: Annotated[ListFormat, typer.Option("--format", help="table, or json (every run's manifest facts, "
+                                                              "snake_case keys).")] = ListFormat.table,
 ) -> None:
-    """List the studies held in the store: study, key prefix, config, rows, state, created."""
+    """List the runs held in the store: study, key prefix, config (with its overrides), rows, state, created.
+
+    State is complete, partial N/M, DAMAGED (a part fails its check; the study command repairs it) or
+    UNREADABLE (its manifest), and says which process is writing a run now."""
     if ctx.invoked_subcommand is not None:
         return
-    from rich.console import Console
+    import json
+
     from rich.table import Table
 
     with _guard():
+        from surgopt.results import run_records
         from surgopt.store import Store
         from surgopt.studies import STUDIES
 
         if study is not None and study not in STUDIES:
             _fail(f"--study: unknown study {study!r} (one of {', '.join(STUDIES)})", 2)
         s = Store(store)
-        items = s.runs(study)
-        broken = s.unreadable(study)
-    if not items and not broken:
+        records = run_records(s, study)
+    if fmt == ListFormat.json:
+        typer.echo(json.dumps(records, indent=1))
+        return
+    if not records:
         typer.echo(f"no runs in {s.root}")
         return
     t = Table(title=f"runs in {s.root}")
     for col in ("study", "key", "config", "rows", "state", "created"):
-        t.add_column(col)
-    for r in items:
-        damaged = r.damaged()
-        if damaged:
-            state = f"DAMAGED: {damaged[0][0]} {damaged[0][1]}" + (f" (+{len(damaged) - 1} more)" if len(damaged) > 1 else "")
-        elif r.complete:
-            state = "complete"
-        else:
-            state = f"partial {len(r.manifest['parts'])}/{r.manifest['n_tasks']}"
-        who = s.holder(r.study, r.key)
-        state += f", being written by {who}" if who else ""
-        t.add_row(r.study, r.key[:12], r.manifest.get("config_name", "?"), str(r.rows), state,
-                  r.manifest.get("created", "?"))
-    for path, why in broken:
-        t.add_row(path.parent.name, path.name[:12], "?", "?", f"UNREADABLE: {why}", "?")
-    Console(width=max(100, Console().width)).print(t)
+        t.add_column(col, overflow="fold")
+    for r in records:
+        t.add_row(r["study"], r["key"][:12], r["config_name"] or "?", str(r["rows"] if r["rows"] is not None else "?"),
+                  r["state"], r.get("created") or "?")
+    _console(100).print(t)
 
 
 @runs_app.command("rm")
@@ -320,11 +447,19 @@ def summarize(
         from surgopt.store import Store
 
         st, r = resolve_run(Store(store), run, study)
+        if fmt == "json":
+            import json
+
+            from surgopt.report import summary_record
+
+            typer.echo(json.dumps(summary_record(st, r, r.parts(st.schema()), top=top, sort=sort), indent=1,
+                                  default=str))
+            return
         sections = summary_sections(st, r, r.parts(st.schema()), top=top, sort=sort)
     if fmt != "table":
         typer.echo(render(sections, fmt))
         return
-    console = _console(260)  # the top-k table has every parameter and metric
+    console = _console(0)  # the terminal's width; cells fold rather than being cut
     for title, header, rows in sections:
         _print_table(console, title, header, rows)
 
@@ -359,6 +494,89 @@ def plot(
         paths = st.figures(config_of(st, r), table, out, design)
     for p in paths:
         typer.echo(str(p))
+
+
+class ExportFormat(str, enum.Enum):
+    csv = "csv"
+    parquet = "parquet"
+    json = "json"
+
+
+@app.command("export")
+def export(
+    runs_: Annotated[list[str], typer.Argument(metavar="RUN...", help="Key prefixes (or configs) of the runs to "
+                                                                      "export; several runs are stacked.")],
+    fmt: Annotated[ExportFormat, typer.Option("--format", help="csv, parquet or json (records).")] = ExportFormat.csv,
+    out: Annotated[Optional[Path], typer.Option("--out", help="Output file [default: standard output; "
+                                                              "needed for parquet].", show_default=False)] = None,
+    store: StoreOpt = None,
+    study: StudyOpt = None,
+) -> None:
+    """A run's whole table as one tidy table, with the run key (and, for several runs, the config fields
+    that differ between them) as columns. The CSV reads back with pandas.read_csv as it is."""
+    with _guard():
+        from surgopt.results import export_table
+        from surgopt.store import Store
+
+        if fmt == ExportFormat.parquet and out is None:
+            _fail("--format parquet needs --out FILE", 2)
+        if out is not None and out.is_dir():
+            _fail(f"--out: {out} is a folder; give a file", 2)
+        table = export_table(Store(store), runs_, study)
+        if fmt == ExportFormat.parquet:
+            import pyarrow.parquet as pq
+
+            from surgopt.store import atomic_write
+
+            atomic_write(out, lambda tmp: pq.write_table(table, tmp, compression="zstd"))
+        else:
+            df = table.to_pandas()
+            text = df.to_csv(index=False) if fmt == ExportFormat.csv else df.to_json(orient="records", indent=1)
+            if out is None:
+                sys.stdout.write(text)
+            else:
+                from surgopt.store import atomic_write
+
+                atomic_write(out, lambda tmp: tmp.write_text(text))
+    if out is not None:
+        typer.echo(f"wrote {out} ({table.num_rows} rows, {table.num_columns} columns)", err=True)
+
+
+@app.command("diff")
+def diff(
+    run_a: Annotated[str, typer.Argument(help="Key prefix (or config) of the first run.")],
+    run_b: Annotated[str, typer.Argument(help="Key prefix (or config) of the second run.")],
+    fmt: Annotated[ListFormat, typer.Option("--format", help="table or json.")] = ListFormat.table,
+    store: StoreOpt = None,
+    study: StudyOpt = None,
+    top: Annotated[int, typer.Option("--top", min=1, help="How many of the most changed rows to list.")] = 5,
+) -> None:
+    """Compare two runs of one study: the config fields that differ, then every metric joined on the
+    study's key columns (rows only in one run, largest changes, the best design of each)."""
+    import json
+
+    with _guard():
+        from surgopt.results import diff_runs
+        from surgopt.store import Store
+
+        d = diff_runs(Store(store), run_a, run_b, study, top)
+    if fmt == ListFormat.json:
+        typer.echo(json.dumps(d, indent=1, default=str))
+        return
+    console = _console(0)
+    _print_table(console, f"config: {d['a']['key'][:12]} vs {d['b']['key'][:12]}", ["field", "a", "b"],
+                 [[k, str(a), str(b)] for k, (a, b) in d["config"].items()] or [["(identical configs)", "", ""]])
+    _print_table(console, f"metrics over {d['rows_joined']} rows joined on {', '.join(d['key_columns'])} "
+                          f"({d['rows_only_a']} only in a, {d['rows_only_b']} only in b)",
+                 ["column", "rows changed", "max |b - a|", "mean b - a"],
+                 [[c, m["changed"], f"{m['max_abs']:.6g}", f"{m['mean']:.6g}"] for c, m in d["metrics"].items()])
+    if d["worst"]:
+        cols = list(d["worst"][0])
+        _print_table(console, f"most changed rows (by |b - a| of {d['objective']})", cols,
+                     [[str(r[c]) for c in cols] for r in d["worst"]])
+    if d["best"]:
+        _print_table(console, f"best design of each by {d['objective']}", ["run"] + list(d["best"]["a"]),
+                     [["a"] + [str(v) for v in d["best"]["a"].values()], ["b"] + [str(v) for v in d["best"]["b"].values()]])
 
 
 @app.command("check")
@@ -412,7 +630,7 @@ def check(
 def main() -> None:
     for sig in (signal.SIGTERM, signal.SIGHUP):
         signal.signal(sig, _stop_on)
-    app()
+    app(prog_name="surgopt")
 
 
 if __name__ == "__main__":

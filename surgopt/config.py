@@ -85,10 +85,36 @@ def _field_path(loc: tuple) -> str:
     return out or "(top level)"
 
 
-def _error_text(err: dict) -> str:
+def _fields_at(model: type[BaseModel], loc: tuple) -> list[str]:
+    """The field names of the (sub)model at ``loc`` (list indices and dict keys passed over)."""
+    import typing
+
+    def submodels(annotation):
+        if isinstance(annotation, type) and issubclass(annotation, BaseModel):
+            return [annotation]
+        return [m for a in typing.get_args(annotation) for m in submodels(a)]
+
+    current = [model]
+    for part in loc:
+        if isinstance(part, int):
+            continue
+        nxt = []
+        for m in current:
+            f = m.model_fields.get(part)
+            if f is not None:
+                nxt += submodels(f.annotation)
+        current = nxt or current
+    return sorted({name for m in current for name in m.model_fields})
+
+
+def _error_text(err: dict, model: type[BaseModel] | None = None) -> str:
     msg = err["msg"].removeprefix("Value error, ")
     if err["type"] == "extra_forbidden":
-        return "unknown key"
+        import difflib
+
+        loc = _loc(err)
+        near = difflib.get_close_matches(str(loc[-1]), _fields_at(model, loc[:-1]), n=1) if model else []
+        return f"unknown key (did you mean {near[0]!r}?)" if near else "unknown key"
     if err["type"] == "finite_number":
         return f"must be a finite number (got {_quote(err.get('input'))})"
     if "input" in err and err["type"] not in ("missing",) and not isinstance(err["input"], dict):
@@ -111,8 +137,8 @@ def validate(data: Any, model: type[M], source: str) -> M:
     except ValidationError as exc:
         errors = exc.errors()
         first = errors[0]
-        msg = _error_text(first)
-        others = [f"{_field_path(_loc(e))}: {_error_text(e)}" for e in errors[1:MAX_ERRORS_LISTED]]
+        msg = _error_text(first, model)
+        others = [f"{_field_path(_loc(e))}: {_error_text(e, model)}" for e in errors[1:MAX_ERRORS_LISTED]]
         if others:
             msg += "; also " + "; ".join(others)
         if len(errors) > MAX_ERRORS_LISTED:
@@ -120,8 +146,8 @@ def validate(data: Any, model: type[M], source: str) -> M:
         raise ConfigError(source, msg, _field_path(_loc(first))) from None
 
 
-def load_config(path: str | Path, model: type[M]) -> M:
-    """Read and validate a TOML or YAML config file."""
+def read_config_data(path: str | Path) -> Any:
+    """The parsed (not yet validated) contents of a TOML or YAML config file."""
     p = Path(path)
     source = str(path)
     try:
@@ -132,7 +158,116 @@ def load_config(path: str | Path, model: type[M]) -> M:
         raise ConfigError(source, "is a directory, not a config file") from None
     except (OSError, UnicodeDecodeError) as exc:
         raise ConfigError(source, f"cannot read: {exc}") from None
-    return validate(_parse_text(text, source, p.suffix.lower()), model, source)
+    return _parse_text(text, source, p.suffix.lower())
+
+
+def load_config(path: str | Path, model: type[M]) -> M:
+    """Read and validate a TOML or YAML config file."""
+    return validate(read_config_data(path), model, str(path))
+
+
+# ---------------------------------------------------------------------------
+# command-line overrides: key.path=value (Hydra style)
+# ---------------------------------------------------------------------------
+
+
+def _split_top_level(text: str) -> list[str]:
+    """Split at commas outside brackets and quotes: "0.5,[1, 2]" -> ["0.5", "[1, 2]"]."""
+    out, depth, quote, cur = [], 0, None, ""
+    for ch in text:
+        if quote:
+            quote = None if ch == quote else quote
+        elif ch in "\"'":
+            quote = ch
+        elif ch in "[{":
+            depth += 1
+        elif ch in "]}":
+            depth -= 1
+        elif ch == "," and depth == 0:
+            out.append(cur)
+            cur = ""
+            continue
+        cur += ch
+    out.append(cur)
+    return out
+
+
+def parse_value(text: str) -> Any:
+    """One override value: a TOML value (0.55, 9, true, "x", [1, 2], {start = 0, stop = 1, step = 1}),
+    or else the bare text as a string (elbow=down)."""
+    try:
+        return tomllib.loads(f"v = {text}")["v"]
+    except tomllib.TOMLDecodeError:
+        return text
+
+
+def parse_overrides(items: list[str]) -> list[tuple[str, list[Any]]]:
+    """["a.b=1,2", "c=x"] -> [("a.b", [1, 2]), ("c", ["x"])]: each key with its value(s)."""
+    out = []
+    for item in items:
+        key, sep, raw = item.partition("=")
+        key = key.strip()
+        if not sep or not key or any(not part.isidentifier() for part in key.split(".")):
+            raise ConfigError("<command line>", f"{item!r} is not KEY=VALUE with a dotted key "
+                                                f"(e.g. robot.tool_length_m=0.55)")
+        out.append((key, [parse_value(v.strip()) for v in _split_top_level(raw)]))
+    return out
+
+
+def with_override(data: dict, key: str, value: Any) -> dict:
+    """A copy of ``data`` with the dotted ``key`` set to ``value`` (tables created on the way)."""
+    import copy
+
+    data = copy.deepcopy(data)
+    d = data
+    parts = key.split(".")
+    for p in parts[:-1]:
+        if not isinstance(d.get(p, {}), dict):
+            raise ConfigError("<command line>", f"{key}: {p} is a value, not a table", key)
+        d = d.setdefault(p, {})
+    d[parts[-1]] = value
+    return data
+
+
+# ---------------------------------------------------------------------------
+# writing a config back as TOML (--print-config)
+# ---------------------------------------------------------------------------
+
+
+def _toml_value(v: Any) -> str:
+    if isinstance(v, bool):
+        return "true" if v else "false"
+    if isinstance(v, (int, float)):
+        return repr(v)
+    if isinstance(v, str):
+        return json.dumps(v)
+    if isinstance(v, (list, tuple)):
+        return "[" + ", ".join(_toml_value(x) for x in v) + "]"
+    if isinstance(v, dict):
+        return "{" + ", ".join(f"{k} = {_toml_value(x)}" for k, x in v.items()) + "}"
+    raise TypeError(f"cannot write {type(v).__name__} as TOML")
+
+
+def to_toml(data: dict, _prefix: str = "") -> str:
+    """TOML text of nested dicts: a table's values first, then one [table] per nested dict (spans
+    inline). Values that are None (an unset optional) are left out. ``tomllib.loads`` reads it back."""
+    lines, tables = [], []
+    for k, v in data.items():
+        if v is None:
+            continue
+        if isinstance(v, dict) and not _is_inline(v):
+            tables.append((k, v))
+        else:
+            lines.append(f"{k} = {_toml_value(v)}")
+    out = "".join(line + "\n" for line in lines)
+    for k, v in tables:
+        out += f"\n[{_prefix}{k}]\n" + to_toml(v, f"{_prefix}{k}.")
+    return out
+
+
+def _is_inline(v: dict) -> bool:
+    """A sweep span {start, stop, step} reads better inline."""
+    return set(v) == {"start", "stop", "step"}
 
 
 def embedded_default_text(filename: str) -> str:

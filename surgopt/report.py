@@ -55,6 +55,34 @@ def summary_sections(study, run, parts, top: int = 10, sort: str | None = None) 
     return sections
 
 
+def summary_record(study, run, parts, top: int = 10, sort: str | None = None) -> dict:
+    """``summarize --format json``: the same facts as ``summary_sections`` with stable snake_case keys and
+    values at full precision."""
+    from surgopt.parts import Parts
+
+    if not isinstance(parts, Parts):
+        parts = Parts.of_table(parts)
+    done, total = len(run.manifest["parts"]), run.manifest["n_tasks"]
+    summary = study.summary(parts) if parts.num_rows else None
+    out = {"study": study.name, "key": run.key, "config_name": run.manifest.get("config_name"),
+           "rows": parts.num_rows, "complete": done == total, "chunks_stored": done, "chunks": total,
+           "created": run.manifest.get("created"),
+           "feasibility": summary.feasibility if summary else {}, "headline": summary.headline if summary else {}}
+    objective = sort or study.objective
+    if objective is not None and parts.num_rows:
+        out["objective"] = objective
+        out["top"] = parts.top(objective, top).to_pylist()
+        out["distribution"] = {}
+        for label, v in (("all", parts.column(objective).astype(float)),
+                         ("feasible", parts.column(objective, where=study.feasible_mask).astype(float))):
+            if v.size:
+                q = np.percentile(v, [0, 25, 50, 75, 100])
+                out["distribution"][label] = dict(zip(STATS, [int(v.size)] + [float(x) for x in q] + [float(v.mean())]))
+    if summary and summary.tables:
+        out["tables"] = [{"title": title, "header": header, "rows": rows} for title, header, rows in summary.tables]
+    return out
+
+
 def _fmt(x):
     if isinstance(x, (float, np.floating)):
         return float(f"{x:.6g}")

@@ -62,6 +62,46 @@ def resolve_run(store: Store, ref: str | None, study_name: str | None = None):
     return get_study(run.study), run
 
 
+def run_state(store: Store, run: Run) -> str:
+    """complete | partial N/M | DAMAGED: part problem, with ", being written by pid N" while locked."""
+    damaged = run.damaged()
+    if damaged:
+        state = f"DAMAGED: {damaged[0][0]} {damaged[0][1]}" + (f" (+{len(damaged) - 1} more)" if len(damaged) > 1 else "")
+    elif run.complete:
+        state = "complete"
+    else:
+        state = f"partial {len(run.manifest['parts'])}/{run.manifest['n_tasks']}"
+    who = store.holder(run.study, run.key)
+    return state + (f", being written by {who}" if who else "")
+
+
+def run_records(store: Store, study: str | None = None) -> list[dict]:
+    """One dict per run (snake_case keys): what ``surgopt runs`` shows, and each run's provenance."""
+    out = []
+    for r in store.runs(study):
+        m = r.manifest
+        out.append({"study": r.study, "key": r.key, "config_name": m.get("config_name"), "rows": r.rows,
+                    "state": run_state(store, r), "created": m.get("created"), "completed": m.get("completed"),
+                    "kernel_version": m.get("kernel_version"), "n_tasks": m["n_tasks"], "chunk": m["chunk"],
+                    "backend": m.get("backend"), "jobs": m.get("jobs"), "host": m.get("host"),
+                    "wall_time_s": m.get("wall_time_s"), "versions": m.get("versions"), "path": str(r.path)})
+    for path, why in store.unreadable(study):
+        out.append({"study": path.parent.name, "key": path.name, "config_name": None, "rows": None,
+                    "state": f"UNREADABLE: {why}", "path": str(path)})
+    return out
+
+
+def flat_config(config: dict, prefix: str = "") -> dict:
+    """{"a": {"b": 1}} -> {"a.b": 1}: a config as dotted keys (what overrides name)."""
+    out = {}
+    for k, v in config.items():
+        if isinstance(v, dict) and set(v) != {"start", "stop", "step"}:
+            out.update(flat_config(v, f"{prefix}{k}."))
+        else:
+            out[f"{prefix}{k}"] = v
+    return out
+
+
 def config_of(study, run: Run):
     return study.config_model.model_validate(run.manifest["config"])
 
@@ -123,3 +163,65 @@ def write_baseline(table, keys, path: Path) -> None:
     path.parent.mkdir(parents=True, exist_ok=True)
     atomic_write(path, lambda tmp: pq.write_table(table.sort_by([(k, "ascending") for k in keys]), tmp,
                                                   compression="zstd"))
+
+
+def export_table(store: Store, refs: list[str], study_name: str | None = None):
+    """The tables of the runs ``refs`` stacked, with ``run_key`` and the config fields that differ
+    between the runs (dotted names) as leading columns."""
+    import pyarrow as pa
+
+    resolved = [resolve_run(store, ref, study_name) for ref in refs]
+    studies = {st.name for st, _ in resolved}
+    if len(studies) > 1:
+        raise UsageError(f"the runs are of different studies ({', '.join(sorted(studies))}); export them one by one")
+    flats = [flat_config(r.manifest["config"]) for _, r in resolved]
+    varied = [k for k in flats[0] if len({repr(f.get(k)) for f in flats}) > 1] if len(flats) > 1 else []
+    tables = []
+    for (st, r), flat in zip(resolved, flats):
+        t = r.read_table(st.schema())
+        extra = {"run_key": pa.array([r.key] * t.num_rows, pa.string())}
+        for k in varied:
+            v = flat.get(k)
+            extra[k] = pa.array([v if isinstance(v, (int, float, str, bool)) else str(v)] * t.num_rows)
+        for i, (name, col) in enumerate(extra.items()):
+            t = t.add_column(i, name, col)
+        tables.append(t)
+    return pa.concat_tables(tables, promote_options="permissive")
+
+
+def diff_runs(store: Store, ref_a: str, ref_b: str, study_name: str | None = None, top: int = 5) -> dict:
+    """Two runs of one study compared: differing config fields, per-metric changes on the rows joined
+    by the key columns, the most changed rows by the objective, the best design of each."""
+    sa, ra = resolve_run(store, ref_a, study_name)
+    sb, rb = resolve_run(store, ref_b, study_name)
+    if sa.name != sb.name:
+        raise UsageError(f"{ref_a} is a {sa.name} run and {ref_b} a {sb.name} run: diff compares runs of one study")
+    fa, fb = flat_config(ra.manifest["config"]), flat_config(rb.manifest["config"])
+    config = {k: (fa.get(k), fb.get(k)) for k in dict.fromkeys([*fa, *fb]) if fa.get(k) != fb.get(k)}
+    a = ra.read_table(sa.schema()).to_pandas()
+    b = rb.read_table(sb.schema()).to_pandas()
+    keys = list(sa.key_columns)
+    joined = a.merge(b, on=keys, how="outer", suffixes=("_a", "_b"), indicator=True)
+    both = joined[joined["_merge"] == "both"]
+    metrics = {}
+    for c in a.columns:
+        if c in keys or not np.issubdtype(a[c].dtype, np.number) or a[c].dtype == bool:
+            continue
+        d = both[f"{c}_b"].astype(float) - both[f"{c}_a"].astype(float)
+        metrics[c] = {"changed": int((d.abs() > 0).sum()), "max_abs": float(d.abs().max()) if len(d) else 0.0,
+                      "mean": float(d.mean()) if len(d) else 0.0}
+    objective = sa.objective or next(iter(metrics), None)
+    worst, best = [], {}
+    if objective is not None and len(both):
+        delta = (both[f"{objective}_b"] - both[f"{objective}_a"]).abs()
+        rows = both.loc[delta.sort_values(ascending=False, kind="stable").index[:top]]
+        worst = [{**{k: r[k] for k in keys}, f"{objective}_a": r[f"{objective}_a"], f"{objective}_b": r[f"{objective}_b"]}
+                 for _, r in rows.iterrows()]
+        show = keys + [c for c in a.columns if c not in keys][:8]
+        best = {"a": a.loc[a[objective].idxmax(), show].to_dict(), "b": b.loc[b[objective].idxmax(), show].to_dict()}
+    return {"study": sa.name, "a": {"key": ra.key, "config_name": ra.manifest.get("config_name")},
+            "b": {"key": rb.key, "config_name": rb.manifest.get("config_name")}, "config": config,
+            "key_columns": keys, "rows_joined": int(len(both)),
+            "rows_only_a": int((joined["_merge"] == "left_only").sum()),
+            "rows_only_b": int((joined["_merge"] == "right_only").sum()),
+            "metrics": metrics, "objective": objective, "worst": worst, "best": best}

@@ -6,6 +6,7 @@ Knows nothing of kinematics: a ``Study`` (``surgopt.studies``) supplies ``n_task
 from __future__ import annotations
 
 import contextlib
+import logging
 import math
 import os
 import signal
@@ -18,6 +19,7 @@ from surgopt.jit import numba_cache_dir
 from surgopt.store import Run, Store
 
 DEFAULT_JOBS = 2
+log = logging.getLogger("surgopt.runner")
 
 
 class WorkerLost(SurgoptError):
@@ -149,6 +151,7 @@ def run_study(study, cfg, *, config_name: str, store: Store, jobs: int = DEFAULT
     if not force:
         run = _stored_run(store, study, key, say)
         if run is not None:
+            log.info("cache hit: %s %s in %s", study.name, key[:12], run.path)
             return RunResult(run, run.parts(schema), True, 0, time.perf_counter() - t0)
 
     lock = store.lock(study.name, key, on_wait=lambda who: say(f"waiting for {who} to finish this study ..."))
@@ -160,7 +163,10 @@ def run_study(study, cfg, *, config_name: str, store: Store, jobs: int = DEFAULT
             chunk = existing.manifest["chunk"]  # parts already cut this way
         run = store.begin(study.name, key, config=cfg.model_dump(mode="json"),
                           config_name=config_name, kernel_version=study.kernel_version,
-                          n_tasks=study.n_tasks(cfg, chunk), chunk=chunk, force=force, fresh=existing is None)
+                          n_tasks=study.n_tasks(cfg, chunk), chunk=chunk, force=force, fresh=existing is None,
+                          meta=provenance(backend, jobs))
+        log.info("%s %s: %d chunks of %d, %d stored", study.name, key[:12], run.manifest["n_tasks"], chunk,
+                 len(run.manifest["parts"]))
         total = run.manifest["n_tasks"]
         missing = [i for i in range(total) if i not in run.done_tasks()]
         messages = []
@@ -183,8 +189,23 @@ def run_study(study, cfg, *, config_name: str, store: Store, jobs: int = DEFAULT
                                          f"chunks are stored, run the same command again to resume") from None
                     say(f"a worker process died ({exc.__class__.__name__}); retrying its "
                         f"{len(missing)} unfinished chunk(s)")
-        run = store.finish(run)
+        run = store.finish(run, wall_time_s=round(time.perf_counter() - t0, 3), last_backend=backend, last_jobs=jobs)
     return RunResult(run, run.parts(schema), False, computed, time.perf_counter() - t0, messages)
+
+
+def provenance(backend: str, jobs: int) -> dict:
+    """What made a run, for its manifest: versions, backend, jobs, host."""
+    import platform
+    import socket
+
+    import numba
+    import numpy
+
+    from surgopt import __version__
+
+    return {"versions": {"surgopt": __version__, "numba": numba.__version__, "numpy": numpy.__version__,
+                         "python": platform.python_version()},
+            "backend": backend, "jobs": jobs, "host": socket.gethostname()}
 
 
 #: How many times the chunks of a worker process that died (killed, out of memory) are retried.
@@ -239,6 +260,7 @@ def _dispatch(study, cfg, chunk, missing, run, store, jobs, quiet, total, schema
         def record(index, cols):
             nonlocal done_now
             store.write_part(run, index, pa.Table.from_pydict(cols, schema=schema))
+            log.debug("stored part %d (%d rows)", index, len(next(iter(cols.values()))))
             done_now += 1
             dt = time.perf_counter() - t_start
             progress.update(bar, advance=1, rate=f"{done_now / dt:.1f} chunks/s" if dt > 0 else "")

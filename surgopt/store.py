@@ -329,7 +329,8 @@ class Store:
             os.close(fd)
 
     def begin(self, study: str, key: str, *, config: dict, config_name: str,
-              kernel_version: str, n_tasks: int, chunk: int, force: bool, fresh: bool = False) -> Run:
+              kernel_version: str, n_tasks: int, chunk: int, force: bool, fresh: bool = False,
+              meta: dict | None = None) -> Run:
         """Open (or with ``force`` start anew, beside the old run) a run for writing; call under ``lock``.
 
         Parts listed in the manifest are checked (present, size, sha256); a part that fails the check
@@ -364,13 +365,18 @@ class Store:
             "n_tasks": n_tasks,
             "chunk": chunk,
             "parts": {},
+            **(meta or {}),
         }
         run = Run(path, manifest)
         self._write_manifest(run)
         return run
 
-    def finish(self, run: Run) -> Run:
-        """A run built in the staging area (``--force``) replaces the stored one; call under ``lock``."""
+    def finish(self, run: Run, **meta) -> Run:
+        """Record ``meta`` (e.g. wall time) in the manifest, and move a run built in the staging area
+        (``--force``) into place, replacing the stored one; call under ``lock``."""
+        if meta:
+            run.manifest.update(meta)
+            self._write_manifest(run)
         if run.path.parent.name != STAGING:
             return run
         final = self.run_dir(run.study, run.key)

@@ -80,3 +80,91 @@ def test_help_is_fast_and_imports_nothing_heavy():
         r = cli(*args)
         assert "Usage" in r.stdout
     assert "Global Isotropy Index" in cli("rcm-grid", "--help").stdout
+
+
+# --- a researcher's daily use: overrides, multirun, print-config, dry-run, export, diff, formats --------
+
+SMALL_OVERRIDES = ["candidates.grid.x_count=5", "candidates.grid.z_count=4", "workspace.points_per_side=3"]
+
+
+def test_overrides_multirun_table_and_cache_hits(tmp_path):
+    store = tmp_path / "store"
+    args = ["rcm-grid", *SMALL_OVERRIDES, "robot.tool_length_m=0.5,0.587", "--multirun", "--store", store, "-q"]
+    r = cli(*args)
+    assert "rcm-grid --multirun: 2 runs" in r.stdout and "robot.tool_length_m" in r.stdout
+    assert len(Store(store).runs()) == 2
+    again = cli(*args)
+    assert again.stdout.count("cache hit") == 2
+    # an override equal to the default: the same run as the embedded default with the other overrides
+    assert "cache hit" in cli("rcm-grid", *SMALL_OVERRIDES, "robot.tool_length_m=0.587", "--store", store, "-q").stdout
+    bad = cli("rcm-grid", "robot.tool_length_m=-1", "--store", tmp_path / "none", check=False)
+    assert bad.returncode == 2 and "robot.tool_length_m: Input should be greater than 0" in bad.stderr
+    assert not (tmp_path / "none").exists()
+    assert cli("rcm-grid", "robot.tool_length_m=0.5,0.6", "--store", tmp_path / "none", check=False).returncode == 2
+
+
+def test_print_config_round_trips_to_the_same_key(tmp_path):
+    from surgopt.config import study_key
+
+    r = cli("rcm-grid", *SMALL_OVERRIDES, "robot.elbow=down", "--print-config")
+    (tmp_path / "printed.toml").write_text(r.stdout)
+    printed = load_config(tmp_path / "printed.toml", S.Config)
+    assert printed.robot.elbow == "down" and printed.workspace.points_per_side == 3
+    stored = cli("rcm-grid", *SMALL_OVERRIDES, "robot.elbow=down", "--store", tmp_path / "s", "-q")
+    assert "rcm-grid" in stored.stdout
+    assert single_run(tmp_path / "s").key == study_key("rcm-grid", printed, S.KERNEL_VERSION)
+
+
+def test_dry_run_says_what_would_run_and_writes_nothing(tmp_path):
+    store = tmp_path / "store"
+    r = cli("rcm-grid", *SMALL_OVERRIDES, "--dry-run", "--store", store)
+    assert "20 RCM candidates" in r.stdout and "not stored" in r.stdout and "within budget" in r.stdout
+    assert not store.exists()
+    cli("rcm-grid", *SMALL_OVERRIDES, "--store", store, "-q")
+    assert "stored (a cache hit)" in cli("rcm-grid", *SMALL_OVERRIDES, "--dry-run", "--store", store).stdout
+    huge = cli("rcm-grid", "candidates.grid.x_count=2001", "candidates.grid.z_count=2001",
+               "workspace.points_per_side=101", "--dry-run", "--store", store)
+    assert "REFUSED" in huge.stdout
+
+
+def test_export_diff_and_json_formats(tmp_path):
+    import json
+
+    import pandas as pd
+
+    store = tmp_path / "store"
+    cli("rcm-grid", *SMALL_OVERRIDES, "robot.tool_length_m=0.5,0.587", "-m", "--store", store, "-q")
+    runs = json.loads(cli("runs", "--store", store, "--format", "json").stdout)
+    assert [set(r) >= {"study", "key", "config_name", "rows", "state", "versions", "backend", "jobs", "host",
+                       "wall_time_s"} for r in runs] == [True, True]
+    a, b = (r["key"][:10] for r in runs)
+    out = tmp_path / "both.csv"
+    cli("export", a, b, "--store", store, "--out", out)
+    df = pd.read_csv(out)
+    assert len(df) == 40 and list(df.columns[:2]) == ["run_key", "robot.tool_length_m"]
+    assert sorted(df["robot.tool_length_m"].unique()) == [0.5, 0.587]
+    one = pd.read_csv(__import__("io").StringIO(cli("export", a, "--store", store).stdout))
+    assert (one["run_key"] == runs[0]["key"]).all()
+    pd.testing.assert_frame_equal(one.drop(columns="run_key"), Store(store).runs()[0].read_table(S.schema()).to_pandas(),
+                                  check_dtype=False)
+    cli("export", a, "--store", store, "--format", "parquet", "--out", tmp_path / "a.parquet")
+    assert pd.read_parquet(tmp_path / "a.parquet").shape[0] == 20
+    d = json.loads(cli("diff", a, b, "--store", store, "--format", "json").stdout)
+    assert d["config"] == {"robot.tool_length_m": [0.5, 0.587]} or d["config"] == {"robot.tool_length_m": [0.587, 0.5]}
+    assert d["rows_joined"] == 20 and "gii" in d["metrics"] and d["objective"] == "gii"
+    assert "robot.tool_length_m" in cli("diff", a, b, "--store", store).stdout
+    s = json.loads(cli("summarize", a, "--store", store, "--format", "json").stdout)
+    assert set(s) >= {"study", "key", "rows", "complete", "feasibility", "headline", "objective", "top", "distribution"}
+    assert s["headline"]["best_gii"] == max(t["gii"] for t in s["top"])  # full precision, not rounded
+    assert set(s["distribution"]["all"]) == {"count", "min", "p25", "median", "p75", "max", "mean"}
+
+
+def test_version_completion_and_choices():
+    from surgopt import __version__
+
+    assert cli("--version").stdout.strip() == f"surgopt {__version__}"
+    assert "_surgopt_completion" in cli("--show-completion", "bash").stdout
+    r = cli("rcm-grid", "--backend", "nosuch", check=False)
+    assert r.returncode == 2 and "threads" in r.stderr and "loky" in r.stderr
+    helps = cli("rcm-grid", "--help").stdout
+    assert "[default: ./surgopt-store]" in " ".join(helps.split()) or "./surgopt-store" in helps

@@ -75,12 +75,12 @@ def test_baselines_are_small_and_explicit():
 def test_summarize_formats(store):
     r = cli("summarize", BASE / "rcm_small.toml", "--store", store, "--format", "json", "--top", "3")
     data = json.loads(r.stdout)
-    assert len(data["top 3 by gii"]) == 3
-    gii = [row["gii"] for row in data["top 3 by gii"]]
+    assert data["objective"] == "gii" and len(data["top"]) == 3
+    gii = [row["gii"] for row in data["top"]]
     assert gii == sorted(gii, reverse=True)
-    stats = {row["rows"]: row for row in data["distribution of gii"]}
-    assert stats["all"]["count"] == 150 and stats["feasible"]["max"] == gii[0]
-    assert {"feasible", "infeasible"} <= {row["field"] for row in data["run"]}
+    stats = data["distribution"]
+    assert stats["all"]["count"] == 150 and stats["feasible"]["max"] == gii[0] == data["headline"]["best_gii"]
+    assert set(data["feasibility"]) == {"feasible", "infeasible"} and data["complete"] is True
     r = cli("summarize", BASE / "raven_small.toml", "--store", store, "--format", "csv", "--sort", "zeta_cm", "--top", "2")
     assert "# top 2 by zeta_cm" in r.stdout and "alpha_deg" in r.stdout
     r = cli("summarize", BASE / "suture_small.toml", "--store", store, "--format", "markdown")

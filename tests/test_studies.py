@@ -37,3 +37,29 @@ def test_flags_and_chunking_helpers():
     assert f.dest == "dry_spell"
     assert chunk_for_seconds(1000, 0.001) == 32  # at least 32 tasks
     assert chunk_for_seconds(10_000, 1.0) == 2  # ~2 s each
+
+
+@pytest.mark.parametrize("name, overrides", [
+    ("rcm-grid", {"candidates": {"grid": {"x_count": 41, "z_count": 41}}}),
+    ("raven-sweep", {"sweep": {"alpha_deg": [25.0, 45.0, 65.0], "beta_deg": [45.0, 65.0], "phi_x_deg": [0.0],
+                               "iso_min": [0.3, 0.5]}}),
+    ("suture-sim", {}),
+])
+def test_the_estimate_is_within_a_factor_of_2_of_the_computation(name, overrides):
+    """What --dry-run and the budget use, against the CPU time of the same tasks in this process."""
+    import time
+
+    study = get_study(name)
+    cfg = study.config_model.model_validate(overrides)
+    study.warm_up(cfg)
+    if name == "raven-sweep":
+        from surgopt.kinematics.raven_workspace import clear_memo
+
+        clear_memo()
+    chunk = study.auto_chunk(cfg)
+    t = time.process_time()
+    rows = sum(len(next(iter(study.compute_task(cfg, chunk, i).values()))) for i in range(study.n_tasks(cfg, chunk)))
+    cpu = time.process_time() - t
+    est = study.estimate(cfg)
+    assert est.rows == rows
+    assert 0.5 <= est.seconds_one_core / cpu <= 2.0, (est.seconds_one_core, cpu)

@@ -290,17 +290,43 @@ def _plane_nodes(geo: Geometry) -> float:
     return (2 * reach / geo.step_mm) ** 2
 
 
+#: Time model of the estimate, fitted to single-core runs of Table II and a 12-design sweep (within
+#: 10% of both; docs/performance.md): per distinct geometry, NS_PER_NODE_ARM for the node bounds of
+#: each arm, plus NS_PER_NODE_DESIGN_EST for each design (bounding boxes skip most of the plane).
+NS_PER_NODE_ARM = 5.4
+NS_PER_NODE_DESIGN_EST = 0.35
+#: Up to this many geometries the estimate counts the distinct ones (identical ports and axes are
+#: evaluated once); beyond it every geometry counts, an upper bound.
+DISTINCT_COUNT_MAX = 20_000
+
+
+def distinct_geometries(cfg: RavenSweepConfig) -> int:
+    """How many geometries of the sweep place the arms differently (the rest share an evaluation)."""
+    n = n_geometries(cfg)
+    if n > DISTINCT_COUNT_MAX:
+        return n
+    from surgopt.kinematics.raven_workspace import arms
+
+    layout = arm_layout(cfg.geometry)
+    seen = set()
+    for g in geometries(cfg, 0, n):
+        ports, axes = arms(layout, *g)
+        seen.add((ports + 0.0).tobytes() + (axes + 0.0).tobytes())
+    return len(seen)
+
+
 def estimate(cfg: RavenSweepConfig) -> Estimate:
-    """Geometries x plane nodes x designs at NS_PER_NODE_DESIGN; a row is ~160 bytes; the memo 64 MB."""
-    sw = cfg.sweep
+    """Distinct geometries x (node bounds + designs) on the plane grid; a row is ~160 bytes; memo 64 MB."""
+    sw, nodes = cfg.sweep, _plane_nodes(cfg.geometry)
     if cfg.search == "refine":
         n = len(cfg.refine.starts or []) * cfg.refine.max_evals
         return Estimate(n, "designs evaluated by the compass search", n,
-                        n * _plane_nodes(cfg.geometry) * NS_PER_NODE_DESIGN * 1e-9, peak_bytes(n, 160))
+                        n * nodes * (cfg.geometry.n_arms * NS_PER_NODE_ARM + NS_PER_NODE_DESIGN_EST) * 1e-9,
+                        peak_bytes(n, 160))
     per = len(values(sw.alpha_deg)) * len(values(sw.beta_deg)) * len(values(sw.iso_min))
     g = n_geometries(cfg)
-    return Estimate(g * per, "designs", g * per, g * per * _plane_nodes(cfg.geometry) * NS_PER_NODE_DESIGN * 1e-9,
-                    peak_bytes(g * per, 160, working_bytes=64 * 2 ** 20))
+    seconds = distinct_geometries(cfg) * nodes * (cfg.geometry.n_arms * NS_PER_NODE_ARM + per * NS_PER_NODE_DESIGN_EST)
+    return Estimate(g * per, "designs", g * per, seconds * 1e-9, peak_bytes(g * per, 160, working_bytes=64 * 2 ** 20))
 
 
 def n_tasks(cfg: RavenSweepConfig, chunk: int) -> int:

@@ -224,11 +224,17 @@ def auto_chunk(cfg: RcmGridConfig) -> int:
     return chunk_for_seconds(m, cfg.workspace.points_per_side ** 3 * NS_PER_POSE * 1e-9)
 
 
+#: Time model of the estimate: ~8.5 ns per pose of the cube on one core, measured over the paper map
+#: (infeasible candidates cost less, the mirror half is already in it); docs/performance.md.
+NS_PER_POSE_EST = 8.5
+
+
 def estimate(cfg: RcmGridConfig) -> Estimate:
-    """Candidates x cube points at NS_PER_POSE; a row is ~75 bytes."""
+    """Candidates x cube points at NS_PER_POSE_EST (--cull: about a tenth of that); a row is ~75 bytes."""
     m = candidate_xz(cfg).shape[0]
     p = cfg.workspace.points_per_side ** 3
-    return Estimate(items=m, what="RCM candidates", rows=m, seconds_one_core=m * p * NS_PER_POSE * 1e-9,
+    seconds = m * p * NS_PER_POSE_EST * 1e-9 * (0.1 if cfg.search == "cull" else 1.0)
+    return Estimate(items=m, what="RCM candidates", rows=m, seconds_one_core=seconds,
                     peak_bytes=peak_bytes(m, 75, working_bytes=m * 64 + p * 200))
 
 

@@ -1,0 +1,63 @@
+"""The Python API: run a study, load a stored run, list the store, as pandas DataFrames.
+
+    import surgopt
+    df = surgopt.run("rcm-grid", overrides={"workspace.points_per_side": 9})
+    surgopt.runs()                       # what the store holds
+    df = surgopt.load("597ae5d5")        # a run by key prefix (or a config file)
+
+Configs and overrides are validated exactly as on the command line (the same errors); the store is
+``store``, else $SURGOPT_STORE, else ./surgopt-store. Importing ``surgopt`` configures numba (its cache
+folder and vector width) before numba loads.
+"""
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+
+def run(study: str, config: str | Path | None = None, overrides: dict[str, Any] | list[str] | None = None,
+        store: str | Path | None = None, jobs: int = 2, backend: str = "threads", force: bool = False,
+        quiet: bool = True, max_hours: float | None = 1.0):
+    """Run (or fetch from the store) one study and return its rows as a DataFrame.
+
+    ``config``: a TOML/YAML file, or None for the paper's setup; ``overrides``: {"a.b": value} or
+    ["a.b=value", ...] applied on top (one value each; use the CLI's --multirun for families).
+    """
+    from surgopt.compose import variants
+    from surgopt.runner import run_study
+    from surgopt.store import Store
+    from surgopt.studies import get_study
+
+    st = _study(study)
+    (v,) = variants(st, config, overrides)
+    res = run_study(get_study(st.name), v.config, config_name=v.config_name, store=Store(store), jobs=jobs,
+                    backend=backend, force=force, quiet=quiet, say=lambda m: None, max_hours=max_hours)
+    return res.table.to_pandas()
+
+
+def load(run: str | Path | None = None, store: str | Path | None = None, study: str | None = None):
+    """A stored run's rows (every part verified) as a DataFrame: by key prefix, config file, or the latest."""
+    from surgopt.results import resolve_run
+    from surgopt.store import Store
+
+    st, r = resolve_run(Store(store), None if run is None else str(run), study)
+    return r.read_table(st.schema()).to_pandas()
+
+
+def runs(store: str | Path | None = None, study: str | None = None):
+    """The store's runs as a DataFrame: study, key, config_name, rows, state, created, and provenance."""
+    import pandas as pd
+
+    from surgopt.results import run_records
+    from surgopt.store import Store
+
+    return pd.DataFrame(run_records(Store(store), study))
+
+
+def _study(name: str):
+    from surgopt.errors import UsageError
+    from surgopt.studies import STUDIES, get_study
+
+    if name not in STUDIES:
+        raise UsageError(f"unknown study {name!r} (one of {', '.join(STUDIES)})")
+    return get_study(name)

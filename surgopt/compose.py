@@ -1,0 +1,101 @@
+"""From what a user gives (a config file or the embedded default, KEY=VALUE overrides, study flags)
+to validated configs: one per combination when overrides list several values (--multirun).
+
+Used by the CLI and the Python API alike, so that an override is validated exactly like a value in a
+file and becomes part of the hashed config (an override equal to the default is the same run).
+"""
+from __future__ import annotations
+
+import itertools
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from surgopt.config import (ConfigError, embedded_default_text, parse_overrides, read_config_data, validate,
+                            with_override)
+from surgopt.config import _parse_text as parse_text
+
+
+@dataclass
+class Variant:
+    """One validated config to run: ``varied`` holds the override values that make it this one."""
+
+    config: Any
+    config_name: str
+    varied: dict[str, Any] = field(default_factory=dict)
+
+
+#: Most combinations one --multirun may make.
+MAX_VARIANTS = 1000
+
+
+def base_data(study, config: str | Path | None) -> tuple[dict, str, str]:
+    """(parsed data, source for messages, config name for the manifest) of a config file or the default."""
+    if config is None:
+        source = f"<embedded default {study.default_config}>"
+        data = parse_text(embedded_default_text(study.default_config), source, ".toml")
+        return data, source, f"embedded:{Path(study.default_config).stem}"
+    return read_config_data(config), str(config), Path(config).stem
+
+
+def _format(v: Any) -> str:
+    return str(v).replace(" ", "") if not isinstance(v, str) else v
+
+
+def variants(study, config: str | Path | None = None, overrides: list[str] | dict | None = None,
+             updates: dict | None = None, multirun: bool = False) -> list[Variant]:
+    """Validated configs for a study: the base config with ``overrides`` ("a.b=1,2" strings or a dict
+    {"a.b": value}) applied, and ``updates`` (a study flag's config update) on top.
+
+    A comma list in an override value is several values: with ``multirun`` every combination is a
+    config of its own (cartesian product, in the order given); without it, that is an error.
+    """
+    data, source, name = base_data(study, config)
+    if isinstance(overrides, dict):
+        pairs = [(k, [v]) for k, v in overrides.items()]
+    else:
+        pairs = parse_overrides(list(overrides or []))
+    several = [k for k, vs in pairs if len(vs) > 1]
+    if several and not multirun:
+        raise ConfigError("<command line>", f"{several[0]} lists several values; add --multirun to run each "
+                                            f"combination, or give one value")
+    n = 1
+    for _, vs in pairs:
+        n *= len(vs)
+    if n > MAX_VARIANTS:
+        raise ConfigError("<command line>", f"--multirun would make {n:,} runs (at most {MAX_VARIANTS:,})")
+    if pairs:
+        source = f"{source} with the command-line overrides"
+    out = []
+    for values in itertools.product(*[vs for _, vs in pairs]):
+        d = data
+        varied = {}
+        for (key, _), v in zip(pairs, values):
+            d = with_override(d, key, v)
+            varied[key] = v
+        for key, v in (updates or {}).items():
+            d = with_override(d, key, v)
+        cfg = validate_for(study, d, source, config)
+        suffix = "".join(f"+{k}={_format(v)}" for k, v in varied.items())
+        out.append(Variant(cfg, name + suffix, varied))
+    return out
+
+
+def validate_for(study, data: Any, source: str, config=None):
+    """Validate for this study; when the data is another study's config, say which command it is for."""
+    try:
+        return validate(data, study.config_model, source)
+    except ConfigError:
+        from surgopt.studies import STUDIES, get_study
+
+        for other in STUDIES:
+            if other == study.name:
+                continue
+            try:
+                validate(data, get_study(other).config_model, source)
+            except ConfigError:
+                continue
+            if data:  # an empty file fits every study
+                raise ConfigError(source, f"this is a {other} config, not a {study.name} one: run "
+                                          f"`surgopt {other}{' ' + str(config) if config else ''}`") from None
+        raise

@@ -1,0 +1,32 @@
+"""The Python API (surgopt/api.py) and its example script (docs/api_example.py)."""
+import subprocess
+import sys
+
+import pytest
+
+import surgopt
+from surgopt.errors import ConfigError, UsageError
+
+from conftest import REPO
+
+
+def test_the_documented_example_runs(tmp_path):
+    r = subprocess.run([sys.executable, str(REPO / "docs" / "api_example.py"), str(tmp_path / "store")],
+                       capture_output=True, text=True)
+    assert r.returncode == 0, r.stderr
+    assert "169 candidates, best GII" in r.stdout and "complete" in r.stdout
+
+
+def test_run_load_runs_and_errors(tmp_path):
+    store = tmp_path / "store"
+    small = {"candidates.grid.x_count": 5, "candidates.grid.z_count": 4, "workspace.points_per_side": 3}
+    df = surgopt.run("rcm-grid", overrides=small, store=store)
+    assert len(df) == 20 and {"gii", "x_rcm_m", "feasible"} <= set(df.columns)
+    assert surgopt.load(store=store).equals(df)
+    listing = surgopt.runs(store=store)
+    assert listing.loc[0, "state"] == "complete" and listing.loc[0, "backend"] == "threads"
+    with pytest.raises(ConfigError, match=r"workspace.points_per_side: Input should be greater than or equal to 1"):
+        surgopt.run("rcm-grid", overrides={"workspace.points_per_side": 0}, store=store)
+    with pytest.raises(UsageError, match="unknown study"):
+        surgopt.run("nosuch")
+    assert surgopt.__version__ and "run" in surgopt.__all__
