@@ -46,6 +46,23 @@ class Backend(str, enum.Enum):
     dask = "dask"
 
 
+class ListFormat(str, enum.Enum):
+    table = "table"
+    json = "json"
+
+
+class FigureFormat(str, enum.Enum):
+    png = "png"
+    pdf = "pdf"
+    svg = "svg"
+
+
+class ExportFormat(str, enum.Enum):
+    csv = "csv"
+    parquet = "parquet"
+    json = "json"
+
+
 BackendOpt = Annotated[Backend, typer.Option(
     "--backend", help="threads (a thread pool in this process: the kernels release the GIL, so they run "
                       "in parallel with no worker start-up), loky (local worker processes) or dask (a "
@@ -336,11 +353,6 @@ runs_app = typer.Typer(help="List and delete stored runs.", no_args_is_help=Fals
 app.add_typer(runs_app, name="runs")
 
 
-class ListFormat(str, enum.Enum):
-    table = "table"
-    json = "json"
-
-
 @runs_app.callback(invoke_without_command=True)
 def runs(
     ctx: typer.Context,
@@ -467,7 +479,8 @@ def summarize(
 @app.command("plot")
 def plot(
     run: RunRef = None,
-    out: Annotated[Path, typer.Option("--out", help="Folder for the PNG figures.")] = Path("figures"),
+    out: Annotated[Path, typer.Option("--out", help="Folder for the figures.")] = Path("figures"),
+    fmt: Annotated[FigureFormat, typer.Option("--format", help="png, pdf or svg.")] = FigureFormat.png,
     store: StoreOpt = None,
     study: StudyOpt = None,
     design: Annotated[Optional[int], typer.Option(
@@ -475,7 +488,7 @@ def plot(
                          "default: the best by the study's objective).",
         show_default=False)] = None,
 ) -> None:
-    """PNG figures of a stored run in the style of its paper (each study's own; docs/figures shows them
+    """Figures of a stored run in the style of its paper (each study's own; docs/figures shows them
     for the paper setups)."""
     if out.exists() and not out.is_dir():
         _fail(f"--out: {out} is a file; give a folder for the figures", 2)
@@ -491,15 +504,12 @@ def plot(
         if design is not None and design not in set(table[id_column].to_pylist()):
             _fail(f"--design: no {id_column} {design} in run {r.key[:12]}", 2)
         out.mkdir(parents=True, exist_ok=True)
+        from surgopt.studies.figures import set_format
+
+        set_format(fmt.value)
         paths = st.figures(config_of(st, r), table, out, design)
     for p in paths:
         typer.echo(str(p))
-
-
-class ExportFormat(str, enum.Enum):
-    csv = "csv"
-    parquet = "parquet"
-    json = "json"
 
 
 @app.command("export")

@@ -29,7 +29,20 @@ def pyplot():
     return plt
 
 
+#: File formats ``plot --format`` offers (matplotlib writes each without extra packages).
+FORMATS = ("png", "pdf", "svg")
+_format = ["png"]
+
+
+def set_format(fmt: str) -> None:
+    """The format ``save`` writes (its path's suffix is replaced): png, pdf or svg."""
+    if fmt not in FORMATS:
+        raise ValueError(f"format {fmt!r}: one of {', '.join(FORMATS)}")
+    _format[0] = fmt
+
+
 def save(fig, path: Path) -> Path:
+    path = path.with_suffix(f".{_format[0]}")
     fig.savefig(path, dpi=110, bbox_inches="tight")
     pyplot().close(fig)
     return path

@@ -28,9 +28,14 @@ def figures(cfg, table, out, design_id=None):
         ax.clabel(cs, fmt="%.2f", fontsize=7)
         i = int(np.nanargmax(np.where(exact, c["gii"], np.nan)))
         ax.plot(c["x_rcm_m"][i], c["z_rcm_m"][i], "wx", ms=10, mew=2)
+        # the label points into the map (away from the nearer edges), on a dark box readable on yellow
+        right = c["x_rcm_m"][i] > 0.5 * (g.x_min_m + g.x_max_m)
+        above = c["z_rcm_m"][i] > 0.5 * (g.z_min_m + g.z_max_m)
         ax.annotate(f"best ({c['x_rcm_m'][i]:.3f}, {c['z_rcm_m'][i]:.3f}) m\nGII {c['gii'][i]:.4f}",
-                    (c["x_rcm_m"][i], c["z_rcm_m"][i]), xytext=(8, 8), textcoords="offset points", color="white",
-                    fontsize=8)
+                    (c["x_rcm_m"][i], c["z_rcm_m"][i]), xytext=(-12 if right else 12, -12 if above else 12),
+                    textcoords="offset points", ha="right" if right else "left", va="top" if above else "bottom",
+                    color="white", fontsize=8, bbox=dict(boxstyle="round,pad=0.3", fc="black", alpha=0.6, lw=0),
+                    arrowprops=dict(arrowstyle="-", color="white", lw=0.8))
         ax.set_xlabel("x_rcm (m)")
         ax.set_ylabel(f"z_rcm (m, from the {cfg.candidates.z_reference})")
         ax.set_title("GII of candidate RCM locations\n(white: part of the workspace unreachable)", fontsize=10)

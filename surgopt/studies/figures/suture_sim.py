@@ -25,7 +25,7 @@ def figures(cfg, table, out, design_id=None):
             s = sel & (c["weight_set"] == w)
             ax = axes[0, k]
             for j, name in enumerate(NORM_COLUMNS):
-                ax.plot(c["t_s"][s], c[name][s], label=JOINT_COLUMNS[j])
+                ax.plot(c["t_s"][s], c[name][s], label=JOINT_COLUMNS[j].rsplit("_", 1)[0])  # q1, not q1_rad
             ax.axhline(1.0, color="k", lw=0.6, ls="--")
             ax.set_title(f"{w}", fontsize=9)
             ax.set_xlabel("t (s)")
@@ -43,12 +43,13 @@ def figures(cfg, table, out, design_id=None):
             p0, R0 = poses[0]
             pts = np.array([R0.T @ (p - p0) for p, _ in poses])
             needle = np.array([R0.T @ (p + combo[3] * R[:, 0] - p0) for p, R in poses])
-            ax.plot(pts[:, 0], pts[:, 1], label=f"{w}: platform")
+            ax.plot(pts[:, 0], pts[:, 1], marker="o", ms=3, markevery=max(1, len(pts) // 12),
+                    label=f"{w}: platform")  # markers: a platform that spins in place is a point
             ax.plot(needle[:, 0], needle[:, 1], "--", label=f"{w}: needle tip ({combo[3]:g} mm off axis)")
         ax.set_aspect("equal")
         ax.set_xlabel("x in the start gripper frame (mm)")
         ax.set_ylabel("y in the start gripper frame (mm)")
-        ax.set_title(f"tracked path ({combo[2]})", fontsize=9)
-        ax.legend(fontsize=7)
+        ax.set_title("tracked path, arm {:.0f} mm, fulcrum {:.0f} mm, {}, r {:g} mm".format(*combo[:4]), fontsize=9)
+        ax.legend(fontsize=7, loc="upper left", bbox_to_anchor=(1.02, 1.0))  # beside the path, not on it
         paths.append(save(fig, out / f"suture_path_{n_combo}.png"))
     return paths
