@@ -410,12 +410,15 @@ def runs_rm(
             _fail(f"{key!r}: give at least 4 hex digits of a key (see `surgopt runs`)", 2)
         s = Store(store)
         matches = [r for r in s.runs() if r.key.startswith(key)]
-        broken = [p for p, _ in s.unreadable() if p.name.startswith(key)]
+        from surgopt.store import folder_study_key
+
+        broken = [p for p, _ in s.unreadable() if folder_study_key(p)[1].startswith(key)]
         if len(matches) + len(broken) != 1:
             _fail(f"{key}: matches {len(matches) + len(broken)} runs in {s.root}", 2)
         if broken:
             shutil.rmtree(broken[0])
-            typer.echo(f"removed {broken[0].parent.name} {broken[0].name[:12]} (its manifest was unreadable)")
+            study_name, folder_key = folder_study_key(broken[0])
+            typer.echo(f"removed {study_name} {folder_key[:12]} (its manifest was unreadable)")
             return
         s.remove(matches[0])
     typer.echo(f"removed {matches[0].study} {matches[0].key[:12]}")

@@ -85,8 +85,11 @@ def run_records(store: Store, study: str | None = None) -> list[dict]:
                     "kernel_version": m.get("kernel_version"), "n_tasks": m["n_tasks"], "chunk": m["chunk"],
                     "backend": m.get("backend"), "jobs": m.get("jobs"), "host": m.get("host"),
                     "wall_time_s": m.get("wall_time_s"), "versions": m.get("versions"), "path": str(r.path)})
+    from surgopt.store import folder_study_key
+
     for path, why in store.unreadable(study):
-        out.append({"study": path.parent.name, "key": path.name, "config_name": None, "rows": None,
+        folder_study, folder_key = folder_study_key(path)
+        out.append({"study": folder_study, "key": folder_key, "config_name": None, "rows": None,
                     "state": f"UNREADABLE: {why}", "path": str(path)})
     return out
 

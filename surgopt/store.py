@@ -1,8 +1,10 @@
 """Content-addressed Parquet result store.
 
-Layout: ``STORE/<study>/<key>/manifest.json`` + ``part-00000.parquet`` ..., and one lock file per
-key in ``STORE/<study>/.locks/<key>.lock`` (outside the run folder, so that replacing or deleting a
-run never touches a lock someone holds).
+Layout: ``STORE/study=<study>/key=<key>/manifest.json`` + ``part-00000.parquet`` ... (hive-style
+folder names, so duckdb, polars and pyarrow datasets get ``study`` and ``key`` columns from the path
+with ``hive_partitioning``), and one lock file per key in ``STORE/study=<study>/.locks/<key>.lock``
+(outside the run folder, so that replacing or deleting a run never touches a lock someone holds).
+Stores written before the hive layout (``STORE/<study>/<key>/``) are still read.
 
 A part counts as done only once it was written to a temporary file, fsynced, renamed into place,
 read back, and listed in the manifest (itself replaced atomically) with its row count, size and
@@ -264,11 +266,23 @@ class Store:
     def __init__(self, root: str | os.PathLike | None = None):
         self.root = store_root(root)
 
+    def study_dir(self, study: str) -> Path:
+        return self.root / f"study={study}"
+
     def run_dir(self, study: str, key: str) -> Path:
-        return self.root / study / key
+        """Where a run lives: the hive-style folder, or an older store's ``<study>/<key>`` if only that exists."""
+        path = self.study_dir(study) / f"key={key}"
+        legacy = self.root / study / key
+        return legacy if (not path.exists() and (legacy / MANIFEST).exists()) else path
 
     def lock_path(self, study: str, key: str) -> Path:
-        return self.root / study / LOCKS / f"{key}.lock"
+        return self.study_dir(study) / LOCKS / f"{key}.lock"
+
+    def _manifests(self, study: str | None) -> list[Path]:
+        """Manifest files of every run (hive-style folders, then an older store's)."""
+        new = self.root.glob(f"study={study or '*'}/key=*/{MANIFEST}")
+        old = [m for m in self.root.glob(f"{study or '*'}/*/{MANIFEST}") if not m.parent.parent.name.startswith("study=")]
+        return sorted(new) + sorted(old)
 
     def open(self, study: str, key: str) -> Run | None:
         path = self.run_dir(study, key)
@@ -341,7 +355,7 @@ class Store:
         path = self.run_dir(study, key)
         run = None if (force or fresh) else self.open(study, key)
         if force:
-            path = self.root / study / STAGING / f"{key}-{os.getpid()}"
+            path = self.study_dir(study) / STAGING / f"{key}-{os.getpid()}"
             if path.exists():
                 shutil.rmtree(path)
         self._mkdir(path)
@@ -379,7 +393,10 @@ class Store:
             self._write_manifest(run)
         if run.path.parent.name != STAGING:
             return run
-        final = self.run_dir(run.study, run.key)
+        final = self.study_dir(run.study) / f"key={run.key}"
+        legacy = self.root / run.study / run.key
+        if legacy.exists() and not final.exists():
+            shutil.rmtree(legacy, ignore_errors=True)  # the rebuilt run moves to the current layout
         trash = run.path.with_name(f"{run.key}-old-{os.getpid()}")
         if final.exists():
             os.rename(final, trash)
@@ -425,7 +442,7 @@ class Store:
         if not self.root.exists():
             return []
         out = []
-        for mpath in sorted(self.root.glob(f"{study or '*'}/*/{MANIFEST}")):
+        for mpath in self._manifests(study):
             with contextlib.suppress(OSError, ValueError, StoreError):
                 out.append(Run(mpath.parent, check_manifest(json.loads(mpath.read_text()), mpath)))
         return sorted(out, key=lambda r: r.manifest.get("created", ""))
@@ -435,7 +452,7 @@ class Store:
         if not self.root.exists():
             return []
         out = []
-        for mpath in sorted(self.root.glob(f"{study or '*'}/*/{MANIFEST}")):
+        for mpath in self._manifests(study):
             try:
                 check_manifest(json.loads(mpath.read_text()), mpath)
             except (OSError, ValueError) as exc:
@@ -463,9 +480,9 @@ class Store:
             for tmp in run.path.glob(".*.tmp-*"):
                 tmp.unlink(missing_ok=True)
                 removed.append(tmp)
-        for staged in self.root.glob(f"*/{STAGING}/*"):
+        for staged in self.root.glob(f"study=*/{STAGING}/*"):
             key = staged.name.split("-")[0]
-            if not self.holder(staged.parent.parent.name, key):
+            if not self.holder(staged.parent.parent.name.removeprefix("study="), key):
                 shutil.rmtree(staged, ignore_errors=True)
                 removed.append(staged)
         return removed
@@ -481,6 +498,11 @@ class Store:
             raise StoreError(f"{run.study} run {run.key[:12]} is being written now ({who} holds its lock); "
                              f"wait for it to finish or stop it first")
         shutil.rmtree(target)
+
+
+def folder_study_key(path: Path) -> tuple[str, str]:
+    """(study, key) a run folder's names say (hive-style ``study=X/key=Y`` or an older ``X/Y``)."""
+    return path.parent.name.removeprefix("study="), path.name.removeprefix("key=")
 
 
 def _remove_path(p: Path) -> None:

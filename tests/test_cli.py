@@ -149,6 +149,10 @@ def test_export_diff_and_json_formats(tmp_path):
                                   check_dtype=False)
     cli("export", a, "--store", store, "--format", "parquet", "--out", tmp_path / "a.parquet")
     assert pd.read_parquet(tmp_path / "a.parquet").shape[0] == 20
+    import duckdb
+
+    assert duckdb.sql(f"SELECT count(DISTINCT run_key), count(*) FROM read_csv('{out}')").fetchall() == [(2, 40)]
+    assert duckdb.sql(f"SELECT count(*) FROM '{tmp_path / 'a.parquet'}'").fetchall() == [(20,)]
     d = json.loads(cli("diff", a, b, "--store", store, "--format", "json").stdout)
     assert d["config"] == {"robot.tool_length_m": [0.5, 0.587]} or d["config"] == {"robot.tool_length_m": [0.587, 0.5]}
     assert d["rows_joined"] == 20 and "gii" in d["metrics"] and d["objective"] == "gii"

@@ -157,7 +157,7 @@ def test_a_force_rerun_never_pulls_parts_from_under_a_reader(tmp_path):
     assert reads[0] > 0
     assert single_run(store).manifest["chunk"] == 40  # the rebuilt run replaced the old one
     assert single_table(store).equals(base)
-    assert not list((store / "rcm-grid").glob(".staging/*"))
+    assert not list((store / "study=rcm-grid").glob(".staging/*"))
 
 
 @pytest.mark.parametrize("sig, code", [(signal.SIGTERM, 143), (signal.SIGHUP, 129)])
@@ -278,7 +278,7 @@ def test_disk_full_is_one_line_and_keeps_finished_chunks(stored, monkeypatch):
     code, out = invoke("rcm-grid", cfg, "--store", store, "--quiet", "--force", "--jobs", "1", "--chunk-size", "4")
     assert code == 1 and "the disk is full" in out and "finished chunks are stored" in out, out
     assert len(out.strip().splitlines()) == 1
-    staged = list((store / "rcm-grid" / ".staging").glob("*/part-*.parquet"))
+    staged = list((store / "study=rcm-grid" / ".staging").glob("*/part-*.parquet"))
     assert len(staged) == 3  # the chunks written before the disk filled are kept
 
 

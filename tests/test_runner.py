@@ -115,4 +115,4 @@ def test_interrupted_run_resumes_to_the_same_table(tmp_path, how):
     fresh_store = tmp_path / "fresh"
     cli("rcm-grid", cfg, "--store", fresh_store, "--quiet", "--chunk-size", "40")
     assert resumed.equals(single_table(fresh_store))
-    assert not list(store.glob("rcm-grid/*/.*.tmp-*"))
+    assert not list(store.glob("study=rcm-grid/key=*/.*.tmp-*"))

@@ -35,3 +35,30 @@ def test_two_processes_on_one_key(tmp_path):
     assert run.complete
     for f, meta in zip(run.part_files(), [run.manifest["parts"][k] for k in sorted(run.manifest["parts"], key=int)]):
         assert pq.read_metadata(f).num_rows == meta["rows"]
+
+
+def test_hive_layout_reads_in_duckdb_with_study_and_key_columns(tmp_path, small_cfg):
+    import duckdb
+
+    store = tmp_path / "store"
+    cli("rcm-grid", small_cfg, "--store", store, "--quiet")
+    run = single_run(store)
+    got = duckdb.sql(f"SELECT study, key, count(*) AS n, max(gii) AS best FROM read_parquet("
+                     f"'{store}/study=rcm-grid/*/*.parquet', hive_partitioning = true) GROUP BY study, key").fetchall()
+    assert got == [("rcm-grid", run.key, run.rows, max(single_table(store)["gii"].to_pylist()))]
+
+
+def test_a_store_in_the_older_layout_is_still_read(tmp_path, small_cfg):
+    import shutil
+
+    store = tmp_path / "store"
+    cli("rcm-grid", small_cfg, "--store", store, "--quiet")
+    run = single_run(store)
+    table = single_table(store)
+    legacy = store / "rcm-grid" / run.key
+    legacy.parent.mkdir()
+    shutil.move(str(run.path), legacy)
+    shutil.rmtree(store / "study=rcm-grid")
+    assert single_run(store).path == legacy and single_table(store).equals(table)
+    assert "cache hit" in cli("rcm-grid", small_cfg, "--store", store, "--quiet").stdout
+    assert "complete" in cli("runs", "--store", store).stdout
