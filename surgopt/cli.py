@@ -51,6 +51,13 @@ class ListFormat(str, enum.Enum):
     json = "json"
 
 
+class SummaryFormat(str, enum.Enum):
+    table = "table"
+    csv = "csv"
+    json = "json"
+    markdown = "markdown"
+
+
 class FigureFormat(str, enum.Enum):
     png = "png"
     pdf = "pdf"
@@ -447,15 +454,15 @@ def summarize(
     run: RunRef = None,
     store: StoreOpt = None,
     study: StudyOpt = None,
-    fmt: Annotated[str, typer.Option("--format", help="table, csv, json or markdown.")] = "table",
+    fmt: Annotated[SummaryFormat, typer.Option("--format", help="table, csv, json (stable snake_case keys, full "
+                                                                 "precision) or markdown.")] = SummaryFormat.table,
     top: Annotated[int, typer.Option("--top", min=1, help="How many designs to list.")] = 10,
     sort: Annotated[Optional[str], typer.Option("--sort", help="Column to rank by (default: the study's objective).",
                                                 show_default=False)] = None,
 ) -> None:
     """Summary of a stored run: top designs by the study's objective, its distribution, feasibility,
     and for studies without an objective their own comparison tables. Works on partial runs and says so."""
-    if fmt not in ("table", "csv", "json", "markdown"):
-        _fail(f"--format: {fmt!r} is not one of table, csv, json, markdown", 2)
+    fmt = fmt.value
     with _guard():
         from surgopt.report import render, summary_sections
         from surgopt.results import resolve_run

@@ -8,7 +8,7 @@ Stores written before the hive layout (``STORE/<study>/<key>/``) are still read.
 
 A part counts as done only once it was written to a temporary file, fsynced, renamed into place,
 read back, and listed in the manifest (itself replaced atomically) with its row count, size and
-sha256. Only the parent process writes. An exclusive ``flock`` on the key's lock keeps two
+sha256. Only the parent process writes. An exclusive lock on the key (``filelock``) keeps two
 processes from writing one key at once; the second waits and then finds the parts the first wrote.
 
 Readers verify what they read: every part against its size and sha256 in the manifest (hashed from
@@ -22,7 +22,6 @@ from __future__ import annotations
 import contextlib
 import datetime as _dt
 import errno
-import fcntl
 import hashlib
 import json
 import os
@@ -306,41 +305,46 @@ class Store:
 
     @contextlib.contextmanager
     def lock(self, study: str, key: str, on_wait=None):
-        """Exclusive lock on one key; ``on_wait(holder)`` is called before blocking."""
+        """Exclusive lock on one key (``filelock``: an OS file lock wherever Python runs); ``on_wait(holder)``
+        is called before blocking. The holder's pid is kept beside the lock file for messages."""
+        from filelock import FileLock, Timeout
+
         path = self.lock_path(study, key)
         self._mkdir(path.parent)
-        fd = os.open(path, os.O_RDWR | os.O_CREAT, 0o644)
+        lock = FileLock(path)
         try:
-            try:
-                fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
-            except BlockingIOError:
-                if on_wait is not None:
-                    holder = os.pread(fd, 64, 0).decode(errors="replace").strip()
-                    on_wait(holder or "another process")
-                fcntl.flock(fd, fcntl.LOCK_EX)
-            os.ftruncate(fd, 0)
-            os.pwrite(fd, f"pid {os.getpid()}".encode(), 0)
+            lock.acquire(timeout=0)
+        except Timeout:
+            if on_wait is not None:
+                on_wait(self._holder_text(path))
+            lock.acquire()
+        try:
+            path.with_suffix(".pid").write_text(f"pid {os.getpid()}")
             yield
         finally:
-            fcntl.flock(fd, fcntl.LOCK_UN)
-            os.close(fd)
+            lock.release()
+
+    @staticmethod
+    def _holder_text(path: Path) -> str:
+        try:
+            return path.with_suffix(".pid").read_text().strip() or "another process"
+        except OSError:
+            return "another process"
 
     def holder(self, study: str, key: str) -> str | None:
         """Who holds the key's lock ("pid N"), or None when nobody does."""
+        from filelock import FileLock, Timeout
+
         path = self.lock_path(study, key)
-        try:
-            fd = os.open(path, os.O_RDWR)
-        except OSError:
+        if not path.exists():
             return None
+        lock = FileLock(path)
         try:
-            try:
-                fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
-            except BlockingIOError:
-                return os.pread(fd, 64, 0).decode(errors="replace").strip() or "another process"
-            fcntl.flock(fd, fcntl.LOCK_UN)
-            return None
-        finally:
-            os.close(fd)
+            lock.acquire(timeout=0)
+        except Timeout:
+            return self._holder_text(path)
+        lock.release()
+        return None
 
     def begin(self, study: str, key: str, *, config: dict, config_name: str,
               kernel_version: str, n_tasks: int, chunk: int, force: bool, fresh: bool = False,

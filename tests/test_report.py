@@ -141,3 +141,7 @@ def test_plots(store, tmp_path):
     assert {"raven_workspace.png", "raven_zeta_alpha_beta.png", "raven_theta2_iso.png"} <= names
     names = {p.name for p in (tmp_path / "suture_small").iterdir()}
     assert {"suture_joints_0.png", "suture_path_0.png"} <= names
+    for fmt, magic in (("svg", b"<?xml"), ("pdf", b"%PDF")):
+        r = cli("plot", BASE / "rcm_small.toml", "--store", store, "--out", tmp_path / fmt, "--format", fmt)
+        paths = [Path(p) for p in r.stdout.split()]
+        assert paths and all(p.suffix == f".{fmt}" and p.read_bytes().startswith(magic) for p in paths)
