@@ -11,8 +11,14 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from surgopt.config import (ConfigError, embedded_default_text, parse_overrides, read_config_data, validate,
-                            with_override)
+from surgopt.config import (
+    ConfigError,
+    embedded_default_text,
+    parse_overrides,
+    read_config_data,
+    validate,
+    with_override,
+)
 from surgopt.config import _parse_text as parse_text
 
 

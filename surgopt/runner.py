@@ -2,6 +2,9 @@
 
 Knows nothing of kinematics: a ``Study`` (``surgopt.studies``) supplies ``n_tasks``,
 ``warm_up``, ``compute_task`` and ``schema``; workers look the study up by name.
+
+One module of ~430 lines: a run's life in order (budget, cache hit, lock, the three backends'
+dispatch with bounded in-flight chunks, retries of dead workers, the swap of a --force rebuild).
 """
 from __future__ import annotations
 

@@ -1,0 +1,317 @@
+"""Command line, the commands that read the store: runs (rm, gc), summarize, plot, export, diff, check.
+
+Registered on ``surgopt.cli.app`` when ``surgopt.cli`` is imported; see ``surgopt.cli`` for the study
+commands and the options, error handling and tables they share.
+"""
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+from typing import Annotated, Optional
+
+import typer
+
+from surgopt.cli import (
+    ExportFormat,
+    FigureFormat,
+    JobsOpt,
+    ListFormat,
+    QuietOpt,
+    StoreOpt,
+    SummaryFormat,
+    _console,
+    _fail,
+    _guard,
+    _print_table,
+    app,
+)
+
+runs_app = typer.Typer(help="List and delete stored runs.", no_args_is_help=False)
+app.add_typer(runs_app, name="runs")
+
+
+@runs_app.callback(invoke_without_command=True)
+def runs(
+    ctx: typer.Context,
+    store: StoreOpt = None,
+    study: Annotated[Optional[str], typer.Option("--study", help="Only this study.")] = None,
+    fmt: Annotated[ListFormat, typer.Option("--format", help="table, or json (every run's manifest facts, "
+                                                              "snake_case keys).")] = ListFormat.table,
+) -> None:
+    """List the runs held in the store: study, key prefix, config (with its overrides), rows, state, created.
+
+    State is complete, partial N/M, DAMAGED (a part fails its check; the study command repairs it) or
+    UNREADABLE (its manifest), and says which process is writing a run now."""
+    if ctx.invoked_subcommand is not None:
+        return
+    import json
+
+    from rich.table import Table
+
+    with _guard():
+        from surgopt.results import run_records
+        from surgopt.store import Store
+        from surgopt.studies import STUDIES
+
+        if study is not None and study not in STUDIES:
+            _fail(f"--study: unknown study {study!r} (one of {', '.join(STUDIES)})", 2)
+        s = Store(store)
+        records = run_records(s, study)
+    if fmt == ListFormat.json:
+        typer.echo(json.dumps(records, indent=1))
+        return
+    if not records:
+        typer.echo(f"no runs in {s.root}")
+        return
+    t = Table(title=f"runs in {s.root}")
+    for col in ("study", "key", "config", "rows", "state", "created"):
+        t.add_column(col, overflow="fold")
+    for r in records:
+        t.add_row(r["study"], r["key"][:12], r["config_name"] or "?", str(r["rows"] if r["rows"] is not None else "?"),
+                  r["state"], r.get("created") or "?")
+    _console(100).print(t)
+
+
+@runs_app.command("rm")
+def runs_rm(
+    key: Annotated[str, typer.Argument(help="Key prefix of the run (see `surgopt runs`).")],
+    store: StoreOpt = None,
+) -> None:
+    """Delete one stored run (only ever inside the store root; refused while a study is writing it)."""
+    import shutil
+
+    with _guard():
+        from surgopt.store import Store
+
+        if len(key) < 4 or any(c not in "0123456789abcdef" for c in key):
+            _fail(f"{key!r}: give at least 4 hex digits of a key (see `surgopt runs`)", 2)
+        s = Store(store)
+        matches = [r for r in s.runs() if r.key.startswith(key)]
+        from surgopt.store import folder_study_key
+
+        broken = [p for p, _ in s.unreadable() if folder_study_key(p)[1].startswith(key)]
+        if len(matches) + len(broken) != 1:
+            _fail(f"{key}: matches {len(matches) + len(broken)} runs in {s.root}", 2)
+        if broken:
+            shutil.rmtree(broken[0])
+            study_name, folder_key = folder_study_key(broken[0])
+            typer.echo(f"removed {study_name} {folder_key[:12]} (its manifest was unreadable)")
+            return
+        s.remove(matches[0])
+    typer.echo(f"removed {matches[0].study} {matches[0].key[:12]}")
+
+
+@runs_app.command("gc")
+def runs_gc(store: StoreOpt = None) -> None:
+    """Delete partial (interrupted) runs, stray part and temporary files left by killed writers, and
+    abandoned --force rebuilds. Runs that a study is writing now (their lock is held) are left alone."""
+    with _guard():
+        from surgopt.store import Store
+
+        s = Store(store)
+        removed = s.gc()
+    typer.echo(f"removed {len(removed)} item(s)" + "".join(f"\n  {p}" for p in removed))
+
+
+RunRef = Annotated[Optional[str], typer.Argument(
+    help="A key prefix from `surgopt runs`, or the config that produced the run. Default: the latest run.",
+    show_default=False)]
+StudyOpt = Annotated[Optional[str], typer.Option("--study", help="Study name, when a config fits several.")]
+
+
+@app.command("summarize")
+def summarize(
+    run: RunRef = None,
+    store: StoreOpt = None,
+    study: StudyOpt = None,
+    fmt: Annotated[SummaryFormat, typer.Option("--format", help="table, csv, json (stable snake_case keys, full "
+                                                                 "precision) or markdown.")] = SummaryFormat.table,
+    top: Annotated[int, typer.Option("--top", min=1, help="How many designs to list.")] = 10,
+    sort: Annotated[Optional[str], typer.Option("--sort", help="Column to rank by (default: the study's objective).",
+                                                show_default=False)] = None,
+) -> None:
+    """Summary of a stored run: top designs by the study's objective, its distribution, feasibility,
+    and for studies without an objective their own comparison tables. Works on partial runs and says so."""
+    fmt = fmt.value
+    with _guard():
+        from surgopt.report import render, summary_sections
+        from surgopt.results import resolve_run
+        from surgopt.store import Store
+
+        st, r = resolve_run(Store(store), run, study)
+        if fmt == "json":
+            import json
+
+            from surgopt.report import summary_record
+
+            typer.echo(json.dumps(summary_record(st, r, r.parts(st.schema()), top=top, sort=sort), indent=1,
+                                  default=str))
+            return
+        sections = summary_sections(st, r, r.parts(st.schema()), top=top, sort=sort)
+    if fmt != "table":
+        typer.echo(render(sections, fmt))
+        return
+    console = _console(0)  # the terminal's width; cells fold rather than being cut
+    for title, header, rows in sections:
+        _print_table(console, title, header, rows)
+
+
+@app.command("plot")
+def plot(
+    run: RunRef = None,
+    out: Annotated[Path, typer.Option("--out", help="Folder for the figures.")] = Path("figures"),
+    fmt: Annotated[FigureFormat, typer.Option("--format", help="png, pdf or svg.")] = FigureFormat.png,
+    store: StoreOpt = None,
+    study: StudyOpt = None,
+    design: Annotated[Optional[int], typer.Option(
+        "--design", help="The design_id of a study's per-design figure (raven-sweep's common workspace; "
+                         "default: the best by the study's objective).",
+        show_default=False)] = None,
+) -> None:
+    """Figures of a stored run in the style of its paper (each study's own; docs/figures shows them
+    for the paper setups)."""
+    if out.exists() and not out.is_dir():
+        _fail(f"--out: {out} is a file; give a folder for the figures", 2)
+    with _guard():
+        from surgopt.results import config_of, resolve_run
+        from surgopt.store import Store
+
+        st, r = resolve_run(Store(store), run, study)
+        table = r.read_table(st.schema())
+        if table.num_rows == 0:
+            _fail(f"{r.key[:12]}: the run has no rows yet", 1)
+        id_column = st.key_columns[0]
+        if design is not None and design not in set(table[id_column].to_pylist()):
+            _fail(f"--design: no {id_column} {design} in run {r.key[:12]}", 2)
+        out.mkdir(parents=True, exist_ok=True)
+        from surgopt.studies.figures import set_format
+
+        set_format(fmt.value)
+        paths = st.figures(config_of(st, r), table, out, design)
+    for p in paths:
+        typer.echo(str(p))
+
+
+@app.command("export")
+def export(
+    runs_: Annotated[list[str], typer.Argument(metavar="RUN...", help="Key prefixes (or configs) of the runs to "
+                                                                      "export; several runs are stacked.")],
+    fmt: Annotated[ExportFormat, typer.Option("--format", help="csv, parquet or json (records).")] = ExportFormat.csv,
+    out: Annotated[Optional[Path], typer.Option("--out", help="Output file [default: standard output; "
+                                                              "needed for parquet].", show_default=False)] = None,
+    store: StoreOpt = None,
+    study: StudyOpt = None,
+) -> None:
+    """A run's whole table as one tidy table, with the run key (and, for several runs, the config fields
+    that differ between them) as columns. The CSV reads back with pandas.read_csv as it is."""
+    with _guard():
+        from surgopt.results import export_table
+        from surgopt.store import Store
+
+        if fmt == ExportFormat.parquet and out is None:
+            _fail("--format parquet needs --out FILE", 2)
+        if out is not None and out.is_dir():
+            _fail(f"--out: {out} is a folder; give a file", 2)
+        table = export_table(Store(store), runs_, study)
+        if fmt == ExportFormat.parquet:
+            import pyarrow.parquet as pq
+
+            from surgopt.store import atomic_write
+
+            atomic_write(out, lambda tmp: pq.write_table(table, tmp, compression="zstd"))
+        else:
+            df = table.to_pandas()
+            text = df.to_csv(index=False) if fmt == ExportFormat.csv else df.to_json(orient="records", indent=1)
+            if out is None:
+                sys.stdout.write(text)
+            else:
+                from surgopt.store import atomic_write
+
+                atomic_write(out, lambda tmp: tmp.write_text(text))
+    if out is not None:
+        typer.echo(f"wrote {out} ({table.num_rows} rows, {table.num_columns} columns)", err=True)
+
+
+@app.command("diff")
+def diff(
+    run_a: Annotated[str, typer.Argument(help="Key prefix (or config) of the first run.")],
+    run_b: Annotated[str, typer.Argument(help="Key prefix (or config) of the second run.")],
+    fmt: Annotated[ListFormat, typer.Option("--format", help="table or json.")] = ListFormat.table,
+    store: StoreOpt = None,
+    study: StudyOpt = None,
+    top: Annotated[int, typer.Option("--top", min=1, help="How many of the most changed rows to list.")] = 5,
+) -> None:
+    """Compare two runs of one study: the config fields that differ, then every metric joined on the
+    study's key columns (rows only in one run, largest changes, the best design of each)."""
+    import json
+
+    with _guard():
+        from surgopt.results import diff_runs
+        from surgopt.store import Store
+
+        d = diff_runs(Store(store), run_a, run_b, study, top)
+    if fmt == ListFormat.json:
+        typer.echo(json.dumps(d, indent=1, default=str))
+        return
+    console = _console(0)
+    _print_table(console, f"config: {d['a']['key'][:12]} vs {d['b']['key'][:12]}", ["field", "a", "b"],
+                 [[k, str(a), str(b)] for k, (a, b) in d["config"].items()] or [["(identical configs)", "", ""]])
+    _print_table(console, f"metrics over {d['rows_joined']} rows joined on {', '.join(d['key_columns'])} "
+                          f"({d['rows_only_a']} only in a, {d['rows_only_b']} only in b)",
+                 ["column", "rows changed", "max |b - a|", "mean b - a"],
+                 [[c, m["changed"], f"{m['max_abs']:.6g}", f"{m['mean']:.6g}"] for c, m in d["metrics"].items()])
+    if d["worst"]:
+        cols = list(d["worst"][0])
+        _print_table(console, f"most changed rows (by |b - a| of {d['objective']})", cols,
+                     [[str(r[c]) for c in cols] for r in d["worst"]])
+    if d["best"]:
+        _print_table(console, f"best design of each by {d['objective']}", ["run"] + list(d["best"]["a"]),
+                     [["a"] + [str(v) for v in d["best"]["a"].values()], ["b"] + [str(v) for v in d["best"]["b"].values()]])
+
+
+@app.command("check")
+def check(
+    config: Annotated[Path, typer.Argument(help="Config of the study to run (or reuse from the store).")],
+    baseline: Annotated[Path, typer.Option("--baseline", help="Parquet baseline to compare with.")],
+    rtol: Annotated[float, typer.Option("--rtol", min=0, help="Relative tolerance on float columns.")] = 1e-9,
+    atol: Annotated[float, typer.Option("--atol", min=0, help="Absolute tolerance on float columns.")] = 1e-12,
+    write: Annotated[bool, typer.Option("--write", help="(Re)create the baseline from this run instead.")] = False,
+    store: StoreOpt = None,
+    study: StudyOpt = None,
+    jobs: JobsOpt = 2,
+    quiet: QuietOpt = True,
+) -> None:
+    """Run (or reuse) a study and compare it with a stored Parquet baseline: key columns exactly, float
+    columns within rtol/atol, after sorting by the key. Exit 0 within tolerance, 1 when not, 2 on bad input."""
+    with _guard():
+        import pyarrow.parquet as pq
+
+        from surgopt.results import compare_tables, study_of_config, write_baseline
+        from surgopt.runner import run_study
+        from surgopt.store import Store
+
+        st, cfg = study_of_config(config, study)
+        if not write and not baseline.is_file():
+            _fail(f"{baseline}: baseline not found (create it with --write)", 2)
+        res = run_study(st, cfg, config_name=config.stem, store=Store(store), jobs=jobs, quiet=quiet,
+                        say=lambda m: typer.echo(m, err=True))
+        if write:
+            write_baseline(res.table, st.key_columns, baseline)
+            typer.echo(f"wrote {baseline} ({res.table.num_rows} rows)")
+            return
+        try:
+            base = pq.read_table(baseline)
+        except Exception as exc:  # noqa: BLE001 - any unreadable file is bad input
+            _fail(f"{baseline}: not a readable Parquet file ({exc})", 2)
+        current = res.table
+        problems, diffs = compare_tables(current, base, st.key_columns, rtol, atol)
+    for p in problems:
+        typer.echo(f"FAIL: {p}")
+    if diffs:
+        typer.echo(f"FAIL: {len(diffs)} value(s) differ beyond rtol={rtol:g}, atol={atol:g}; worst:")
+        for d in diffs[:8]:
+            typer.echo(f"  {d.column} at {dict(zip(st.key_columns, d.key))}: baseline {d.baseline!r}, now "
+                       f"{d.current!r} (relative {d.rel:.3g})")
+    if problems or diffs:
+        raise typer.Exit(1)
+    typer.echo(f"OK: {current.num_rows} rows match {baseline} (rtol={rtol:g}, atol={atol:g})")

@@ -1,0 +1,141 @@
+"""Config models of the raven-sweep study: the Table II sweep, the geometry the paper leaves open,
+the refine search. Every field has its unit in its name; docs/reproduction.md says why each default."""
+from __future__ import annotations
+
+import math
+from typing import Annotated, Literal, Union
+
+from pydantic import Discriminator, Field, Tag, field_validator, model_validator
+
+from surgopt.config import StrictModel
+from surgopt.robots import raven_iv
+
+#: The design parameters, in the order of a design vector (refine starts, rows).
+PARAMS = ("alpha_deg", "beta_deg", "phi_x_deg", "phi_y_deg", "phi_z_deg", "bx_mm", "by_mm", "iso_min")
+
+
+class Span(StrictModel):
+    """start, start + step, ... up to stop (inclusive when it lands on it)."""
+
+    start: float
+    stop: float
+    step: float = Field(gt=0)
+
+    @model_validator(mode="after")
+    def _ordered(self):
+        if self.stop < self.start:
+            raise ValueError("stop must be >= start")
+        if (self.stop - self.start) / self.step > 10_000:
+            raise ValueError("more than 10,000 values")
+        return self
+
+    def values(self) -> list[float]:
+        n = int(math.floor((self.stop - self.start) / self.step + 1e-9))
+        return [round(self.start + i * self.step, 10) for i in range(n + 1)]
+
+
+def _spec_form(value) -> str:
+    """Which form a sweep parameter takes: a table {start, stop, step} or a list of values."""
+    return "<span>" if isinstance(value, (dict, Span)) else "<list>"
+
+
+#: A sweep parameter: a list of values, or a span {start, stop, step}. The discriminator picks the
+#: form from the input, so an error is reported for that form only (not "Input should be a valid list").
+ParamSpec = Annotated[Union[Annotated[list[float], Field(min_length=1, max_length=10_000), Tag("<list>")],
+                            Annotated[Span, Tag("<span>")]], Discriminator(_spec_form)]
+
+
+def values(spec: ParamSpec) -> list[float]:
+    return spec.values() if isinstance(spec, Span) else list(spec)
+
+
+#: Allowed range of each sweep parameter (link angles also > 0).
+PARAM_RANGES = {"alpha_deg": (0, 180), "beta_deg": (0, 180), "phi_x_deg": (-90, 90), "phi_y_deg": (-90, 90),
+                "phi_z_deg": (-180, 180), "bx_mm": (0, 2000), "by_mm": (0, 2000), "iso_min": (0, 1)}
+
+
+class Sweep(StrictModel):
+    alpha_deg: ParamSpec = Span(start=5, stop=90, step=20)
+    beta_deg: ParamSpec = Span(start=5, stop=90, step=20)
+    phi_x_deg: ParamSpec = Span(start=-20, stop=20, step=10)
+    phi_y_deg: ParamSpec = Span(start=-20, stop=20, step=10)
+    phi_z_deg: ParamSpec = Span(start=-20, stop=20, step=10)
+    bx_mm: ParamSpec = Span(start=50, stop=200, step=50)
+    by_mm: ParamSpec = Span(start=50, stop=200, step=50)
+    iso_min: ParamSpec = Span(start=0.1, stop=0.9, step=0.2)
+
+    @field_validator(*PARAMS)
+    @classmethod
+    def _in_range(cls, spec, info):
+        lo, hi = PARAM_RANGES[info.field_name]
+        vs = values(spec)
+        if not vs:
+            raise ValueError("no values")
+        if min(vs) < lo or max(vs) > hi or (info.field_name in ("alpha_deg", "beta_deg") and min(vs) <= 0):
+            raise ValueError(f"values must lie in [{lo}, {hi}]" + (" and be > 0" if lo == 0 and info.field_name
+                                                                    in ("alpha_deg", "beta_deg") else ""))
+        return spec
+
+
+class Geometry(StrictModel):
+    """What the paper leaves to its Fig. 3 (docs/reproduction.md, Raven section)."""
+
+    n_arms: Literal[1, 2, 4] = 4
+    ports_mm: list[list[float]] | None = Field(None, description="[[x, y], ...] per arm; overrides bx/by")
+    left_arms: list[bool] | None = Field(None, description="mirrored (left) arms; default 1 and 3")
+    shoulder_tilt_deg: float = Field(90.0, ge=-90, le=90, description="axis 1 from vertical at phi = 0, outward")
+    shoulder_tilt_toward: Literal["x", "y"] = Field(
+        "x", description="outward along x (away from the other side) or y (away from the other pair)")
+    mirror_left_phi: bool = True
+    depth_mm: float = Field(raven_iv.REFERENCE_PLANE_DEPTH_MM, gt=0)
+    step_mm: float = Field(2.0, gt=0.05, le=50)
+    d4_max_mm: float = Field(raven_iv.D4_RANGE_MM[1], gt=0)
+    theta2_range_deg: list[float] = Field(list(raven_iv.THETA2_RANGE_DEG), min_length=2, max_length=2)
+
+    @model_validator(mode="after")
+    def _consistent(self):
+        if self.d4_max_mm <= self.depth_mm:
+            raise ValueError("d4_max_mm must exceed depth_mm or no point is reachable")
+        lo, hi = self.theta2_range_deg
+        if not 0 <= lo < hi <= 180:
+            raise ValueError("theta2_range_deg must satisfy 0 <= lo < hi <= 180")
+        for name in ("ports_mm", "left_arms"):
+            v = getattr(self, name)
+            if v is not None and len(v) != self.n_arms:
+                raise ValueError(f"{name} must list {self.n_arms} arms")
+        if self.ports_mm is not None and any(len(p) != 2 for p in self.ports_mm):
+            raise ValueError("ports_mm entries are [x, y]")
+        return self
+
+
+class Refine(StrictModel):
+    top_k: int = Field(5, ge=1, le=100)
+    max_evals: int = Field(300, ge=10, le=100_000)
+    starts: list[Annotated[list[float], Field(min_length=len(PARAMS), max_length=len(PARAMS))]] | None = Field(
+        None, min_length=1, max_length=100,
+        description="designs [alpha, beta, phi_x, phi_y, phi_z, bx, by, Iso_min] to start from; --refine fills it")
+
+
+class RavenSweepConfig(StrictModel):
+    sweep: Sweep = Sweep()
+    geometry: Geometry = Geometry()
+    search: Literal["grid", "refine"] = "grid"
+    refine: Refine = Refine()
+
+    @model_validator(mode="after")
+    def _refine_has_starts(self):
+        if self.search == "refine" and not self.refine.starts:
+            raise ValueError("search = 'refine' needs refine.starts (or run the grid with --refine, which fills them)")
+        return self
+
+    @model_validator(mode="after")
+    def _ports_fix_bx_by(self):
+        if self.geometry.ports_mm is not None:
+            for name in ("bx_mm", "by_mm"):
+                if len(values(getattr(self.sweep, name))) > 1:
+                    raise ValueError(f"sweep.{name} has several values, but geometry.ports_mm fixes the ports "
+                                     f"(bx_mm, by_mm are not used then): give one value")
+        return self
+
+
+Config = RavenSweepConfig
