@@ -88,3 +88,15 @@ def test_workspace_cube_geometry():
     assert np.allclose(off.min(axis=0), [-0.025, -0.025, -0.125])
     assert np.allclose(off.max(axis=0), [0.025, 0.025, -0.075])
     assert np.allclose(off.mean(axis=0), [0, 0, -0.1])
+
+
+def test_table_I_off_rows_match_at_the_grid_point_their_rounded_z_stands_for():
+    """docs/reproduction.md: the three rows that miss at the printed z match at z + 5 mm."""
+    base = load_embedded(S.DEFAULT_CONFIG, S.Config)
+    rows = {(0.630, -0.390): 0.0340, (0.720, -0.370): 0.0107, (0.650, -0.160): 0.0139}
+    pts = [[x, z] for x, z in rows] + [[x, round(z + 0.005, 3)] for x, z in rows]
+    cfg = base.model_copy(update={"candidates": S.Candidates(list_m=pts)})
+    gii = S.compute_task(cfg, 100, 0)["gii"]
+    paper = list(rows.values())
+    assert [round(g, 4) for g in gii[:3]] != paper
+    assert [round(g, 4) for g in gii[3:]] == paper
