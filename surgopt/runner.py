@@ -176,7 +176,11 @@ def run_study(study, cfg, *, config_name: str, store: Store, jobs: int = DEFAULT
         if len(missing) < total:
             messages.append(f"resuming: {total - len(missing)} of {total} chunks already stored")
         computed = len(missing)
-        if missing:
+        plan = study.search_plan(cfg) if study.search_plan else None
+        if missing and plan is not None:
+            study.warm_up(cfg)
+            _run_search(study, cfg, plan, run, store, jobs, quiet, total, schema, backend, dask)
+        elif missing:
             study.warm_up(cfg)  # compile once in the parent; workers load the cache
             for attempt in range(WORKER_RETRIES + 1):
                 try:
@@ -209,6 +213,40 @@ def provenance(backend: str, jobs: int) -> dict:
     return {"versions": {"surgopt": __version__, "numba": numba.__version__, "numpy": numpy.__version__,
                          "python": platform.python_version()},
             "backend": backend, "jobs": jobs, "host": socket.gethostname()}
+
+
+def _run_search(study, cfg, plan, run, store, jobs, quiet, total, schema, backend, dask) -> None:
+    """An Optuna search, batch after batch: ask the batch's trials (recorded in Optuna's journal in the
+    run's folder), evaluate them as one task through the backend, store them as part k, then tell
+    Optuna. On resume, trials asked but not told are taken up again: told from their part if it was
+    stored, else evaluated; the sampler is re-seeded per batch, so resuming gives the trials an
+    uninterrupted search gives (except after a kill inside the few milliseconds of one batch's asks)."""
+    from surgopt.errors import StoreError
+    from surgopt.studies import search as S
+
+    spec = plan.spec
+    names = list(plan.space)
+    st = S.open_study(run.path / "optuna.journal", plan, 0)
+    for k in range(total):
+        first, n = k * spec.batch, min(spec.batch, spec.trials - k * spec.batch)
+        trials = [t for t in st.get_trials(deepcopy=False) if first <= t.number < first + n]
+        if len(trials) == n and all(t.state.is_finished() for t in trials) and k in run.done_tasks():
+            continue
+        st.sampler = S.sampler_for(spec, k)
+        pending = [S.running_trial(st, t) for t in trials if not t.state.is_finished()]
+        if any(t.state.is_finished() for t in trials):
+            raise StoreError(f"{run.path}: Optuna's journal has told part of batch {k}; delete the run and search again")
+        pending += S.ask(st, plan, n - len(pending))
+        points = [[float(t.params[name]) for name in names] for t in pending]
+        if k not in run.done_tasks():
+            cfg_k = cfg.model_copy(update={"search": spec.model_copy(update={"points": points})})
+            _dispatch(study, cfg_k, spec.batch, [k], run, store, jobs, quiet, total, schema, backend, dask)
+        table = run.part_table(k, schema)
+        stored = [[float(table[name][r].as_py()) for name in names] for r in range(table.num_rows)]
+        if stored != points:
+            raise StoreError(f"{run.path}: part {k} holds other trials than Optuna's journal; delete the run "
+                             f"and search again")
+        S.tell(st, pending, [[float(table[c][r].as_py()) for c, _ in plan.objectives] for r in range(table.num_rows)])
 
 
 #: How many times the chunks of a worker process that died (killed, out of memory) are retried.

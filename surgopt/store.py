@@ -236,6 +236,13 @@ class Run:
                              f"(the parts that check out are kept)")
         return data
 
+    def part_table(self, index: int, schema=None):
+        """One stored part (task ``index``), verified, as an Arrow table."""
+        import pyarrow as pa
+        import pyarrow.parquet as pq
+
+        return pq.read_table(pa.BufferReader(self._verified(str(index))), schema=schema)
+
     def _iter_tables(self, schema):
         import pyarrow as pa
         import pyarrow.parquet as pq

@@ -108,6 +108,7 @@ class Study:
     flags: tuple[Flag, ...] = ()
     chunked: bool = True  # False: one task per run, no --chunk-size
     estimate: Callable[[Any], Estimate] | None = None  # work and memory, checked before a run starts
+    search_plan: Callable[[Any], Any] | None = None  # a SearchPlan when the config asks for an optimiser
 
 
 def figures_in(module: str) -> Callable:

@@ -28,7 +28,7 @@ from surgopt.studies.raven_sweep_config import (  # noqa: F401
     Sweep,
     values,
 )
-from surgopt.studies.search import compass_search
+from surgopt.studies.search import SearchPlan, SearchSpec, compass_search, objectives_of
 
 NAME = "raven-sweep"
 HELP = """Raven IV port placement and link design (Li, Glozman, Milutinovic, Rosen, ICRA 2011: eqs. 1-43,
@@ -160,6 +160,8 @@ def auto_chunk(cfg: RavenSweepConfig) -> int:
     sw = cfg.sweep
     if cfg.search == "refine":
         return 1
+    if optimiser(cfg) is not None:
+        return optimiser(cfg).batch
     designs = len(values(sw.alpha_deg)) * len(values(sw.beta_deg)) * len(values(sw.iso_min))
     return chunk_for_seconds(n_geometries(cfg), _plane_nodes(cfg.geometry) * designs * NS_PER_NODE_DESIGN * 1e-9)
 
@@ -195,9 +197,33 @@ def distinct_geometries(cfg: RavenSweepConfig) -> int:
     return len(seen)
 
 
+def optimiser(cfg: RavenSweepConfig) -> SearchSpec | None:
+    """The [search] optimiser of this config, or None (the grid, or refine)."""
+    s = cfg.search
+    return s if isinstance(s, SearchSpec) and s.method != "grid" else None
+
+
+def search_plan(cfg: RavenSweepConfig) -> SearchPlan | None:
+    """An optimiser's space: each swept parameter's {start, stop} as continuous bounds, lists categorical."""
+    spec = optimiser(cfg)
+    if spec is None:
+        return None
+    space = {}
+    for p in PARAMS:
+        s = getattr(cfg.sweep, p)
+        space[p] = (float(s.start), float(s.stop)) if isinstance(s, Span) else [float(v) for v in s]
+    return SearchPlan(spec, space, objectives_of(spec, OBJECTIVE))
+
+
 def estimate(cfg: RavenSweepConfig) -> Estimate:
     """Distinct geometries x (node bounds + designs) on the plane grid; a row is ~160 bytes; memo 64 MB."""
     sw, nodes = cfg.sweep, _plane_nodes(cfg.geometry)
+    spec = optimiser(cfg)
+    if spec is not None:
+        n = spec.trials
+        return Estimate(n, f"{spec.method} trials", n,
+                        n * nodes * (cfg.geometry.n_arms * NS_PER_NODE_ARM + NS_PER_NODE_DESIGN_EST) * 1e-9,
+                        peak_bytes(n, 160))
     if cfg.search == "refine":
         n = len(cfg.refine.starts or []) * cfg.refine.max_evals
         return Estimate(n, "designs evaluated by the compass search", n,
@@ -212,6 +238,8 @@ def estimate(cfg: RavenSweepConfig) -> Estimate:
 def n_tasks(cfg: RavenSweepConfig, chunk: int) -> int:
     if cfg.search == "refine":
         return len(cfg.refine.starts or [])
+    if optimiser(cfg) is not None:
+        return math.ceil(optimiser(cfg).trials / optimiser(cfg).batch)
     return max(1, math.ceil(n_geometries(cfg) / chunk))
 
 
@@ -223,6 +251,11 @@ def warm_up(cfg: RavenSweepConfig) -> None:
 def compute_task(cfg: RavenSweepConfig, chunk: int, index: int) -> dict:
     if cfg.search == "refine":
         return refine_from(cfg, cfg.refine.starts[index], index)
+    spec = optimiser(cfg)
+    if spec is not None:  # one batch of an optimiser's trials, design by design; ids are trial numbers
+        x = np.asarray(spec.points, dtype=np.float64).reshape(-1, len(PARAMS))
+        metrics = np.vstack([evaluate(cfg, [tuple(d[2:7])], [d[0]], [d[1]], [d[7]]) for d in x])
+        return _rows(x, metrics, cfg.geometry.step_mm, index * chunk + np.arange(x.shape[0]), spec.method)
     sw = cfg.sweep
     al, be, iso = values(sw.alpha_deg), values(sw.beta_deg), values(sw.iso_min)
     per_geo = len(al) * len(be) * len(iso)
@@ -333,7 +366,7 @@ STUDY = Study(
     name=NAME, kernel_version=KERNEL_VERSION, config_model=RavenSweepConfig, default_config=DEFAULT_CONFIG,
     help=HELP, config_help=CONFIG_HELP, schema=schema, key_columns=KEY_COLUMNS, objective=OBJECTIVE,
     auto_chunk=auto_chunk, n_tasks=n_tasks, warm_up=warm_up, compute_task=compute_task, summary=summary,
-    feasible_mask=feasible_mask, figures=figures_in("raven_sweep"), estimate=estimate,
+    feasible_mask=feasible_mask, figures=figures_in("raven_sweep"), estimate=estimate, search_plan=search_plan,
     flags=(Flag("--refine", "After the grid, a compass search from the top-k designs inside the sweep's bounds; "
                             "its rows are stored as a second run.",
                 follow_up=refine_config, follow_up_suffix="+refine"),))

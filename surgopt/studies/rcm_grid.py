@@ -8,15 +8,16 @@ the RCM, for a 121 x 121 x-z grid of candidates (Fig. 3) or a list (Table I).
 from __future__ import annotations
 
 import math
-from typing import Annotated, Literal
+from typing import Annotated, Literal, Union
 
 import numpy as np
-from pydantic import Field, model_validator
+from pydantic import Discriminator, Field, Tag, model_validator
 
 from surgopt.config import StrictModel
 from surgopt.metrics import global_isotropy_index
 from surgopt.robots import pa10_7c
 from surgopt.studies import Estimate, Flag, Study, Summary, figures_in, peak_bytes
+from surgopt.studies.search import SearchPlan, SearchSpec, objectives_of
 
 NAME = "rcm-grid"
 HELP = """Global Isotropy Index of candidate remote-centre-of-motion locations for a PA10-7C
@@ -47,6 +48,10 @@ PAPER_TABLE_I = (
     (0.460, -0.300, 0.0356), (0.535, -0.210, 0.0440), (0.650, -0.160, 0.0139),
     (0.350, -0.210, 0.0228), (0.400, -0.110, 0.0293), (0.430, 0.010, 0.0332),
     (0.260, -0.140, 0.0110), (0.260, -0.060, 0.0111), (0.260, 0.030, 0.0111))
+
+
+#: Row columns a [search] may optimise.
+SEARCH_OBJECTIVES = ("gii", "sigma_min_m_per_s", "sigma_max_m_per_s", "x_rcm_m", "z_rcm_m")
 
 
 class JointLimitsDeg(StrictModel):
@@ -132,7 +137,20 @@ class RcmGridConfig(StrictModel):
     robot: Robot = Robot()
     workspace: Workspace = Workspace()
     candidates: Candidates = Candidates()
-    search: Literal["full", "cull"] = "full"
+    search: Annotated[Union[Annotated[Literal["full", "cull"], Tag("<mode>")],
+                            Annotated[SearchSpec, Tag("<optimiser>")]],
+                      Discriminator(lambda v: "<optimiser>" if isinstance(v, (dict, SearchSpec)) else "<mode>")] = Field(
+        "full", description="'full' map, 'cull' (exact argmax), or a [search] table (an optimiser over x, z)")
+
+    @model_validator(mode="after")
+    def _search_needs_a_grid(self):
+        if isinstance(self.search, SearchSpec):
+            if self.candidates.list_m is not None:
+                raise ValueError("a [search] optimises over candidates.grid's x and z ranges: give a grid, not list_m")
+            bad = [o for o in self.search.objectives or [] if o.lstrip("-") not in SEARCH_OBJECTIVES]
+            if bad:
+                raise ValueError(f"search.objectives: {bad[0]!r} is not one of {', '.join(SEARCH_OBJECTIVES)}")
+        return self
 
 
 Config = RcmGridConfig
@@ -143,8 +161,27 @@ Config = RcmGridConfig
 # ---------------------------------------------------------------------------
 
 
+def optimiser(cfg: RcmGridConfig) -> SearchSpec | None:
+    """The [search] optimiser of this config, or None (the full map or the cull)."""
+    s = cfg.search
+    return s if isinstance(s, SearchSpec) and s.method != "grid" else None
+
+
+def search_plan(cfg: RcmGridConfig) -> SearchPlan | None:
+    """An optimiser's space: the grid's x and z ranges as continuous bounds (m)."""
+    spec = optimiser(cfg)
+    if spec is None:
+        return None
+    g = cfg.candidates.grid
+    return SearchPlan(spec, {"x_rcm_m": (g.x_min_m, g.x_max_m), "z_rcm_m": (g.z_min_m, g.z_max_m)},
+                      objectives_of(spec, OBJECTIVE))
+
+
 def candidate_xz(cfg: RcmGridConfig) -> np.ndarray:
-    """(M, 2) candidate (x, z) in config coordinates, grid in x-major order."""
+    """(M, 2) candidate (x, z) in config coordinates, grid in x-major order (an optimiser's batch: its points)."""
+    spec = optimiser(cfg)
+    if spec is not None and spec.points is not None:
+        return np.asarray(spec.points, dtype=np.float64).reshape(-1, 2)
     c = cfg.candidates
     if c.list_m is not None:
         return np.asarray(c.list_m, dtype=np.float64).reshape(-1, 2)
@@ -220,6 +257,9 @@ def auto_chunk(cfg: RcmGridConfig) -> int:
     """Candidates per task: about two seconds of single-core work, and at least 32 tasks."""
     from surgopt.studies import chunk_for_seconds
 
+    spec = optimiser(cfg)
+    if spec is not None:
+        return spec.batch
     m = candidate_xz(cfg).shape[0]
     return chunk_for_seconds(m, cfg.workspace.points_per_side ** 3 * NS_PER_POSE * 1e-9)
 
@@ -231,7 +271,8 @@ NS_PER_POSE_EST = 8.5
 
 def estimate(cfg: RcmGridConfig) -> Estimate:
     """Candidates x cube points at NS_PER_POSE_EST (--cull: about a tenth of that); a row is ~75 bytes."""
-    m = candidate_xz(cfg).shape[0]
+    spec = optimiser(cfg)
+    m = spec.trials if spec is not None else candidate_xz(cfg).shape[0]
     p = cfg.workspace.points_per_side ** 3
     seconds = m * p * NS_PER_POSE_EST * 1e-9 * (0.1 if cfg.search == "cull" else 1.0)
     return Estimate(items=m, what="RCM candidates", rows=m, seconds_one_core=seconds,
@@ -241,6 +282,9 @@ def estimate(cfg: RcmGridConfig) -> Estimate:
 def n_tasks(cfg: RcmGridConfig, chunk: int) -> int:
     if cfg.search == "cull":
         return 1
+    spec = optimiser(cfg)
+    if spec is not None:
+        return math.ceil(spec.trials / spec.batch)
     return max(1, math.ceil(candidate_xz(cfg).shape[0] / chunk))
 
 
@@ -281,8 +325,11 @@ def compute_task(cfg: RcmGridConfig, chunk: int, index: int) -> dict:
     from surgopt.kinematics.pa10_rcm import rcm_candidates_extremes
 
     xz_all = candidate_xz(cfg)
-    ids = np.arange(index * chunk, min(xz_all.shape[0], (index + 1) * chunk))
-    xz = xz_all[ids]
+    if optimiser(cfg) is not None:  # one batch of trials: ids are the trial numbers
+        ids, xz = index * chunk + np.arange(xz_all.shape[0]), xz_all
+    else:
+        ids = np.arange(index * chunk, min(xz_all.shape[0], (index + 1) * chunk))
+        xz = xz_all[ids]
     offsets = workspace_offsets(cfg.workspace)
     lo, hi, n_unr, n_sing = rcm_candidates_extremes(candidate_rcms(cfg, xz), offsets, arm_model(cfg))
     n_eval = np.full(ids.shape[0], offsets.shape[0])
@@ -365,7 +412,7 @@ STUDY = Study(
     name=NAME, kernel_version=KERNEL_VERSION, config_model=RcmGridConfig, default_config=DEFAULT_CONFIG,
     help=HELP, config_help=CONFIG_HELP, schema=schema, key_columns=KEY_COLUMNS, objective=OBJECTIVE,
     auto_chunk=auto_chunk, n_tasks=n_tasks, warm_up=warm_up, compute_task=compute_task, summary=summary,
-    feasible_mask=feasible_mask, figures=figures_in("rcm_grid"), estimate=estimate,
+    feasible_mask=feasible_mask, figures=figures_in("rcm_grid"), estimate=estimate, search_plan=search_plan,
     flags=(Flag("--cull", "Fast exact argmax with the Culling algorithm (Stocco & Salcudean) instead of "
                           "the full GII map; culled candidates carry an upper bound.",
                 config_update={"search": "cull"}),))

@@ -47,3 +47,119 @@ def compass_search(objective: Callable[[np.ndarray], float], start: Sequence[flo
         if not improved:
             steps = steps / 2
     return visited
+
+
+# ---------------------------------------------------------------------------
+# Optuna searches over a study's continuous design space ([search] method = "cmaes" | "tpe" | ...)
+# ---------------------------------------------------------------------------
+
+from dataclasses import dataclass  # noqa: E402
+from typing import Annotated, Any, Literal  # noqa: E402
+
+from pydantic import Field, model_validator  # noqa: E402
+
+from surgopt.config import StrictModel  # noqa: E402
+
+METHODS = ("grid", "cmaes", "tpe", "nsga2", "random")
+
+
+class SearchSpec(StrictModel):
+    """``[search]``: an optimiser over the sweep's ranges read as continuous bounds (lists stay categorical).
+
+    Each batch of ``batch`` trials is one task and one stored part; Optuna's journal lives in the run's
+    folder. Samplers are re-created for every batch with seed (seed, batch), so an interrupted search
+    resumes to the same trials as an uninterrupted one.
+    """
+
+    method: Literal[METHODS] = "grid"
+    trials: int = Field(1000, ge=1, le=1_000_000)
+    batch: int = Field(64, ge=1, le=10_000)
+    seed: int = Field(0, ge=0, le=2 ** 31 - 1)
+    objectives: list[Annotated[str, Field(min_length=1, max_length=64)]] | None = Field(
+        None, min_length=1, max_length=4,
+        description="row columns to maximise ('-name' to minimise); default: the study's objective")
+    points: list[list[float]] | None = Field(None, description="internal: one batch's trial parameters")
+
+    @model_validator(mode="after")
+    def _methods_and_objectives(self):
+        n = len(self.objectives or [None])
+        if self.method == "nsga2" and n < 2:
+            raise ValueError("method 'nsga2' is multi-objective: give two or more objectives")
+        if self.method in ("cmaes",) and n > 1:
+            raise ValueError("method 'cmaes' takes one objective (use 'nsga2' or 'tpe' for several)")
+        return self
+
+
+@dataclass(frozen=True)
+class SearchPlan:
+    """What a study offers a search: its space (name -> (low, high) or [choices]) and the columns of its
+    objectives with their directions ("maximize" / "minimize")."""
+
+    spec: SearchSpec
+    space: dict[str, Any]
+    objectives: list[tuple[str, str]]
+
+
+def objectives_of(spec: SearchSpec, default: str) -> list[tuple[str, str]]:
+    return [(o.lstrip("-"), "minimize" if o.startswith("-") else "maximize") for o in (spec.objectives or [default])]
+
+
+def sampler_for(spec: SearchSpec, batch_index: int):
+    """A fresh Optuna sampler for one batch, seeded by (seed, batch): same history -> same trials."""
+    import optuna
+
+    seed = (spec.seed * 1_000_003 + batch_index) % (2 ** 31)
+    if spec.method == "cmaes":
+        return optuna.samplers.CmaEsSampler(seed=seed, warn_independent_sampling=False)
+    if spec.method == "tpe":
+        return optuna.samplers.TPESampler(seed=seed, multivariate=True, n_startup_trials=min(2 * spec.batch, 100))
+    if spec.method == "nsga2":
+        return optuna.samplers.NSGAIISampler(seed=seed, population_size=max(8, spec.batch))
+    return optuna.samplers.RandomSampler(seed=seed)
+
+
+def distributions(space: dict[str, Any]) -> dict:
+    import optuna
+
+    out = {}
+    for name, dom in space.items():
+        if isinstance(dom, tuple):
+            out[name] = optuna.distributions.FloatDistribution(float(dom[0]), float(dom[1]))
+        else:
+            out[name] = optuna.distributions.CategoricalDistribution(list(dom))
+    return out
+
+
+def open_study(journal, plan: SearchPlan, batch_index: int):
+    """The run's Optuna study (journal file ``journal``) with this batch's sampler."""
+    import optuna
+    from optuna.storages import JournalStorage
+    from optuna.storages.journal import JournalFileBackend
+
+    optuna.logging.set_verbosity(optuna.logging.WARNING)
+    storage = JournalStorage(JournalFileBackend(str(journal)))
+    return optuna.create_study(study_name="surgopt", storage=storage, load_if_exists=True,
+                               sampler=sampler_for(plan.spec, batch_index),
+                               directions=[d for _, d in plan.objectives])
+
+
+def ask(study, plan: SearchPlan, n: int) -> list:
+    dists = distributions(plan.space)
+    return [study.ask(dists) for _ in range(n)]
+
+
+def running_trial(study, frozen):
+    """A trial asked before an interruption (RUNNING in the journal) as a Trial that can be told."""
+    import optuna
+
+    return optuna.trial.Trial(study, frozen._trial_id)
+
+
+def tell(study, trials, values: list[list[float]]) -> None:
+    import optuna
+
+    for trial, v in zip(trials, values):
+        if all(np.isfinite(v)):
+            study.tell(trial, v if len(v) > 1 else v[0])
+        else:
+            study.tell(trial, state=optuna.trial.TrialState.FAIL)
