@@ -187,7 +187,14 @@ def plot(
         from surgopt.studies.figures import set_format
 
         set_format(fmt.value)
-        paths = st.figures(config_of(st, r), table, out, design)
+        cfg = config_of(st, r)
+        plan = st.search_plan(cfg) if st.search_plan else None
+        if plan is not None:
+            from surgopt.studies.figures import search_figures
+
+            paths = search_figures(cfg, table, out, plan)
+        else:
+            paths = st.figures(cfg, table, out, design)
     for p in paths:
         typer.echo(str(p))
 

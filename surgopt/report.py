@@ -52,7 +52,28 @@ def summary_sections(study, run, parts, top: int = 10, sort: str | None = None) 
     if summary and study.objective is None:
         for title, header, rows in summary.tables:
             sections.append((title, header, rows))
+    front = search_front(study, run, parts)
+    if front is not None:
+        sections.append(front)
     return sections
+
+
+def search_front(study, run, parts):
+    """(title, header, rows) of the Pareto front of a multi-objective search run, else None."""
+    from surgopt.results import config_of
+    from surgopt.studies.search import pareto_front
+
+    plan = study.search_plan(config_of(study, run)) if study.search_plan else None
+    if plan is None or len(plan.objectives) < 2 or not parts.num_rows:
+        return None
+    table = parts.table()
+    cols = [c for c, _ in plan.objectives]
+    values = np.column_stack([table[c].to_numpy(zero_copy_only=False) for c in cols])
+    idx = pareto_front(values, [d for _, d in plan.objectives])
+    names = list(study.key_columns[:1]) + list(plan.space) + [c for c in cols if c not in plan.space]
+    rows = sorted(([_fmt(table[c][int(i)].as_py()) for c in names] for i in idx), key=lambda r: r[-1])
+    title = "Pareto front of " + " vs ".join(f"{c} ({d[:3]})" for c, d in plan.objectives) + f": {len(idx)} designs"
+    return (title, names, rows)
 
 
 def summary_record(study, run, parts, top: int = 10, sort: str | None = None) -> dict:

@@ -22,3 +22,136 @@ def test_compass_search_respects_bounds_budget_and_fixed_coordinates():
     assert pts[:, 0].min() >= -1 and pts[:, 0].max() <= 1
     assert np.all(pts[:, 1] == 5.0)  # step 0: never moved
     assert max(visited, key=f)[0] == 1.0
+
+
+# --- Optuna searches ------------------------------------------------------------------------------
+
+import json  # noqa: E402
+import signal  # noqa: E402
+import subprocess  # noqa: E402
+import sys  # noqa: E402
+
+import pytest  # noqa: E402
+
+from surgopt.config import validate  # noqa: E402
+from surgopt.errors import ConfigError  # noqa: E402
+from surgopt.runner import run_study  # noqa: E402
+from surgopt.store import Store  # noqa: E402
+from surgopt.studies import get_study  # noqa: E402
+from surgopt.studies.search import pareto_front  # noqa: E402
+
+from conftest import single_run, single_table, wait_for_parts  # noqa: E402
+
+RCM_SEARCH = """
+[workspace]
+points_per_side = 9
+[search]
+method = "{method}"
+trials = {trials}
+batch = {batch}
+seed = 3
+"""
+
+
+def _search(tmp_path, name, method="cmaes", trials=60, batch=10):
+    cfg = tmp_path / f"{name}.toml"
+    cfg.write_text(RCM_SEARCH.format(method=method, trials=trials, batch=batch))
+    return cfg
+
+
+@pytest.mark.parametrize("method", ["cmaes", "tpe", "random"])
+def test_a_search_is_deterministic_bounded_and_its_parts_are_optunas_record(tmp_path, method):
+    import optuna
+    from optuna.storages import JournalStorage
+    from optuna.storages.journal import JournalFileBackend
+
+    rcm = get_study("rcm-grid")
+    cfg = validate({"workspace": {"points_per_side": 5},
+                    "search": {"method": method, "trials": 50, "batch": 10, "seed": 1}}, rcm.config_model, "x")
+    a = run_study(rcm, cfg, config_name="a", store=Store(tmp_path / "a"), jobs=1, quiet=True).table
+    b = run_study(rcm, cfg, config_name="b", store=Store(tmp_path / "b"), jobs=2, quiet=True).table
+    assert a.equals(b) and a.num_rows == 50
+    assert a["candidate_id"].to_pylist() == list(range(50))
+    g = cfg.candidates.grid
+    x, z = a["x_rcm_m"].to_numpy(), a["z_rcm_m"].to_numpy()
+    assert x.min() >= g.x_min_m and x.max() <= g.x_max_m and z.min() >= g.z_min_m and z.max() <= g.z_max_m
+    study = optuna.load_study(study_name="surgopt", storage=JournalStorage(JournalFileBackend(
+        str(single_run(tmp_path / "a").path / "optuna.journal"))))
+    trials = study.get_trials()
+    assert [t.number for t in trials] == list(range(50))
+    assert [t.params["x_rcm_m"] for t in trials] == x.tolist()
+    assert [t.value for t in trials] == a["gii"].to_pylist()
+
+
+def test_a_killed_search_resumes_to_the_same_trials(tmp_path):
+    ref = _search(tmp_path, "ref", trials=240, batch=20)
+    cli_args = [sys.executable, "-m", "surgopt", "rcm-grid"]
+    subprocess.run(cli_args + [str(ref), "--store", str(tmp_path / "ref"), "-q"], check=True, capture_output=True)
+    cfg = _search(tmp_path, "ref", trials=240, batch=20)
+    store = tmp_path / "killed"
+    proc = subprocess.Popen(cli_args + [str(cfg), "--store", str(store), "-q"], stdout=subprocess.PIPE,
+                            stderr=subprocess.PIPE, text=True)
+    try:
+        wait_for_parts(store, "rcm-grid", 3, proc, timeout=60)
+        proc.send_signal(signal.SIGKILL)
+        proc.wait()
+        assert not single_run(store).complete
+    except AssertionError:
+        proc.wait()  # finished first: the comparison below still holds
+    r = subprocess.run(cli_args + [str(cfg), "--store", str(store), "-q"], capture_output=True, text=True)
+    assert r.returncode == 0, r.stderr
+    assert single_table(store).equals(single_table(tmp_path / "ref"))
+
+
+def test_a_categorical_list_stays_categorical():
+    raven = get_study("raven-sweep")
+    cfg = validate({"sweep": {"alpha_deg": [45.0, 65.0], "iso_min": [0.5]},
+                    "geometry": {"step_mm": 8.0},
+                    "search": {"method": "tpe", "trials": 24, "batch": 8}}, raven.config_model, "x")
+    plan = raven.search_plan(cfg)
+    assert plan.space["alpha_deg"] == [45.0, 65.0] and plan.space["beta_deg"] == (5.0, 90.0)
+    import tempfile
+
+    with tempfile.TemporaryDirectory() as tmp:
+        t = run_study(raven, cfg, config_name="c", store=Store(tmp), jobs=1, quiet=True).table
+    assert set(t["alpha_deg"].to_pylist()) <= {45.0, 65.0} and set(t["iso_min"].to_pylist()) == {0.5}
+    assert len(set(t["beta_deg"].to_pylist())) > 5  # continuous
+    assert set(t["source"].to_pylist()) == {"tpe"}
+
+
+BAD_SEARCH = {
+    "unknown method": ({"method": "bogus"}, "search.method"),
+    "batch 0": ({"method": "tpe", "batch": 0}, "search.batch"),
+    "nsga2 with one objective": ({"method": "nsga2"}, "multi-objective"),
+    "cmaes with two": ({"method": "cmaes", "objectives": ["gii", "x_rcm_m"]}, "takes one objective"),
+    "unknown objective": ({"method": "tpe", "objectives": ["speed"]}, "not one of"),
+    "unknown key": ({"method": "tpe", "trails": 10}, "search.trails: unknown key (did you mean 'trials'?)"),
+}
+
+
+@pytest.mark.parametrize("case", sorted(BAD_SEARCH))
+def test_a_bad_search_section_gets_a_field_named_error(case):
+    section, words = BAD_SEARCH[case]
+    with pytest.raises(ConfigError, match="x.toml: ") as e:
+        validate({"search": section}, get_study("rcm-grid").config_model, "x.toml")
+    assert words in str(e.value), str(e.value)
+
+
+def test_pareto_front_and_the_nsga2_summary(tmp_path):
+    v = [[1, 5], [2, 4], [3, 3], [2, 2], [1, 1], [3, 5]]
+    assert sorted(pareto_front(v, ["maximize", "maximize"]).tolist()) == [5]
+    assert sorted(pareto_front(v, ["maximize", "minimize"]).tolist()) == [2, 3, 4]  # (3,3), (2,2), (1,1)
+    cfg = tmp_path / "n.toml"
+    cfg.write_text('[workspace]\npoints_per_side = 5\n[search]\nmethod = "nsga2"\ntrials = 40\nbatch = 20\n'
+                   'objectives = ["gii", "-x_rcm_m"]\n')
+    store = tmp_path / "store"
+    subprocess.run([sys.executable, "-m", "surgopt", "rcm-grid", str(cfg), "--store", str(store), "-q"], check=True,
+                   capture_output=True)
+    r = subprocess.run([sys.executable, "-m", "surgopt", "summarize", "--store", str(store), "--format", "markdown"],
+                       capture_output=True, text=True, check=True)
+    assert "Pareto front of gii (max) vs x_rcm_m (min)" in r.stdout
+    out = subprocess.run([sys.executable, "-m", "surgopt", "plot", "--store", str(store), "--out", str(tmp_path / "f")],
+                         capture_output=True, text=True, check=True).stdout
+    assert "search_pareto_front.png" in out
+    assert json.loads(subprocess.run([sys.executable, "-m", "surgopt", "runs", "--store", str(store), "--format", "json"],
+                                     capture_output=True, text=True).stdout)[0]["rows"] == 40

@@ -163,3 +163,22 @@ def tell(study, trials, values: list[list[float]]) -> None:
             study.tell(trial, v if len(v) > 1 else v[0])
         else:
             study.tell(trial, state=optuna.trial.TrialState.FAIL)
+
+
+def pareto_front(values: np.ndarray, directions: list[str]) -> np.ndarray:
+    """Indices of the non-dominated rows of ``values`` (rows x objectives) for these directions."""
+    v = np.asarray(values, dtype=float) * np.array([1.0 if d == "maximize" else -1.0 for d in directions])
+    ok = np.all(np.isfinite(v), axis=1)
+    keep = []
+    for i in np.flatnonzero(ok):
+        dominated = np.any(np.all(v[ok] >= v[i], axis=1) & np.any(v[ok] > v[i], axis=1))
+        if not dominated:
+            keep.append(i)
+    return np.array(keep, dtype=int)
+
+
+def best_so_far(values: np.ndarray, direction: str) -> np.ndarray:
+    """Running best of one objective in trial order (for the convergence figure)."""
+    v = np.asarray(values, dtype=float)
+    v = np.where(np.isfinite(v), v, -np.inf if direction == "maximize" else np.inf)
+    return np.maximum.accumulate(v) if direction == "maximize" else np.minimum.accumulate(v)

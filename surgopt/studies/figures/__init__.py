@@ -46,3 +46,35 @@ def save(fig, path: Path) -> Path:
     fig.savefig(path, dpi=110, bbox_inches="tight")
     pyplot().close(fig)
     return path
+
+
+def search_figures(cfg, table, out: Path, plan) -> list[Path]:
+    """An optimiser's run: best objective against trials (one objective), or the Pareto front over all
+    trials (several), with the trials in grey."""
+    from surgopt.studies.search import best_so_far, pareto_front
+
+    plt = pyplot()
+    c = columns(table)
+    order = np.argsort(c[next(iter(c))], kind="stable")  # the first column is the trial number
+    if len(plan.objectives) == 1:
+        col, direction = plan.objectives[0]
+        fig, ax = plt.subplots(figsize=(5.6, 3.8))
+        ax.plot(np.arange(1, len(order) + 1), c[col][order], ".", color="0.75", ms=3, label="trials")
+        ax.plot(np.arange(1, len(order) + 1), best_so_far(c[col][order], direction), "-", label="best so far")
+        ax.set_xlabel("trial")
+        ax.set_ylabel(col)
+        ax.set_title(f"{plan.spec.method}: best {col} {np.nanmax(c[col]) if direction == 'maximize' else np.nanmin(c[col]):.6g} "
+                     f"after {len(order)} trials (seed {plan.spec.seed})", fontsize=9)
+        ax.legend(fontsize=8)
+        return [save(fig, out / "search_convergence.png")]
+    (cx, dx), (cy, dy) = plan.objectives[:2]
+    idx = pareto_front(np.column_stack([c[cx], c[cy]]), [dx, dy])
+    fig, ax = plt.subplots(figsize=(5.6, 4.2))
+    ax.plot(c[cx], c[cy], ".", color="0.75", ms=3, label="trials")
+    f = idx[np.argsort(c[cx][idx])]
+    ax.plot(c[cx][f], c[cy][f], "o-", ms=4, label=f"Pareto front ({len(idx)})")
+    ax.set_xlabel(f"{cx} ({dx})")
+    ax.set_ylabel(f"{cy} ({dy})")
+    ax.set_title(f"{plan.spec.method}: {len(c[cx])} trials", fontsize=9)
+    ax.legend(fontsize=8)
+    return [save(fig, out / "search_pareto_front.png")]
