@@ -28,7 +28,7 @@ from surgopt.studies.raven_sweep_config import (  # noqa: F401
     Sweep,
     values,
 )
-from surgopt.studies.search import SearchPlan, SearchSpec, compass_search, objectives_of
+from surgopt.studies.search import SearchPlan, compass_search, objectives_of, optimiser_of
 
 NAME = "raven-sweep"
 HELP = """Raven IV port placement and link design (Li, Glozman, Milutinovic, Rosen, ICRA 2011: eqs. 1-43,
@@ -197,10 +197,7 @@ def distinct_geometries(cfg: RavenSweepConfig) -> int:
     return len(seen)
 
 
-def optimiser(cfg: RavenSweepConfig) -> SearchSpec | None:
-    """The [search] optimiser of this config, or None (the grid, or refine)."""
-    s = cfg.search
-    return s if isinstance(s, SearchSpec) and s.method != "grid" else None
+optimiser = optimiser_of  # the [search] optimiser of a config, or None (the grid, or refine)
 
 
 def search_plan(cfg: RavenSweepConfig) -> SearchPlan | None:

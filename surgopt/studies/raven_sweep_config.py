@@ -9,7 +9,7 @@ from pydantic import Discriminator, Field, Tag, field_validator, model_validator
 
 from surgopt.config import StrictModel
 from surgopt.robots import raven_iv
-from surgopt.studies.search import SearchSpec
+from surgopt.studies.search import check_objectives, search_field
 
 #: The design parameters, in the order of a design vector (refine starts, rows).
 PARAMS = ("alpha_deg", "beta_deg", "phi_x_deg", "phi_y_deg", "phi_z_deg", "bx_mm", "by_mm", "iso_min")
@@ -123,18 +123,13 @@ class Refine(StrictModel):
 class RavenSweepConfig(StrictModel):
     sweep: Sweep = Sweep()
     geometry: Geometry = Geometry()
-    search: Annotated[Union[Annotated[Literal["grid", "refine"], Tag("<mode>")],
-                            Annotated[SearchSpec, Tag("<optimiser>")]],
-                      Discriminator(lambda v: "<optimiser>" if isinstance(v, (dict, SearchSpec)) else "<mode>")] = Field(
+    search: search_field("grid", "refine") = Field(
         "grid", description="'grid' (the sweep), 'refine' (filled by --refine), or a [search] table (an optimiser)")
     refine: Refine = Refine()
 
     @model_validator(mode="after")
     def _search_objectives_are_columns(self):
-        if isinstance(self.search, SearchSpec):
-            bad = [o for o in self.search.objectives or [] if o.lstrip("-") not in SEARCH_OBJECTIVES]
-            if bad:
-                raise ValueError(f"search.objectives: {bad[0]!r} is not one of {', '.join(SEARCH_OBJECTIVES)}")
+        check_objectives(self.search, SEARCH_OBJECTIVES)
         return self
 
     @model_validator(mode="after")

@@ -8,16 +8,16 @@ the RCM, for a 121 x 121 x-z grid of candidates (Fig. 3) or a list (Table I).
 from __future__ import annotations
 
 import math
-from typing import Annotated, Literal, Union
+from typing import Annotated, Literal
 
 import numpy as np
-from pydantic import Discriminator, Field, Tag, model_validator
+from pydantic import Field, model_validator
 
 from surgopt.config import StrictModel
 from surgopt.metrics import global_isotropy_index
 from surgopt.robots import pa10_7c
 from surgopt.studies import Estimate, Flag, Study, Summary, figures_in, peak_bytes
-from surgopt.studies.search import SearchPlan, SearchSpec, objectives_of
+from surgopt.studies.search import SearchPlan, SearchSpec, check_objectives, objectives_of, optimiser_of, search_field
 
 NAME = "rcm-grid"
 HELP = """Global Isotropy Index of candidate remote-centre-of-motion locations for a PA10-7C
@@ -137,19 +137,14 @@ class RcmGridConfig(StrictModel):
     robot: Robot = Robot()
     workspace: Workspace = Workspace()
     candidates: Candidates = Candidates()
-    search: Annotated[Union[Annotated[Literal["full", "cull"], Tag("<mode>")],
-                            Annotated[SearchSpec, Tag("<optimiser>")]],
-                      Discriminator(lambda v: "<optimiser>" if isinstance(v, (dict, SearchSpec)) else "<mode>")] = Field(
+    search: search_field("full", "cull") = Field(
         "full", description="'full' map, 'cull' (exact argmax), or a [search] table (an optimiser over x, z)")
 
     @model_validator(mode="after")
     def _search_needs_a_grid(self):
-        if isinstance(self.search, SearchSpec):
-            if self.candidates.list_m is not None:
-                raise ValueError("a [search] optimises over candidates.grid's x and z ranges: give a grid, not list_m")
-            bad = [o for o in self.search.objectives or [] if o.lstrip("-") not in SEARCH_OBJECTIVES]
-            if bad:
-                raise ValueError(f"search.objectives: {bad[0]!r} is not one of {', '.join(SEARCH_OBJECTIVES)}")
+        if isinstance(self.search, SearchSpec) and self.candidates.list_m is not None:
+            raise ValueError("a [search] optimises over candidates.grid's x and z ranges: give a grid, not list_m")
+        check_objectives(self.search, SEARCH_OBJECTIVES)
         return self
 
 
@@ -161,10 +156,7 @@ Config = RcmGridConfig
 # ---------------------------------------------------------------------------
 
 
-def optimiser(cfg: RcmGridConfig) -> SearchSpec | None:
-    """The [search] optimiser of this config, or None (the full map or the cull)."""
-    s = cfg.search
-    return s if isinstance(s, SearchSpec) and s.method != "grid" else None
+optimiser = optimiser_of  # the [search] optimiser of a config, or None (the full map or the cull)
 
 
 def search_plan(cfg: RcmGridConfig) -> SearchPlan | None:

@@ -54,7 +54,7 @@ def compass_search(objective: Callable[[np.ndarray], float], start: Sequence[flo
 # ---------------------------------------------------------------------------
 
 from dataclasses import dataclass  # noqa: E402
-from typing import Annotated, Any, Literal  # noqa: E402
+from typing import Annotated, Any, Literal, Union  # noqa: E402
 
 from pydantic import Field, model_validator  # noqa: E402
 
@@ -88,6 +88,33 @@ class SearchSpec(StrictModel):
         if self.method in ("cmaes",) and n > 1:
             raise ValueError("method 'cmaes' takes one objective (use 'nsga2' or 'tpe' for several)")
         return self
+
+
+def _search_form(value) -> str:
+    return "<optimiser>" if isinstance(value, (dict, SearchSpec)) else "<mode>"
+
+
+def search_field(*modes: str):
+    """The type of a study's ``search`` field: one of its own modes (a string, e.g. "full" | "cull") or a
+    [search] table (an optimiser). The string default keeps existing configs' store keys unchanged."""
+    from pydantic import Discriminator, Tag
+
+    return Annotated[Union[Annotated[Literal[modes], Tag("<mode>")], Annotated[SearchSpec, Tag("<optimiser>")]],
+                     Discriminator(_search_form)]
+
+
+def optimiser_of(cfg) -> SearchSpec | None:
+    """A config's [search] optimiser, or None (its study's own mode)."""
+    s = getattr(cfg, "search", None)
+    return s if isinstance(s, SearchSpec) and s.method != "grid" else None
+
+
+def check_objectives(search, allowed: tuple[str, ...]) -> None:
+    """A ValueError (for a model validator) if a [search] objective is not one of the ``allowed`` columns."""
+    if isinstance(search, SearchSpec):
+        bad = [o for o in search.objectives or [] if o.lstrip("-") not in allowed]
+        if bad:
+            raise ValueError(f"search.objectives: {bad[0]!r} is not one of {', '.join(allowed)}")
 
 
 @dataclass(frozen=True)
