@@ -192,7 +192,7 @@ def plot(
         if plan is not None:
             from surgopt.studies.figures import search_figures
 
-            paths = search_figures(cfg, table, out, plan)
+            paths = search_figures(cfg, table, out, plan, reference=_grid_best(Store(store), st, cfg, plan))
         else:
             paths = st.figures(cfg, table, out, design)
     for p in paths:
@@ -322,3 +322,22 @@ def check(
     if problems or diffs:
         raise typer.Exit(1)
     typer.echo(f"OK: {current.num_rows} rows match {baseline} (rtol={rtol:g}, atol={atol:g})")
+
+
+def _grid_best(store, study, cfg, plan):
+    """(label, value) of the best objective of the same config's own sweep (the grid), if it is stored."""
+    from surgopt.config import study_key
+
+    if len(plan.objectives) != 1:
+        return None
+    col, direction = plan.objectives[0]
+    default = study.config_model.model_fields["search"].default
+    grid_cfg = cfg.model_copy(update={"search": default})
+    try:
+        run = store.open(study.name, study_key(study.name, grid_cfg, study.kernel_version))
+    except Exception:  # noqa: BLE001 - no reference line then
+        return None
+    if run is None or not run.complete:
+        return None
+    values = run.parts(study.schema()).column(col)
+    return (f"the grid's best ({len(values):,} designs)", float(values.max() if direction == "maximize" else values.min()))

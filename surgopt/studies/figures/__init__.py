@@ -48,9 +48,9 @@ def save(fig, path: Path) -> Path:
     return path
 
 
-def search_figures(cfg, table, out: Path, plan) -> list[Path]:
-    """An optimiser's run: best objective against trials (one objective), or the Pareto front over all
-    trials (several), with the trials in grey."""
+def search_figures(cfg, table, out: Path, plan, reference=None) -> list[Path]:
+    """An optimiser's run: best objective against trials (one objective; ``reference`` = (label, value)
+    draws e.g. the grid's best as a line), or the Pareto front over all trials (several), trials in grey."""
     from surgopt.studies.search import best_so_far, pareto_front
 
     plt = pyplot()
@@ -61,6 +61,8 @@ def search_figures(cfg, table, out: Path, plan) -> list[Path]:
         fig, ax = plt.subplots(figsize=(5.6, 3.8))
         ax.plot(np.arange(1, len(order) + 1), c[col][order], ".", color="0.75", ms=3, label="trials")
         ax.plot(np.arange(1, len(order) + 1), best_so_far(c[col][order], direction), "-", label="best so far")
+        if reference is not None:
+            ax.axhline(reference[1], color="C3", ls="--", lw=1, label=f"{reference[0]}: {reference[1]:.6g}")
         ax.set_xlabel("trial")
         ax.set_ylabel(col)
         ax.set_title(f"{plan.spec.method}: best {col} {np.nanmax(c[col]) if direction == 'maximize' else np.nanmin(c[col]):.6g} "
