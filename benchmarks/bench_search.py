@@ -26,7 +26,7 @@ def main(trials: int) -> None:
     from surgopt.studies import search as S
 
     optuna.logging.set_verbosity(optuna.logging.WARNING)
-    spec = R.SearchSpec(method="cmaes", trials=trials, batch=64, seed=0)
+    spec = S.SearchSpec(method="cmaes", trials=trials, batch=64, seed=0)
     cfg = R.Config().model_copy(update={"search": spec})
     plan = R.search_plan(cfg)
     R.warm_up(cfg)
