@@ -229,24 +229,30 @@ def _run_search(study, cfg, plan, run, store, jobs, quiet, total, schema, backen
     st = S.open_study(run.path / "optuna.journal", plan, 0)
     for k in range(total):
         first, n = k * spec.batch, min(spec.batch, spec.trials - k * spec.batch)
-        trials = [t for t in st.get_trials(deepcopy=False) if first <= t.number < first + n]
+        trials = sorted((t for t in st.get_trials(deepcopy=False) if first <= t.number < first + n),
+                        key=lambda t: t.number)
         if len(trials) == n and all(t.state.is_finished() for t in trials) and k in run.done_tasks():
             continue
-        st.sampler = S.sampler_for(spec, k)
-        pending = [S.running_trial(st, t) for t in trials if not t.state.is_finished()]
-        if any(t.state.is_finished() for t in trials):
-            raise StoreError(f"{run.path}: Optuna's journal has told part of batch {k}; delete the run and search again")
-        pending += S.ask(st, plan, n - len(pending))
-        points = [[float(t.params[name]) for name in names] for t in pending]
-        if k not in run.done_tasks():
+        if k not in run.done_tasks():  # not evaluated yet: take up the trials asked before, ask the rest
+            if any(t.state.is_finished() for t in trials):
+                raise StoreError(f"{run.path}: Optuna's journal has told trials of batch {k}, whose part is not "
+                                 f"stored; delete the run and search again")
+            st.sampler = S.sampler_for(spec, k)
+            pending = [S.running_trial(st, t) for t in trials] + S.ask(st, plan, n - len(trials))
+            points = [[float(x.params[name]) for name in names] for x in pending]
             cfg_k = cfg.model_copy(update={"search": spec.model_copy(update={"points": points})})
             _dispatch(study, cfg_k, spec.batch, [k], run, store, jobs, quiet, total, schema, backend, dask)
+            rows = list(range(n))
+        else:  # stored, but (some of) its trials not told: killed while telling
+            pending = [S.running_trial(st, t) for t in trials if not t.state.is_finished()]
+            rows = [t.number - first for t in trials if not t.state.is_finished()]
+            points = [[float(t.params[name]) for name in names] for t in trials if not t.state.is_finished()]
         table = run.part_table(k, schema)
-        stored = [[float(table[name][r].as_py()) for name in names] for r in range(table.num_rows)]
+        stored = [[float(table[name][r].as_py()) for name in names] for r in rows]
         if stored != points:
             raise StoreError(f"{run.path}: part {k} holds other trials than Optuna's journal; delete the run "
                              f"and search again")
-        S.tell(st, pending, [[float(table[c][r].as_py()) for c, _ in plan.objectives] for r in range(table.num_rows)])
+        S.tell(st, pending, [[float(table[c][r].as_py()) for c, _ in plan.objectives] for r in rows])
 
 
 #: How many times the chunks of a worker process that died (killed, out of memory) are retried.

@@ -155,3 +155,39 @@ def test_pareto_front_and_the_nsga2_summary(tmp_path):
     assert "search_pareto_front.png" in out
     assert json.loads(subprocess.run([sys.executable, "-m", "surgopt", "runs", "--store", str(store), "--format", "json"],
                                      capture_output=True, text=True).stdout)[0]["rows"] == 40
+
+
+@pytest.mark.parametrize("stop_in", ["evaluation", "tell"])
+def test_a_search_stopped_between_ask_store_and_tell_resumes_to_the_same_trials(tmp_path, monkeypatch, stop_in):
+    """The windows a kill -9 rarely hits, made to happen: after a batch's asks (before its part), and
+    in the middle of telling a stored batch."""
+    from surgopt.studies import search as S
+
+    rcm = get_study("rcm-grid")
+    cfg = validate({"workspace": {"points_per_side": 5},
+                    "search": {"method": "cmaes", "trials": 60, "batch": 10, "seed": 2}}, rcm.config_model, "x")
+    ref = run_study(rcm, cfg, config_name="ref", store=Store(tmp_path / "ref"), jobs=1, quiet=True).table
+    real_tell, real_compute = S.tell, rcm.compute_task
+    calls = {"n": 0}
+
+    def tell_then_stop(study, trials, values):
+        calls["n"] += 1
+        if calls["n"] == 3:  # batch 2: tell 4 of its 10 trials, then stop
+            real_tell(study, trials[:4], values[:4])
+            raise KeyboardInterrupt
+        real_tell(study, trials, values)
+
+    if stop_in == "tell":
+        monkeypatch.setattr(S, "tell", tell_then_stop)
+    else:
+        def compute_then_stop(c, chunk, index):
+            if index == 3:
+                raise KeyboardInterrupt
+            return real_compute(c, chunk, index)
+
+        monkeypatch.setattr("surgopt.runner._compute", lambda name, c, chunk, i: (i, compute_then_stop(c, chunk, i)))
+    with pytest.raises(KeyboardInterrupt):
+        run_study(rcm, cfg, config_name="x", store=Store(tmp_path / "x"), jobs=1, quiet=True)
+    monkeypatch.undo()
+    again = run_study(rcm, cfg, config_name="x", store=Store(tmp_path / "x"), jobs=1, quiet=True).table
+    assert again.equals(ref)
