@@ -268,7 +268,7 @@ def _print_configs(todo) -> None:
 def _dry_run(study, todo, store, jobs, chunk_size, budget) -> None:
     """What each run would be: size, chunks, store key and state, estimated time and memory."""
     from surgopt.config import study_key
-    from surgopt.runner import _duration, check_budget
+    from surgopt.runner import check_budget, duration_text, wall_seconds
 
     rows = []
     for v in todo:
@@ -282,13 +282,12 @@ def _dry_run(study, todo, store, jobs, chunk_size, budget) -> None:
         chunk = chunk_size or (run.manifest["chunk"] if run else study.auto_chunk(v.config))
         est = study.estimate(v.config) if study.estimate else None
         try:
-            check_budget(study, v.config, jobs, budget["max_hours"], budget["max_memory_bytes"])
+            check_budget(study, v.config, jobs, budget["max_hours"], budget["max_memory_bytes"], est=est)
             verdict = "within budget"
         except Exception as exc:  # noqa: BLE001 - shown, not raised: this is a dry run
             verdict = f"REFUSED: {str(exc).split(';')[0]}"
-        wall = est.seconds_one_core / max(1, min(jobs, __import__("os").cpu_count() or 1)) if est else None
         rows.append([v.config_name, f"{est.items:,} {est.what}" if est else "?", study.n_tasks(v.config, chunk),
-                     key[:12], state, _duration(wall) if est else "?",
+                     key[:12], state, duration_text(wall_seconds(est, jobs)) if est else "?",
                      f"{est.peak_bytes / 2 ** 20:,.0f} MB" if est else "?", verdict])
     _print_table(_console(), f"{study.name} --dry-run (nothing computed or written)",
                  ["config", "size", "chunks", "key", "store", f"time on {jobs} core(s)", "peak memory", "budget"], rows)

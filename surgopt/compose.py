@@ -15,11 +15,11 @@ from surgopt.config import (
     ConfigError,
     embedded_default_text,
     parse_overrides,
+    parse_text,
     read_config_data,
     validate,
     with_override,
 )
-from surgopt.config import _parse_text as parse_text
 
 
 @dataclass

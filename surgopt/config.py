@@ -59,7 +59,7 @@ def _yaml_loader():
     return StrictLoader
 
 
-def _parse_text(text: str, source: str, suffix: str) -> Any:
+def parse_text(text: str, source: str, suffix: str) -> Any:
     """TOML or YAML text -> data. An empty file (or one with comments only) is an empty table in both."""
     if suffix == ".toml":
         try:
@@ -158,7 +158,7 @@ def read_config_data(path: str | Path) -> Any:
         raise ConfigError(source, "is a directory, not a config file") from None
     except (OSError, UnicodeDecodeError) as exc:
         raise ConfigError(source, f"cannot read: {exc}") from None
-    return _parse_text(text, source, p.suffix.lower())
+    return parse_text(text, source, p.suffix.lower())
 
 
 def load_config(path: str | Path, model: type[M]) -> M:
@@ -277,7 +277,7 @@ def embedded_default_text(filename: str) -> str:
 
 def load_embedded(filename: str, model: type[M]) -> M:
     source = f"<embedded default {filename}>"
-    return validate(_parse_text(embedded_default_text(filename), source, ".toml"), model, source)
+    return validate(parse_text(embedded_default_text(filename), source, ".toml"), model, source)
 
 
 def canonical_json(model: BaseModel) -> str:

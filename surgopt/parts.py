@@ -15,18 +15,23 @@ import numpy as np
 class Parts:
     """Re-iterable sequence of Arrow tables sharing one schema."""
 
-    def __init__(self, tables: Callable[[], Iterable], num_rows: int, schema):
-        self._tables = tables
+    def __init__(self, tables: Callable[..., Iterable], num_rows: int, schema):
+        self._tables = tables  # tables(columns=None): the parts, with only these columns if given
         self.num_rows = num_rows
         self.schema = schema
 
     @classmethod
     def of_table(cls, table) -> "Parts":
         """One in-memory table as Parts (tests, the Python API, small runs)."""
-        return cls(lambda: [table], table.num_rows, table.schema)
+        return cls(lambda columns=None: [table if columns is None else table.select(columns)], table.num_rows,
+                   table.schema)
 
     def __iter__(self) -> Iterator:
         return iter(self._tables())
+
+    def only(self, columns: list[str] | None) -> Iterator:
+        """The parts with only ``columns`` read (Parquet reads just those: a pass over one column is cheap)."""
+        return iter(self._tables(columns))
 
     def table(self):
         """Everything as one table (only where the whole run must be in memory, e.g. baselines)."""
@@ -35,14 +40,15 @@ class Parts:
         tables = list(self)
         return pa.concat_tables(tables) if tables else self.schema.empty_table()
 
-    def count(self, predicate: Callable) -> int:
-        """Rows where ``predicate(part)`` (a boolean array or Arrow mask) is true."""
-        return int(sum(int(np.count_nonzero(_np(predicate(t)))) for t in self))
+    def count(self, predicate: Callable, columns: list[str] | None = None) -> int:
+        """Rows where ``predicate(part)`` (a boolean array or Arrow mask) is true; ``columns``: the ones
+        the predicate reads (only those are read), or None for all."""
+        return int(sum(int(np.count_nonzero(_np(predicate(t)))) for t in self.only(columns)))
 
     def column(self, name: str, where: Callable | None = None) -> np.ndarray:
         """One column over all parts (optionally only rows where ``where(part)``) as a numpy array."""
         chunks = []
-        for t in self:
+        for t in (self.only([name]) if where is None else self):
             v = t[name].to_numpy(zero_copy_only=False)
             chunks.append(v[_np(where(t))] if where is not None else v)
         return np.concatenate(chunks) if chunks else np.zeros(0)

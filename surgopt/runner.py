@@ -95,7 +95,10 @@ def physical_memory_bytes() -> int | None:
         return None
 
 
-def _duration(seconds: float) -> str:
+def duration_text(seconds: float) -> str:
+    """"40 s", "12 min", "8 h 35 min", "149 days"."""
+    if seconds < 10:
+        return f"{seconds:.1f} s"
     if seconds < 120:
         return f"{seconds:.0f} s"
     if seconds < 7200:
@@ -105,15 +108,21 @@ def _duration(seconds: float) -> str:
     return f"{seconds / 86400:,.0f} days"
 
 
-def check_budget(study, cfg, jobs: int, max_hours: float | None, max_memory_bytes: int | None) -> None:
+def wall_seconds(est, jobs: int) -> float:
+    """An estimate's single-core seconds spread over ``jobs`` workers (at most this machine's cores)."""
+    return est.seconds_one_core / max(1, min(jobs, os.cpu_count() or 1))
+
+
+def check_budget(study, cfg, jobs: int, max_hours: float | None, max_memory_bytes: int | None, est=None) -> None:
     """Refuse, before anything runs or is written, a config whose estimated work or memory is past the
-    budget; the message gives the estimate and the flag that lifts the limit."""
+    budget; the message gives the estimate and the flag that lifts the limit. ``est``: the study's
+    estimate of ``cfg`` when already computed."""
     if study.estimate is None:
         return
-    est = study.estimate(cfg)
-    wall = est.seconds_one_core / max(1, min(jobs, os.cpu_count() or 1))
+    est = est or study.estimate(cfg)
+    wall = wall_seconds(est, jobs)
     if max_hours is not None and wall > max_hours * 3600:
-        raise UsageError(f"this config is {est.items:,} {est.what}, about {_duration(wall)} on {jobs} core(s) "
+        raise UsageError(f"this config is {est.items:,} {est.what}, about {duration_text(wall)} on {jobs} core(s) "
                          f"(estimate), past the {max_hours:g} h budget; pass --max-hours "
                          f"{math.ceil(wall / 3600 * 1.2)} to run it anyway, or make it smaller")
     if max_memory_bytes is None:
@@ -150,12 +159,12 @@ def run_study(study, cfg, *, config_name: str, store: Store, jobs: int = DEFAULT
     t0 = time.perf_counter()
     schema = study.schema()
     key = study_key(study.name, cfg, study.kernel_version)
-    check_budget(study, cfg, jobs, max_hours, max_memory_bytes)
     if not force:
         run = _stored_run(store, study, key, say)
-        if run is not None:
+        if run is not None:  # nothing to compute: no budget to hold it to
             log.info("cache hit: %s %s in %s", study.name, key[:12], run.path)
             return RunResult(run, run.parts(schema), True, 0, time.perf_counter() - t0)
+    check_budget(study, cfg, jobs, max_hours, max_memory_bytes)
 
     lock = store.lock(study.name, key, on_wait=lambda who: say(f"waiting for {who} to finish this study ..."))
     cluster = _dask_client(scheduler, jobs) if backend == "dask" else contextlib.nullcontext()

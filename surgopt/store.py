@@ -112,6 +112,10 @@ def check_manifest(manifest, where: Path) -> dict:
     return manifest
 
 
+class RunReplaced(StoreError):
+    """The run was replaced (a --force rerun swapped it in) while it was being read."""
+
+
 @dataclass
 class Run:
     """One stored study: a folder holding a manifest and Parquet parts."""
@@ -183,26 +187,14 @@ class Run:
         If the run was replaced while being read (a ``--force`` rerun), the manifest is read again.
         """
         import pyarrow as pa
-        import pyarrow.parquet as pq
 
         for attempt in range(READ_RETRIES + 1):
-            tables, gone = [], False
-            for i in sorted(self.manifest["parts"], key=int):
-                problem, data = self.part_problem(i)
-                if problem and attempt < READ_RETRIES and self._reload():
-                    gone = True  # the run was replaced while we read it: start again from its new manifest
-                    break
-                if problem:
-                    raise StoreError(f"{self.study} run {self.key[:12]} is damaged: {self.manifest['parts'][i]['file']} "
-                                     f"{problem}; run {self.repair_hint()} again to recompute it "
-                                     f"(the parts that check out are kept)")
-                try:
-                    tables.append(pq.read_table(pa.BufferReader(data), schema=schema))
-                except (pa.ArrowException, ValueError) as exc:
-                    raise StoreError(f"{self.path / self.manifest['parts'][i]['file']}: passes its checksum but "
-                                     f"does not match the study's schema ({exc})") from None
-            if not gone:
+            try:
+                tables = list(self._iter_tables(schema))
                 break
+            except RunReplaced:
+                if attempt == READ_RETRIES:
+                    raise
         if not tables:
             if schema is None:
                 raise StoreError(f"{self.path}: no parts written yet")
@@ -214,7 +206,7 @@ class Run:
         summaries use, so that memory does not grow with the run."""
         from surgopt.parts import Parts
 
-        return Parts(lambda: self._iter_tables(schema), self.rows,
+        return Parts(lambda columns=None: self._iter_tables(schema, columns), self.rows,
                      schema if schema is not None else self._first_schema())
 
     def _first_schema(self):
@@ -226,33 +218,32 @@ class Run:
         raise StoreError(f"{self.path}: no parts written yet")
 
     def _verified(self, i: str) -> bytes:
+        """The bytes of part ``i`` once they pass their check; RunReplaced if the run changed under us."""
         problem, data = self.part_problem(i)
         if problem and self._reload():
-            raise StoreError(f"{self.study} run {self.key[:12]} was replaced while it was read (a --force rerun); "
-                             f"read it again")
+            raise RunReplaced(f"{self.study} run {self.key[:12]} was replaced while it was read (a --force rerun); "
+                              f"read it again")
         if problem:
             raise StoreError(f"{self.study} run {self.key[:12]} is damaged: {self.manifest['parts'][i]['file']} "
                              f"{problem}; run {self.repair_hint()} again to recompute it "
                              f"(the parts that check out are kept)")
         return data
 
-    def part_table(self, index: int, schema=None):
-        """One stored part (task ``index``), verified, as an Arrow table."""
+    def part_table(self, index, schema=None, columns=None):
+        """One stored part (task ``index``), verified, as an Arrow table (only ``columns``, if given)."""
         import pyarrow as pa
         import pyarrow.parquet as pq
 
-        return pq.read_table(pa.BufferReader(self._verified(str(index))), schema=schema)
+        i = str(index)
+        try:
+            return pq.read_table(pa.BufferReader(self._verified(i)), schema=schema, columns=columns)
+        except (pa.ArrowException, ValueError) as exc:
+            raise StoreError(f"{self.path / self.manifest['parts'][i]['file']}: passes its checksum but "
+                             f"does not match the study's schema ({exc})") from None
 
-    def _iter_tables(self, schema):
-        import pyarrow as pa
-        import pyarrow.parquet as pq
-
+    def _iter_tables(self, schema, columns=None):
         for i in sorted(self.manifest["parts"], key=int):
-            try:
-                yield pq.read_table(pa.BufferReader(self._verified(i)), schema=schema)
-            except (pa.ArrowException, ValueError) as exc:
-                raise StoreError(f"{self.path / self.manifest['parts'][i]['file']}: passes its checksum but "
-                                 f"does not match the study's schema ({exc})") from None
+            yield self.part_table(i, schema, columns)
 
     def _reload(self) -> bool:
         """Re-read the manifest from disk; True if it changed (the run was replaced)."""
@@ -376,7 +367,7 @@ class Store:
         for f in path.glob(".*.tmp-*"):  # left by a killed writer; we hold the lock
             f.unlink()
         if run is not None and run.manifest.get("format") == FORMAT_VERSION:
-            for i in [i for i in run.manifest["parts"] if run.part_problem(i)[0]]:
+            for i in self.bad_parts(run):
                 _remove_path(path / run.manifest["parts"].pop(i)["file"])
             self._remove_unlisted_parts(run)
             return run

@@ -334,13 +334,14 @@ def paper_optimum_rank(parts):
     if hit.num_rows == 0:
         return None
     c = hit["cost"][0].as_py()
-    return parts.count(lambda t: t["cost"].to_numpy() > c) + 1, {k: hit[k][0].as_py() for k in hit.column_names}
+    rank = parts.count(lambda t: t["cost"].to_numpy() > c, columns=["cost"]) + 1
+    return rank, {k: hit[k][0].as_py() for k in hit.column_names}
 
 
 def summary(parts) -> Summary:
     """Designs with a common workspace, the best design by cost, the paper optimum's rank, the top 10
     (``parts``: a ``surgopt.parts.Parts``, read part by part)."""
-    with_ws = parts.count(lambda t: t["n_points"].to_numpy() > 0)
+    with_ws = parts.count(lambda t: t["n_points"].to_numpy() > 0, columns=["n_points"])
     headline = {"designs": parts.num_rows, "with_common_workspace": with_ws}
     top = parts.top("cost", 10)
     if top.num_rows:

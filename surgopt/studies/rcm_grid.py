@@ -385,7 +385,7 @@ def summary(parts) -> Summary:
     """Feasible count, the best candidate whose GII is exact, and the five best such candidates
     (``parts``: a ``surgopt.parts.Parts``, read part by part)."""
     n = parts.num_rows
-    feasible = parts.count(lambda t: t["feasible"])
+    feasible = parts.count(lambda t: t["feasible"], columns=["feasible"])
     counts = {"feasible": feasible, "infeasible": n - feasible}
     headline = {"candidates": n, "feasible": feasible}
     top = parts.top("gii", 5, where=lambda t: t["gii_is_exact"])

@@ -2,12 +2,18 @@
 
 ``compass_search``: derivative-free coordinate search inside box bounds (Kolda, Lewis & Torczon 2003,
 "Optimization by direct search", Sec. 3.5), a cheap local refinement of a grid's best designs.
+``SearchSpec`` / ``SearchPlan`` and the helpers below: Optuna optimisers ([search] sections), run
+batch by batch by ``surgopt.runner``.
 """
 from __future__ import annotations
 
-from typing import Callable, Sequence
+from dataclasses import dataclass
+from typing import Annotated, Any, Callable, Literal, Sequence, Union
 
 import numpy as np
+from pydantic import Field, model_validator
+
+from surgopt.config import StrictModel
 
 
 def compass_search(objective: Callable[[np.ndarray], float], start: Sequence[float],
@@ -53,12 +59,6 @@ def compass_search(objective: Callable[[np.ndarray], float], start: Sequence[flo
 # Optuna searches over a study's continuous design space ([search] method = "cmaes" | "tpe" | ...)
 # ---------------------------------------------------------------------------
 
-from dataclasses import dataclass  # noqa: E402
-from typing import Annotated, Any, Literal, Union  # noqa: E402
-
-from pydantic import Field, model_validator  # noqa: E402
-
-from surgopt.config import StrictModel  # noqa: E402
 
 METHODS = ("grid", "cmaes", "tpe", "nsga2", "random")
 
