@@ -99,7 +99,7 @@ def main():
     print(f"ratio kernel/numpy: {t_np / t_nb:.0f}x   (max relative difference {agree:.1e})")
 
     # the full map's kernel work on one core, in-process
-    rcms = S.candidate_rcms(cfg, S.candidate_xz(cfg))
+    rcms = S.candidate_rcms(cfg, S.candidate_xyz(cfg))
     sub = np.ascontiguousarray(rcms[::16])
     K.rcm_candidates_extremes(sub[:1], off, arm)  # load this signature
     t_map1 = best_of(lambda: K.rcm_candidates_extremes(sub, off, arm), 1)

@@ -52,7 +52,7 @@ def main():
     t1 = load_config(REPO / "configs" / "rcm_table1.toml", S.Config)
     grid = load_embedded(S.DEFAULT_CONFIG, S.Config)
     g = table_gii(t1)
-    xz = S.candidate_xz(t1)
+    xz = S.candidate_xyz(t1)[:, [0, 2]]
     print("| x_rcm (m) | z_rcm (m) | paper GII | ours | ours (4 d.p.) | match | diff |")
     print("|---|---|---|---|---|---|---|")
     for (x, z), p, o in zip(xz, PAPER_GII, g):

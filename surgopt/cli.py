@@ -177,7 +177,10 @@ def _study_command(study) -> None:
     params = [P("args", P.KEYWORD_ONLY, default=None, annotation=Annotated[Optional[list[str]], typer.Argument(
         help=f"{study.config_help} Then any KEY=VALUE overrides (dotted keys, e.g. workspace.points_per_side=9; "
              f"a comma list with --multirun).", show_default=False, metavar="[CONFIG] [KEY=VALUE]")])]
-    params += [P(f.dest, P.KEYWORD_ONLY, default=False, annotation=Annotated[bool, typer.Option(f.option, help=f.help)])
+    params += [P(f.dest, P.KEYWORD_ONLY, default=None if f.metavar else False,
+                 annotation=Annotated[Optional[str], typer.Option(f.option, help=f.help, metavar=f.metavar,
+                                                                  show_default=False)]
+                 if f.metavar else Annotated[bool, typer.Option(f.option, help=f.help)])
                for f in study.flags]
     shared = [("multirun", MultirunOpt, False), ("print_config", PrintConfigOpt, False), ("dry_run", DryRunOpt, False),
               ("store", StoreOpt, None), ("jobs", JobsOpt, 2), ("force", ForceOpt, False), ("quiet", QuietOpt, False)]
@@ -188,8 +191,9 @@ def _study_command(study) -> None:
     params += [P(name, P.KEYWORD_ONLY, default=default, annotation=ann) for name, ann, default in shared]
 
     def command(**kw) -> None:
-        flags = [f for f in study.flags if kw.pop(f.dest)]
-        _run_study_command(study, flags=flags, **kw)
+        given = [(f, kw.pop(f.dest)) for f in study.flags]
+        given = [(f, v) for f, v in given if v not in (None, False)]
+        _run_study_command(study, flags=given, **kw)
 
     command.__signature__ = inspect.Signature(params)
     command.__annotations__ = {p.name: p.annotation for p in params}
@@ -227,7 +231,9 @@ def _run_study_command(study, args, store, jobs, force, quiet, chunk_size=None, 
 
         backend = getattr(backend, "value", backend)
         config, overrides = _split_args(args)
-        updates = {k: v for f in flags if f.config_update for k, v in f.config_update.items()}
+        flags = [(f, True) if not isinstance(f, tuple) else f for f in flags]
+        updates = {k: v for f, value in flags for k, v in f.update(value).items()}
+        flags = [f for f, _ in flags]
         todo = variants(study, config, overrides, updates, multirun=multirun)
         if print_config:
             _print_configs(todo)

@@ -87,10 +87,16 @@ def variants(study, config: str | Path | None = None, overrides: list[str] | dic
     return out
 
 
+def context_for(config) -> dict:
+    """Validation context: paths in a config file are relative to its folder (the embedded default's
+    and the command line's: to the working directory)."""
+    return {"config_dir": str(Path(config).resolve().parent) if config else str(Path.cwd())}
+
+
 def validate_for(study, data: Any, source: str, config=None):
     """Validate for this study; when the data is another study's config, say which command it is for."""
     try:
-        return validate(data, study.config_model, source)
+        return validate(data, study.config_model, source, context_for(config))
     except ConfigError:
         from surgopt.studies import STUDIES, get_study
 
@@ -98,7 +104,7 @@ def validate_for(study, data: Any, source: str, config=None):
             if other == study.name:
                 continue
             try:
-                validate(data, get_study(other).config_model, source)
+                validate(data, get_study(other).config_model, source, context_for(config))
             except ConfigError:
                 continue
             if data:  # an empty file fits every study

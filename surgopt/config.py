@@ -127,13 +127,15 @@ def _loc(err: dict) -> tuple:
     return tuple(p for p in err["loc"] if not (isinstance(p, str) and p.startswith("<")))
 
 
-def validate(data: Any, model: type[M], source: str) -> M:
+def validate(data: Any, model: type[M], source: str, context: dict | None = None) -> M:
     """Validate parsed data; errors become one ConfigError naming the file and each field (up to
-    MAX_ERRORS_LISTED of them, in one line)."""
+    MAX_ERRORS_LISTED of them, in one line). ``context`` reaches the models' validators:
+    ``config_dir`` (paths in the config are relative to it), ``stored`` (a stored run's config: files
+    it names are not read again)."""
     if not isinstance(data, dict):
         raise ConfigError(source, "expected a table of settings at the top level")
     try:
-        return model.model_validate(data)
+        return model.model_validate(data, context=context)
     except ValidationError as exc:
         errors = exc.errors()
         first = errors[0]
@@ -163,7 +165,7 @@ def read_config_data(path: str | Path) -> Any:
 
 def load_config(path: str | Path, model: type[M]) -> M:
     """Read and validate a TOML or YAML config file."""
-    return validate(read_config_data(path), model, str(path))
+    return validate(read_config_data(path), model, str(path), {"config_dir": str(Path(path).resolve().parent)})
 
 
 # ---------------------------------------------------------------------------

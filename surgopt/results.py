@@ -106,7 +106,7 @@ def flat_config(config: dict, prefix: str = "") -> dict:
 
 
 def config_of(study, run: Run):
-    return study.config_model.model_validate(run.manifest["config"])
+    return study.config_model.model_validate(run.manifest["config"], context={"stored": True})
 
 
 @dataclass

@@ -23,7 +23,7 @@ def _all_rows(cfg, chunk):
 
 def test_table_I_reproduced():
     cfg = load_config(REPO / "configs" / "rcm_table1.toml", S.Config)
-    assert np.allclose(S.candidate_xz(cfg), TABLE_I[:, :2])
+    assert np.allclose(S.candidate_xyz(cfg)[:, [0, 2]], TABLE_I[:, :2])
     gii = _all_rows(cfg, 100)["gii"]
     paper = TABLE_I[:, 2]
     assert (np.round(gii, 4) == paper).sum() >= 11
@@ -95,7 +95,7 @@ def test_table_I_off_rows_match_at_the_grid_point_their_rounded_z_stands_for():
     base = load_embedded(S.DEFAULT_CONFIG, S.Config)
     rows = {(0.630, -0.390): 0.0340, (0.720, -0.370): 0.0107, (0.650, -0.160): 0.0139}
     pts = [[x, z] for x, z in rows] + [[x, round(z + 0.005, 3)] for x, z in rows]
-    cfg = base.model_copy(update={"candidates": S.Candidates(list_m=pts)})
+    cfg = base.model_copy(update={"candidates": S.Candidates(z_reference="shoulder", list_m=pts)})
     gii = S.compute_task(cfg, 100, 0)["gii"]
     paper = list(rows.values())
     assert [round(g, 4) for g in gii[:3]] != paper

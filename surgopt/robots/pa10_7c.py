@@ -60,3 +60,31 @@ MAX_JOINT_SPEED_RAD_S = {"S1": 1.0, "S2": 1.0, "S3": 2.0, "E1": 2.0,
 
 #: End-effector + surgical tool length (m) [LP07] Sec. III-B.
 TOOL_LENGTH_M = 0.587
+
+
+def dh_rows(links_m=LINKS_BIELEFELD_M, limits_deg=None, speeds_rad_s=None):
+    """The standard DH table above as ``DhRow``s for the generic chain (a = 0, theta offsets 0)."""
+    from surgopt.robots.chain import DhRow
+
+    limits_deg = {**JOINT_LIMIT_DEG, **(limits_deg or {})}
+    speeds_rad_s = {**MAX_JOINT_SPEED_RAD_S, **(speeds_rad_s or {})}
+    return tuple(DhRow(0.0, alpha, 0.0 if link is None else links_m[link], 0.0, -limits_deg[n], limits_deg[n],
+                       speeds_rad_s[n], n)
+                 for n, alpha, link in zip(JOINT_NAMES, DH_ALPHA_DEG, DH_D_LINK))
+
+
+def _model():
+    from surgopt.robots.models import ArmModel
+
+    return ArmModel(
+        name="pa10_7c", title="Mitsubishi PA10-7C", convention="standard", dh=dh_rows(),
+        locked_joints_deg={"S3": 0.0, "W2": 0.0},
+        lock_reason="S3 and W2 held at zero as in Locke & Patel Sec. III-A",
+        seed_deg=dict(SEED_DEG), tool_length_m=TOOL_LENGTH_M, z_reference="shoulder")
+
+
+#: A configuration on the closed-form kernel's branch (elbow up, wrist W1 > 0): the generic kernel's seed.
+SEED_DEG = {"S1": 0.0, "S2": 30.0, "E1": 90.0, "E2": 0.0, "W1": 60.0}
+#: Elbow-down seed (``robot.elbow = "down"`` through the generic kernel).
+SEED_ELBOW_DOWN_DEG = {"S1": 0.0, "S2": -30.0, "E1": -90.0, "E2": 0.0, "W1": 60.0}
+MODEL = _model()

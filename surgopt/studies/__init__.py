@@ -60,9 +60,10 @@ def peak_bytes(rows: int, bytes_per_row: int, working_bytes: int = 0) -> int:
 
 @dataclass(frozen=True)
 class Flag:
-    """A boolean command-line flag of one study.
+    """A command-line flag of one study: boolean, or with a value when ``metavar`` is set.
 
     ``config_update`` is merged into the config before the run (``--cull``: ``{"search": "cull"}``);
+    ``value_update(value)`` gives the update of a flag with a value (``--robot ur5e``);
     ``follow_up(cfg, table)`` returns the config of a second run made after the first and stored
     beside it (``--refine``), named ``<config name><follow_up_suffix>``.
     """
@@ -72,6 +73,14 @@ class Flag:
     config_update: Mapping[str, Any] | None = None
     follow_up: Callable[[Any, Any], Any] | None = None
     follow_up_suffix: str = ""
+    metavar: str | None = None
+    value_update: Callable[[str], Mapping[str, Any]] | None = None
+
+    def update(self, value) -> Mapping[str, Any]:
+        """The config update this flag makes when given (``value``: True, or the flag's value)."""
+        if self.value_update is not None:
+            return self.value_update(value)
+        return self.config_update or {}
 
     @property
     def dest(self) -> str:

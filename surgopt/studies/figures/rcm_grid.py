@@ -7,6 +7,18 @@ from surgopt.studies.figures import columns, pyplot, save
 from surgopt.studies.rcm_grid import PAPER_TABLE_I
 
 
+def robot_title(cfg) -> str:
+    """The arm's name for a figure: the shipped model's title, or the URDF file's / "DH table"."""
+    from pathlib import Path
+
+    from surgopt.robots.models import get_model
+
+    r = cfg.robot
+    if r.model is not None:
+        return get_model(r.model).title + (" (generic kernel)" if r.is_pa10 and not r.closed_form else "")
+    return Path(r.urdf).name if r.urdf else "DH table"
+
+
 def figures(cfg, table, out, design_id=None):
     plt = pyplot()
     c = columns(table)
@@ -14,10 +26,13 @@ def figures(cfg, table, out, design_id=None):
     exact = c["gii_is_exact"]
     if cfg.candidates.grid is not None and cfg.search == "full":
         g = cfg.candidates.grid
-        gii = np.full((g.x_count, g.z_count), np.nan)
+        gii = np.full((g.x_count, g.y_count, g.z_count), np.nan)
         ids = c["candidate_id"]
         vals = np.where(c["feasible"], c["gii"], np.nan)
         gii.ravel()[ids] = vals
+        with np.errstate(all="ignore"):  # the best over y where the grid has a y range; all-NaN stays NaN
+            gii = np.nanmax(np.where(np.isnan(gii), -np.inf, gii), axis=1)
+        gii[~np.isfinite(gii)] = np.nan
         xs = np.linspace(g.x_min_m, g.x_max_m, g.x_count)
         zs = np.linspace(g.z_min_m, g.z_max_m, g.z_count)
         fig, ax = plt.subplots(figsize=(6.4, 5.6))
@@ -38,9 +53,13 @@ def figures(cfg, table, out, design_id=None):
                     arrowprops=dict(arrowstyle="-", color="white", lw=0.8))
         ax.set_xlabel("x_rcm (m)")
         ax.set_ylabel(f"z_rcm (m, from the {cfg.candidates.z_reference})")
-        ax.set_title("GII of candidate RCM locations\n(white: part of the workspace unreachable)", fontsize=10)
+        over_y = f", best over y in [{g.y_min_m:g}, {g.y_max_m:g}] m" if g.y_count > 1 else ""
+        ax.set_title(f"GII of candidate RCM locations: {robot_title(cfg)}{over_y}\n"
+                     f"(white: part of the workspace unreachable)", fontsize=10)
         ax.set_aspect("equal")
         paths.append(save(fig, out / "rcm_gii_map.png"))
+    if not cfg.robot.is_pa10:
+        return paths
     paper = {(round(x, 3), round(z, 3)): g for x, z, g in PAPER_TABLE_I}
     pairs = [(paper[(round(x, 3), round(z, 3))], g) for x, z, g in zip(c["x_rcm_m"], c["z_rcm_m"], c["gii"])
              if (round(x, 3), round(z, 3)) in paper]

@@ -1,0 +1,297 @@
+"""Serial arms as data: DH tables (standard or modified) and URDF chains in one form, reduced for the kernel.
+
+One form (``ChainSpec``): per joint a fixed origin transform (from the previous joint's moved frame to
+this joint's frame), a unit axis in that frame, revolute / continuous / prismatic, limits and rated
+speed; then a fixed ``tail`` to the tip link. ``reduce_chain`` folds the locked joints into the fixed
+transforms, rotates each active joint's frame so that its axis is z, and appends the tool, giving the
+kernel's ``serial_chain.Chain``. Pure numpy; the URDF is parsed by ``yourdfpy`` (no meshes loaded).
+
+Errors are ``ChainError`` with the element (URDF joint or link, DH row, joint name) named; the config
+layer turns them into config errors on the field that brought the robot in.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import NamedTuple
+
+import numpy as np
+
+REVOLUTE, CONTINUOUS, PRISMATIC = "revolute", "continuous", "prismatic"
+
+
+class Chain(NamedTuple):
+    """A serial chain reduced to five active joints, each moving about or along its local z axis.
+
+    ``rot`` (6, 3, 3), ``pos`` (6, 3): the fixed transforms P_0..P_5 (P_5 ends at the tool tip, its z
+    the tool axis); ``prismatic`` (5,) 1.0 for a sliding joint; ``lower``/``upper`` (5,) joint limits
+    (rad or m, +-inf when unlimited); ``qdot_max`` (5,) rated speeds (rad/s or m/s), the diagonal of Q.
+    """
+
+    rot: np.ndarray
+    pos: np.ndarray
+    prismatic: np.ndarray
+    lower: np.ndarray
+    upper: np.ndarray
+    qdot_max: np.ndarray
+
+
+class ChainError(ValueError):
+    """A robot description that cannot be a serial chain for the RCM study; ``where`` names the element."""
+
+    def __init__(self, where: str, message: str):
+        super().__init__(f"{where}: {message}")
+        self.where = where
+
+
+@dataclass(frozen=True)
+class Joint:
+    name: str
+    origin: np.ndarray  # (4, 4): previous moved frame -> this joint's frame
+    axis: np.ndarray  # (3,) unit, in this joint's frame
+    kind: str  # REVOLUTE | CONTINUOUS | PRISMATIC
+    lower: float  # rad or m; -inf when unlimited
+    upper: float
+    max_speed: float  # rad/s or m/s
+
+
+@dataclass(frozen=True)
+class ChainSpec:
+    joints: tuple[Joint, ...]
+    tail: np.ndarray = field(default_factory=lambda: np.eye(4))  # last joint's moved frame -> tip link
+
+    @property
+    def names(self) -> tuple[str, ...]:
+        return tuple(j.name for j in self.joints)
+
+
+def rot_x(a: float) -> np.ndarray:
+    c, s = math.cos(a), math.sin(a)
+    t = np.eye(4)
+    t[1:3, 1:3] = [[c, -s], [s, c]]
+    return t
+
+
+def rot_z(a: float) -> np.ndarray:
+    c, s = math.cos(a), math.sin(a)
+    t = np.eye(4)
+    t[0:2, 0:2] = [[c, -s], [s, c]]
+    return t
+
+
+def trans(x: float, y: float, z: float) -> np.ndarray:
+    t = np.eye(4)
+    t[:3, 3] = (x, y, z)
+    return t
+
+
+def axis_motion(axis, kind: str, q: float) -> np.ndarray:
+    """The joint's motion: a turn by q about ``axis`` (Rodrigues) or a slide by q along it."""
+    a = np.asarray(axis, float)
+    t = np.eye(4)
+    if kind == PRISMATIC:
+        t[:3, 3] = q * a
+        return t
+    k = np.array([[0, -a[2], a[1]], [a[2], 0, -a[0]], [-a[1], a[0], 0]])
+    t[:3, :3] = np.eye(3) + math.sin(q) * k + (1 - math.cos(q)) * (k @ k)
+    return t
+
+
+@dataclass(frozen=True)
+class DhRow:
+    """One DH row: a (m), alpha (deg), d (m), theta offset (deg), limits, rated speed, optional name.
+
+    Revolute rows: ``lower``/``upper`` in degrees (None: continuous), ``max_speed`` in rad/s. A
+    prismatic row slides along d (``d`` is then its offset), limits in m, speed in m/s.
+    """
+
+    a_m: float
+    alpha_deg: float
+    d_m: float
+    theta_offset_deg: float = 0.0
+    lower: float | None = None
+    upper: float | None = None
+    max_speed: float = 1.0
+    name: str | None = None
+    prismatic: bool = False
+
+
+def from_dh(rows, convention: str = "standard") -> ChainSpec:
+    """A ``ChainSpec`` from DH rows.
+
+    standard (distal): T_i = Rz(theta_i) Tz(d_i) Tx(a_i) Rx(alpha_i);
+    modified (proximal, Craig): T_i = Rx(alpha_i) Tx(a_i) Rz(theta_i) Tz(d_i), each row holding its
+    own (a_{i-1}, alpha_{i-1}) as Robotics Toolbox's ``RevoluteMDH`` does. The joint moves theta (or d).
+    """
+    if convention not in ("standard", "modified"):
+        raise ChainError("dh_convention", f"{convention!r} is not 'standard' or 'modified'")
+    joints = []
+    before = np.eye(4)
+    for i, r in enumerate(rows):
+        name = r.name or f"j{i + 1}"
+        off = math.radians(r.theta_offset_deg)
+        if r.prismatic:
+            lo, hi = (-math.inf if r.lower is None else r.lower), (math.inf if r.upper is None else r.upper)
+            kind, fixed_after = PRISMATIC, rot_z(off) @ trans(0, 0, r.d_m)
+        else:
+            lo = -math.inf if r.lower is None else math.radians(r.lower)
+            hi = math.inf if r.upper is None else math.radians(r.upper)
+            kind, fixed_after = (CONTINUOUS if r.lower is None and r.upper is None else REVOLUTE), \
+                rot_z(off) @ trans(0, 0, r.d_m)
+        if convention == "standard":
+            origin, after = before, fixed_after @ trans(r.a_m, 0, 0) @ rot_x(math.radians(r.alpha_deg))
+        else:
+            origin, after = before @ rot_x(math.radians(r.alpha_deg)) @ trans(r.a_m, 0, 0), fixed_after
+        joints.append(Joint(name, origin, np.array([0.0, 0.0, 1.0]), kind, lo, hi, float(r.max_speed)))
+        before = after
+    return ChainSpec(tuple(joints), before)
+
+
+def from_urdf(path: str | Path, base_link: str | None, tip_link: str | None) -> ChainSpec:
+    """The chain from ``base_link`` to ``tip_link`` of a URDF file (yourdfpy; no meshes loaded).
+
+    Defaults: the URDF's root link, and its only leaf. Fixed joints fold into the next origin;
+    continuous joints have no limits; floating and planar joints, mimic joints and missing or
+    unknown links are ``ChainError``s naming the element.
+    """
+    import yourdfpy
+
+    try:
+        urdf = yourdfpy.URDF.load(str(path), load_meshes=False, build_scene_graph=False,
+                                  load_collision_meshes=False)
+    except Exception as exc:  # noqa: BLE001 - lxml, ValueError, KeyError: a file that is not a URDF
+        raise ChainError(str(path), f"not a readable URDF: {str(exc).splitlines()[0] if str(exc) else type(exc).__name__}") from None
+    robot = urdf.robot
+    links = {link.name for link in robot.links}
+    by_child = {}
+    for j in robot.joints:
+        if j.child not in links:
+            raise ChainError(f"joint {j.name!r}", f"child link {j.child!r} is not a <link> of the URDF")
+        if j.parent not in links:
+            raise ChainError(f"joint {j.name!r}", f"parent link {j.parent!r} is not a <link> of the URDF")
+        by_child[j.child] = j
+    children = {j.parent for j in robot.joints}
+    roots = sorted(links - set(by_child))
+    leaves = sorted(links - children)
+    if base_link is None:
+        if len(roots) != 1:
+            raise ChainError("base_link", f"the URDF has {len(roots)} root links ({', '.join(roots)}); name one")
+        base_link = roots[0]
+    if tip_link is None:
+        if len(leaves) != 1:
+            raise ChainError("tip_link", f"the URDF has {len(leaves)} leaf links ({', '.join(leaves[:6])}); name one")
+        tip_link = leaves[0]
+    for field_name, link in (("base_link", base_link), ("tip_link", tip_link)):
+        if link not in links:
+            raise ChainError(field_name, f"no link {link!r} in the URDF (links: {', '.join(sorted(links)[:8])})")
+    path_joints = []
+    link = tip_link
+    while link != base_link:
+        if link not in by_child:
+            raise ChainError("tip_link", f"link {tip_link!r} does not descend from base_link {base_link!r}")
+        j = by_child[link]
+        path_joints.append(j)
+        link = j.parent
+    joints = []
+    pending = np.eye(4)
+    for j in reversed(path_joints):
+        origin = np.eye(4) if j.origin is None else np.asarray(j.origin, float)
+        if j.type == "fixed":
+            pending = pending @ origin
+            continue
+        if j.type in ("floating", "planar"):
+            raise ChainError(f"joint {j.name!r}", f"a {j.type} joint cannot be part of a serial arm here")
+        if getattr(j, "mimic", None) is not None:
+            raise ChainError(f"joint {j.name!r}", "mimic joints are not supported")
+        axis = np.array([1.0, 0.0, 0.0]) if j.axis is None else np.asarray(j.axis, float)
+        if not np.all(np.isfinite(axis)) or np.linalg.norm(axis) < 1e-9:
+            raise ChainError(f"joint {j.name!r}", f"axis {axis.tolist()} is not a direction")
+        lim = j.limit
+        speed = None if lim is None else lim.velocity
+        if speed is None or not speed > 0 or not math.isfinite(speed):
+            raise ChainError(f"joint {j.name!r}", "needs <limit velocity=...> > 0 (the rated speed: the scaling Q)")
+        if j.type == "continuous":
+            kind, lo, hi = CONTINUOUS, -math.inf, math.inf
+        else:
+            kind = PRISMATIC if j.type == "prismatic" else REVOLUTE
+            lo = -math.inf if lim.lower is None else float(lim.lower)
+            hi = math.inf if lim.upper is None else float(lim.upper)
+            if not lo <= hi:
+                raise ChainError(f"joint {j.name!r}", f"limit lower {lo} > upper {hi}")
+        joints.append(Joint(j.name, pending @ origin, axis / np.linalg.norm(axis), kind, lo, hi, float(speed)))
+        pending = np.eye(4)
+    if not joints:
+        raise ChainError("tip_link", f"no movable joint between {base_link!r} and {tip_link!r}")
+    return ChainSpec(tuple(joints), pending)
+
+
+def chain_transform(spec: ChainSpec, q) -> np.ndarray:
+    """Base -> tip-link transform at joint values q (every joint, in order): the plain product."""
+    t = np.eye(4)
+    for j, v in zip(spec.joints, q, strict=True):
+        t = t @ j.origin @ axis_motion(j.axis, j.kind, v)
+    return t @ spec.tail
+
+
+def _align_z(axis: np.ndarray) -> np.ndarray:
+    """A rotation (4x4) taking e_z to the unit ``axis``."""
+    z = np.array([0.0, 0.0, 1.0])
+    v = np.cross(z, axis)
+    s, c = np.linalg.norm(v), float(z @ axis)
+    t = np.eye(4)
+    if s < 1e-15:
+        if c < 0:
+            t[:3, :3] = np.diag([1.0, -1.0, -1.0])
+        return t
+    k = np.array([[0, -v[2], v[1]], [v[2], 0, -v[0]], [-v[1], v[0], 0]]) / s
+    t[:3, :3] = np.eye(3) + s * k + (1 - c) * (k @ k)
+    return t
+
+
+def tool_transform(tool_length_m: float, tool_axis=(0.0, 0.0, 1.0), tool_offset_m=(0.0, 0.0, 0.0)) -> np.ndarray:
+    """Tip link -> tool frame: origin at the tip (offset + length along the axis), z along the tool."""
+    a = np.asarray(tool_axis, float)
+    a = a / np.linalg.norm(a)
+    t = _align_z(a)
+    t[:3, 3] = np.asarray(tool_offset_m, float) + tool_length_m * a
+    return t
+
+
+def reduce_chain(spec: ChainSpec, locked: dict[str, float], tool: np.ndarray, speeds: dict[str, float] | None = None,
+                 limits: dict[str, tuple[float, float]] | None = None):
+    """The kernel's ``Chain`` (and the active joints' names): ``locked`` joints (name -> value, rad or m)
+    folded into the fixed transforms, each active joint's axis turned onto z, ``tool`` appended.
+
+    ``speeds``/``limits`` override the spec's per joint (rad/s, rad). Exactly five joints must remain.
+    """
+    names = spec.names
+    for n in locked:
+        if n not in names:
+            raise ChainError("locked_joints_deg", f"no joint {n!r} (joints: {', '.join(names)})")
+    active = [j for j in spec.joints if j.name not in locked]
+    if len(active) != 5:
+        raise ChainError("locked_joints_deg", f"{len(active)} joints remain active ({', '.join(j.name for j in active)}); "
+                                              f"the RCM study needs exactly five: lock {len(active) - 5} more"
+                         if len(active) > 5 else f"only {len(active)} joints remain active; the RCM study needs five")
+    fixed = []  # P_0..P_5
+    pending = np.eye(4)
+    prev_align_t = np.eye(4)
+    for j in spec.joints:
+        if j.name in locked:
+            pending = pending @ j.origin @ axis_motion(j.axis, j.kind, locked[j.name])
+            continue
+        align = _align_z(j.axis)
+        fixed.append(prev_align_t @ pending @ j.origin @ align)
+        prev_align_t = align.T.copy()
+        pending = np.eye(4)
+    fixed.append(prev_align_t @ pending @ spec.tail @ tool)
+    speeds = speeds or {}
+    limits = limits or {}
+    lower = np.array([limits.get(j.name, (j.lower, j.upper))[0] for j in active], float)
+    upper = np.array([limits.get(j.name, (j.lower, j.upper))[1] for j in active], float)
+    chain = Chain(rot=np.array([f[:3, :3] for f in fixed]), pos=np.array([f[:3, 3] for f in fixed]),
+                  prismatic=np.array([1.0 if j.kind == PRISMATIC else 0.0 for j in active]),
+                  lower=lower, upper=upper,
+                  qdot_max=np.array([speeds.get(j.name, j.max_speed) for j in active], float))
+    return chain, tuple(j.name for j in active)

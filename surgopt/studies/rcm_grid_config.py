@@ -1,0 +1,378 @@
+"""Config models of the ``rcm-grid`` study: the robot (a shipped model, a URDF file or an inline DH table),
+the workspace cube and the RCM candidates.
+
+A robot section is resolved once, at validation: the source is checked (the URDF parsed, the chain
+reduced to five active joints, every joint name checked), and the fields the user left out are filled
+from the model's defaults, so the validated config (what ``--print-config`` shows and what is hashed
+into the store key) says everything, including the URDF's sha256 (editing the file misses the cache).
+Without ``model``, ``urdf`` or ``dh`` the robot is the paper's PA10-7C.
+"""
+from __future__ import annotations
+
+import hashlib
+import math
+from pathlib import Path
+from typing import Annotated, Literal
+
+from pydantic import Field, ValidationInfo, model_validator
+
+from surgopt.config import StrictModel
+from surgopt.robots import pa10_7c
+from surgopt.robots.models import MODELS, get_model
+from surgopt.studies.search import SearchSpec, check_objectives, search_field
+
+#: Row columns a [search] may optimise.
+SEARCH_OBJECTIVES = ("gii", "sigma_min_m_per_s", "sigma_max_m_per_s", "x_rcm_m", "y_rcm_m", "z_rcm_m")
+#: PA10-only fields (the closed-form kernel's parameters).
+PA10_FIELDS = ("link_d1_m", "link_d3_m", "link_d5_m", "link_d7_m", "tool_length_from", "elbow", "joint_limit_deg",
+               "max_joint_speed_rad_s")
+Finite = Annotated[float, Field(ge=-1e3, le=1e3)]
+
+
+class JointLimitsDeg(StrictModel):
+    """Symmetric joint ranges +-value (deg) of the PA10's five active joints [MHI]."""
+
+    S1: float = Field(pa10_7c.JOINT_LIMIT_DEG["S1"], gt=0, le=360)
+    S2: float = Field(pa10_7c.JOINT_LIMIT_DEG["S2"], gt=0, le=360)
+    E1: float = Field(pa10_7c.JOINT_LIMIT_DEG["E1"], gt=0, le=360)
+    E2: float = Field(pa10_7c.JOINT_LIMIT_DEG["E2"], gt=0, le=360)
+    W1: float = Field(pa10_7c.JOINT_LIMIT_DEG["W1"], gt=0, le=360)
+
+
+class JointSpeedsRadS(StrictModel):
+    """Rated maximum speeds (rad/s) of the PA10's active joints: the diagonal of the scaling matrix Q [MHI]."""
+
+    S1: float = Field(pa10_7c.MAX_JOINT_SPEED_RAD_S["S1"], gt=0, le=1e3)
+    S2: float = Field(pa10_7c.MAX_JOINT_SPEED_RAD_S["S2"], gt=0, le=1e3)
+    E1: float = Field(pa10_7c.MAX_JOINT_SPEED_RAD_S["E1"], gt=0, le=1e3)
+    E2: float = Field(pa10_7c.MAX_JOINT_SPEED_RAD_S["E2"], gt=0, le=1e3)
+    W1: float = Field(pa10_7c.MAX_JOINT_SPEED_RAD_S["W1"], gt=0, le=1e3)
+
+
+class DhRowConfig(StrictModel):
+    """One joint of an inline DH table (``[[robot.dh]]``): lengths in m, angles in degrees.
+
+    A revolute row's limits are ``lower_deg``/``upper_deg`` (both left out: continuous) and its rated
+    speed ``max_speed_rad_s``; a prismatic row (``joint = "prismatic"``) slides along d with
+    ``lower_m``/``upper_m`` and ``max_speed_m_s``.
+    """
+
+    name: str | None = Field(None, min_length=1, max_length=64)
+    joint: Literal["revolute", "prismatic"] = "revolute"
+    a_m: Finite
+    alpha_deg: Finite
+    d_m: Finite
+    theta_offset_deg: Finite = 0.0
+    lower_deg: Finite | None = None
+    upper_deg: Finite | None = None
+    lower_m: Finite | None = None
+    upper_m: Finite | None = None
+    max_speed_rad_s: float | None = Field(None, gt=0, le=1e3)
+    max_speed_m_s: float | None = Field(None, gt=0, le=1e3)
+
+    @model_validator(mode="after")
+    def _fields_of_its_kind(self):
+        rev = self.joint == "revolute"
+        lo, hi, speed = ("lower_deg", "upper_deg", "max_speed_rad_s") if rev else ("lower_m", "upper_m", "max_speed_m_s")
+        other = ("lower_m", "upper_m", "max_speed_m_s") if rev else ("lower_deg", "upper_deg", "max_speed_rad_s")
+        wrong = [f for f in other if getattr(self, f) is not None]
+        if wrong:
+            raise ValueError(f"a {self.joint} row takes {lo}, {hi}, {speed}, not {', '.join(wrong)}")
+        if getattr(self, speed) is None:
+            raise ValueError(f"{speed} is required (the rated speed: the joint's entry of the scaling Q)")
+        if (getattr(self, lo) is None) != (getattr(self, hi) is None):
+            raise ValueError(f"give both {lo} and {hi}, or neither (unlimited)")
+        if getattr(self, lo) is not None and getattr(self, lo) > getattr(self, hi):
+            raise ValueError(f"{lo} must be <= {hi}")
+        return self
+
+    def row(self, index: int):
+        from surgopt.robots.chain import DhRow
+
+        rev = self.joint == "revolute"
+        return DhRow(self.a_m, self.alpha_deg, self.d_m, self.theta_offset_deg,
+                     self.lower_deg if rev else self.lower_m, self.upper_deg if rev else self.upper_m,
+                     self.max_speed_rad_s if rev else self.max_speed_m_s, self.name or f"j{index + 1}", not rev)
+
+
+class Robot(StrictModel):
+    """The arm: a shipped ``model``, a ``urdf`` file, or an inline ``dh`` table (docs/robots.md)."""
+
+    model: str | None = Field(None, description=f"a shipped model: {', '.join(MODELS)}")
+    urdf: str | None = Field(None, min_length=1, description="URDF file, relative to the config file")
+    base_link: str | None = Field(None, min_length=1)
+    tip_link: str | None = Field(None, min_length=1)
+    urdf_sha256: str | None = Field(None, description="filled in: the URDF's content hash (part of the store key)")
+    dh: list[DhRowConfig] | None = Field(None, min_length=1, max_length=32)
+    dh_convention: Literal["standard", "modified"] | None = None
+    kernel: Literal["auto", "closed_form", "generic"] = Field(
+        "auto", description="the PA10's closed-form IK (auto for pa10_7c) or the generic serial-chain Newton kernel")
+    locked_joints_deg: dict[str, Finite] | None = Field(None, description="joints held fixed (deg, or m if prismatic)")
+    seed_deg: dict[str, Finite] | None = Field(None, description="a configuration on the wanted IK branch")
+    tool_length_m: float | None = Field(None, gt=0, le=5, description="tool tip along the tip link's z axis")
+    tool_axis: list[Finite] | None = Field(None, min_length=3, max_length=3, description="in the tip link's frame")
+    tool_offset_m: list[Finite] | None = Field(None, min_length=3, max_length=3,
+                                               description="tool base in the tip link's frame")
+    # PA10-7C (closed-form kernel) parameters: only with model = "pa10_7c"
+    link_d1_m: float | None = Field(None, gt=0, le=5, description="PA10: base to shoulder (S2 axis)")
+    link_d3_m: float | None = Field(None, gt=0, le=5, description="PA10: shoulder to elbow")
+    link_d5_m: float | None = Field(None, gt=0, le=5, description="PA10: elbow to wrist centre")
+    link_d7_m: float | None = Field(None, ge=0, le=5, description="PA10: wrist centre to flange")
+    tool_length_from: Literal["flange", "wrist_centre"] | None = None
+    elbow: Literal["up", "down"] | None = None
+    joint_limit_deg: JointLimitsDeg | None = None
+    max_joint_speed_rad_s: JointSpeedsRadS | None = None
+
+    @model_validator(mode="after")
+    def _resolve(self, info: ValidationInfo):
+        context = info.context or {}
+        sources = [k for k in ("model", "urdf", "dh") if getattr(self, k) is not None]
+        if len(sources) > 1:
+            raise ValueError(f"give one of model, urdf or dh, not {' and '.join(sources)}")
+        if not sources:
+            object.__setattr__(self, "model", "pa10_7c")
+        if self.model is not None and self.model not in MODELS:
+            import difflib
+
+            near = difflib.get_close_matches(self.model, MODELS, n=1)
+            raise ValueError(f"model {self.model!r} is not a shipped model ({', '.join(MODELS)})"
+                             + (f"; did you mean {near[0]!r}?" if near else "; or give urdf = \"file.urdf\""))
+        pa10 = self.model == "pa10_7c"
+        given = [f for f in PA10_FIELDS if getattr(self, f) is not None]
+        if given and not pa10:
+            raise ValueError(f"{given[0]} is a PA10-7C field (model = 'pa10_7c'); for this arm edit its "
+                             f"{'DH table' if self.dh else 'URDF' if self.urdf else 'model'} instead")
+        if self.kernel == "closed_form" and not pa10:
+            raise ValueError("kernel = 'closed_form' exists only for the PA10-7C; other arms use 'generic'")
+        if self.urdf is None and (self.base_link or self.tip_link):
+            raise ValueError("base_link and tip_link go with urdf")
+        if self.dh is None and self.dh_convention is not None:
+            raise ValueError("dh_convention goes with dh")
+        if self.urdf is not None:
+            self._resolve_urdf(context)
+        if pa10:
+            self._fill_pa10()
+        elif self.model is not None:
+            m = get_model(self.model)
+            self._fill(m.locked_joints_deg, m.seed_deg, m.tool_length_m)
+        else:
+            if self.tool_length_m is None:
+                raise ValueError("tool_length_m is required for a URDF or DH arm (the tool tip along the tip "
+                                 "link's z axis)")
+            self._fill({}, {}, self.tool_length_m)
+        if self.dh is not None and self.dh_convention is None:
+            object.__setattr__(self, "dh_convention", "standard")
+        if not context.get("stored"):
+            self.check_chain()
+        return self
+
+    def _fill(self, locked, seed, tool_length):
+        if self.locked_joints_deg is None:
+            object.__setattr__(self, "locked_joints_deg", dict(locked))
+        if self.seed_deg is None:
+            object.__setattr__(self, "seed_deg", dict(seed))
+        if self.tool_length_m is None:
+            object.__setattr__(self, "tool_length_m", tool_length)
+        if self.tool_axis is None:
+            object.__setattr__(self, "tool_axis", [0.0, 0.0, 1.0])
+        if self.tool_offset_m is None:
+            object.__setattr__(self, "tool_offset_m", [0.0, 0.0, 0.0])
+        if math.hypot(*self.tool_axis) < 1e-9:
+            raise ValueError("tool_axis must be a direction, not [0, 0, 0]")
+
+    def _fill_pa10(self):
+        links = pa10_7c.LINKS_BIELEFELD_M
+        for f, v in (("link_d1_m", links[0]), ("link_d3_m", links[1]), ("link_d5_m", links[2]),
+                     ("link_d7_m", links[3]), ("tool_length_from", "flange"), ("elbow", "up"),
+                     ("joint_limit_deg", JointLimitsDeg()), ("max_joint_speed_rad_s", JointSpeedsRadS())):
+            if getattr(self, f) is None:
+                object.__setattr__(self, f, v)
+        seed = pa10_7c.SEED_DEG if self.elbow == "up" else pa10_7c.SEED_ELBOW_DOWN_DEG
+        self._fill(pa10_7c.MODEL.locked_joints_deg, seed, pa10_7c.TOOL_LENGTH_M)
+
+    def _resolve_urdf(self, context):
+        from surgopt.robots.chain import ChainError
+
+        path = Path(self.urdf).expanduser()
+        if not path.is_absolute():
+            path = Path(context.get("config_dir") or Path.cwd()) / path
+        path = path.resolve()
+        object.__setattr__(self, "urdf", str(path))
+        if context.get("stored"):
+            return
+        try:
+            data = path.read_bytes()
+        except FileNotFoundError:
+            raise ValueError(f"urdf: file not found: {path}") from None
+        except OSError as exc:
+            raise ValueError(f"urdf: cannot read {path}: {exc.strerror or exc}") from None
+        sha = hashlib.sha256(data).hexdigest()
+        if self.urdf_sha256 is not None and self.urdf_sha256 != sha:
+            raise ValueError(f"urdf: {path} changed since this config was written (urdf_sha256 differs); "
+                             f"drop urdf_sha256 to use the file as it is now")
+        object.__setattr__(self, "urdf_sha256", sha)
+        try:
+            self.chain_spec()
+        except ChainError as exc:
+            raise ValueError(f"urdf {path}: {exc}") from None
+
+    # ---- the chain ---------------------------------------------------------------------------------------
+
+    @property
+    def is_pa10(self) -> bool:
+        return self.model == "pa10_7c"
+
+    @property
+    def closed_form(self) -> bool:
+        """Whether the closed-form PA10 kernel runs (the paper setup's default path)."""
+        return self.is_pa10 and self.kernel in ("auto", "closed_form")
+
+    @property
+    def tool_offset_pa10_m(self) -> float:
+        """PA10: wrist centre to tool tip along the tool axis."""
+        return self.tool_length_m + (self.link_d7_m if self.tool_length_from == "flange" else 0.0)
+
+    def chain_spec(self):
+        """The arm as a ``surgopt.robots.chain.ChainSpec`` (every joint, before locking)."""
+        from surgopt.robots import chain
+
+        if self.urdf is not None:
+            return chain.from_urdf(self.urdf, self.base_link, self.tip_link)
+        if self.dh is not None:
+            return chain.from_dh([r.row(i) for i, r in enumerate(self.dh)], self.dh_convention or "standard")
+        if self.is_pa10:
+            lim = self.joint_limit_deg.model_dump()
+            spd = self.max_joint_speed_rad_s.model_dump()
+            rows = pa10_7c.dh_rows((self.link_d1_m, self.link_d3_m, self.link_d5_m, self.link_d7_m), lim, spd)
+            return chain.from_dh(rows, "standard")
+        m = get_model(self.model)
+        return chain.from_dh(m.dh, m.convention)
+
+    def tool(self):
+        """Tip link -> tool frame (``surgopt.robots.chain.tool_transform``). For the PA10 with
+        ``tool_length_from = "wrist_centre"`` the flange's d7 is taken off the length."""
+        from surgopt.robots.chain import tool_transform
+
+        length = self.tool_length_m
+        if self.is_pa10 and self.tool_length_from == "wrist_centre":
+            length -= self.link_d7_m
+        return tool_transform(length, self.tool_axis, self.tool_offset_m)
+
+    def chain(self):
+        """(kernel ``Chain``, active joint names, seed (rad or m) in their order)."""
+        from surgopt.robots.chain import PRISMATIC, reduce_chain
+
+        spec = self.chain_spec()
+        kinds = {j.name: j.kind for j in spec.joints}
+        locked = {n: (v if kinds.get(n) == PRISMATIC else math.radians(v)) for n, v in self.locked_joints_deg.items()}
+        chain, names = reduce_chain(spec, locked, self.tool())
+        unknown = [n for n in self.seed_deg if n not in names]
+        if unknown:
+            raise_where = "locked" if unknown[0] in locked else "not a joint"
+            from surgopt.robots.chain import ChainError
+
+            raise ChainError("seed_deg", f"{unknown[0]!r} is {'locked' if raise_where == 'locked' else 'not an active joint'}"
+                                         f" (active joints: {', '.join(names)})")
+        seed = [self.seed_deg.get(n, 0.0) for n in names]
+        seed = [v if kinds[n] == PRISMATIC else math.radians(v) for n, v in zip(names, seed)]
+        return chain, names, seed
+
+    def check_chain(self):
+        from surgopt.robots.chain import ChainError
+
+        try:
+            self.chain()
+        except ChainError as exc:
+            raise ValueError(str(exc)) from None
+
+
+class Workspace(StrictModel):
+    """Cube of tool-tip positions centred ``depth_below_rcm_m`` below the RCM."""
+
+    cube_side_m: float = Field(0.05, gt=0, le=1)
+    depth_below_rcm_m: float = Field(0.1, gt=0, le=2)
+    points_per_side: int = Field(17, ge=1, le=101)
+
+
+class Grid(StrictModel):
+    """A grid of RCM candidates (m). y is one value (0) unless ``y_count`` > 1."""
+
+    x_min_m: float = Field(0.20, ge=-3, le=3)
+    x_max_m: float = Field(0.80, ge=-3, le=3)
+    x_count: int = Field(121, ge=1, le=2001)
+    y_min_m: float = Field(0.0, ge=-3, le=3)
+    y_max_m: float = Field(0.0, ge=-3, le=3)
+    y_count: int = Field(1, ge=1, le=2001)
+    z_min_m: float = Field(-0.60, ge=-3, le=3)
+    z_max_m: float = Field(0.00, ge=-3, le=3)
+    z_count: int = Field(121, ge=1, le=2001)
+
+    @model_validator(mode="after")
+    def _ordered(self):
+        for a in "xyz":
+            if getattr(self, f"{a}_max_m") < getattr(self, f"{a}_min_m"):
+                raise ValueError(f"{a}_max_m must be >= {a}_min_m")
+        if self.y_count == 1 and self.y_max_m != self.y_min_m:
+            raise ValueError("a y range needs y_count > 1 (or y_min_m == y_max_m for one y)")
+        return self
+
+
+class Candidates(StrictModel):
+    """RCM candidates: a grid, or an explicit list of [x, z] or [x, y, z] rows (m)."""
+
+    z_reference: Literal["shoulder", "base"] | None = Field(
+        None, description="z from the base frame's origin, or (PA10 only) from the shoulder; default: the model's")
+    grid: Grid | None = None
+    list_m: list[Annotated[list[Finite], Field(min_length=2, max_length=3)]] | None = Field(
+        None, min_length=1, max_length=1_000_000, description="[[x, z], ...] or [[x, y, z], ...] in metres")
+
+    @model_validator(mode="after")
+    def _one_kind(self):
+        if self.grid is not None and self.list_m is not None:
+            raise ValueError("give either grid or list_m, not both")
+        if self.grid is None and self.list_m is None:
+            object.__setattr__(self, "grid", Grid())
+        if self.list_m is not None and len({len(r) for r in self.list_m}) > 1:
+            raise ValueError("list_m rows must all be [x, z] or all [x, y, z]")
+        return self
+
+
+class RcmGridConfig(StrictModel):
+    robot: Robot = Robot()
+    workspace: Workspace = Workspace()
+    candidates: Candidates = Candidates()
+    search: search_field("full", "cull") = Field(
+        "full", description="'full' map, 'cull' (exact argmax), or a [search] table (an optimiser over x, z)")
+
+    @model_validator(mode="before")
+    @classmethod
+    def _model_defaults(cls, data):
+        """A shipped model's workspace and candidate grid are the defaults under what the config gives."""
+        if not isinstance(data, dict):
+            return data
+        robot = data.get("robot")
+        name = robot.get("model") if isinstance(robot, dict) else None
+        if not isinstance(name, str) or name not in MODELS or name == "pa10_7c":
+            return data
+        m = get_model(name)
+        data = dict(data)
+        ws = data.get("workspace", {})
+        if isinstance(ws, dict):
+            data["workspace"] = {**m.workspace, **ws}
+        cand = data.get("candidates", {})
+        if isinstance(cand, dict) and "list_m" not in cand:
+            grid = cand.get("grid", {})
+            if isinstance(grid, dict):
+                data["candidates"] = {**cand, "grid": {**m.grid, **grid}}
+        return data
+
+    @model_validator(mode="after")
+    def _consistent(self):
+        if self.candidates.z_reference is None:
+            object.__setattr__(self.candidates, "z_reference", "shoulder" if self.robot.is_pa10 else "base")
+        if self.candidates.z_reference == "shoulder" and not self.robot.is_pa10:
+            raise ValueError("candidates.z_reference = 'shoulder' is the PA10's; other arms use 'base'")
+        if isinstance(self.search, SearchSpec) and self.candidates.list_m is not None:
+            raise ValueError("a [search] optimises over candidates.grid's ranges: give a grid, not list_m")
+        check_objectives(self.search, SEARCH_OBJECTIVES)
+        return self
