@@ -448,3 +448,51 @@ def raven_designs_brute_force(ports, axes, depth, step, d4_max, alphas, betas, i
                 length, area = zero_contour(margin.reshape(xs.size, ys.size), step) if inside.any() else (0.0, 0.0)
                 rows.append((area, length, int(inside.sum()), iso_node[inside].sum(), iso_node[inside].min(initial=1.0)))
     return np.array(rows, dtype=float)
+
+
+# ---------------------------------------------------------------------------
+# Any serial arm (issue: rcm-grid for any arm)
+# ---------------------------------------------------------------------------
+
+
+def dh_modified(theta, d, a, alpha):
+    """Modified (proximal, Craig) DH transform Rx(alpha) Tx(a) Rz(theta) Tz(d), written out."""
+    ct, st = np.cos(theta), np.sin(theta)
+    ca, sa = np.cos(alpha), np.sin(alpha)
+    return np.array(
+        [
+            [ct, -st, 0.0, a],
+            [st * ca, ct * ca, -sa, -sa * d],
+            [st * sa, ct * sa, ca, ca * d],
+            [0.0, 0.0, 0.0, 1.0],
+        ]
+    )
+
+
+def dh_chain_transform(model, q):
+    """Base -> flange of a shipped model (``surgopt.robots.models.ArmModel``, data only) at joints q (rad),
+    as the product of textbook 4x4 DH matrices."""
+    t = np.eye(4)
+    f = dh_standard if model.convention == "standard" else dh_modified
+    for row, v in zip(model.dh, q, strict=True):
+        t = t @ f(v + np.radians(row.theta_offset_deg), row.d_m, row.a_m, np.radians(row.alpha_deg))
+    return t
+
+
+def tool_line_rcm_error(flange, tool_length_m, target, rcm):
+    """(tip error (m), distance of the RCM from the tool line (m)) for a tool along the flange's z axis."""
+    k = flange[:3, 2]
+    tip = flange[:3, 3] + tool_length_m * k
+    r = np.asarray(rcm) - tip
+    return float(np.linalg.norm(tip - np.asarray(target))), float(np.linalg.norm(r - (r @ k) * k))
+
+
+def finite_difference_jacobian(f, q, h=1e-7):
+    """Central differences of a vector function f at q."""
+    q = np.asarray(q, float)
+    cols = []
+    for i in range(q.size):
+        e = np.zeros_like(q)
+        e[i] = h
+        cols.append((np.asarray(f(q + e)) - np.asarray(f(q - e))) / (2 * h))
+    return np.stack(cols, axis=1)

@@ -124,30 +124,35 @@ def chain_frames(rot, pos, prismatic, q, axes, origins, trig):
 
 
 @njit(inline="always", **CONTRACT)
-def tool_normal_basis(kx, ky, kz):
-    """Two unit vectors u_1, u_2 normal to the unit tool axis k (u_1 = k x e / |k x e|, e the base axis
-    least aligned with k; u_2 = k x u_1)."""
-    ax, ay, az = abs(kx), abs(ky), abs(kz)
-    if ax <= ay and ax <= az:  # e = e_x: k x e = (0, kz, -ky)
-        ux, uy, uz = 0.0, kz, -ky
-    elif ay <= az:  # e = e_y: (-kz, 0, kx)
-        ux, uy, uz = -kz, 0.0, kx
-    else:  # e = e_z: (ky, -kx, 0)
-        ux, uy, uz = ky, -kx, 0.0
+def tool_normal_basis(kx, ky, kz, ref):
+    """Two unit vectors normal to the unit tool axis k: u_1 = ref x k / |ref x k|, u_2 = k x u_1.
+
+    ``ref`` is fixed per candidate (``reference_axis``), so the basis is a smooth function of the joints
+    (Newton's Jacobian is then the derivative of the residual it solves)."""
+    ux, uy, uz = ref[1] * kz - ref[2] * ky, ref[2] * kx - ref[0] * kz, ref[0] * ky - ref[1] * kx
     il = 1.0 / np.sqrt(ux * ux + uy * uy + uz * uz)
     ux, uy, uz = ux * il, uy * il, uz * il
     return ux, uy, uz, ky * uz - kz * uy, kz * ux - kx * uz, kx * uy - ky * ux
 
 
+def reference_axis(direction) -> np.ndarray:
+    """The base axis least aligned with a typical tool direction (the RCM to the workspace centre): at
+    least 54.7 deg from it, so ref x k never vanishes over a workspace seen from the RCM."""
+    d = np.abs(np.asarray(direction, np.float64))
+    e = np.zeros(3)
+    e[int(np.argmin(d))] = 1.0
+    return e
+
+
 @njit(inline="always", **CONTRACT)
-def rcm_residual_jacobian(rot, pos, prismatic, q, target, c, axes, origins, jac, res, trig):
+def rcm_residual_jacobian(rot, pos, prismatic, q, target, c, ref, axes, origins, jac, res, trig):
     """The five RCM-constrained IK equations at ``q`` (module docstring): residual ``res`` (5,) and its
     Jacobian ``jac`` (5, 5) for tip target ``target`` and RCM ``c``; returns max |res| (m)."""
     r = chain_frames(rot, pos, prismatic, q, axes, origins, trig)
     kx, ky, kz, px, py, pz = r[2], r[5], r[8], r[9], r[10], r[11]
     s = (c[0] - px) * kx + (c[1] - py) * ky + (c[2] - pz) * kz
     mx, my, mz = px + s * kx, py + s * ky, pz + s * kz  # point of the tool line nearest the RCM
-    u1x, u1y, u1z, u2x, u2y, u2z = tool_normal_basis(kx, ky, kz)
+    u1x, u1y, u1z, u2x, u2y, u2z = tool_normal_basis(kx, ky, kz, ref)
     dx, dy, dz = mx - c[0], my - c[1], mz - c[2]
     res[0], res[1], res[2] = px - target[0], py - target[1], pz - target[2]
     res[3] = u1x * dx + u1y * dy + u1z * dz
@@ -250,11 +255,11 @@ def lu_solve(jac, rhs, out, work):
 
 
 @njit(inline="always", **CONTRACT)
-def newton_rcm(rot, pos, prismatic, q, target, c, max_iter, axes, origins, jac, res, step, work, trig):
+def newton_rcm(rot, pos, prismatic, q, target, c, ref, max_iter, axes, origins, jac, res, step, work, trig):
     """Damped Newton on the five equations from ``q`` (updated in place). Returns the number of steps
     taken when max |res| < IK_TOL_M (``jac`` then holds the Jacobian at the solution), or -1."""
     for it in range(max_iter + 1):
-        worst = rcm_residual_jacobian(rot, pos, prismatic, q, target, c, axes, origins, jac, res, trig)
+        worst = rcm_residual_jacobian(rot, pos, prismatic, q, target, c, ref, axes, origins, jac, res, trig)
         if worst < IK_TOL_M:
             return it
         if it == max_iter or not np.isfinite(worst):
@@ -326,13 +331,13 @@ def _predict(q, q1, q2, q3, run, jac, dp, step, work):
 
 
 @njit(**CONTRACT)
-def _seed_solve(rot, pos, prismatic, lower, upper, seed, restarts, target, c, q, bufs):
+def _seed_solve(rot, pos, prismatic, lower, upper, seed, restarts, target, c, ref, q, bufs):
     """Solve at ``target`` from the seed, then from each restart; True with ``q`` set when one converges."""
     axes, origins, jac, res, step, work, trig = bufs
     for r in range(restarts.shape[0] + 1):
         for i in range(N_ACTIVE):
             q[i] = seed[i] if r == 0 else seed[i] + restarts[r - 1, i]
-        if newton_rcm(rot, pos, prismatic, q, target, c, SEED_ITER, axes, origins, jac, res, step, work, trig) >= 0:
+        if newton_rcm(rot, pos, prismatic, q, target, c, ref, SEED_ITER, axes, origins, jac, res, step, work, trig) >= 0:
             if within_limits(q, prismatic, lower, upper):
                 return True
     return False
@@ -363,7 +368,11 @@ def _walk(chain_arrays, seed, restarts, c, offsets, start, gii_to_beat, q_out):
     q_out[:] = np.nan
     for i in range(3):
         target[i] = c[i] + start[i]
-    if not _seed_solve(rot, pos, prismatic, lower, upper, seed, restarts, target, c, q, bufs):
+    # the constraint rows' reference axis: the base axis least aligned with the RCM -> centre direction
+    ref = np.zeros(3)
+    a0, a1, a2 = abs(start[0]), abs(start[1]), abs(start[2])
+    ref[0 if (a0 <= a1 and a0 <= a2) else (1 if a1 <= a2 else 2)] = 1.0
+    if not _seed_solve(rot, pos, prismatic, lower, upper, seed, restarts, target, c, ref, q, bufs):
         return 0.0, 0.0, 1, 0, 0, 0
     # continuation: start -> offsets[0] in equal steps
     dist = np.sqrt(((offsets[0] - start) ** 2).sum())
@@ -376,7 +385,7 @@ def _walk(chain_arrays, seed, restarts, c, offsets, start, gii_to_beat, q_out):
             dp[i] = new - target[i]
             target[i] = new
         _predict(q, q, q, q, 0, jac, dp, step, work)
-        it = newton_rcm(rot, pos, prismatic, q, target, c, WALK_ITER, axes, origins, jac, res, step, work, trig)
+        it = newton_rcm(rot, pos, prismatic, q, target, c, ref, WALK_ITER, axes, origins, jac, res, step, work, trig)
         if it < 0:
             return 0.0, 0.0, 1, 0, 0, steps_total
         steps_total += it
@@ -406,7 +415,7 @@ def _walk(chain_arrays, seed, restarts, c, offsets, start, gii_to_beat, q_out):
             _predict(q, q1, q2, q3, run, jac, dp, step, work)
             for i in range(N_ACTIVE):
                 q3[i], q2[i], q1[i] = q2[i], q1[i], qj[i]
-        it = newton_rcm(rot, pos, prismatic, q, target, c, WALK_ITER, axes, origins, jac, res, step, work, trig)
+        it = newton_rcm(rot, pos, prismatic, q, target, c, ref, WALK_ITER, axes, origins, jac, res, step, work, trig)
         if it < 0 or not within_limits(q, prismatic, lower, upper):
             return 0.0, 0.0, 1, 0, j + 1, steps_total
         steps_total += it
@@ -472,11 +481,13 @@ def chain_fk(chain: Chain, q):
 
 
 def rcm_jacobian(chain: Chain, q, target, rcm):
-    """(residual (5,), Jacobian (5, 5)) of the five RCM-constrained IK equations at q (module docstring)."""
+    """(residual (5,), Jacobian (5, 5)) of the five RCM-constrained IK equations at q (module docstring),
+    the constraint rows in the basis of ``reference_axis(target - rcm)``."""
     rot, pos, prismatic = _arrays(chain)[:3]
     axes, origins, jac, res = np.empty((5, 3)), np.empty((5, 3)), np.empty((5, 5)), np.empty(5)
-    rcm_residual_jacobian(rot, pos, prismatic, np.asarray(q, np.float64), np.asarray(target, np.float64),
-                          np.asarray(rcm, np.float64), axes, origins, jac, res, new_trig_cache())
+    target, rcm = np.asarray(target, np.float64), np.asarray(rcm, np.float64)
+    rcm_residual_jacobian(rot, pos, prismatic, np.asarray(q, np.float64), target, rcm,
+                          reference_axis(target - rcm), axes, origins, jac, res, new_trig_cache())
     return res, jac
 
 

@@ -18,7 +18,7 @@ twin with other link lengths.
 from __future__ import annotations
 
 from surgopt.robots.chain import DhRow
-from surgopt.robots.models import ArmModel
+from surgopt.robots.models import PAPER_WORKSPACE, ArmModel
 
 #: name, alpha (deg), d (m), range (+-deg), speed (deg/s) [KUKA], [DH]
 _TABLE = (("A1", -90.0, 0.36, 170.0, 85.0), ("A2", 90.0, 0.0, 120.0, 85.0), ("A3", 90.0, 0.42, 170.0, 100.0),
@@ -34,5 +34,7 @@ MODEL = ArmModel(
     dh=tuple(DhRow(0.0, alpha, d, 0.0, -rng, rng, v * DEG_S, name) for name, alpha, d, rng, v in _TABLE),
     locked_joints_deg={"A3": 0.0, "A7": 0.0},
     lock_reason="A7 only spins the tool; A3 (redundant upper-arm rotation) held at 0 like the PA10's S3",
-    seed_deg={}, tool_length_m=0.30,
+    seed_deg={"A1": 0.0, "A2": 22.0, "A4": -111.0, "A5": 0.0, "A6": 47.0},
+    tool_length_m=0.30,
+    workspace=PAPER_WORKSPACE, grid=dict(x_min_m=0.1, x_max_m=0.8, x_count=36, z_min_m=-0.2, z_max_m=0.6, z_count=41),
 )

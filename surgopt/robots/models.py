@@ -16,6 +16,10 @@ from surgopt.robots.chain import DhRow
 MODELS = {"pa10_7c": "surgopt.robots.pa10_7c", "ur5e": "surgopt.robots.ur5e", "panda": "surgopt.robots.panda",
           "lbr_iiwa_14": "surgopt.robots.lbr_iiwa_14"}
 
+#: The paper's workspace (Locke & Patel Sec. III-B), the shipped models' default: a 50 mm cube of
+#: 17^3 tool tips centred 100 mm below the RCM.
+PAPER_WORKSPACE = {"cube_side_m": 0.05, "depth_below_rcm_m": 0.1, "points_per_side": 17}
+
 
 @dataclass(frozen=True)
 class ArmModel:

@@ -16,7 +16,7 @@ from __future__ import annotations
 import math
 
 from surgopt.robots.chain import DhRow
-from surgopt.robots.models import ArmModel
+from surgopt.robots.models import PAPER_WORKSPACE, ArmModel
 
 SPEED_RAD_S = math.pi  # [UR-TS]
 RANGE_DEG = 360.0  # [UR-TS]
@@ -30,5 +30,7 @@ MODEL = ArmModel(
     dh=tuple(DhRow(a, alpha, d, 0.0, -RANGE_DEG, RANGE_DEG, SPEED_RAD_S, name) for name, a, alpha, d in _TABLE),
     locked_joints_deg={"wrist_3": 0.0},
     lock_reason="wrist_3 only spins the tool about its own axis",
-    seed_deg={}, tool_length_m=0.30,
+    seed_deg={"shoulder_pan": 163.0, "shoulder_lift": -95.0, "elbow": 115.0, "wrist_1": -110.0, "wrist_2": -90.0},
+    tool_length_m=0.30,
+    workspace=PAPER_WORKSPACE, grid=dict(x_min_m=0.0, x_max_m=0.8, x_count=41, z_min_m=-0.9, z_max_m=0.5, z_count=71),
 )

@@ -368,8 +368,9 @@ class RcmGridConfig(StrictModel):
 
     @model_validator(mode="after")
     def _consistent(self):
-        if self.candidates.z_reference is None:
-            object.__setattr__(self.candidates, "z_reference", "shoulder" if self.robot.is_pa10 else "base")
+        if self.candidates.z_reference is None:  # a copy: the default Candidates() instance is shared
+            object.__setattr__(self, "candidates", self.candidates.model_copy(
+                update={"z_reference": "shoulder" if self.robot.is_pa10 else "base"}))
         if self.candidates.z_reference == "shoulder" and not self.robot.is_pa10:
             raise ValueError("candidates.z_reference = 'shoulder' is the PA10's; other arms use 'base'")
         if isinstance(self.search, SearchSpec) and self.candidates.list_m is not None:
