@@ -45,8 +45,8 @@ from numba import njit
 from surgopt.jit import CONTRACT
 from surgopt.kinematics.rcm_metric import (  # noqa: F401 - the shared metric, re-exported for the tests
     SINGULAR_RTOL, STATUS_OK, STATUS_SINGULAR, STATUS_UNREACHABLE, TINY, TRISECT_CHEB, TRISECT_POLY,
-    constrained_extremes, cos_third_acos, gram_lambda_max, singular_values_3x3, singular_values_3x3_sq,
-    sym3_lambda_max,
+    constrained_extremes, cos_third_acos, gram_lambda_max, probe_points, singular_values_3x3,
+    singular_values_3x3_sq, sym3_lambda_max,
 )
 from surgopt.kinematics.small_linalg import cross_components
 
@@ -113,8 +113,10 @@ def arm_ik(kx, ky, kz, wx, wy, wz, d1, d3, d5, elbow_sign, cl0, cl1, cl2, cl3, c
     k4y = kx * nx + ky * ny
     k4z = kx * fx + ky * fy + kz * fz
     # E2: k4x >= cl3 |(k4x, k4y)|, squared (the sign of cl3 picks the form)
-    e2_sq = k4x * k4x >= cl3 * cl3 * (k4x * k4x + k4y * k4y)
-    e2_ok = ((k4x >= 0.0) & e2_sq) if cl3 >= 0.0 else ((k4x >= 0.0) | ~e2_sq)
+    # (both sides inclusive: |E2| equal to the limit is inside; with a range of 180 deg or more,
+    # cl3 = -1 and E2 = 180 exactly, k4y = 0, is inside too)
+    k4_sq = cl3 * cl3 * (k4x * k4x + k4y * k4y)
+    e2_ok = ((k4x >= 0.0) & (k4x * k4x >= k4_sq)) if cl3 >= 0.0 else ((k4x >= 0.0) | (k4x * k4x <= k4_sq))
     ok = ((abs(cos_a) <= 1.0) & (wx >= cl0 * r) & (az_ >= cl1)
           & (ax_ * fx + ay_ * fy + az_ * fz >= cl2) & e2_ok & (k4z >= cl4))
     return nx, ny, ex, ey, ez, fx, fy, fz, ok
@@ -288,14 +290,6 @@ def workspace_geometry(offsets, tool_offset_m):
         g[0, j], g[1, j], g[2, j], g[3, j], g[4, j], g[5, j], g[6, j], g[7, j], g[8, j] = \
             ox, oy, oz, kx, ky, kz, vx, vy, vz
     return g
-
-
-def probe_points(offsets):
-    """Indices of the 8 corner-most and 6 face-most points: where a workspace is left first."""
-    signs = np.array([[sx, sy, sz] for sx in (-1, 1) for sy in (-1, 1) for sz in (-1, 1)]
-                     + [[s if i == a else 0 for i in range(3)] for a in range(3) for s in (-1, 1)], float)
-    centred = offsets - offsets.mean(axis=0)
-    return np.unique(np.argmax(centred @ signs.T, axis=0)).astype(np.int64)
 
 
 def pose_singular_values(points, rcm, arm: Pa10Arm):

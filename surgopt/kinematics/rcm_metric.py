@@ -7,7 +7,8 @@ the reciprocals of those of Q^-1 J_r (eqs. 5-6). Only that null space enters, so
 combination of the constraint rows gives the same B. The closed-form PA10 kernel
 (``pa10_rcm``) and the generic serial-chain kernel (``serial_chain``) both call it: one
 implementation of the metric. Everything here is trigonometry-free and branch-free, so that the
-PA10 kernel's per-pose loop vectorises.
+PA10 kernel's per-pose loop vectorises. ``probe_points`` (which workspace points to try first) is
+shared too.
 """
 from __future__ import annotations
 
@@ -199,3 +200,11 @@ def constrained_extremes(c0, c1, c2, c3, c4):
     tol2 = SINGULAR_RTOL * SINGULAR_RTOL * smax2
     singular = (n3 * n3 <= tol2) or (n4 * n4 <= tol2) or (smin2 <= tol2)
     return (0.0 if singular else smin2), smax2, singular
+
+
+def probe_points(offsets):
+    """Indices of the 8 corner-most and 6 face-most points: where a workspace is left first."""
+    signs = np.array([[sx, sy, sz] for sx in (-1, 1) for sy in (-1, 1) for sz in (-1, 1)]
+                     + [[s if i == a else 0 for i in range(3)] for a in range(3) for s in (-1, 1)], float)
+    centred = offsets - offsets.mean(axis=0)
+    return np.unique(np.argmax(centred @ signs.T, axis=0)).astype(np.int64)

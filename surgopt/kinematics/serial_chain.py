@@ -26,6 +26,8 @@ workspace centre, carried to the walk's first point by continuation, and then al
 serpentine through the cube, ``serpentine_order``), each solution predicted from the last
 (q + J^-1 dp) and corrected by Newton, so a candidate stays on the seeded branch. A point where Newton
 does not reach ``IK_TOL_M`` within ``WALK_ITER`` steps, or whose solution is outside a joint limit, is
+tried once more by continuation from the start's solution (a near-singular step of the walk, such as an
+elbow at full stretch, is then approached from the interior); if that fails too the point is
 unreachable, and the walk stops there (``n_unreachable`` is then 1: the rest is not tried).
 
 Public drivers: ``rcm_walk`` (one candidate, every joint vector), ``chain_candidates_extremes``
@@ -37,7 +39,7 @@ import numpy as np
 from numba import njit
 
 from surgopt.jit import CONTRACT
-from surgopt.kinematics.rcm_metric import constrained_extremes
+from surgopt.kinematics.rcm_metric import constrained_extremes, probe_points
 from surgopt.robots.chain import Chain  # noqa: F401 - the kernel's input, defined with the data that builds it
 
 
@@ -176,7 +178,7 @@ def rcm_residual_jacobian(rot, pos, prismatic, q, target, c, ref, axes, origins,
     return worst
 
 
-@njit(inline="always", **CONTRACT)
+@njit(**CONTRACT)
 def damped_solve(jac, rhs, damping, out, work):
     """out = (J^T J + damping I)^-1 J^T rhs for a 5x5 J (Cholesky; ``work`` (5, 6) scratch).
 
@@ -254,7 +256,7 @@ def lu_solve(jac, rhs, out, work):
     return True
 
 
-@njit(inline="always", **CONTRACT)
+@njit(**CONTRACT)
 def newton_rcm(rot, pos, prismatic, q, target, c, ref, max_iter, axes, origins, jac, res, step, work, trig):
     """Damped Newton on the five equations from ``q`` (updated in place). Returns the number of steps
     taken when max |res| < IK_TOL_M (``jac`` then holds the Jacobian at the solution), or -1."""
@@ -305,7 +307,7 @@ def pose_extremes_from_jacobian(jac, qdot_max):
         (jac[0, 4] * s4, jac[1, 4] * s4, jac[2, 4] * s4, jac[3, 4] * s4, jac[4, 4] * s4))
 
 
-@njit(inline="always", **CONTRACT)
+@njit(**CONTRACT)
 def _predict(q, q1, q2, q3, run, jac, dp, step, work):
     """Predict the next point's joints. On a straight run of the walk (``run`` earlier steps in the same
     direction; q1, q2, q3 the solutions one, two and three points back) extrapolate: cubic after three
@@ -344,8 +346,33 @@ def _seed_solve(rot, pos, prismatic, lower, upper, seed, restarts, target, c, re
 
 
 @njit(**CONTRACT)
-def _walk(chain_arrays, seed, restarts, c, offsets, start, gii_to_beat, q_out):
-    """One candidate: seed solve at RCM + ``start``, continuation to the first point, the walk.
+def _continue(rot, pos, prismatic, q, target, c, ref, end, bufs):
+    """Carry the solution ``q`` at ``target`` to RCM + ``end`` in equal steps of at most
+    CONTINUATION_STEP_M (tangent predictor, Newton corrector). Returns the Newton steps taken, or -1."""
+    axes, origins, jac, res, step, work, trig = bufs
+    dp = np.empty(N_ACTIVE)
+    dist = 0.0
+    for i in range(3):
+        dist += (c[i] + end[i] - target[i]) ** 2
+    n_cont = int(np.ceil(np.sqrt(dist) / CONTINUATION_STEP_M))
+    total = 0
+    for s in range(n_cont):
+        for i in range(3):
+            new = target[i] + (c[i] + end[i] - target[i]) / (n_cont - s)
+            dp[i] = new - target[i]
+            target[i] = new
+        _predict(q, q, q, q, 0, jac, dp, step, work)
+        it = newton_rcm(rot, pos, prismatic, q, target, c, ref, WALK_ITER, axes, origins, jac, res, step, work, trig)
+        if it < 0:
+            return -1
+        total += it
+    return total
+
+
+@njit(**CONTRACT)
+def _walk(chain_arrays, seed, restarts, c, offsets, start, probes, gii_to_beat, q_out):
+    """One candidate: seed solve at RCM + ``start``, the ``probes`` (offsets, each reached by continuation
+    from the start and abandoned), continuation to the first point, the walk.
 
     Returns (min sigma_min^2, max sigma_max^2, n_unreachable, n_singular, points_evaluated, newton steps);
     ``q_out`` (P, 5) gets each point's joints (NaN where not reached). Stops early when the running
@@ -374,21 +401,24 @@ def _walk(chain_arrays, seed, restarts, c, offsets, start, gii_to_beat, q_out):
     ref[0 if (a0 <= a1 and a0 <= a2) else (1 if a1 <= a2 else 2)] = 1.0
     if not _seed_solve(rot, pos, prismatic, lower, upper, seed, restarts, target, c, ref, q, bufs):
         return 0.0, 0.0, 1, 0, 0, 0
-    # continuation: start -> offsets[0] in equal steps
-    dist = np.sqrt(((offsets[0] - start) ** 2).sum())
-    n_cont = int(np.ceil(dist / CONTINUATION_STEP_M))
+    # probes first (corner and face points, IK only): a candidate that loses one is infeasible at once
+    q0 = q.copy()
     steps_total = 0
-    for s in range(1, n_cont + 1):
-        f = s / n_cont
-        for i in range(3):
-            new = c[i] + start[i] + f * (offsets[0, i] - start[i])
-            dp[i] = new - target[i]
-            target[i] = new
-        _predict(q, q, q, q, 0, jac, dp, step, work)
-        it = newton_rcm(rot, pos, prismatic, q, target, c, ref, WALK_ITER, axes, origins, jac, res, step, work, trig)
-        if it < 0:
+    for k in range(probes.shape[0]):
+        it = _continue(rot, pos, prismatic, q, target, c, ref, probes[k], bufs)
+        if it < 0 or not within_limits(q, prismatic, lower, upper):
             return 0.0, 0.0, 1, 0, 0, steps_total
         steps_total += it
+        for i in range(N_ACTIVE):
+            q[i] = q0[i]
+        for i in range(3):
+            target[i] = c[i] + start[i]
+        newton_rcm(rot, pos, prismatic, q, target, c, ref, 0, axes, origins, jac, res, step, work, trig)
+    # continuation: start -> offsets[0]
+    it = _continue(rot, pos, prismatic, q, target, c, ref, offsets[0], bufs)
+    if it < 0:
+        return 0.0, 0.0, 1, 0, 0, steps_total
+    steps_total += it
     lo = np.inf
     hi = 0.0
     n_sing = 0
@@ -417,7 +447,19 @@ def _walk(chain_arrays, seed, restarts, c, offsets, start, gii_to_beat, q_out):
                 q3[i], q2[i], q1[i] = q2[i], q1[i], qj[i]
         it = newton_rcm(rot, pos, prismatic, q, target, c, ref, WALK_ITER, axes, origins, jac, res, step, work, trig)
         if it < 0 or not within_limits(q, prismatic, lower, upper):
-            return 0.0, 0.0, 1, 0, j + 1, steps_total
+            # the walk lost the point (a near-singular step: an elbow at full stretch, a wrist with W1 ~ 0):
+            # reach it once more from the start's solution, straight from the workspace centre
+            for i in range(N_ACTIVE):
+                q[i] = q0[i]
+            for i in range(3):
+                target[i] = c[i] + start[i]
+            newton_rcm(rot, pos, prismatic, q, target, c, ref, 0, axes, origins, jac, res, step, work, trig)
+            it = _continue(rot, pos, prismatic, q, target, c, ref, offsets[j], bufs)
+            if it < 0 or not within_limits(q, prismatic, lower, upper):
+                return 0.0, 0.0, 1, 0, j + 1, steps_total
+            run = 0
+            for i in range(3):
+                last[i] = np.nan  # no straight run through the retried point
         steps_total += it
         for i in range(N_ACTIVE):
             q_out[j, i] = q[i]
@@ -431,13 +473,13 @@ def _walk(chain_arrays, seed, restarts, c, offsets, start, gii_to_beat, q_out):
 
 
 @njit(**CONTRACT)
-def _candidates(chain_arrays, seed, restarts, rcms, offsets, start, gii_to_beat):
+def _candidates(chain_arrays, seed, restarts, rcms, offsets, start, probes, gii_to_beat):
     m = rcms.shape[0]
     out = np.empty((m, 2))
     counts = np.empty((m, 4), np.int64)
     q_out = np.empty((offsets.shape[0], N_ACTIVE))
     for i in range(m):
-        lo, hi, n_unr, n_sing, n_eval, steps = _walk(chain_arrays, seed, restarts, rcms[i], offsets, start,
+        lo, hi, n_unr, n_sing, n_eval, steps = _walk(chain_arrays, seed, restarts, rcms[i], offsets, start, probes,
                                                      gii_to_beat[i], q_out)
         out[i, 0], out[i, 1] = np.sqrt(lo), np.sqrt(hi)
         counts[i, 0], counts[i, 1], counts[i, 2], counts[i, 3] = n_unr, n_sing, n_eval, steps
@@ -504,23 +546,25 @@ def rcm_walk(chain: Chain, rcm, offsets, seed, start=None, restarts=None):
     restarts = default_restarts(seed) if restarts is None else np.asarray(restarts, np.float64).reshape(-1, 5)
     q_out = np.empty((offsets.shape[0], 5))
     lo, hi, n_unr, n_sing, n_eval, steps = _walk(_arrays(chain), seed, restarts, np.asarray(rcm, np.float64),
-                                                 offsets, start, 0.0, q_out)
+                                                 offsets, start, np.empty((0, 3)), 0.0, q_out)
     return {"q": q_out, "sigma_min": float(np.sqrt(lo)), "sigma_max": float(np.sqrt(hi)), "n_unreachable": n_unr,
             "n_singular": n_sing, "points_evaluated": n_eval, "newton_steps": steps}
 
 
-def chain_candidates_extremes(rcms, offsets, chain: Chain, seed, gii_to_beat=None, start=None):
+def chain_candidates_extremes(rcms, offsets, chain: Chain, seed, gii_to_beat=None, start=None, probe_first=True):
     """For each RCM candidate (M, 3): the walk over ``offsets`` (P, 3, in walk order, relative to the RCM).
 
     Returns (sigma_min (M,), sigma_max (M,), n_unreachable (M,), n_singular (M,), points_evaluated (M,)),
     the PA10 kernel's outputs (``pa10_rcm.rcm_candidates_extremes``); an unreachable candidate has
     sigma 0 and n_unreachable 1. ``gii_to_beat`` (M,) stops a candidate's walk once its running GII bound
-    falls to it (Culling); None evaluates every point.
+    falls to it (Culling); None evaluates every point. ``probe_first``: reach the corner and face points
+    from the start first (IK only), so that most infeasible candidates are known before any walk.
     """
     rcms = np.ascontiguousarray(rcms, dtype=np.float64).reshape(-1, 3)
     offsets = np.ascontiguousarray(offsets, dtype=np.float64).reshape(-1, 3)
     seed = np.asarray(seed, np.float64)
     start = offsets.mean(axis=0) if start is None else np.asarray(start, np.float64)
     g = np.zeros(rcms.shape[0]) if gii_to_beat is None else np.asarray(gii_to_beat, np.float64).reshape(-1)
-    out, counts = _candidates(_arrays(chain), seed, default_restarts(seed), rcms, offsets, start, g)
+    probes = np.ascontiguousarray(offsets[probe_points(offsets)]) if probe_first else np.empty((0, 3))
+    out, counts = _candidates(_arrays(chain), seed, default_restarts(seed), rcms, offsets, start, probes, g)
     return out[:, 0], out[:, 1], counts[:, 0], counts[:, 1], counts[:, 2]

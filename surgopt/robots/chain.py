@@ -155,13 +155,20 @@ def from_urdf(path: str | Path, base_link: str | None, tip_link: str | None) -> 
     continuous joints have no limits; floating and planar joints, mimic joints and missing or
     unknown links are ``ChainError``s naming the element.
     """
+    import logging
+
     import yourdfpy
 
+    log = logging.getLogger("yourdfpy")
+    level = log.level
+    log.setLevel(logging.CRITICAL)  # its parse errors are ours to report, in one line
     try:
         urdf = yourdfpy.URDF.load(str(path), load_meshes=False, build_scene_graph=False,
                                   load_collision_meshes=False)
     except Exception as exc:  # noqa: BLE001 - lxml, ValueError, KeyError: a file that is not a URDF
-        raise ChainError(str(path), f"not a readable URDF: {str(exc).splitlines()[0] if str(exc) else type(exc).__name__}") from None
+        raise ChainError(str(path), f"not a readable URDF: {_xml_problem(path) or _first_line(exc)}") from None
+    finally:
+        log.setLevel(level)
     robot = urdf.robot
     links = {link.name for link in robot.links}
     by_child = {}
@@ -224,6 +231,24 @@ def from_urdf(path: str | Path, base_link: str | None, tip_link: str | None) -> 
     if not joints:
         raise ChainError("tip_link", f"no movable joint between {base_link!r} and {tip_link!r}")
     return ChainSpec(tuple(joints), pending)
+
+
+def _first_line(exc: Exception) -> str:
+    text = str(exc).strip()
+    return text.splitlines()[0] if text else type(exc).__name__
+
+
+def _xml_problem(path) -> str | None:
+    """Where a file fails to parse as XML (line and column), or None when it is well-formed XML."""
+    from lxml import etree
+
+    try:
+        etree.parse(str(path))
+    except etree.XMLSyntaxError as exc:
+        return f"line {exc.position[0]}, column {exc.position[1]}: {exc.msg}"
+    except OSError as exc:
+        return str(exc)
+    return None
 
 
 def chain_transform(spec: ChainSpec, q) -> np.ndarray:

@@ -1,0 +1,181 @@
+"""rcm-grid's robot section (surgopt/studies/rcm_grid_config.py): shipped models, URDF files, DH tables,
+--robot, y candidates; every URDF and DH error through the CLI (exit 2, file and field named, nothing
+written)."""
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from surgopt.config import validate
+from surgopt.studies import rcm_grid as S
+
+from conftest import cli
+
+DATA = Path(__file__).parent / "data"
+PA10_URDF = (DATA / "pa10_7c.urdf").read_text()
+SMALL = ["workspace.points_per_side=3", "candidates.grid.x_count=4", "candidates.grid.z_count=3"]
+
+
+def urdf_with(tmp_path, old, new, name="arm.urdf"):
+    text = PA10_URDF.replace(old, new)
+    assert text != PA10_URDF or old == new
+    (tmp_path / name).write_text(text)
+    return name
+
+
+ARM = """[robot]
+urdf = "{urdf}"
+tool_length_m = 0.3
+locked_joints_deg = {{ S3 = 0.0, W2 = 0.0 }}
+{extra}
+"""
+
+BAD_URDF = [
+    ("floating", ('name="S2" type="revolute"', 'name="S2" type="floating"'), "", "joint 'S2'", "floating joint"),
+    ("planar", ('name="E1" type="revolute"', 'name="E1" type="planar"'), "", "joint 'E1'", "planar joint"),
+    ("missing link", ('<link name="link_e2"/>', ''), "", "joint 'E2'", "child link 'link_e2'"),
+    ("unknown tip", ("", ""), 'tip_link = "hand"', "tip_link", "no link 'hand'"),
+    ("unknown base", ("", ""), 'base_link = "table"', "base_link", "no link 'table'"),
+    ("locked unknown", ("", ""), "", "locked_joints_deg", "no joint 'W3'"),
+    ("six active", ("", ""), "", "locked_joints_deg", "6 joints remain active"),
+    ("no speed", ('velocity="2.0" effort="100"/>\n  </joint>\n  <joint name="E1"',
+                  'effort="100"/>\n  </joint>\n  <joint name="E1"'), "", "joint 'S3'", "velocity"),
+    ("not xml", ("<robot", "<<robot"), "", "arm.urdf", "not a readable URDF: line 7"),
+]
+
+
+@pytest.mark.parametrize("case", BAD_URDF, ids=[c[0] for c in BAD_URDF])
+def test_urdf_errors_through_the_cli(tmp_path, case):
+    name, (old, new), extra, where, what = case
+    urdf = urdf_with(tmp_path, old, new)
+    text = ARM.format(urdf=urdf, extra=extra)
+    if name == "locked unknown":
+        text = text.replace("W2 = 0.0", "W3 = 0.0")
+    if name == "six active":
+        text = text.replace("{ S3 = 0.0, W2 = 0.0 }", "{ S3 = 0.0 }")
+    (tmp_path / "arm.toml").write_text(text)
+    r = cli("rcm-grid", tmp_path / "arm.toml", "--store", tmp_path / "store", check=False)
+    assert r.returncode == 2, r.stderr
+    line = r.stderr.strip()
+    assert len(line.splitlines()) == 1 and "arm.toml" in line and "robot" in line
+    assert where in line and what in line, line
+    assert not (tmp_path / "store").exists()
+
+
+BAD_DH = [
+    ("no speed", [{"a_m": 0, "alpha_deg": 0, "d_m": 0.1}] * 5, "max_speed_rad_s is required"),
+    ("four rows", [{"a_m": 0, "alpha_deg": 90, "d_m": 0.1, "max_speed_rad_s": 1}] * 4, "only 4 joints remain active"),
+    ("half limits", [{"a_m": 0, "alpha_deg": 0, "d_m": 0.1, "max_speed_rad_s": 1, "lower_deg": -90}] * 5,
+     "give both lower_deg and upper_deg"),
+    ("prismatic in degrees", [{"joint": "prismatic", "a_m": 0, "alpha_deg": 0, "d_m": 0.1, "max_speed_rad_s": 1}] * 5,
+     "takes lower_m, upper_m, max_speed_m_s"),
+    ("nan", [{"a_m": "nan", "alpha_deg": 0, "d_m": 0.1, "max_speed_rad_s": 1}] * 5, "robot.dh[0].a_m: must be a finite number"),
+]
+
+
+@pytest.mark.parametrize("case", BAD_DH, ids=[c[0] for c in BAD_DH])
+def test_dh_errors_through_the_cli(tmp_path, case):
+    _, rows, what = case
+    rows = [{k: (float("nan") if v == "nan" else v) for k, v in r.items()} for r in rows]
+    (tmp_path / "dh.yaml").write_text(json.dumps({"robot": {"dh": rows, "tool_length_m": 0.2}}).replace("NaN", ".nan"))
+    r = cli("rcm-grid", tmp_path / "dh.yaml", "--store", tmp_path / "store", check=False)
+    assert r.returncode == 2 and "dh.yaml" in r.stderr and what in r.stderr, r.stderr
+    assert not (tmp_path / "store").exists()
+
+
+@pytest.mark.parametrize("data, what", [
+    ({"robot": {"model": "ur5"}}, "did you mean 'ur5e'"),
+    ({"robot": {"model": "ur5e", "link_d1_m": 0.3}}, "link_d1_m is a PA10-7C field"),
+    ({"robot": {"model": "ur5e", "kernel": "closed_form"}}, "only for the PA10-7C"),
+    ({"robot": {"model": "ur5e", "urdf": "x.urdf"}}, "give one of model, urdf or dh"),
+    ({"robot": {"model": "ur5e", "seed_deg": {"wrist_3": 0}}}, "'wrist_3' is locked"),
+    ({"robot": {"model": "ur5e", "seed_deg": {"wrist_9": 0}}}, "'wrist_9' is not an active joint"),
+    ({"robot": {"model": "ur5e"}, "candidates": {"z_reference": "shoulder"}}, "is the PA10's"),
+    ({"robot": {"dh": [{"a_m": 0, "alpha_deg": 90, "d_m": 0, "max_speed_rad_s": 1}] * 5}}, "tool_length_m is required"),
+    ({"robot": {"urdf": "nowhere.urdf", "tool_length_m": 0.3}}, "file not found"),
+    ({"robot": {"model": "ur5e", "tool_axis": [0, 0, 0]}}, "tool_axis must be a direction"),
+    ({"candidates": {"grid": {"y_min_m": 0.0, "y_max_m": 0.1}}}, "a y range needs y_count > 1"),
+    ({"candidates": {"list_m": [[0.5, 0.1], [0.5, 0.0, 0.1]]}}, "must all be [x, z] or all [x, y, z]"),
+])
+def test_robot_config_errors(tmp_path, data, what):
+    from surgopt.compose import validate_for
+    from surgopt.errors import ConfigError
+
+    with pytest.raises(ConfigError) as e:
+        validate_for(S.STUDY, data, "cfg.toml", tmp_path / "cfg.toml")
+    assert what in str(e.value) and "cfg.toml" in str(e.value)
+
+
+def test_the_resolved_robot_says_everything():
+    """A shipped model's defaults (locks, seed, tool, workspace, grid) fill what the config leaves out; the
+    config's own values win field by field."""
+    from surgopt.robots.models import get_model
+
+    m = get_model("ur5e")
+    cfg = validate({"robot": {"model": "ur5e"}, "candidates": {"grid": {"x_count": 5}}}, S.Config, "t")
+    assert cfg.robot.locked_joints_deg == m.locked_joints_deg and cfg.robot.seed_deg == m.seed_deg
+    assert cfg.robot.tool_length_m == m.tool_length_m and cfg.candidates.z_reference == "base"
+    g = cfg.candidates.grid
+    assert g.x_count == 5 and g.z_count == m.grid["z_count"] and g.x_min_m == m.grid["x_min_m"]
+    assert cfg.workspace.points_per_side == m.workspace["points_per_side"]
+    assert not cfg.robot.closed_form and S.kernel_for(cfg).__class__.__name__ == "ChainKernel"
+    assert validate({}, S.Config, "t").robot.closed_form
+
+
+def test_y_candidates_grid_and_list():
+    cfg = validate({"robot": {"model": "ur5e"}, "candidates": {"grid": {
+        "x_min_m": 0.3, "x_max_m": 0.4, "x_count": 2, "y_min_m": -0.1, "y_max_m": 0.1, "y_count": 3,
+        "z_min_m": -0.5, "z_max_m": -0.5, "z_count": 1}}}, S.Config, "t")
+    xyz = S.candidate_xyz(cfg)
+    assert xyz.shape == (6, 3) and xyz[:3, 1].tolist() == [-0.1, 0.0, 0.1] and (xyz[:3, 0] == 0.3).all()
+    assert S.search_axes(cfg) == ("x", "y", "z") and S.candidate_count(cfg) == 6
+    lst = validate({"robot": {"model": "ur5e"}, "candidates": {"list_m": [[0.3, 0.05, -0.5]]}}, S.Config, "t")
+    assert S.candidate_xyz(lst).tolist() == [[0.3, 0.05, -0.5]]
+    rows = S.compute_task(cfg.model_copy(update={"workspace": S.Workspace(points_per_side=3)}), 6, 0)
+    assert rows["y_rcm_m"].tolist() == xyz[:, 1].tolist()
+    # the mirror image about y = 0 of a UR5e candidate is not its twin (the shoulder offset), but both solve
+    assert rows["feasible"].any()
+
+
+def test_cull_finds_the_full_maps_best_for_a_generic_arm():
+    cfg = validate({"robot": {"model": "panda"}, "workspace": {"points_per_side": 5},
+                    "candidates": {"grid": {"x_count": 7, "z_count": 9}}}, S.Config, "t")
+    full = S.compute_task(cfg, 10 ** 6, 0)
+    cull = S.cull_search(cfg.model_copy(update={"search": "cull"}))
+    i, j = np.argmax(full["gii"]), np.argmax(np.where(cull["gii_is_exact"], cull["gii"], -1))
+    assert full["gii"][i] > 0 and i == j and cull["gii"][j] == full["gii"][i]
+    assert cull["points_evaluated"].sum() < full["points_evaluated"].sum()
+
+
+def test_robot_flag_runs_a_shipped_model_and_a_urdf(tmp_path):
+    store = tmp_path / "store"
+    r = cli("rcm-grid", *SMALL, "--robot", "lbr_iiwa_14", "--store", store, "--quiet")
+    assert "best_y_rcm_m" in r.stdout
+    again = cli("rcm-grid", *SMALL, "--robot", "lbr_iiwa_14", "--store", store, "--quiet")
+    assert "cache hit" in (again.stdout + again.stderr).lower()
+    # the URDF given on the command line, relative to the working directory
+    (tmp_path / "pa10.urdf").write_text(PA10_URDF)
+    r = cli("rcm-grid", *SMALL, "--robot", "pa10.urdf", "robot.tool_length_m=0.587",
+            "robot.locked_joints_deg={S3=0.0,W2=0.0}", "--store", store, "--quiet", cwd=tmp_path)
+    assert r.returncode == 0
+    bad = cli("rcm-grid", "--robot", "nosuch", "--store", store, check=False)
+    assert bad.returncode == 2 and "neither a shipped model" in bad.stderr
+
+
+def test_urdf_paths_are_relative_to_the_config_and_its_content_is_in_the_key(tmp_path):
+    (tmp_path / "sub").mkdir()
+    (tmp_path / "sub" / "arm.urdf").write_text(PA10_URDF)
+    (tmp_path / "sub" / "arm.toml").write_text(ARM.format(urdf="arm.urdf", extra=""))
+    r = cli("rcm-grid", tmp_path / "sub" / "arm.toml", "--print-config")
+    assert f'urdf = "{tmp_path / "sub" / "arm.urdf"}"' in r.stdout and "urdf_sha256 = " in r.stdout
+    k1 = cli("rcm-grid", tmp_path / "sub" / "arm.toml", *SMALL, "--dry-run").stdout
+    (tmp_path / "sub" / "arm.urdf").write_text(PA10_URDF.replace('xyz="0 0 0.25"', 'xyz="0 0 0.26"'))
+    k2 = cli("rcm-grid", tmp_path / "sub" / "arm.toml", *SMALL, "--dry-run").stdout
+    key = lambda out: [w for w in out.split() if len(w) == 12 and all(c in "0123456789abcdef" for c in w)]  # noqa: E731
+    assert key(k1) and key(k1) != key(k2)
+    # a config that pins the hash refuses a changed file
+    pinned = tmp_path / "sub" / "pinned.toml"
+    pinned.write_text(ARM.format(urdf="arm.urdf", extra='urdf_sha256 = "' + "0" * 64 + '"'))
+    bad = cli("rcm-grid", pinned, check=False)
+    assert bad.returncode == 2 and "changed since this config was written" in bad.stderr
