@@ -179,3 +179,19 @@ def test_urdf_paths_are_relative_to_the_config_and_its_content_is_in_the_key(tmp
     pinned.write_text(ARM.format(urdf="arm.urdf", extra='urdf_sha256 = "' + "0" * 64 + '"'))
     bad = cli("rcm-grid", pinned, check=False)
     assert bad.returncode == 2 and "changed since this config was written" in bad.stderr
+
+
+def test_the_worked_urdf_example_gives_table_I():
+    """docs/robots.md's example config: the PA10 as a URDF file reproduces the closed form's Table I rows."""
+    from surgopt.config import load_config
+
+    from conftest import REPO
+
+    ex = load_config(REPO / "configs" / "rcm_pa10_urdf_table1.toml", S.Config)
+    t1 = load_config(REPO / "configs" / "rcm_table1.toml", S.Config)
+    assert not ex.robot.closed_form and t1.robot.closed_form
+    np.testing.assert_allclose(S.candidate_rcms(ex, S.candidate_xyz(ex)), S.candidate_rcms(t1, S.candidate_xyz(t1)),
+                               atol=1e-12)
+    a, b = S.compute_task(t1, 15, 0), S.compute_task(ex, 15, 0)
+    assert (a["feasible"] == b["feasible"]).all()
+    np.testing.assert_allclose(b["gii"], a["gii"], rtol=1e-9)

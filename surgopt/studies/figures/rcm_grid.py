@@ -19,6 +19,16 @@ def robot_title(cfg) -> str:
     return Path(r.urdf).name if r.urdf else "DH table"
 
 
+def contour_levels(top) -> list[float]:
+    """The paper's Fig. 3 contours (0.01 ... 0.04) when the map's GII stays below 0.05, else about five
+    round levels below its maximum."""
+    if not np.isfinite(top) or top <= 0.05:
+        return [0.01, 0.02, 0.03, 0.04]
+    from matplotlib.ticker import MaxNLocator
+
+    return [v for v in MaxNLocator(nbins=5).tick_values(0.0, top) if 0.0 < v < top]
+
+
 def figures(cfg, table, out, design_id=None):
     plt = pyplot()
     c = columns(table)
@@ -38,8 +48,8 @@ def figures(cfg, table, out, design_id=None):
         fig, ax = plt.subplots(figsize=(6.4, 5.6))
         im = ax.pcolormesh(xs, zs, gii.T, shading="nearest", cmap="viridis")
         fig.colorbar(im, ax=ax, label="GII")
-        cs = ax.contour(xs, zs, np.nan_to_num(gii.T, nan=0.0), levels=[0.01, 0.02, 0.03, 0.04], colors="white",
-                        linewidths=0.8)
+        cs = ax.contour(xs, zs, np.nan_to_num(gii.T, nan=0.0), levels=contour_levels(np.nanmax(gii)),
+                        colors="white", linewidths=0.8)
         ax.clabel(cs, fmt="%.2f", fontsize=7)
         i = int(np.nanargmax(np.where(exact, c["gii"], np.nan)))
         ax.plot(c["x_rcm_m"][i], c["z_rcm_m"][i], "wx", ms=10, mew=2)
