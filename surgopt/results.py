@@ -31,6 +31,11 @@ def study_of_config(path: Path, study_name: str | None):
             if "file not found" in str(exc) or "not valid" in str(exc) or "unknown config format" in str(exc):
                 raise
             errors.append(str(exc))
+    if len(fits) > 1:  # a study that extends another's configs claims only the files with its own section
+        from surgopt.config import read_config_data
+
+        data = read_config_data(path)
+        fits = [(st, c) for st, c in fits if st.extends is None or st.config_section in data] or fits
     if len(fits) == 1:
         return fits[0]
     if not fits:

@@ -496,3 +496,51 @@ def finite_difference_jacobian(f, q, h=1e-7):
         e[i] = h
         cols.append((np.asarray(f(q + e)) - np.asarray(f(q - e))) / (2 * h))
     return np.stack(cols, axis=1)
+
+
+def p_control_track(fk, q_ref_steps, p_ref, rcm, dt, gain, lag_s, qdot_max, speed_scale=1.0):
+    """A plain Python loop of the joint-level P controller (Locke & Patel Sec. IV-A): per step the tip
+    error and the RCM's distance from the tool line, then qdot_cmd = gain (q_ref - q), clipped, lagged,
+    integrated. ``fk(q)`` returns (tip, tool axis); ``q_ref_steps`` (M, 5) the reference at every step.
+    Returns (max tip error, max RCM error, per-step tip errors)."""
+    q = np.array(q_ref_steps[0], float)
+    qdot = np.zeros_like(q)
+    alpha = 1.0 if lag_s <= 0 else dt / (lag_s + dt)
+    errs, rerrs = [], []
+    for k in range(len(p_ref)):
+        tip, axis = fk(q)
+        errs.append(np.linalg.norm(tip - p_ref[k]))
+        r = np.asarray(rcm) - tip
+        rerrs.append(np.linalg.norm(r - (r @ axis) * axis))
+        if k == len(p_ref) - 1:
+            break
+        cmd = np.clip(gain * (q_ref_steps[k] - q), -speed_scale * qdot_max, speed_scale * qdot_max)
+        qdot = qdot + alpha * (cmd - qdot)
+        q = q + qdot * dt
+    return max(errs), max(rerrs), np.array(errs)
+
+
+def pa10_standard_gii(rcm, offsets, links, tool_m, qdot_max7, linear_m_s=0.01, angular_rad_s=np.pi / 2):
+    """Locke & Patel Sec. III-E: GII of the standard 6 x 6 Jacobian (joints S1, S2, E1, E2, W1, W2; S3 held)
+    of the tool tip at the closed-form IK poses, rows divided by the task scaling, columns times the rated
+    speeds, by dense SVD. None when a pose is out of reach."""
+    d1, d3, d5, d7 = links
+    table = pa10_dh_table(d1, d3, d5, d7)
+    lo, hi = np.inf, 0.0
+    for o in offsets:
+        p = np.asarray(rcm) + o
+        q5 = pa10_ik(p, o / np.linalg.norm(o), links, tool_m)
+        if q5 is None:
+            return None
+        q7 = np.array([q5[0], q5[1], 0.0, q5[2], q5[3], q5[4], 0.0])
+        frames = [np.eye(4)]
+        for (d, a, alpha), v in zip(table, q7):
+            frames.append(frames[-1] @ dh_standard(v, d, a, alpha))
+        tip = frames[-1][:3, 3] + tool_m * frames[-1][:3, 2]
+        cols = []
+        for i in (0, 1, 3, 4, 5, 6):
+            z, org = frames[i][:3, 2], frames[i][:3, 3]
+            cols.append(np.concatenate([np.cross(z, tip - org) / linear_m_s, z / angular_rad_s]) * qdot_max7[i])
+        sv = np.linalg.svd(np.array(cols).T, compute_uv=False)
+        lo, hi = min(lo, sv[-1]), max(hi, sv[0])
+    return lo / hi

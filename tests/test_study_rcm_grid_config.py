@@ -195,3 +195,55 @@ def test_the_worked_urdf_example_gives_table_I():
     a, b = S.compute_task(t1, 15, 0), S.compute_task(ex, 15, 0)
     assert (a["feasible"] == b["feasible"]).all()
     np.testing.assert_allclose(b["gii"], a["gii"], rtol=1e-9)
+
+
+def test_standard_jacobian_gii_against_the_reference():
+    """Sec. III-E: the standard 6 x 6 Jacobian (S3 held, W2 spinning the tool) with the paper's task scaling
+    (10 mm/s, pi/2 rad/s) against dense SVD at the closed-form IK poses (tests/reference.py); the map has
+    the alternative GII's profile (rank correlation > 0.95) with much lower values."""
+    import reference as ref
+    from surgopt.robots import pa10_7c
+    from surgopt.studies.rcm_track import rank_correlation
+
+    base = {"workspace": {"points_per_side": 3}, "candidates": {"grid": {"x_count": 9, "z_count": 9}}}
+    std = validate({**base, "metric": "standard"}, S.Config, "t")
+    alt = validate(base, S.Config, "t")
+    a, b = S.compute_task(alt, 81, 0), S.compute_task(std, 81, 0)
+    assert (a["feasible"] == b["feasible"]).all() and a["feasible"].sum() >= 20
+    qmax7 = np.array([pa10_7c.MAX_JOINT_SPEED_RAD_S[n] for n in pa10_7c.JOINT_NAMES])
+    rcms = S.candidate_rcms(std, S.candidate_xyz(std))
+    off = S.workspace_offsets(std.workspace)
+    for i in np.flatnonzero(b["feasible"])[::4]:
+        want = ref.pa10_standard_gii(rcms[i], off, pa10_7c.LINKS_BIELEFELD_M, pa10_7c.TOOL_LENGTH_M, qmax7)
+        assert abs(b["gii"][i] / want - 1) < 1e-9
+    f = a["feasible"]
+    assert rank_correlation(a["gii"][f], b["gii"][f]) > 0.95 and b["gii"].max() < a["gii"].max() / 20
+
+
+def test_the_algorithmic_singularity_only_the_alternative_jacobian_sees():
+    """A tip approaching the RCM: the alternative Jacobian's sigma_min falls in proportion (the lever arm
+    through the RCM), the standard Jacobian's does not change."""
+    out = {}
+    for metric in ("alternative", "standard"):
+        for depth in (0.1, 0.01):
+            cfg = validate({"metric": metric, "robot": {"kernel": "generic"},
+                            "workspace": {"points_per_side": 1, "depth_below_rcm_m": depth},
+                            "candidates": {"list_m": [[0.535, -0.21]]}}, S.Config, "t")
+            out[metric, depth] = S.compute_task(cfg, 1, 0)["sigma_min_m_per_s"][0]
+    assert 0.07 < out["alternative", 0.01] / out["alternative", 0.1] < 0.1
+    assert abs(out["standard", 0.01] / out["standard", 0.1] - 1) < 0.03
+
+
+@pytest.mark.parametrize("data, what", [
+    ({"metric": "standard", "robot": {"kernel": "closed_form"}}, "runs on the generic kernel"),
+    ({"metric": "standard", "robot": {"model": "ur5e", "spin_joint": None}}, "needs the joint that spins the tool"),
+    ({"metric": "standard", "robot": {"model": "ur5e", "spin_joint": "elbow"}}, "must be one of locked_joints_deg"),
+    ({"metric": "standard", "robot": {"model": "ur5e", "tool_axis": [1, 0, 1]}}, "does not turn about the tool's axis"),
+])
+def test_standard_metric_errors(tmp_path, data, what):
+    from surgopt.compose import validate_for
+    from surgopt.errors import ConfigError
+
+    with pytest.raises(ConfigError) as e:
+        validate_for(S.STUDY, data, "cfg.toml", tmp_path / "cfg.toml")
+    assert what in str(e.value)

@@ -307,6 +307,77 @@ def pose_extremes_from_jacobian(jac, qdot_max):
         (jac[0, 4] * s4, jac[1, 4] * s4, jac[2, 4] * s4, jac[3, 4] * s4, jac[4, 4] * s4))
 
 
+@njit(inline="always", **CONTRACT)
+def sym_eig_extremes(a, n):
+    """(smallest, largest) eigenvalue of the symmetric n x n matrix in ``a`` (overwritten): cyclic Jacobi
+    rotations until the off-diagonal part is below 1e-15 of the norm (at most 30 sweeps)."""
+    norm = 0.0
+    for i in range(n):
+        for j in range(n):
+            norm += a[i, j] * a[i, j]
+    for _ in range(30):
+        off = 0.0
+        for i in range(n):
+            for j in range(i + 1, n):
+                off += a[i, j] * a[i, j]
+        if off <= 1e-30 * norm:
+            break
+        for p in range(n):
+            for q in range(p + 1, n):
+                if a[p, q] == 0.0:
+                    continue
+                theta = (a[q, q] - a[p, p]) / (2.0 * a[p, q])
+                t = (1.0 if theta >= 0 else -1.0) / (abs(theta) + np.sqrt(theta * theta + 1.0))
+                c = 1.0 / np.sqrt(t * t + 1.0)
+                s = t * c
+                for k in range(n):
+                    akp, akq = a[k, p], a[k, q]
+                    a[k, p], a[k, q] = c * akp - s * akq, s * akp + c * akq
+                for k in range(n):
+                    apk, aqk = a[p, k], a[q, k]
+                    a[p, k], a[q, k] = c * apk - s * aqk, s * apk + c * aqk
+    lo, hi = a[0, 0], a[0, 0]
+    for i in range(1, n):
+        lo, hi = min(lo, a[i, i]), max(hi, a[i, i])
+    return lo, hi
+
+
+@njit(**CONTRACT)
+def standard_extremes(axes, origins, prismatic, px, py, pz, kx, ky, kz, qdot_max, task_scale, gram):
+    """(sigma_min^2, sigma_max^2) of the standard Jacobian at one pose (no RCM constraint; Locke & Patel
+    Sec. III-E): the tip's linear and angular velocity rows of the geometric Jacobian of the five active
+    joints and, when ``task_scale[2]`` > 0, of the tool-spin joint (axis along the tool k through the tip,
+    rated speed task_scale[2]): 6 x 6, the PA10's six joints with S3 held. Rows divided by the task
+    scaling (``task_scale[0]`` m/s, ``task_scale[1]`` rad/s), columns times the rated speeds; from the
+    Gram matrix's extreme eigenvalues (``gram`` (6, 6) scratch)."""
+    n = N_ACTIVE + (1 if task_scale[2] > 0.0 else 0)
+    b = np.zeros((6, 6))
+    for j in range(N_ACTIVE):
+        zx, zy, zz = axes[j, 0], axes[j, 1], axes[j, 2]
+        if prismatic[j] != 0.0:
+            b[0, j], b[1, j], b[2, j] = zx, zy, zz
+        else:
+            ax, ay, az = px - origins[j, 0], py - origins[j, 1], pz - origins[j, 2]
+            b[0, j], b[1, j], b[2, j] = zy * az - zz * ay, zz * ax - zx * az, zx * ay - zy * ax
+            b[3, j], b[4, j], b[5, j] = zx, zy, zz
+        for i in range(6):
+            b[i, j] *= qdot_max[j]
+    if n == 6:
+        b[3, 5], b[4, 5], b[5, 5] = kx * task_scale[2], ky * task_scale[2], kz * task_scale[2]
+    for j in range(n):
+        for i in range(3):
+            b[i, j] /= task_scale[0]
+            b[i + 3, j] /= task_scale[1]
+    for i in range(n):
+        for j in range(n):
+            acc = 0.0
+            for k in range(6):
+                acc += b[k, i] * b[k, j]
+            gram[i, j] = acc
+    lo, hi = sym_eig_extremes(gram, n)
+    return max(lo, 0.0), hi
+
+
 @njit(**CONTRACT)
 def _predict(q, q1, q2, q3, run, jac, dp, step, work):
     """Predict the next point's joints. On a straight run of the walk (``run`` earlier steps in the same
@@ -370,7 +441,7 @@ def _continue(rot, pos, prismatic, q, target, c, ref, end, bufs):
 
 
 @njit(**CONTRACT)
-def _walk(chain_arrays, seed, restarts, c, offsets, start, probes, gii_to_beat, q_out):
+def _walk(chain_arrays, seed, restarts, c, offsets, start, probes, gii_to_beat, q_out, task_scale):
     """One candidate: seed solve at RCM + ``start``, the ``probes`` (offsets, each reached by continuation
     from the start and abandoned), continuation to the first point, the walk.
 
@@ -427,6 +498,7 @@ def _walk(chain_arrays, seed, restarts, c, offsets, start, probes, gii_to_beat, 
     q2 = np.empty(N_ACTIVE)
     q3 = np.empty(N_ACTIVE)
     qj = np.empty(N_ACTIVE)
+    gram = np.empty((6, 6))
     last = np.zeros(3)
     run = 0
     for j in range(p):
@@ -463,7 +535,13 @@ def _walk(chain_arrays, seed, restarts, c, offsets, start, probes, gii_to_beat, 
         steps_total += it
         for i in range(N_ACTIVE):
             q_out[j, i] = q[i]
-        smin2, smax2, singular = pose_extremes_from_jacobian(jac, qdot_max)
+        if task_scale[0] > 0.0:  # the standard Jacobian's extremes instead of the RCM metric
+            fr = chain_frames(rot, pos, prismatic, q, axes, origins, trig)
+            smin2, smax2 = standard_extremes(axes, origins, prismatic, fr[9], fr[10], fr[11], fr[2], fr[5], fr[8],
+                                             qdot_max, task_scale, gram)
+            singular = smin2 <= 1e-24 * smax2
+        else:
+            smin2, smax2, singular = pose_extremes_from_jacobian(jac, qdot_max)
         lo = min(lo, smin2)
         hi = max(hi, smax2)
         n_sing += 1 if singular else 0
@@ -473,14 +551,14 @@ def _walk(chain_arrays, seed, restarts, c, offsets, start, probes, gii_to_beat, 
 
 
 @njit(**CONTRACT)
-def _candidates(chain_arrays, seed, restarts, rcms, offsets, start, probes, gii_to_beat):
+def _candidates(chain_arrays, seed, restarts, rcms, offsets, start, probes, gii_to_beat, task_scale):
     m = rcms.shape[0]
     out = np.empty((m, 2))
     counts = np.empty((m, 4), np.int64)
     q_out = np.empty((offsets.shape[0], N_ACTIVE))
     for i in range(m):
         lo, hi, n_unr, n_sing, n_eval, steps = _walk(chain_arrays, seed, restarts, rcms[i], offsets, start, probes,
-                                                     gii_to_beat[i], q_out)
+                                                     gii_to_beat[i], q_out, task_scale)
         out[i, 0], out[i, 1] = np.sqrt(lo), np.sqrt(hi)
         counts[i, 0], counts[i, 1], counts[i, 2], counts[i, 3] = n_unr, n_sing, n_eval, steps
     return out, counts
@@ -546,12 +624,13 @@ def rcm_walk(chain: Chain, rcm, offsets, seed, start=None, restarts=None):
     restarts = default_restarts(seed) if restarts is None else np.asarray(restarts, np.float64).reshape(-1, 5)
     q_out = np.empty((offsets.shape[0], 5))
     lo, hi, n_unr, n_sing, n_eval, steps = _walk(_arrays(chain), seed, restarts, np.asarray(rcm, np.float64),
-                                                 offsets, start, np.empty((0, 3)), 0.0, q_out)
+                                                 offsets, start, np.empty((0, 3)), 0.0, q_out, np.zeros(3))
     return {"q": q_out, "sigma_min": float(np.sqrt(lo)), "sigma_max": float(np.sqrt(hi)), "n_unreachable": n_unr,
             "n_singular": n_sing, "points_evaluated": n_eval, "newton_steps": steps}
 
 
-def chain_candidates_extremes(rcms, offsets, chain: Chain, seed, gii_to_beat=None, start=None, probe_first=True):
+def chain_candidates_extremes(rcms, offsets, chain: Chain, seed, gii_to_beat=None, start=None, probe_first=True,
+                              standard_task_scale=None):
     """For each RCM candidate (M, 3): the walk over ``offsets`` (P, 3, in walk order, relative to the RCM).
 
     Returns (sigma_min (M,), sigma_max (M,), n_unreachable (M,), n_singular (M,), points_evaluated (M,)),
@@ -559,6 +638,8 @@ def chain_candidates_extremes(rcms, offsets, chain: Chain, seed, gii_to_beat=Non
     sigma 0 and n_unreachable 1. ``gii_to_beat`` (M,) stops a candidate's walk once its running GII bound
     falls to it (Culling); None evaluates every point. ``probe_first``: reach the corner and face points
     from the start first (IK only), so that most infeasible candidates are known before any walk.
+    ``standard_task_scale`` (linear m/s, angular rad/s, the tool-spin joint's rated speed or 0): report
+    the standard Jacobian's extremes at the same IK poses instead of the RCM metric (Sec. III-E).
     """
     rcms = np.ascontiguousarray(rcms, dtype=np.float64).reshape(-1, 3)
     offsets = np.ascontiguousarray(offsets, dtype=np.float64).reshape(-1, 3)
@@ -566,5 +647,6 @@ def chain_candidates_extremes(rcms, offsets, chain: Chain, seed, gii_to_beat=Non
     start = offsets.mean(axis=0) if start is None else np.asarray(start, np.float64)
     g = np.zeros(rcms.shape[0]) if gii_to_beat is None else np.asarray(gii_to_beat, np.float64).reshape(-1)
     probes = np.ascontiguousarray(offsets[probe_points(offsets)]) if probe_first else np.empty((0, 3))
-    out, counts = _candidates(_arrays(chain), seed, default_restarts(seed), rcms, offsets, start, probes, g)
+    scale = np.zeros(3) if standard_task_scale is None else np.asarray(standard_task_scale, np.float64)
+    out, counts = _candidates(_arrays(chain), seed, default_restarts(seed), rcms, offsets, start, probes, g, scale)
     return out[:, 0], out[:, 1], counts[:, 0], counts[:, 1], counts[:, 2]

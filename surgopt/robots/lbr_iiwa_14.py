@@ -35,6 +35,6 @@ MODEL = ArmModel(
     locked_joints_deg={"A3": 0.0, "A7": 0.0},
     lock_reason="A7 only spins the tool; A3 (redundant upper-arm rotation) held at 0 like the PA10's S3",
     seed_deg={"A1": 0.0, "A2": 22.0, "A4": -111.0, "A5": 0.0, "A6": 47.0},
-    tool_length_m=0.30,
+    tool_length_m=0.30, spin_joint="A7",
     workspace=PAPER_WORKSPACE, grid=dict(x_min_m=0.1, x_max_m=0.8, x_count=36, z_min_m=-0.2, z_max_m=0.6, z_count=41),
 )

@@ -38,6 +38,8 @@ class ArmModel:
     #: candidate grid defaults (candidates.grid fields), in the base frame
     grid: dict = field(default_factory=dict)
     z_reference: str = "base"
+    #: the locked joint that only spins the tool about its own axis (the standard Jacobian's sixth joint)
+    spin_joint: str | None = None
 
     @property
     def joint_names(self) -> tuple[str, ...]:

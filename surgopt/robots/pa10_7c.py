@@ -80,7 +80,7 @@ def _model():
         name="pa10_7c", title="Mitsubishi PA10-7C", convention="standard", dh=dh_rows(),
         locked_joints_deg={"S3": 0.0, "W2": 0.0},
         lock_reason="S3 and W2 held at zero as in Locke & Patel Sec. III-A",
-        seed_deg=dict(SEED_DEG), tool_length_m=TOOL_LENGTH_M, z_reference="shoulder")
+        seed_deg=dict(SEED_DEG), tool_length_m=TOOL_LENGTH_M, z_reference="shoulder", spin_joint="W2")
 
 
 #: A configuration on the closed-form kernel's branch (elbow up, wrist W1 > 0): the generic kernel's seed.

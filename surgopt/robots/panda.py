@@ -35,6 +35,6 @@ MODEL = ArmModel(
     locked_joints_deg={"joint3": 0.0, "joint7": 0.0},
     lock_reason="joint7 only spins the tool; joint3 (redundant upper-arm rotation) held at 0 like the PA10's S3",
     seed_deg={"joint1": 0.0, "joint2": -10.0, "joint4": -143.0, "joint5": 0.0, "joint6": 133.0},
-    tool_length_m=0.30,
+    tool_length_m=0.30, spin_joint="joint7",
     workspace=PAPER_WORKSPACE, grid=dict(x_min_m=0.1, x_max_m=0.7, x_count=31, z_min_m=-0.1, z_max_m=0.7, z_count=41),
 )

@@ -31,6 +31,6 @@ MODEL = ArmModel(
     locked_joints_deg={"wrist_3": 0.0},
     lock_reason="wrist_3 only spins the tool about its own axis",
     seed_deg={"shoulder_pan": 163.0, "shoulder_lift": -95.0, "elbow": 115.0, "wrist_1": -110.0, "wrist_2": -90.0},
-    tool_length_m=0.30,
+    tool_length_m=0.30, spin_joint="wrist_3",
     workspace=PAPER_WORKSPACE, grid=dict(x_min_m=0.0, x_max_m=0.8, x_count=41, z_min_m=-0.9, z_max_m=0.5, z_count=71),
 )

@@ -15,8 +15,8 @@ from pathlib import Path
 from typing import Any, Callable, Mapping
 
 #: Study name (the CLI command) -> module defining ``STUDY``.
-STUDIES = {"rcm-grid": "surgopt.studies.rcm_grid", "raven-sweep": "surgopt.studies.raven_sweep",
-           "suture-sim": "surgopt.studies.suture_sim"}
+STUDIES = {"rcm-grid": "surgopt.studies.rcm_grid", "rcm-track": "surgopt.studies.rcm_track",
+           "raven-sweep": "surgopt.studies.raven_sweep", "suture-sim": "surgopt.studies.suture_sim"}
 
 
 @dataclass(frozen=True)
@@ -118,6 +118,10 @@ class Study:
     chunked: bool = True  # False: one task per run, no --chunk-size
     estimate: Callable[[Any], Estimate] | None = None  # work and memory, checked before a run starts
     search_plan: Callable[[Any], Any] | None = None  # a SearchPlan when the config asks for an optimiser
+    #: this study runs another study's configs plus a section of its own (rcm-track: rcm-grid's + [track]);
+    #: a config file without that section is the other study's when a command must tell them apart
+    extends: str | None = None
+    config_section: str | None = None
 
 
 def figures_in(module: str) -> Callable:

@@ -186,6 +186,9 @@ class ChainKernel:
 
     def __init__(self, cfg: RcmGridConfig):
         self.chain, self.names, self.seed = cfg.robot.chain()
+        ts = getattr(cfg, "standard_task_scale", None)
+        self.scale = ((ts.linear_m_per_s, ts.angular_rad_per_s, cfg.robot.spin_speed())
+                      if getattr(cfg, "metric", "") == "standard" else None)
 
     def _walk(self, offsets, side):
         from surgopt.kinematics.serial_chain import serpentine_order
@@ -195,13 +198,14 @@ class ChainKernel:
     def extremes(self, rcms, offsets, side):
         from surgopt.kinematics.serial_chain import chain_candidates_extremes
 
-        return chain_candidates_extremes(rcms, self._walk(offsets, side), self.chain, self.seed)
+        return chain_candidates_extremes(rcms, self._walk(offsets, side), self.chain, self.seed,
+                                         standard_task_scale=self.scale)
 
     def bounded(self, rcm, offsets, side, gii_to_beat):
         from surgopt.kinematics.serial_chain import chain_candidates_extremes
 
         r = chain_candidates_extremes(rcm[None], self._walk(offsets, side), self.chain, self.seed,
-                                      gii_to_beat=[gii_to_beat])
+                                      gii_to_beat=[gii_to_beat], standard_task_scale=self.scale)
         return tuple(v[0] for v in r)
 
     def warm_up(self):
@@ -209,8 +213,10 @@ class ChainKernel:
 
 
 def kernel_for(cfg: RcmGridConfig):
-    """The closed-form PA10 kernel for the paper setup (``robot.kernel`` auto/closed_form), else the chain kernel."""
-    return ClosedFormKernel(cfg) if cfg.robot.closed_form else ChainKernel(cfg)
+    """The closed-form PA10 kernel for the paper setup (``robot.kernel`` auto/closed_form), else the chain
+    kernel (and for ``metric = "standard"``, which only the chain kernel computes)."""
+    standard = getattr(cfg, "metric", "alternative") == "standard"
+    return ClosedFormKernel(cfg) if cfg.robot.closed_form and not standard else ChainKernel(cfg)
 
 
 # ---------------------------------------------------------------------------
@@ -251,7 +257,13 @@ NS_PER_POSE_CHAIN = 800.0
 
 
 def ns_per_pose(cfg: RcmGridConfig) -> float:
-    return NS_PER_POSE if cfg.robot.closed_form else NS_PER_POSE_CHAIN
+    return NS_PER_POSE if kernel_type(cfg) is ClosedFormKernel else NS_PER_POSE_CHAIN
+
+
+def kernel_type(cfg) -> type:
+    """Which kernel ``kernel_for`` would build, without building it."""
+    standard = getattr(cfg, "metric", "alternative") == "standard"
+    return ClosedFormKernel if cfg.robot.closed_form and not standard else ChainKernel
 
 
 def auto_chunk(cfg: RcmGridConfig) -> int:
@@ -275,7 +287,7 @@ def estimate(cfg: RcmGridConfig) -> Estimate:
     """Candidates x cube points at NS_PER_POSE_EST (--cull: about a tenth of that); a row is ~83 bytes."""
     m = candidate_count(cfg)
     p = cfg.workspace.points_per_side ** 3
-    ns = NS_PER_POSE_EST if cfg.robot.closed_form else NS_PER_POSE_CHAIN_EST
+    ns = NS_PER_POSE_EST if kernel_type(cfg) is ClosedFormKernel else NS_PER_POSE_CHAIN_EST
     seconds = m * p * ns * 1e-9 * (0.1 if cfg.search == "cull" else 1.0)
     return Estimate(items=m, what="RCM candidates", rows=m, seconds_one_core=seconds,
                     peak_bytes=peak_bytes(m, 83, working_bytes=m * 72 + p * 200))

@@ -113,6 +113,8 @@ class Robot(StrictModel):
     tool_axis: list[Finite] | None = Field(None, min_length=3, max_length=3, description="in the tip link's frame")
     tool_offset_m: list[Finite] | None = Field(None, min_length=3, max_length=3,
                                                description="tool base in the tip link's frame")
+    spin_joint: str | None = Field(None, description="the locked joint that only spins the tool about its own axis "
+                                                     "(the standard Jacobian's sixth joint); default: the model's")
     # PA10-7C (closed-form kernel) parameters: only with model = "pa10_7c"
     link_d1_m: float | None = Field(None, gt=0, le=5, description="PA10: base to shoulder (S2 axis)")
     link_d3_m: float | None = Field(None, gt=0, le=5, description="PA10: shoulder to elbow")
@@ -155,6 +157,8 @@ class Robot(StrictModel):
         elif self.model is not None:
             m = get_model(self.model)
             self._fill(m.locked_joints_deg, m.seed_deg, m.tool_length_m)
+        if self.model is not None and self.spin_joint is None and "spin_joint" not in self.model_fields_set:
+            object.__setattr__(self, "spin_joint", get_model(self.model).spin_joint)
         else:
             if self.tool_length_m is None:
                 raise ValueError("tool_length_m is required for a URDF or DH arm (the tool tip along the tip "
@@ -277,6 +281,40 @@ class Robot(StrictModel):
         seed = [v if kinds[n] == PRISMATIC else math.radians(v) for n, v in zip(names, seed)]
         return chain, names, seed
 
+    def spin_speed(self) -> float:
+        """The rated speed (rad/s) of ``spin_joint``, after checking that it is locked and that its axis is
+        the tool's (a ``ChainError`` otherwise)."""
+        import numpy as np
+
+        from surgopt.robots.chain import ChainError, axis_motion
+
+        spec = self.chain_spec()
+        joints = {j.name: j for j in spec.joints}
+        if self.spin_joint is None:
+            raise ChainError("spin_joint", "metric = 'standard' needs the joint that spins the tool about its own "
+                                           "axis (robot.spin_joint)")
+        if self.spin_joint not in joints:
+            raise ChainError("spin_joint", f"no joint {self.spin_joint!r} (joints: {', '.join(joints)})")
+        if self.spin_joint not in self.locked_joints_deg:
+            raise ChainError("spin_joint", f"{self.spin_joint!r} must be one of locked_joints_deg (the RCM study's "
+                                           f"five active joints do not include it)")
+        q = {j.name: math.radians(self.locked_joints_deg.get(j.name, self.seed_deg.get(j.name, 0.0)))
+             for j in spec.joints}
+        t = np.eye(4)
+        axis = origin = None
+        for j in spec.joints:
+            t = t @ j.origin
+            if j.name == self.spin_joint:
+                axis, origin = t[:3, :3] @ j.axis, t[:3, 3].copy()
+            t = t @ axis_motion(j.axis, j.kind, q[j.name])
+        tool = t @ spec.tail @ self.tool()
+        k, tip = tool[:3, 2], tool[:3, 3]
+        d = tip - origin
+        if np.linalg.norm(np.cross(axis, k)) > 1e-9 or np.linalg.norm(d - (d @ axis) * axis) > 1e-9:
+            raise ChainError("spin_joint", f"{self.spin_joint!r} does not turn about the tool's axis (an angled "
+                                           f"tool mount?): the standard metric's sixth column would be wrong")
+        return joints[self.spin_joint].max_speed
+
     def check_chain(self):
         from surgopt.robots.chain import ChainError
 
@@ -337,12 +375,12 @@ class Candidates(StrictModel):
         return self
 
 
-class RcmGridConfig(StrictModel):
+class RcmSetup(StrictModel):
+    """The arm, the workspace and the RCM candidates: what every RCM study shares (rcm-grid, rcm-track)."""
+
     robot: Robot = Robot()
     workspace: Workspace = Workspace()
     candidates: Candidates = Candidates()
-    search: search_field("full", "cull") = Field(
-        "full", description="'full' map, 'cull' (exact argmax), or a [search] table (an optimiser over x, z)")
 
     @model_validator(mode="before")
     @classmethod
@@ -367,12 +405,41 @@ class RcmGridConfig(StrictModel):
         return data
 
     @model_validator(mode="after")
-    def _consistent(self):
+    def _z_reference(self):
         if self.candidates.z_reference is None:  # a copy: the default Candidates() instance is shared
             object.__setattr__(self, "candidates", self.candidates.model_copy(
                 update={"z_reference": "shoulder" if self.robot.is_pa10 else "base"}))
         if self.candidates.z_reference == "shoulder" and not self.robot.is_pa10:
             raise ValueError("candidates.z_reference = 'shoulder' is the PA10's; other arms use 'base'")
+        return self
+
+
+class StandardTaskScale(StrictModel):
+    """Task scaling of the standard Jacobian (Locke & Patel Sec. III-E: 10 mm/s and pi/2 rad/s)."""
+
+    linear_m_per_s: float = Field(0.01, gt=0, le=100)
+    angular_rad_per_s: float = Field(math.pi / 2, gt=0, le=1000)
+
+
+class RcmGridConfig(RcmSetup):
+    search: search_field("full", "cull") = Field(
+        "full", description="'full' map, 'cull' (exact argmax), or a [search] table (an optimiser over x, z)")
+    metric: Literal["alternative", "standard"] = Field(
+        "alternative", description="the GII of the alternative Jacobian under the RCM constraint (eq. 8), or of "
+                                   "the standard Jacobian at the same poses (Sec. III-E; the generic kernel)")
+    standard_task_scale: StandardTaskScale = StandardTaskScale()
+
+    @model_validator(mode="after")
+    def _consistent(self):
+        if self.metric == "standard":
+            if self.robot.kernel == "closed_form":
+                raise ValueError("metric = 'standard' runs on the generic kernel: robot.kernel = 'auto' or 'generic'")
+            from surgopt.robots.chain import ChainError
+
+            try:
+                self.robot.spin_speed()
+            except ChainError as exc:
+                raise ValueError(f"robot.{exc}") from None
         if isinstance(self.search, SearchSpec) and self.candidates.list_m is not None:
             raise ValueError("a [search] optimises over candidates.grid's ranges: give a grid, not list_m")
         check_objectives(self.search, SEARCH_OBJECTIVES)
