@@ -89,3 +89,31 @@ def test_design_fields_agree_with_the_sweep():
     assert np.all(per_arm.min(axis=0)[common > 0] > 0)
     # no interval (Iso_min above the mechanism's best): nothing inside
     assert np.all(W.design_fields(_layout(), PLANE, THETA2, g, 65.0, 45.0, 0.999)[4] < 0)
+
+
+def test_every_geometry_field_changes_what_it_should():
+    """phi_order and mirror_plane change the shoulder axes exactly where the rotations do not commute or
+    the mirror differs; phi_x, which turns a horizontal x axis about itself under the default, moves the
+    axes (and the sweep's rows) under an axis along y."""
+    g = (20.0, 10.0, -20.0, 100.0, 50.0)
+    _, a0 = W.arms(_layout(), *g)
+    _, a1 = W.arms(_layout(phi_order="xyz"), *g)
+    assert np.abs(a0 - a1).max() > 0.05
+    _, b0 = W.arms(_layout(), 0.0, 0.0, 30.0, 100.0, 50.0)  # one rotation: the order does not matter
+    _, b1 = W.arms(_layout(phi_order="xyz"), 0.0, 0.0, 30.0, 100.0, 50.0)
+    assert np.allclose(b0, b1)
+    # mirror planes: the right arms (2, 4) unchanged, the left ones (1, 3) not
+    _, m0 = W.arms(_layout(), *g)
+    _, m1 = W.arms(_layout(mirror_plane="xz"), *g)
+    assert np.allclose(m0[[1, 3]], m1[[1, 3]]) and np.abs(m0[[0, 2]] - m1[[0, 2]]).max() > 0.05
+    # a mirror image: the left arm's axis is the right arm's reflected in the chosen plane
+    _, sym = W.arms(_layout(mirror_plane="yz"), *g)
+    assert np.allclose(sym[0] * [-1, 1, 1], sym[1])
+    # phi_x under the default geometry (axes along x): no effect; along y: an effect
+    for toward, moves in (("x", False), ("y", True)):
+        _, ax0 = W.arms(_layout(shoulder_tilt_toward=toward), 0.0, 0.0, 0.0, 100.0, 50.0)
+        _, ax1 = W.arms(_layout(shoulder_tilt_toward=toward), 20.0, 0.0, 0.0, 100.0, 50.0)
+        assert (np.abs(ax0 - ax1).max() > 0.1) == moves
+    rows = W.evaluate_many(_layout(shoulder_tilt_toward="y"), PLANE, THETA2, [(0, 0, 0, 100, 50), (20, 0, 0, 100, 50)],
+                           [85.0], [65.0], [0.5])
+    assert abs(rows[0, 2] - rows[1, 2]) > 1.0  # area (cm^2) moves with phi_x

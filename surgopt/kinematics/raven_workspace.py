@@ -34,7 +34,9 @@ class ArmLayout(NamedTuple):
     left_arms: tuple | None  # mirrored (left) arms, or None: arms 1 and 3
     shoulder_tilt_deg: float  # axis 1 from vertical at phi = 0, outward
     shoulder_tilt_toward: str  # "x" or "y"
-    mirror_left_phi: bool  # left arms turn by -phi_y, -phi_z
+    mirror_left_phi: bool  # left arms turn by the mirror image of the right arms' rotation
+    phi_order: str = "zyx"  # R = Rz(phi_z) Ry(phi_y) Rx(phi_x) ("zyx") or Rx Ry Rz ("xyz")
+    mirror_plane: str = "yz"  # the plane the left arms mirror the right ones in: "yz" (x -> -x) or "xz"
 
 
 def cos_sin_deg(deg: float) -> tuple[float, float]:
@@ -61,9 +63,10 @@ def arms(layout: ArmLayout, phi_x: float, phi_y: float, phi_z: float, bx: float,
     (arms 1-4, left arms 1 and 3), 2 arms at (-+bx/2, 0), 1 arm at 0.
     Axis 1 at phi = 0: vertical (out of the patient), tilted outward by
     ``shoulder_tilt_deg`` along x (away from the other side's arms) or along y
-    (away from the other pair), per ``shoulder_tilt_toward``; then R = Rz(phi_z) Ry(phi_y) Rx(phi_x) about the
-    port, with phi_y, phi_z negated for left arms when ``mirror_left_phi``
-    (the mirror image of a right arm's rotation).
+    (away from the other pair), per ``shoulder_tilt_toward`` (a negative tilt leans inward); then
+    R = Rz(phi_z) Ry(phi_y) Rx(phi_x) about the port (``phi_order = "zyx"``; "xyz": Rx Ry Rz), for left
+    arms when ``mirror_left_phi`` the mirror image M R M of a right arm's rotation: in the y-z plane
+    (``mirror_plane = "yz"``, x -> -x) phi_y and phi_z change sign, in the x-z plane phi_x and phi_z.
     """
     if layout.ports_mm is not None:
         ports = [(p[0], p[1]) for p in layout.ports_mm]
@@ -85,7 +88,9 @@ def arms(layout: ArmLayout, phi_x: float, phi_y: float, phi_z: float, bx: float,
             out = 1.0 if P[i, 1] >= 0 else -1.0
             u0 = np.array([0.0, out * st, ct])
         m = -1.0 if (is_left and layout.mirror_left_phi) else 1.0
-        R = rotation_deg(2, m * phi_z) @ rotation_deg(1, m * phi_y) @ rotation_deg(0, phi_x)
+        mx, my = (1.0, m) if layout.mirror_plane == "yz" else (m, 1.0)
+        rx, ry, rz = rotation_deg(0, mx * phi_x), rotation_deg(1, my * phi_y), rotation_deg(2, m * phi_z)
+        R = rz @ ry @ rx if layout.phi_order == "zyx" else rx @ ry @ rz
         A[i] = R @ u0
     return P, A
 

@@ -64,7 +64,7 @@ def arm_layout(geo: Geometry):
 
     return ArmLayout(geo.n_arms, None if geo.ports_mm is None else tuple(tuple(p) for p in geo.ports_mm),
                      None if geo.left_arms is None else tuple(geo.left_arms), geo.shoulder_tilt_deg,
-                     geo.shoulder_tilt_toward, geo.mirror_left_phi)
+                     geo.shoulder_tilt_toward, geo.mirror_left_phi, geo.phi_order, geo.mirror_plane)
 
 
 def plane(geo: Geometry):

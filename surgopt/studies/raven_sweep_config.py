@@ -90,7 +90,10 @@ class Geometry(StrictModel):
     shoulder_tilt_deg: float = Field(90.0, ge=-90, le=90, description="axis 1 from vertical at phi = 0, outward")
     shoulder_tilt_toward: Literal["x", "y"] = Field(
         "x", description="outward along x (away from the other side) or y (away from the other pair)")
-    mirror_left_phi: bool = True
+    mirror_left_phi: bool = Field(True, description="left arms turn by the mirror image of a right arm's rotation")
+    mirror_plane: Literal["yz", "xz"] = Field("yz", description="the mirror: y-z plane (x -> -x: phi_y, phi_z "
+                                                                  "negated) or x-z plane (phi_x, phi_z negated)")
+    phi_order: Literal["zyx", "xyz"] = Field("zyx", description="R = Rz Ry Rx (zyx) or Rx Ry Rz (xyz) about the port")
     depth_mm: float = Field(raven_iv.REFERENCE_PLANE_DEPTH_MM, gt=0)
     step_mm: float = Field(2.0, gt=0.05, le=50)
     d4_max_mm: float = Field(raven_iv.D4_RANGE_MM[1], gt=0)

@@ -1,0 +1,106 @@
+"""Fit the geometry choices the Raven paper leaves open (issue: one geometry for every figure).
+
+Run:  python docs/fit_raven_geometry.py [STORE]   (about 10 min on 2 cores; writes
+docs/raven_geometry_fit.csv, every combination tried, and prints the best few as Markdown).
+
+Each combination of shoulder tilt (negative: inward), tilt direction, φ mirroring (and its plane), φ
+rotation order and θ2 range is run through the product (`surgopt.run` with overrides of the
+`[geometry]` fields) three times: Table II's 250,000 designs (the paper's optimum's rank), Fig. 4's two
+two-arm designs (ς 2.23 / 4.48 cm), and Fig. 7's α, β grid in 5° steps at φ = 0 with Table II's port
+spacing 100 × 50 mm (ς max 6.64 / 6.55 cm at (80°, 40°) / (70°, 35°) for Iso_min 0 / 0.5). A run's store
+folder is removed once its numbers are read.
+"""
+import csv
+import itertools
+import shutil
+import sys
+import tempfile
+from pathlib import Path
+
+import numpy as np
+
+import surgopt
+
+REPO = Path(__file__).resolve().parents[1]
+PAPER_OPT = (85.0, 65.0, 20.0, 10.0, -20.0, 100.0, 50.0, 0.5)
+PARAMS = ("alpha_deg", "beta_deg", "phi_x_deg", "phi_y_deg", "phi_z_deg", "bx_mm", "by_mm", "iso_min")
+FIG4 = {(15.0, 15.0): 2.23, (65.0, 80.0): 4.48}
+FIG7 = {0.0: (6.64, (80.0, 40.0)), 0.5: (6.55, (70.0, 35.0))}
+
+
+def combos():
+    for tilt, toward, mirror, order, theta2 in itertools.product(
+            (90.0, 75.0, 60.0, 30.0, 0.0, -30.0, -60.0, -90.0), ("x", "y"),
+            ((True, "yz"), (True, "xz"), (False, "yz")), ("zyx", "xyz"), ((20.0, 140.0), (0.0, 180.0))):
+        yield {"geometry.shoulder_tilt_deg": tilt, "geometry.shoulder_tilt_toward": toward,
+               "geometry.mirror_left_phi": mirror[0], "geometry.mirror_plane": mirror[1], "geometry.phi_order": order,
+               "geometry.theta2_range_deg": list(theta2)}
+
+
+def evaluate(geo, store):
+    t2 = surgopt.run("raven-sweep", overrides=geo, store=store, quiet=True)
+    key = np.ones(len(t2), bool)
+    for p, v in zip(PARAMS, PAPER_OPT):
+        key &= np.isclose(t2[p].to_numpy(), v)
+    c_opt = float(t2["cost"][key].iloc[0])
+    rank = int((t2["cost"] > c_opt).sum()) + 1
+    best = t2.loc[t2["cost"].idxmax()]
+    f4 = surgopt.run("raven-sweep", REPO / "configs" / "raven_fig4.toml", overrides=geo, store=store, quiet=True)
+    z4 = {(r.alpha_deg, r.beta_deg): r.zeta_cm for r in f4.itertuples()}
+    f7 = surgopt.run("raven-sweep", REPO / "configs" / "raven_fig7.toml", overrides={**geo, "sweep.by_mm": [50.0]},
+                     store=store, quiet=True)
+    out = {"rank": rank, "cost_paper_opt": c_opt, "best": tuple(float(best[p]) for p in PARAMS),
+           "best_cost": float(best["cost"])}
+    for (a, b), want in FIG4.items():
+        out[f"fig4_{a:g}_{b:g}"] = z4[(a, b)]
+    for iso, (want, ab) in FIG7.items():
+        sub = f7[np.isclose(f7["iso_min"], iso)]
+        r = sub.loc[sub["zeta_cm"].idxmax()]
+        out[f"fig7_{iso:g}_max"] = float(r.zeta_cm)
+        out[f"fig7_{iso:g}_at"] = (float(r.alpha_deg), float(r.beta_deg))
+        out[f"fig7_{iso:g}_at_paper"] = float(sub["zeta_cm"][np.isclose(sub["alpha_deg"], ab[0])
+                                                         & np.isclose(sub["beta_deg"], ab[1])].iloc[0])
+    return out
+
+
+def criteria(o):
+    met = {"rank <= 10": o["rank"] <= 10}
+    for (a, b), want in FIG4.items():
+        met[f"Fig. 4 {a:g}/{b:g} within 10%"] = abs(o[f"fig4_{a:g}_{b:g}"] / want - 1) <= 0.10
+    for iso, (want, ab) in FIG7.items():
+        met[f"Fig. 7 ceiling Iso {iso:g} within 10%"] = abs(o[f"fig7_{iso:g}_max"] / want - 1) <= 0.10
+        at = o[f"fig7_{iso:g}_at"]
+        met[f"Fig. 7 argmax Iso {iso:g} within 5 deg"] = max(abs(at[0] - ab[0]), abs(at[1] - ab[1])) <= 5.0
+    return met
+
+
+def main():
+    base = Path(sys.argv[1] if len(sys.argv) > 1 else tempfile.mkdtemp(prefix="raven-fit-"))
+    rows = []
+    for i, geo in enumerate(combos()):
+        store = base / f"c{i}"
+        o = evaluate(geo, store)
+        shutil.rmtree(store, ignore_errors=True)
+        met = criteria(o)
+        rows.append({**{k.split(".")[1]: v for k, v in geo.items()}, **o, "criteria_met": sum(met.values()),
+                     **{k: v for k, v in met.items()}})
+        print(f"{i + 1:3d}: {sum(met.values())}/7 rank {o['rank']:6d} {geo}", file=sys.stderr, flush=True)
+    out = REPO / "docs" / "raven_geometry_fit.csv"
+    with open(out, "w", newline="") as fh:
+        w = csv.DictWriter(fh, fieldnames=list(rows[0]))
+        w.writeheader()
+        w.writerows(rows)
+    rows.sort(key=lambda r: (-r["criteria_met"], r["rank"]))
+    print("| tilt | toward | mirror | order | θ2 | rank of the paper's optimum | Fig. 4 ς (2.23 / 4.48) | "
+          "Fig. 7 ς max (6.64 / 6.55) | at (80/40, 70/35) | criteria met |")
+    print("|---|---|---|---|---|---|---|---|---|---|")
+    for r in rows[:12]:
+        mirror = r["mirror_plane"] if r["mirror_left_phi"] else "none"
+        print(f"| {r['shoulder_tilt_deg']:g} | {r['shoulder_tilt_toward']} | {mirror} | {r['phi_order']} | "
+              f"{r['theta2_range_deg']} | {r['rank']:,} | {r['fig4_15_15']:.2f} / {r['fig4_65_80']:.2f} | "
+              f"{r['fig7_0_max']:.2f} / {r['fig7_0.5_max']:.2f} | {r['fig7_0_at']}, {r['fig7_0.5_at']} | "
+              f"{r['criteria_met']}/7 |")
+
+
+if __name__ == "__main__":
+    main()
