@@ -44,7 +44,7 @@ from surgopt.robots.chain import Chain  # noqa: F401 - the kernel's input, defin
 
 
 #: Newton stops when every one of the five residuals is below this (m).
-IK_TOL_M = 1e-11
+IK_TOL_M = 1e-12
 #: Newton steps allowed: from the seed (and from each restart), and at each point of the walk.
 SEED_ITER = 100
 WALK_ITER = 12
@@ -379,13 +379,18 @@ def standard_extremes(axes, origins, prismatic, px, py, pz, kx, ky, kz, qdot_max
 
 
 @njit(**CONTRACT)
-def _predict(q, q1, q2, q3, run, jac, dp, step, work):
+def _predict(q, q1, q2, q3, q4, run, jac, dp, step, work):
     """Predict the next point's joints. On a straight run of the walk (``run`` earlier steps in the same
     direction; q1, q2, q3 the solutions one, two and three points back) extrapolate: cubic after three
-    steps (4 q - 6 q1 + 4 q2 - q3: error O(h^4), so one Newton step usually meets the tolerance),
+    steps (4 q - 6 q1 + 4 q2 - q3: error O(h^4)) and quartic after four (5 q - 10 q1 + 10 q2 - 5 q3 + q4:
+    O(h^5), so one Newton step usually meets the tolerance),
     quadratic after two, linear after one; otherwise the tangent q + J^-1 (dp, 0, 0) (the RCM rows
     stay satisfied to first order)."""
-    if run >= 3:
+    if run >= 4:
+        for i in range(N_ACTIVE):
+            q[i] = 5.0 * q[i] - 10.0 * q1[i] + 10.0 * q2[i] - 5.0 * q3[i] + q4[i]
+        return
+    if run == 3:
         for i in range(N_ACTIVE):
             q[i] = 4.0 * q[i] - 6.0 * q1[i] + 4.0 * q2[i] - q3[i]
         return
@@ -432,7 +437,7 @@ def _continue(rot, pos, prismatic, q, target, c, ref, end, bufs):
             new = target[i] + (c[i] + end[i] - target[i]) / (n_cont - s)
             dp[i] = new - target[i]
             target[i] = new
-        _predict(q, q, q, q, 0, jac, dp, step, work)
+        _predict(q, q, q, q, q, 0, jac, dp, step, work)
         it = newton_rcm(rot, pos, prismatic, q, target, c, ref, WALK_ITER, axes, origins, jac, res, step, work, trig)
         if it < 0:
             return -1
@@ -497,6 +502,7 @@ def _walk(chain_arrays, seed, restarts, c, offsets, start, probes, gii_to_beat, 
     q1 = np.empty(N_ACTIVE)
     q2 = np.empty(N_ACTIVE)
     q3 = np.empty(N_ACTIVE)
+    q4 = np.empty(N_ACTIVE)
     qj = np.empty(N_ACTIVE)
     gram = np.empty((6, 6))
     last = np.zeros(3)
@@ -509,14 +515,14 @@ def _walk(chain_arrays, seed, restarts, c, offsets, start, probes, gii_to_beat, 
                 dp[i] = new - target[i]
                 target[i] = new
                 straight &= abs(dp[i] - last[i]) <= 1e-12
-            run = min(run + 1, 3) if straight else 0
+            run = min(run + 1, 4) if straight else 0
             for i in range(3):
                 last[i] = dp[i]
             for i in range(N_ACTIVE):
                 qj[i] = q[i]
-            _predict(q, q1, q2, q3, run, jac, dp, step, work)
+            _predict(q, q1, q2, q3, q4, run, jac, dp, step, work)
             for i in range(N_ACTIVE):
-                q3[i], q2[i], q1[i] = q2[i], q1[i], qj[i]
+                q4[i], q3[i], q2[i], q1[i] = q3[i], q2[i], q1[i], qj[i]
         it = newton_rcm(rot, pos, prismatic, q, target, c, ref, WALK_ITER, axes, origins, jac, res, step, work, trig)
         if it < 0 or not within_limits(q, prismatic, lower, upper):
             # the walk lost the point (a near-singular step: an elbow at full stretch, a wrist with W1 ~ 0):
