@@ -446,7 +446,7 @@ def _continue(rot, pos, prismatic, q, target, c, ref, end, bufs):
 
 
 @njit(**CONTRACT)
-def _walk(chain_arrays, seed, restarts, c, offsets, start, probes, gii_to_beat, q_out, task_scale):
+def _walk(chain_arrays, seed, restarts, c, offsets, start, probes, gii_to_beat, q_out):
     """One candidate: seed solve at RCM + ``start``, the ``probes`` (offsets, each reached by continuation
     from the start and abandoned), continuation to the first point, the walk.
 
@@ -504,7 +504,6 @@ def _walk(chain_arrays, seed, restarts, c, offsets, start, probes, gii_to_beat, 
     q3 = np.empty(N_ACTIVE)
     q4 = np.empty(N_ACTIVE)
     qj = np.empty(N_ACTIVE)
-    gram = np.empty((6, 6))
     last = np.zeros(3)
     run = 0
     for j in range(p):
@@ -541,13 +540,7 @@ def _walk(chain_arrays, seed, restarts, c, offsets, start, probes, gii_to_beat, 
         steps_total += it
         for i in range(N_ACTIVE):
             q_out[j, i] = q[i]
-        if task_scale[0] > 0.0:  # the standard Jacobian's extremes instead of the RCM metric
-            fr = chain_frames(rot, pos, prismatic, q, axes, origins, trig)
-            smin2, smax2 = standard_extremes(axes, origins, prismatic, fr[9], fr[10], fr[11], fr[2], fr[5], fr[8],
-                                             qdot_max, task_scale, gram)
-            singular = smin2 <= 1e-24 * smax2
-        else:
-            smin2, smax2, singular = pose_extremes_from_jacobian(jac, qdot_max)
+        smin2, smax2, singular = pose_extremes_from_jacobian(jac, qdot_max)
         lo = min(lo, smin2)
         hi = max(hi, smax2)
         n_sing += 1 if singular else 0
@@ -557,15 +550,55 @@ def _walk(chain_arrays, seed, restarts, c, offsets, start, probes, gii_to_beat, 
 
 
 @njit(**CONTRACT)
-def _candidates(chain_arrays, seed, restarts, rcms, offsets, start, probes, gii_to_beat, task_scale):
+def _candidates(chain_arrays, seed, restarts, rcms, offsets, start, probes, gii_to_beat):
     m = rcms.shape[0]
     out = np.empty((m, 2))
     counts = np.empty((m, 4), np.int64)
     q_out = np.empty((offsets.shape[0], N_ACTIVE))
     for i in range(m):
         lo, hi, n_unr, n_sing, n_eval, steps = _walk(chain_arrays, seed, restarts, rcms[i], offsets, start, probes,
-                                                     gii_to_beat[i], q_out, task_scale)
+                                                     gii_to_beat[i], q_out)
         out[i, 0], out[i, 1] = np.sqrt(lo), np.sqrt(hi)
+        counts[i, 0], counts[i, 1], counts[i, 2], counts[i, 3] = n_unr, n_sing, n_eval, steps
+    return out, counts
+
+
+@njit(**CONTRACT)
+def _standard_over(chain_arrays, q_out, n, task_scale):
+    """(min sigma_min^2, max sigma_max^2, singular count) of the standard Jacobian over the walk's first n
+    solutions ``q_out`` (``standard_extremes``)."""
+    rot, pos, prismatic, lower, upper, qdot_max = chain_arrays
+    axes = np.empty((N_ACTIVE, 3))
+    origins = np.empty((N_ACTIVE, 3))
+    trig = np.zeros((4, N_ACTIVE))
+    trig[2, :] = np.nan
+    gram = np.empty((6, 6))
+    lo = np.inf
+    hi = 0.0
+    n_sing = 0
+    for j in range(n):
+        fr = chain_frames(rot, pos, prismatic, q_out[j], axes, origins, trig)
+        smin2, smax2 = standard_extremes(axes, origins, prismatic, fr[9], fr[10], fr[11], fr[2], fr[5], fr[8],
+                                         qdot_max, task_scale, gram)
+        lo = min(lo, smin2)
+        hi = max(hi, smax2)
+        n_sing += 1 if smin2 <= 1e-24 * smax2 else 0
+    return lo, hi, n_sing
+
+
+@njit(**CONTRACT)
+def _candidates_standard(chain_arrays, seed, restarts, rcms, offsets, start, probes, task_scale):
+    """``_candidates`` with the standard Jacobian's extremes (Sec. III-E) at the walk's solutions."""
+    m = rcms.shape[0]
+    out = np.zeros((m, 2))
+    counts = np.empty((m, 4), np.int64)
+    q_out = np.empty((offsets.shape[0], N_ACTIVE))
+    for i in range(m):
+        lo, hi, n_unr, n_sing, n_eval, steps = _walk(chain_arrays, seed, restarts, rcms[i], offsets, start, probes,
+                                                     0.0, q_out)
+        if n_unr == 0:
+            lo, hi, n_sing = _standard_over(chain_arrays, q_out, n_eval, task_scale)
+            out[i, 0], out[i, 1] = np.sqrt(lo), np.sqrt(hi)
         counts[i, 0], counts[i, 1], counts[i, 2], counts[i, 3] = n_unr, n_sing, n_eval, steps
     return out, counts
 
@@ -630,7 +663,7 @@ def rcm_walk(chain: Chain, rcm, offsets, seed, start=None, restarts=None):
     restarts = default_restarts(seed) if restarts is None else np.asarray(restarts, np.float64).reshape(-1, 5)
     q_out = np.empty((offsets.shape[0], 5))
     lo, hi, n_unr, n_sing, n_eval, steps = _walk(_arrays(chain), seed, restarts, np.asarray(rcm, np.float64),
-                                                 offsets, start, np.empty((0, 3)), 0.0, q_out, np.zeros(3))
+                                                 offsets, start, np.empty((0, 3)), 0.0, q_out)
     return {"q": q_out, "sigma_min": float(np.sqrt(lo)), "sigma_max": float(np.sqrt(hi)), "n_unreachable": n_unr,
             "n_singular": n_sing, "points_evaluated": n_eval, "newton_steps": steps}
 
@@ -654,5 +687,9 @@ def chain_candidates_extremes(rcms, offsets, chain: Chain, seed, gii_to_beat=Non
     g = np.zeros(rcms.shape[0]) if gii_to_beat is None else np.asarray(gii_to_beat, np.float64).reshape(-1)
     probes = np.ascontiguousarray(offsets[probe_points(offsets)]) if probe_first else np.empty((0, 3))
     scale = np.zeros(3) if standard_task_scale is None else np.asarray(standard_task_scale, np.float64)
-    out, counts = _candidates(_arrays(chain), seed, default_restarts(seed), rcms, offsets, start, probes, g, scale)
+    if standard_task_scale is None:
+        out, counts = _candidates(_arrays(chain), seed, default_restarts(seed), rcms, offsets, start, probes, g)
+    else:
+        out, counts = _candidates_standard(_arrays(chain), seed, default_restarts(seed), rcms, offsets, start, probes,
+                                           scale)
     return out[:, 0], out[:, 1], counts[:, 0], counts[:, 1], counts[:, 2]

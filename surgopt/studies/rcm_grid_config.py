@@ -432,6 +432,8 @@ class RcmGridConfig(RcmSetup):
     @model_validator(mode="after")
     def _consistent(self):
         if self.metric == "standard":
+            if self.search == "cull":
+                raise ValueError("--cull bounds the RCM metric; with metric = 'standard' run the full map")
             if self.robot.kernel == "closed_form":
                 raise ValueError("metric = 'standard' runs on the generic kernel: robot.kernel = 'auto' or 'generic'")
             from surgopt.robots.chain import ChainError
