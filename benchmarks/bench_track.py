@@ -29,7 +29,6 @@ def main():
     from surgopt.kinematics import rcm_track as K
     from surgopt.kinematics.serial_chain import _arrays, rcm_walk
     from surgopt.robots import pa10_7c
-    from surgopt.robots.models import get_model
     from surgopt.runner import run_study
     from surgopt.store import Store
     from surgopt.studies import rcm_grid as G
@@ -47,13 +46,8 @@ def main():
     args_k = (_arrays(chain), walk["q"], 1, p_ref, rcm, 1e-3, S.CALIBRATED_GAIN_PER_S, 0.0, True, 1.0, 0, trace)
     K.track(*args_k)
     t_k = min(_time(lambda: K.track(*args_k)) for _ in range(5))
-    model = get_model("pa10_7c")
-
     def fk(q5):
-        q7 = np.zeros(7)
-        q7[[0, 1, 3, 4, 5]] = q5
-        t = ref.dh_chain_transform(model, q7)
-        return t[:3, 3] + pa10_7c.TOOL_LENGTH_M * t[:3, 2], t[:3, 2]
+        return ref.pa10_tool_tip(q5, pa10_7c.LINKS_BIELEFELD_M, pa10_7c.TOOL_LENGTH_M)
 
     qmax = np.array([pa10_7c.MAX_JOINT_SPEED_RAD_S[n] for n in pa10_7c.ACTIVE_JOINTS])
     n_np = 1000

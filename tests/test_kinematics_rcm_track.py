@@ -8,7 +8,6 @@ from surgopt.config import load_embedded
 from surgopt.kinematics import rcm_track as K
 from surgopt.kinematics.serial_chain import Chain, _arrays, rcm_walk
 from surgopt.robots import pa10_7c
-from surgopt.robots.models import get_model
 from surgopt.studies import rcm_grid as G
 from surgopt.studies import rcm_track as S
 
@@ -40,6 +39,16 @@ def _sliders():
                  upper=np.full(5, np.inf), qdot_max=np.full(5, 0.2))
 
 
+def _ramp(v, m=3001, dt=1e-3):
+    """Joint 1 of the sliders at v t, and the tip path it makes."""
+    t = np.arange(m) * dt
+    q_ref = np.zeros((m, 5))
+    q_ref[:, 0] = v * t
+    p_ref = np.zeros((m, 3))
+    p_ref[:, 2] = v * t
+    return q_ref, p_ref
+
+
 def _run(chain, q_ref, p_ref, gain, lag=0.0, scale=1.0, dt=1e-3):
     trace = np.zeros((p_ref.shape[0], 6))
     out = K.track(_arrays(chain), q_ref, 1, p_ref, np.array([0.0, 0.0, 10.0]), dt, gain, lag, True, scale, 1, trace)
@@ -50,12 +59,7 @@ def test_a_slow_ramp_tracks_to_the_p_lag_error_of_the_closed_form():
     """q_ref = v t in one joint, never saturating: e_k = (v / K)(1 - (1 - K dt)^k) exactly."""
     chain = _sliders()
     v, gain, dt, m = 0.01, 8.0, 1e-3, 3001
-    t = np.arange(m) * dt
-    q_ref = np.zeros((m, 5))
-    q_ref[:, 0] = v * t
-    p_ref = np.zeros((m, 3))
-    p_ref[:, 2] = v * t
-    (e_max, e_mean, *_), trace = _run(chain, q_ref, p_ref, gain)
+    (e_max, e_mean, *_), trace = _run(chain, *_ramp(v, m, dt), gain)
     want = (v / gain) * (1 - (1 - gain * dt) ** np.arange(m))
     np.testing.assert_allclose(trace[:, 4], want, rtol=1e-9, atol=1e-15)
     assert abs(e_max - want.max()) < 1e-12 and abs(e_max - v / gain) < 1e-6
@@ -64,13 +68,8 @@ def test_a_slow_ramp_tracks_to_the_p_lag_error_of_the_closed_form():
 def test_a_saturating_ramp_does_not():
     """Faster than the rated speed: the error grows without bound instead of settling at v / K."""
     chain = _sliders()
-    v, gain, dt, m = 0.5, 8.0, 1e-3, 3001
-    t = np.arange(m) * dt
-    q_ref = np.zeros((m, 5))
-    q_ref[:, 0] = v * t
-    p_ref = np.zeros((m, 3))
-    p_ref[:, 2] = v * t
-    (e_max, _, _, _, peak, sat_s), trace = _run(chain, q_ref, p_ref, gain)
+    v, gain = 0.5, 8.0
+    (e_max, _, _, _, peak, sat_s), trace = _run(chain, *_ramp(v), gain)
     assert e_max > 10 * v / gain and peak[0] == 1.0 and sat_s > 2.9
     # once saturated the joint moves at 0.2 m/s: the error grows at v - 0.2
     slope = (trace[-1, 4] - trace[-1001, 4]) / 1.0
@@ -93,13 +92,8 @@ def test_kernel_equals_the_plain_loop_on_the_pa10():
     trace = np.zeros((off.shape[0], 6))
     e_max, e_mean, r_max, r_mean, peak, sat_s = K.track(_arrays(chain), walk["q"], 1, p_ref, rcm, 1e-3, 10.74, 0.02,
                                                          True, 0.05, 1, trace)
-    model = get_model("pa10_7c")
-
     def fk(q5):
-        q7 = np.zeros(7)
-        q7[[0, 1, 3, 4, 5]] = q5
-        t = ref.dh_chain_transform(model, q7)
-        return t[:3, 3] + pa10_7c.TOOL_LENGTH_M * t[:3, 2], t[:3, 2]
+        return ref.pa10_tool_tip(q5, pa10_7c.LINKS_BIELEFELD_M, pa10_7c.TOOL_LENGTH_M)
 
     qmax = np.array([pa10_7c.MAX_JOINT_SPEED_RAD_S[n] for n in pa10_7c.ACTIVE_JOINTS])
     want_e, want_r, errs = ref.p_control_track(fk, walk["q"], p_ref, rcm, 1e-3, 10.74, 0.02, qmax, 0.05)
