@@ -67,3 +67,34 @@ def wide_vector_features() -> str | None:
     if not {"+avx512f", "+avx512vl", "+avx512dq"} <= have:
         return None
     return features + ",-prefer-256-bit"
+
+
+def compile_lock(timeout_s: float = 600.0):
+    """A lock across processes on the numba cache folder, held while a study compiles its kernels.
+
+    Two surgopt processes compiling the same kernels into one cache at once (e.g. two commands started
+    together after an upgrade) race on the cache's index files; once a process was seen to abort
+    (SIGABRT) loading a half-written entry. With the lock the second waits, then loads the first's
+    result. Past ``timeout_s`` it compiles anyway (a stale holder must not block a run for ever).
+    """
+    import contextlib
+
+    from filelock import FileLock, Timeout
+
+    path = numba_cache_dir()
+    path.mkdir(parents=True, exist_ok=True)
+    lock = FileLock(str(path / ".surgopt-compile.lock"))
+
+    @contextlib.contextmanager
+    def held():
+        try:
+            lock.acquire(timeout=timeout_s)
+        except Timeout:
+            yield
+            return
+        try:
+            yield
+        finally:
+            lock.release()
+
+    return held()

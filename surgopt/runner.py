@@ -187,10 +187,10 @@ def run_study(study, cfg, *, config_name: str, store: Store, jobs: int = DEFAULT
         computed = len(missing)
         plan = study.search_plan(cfg) if study.search_plan else None
         if missing and plan is not None:
-            study.warm_up(cfg)
+            _warm_up(study, cfg)
             _run_search(study, cfg, plan, run, store, jobs, quiet, total, schema, backend, dask)
         elif missing:
-            study.warm_up(cfg)  # compile once in the parent; workers load the cache
+            _warm_up(study, cfg)  # compile once in the parent; workers load the cache
             for attempt in range(WORKER_RETRIES + 1):
                 try:
                     _dispatch(study, cfg, chunk, missing, run, store, jobs, quiet, total, schema, backend, dask)
@@ -466,8 +466,16 @@ def _worker_setup(cache_dir: str, study_name: str, cfg) -> str:
     numba.set_num_threads(1)
     from surgopt.studies import get_study
 
-    get_study(study_name).warm_up(cfg)
+    _warm_up(get_study(study_name), cfg)
     return os.environ["NUMBA_CACHE_DIR"]
+
+
+def _warm_up(study, cfg) -> None:
+    """``study.warm_up`` under the numba cache's compile lock (``surgopt.jit.compile_lock``)."""
+    from surgopt.jit import compile_lock
+
+    with compile_lock():
+        study.warm_up(cfg)
 
 
 def _prepare_dask_workers(client, study_name: str, cfg) -> None:

@@ -116,3 +116,24 @@ def test_interrupted_run_resumes_to_the_same_table(tmp_path, how):
     cli("rcm-grid", cfg, "--store", fresh_store, "--quiet", "--chunk-size", "40")
     assert resumed.equals(single_table(fresh_store))
     assert not list(store.glob("study=rcm-grid/key=*/.*.tmp-*"))
+
+
+def test_compile_lock_serialises_processes(tmp_path, monkeypatch):
+    """The numba cache's compile lock: held by one process, another's acquisition waits (here: times out)."""
+    import time
+
+    from surgopt.jit import compile_lock
+
+    monkeypatch.setenv("NUMBA_CACHE_DIR", str(tmp_path / "nc"))
+    with compile_lock():
+        assert (tmp_path / "nc" / ".surgopt-compile.lock").exists()
+        t = time.perf_counter()
+        code = ("import sys; from filelock import FileLock, Timeout\n"
+                f"l = FileLock({str(tmp_path / 'nc' / '.surgopt-compile.lock')!r})\n"
+                "try:\n    l.acquire(timeout=0.3); sys.exit(0)\nexcept Timeout:\n    sys.exit(3)\n")
+        r = subprocess.run([sys.executable, "-c", code])
+        assert r.returncode == 3 and time.perf_counter() - t >= 0.3
+    r = subprocess.run([sys.executable, "-c", code])
+    assert r.returncode == 0
+    with compile_lock(timeout_s=0.1):  # and it is released again
+        pass
