@@ -32,6 +32,11 @@ unreachable, and the walk stops there (``n_unreachable`` is then 1: the rest is 
 
 Public drivers: ``rcm_walk`` (one candidate, every joint vector), ``chain_candidates_extremes``
 (many candidates, the PA10 kernel's outputs), ``chain_fk`` (tip frame and joint axes).
+
+One module of ~700 lines: forward kinematics, the five equations and their Jacobian, the two small
+solvers, the predictor and the walk are one computation compiled into one loop (the inline functions
+must live beside the loop that inlines them), read together with the equations above; the standard
+Jacobian's extremes (Sec. III-E) share that walk.
 """
 from __future__ import annotations
 
