@@ -27,7 +27,7 @@ def main():
 
     from surgopt.config import load_embedded, validate
     from surgopt.kinematics import rcm_track as K
-    from surgopt.kinematics.serial_chain import _arrays, rcm_walk
+    from surgopt.kinematics.serial_chain import kernel_arrays, rcm_walk
     from surgopt.robots import pa10_7c
     from surgopt.runner import run_study
     from surgopt.store import Store
@@ -43,7 +43,7 @@ def main():
     p_ref = np.ascontiguousarray(rcm + off)
     m = p_ref.shape[0]
     trace = np.zeros((1, 6))
-    args_k = (_arrays(chain), walk["q"], 1, p_ref, rcm, 1e-3, S.CALIBRATED_GAIN_PER_S, 0.0, True, 1.0, 0, trace)
+    args_k = (kernel_arrays(chain), walk["q"], 1, p_ref, rcm, 1e-3, S.CALIBRATED_GAIN_PER_S, 0.0, True, 1.0, 0, trace)
     K.track(*args_k)
     t_k = min(_time(lambda: K.track(*args_k)) for _ in range(5))
     def fk(q5):

@@ -231,7 +231,6 @@ def _run_study_command(study, args, store, jobs, force, quiet, chunk_size=None, 
 
         backend = getattr(backend, "value", backend)
         config, overrides = _split_args(args)
-        flags = [(f, True) if not isinstance(f, tuple) else f for f in flags]
         updates = {k: v for f, value in flags for k, v in f.update(value).items()}
         flags = [f for f, _ in flags]
         todo = variants(study, config, overrides, updates, multirun=multirun)

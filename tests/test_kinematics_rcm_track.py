@@ -6,7 +6,7 @@ import numpy as np
 import reference as ref
 from surgopt.config import load_embedded
 from surgopt.kinematics import rcm_track as K
-from surgopt.kinematics.serial_chain import Chain, _arrays, rcm_walk
+from surgopt.kinematics.serial_chain import Chain, kernel_arrays, rcm_walk
 from surgopt.robots import pa10_7c
 from surgopt.studies import rcm_grid as G
 from surgopt.studies import rcm_track as S
@@ -51,7 +51,7 @@ def _ramp(v, m=3001, dt=1e-3):
 
 def _run(chain, q_ref, p_ref, gain, lag=0.0, scale=1.0, dt=1e-3):
     trace = np.zeros((p_ref.shape[0], 6))
-    out = K.track(_arrays(chain), q_ref, 1, p_ref, np.array([0.0, 0.0, 10.0]), dt, gain, lag, True, scale, 1, trace)
+    out = K.track(kernel_arrays(chain), q_ref, 1, p_ref, np.array([0.0, 0.0, 10.0]), dt, gain, lag, True, scale, 1, trace)
     return out, trace
 
 
@@ -90,7 +90,7 @@ def test_kernel_equals_the_plain_loop_on_the_pa10():
     assert walk["n_unreachable"] == 0
     p_ref = np.ascontiguousarray(rcm + off)
     trace = np.zeros((off.shape[0], 6))
-    e_max, e_mean, r_max, r_mean, peak, sat_s = K.track(_arrays(chain), walk["q"], 1, p_ref, rcm, 1e-3, 10.74, 0.02,
+    e_max, e_mean, r_max, r_mean, peak, sat_s = K.track(kernel_arrays(chain), walk["q"], 1, p_ref, rcm, 1e-3, 10.74, 0.02,
                                                          True, 0.05, 1, trace)
     def fk(q5):
         return ref.pa10_tool_tip(q5, pa10_7c.LINKS_BIELEFELD_M, pa10_7c.TOOL_LENGTH_M)

@@ -624,7 +624,8 @@ def serpentine_order(n: int) -> np.ndarray:
     return np.array(out, dtype=np.int64)
 
 
-def _arrays(chain: Chain):
+def kernel_arrays(chain: Chain):
+    """The ``Chain`` as the kernels take it: a tuple of contiguous float64 arrays."""
     return tuple(np.ascontiguousarray(a, dtype=np.float64) for a in chain)
 
 
@@ -635,7 +636,7 @@ def default_restarts(seed) -> np.ndarray:
 
 def chain_fk(chain: Chain, q):
     """Tool frame (4x4, z along the tool, origin at the tip) and joint axes/origins (5, 3) at joints q."""
-    rot, pos, prismatic = _arrays(chain)[:3]
+    rot, pos, prismatic = kernel_arrays(chain)[:3]
     axes, origins = np.empty((5, 3)), np.empty((5, 3))
     r = chain_frames(rot, pos, prismatic, np.asarray(q, np.float64), axes, origins, new_trig_cache())
     t = np.eye(4)
@@ -647,7 +648,7 @@ def chain_fk(chain: Chain, q):
 def rcm_jacobian(chain: Chain, q, target, rcm):
     """(residual (5,), Jacobian (5, 5)) of the five RCM-constrained IK equations at q (module docstring),
     the constraint rows in the basis of ``reference_axis(target - rcm)``."""
-    rot, pos, prismatic = _arrays(chain)[:3]
+    rot, pos, prismatic = kernel_arrays(chain)[:3]
     axes, origins, jac, res = np.empty((5, 3)), np.empty((5, 3)), np.empty((5, 5)), np.empty(5)
     target, rcm = np.asarray(target, np.float64), np.asarray(rcm, np.float64)
     rcm_residual_jacobian(rot, pos, prismatic, np.asarray(q, np.float64), target, rcm,
@@ -667,7 +668,7 @@ def rcm_walk(chain: Chain, rcm, offsets, seed, start=None, restarts=None):
     start = offsets.mean(axis=0) if start is None else np.asarray(start, np.float64)
     restarts = default_restarts(seed) if restarts is None else np.asarray(restarts, np.float64).reshape(-1, 5)
     q_out = np.empty((offsets.shape[0], 5))
-    lo, hi, n_unr, n_sing, n_eval, steps = _walk(_arrays(chain), seed, restarts, np.asarray(rcm, np.float64),
+    lo, hi, n_unr, n_sing, n_eval, steps = _walk(kernel_arrays(chain), seed, restarts, np.asarray(rcm, np.float64),
                                                  offsets, start, np.empty((0, 3)), 0.0, q_out)
     return {"q": q_out, "sigma_min": float(np.sqrt(lo)), "sigma_max": float(np.sqrt(hi)), "n_unreachable": n_unr,
             "n_singular": n_sing, "points_evaluated": n_eval, "newton_steps": steps}
@@ -693,8 +694,8 @@ def chain_candidates_extremes(rcms, offsets, chain: Chain, seed, gii_to_beat=Non
     probes = np.ascontiguousarray(offsets[probe_points(offsets)]) if probe_first else np.empty((0, 3))
     scale = np.zeros(3) if standard_task_scale is None else np.asarray(standard_task_scale, np.float64)
     if standard_task_scale is None:
-        out, counts = _candidates(_arrays(chain), seed, default_restarts(seed), rcms, offsets, start, probes, g)
+        out, counts = _candidates(kernel_arrays(chain), seed, default_restarts(seed), rcms, offsets, start, probes, g)
     else:
-        out, counts = _candidates_standard(_arrays(chain), seed, default_restarts(seed), rcms, offsets, start, probes,
+        out, counts = _candidates_standard(kernel_arrays(chain), seed, default_restarts(seed), rcms, offsets, start, probes,
                                            scale)
     return out[:, 0], out[:, 1], counts[:, 0], counts[:, 1], counts[:, 2]

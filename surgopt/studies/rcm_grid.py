@@ -217,8 +217,7 @@ class ChainKernel:
 def kernel_for(cfg: RcmGridConfig):
     """The closed-form PA10 kernel for the paper setup (``robot.kernel`` auto/closed_form), else the chain
     kernel (and for ``metric = "standard"``, which only the chain kernel computes)."""
-    standard = getattr(cfg, "metric", "alternative") == "standard"
-    return ClosedFormKernel(cfg) if cfg.robot.closed_form and not standard else ChainKernel(cfg)
+    return kernel_type(cfg)(cfg)
 
 
 # ---------------------------------------------------------------------------

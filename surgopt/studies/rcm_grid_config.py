@@ -28,6 +28,8 @@ SEARCH_OBJECTIVES = ("gii", "sigma_min_m_per_s", "sigma_max_m_per_s", "x_rcm_m",
 PA10_FIELDS = ("link_d1_m", "link_d3_m", "link_d5_m", "link_d7_m", "tool_length_from", "elbow", "joint_limit_deg",
                "max_joint_speed_rad_s")
 Finite = Annotated[float, Field(ge=-1e3, le=1e3)]
+#: URDF chains read so far, by (path, sha256, base_link, tip_link): a ChainSpec is never modified.
+_URDF_CHAINS: dict = {}
 
 
 class JointLimitsDeg(StrictModel):
@@ -196,8 +198,6 @@ class Robot(StrictModel):
         self._fill(pa10_7c.MODEL.locked_joints_deg, seed, pa10_7c.TOOL_LENGTH_M)
 
     def _resolve_urdf(self, context):
-        from surgopt.robots.chain import ChainError
-
         path = Path(self.urdf).expanduser()
         if not path.is_absolute():
             path = Path(context.get("config_dir") or Path.cwd()) / path
@@ -216,10 +216,6 @@ class Robot(StrictModel):
             raise ValueError(f"urdf: {path} changed since this config was written (urdf_sha256 differs); "
                              f"drop urdf_sha256 to use the file as it is now")
         object.__setattr__(self, "urdf_sha256", sha)
-        try:
-            self.chain_spec()
-        except ChainError as exc:
-            raise ValueError(f"urdf {path}: {exc}") from None
 
     # ---- the chain ---------------------------------------------------------------------------------------
 
@@ -241,8 +237,11 @@ class Robot(StrictModel):
         """The arm as a ``surgopt.robots.chain.ChainSpec`` (every joint, before locking)."""
         from surgopt.robots import chain
 
-        if self.urdf is not None:
-            return chain.from_urdf(self.urdf, self.base_link, self.tip_link)
+        if self.urdf is not None:  # parsed once per file content and chain ends (validation, tasks, kernels)
+            key = (self.urdf, self.urdf_sha256, self.base_link, self.tip_link)
+            if key not in _URDF_CHAINS:
+                _URDF_CHAINS[key] = chain.from_urdf(self.urdf, self.base_link, self.tip_link)
+            return _URDF_CHAINS[key]
         if self.dh is not None:
             return chain.from_dh([r.row(i) for i, r in enumerate(self.dh)], self.dh_convention or "standard")
         if self.is_pa10:
@@ -273,11 +272,10 @@ class Robot(StrictModel):
         chain, names = reduce_chain(spec, locked, self.tool())
         unknown = [n for n in self.seed_deg if n not in names]
         if unknown:
-            raise_where = "locked" if unknown[0] in locked else "not a joint"
             from surgopt.robots.chain import ChainError
 
-            raise ChainError("seed_deg", f"{unknown[0]!r} is {'locked' if raise_where == 'locked' else 'not an active joint'}"
-                                         f" (active joints: {', '.join(names)})")
+            what = "locked" if unknown[0] in locked else "not an active joint"
+            raise ChainError("seed_deg", f"{unknown[0]!r} is {what} (active joints: {', '.join(names)})")
         seed = [self.seed_deg.get(n, 0.0) for n in names]
         seed = [v if kinds[n] == PRISMATIC else math.radians(v) for n, v in zip(names, seed)]
         return chain, names, seed
@@ -320,9 +318,13 @@ class Robot(StrictModel):
         from surgopt.robots.chain import ChainError
 
         try:
+            spec_ok = False
+            self.chain_spec()
+            spec_ok = True
             self.chain()
         except ChainError as exc:
-            raise ValueError(str(exc)) from None
+            where = f"urdf {self.urdf}: " if self.urdf is not None and not spec_ok else ""
+            raise ValueError(f"{where}{exc}") from None
 
 
 class Workspace(StrictModel):

@@ -167,43 +167,63 @@ def estimate(cfg: RcmTrackConfig) -> Estimate:
 def warm_up(cfg: RcmTrackConfig) -> None:
     small = cfg.model_copy(update={"track": cfg.track.model_copy(update={"duration_s": 0.01, "keep": []})})
     grid.kernel_for(cfg).warm_up()
-    chain, names, seed = cfg.robot.chain()
-    _candidate(small, chain, names, seed, grid.candidate_rcms(cfg, grid.candidate_xyz(cfg)[:1])[0], keep=True)
+    chain, _, seed = cfg.robot.chain()
+    path = _path(small)
+    ref = _reference(small, chain, seed, grid.candidate_rcms(cfg, grid.candidate_xyz(cfg)[:1])[0], path)
+    if ref is not None:
+        _simulate(small, chain, ref, path, keep=True)
 
 
-def _candidate(cfg, chain, names, seed, rcm, keep):
-    """(errors, peaks, saturated_s, trace or None, feasible) of one candidate."""
-    from surgopt.kinematics.rcm_track import track
-    from surgopt.kinematics.serial_chain import _arrays, rcm_walk
-
-    t = cfg.track
+def _path(cfg: RcmTrackConfig):
+    """(tip offsets from the RCM at every control step, the IK samples, the padded path, every): one per task."""
     _, offsets, _ = reference_path(cfg)
     ik_off, padded, every = _ik_samples(cfg, offsets)
+    return offsets, ik_off, padded, every
+
+
+def _reference(cfg, chain, seed, rcm, path):
+    """(reference joints at the IK samples, the tip path, the RCM) of one candidate, or None when the
+    path is out of reach (the serial-chain walk from the workspace centre)."""
+    from surgopt.kinematics.serial_chain import rcm_walk
+
+    offsets, ik_off, _, _ = path
     walk = rcm_walk(chain, rcm, ik_off, seed, start=np.array([0.0, 0.0, -cfg.workspace.depth_below_rcm_m]))
     if walk["n_unreachable"]:
         return None
-    n_trace = (offsets.shape[0] - 1) // TRACE_EVERY_STEPS + 1 if keep else 0
+    return walk["q"], np.ascontiguousarray(rcm + offsets), rcm
+
+
+def _simulate(cfg, chain, ref, path, keep):
+    """((max, mean tip error, max, mean RCM error) m, peak |qdot|/qdot_max (5,), saturated s, trace or None)."""
+    from surgopt.kinematics.rcm_track import track
+    from surgopt.kinematics.serial_chain import kernel_arrays
+
+    t = cfg.track
+    q_ref, p_ref, rcm = ref
+    every = path[3]
+    n_trace = (p_ref.shape[0] - 1) // TRACE_EVERY_STEPS + 1 if keep else 0
     trace = np.zeros((max(n_trace, 1), 6))
     e_max, e_mean, r_max, r_mean, peak, sat_s = track(
-        _arrays(chain), walk["q"], every, np.ascontiguousarray(rcm + padded[:offsets.shape[0]]), rcm,
-        1.0 / t.control_rate_hz, t.gain_per_s, t.velocity_lag_s, t.saturate, t.saturation_speed_scale,
-        TRACE_EVERY_STEPS if keep else 0, trace)
+        kernel_arrays(chain), q_ref, every, p_ref, rcm, 1.0 / t.control_rate_hz, t.gain_per_s, t.velocity_lag_s,
+        t.saturate, t.saturation_speed_scale, TRACE_EVERY_STEPS if keep else 0, trace)
     return (e_max, e_mean, r_max, r_mean), peak, sat_s, (trace[:n_trace] if keep else None)
 
 
 def calibrate_gain(cfg: RcmTrackConfig, candidate_id: int, target_mm: float, lo: float = 0.5,
                    hi: float = 500.0) -> float:
     """The P gain (1/s) at which candidate ``candidate_id``'s maximum tip error is ``target_mm``
-    (bisection in log gain: the error falls as the gain rises, until saturation)."""
-    chain, names, seed = cfg.robot.chain()
+    (bisection in log gain: the error falls as the gain rises, until saturation). The reference IK is
+    solved once; each step only re-runs the controller."""
+    chain, _, seed = cfg.robot.chain()
     rcm = grid.candidate_rcms(cfg, grid.candidate_xyz(cfg)[candidate_id:candidate_id + 1])[0]
+    path = _path(cfg)
+    ref = _reference(cfg, chain, seed, rcm, path)
+    if ref is None:
+        raise ValueError(f"candidate {candidate_id} cannot follow the path")
 
     def error(gain):
         c = cfg.model_copy(update={"track": cfg.track.model_copy(update={"gain_per_s": gain})})
-        r = _candidate(c, chain, names, seed, rcm, False)
-        if r is None:
-            raise ValueError(f"candidate {candidate_id} cannot follow the path")
-        return r[0][0] * 1e3
+        return _simulate(c, chain, ref, path, False)[0][0] * 1e3
 
     for _ in range(60):
         mid = math.sqrt(lo * hi)
@@ -221,7 +241,8 @@ def compute_task(cfg: RcmTrackConfig, chunk: int, index: int) -> dict:
     rcms = grid.candidate_rcms(cfg, xyz)
     lo, hi, n_unr, _, _ = grid.kernel_for(cfg).extremes(rcms, grid.workspace_offsets(cfg.workspace),
                                                         cfg.workspace.points_per_side)
-    chain, names, seed = cfg.robot.chain()
+    chain, _, seed = cfg.robot.chain()
+    path = _path(cfg)
     keep = set(cfg.track.keep)
     n = ids.shape[0]
     err = np.full((n, 4), np.nan)
@@ -230,10 +251,10 @@ def compute_task(cfg: RcmTrackConfig, chunk: int, index: int) -> dict:
     feasible = np.zeros(n, bool)
     traces = [[[] for _ in range(n)] for _ in range(6)]
     for i, (cid, rcm) in enumerate(zip(ids, rcms)):
-        r = _candidate(cfg, chain, names, seed, rcm, int(cid) in keep)
-        if r is None:
+        ref = _reference(cfg, chain, seed, rcm, path)
+        if ref is None:
             continue
-        (e, pk, s, tr) = r
+        e, pk, s, tr = _simulate(cfg, chain, ref, path, int(cid) in keep)
         err[i] = np.array(e) * 1e3
         peaks[i], sat[i], feasible[i] = pk, s, True
         if tr is not None:
