@@ -392,6 +392,19 @@ def raven_four_arm_frames(bx, by, phi_x, phi_y, phi_z, tilt_deg=90.0):
     return ports, np.array(axes)
 
 
+def raven_four_arm_zero_axes(phi_x, phi_y, phi_z, tilt_deg=90.0, zero=(0.0, 1.0, 0.0)):
+    """theta1's zero direction x0 of each arm of ``raven_four_arm_frames`` (tilt along x): ``zero`` (x
+    negated for the left arms 1 and 3) turned by the arm's outward tilt about the y axis, then by the same
+    Rz Ry Rx."""
+    out = []
+    for left in (True, False, True, False):
+        m = -1.0 if left else 1.0
+        b = np.array(zero, float) * [m, 1.0, 1.0]
+        tilt = _rotation(1, m * tilt_deg)
+        out.append(_rotation(2, m * phi_z) @ _rotation(1, m * phi_y) @ _rotation(0, phi_x) @ tilt @ b)
+    return np.array(out)
+
+
 def raven_plane_nodes(ports, depth, d4_max, step):
     """Multiples of ``step`` from two below to two above the box where every arm reaches the plane."""
     r = np.sqrt(d4_max ** 2 - depth ** 2)

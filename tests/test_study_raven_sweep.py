@@ -7,6 +7,7 @@ import sys
 import numpy as np
 import pytest
 
+from surgopt.robots import raven_iv
 from surgopt.studies import raven_sweep as S
 
 import reference as R
@@ -109,6 +110,13 @@ def test_span_values_and_validation():
         validate({"geometry": ports, "sweep": {"bx_mm": [50, 100]}}, S.Config, "x.toml")
     fixed = validate({"geometry": ports, "sweep": {"bx_mm": [50], "by_mm": [50]}}, S.Config, "x.toml")
     assert len(S.geometry_grid(fixed)) == 125
+    for bad in ([90.0, 0.0], [-400.0, 0.0], [0.0], [0.0, float("nan")]):
+        with pytest.raises(ConfigError, match="geometry.theta1_range_deg"):
+            validate({"geometry": {"theta1_range_deg": bad}}, S.Config, "x.toml")
+    with pytest.raises(ConfigError, match="geometry.theta1_zero_toward"):
+        validate({"geometry": {"theta1_zero_toward": "z"}}, S.Config, "x.toml")
+    hw = validate({"geometry": {"theta1_range_deg": [0, 90]}}, S.Config, "x.toml")
+    assert hw.geometry.theta1_range_deg == list(raven_iv.THETA1_RANGE_RAVEN_II_DEG)
 
 
 def test_cli_sweep_stored_cached_and_resumed(tmp_path):

@@ -15,6 +15,7 @@ import numpy as np
 from numba import njit
 
 from surgopt.jit import EXACT, VECTOR
+from surgopt.kinematics.raven_shoulder import shoulder_design, shoulder_fields, theta1_margin, theta1_row
 
 
 class PlaneGrid(NamedTuple):
@@ -360,15 +361,34 @@ def _count_above(lmin, m):
     return n
 
 
+@njit(**VECTOR)
+def _theta1_levels(t1m, stamp, pair, level):
+    """level[j] = 0 where the theta1 margin t1m[j] is not positive; stamp the margins as pair's."""
+    for j in range(level.shape[0]):
+        level[j] = level[j] if t1m[j] > 0.0 else 0
+        stamp[j] = pair
+
+
+@njit(inline="always", **EXACT)
+def _theta1_margin_once(shoulder, d, k, pair, t1m, stamp):
+    """``theta1_margin`` at node k for design pair ``pair``, computed once per pair (stamp[k] == pair)."""
+    if stamp[k] != pair:
+        t1m[k] = theta1_margin(shoulder, k, d)
+        stamp[k] = pair
+    return t1m[k]
+
+
 @njit(**EXACT)
-def evaluate_designs(bounds, nx, ny, step, designs, out):
+def evaluate_designs(bounds, nx, ny, step, designs, shoulder, shoulder_rng, out):
     """All (alpha, beta, Iso_min) designs of one geometry (ports and shoulder axes fixed).
 
     ``bounds``: ``plane_node_bounds`` of the geometry's plane grid; ``designs``:
     a ``DesignGrid`` (the designs and the cone-angle interval of each). A node is in
     the common workspace when for every arm psi_lo < psi < psi_hi and
-    dist < d4_max (theta1 unlimited); marching squares runs on the margin of
-    ``_node_margin`` (zero on the boundary). A node's isotropy is the minimum
+    dist < d4_max, and, when ``shoulder_rng.limited``, theta1 inside its range
+    (``surgopt.kinematics.raven_shoulder``; ``shoulder`` its ``ShoulderFields``);
+    marching squares runs on the margin of ``_node_margin`` (zero on the boundary),
+    the smaller of it and the theta1 margin when theta1 is limited. A node's isotropy is the minimum
     over the arms (``node_isotropy``). ``out`` (A*B*I, 6): area_mm2, perimeter_mm, n_points,
     iso_sum, iso_min_actual, 1 if any point.
 
@@ -399,6 +419,9 @@ def evaluate_designs(bounds, nx, ny, step, designs, out):
     full = np.zeros(n_iso + 1, np.int64)
     length = np.zeros(n_iso + 1)
     part = np.zeros(n_iso + 1)
+    limited = shoulder_rng.limited
+    t1m = np.empty(nx * ny if limited else 0)  # theta1 margins of boundary-cell corners, per (alpha, beta) ...
+    stamp = np.full(nx * ny if limited else 0, -1, np.int64)  # ... of the pair stamped here
     for ia in range(alphas.shape[0]):
         for ib in range(betas.shape[0]):
             base = (ia * betas.shape[0] + ib) * n_iso
@@ -416,6 +439,8 @@ def evaluate_designs(bounds, nx, ny, step, designs, out):
                 n_lev += 1
             if n_lev == 0:
                 continue
+            pair = ia * betas.shape[0] + ib
+            t1d = shoulder_design(alphas[ia], betas[ib], shoulder_rng)
             b0, b1, d0, d1 = _bounding_box(member, hi, c_los[0], c_his[0], nx, ny)
             if b1 < b0:
                 continue
@@ -434,6 +459,9 @@ def evaluate_designs(bounds, nx, ny, step, designs, out):
                 f, e = _row_extent(member[s:s + w], hi[s:s + w], c_los[0], c_his[0])
                 if e < f:
                     continue
+                if limited:  # theta1 depends on (alpha, beta) and the node, not on Iso_min: every level at once
+                    theta1_row(shoulder, s + f, s + e + 1, t1d, t1m[s + f:s + e + 1])
+                    _theta1_levels(t1m[s + f:s + e + 1], stamp[s + f:s + e + 1], pair, level[s + f:s + e + 1])
                 node_isotropy(lo[s + f:s + e + 1], hi[s + f:s + e + 1], alphas[ia], betas[ib], iso_node[:e + 1 - f])
                 for j in range(f, e + 1):
                     lev = level[s + j]
@@ -454,13 +482,19 @@ def evaluate_designs(bounds, nx, ny, step, designs, out):
                 for j in range(w - 1):
                     if lmin[j] == lmax[j]:
                         continue
+                    k = s + j
+                    t0 = t1 = t2 = t3 = np.inf  # theta1 margins of the corners (inf: unlimited)
+                    if limited:
+                        t0 = _theta1_margin_once(shoulder, t1d, k, pair, t1m, stamp)
+                        t1 = _theta1_margin_once(shoulder, t1d, k + ny, pair, t1m, stamp)
+                        t2 = _theta1_margin_once(shoulder, t1d, k + ny + 1, pair, t1m, stamp)
+                        t3 = _theta1_margin_once(shoulder, t1d, k + 1, pair, t1m, stamp)
                     for m in range(lmin[j], lmax[j]):  # designs m (0-based) whose boundary crosses the cell
-                        k = s + j
                         c_lo, c_hi = c_los[m], c_his[m]
-                        dl, da = _cell_contour(_node_margin(lo, hi, d_lo, d_hi, reach, k, c_lo, c_hi),
-                                               _node_margin(lo, hi, d_lo, d_hi, reach, k + ny, c_lo, c_hi),
-                                               _node_margin(lo, hi, d_lo, d_hi, reach, k + ny + 1, c_lo, c_hi),
-                                               _node_margin(lo, hi, d_lo, d_hi, reach, k + 1, c_lo, c_hi))
+                        dl, da = _cell_contour(min(t0, _node_margin(lo, hi, d_lo, d_hi, reach, k, c_lo, c_hi)),
+                                               min(t1, _node_margin(lo, hi, d_lo, d_hi, reach, k + ny, c_lo, c_hi)),
+                                               min(t2, _node_margin(lo, hi, d_lo, d_hi, reach, k + ny + 1, c_lo, c_hi)),
+                                               min(t3, _node_margin(lo, hi, d_lo, d_hi, reach, k + 1, c_lo, c_hi)))
                         length[m] += dl
                         part[m] += da
             # design m contains the nodes of level > m (full[m + 1] already counts its inside cells)
@@ -481,9 +515,11 @@ def evaluate_designs(bounds, nx, ny, step, designs, out):
 
 
 @njit(**EXACT)
-def evaluate_geometries(ports, axes, plane, designs, out):
+def evaluate_geometries(ports, axes, zero_axes, left, plane, designs, shoulder_rng, out):
     """``evaluate_designs`` for G geometries: ``ports``, ``axes`` (G, arms, 3) mm and unit vectors,
-    ``plane`` a ``PlaneGrid``, ``designs`` a ``DesignGrid``; ``out`` (G*A*B*I, 6).
+    ``zero_axes`` the shoulder's zero directions x0 (G, arms, 3), ``left`` (arms,) True for mirrored arms,
+    ``plane`` a ``PlaneGrid``, ``designs`` a ``DesignGrid``, ``shoulder_rng`` a ``ShoulderRange``;
+    ``out`` (G*A*B*I, 6).
 
     The loop over geometries runs here, without the interpreter (and the GIL).
     """
@@ -496,4 +532,8 @@ def evaluate_geometries(ports, axes, plane, designs, out):
         if xs.shape[0] == 0:
             continue
         bounds = plane_node_bounds(xs, ys, depth, ports[g], axes[g], d4_max)
-        evaluate_designs(bounds, xs.shape[0], ys.shape[0], step, designs, block)
+        if shoulder_rng.limited:
+            shoulder = shoulder_fields(xs, ys, depth, ports[g], axes[g], zero_axes[g], left)
+        else:
+            shoulder = shoulder_fields(xs[:0], ys[:0], depth, ports[g], axes[g], zero_axes[g], left)
+        evaluate_designs(bounds, xs.shape[0], ys.shape[0], step, designs, shoulder, shoulder_rng, block)

@@ -16,6 +16,7 @@ from typing import NamedTuple, Sequence
 import numpy as np
 
 from surgopt.kinematics.raven import cone_angle, theta2_interval
+from surgopt.kinematics.raven_shoulder import shoulder_design, shoulder_fields, shoulder_range, theta1_row
 from surgopt.kinematics.raven_plane import (
     DesignGrid,
     PlaneGrid,
@@ -37,6 +38,7 @@ class ArmLayout(NamedTuple):
     mirror_left_phi: bool  # left arms turn by the mirror image of the right arms' rotation
     phi_order: str = "zyx"  # R = Rz(phi_z) Ry(phi_y) Rx(phi_x) ("zyx") or Rx Ry Rz ("xyz")
     mirror_plane: str = "yz"  # the plane the left arms mirror the right ones in: "yz" (x -> -x) or "xz"
+    theta1_zero_toward: str = "y"  # x0 (theta1's zero) before tilt and phi: world "x", "y", "-x" or "-y"
 
 
 def cos_sin_deg(deg: float) -> tuple[float, float]:
@@ -57,7 +59,17 @@ def rotation_deg(axis: int, deg: float) -> np.ndarray:
 
 
 def arms(layout: ArmLayout, phi_x: float, phi_y: float, phi_z: float, bx: float, by: float):
-    """Ports (n, 3) and shoulder-axis directions (n, 3) in the world frame.
+    """Ports (n, 3) and shoulder-axis directions (n, 3) in the world frame (``arm_frames`` without x0)."""
+    ports, axes, _ = arm_frames(layout, phi_x, phi_y, phi_z, bx, by)
+    return ports, axes
+
+
+#: World unit vectors of ``ArmLayout.theta1_zero_toward``.
+ZERO_DIRECTIONS = {"x": (1.0, 0.0, 0.0), "-x": (-1.0, 0.0, 0.0), "y": (0.0, 1.0, 0.0), "-y": (0.0, -1.0, 0.0)}
+
+
+def arm_frames(layout: ArmLayout, phi_x: float, phi_y: float, phi_z: float, bx: float, by: float):
+    """Ports (n, 3), shoulder-axis directions z0 (n, 3) and theta1's zero directions x0 (n, 3), world frame.
 
     Ports: 4 arms at (-bx/2, +by/2), (+bx/2, +by/2), (-bx/2, -by/2), (+bx/2, -by/2)
     (arms 1-4, left arms 1 and 3), 2 arms at (-+bx/2, 0), 1 arm at 0.
@@ -67,6 +79,11 @@ def arms(layout: ArmLayout, phi_x: float, phi_y: float, phi_z: float, bx: float,
     R = Rz(phi_z) Ry(phi_y) Rx(phi_x) about the port (``phi_order = "zyx"``; "xyz": Rx Ry Rz), for left
     arms when ``mirror_left_phi`` the mirror image M R M of a right arm's rotation: in the y-z plane
     (``mirror_plane = "yz"``, x -> -x) phi_y and phi_z change sign, in the x-z plane phi_x and phi_z.
+    x0 (theta1 = 0: the elbow axis z1 in the plane of z0 and x0, Table I's DH) is the world direction
+    ``theta1_zero_toward`` as seen by arm 2 (front right), mirrored as the tilt is (x negated for left arms;
+    with the tilt along y, y negated for the rear row), carried by the same tilt (a rotation about the
+    horizontal axis perpendicular to the tilt direction) and the same R as z0: it stays perpendicular to
+    z0, and at phi = 0 the arms' frames are mirror images of each other, as their tilts are.
     """
     if layout.ports_mm is not None:
         ports = [(p[0], p[1]) for p in layout.ports_mm]
@@ -76,23 +93,26 @@ def arms(layout: ArmLayout, phi_x: float, phi_y: float, phi_z: float, bx: float,
         ports = [(-bx / 2, 0.0), (bx / 2, 0.0)]
     else:
         ports = [(0.0, 0.0)]
-    left = layout.left_arms if layout.left_arms is not None else [i % 2 == 0 for i in range(layout.n_arms)]
+    left = left_arms(layout)
     P = np.array([[x, y, 0.0] for x, y in ports])
-    A = np.empty((layout.n_arms, 3))
-    ct, st = cos_sin_deg(layout.shoulder_tilt_deg)
+    A, X = np.empty((layout.n_arms, 3)), np.empty((layout.n_arms, 3))
+    zero = np.array(ZERO_DIRECTIONS[layout.theta1_zero_toward])
     for i, is_left in enumerate(left):
+        side = np.array([-1.0 if is_left else 1.0, 1.0, 1.0])  # x0's mirror: the left arms' x negated ...
         if layout.shoulder_tilt_toward == "x":
             out = -1.0 if is_left else 1.0
-            u0 = np.array([out * st, 0.0, ct])
+            tilt = rotation_deg(1, out * layout.shoulder_tilt_deg)  # e_z -> (out st, 0, ct)
         else:
             out = 1.0 if P[i, 1] >= 0 else -1.0
-            u0 = np.array([0.0, out * st, ct])
+            tilt = rotation_deg(0, -out * layout.shoulder_tilt_deg)  # e_z -> (0, out st, ct)
+            side[1] = out  # ... and, tilted along y, the rear row's y (the tilt's own symmetry)
         m = -1.0 if (is_left and layout.mirror_left_phi) else 1.0
         mx, my = (1.0, m) if layout.mirror_plane == "yz" else (m, 1.0)
         rx, ry, rz = rotation_deg(0, mx * phi_x), rotation_deg(1, my * phi_y), rotation_deg(2, m * phi_z)
         R = rz @ ry @ rx if layout.phi_order == "zyx" else rx @ ry @ rz
-        A[i] = R @ u0
-    return P, A
+        A[i] = R @ tilt[:, 2]
+        X[i] = R @ (tilt @ (zero * side))
+    return P, A, X
 
 
 def cone_angle_intervals(alphas_rad, betas_rad, iso_mins, theta2_range_deg) -> DesignGrid:
@@ -131,8 +151,15 @@ def clear_memo() -> None:
     MEMO.clear()
 
 
+def left_arms(layout: ArmLayout) -> np.ndarray:
+    """Per arm, True for the mirrored (left) arms: ``layout.left_arms``, or arms 1 and 3."""
+    left = layout.left_arms if layout.left_arms is not None else [i % 2 == 0 for i in range(layout.n_arms)]
+    return np.array(left, dtype=np.bool_)
+
+
 def evaluate_many(layout: ArmLayout, plane: PlaneGrid, theta2_range_deg: Sequence[float],
-                  geometries, alphas_deg, betas_deg, isos, designs: DesignGrid | None = None) -> np.ndarray:
+                  geometries, alphas_deg, betas_deg, isos, designs: DesignGrid | None = None,
+                  theta1_range_deg: Sequence[float] | None = None) -> np.ndarray:
     """Metrics (G*A*B*I, 6) of every design of G geometries (phi_x, phi_y, phi_z, bx, by), geometry-major.
 
     Columns as ``evaluate_designs``: area_mm2, perimeter_mm, n_points, iso_sum, iso_min_actual, any.
@@ -142,18 +169,26 @@ def evaluate_many(layout: ArmLayout, plane: PlaneGrid, theta2_range_deg: Sequenc
     Table II with horizontal shoulder axes along x, phi_x turns each axis
     about itself, so its five values give one geometry: 400 of the 2000 are
     distinct. ``designs``: ``cone_angle_intervals`` of these alphas, betas and
-    Iso_mins, when already known (they do not depend on the geometry).
+    Iso_mins, when already known (they do not depend on the geometry). ``theta1_range_deg``: the
+    shoulder range [lo, hi] about each arm's zero direction (``arm_frames``), or None: unlimited.
     """
     per = len(alphas_deg) * len(betas_deg) * len(isos)
-    placed = [arms(layout, *g) for g in geometries]
-    ports = np.array([p for p, _ in placed], dtype=np.float64).reshape(len(placed), layout.n_arms, 3) + 0.0  # -0.0 -> 0.0
-    axes = np.array([a for _, a in placed], dtype=np.float64).reshape(len(placed), layout.n_arms, 3) + 0.0
+    rng = shoulder_range(theta1_range_deg)
+    placed = [arm_frames(layout, *g) for g in geometries]
+    shape = (len(placed), layout.n_arms, 3)
+    ports = np.array([p for p, _, _ in placed], dtype=np.float64).reshape(shape) + 0.0  # -0.0 -> 0.0
+    axes = np.array([a for _, a, _ in placed], dtype=np.float64).reshape(shape) + 0.0
+    zero_axes = np.array([x for _, _, x in placed], dtype=np.float64).reshape(shape) + 0.0
+    left = left_arms(layout)
     al = np.radians(np.asarray(alphas_deg, float))
     be = np.radians(np.asarray(betas_deg, float))
     iso = np.asarray(isos, float)
     context = np.concatenate([[plane.depth_mm, plane.step_mm, plane.d4_max_mm, *theta2_range_deg, len(al), len(be)],
                               al, be, iso]).tobytes()
-    keys = [context + ports[g].tobytes() + axes[g].tobytes() for g in range(len(placed))]
+    if rng.limited:  # theta1 depends on the zero directions and the arm sides too
+        context += np.array(rng[1:], float).tobytes() + left.tobytes()
+    keys = [context + ports[g].tobytes() + axes[g].tobytes() + (zero_axes[g].tobytes() if rng.limited else b"")
+            for g in range(len(placed))]
     out = np.zeros((len(placed) * per, 6))
     todo: dict[bytes, list[int]] = {}
     with MEMO.lock:
@@ -169,7 +204,8 @@ def evaluate_many(layout: ArmLayout, plane: PlaneGrid, theta2_range_deg: Sequenc
         designs = cone_angle_intervals(al, be, iso, theta2_range_deg)
     fresh = np.zeros((len(first) * per, 6))
     plane = PlaneGrid(float(plane.depth_mm), float(plane.step_mm), float(plane.d4_max_mm))
-    evaluate_geometries(np.ascontiguousarray(ports[first]), np.ascontiguousarray(axes[first]), plane, designs, fresh)
+    evaluate_geometries(np.ascontiguousarray(ports[first]), np.ascontiguousarray(axes[first]),
+                        np.ascontiguousarray(zero_axes[first]), left, plane, designs, rng, fresh)
     with MEMO.lock:
         if (len(MEMO.blocks) + len(todo)) * fresh.itemsize * per * 6 > MEMO.max_bytes:
             MEMO.blocks.clear()
@@ -181,26 +217,36 @@ def evaluate_many(layout: ArmLayout, plane: PlaneGrid, theta2_range_deg: Sequenc
     return out
 
 
-def design_fields(layout: ArmLayout, plane: PlaneGrid, theta2_range_deg, geometry, alpha_deg, beta_deg, iso_min):
+def design_fields(layout: ArmLayout, plane: PlaneGrid, theta2_range_deg, geometry, alpha_deg, beta_deg, iso_min,
+                  theta1_range_deg=None):
     """Plane grid and membership margins of one design, per arm and common (for figures).
 
     Returns xs, ys (mm), ports (arms, 3), the per-arm margin (arms, nx, ny) and the common margin
-    (nx, ny), computed by the sweep's own kernels (``plane_node_bounds``, ``node_margins``) on a grid
-    that covers every arm's reach. A margin is positive inside, zero on the boundary (mm-like).
+    (nx, ny), computed by the sweep's own kernels (``plane_node_bounds``, ``node_margins``, and
+    ``theta1_row`` when theta1 is limited) on a grid that covers every arm's reach. A margin is
+    positive inside, zero on the boundary (mm-like).
     """
-    ports, axes = arms(layout, *geometry)
+    ports, axes, zero_axes = arm_frames(layout, *geometry)
     ports, axes = np.ascontiguousarray(ports + 0.0), np.ascontiguousarray(axes + 0.0)
+    zero_axes, left = np.ascontiguousarray(zero_axes + 0.0), left_arms(layout)
+    rng = shoulder_range(theta1_range_deg)
     xs, ys = covering_plane_grid(ports, float(plane.depth_mm), float(plane.d4_max_mm), float(plane.step_mm))
     d = cone_angle_intervals([math.radians(alpha_deg)], [math.radians(beta_deg)], [iso_min], theta2_range_deg)
     c_lo, c_hi = math.cos(d.psi_hi_rad[0, 0, 0]), math.cos(d.psi_lo_rad[0, 0, 0])
     n = xs.size * ys.size
 
-    def margin(p, a):
+    def margin(arm):
         if not d.has_interval[0, 0, 0]:
             return np.full((xs.size, ys.size), -1.0)
+        p, a = ports[arm], axes[arm]
         out = np.empty(n)
         node_margins(plane_node_bounds(xs, ys, float(plane.depth_mm), p, a, float(plane.d4_max_mm)), c_lo, c_hi, out)
+        if rng.limited:
+            t1 = np.empty(n)
+            fields = shoulder_fields(xs, ys, float(plane.depth_mm), p, a, zero_axes[arm], left[arm])
+            theta1_row(fields, 0, n, shoulder_design(math.radians(alpha_deg), math.radians(beta_deg), rng), t1)
+            out = np.minimum(out, t1)
         return out.reshape(xs.size, ys.size)
 
-    per_arm = np.stack([margin(ports[i:i + 1], axes[i:i + 1]) for i in range(len(ports))])
-    return xs, ys, ports, per_arm, margin(ports, axes)
+    per_arm = np.stack([margin(slice(i, i + 1)) for i in range(len(ports))])
+    return xs, ys, ports, per_arm, margin(slice(None))

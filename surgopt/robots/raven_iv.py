@@ -34,6 +34,11 @@ DH_THETA_ROWS = {
     "right": ((-1.0, math.pi), (1.0, 0.0), (1.0, 1.5 * math.pi)),
 }
 THETA2_RANGE_DEG = (20.0, 140.0)
+#: The Raven II's shoulder software stops (uw-biorobotics/raven2, include/raven/defines.h:
+#: SHOULDER_MIN_LIMIT 0 deg, SHOULDER_MAX_LIMIT 90 deg), measured from the Raven II's own kinematic zero.
+#: The Raven IV paper lists no theta1 range; this is a candidate value, not the paper's (the sweep's
+#: ``geometry.theta1_range_deg``, with ``theta1_zero_toward`` naming where our theta1 = 0 points).
+THETA1_RANGE_RAVEN_II_DEG = (0.0, 90.0)
 THETA3_RANGE_DEG = (-86.0, 86.0)
 THETA6_RANGE_DEG = (-86.0, 86.0)
 D4_RANGE_MM = (0.0, 250.0)

@@ -36,7 +36,8 @@ HELP = """Raven IV port placement and link design (Li, Glozman, Milutinovic, Ros
 
     For every design (alpha, beta, phi_x, phi_y, phi_z, bx, by, Iso_min) the common workspace of all arms
     on a plane 150 mm below the ports: a point belongs to an arm when its tool axis can point there with
-    theta2 in the range narrowed by Iso_min and d4 <= 250 mm. Rows: the eight parameters, area_cm2,
+    theta2 in the range narrowed by Iso_min and d4 <= 250 mm (and, with geometry.theta1_range_deg, the
+    shoulder joint theta1 inside its range: e.g. the Raven II's [0, 90]). Rows: the eight parameters, area_cm2,
     perimeter_cm, zeta_cm (eq. 33), iso_sum, iso_mean, iso_area_cm2, iso_min_actual, n_points,
     cost (eq. 43), source (grid | refine). Ends with the top designs and the rank of the paper's optimum.
     """
@@ -64,7 +65,8 @@ def arm_layout(geo: Geometry):
 
     return ArmLayout(geo.n_arms, None if geo.ports_mm is None else tuple(tuple(p) for p in geo.ports_mm),
                      None if geo.left_arms is None else tuple(geo.left_arms), geo.shoulder_tilt_deg,
-                     geo.shoulder_tilt_toward, geo.mirror_left_phi, geo.phi_order, geo.mirror_plane)
+                     geo.shoulder_tilt_toward, geo.mirror_left_phi, geo.phi_order, geo.mirror_plane,
+                     geo.theta1_zero_toward)
 
 
 def plane(geo: Geometry):
@@ -104,7 +106,8 @@ def evaluate(cfg: RavenSweepConfig, geometries, alphas_deg, betas_deg, isos) -> 
     from surgopt.kinematics.raven_workspace import evaluate_many
 
     geo = cfg.geometry
-    return evaluate_many(arm_layout(geo), plane(geo), geo.theta2_range_deg, geometries, alphas_deg, betas_deg, isos)
+    return evaluate_many(arm_layout(geo), plane(geo), geo.theta2_range_deg, geometries, alphas_deg, betas_deg, isos,
+                         theta1_range_deg=geo.theta1_range_deg)
 
 
 def design_fields(cfg: RavenSweepConfig, params: dict):
@@ -114,7 +117,7 @@ def design_fields(cfg: RavenSweepConfig, params: dict):
     geo = cfg.geometry
     g = tuple(params[p] for p in ("phi_x_deg", "phi_y_deg", "phi_z_deg", "bx_mm", "by_mm"))
     return workspace_fields(arm_layout(geo), plane(geo), geo.theta2_range_deg, g, params["alpha_deg"],
-                             params["beta_deg"], params["iso_min"])
+                             params["beta_deg"], params["iso_min"], theta1_range_deg=geo.theta1_range_deg)
 
 
 def _rows(params: np.ndarray, metrics: np.ndarray, step_mm: float, ids: np.ndarray, source: str) -> dict:
@@ -177,6 +180,11 @@ def _plane_nodes(geo: Geometry) -> float:
 #: each arm, plus NS_PER_NODE_DESIGN_EST for each design (bounding boxes skip most of the plane).
 NS_PER_NODE_ARM = 5.4
 NS_PER_NODE_DESIGN_EST = 0.35
+#: A limited theta1 adds, per distinct geometry, its fields (NS_PER_NODE_ARM_THETA1 per node and arm) and
+#: its test for each (alpha, beta) (NS_PER_NODE_PAIR_ARM_THETA1); fitted to Table II at [0, 90] and
+#: [0, 180] deg (1.1 and 2.4 ms per geometry over the unlimited 2.5 ms; docs/performance.md).
+NS_PER_NODE_ARM_THETA1 = 3.0
+NS_PER_NODE_PAIR_ARM_THETA1 = 0.4
 #: Up to this many geometries the estimate counts the distinct ones (identical ports and axes are
 #: evaluated once); beyond it every geometry counts, an upper bound.
 DISTINCT_COUNT_MAX = 20_000
@@ -187,13 +195,14 @@ def distinct_geometries(cfg: RavenSweepConfig) -> int:
     n = n_geometries(cfg)
     if n > DISTINCT_COUNT_MAX:
         return n
-    from surgopt.kinematics.raven_workspace import arms
+    from surgopt.kinematics.raven_workspace import arm_frames
 
     layout = arm_layout(cfg.geometry)
+    limited = cfg.geometry.theta1_range_deg is not None
     seen = set()
     for g in geometries(cfg, 0, n):
-        ports, axes = arms(layout, *g)
-        seen.add((ports + 0.0).tobytes() + (axes + 0.0).tobytes())
+        ports, axes, zero_axes = arm_frames(layout, *g)
+        seen.add((ports + 0.0).tobytes() + (axes + 0.0).tobytes() + ((zero_axes + 0.0).tobytes() if limited else b""))
     return len(seen)
 
 
@@ -228,7 +237,11 @@ def estimate(cfg: RavenSweepConfig) -> Estimate:
                         peak_bytes(n, 160))
     per = len(values(sw.alpha_deg)) * len(values(sw.beta_deg)) * len(values(sw.iso_min))
     g = n_geometries(cfg)
-    seconds = distinct_geometries(cfg) * nodes * (cfg.geometry.n_arms * NS_PER_NODE_ARM + per * NS_PER_NODE_DESIGN_EST)
+    ns_node = cfg.geometry.n_arms * NS_PER_NODE_ARM + per * NS_PER_NODE_DESIGN_EST
+    if cfg.geometry.theta1_range_deg is not None:
+        pairs = len(values(sw.alpha_deg)) * len(values(sw.beta_deg))
+        ns_node += cfg.geometry.n_arms * (NS_PER_NODE_ARM_THETA1 + pairs * NS_PER_NODE_PAIR_ARM_THETA1)
+    seconds = distinct_geometries(cfg) * nodes * ns_node
     return Estimate(g * per, "designs", g * per, seconds * 1e-9, peak_bytes(g * per, 160, working_bytes=64 * 2 ** 20))
 
 

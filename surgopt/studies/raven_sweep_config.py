@@ -98,6 +98,20 @@ class Geometry(StrictModel):
     step_mm: float = Field(2.0, gt=0.05, le=50)
     d4_max_mm: float = Field(raven_iv.D4_RANGE_MM[1], gt=0)
     theta2_range_deg: list[float] = Field(list(raven_iv.THETA2_RANGE_DEG), min_length=2, max_length=2)
+    theta1_range_deg: list[float] | None = Field(
+        None, min_length=2, max_length=2,
+        description="shoulder range [lo, hi] about theta1_zero_toward; None: unlimited (Table I lists none). "
+                    f"The Raven II hardware's: {list(raven_iv.THETA1_RANGE_RAVEN_II_DEG)}")
+    theta1_zero_toward: Literal["x", "y", "-x", "-y"] = Field(
+        "y", description="theta1 = 0: the elbow axis in the plane of the shoulder axis and this world direction "
+                         "(x negated for left arms), carried by the tilt and phi rotations")
+
+    @field_validator("theta1_range_deg")
+    @classmethod
+    def _theta1_range(cls, v):
+        if v is not None and not (-360 <= v[0] < v[1] <= 360 and v[1] - v[0] <= 360):
+            raise ValueError("[lo, hi] must satisfy -360 <= lo < hi <= 360 and hi - lo <= 360")
+        return v
 
     @model_validator(mode="after")
     def _consistent(self):
