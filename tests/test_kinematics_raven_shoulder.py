@@ -147,3 +147,17 @@ def test_phi_x_and_the_zero_direction_matter_once_theta1_is_limited():
     assert abs(other[0, 2] - lim[0, 2]) > 10
     same = W.evaluate_many(_layout(theta1_zero_toward="x"), plane, (20.0, 140.0), geos[:1], *args)
     assert np.array_equal(same[0], free[0])
+
+
+def test_turning_the_zero_by_90_deg_is_shifting_the_range():
+    """Under horizontal shoulder axes along x, theta1's zero 'y' is the zero 'x' (the downward vertical)
+    turned by 90 deg about each shoulder axis, on both sides: the range [lo, hi] about 'x' and
+    [lo + 90, hi + 90] about 'y' give the same rows (docs/raven_geometry_fit_theta1.csv pairs them up)."""
+    plane = P.PlaneGrid(150.0, 4.0, 250.0)
+    geos = [(20.0, 10.0, -20.0, 100.0, 50.0), (-10.0, 0.0, 20.0, 150.0, 50.0)]
+    args = ([65.0, 85.0], [45.0, 65.0], [0.1, 0.5])
+    for lo, hi in ((0.0, 90.0), (-45.0, 135.0)):
+        a = W.evaluate_many(_layout(theta1_zero_toward="x"), plane, (20.0, 140.0), geos, *args, theta1_range_deg=(lo, hi))
+        b = W.evaluate_many(_layout(theta1_zero_toward="y"), plane, (20.0, 140.0), geos, *args,
+                            theta1_range_deg=(lo + 90.0, hi + 90.0))
+        assert a[:, 2].sum() > 0 and np.allclose(a, b, rtol=1e-9, atol=1e-9)

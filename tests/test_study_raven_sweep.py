@@ -184,3 +184,23 @@ def test_the_geometry_fit_numbers_the_doc_quotes(tmp_path):
     for iso, paper in ((0.0, 6.64), (0.5, 6.55)):
         sub = f7[np.isclose(f7["iso_min"], iso)]
         assert abs(sub["zeta_cm"].max() / paper - 1) < 0.10
+
+
+def test_the_theta1_fit_numbers_the_doc_quotes(tmp_path):
+    """docs/reproduction.md's shoulder-range fit (docs/raven_geometry_fit_theta1.csv): 96 combinations, the
+    paper's optimum 6th at best; under the Raven II's [0, 90] deg (configs/raven_table2_theta1.toml) it
+    ranks 10th, and our best design shares its alpha, beta, phi_x and phi_y."""
+    import csv
+
+    import surgopt
+
+    from conftest import REPO
+
+    rows = list(csv.DictReader(open(REPO / "docs" / "raven_geometry_fit_theta1.csv")))
+    assert len(rows) == 96 and min(int(r["rank"]) for r in rows) == 6
+    t = surgopt.run("raven-sweep", REPO / "configs" / "raven_table2_theta1.toml", store=tmp_path / "s")
+    import pyarrow as pa
+
+    assert S.paper_optimum_rank(pa.Table.from_pandas(t, preserve_index=False))[0] == 10
+    best = t.loc[t["cost"].idxmax()]
+    assert [best[p] for p in S.PARAMS] == [85.0, 65.0, 20.0, 10.0, 0.0, 150.0, 50.0, 0.7]

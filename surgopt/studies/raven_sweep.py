@@ -339,7 +339,10 @@ def _is_paper_optimum(t):
 
 
 def paper_optimum_rank(parts):
-    """(rank by cost, row) of the Table II optimum in a grid run (``Parts`` or a table), or None."""
+    """(rank by cost, row) of the Table II optimum in a grid run (``Parts`` or a table), or None.
+
+    1 + the designs that cost more; without a common workspace (cost 0) it ranks last, not tied first
+    with every other empty design."""
     from surgopt.parts import Parts
 
     parts = parts if isinstance(parts, Parts) else Parts.of_table(parts)
@@ -347,7 +350,10 @@ def paper_optimum_rank(parts):
     if hit.num_rows == 0:
         return None
     c = hit["cost"][0].as_py()
-    rank = parts.count(lambda t: t["cost"].to_numpy() > c, columns=["cost"]) + 1
+    if c > 0:
+        rank = parts.count(lambda t: t["cost"].to_numpy() > c, columns=["cost"]) + 1
+    else:
+        rank = parts.count(lambda t: np.ones(t.num_rows, bool), columns=["cost"])
     return rank, {k: hit[k][0].as_py() for k in hit.column_names}
 
 

@@ -33,7 +33,7 @@ def _fig8(plt, cfg, c, best):
     if not sel.any():
         return None
     k = int(np.flatnonzero(sel)[0])
-    rank = int((c["cost"] > c["cost"][k]).sum()) + 1
+    rank = int((c["cost"] > c["cost"][k]).sum()) + 1 if c["cost"][k] > 0 else c["cost"].shape[0]  # as paper_optimum_rank
     fig, axes = plt.subplots(1, 2, figsize=(11, 5.2))
     for ax, j, who in ((axes[0], k, f"the paper's optimum (rank {rank:,} here)"), (axes[1], best, "our best design")):
         params = {p: float(c[p][j]) for p in PARAMS}
