@@ -3,8 +3,9 @@
 Kernels only (numba); lengths mm, angles rad. Inputs travel as ``PlaneGrid`` and ``DesignGrid``
 named tuples; ``surgopt.kinematics.raven_workspace`` is the public driver.
 
-One module of ~470 lines because ``evaluate_designs`` and the inline helpers it compiles into one
-loop (node bounds, nested design levels, per-cell contours) are one computation, read together.
+One module of ~540 lines because ``evaluate_designs`` and the inline helpers it compiles into one
+loop (node bounds, nested design levels, per-cell contours) are one computation, read together; the
+shoulder-range test it calls lives in ``surgopt.kinematics.raven_shoulder``.
 """
 from __future__ import annotations
 
