@@ -204,3 +204,16 @@ def test_the_theta1_fit_numbers_the_doc_quotes(tmp_path):
     assert S.paper_optimum_rank(pa.Table.from_pandas(t, preserve_index=False))[0] == 10
     best = t.loc[t["cost"].idxmax()]
     assert [best[p] for p in S.PARAMS] == [85.0, 65.0, 20.0, 10.0, 0.0, 150.0, 50.0, 0.7]
+
+
+def test_a_limited_theta1_counts_every_geometry_in_the_estimate():
+    """With theta1 unlimited phi_x leaves Table II's horizontal axes in place (400 distinct geometries of
+    2,000); limited, it turns theta1's zero, so all 2,000 are evaluated and the estimate grows with them."""
+    from surgopt.config import load_config
+
+    from conftest import REPO
+
+    free = load_config(REPO / "configs" / "raven_table2.toml", S.Config)
+    limited = load_config(REPO / "configs" / "raven_table2_theta1.toml", S.Config)
+    assert S.distinct_geometries(free) == 400 and S.distinct_geometries(limited) == 2000
+    assert S.estimate(limited).seconds_one_core > 5 * S.estimate(free).seconds_one_core
