@@ -234,7 +234,7 @@ def _member_lo(lo, reach, member):
 
 
 @njit(**EXACT)
-def plane_node_bounds(xs, ys, depth, ports, axes, d4_max):
+def plane_node_bounds(xs, ys, depth, ports, axes, d4_max, buffer=None):
     """Per node of the plane grid: the arms' lowest and highest cos psi, those arms' distances, reach.
 
     Returns (lo, hi, d_lo, d_hi, reach, member), each (nx*ny,). A node lies
@@ -242,11 +242,15 @@ def plane_node_bounds(xs, ys, depth, ports, axes, d4_max):
     c_lo < lo and hi < c_hi, so these numbers decide membership for every
     (alpha, beta, Iso_min) design of the geometry; reach = min over arms of
     d4_max - dist; ``member`` is lo, or -2 (never inside) where some arm
-    cannot reach the node. cos psi and dist as in ``arm_cone_geometry``.
+    cannot reach the node. cos psi and dist as in ``arm_cone_geometry``. ``buffer``: at least 6 nx ny
+    floats to hold them instead of allocating (fresh memory costs page faults on every geometry).
     """
     nx, ny = xs.shape[0], ys.shape[0]
     n = nx * ny
-    lo, hi, d_lo, d_hi, reach, member = np.empty(n), np.empty(n), np.empty(n), np.empty(n), np.empty(n), np.empty(n)
+    if buffer is None:
+        buffer = np.empty(6 * n)
+    lo, hi, d_lo, d_hi = buffer[:n], buffer[n:2 * n], buffer[2 * n:3 * n], buffer[3 * n:4 * n]
+    reach, member = buffer[4 * n:5 * n], buffer[5 * n:6 * n]
     c_row = np.empty(ny)
     r_row = np.empty(ny)
     for a in range(ports.shape[0]):
@@ -370,6 +374,18 @@ def _theta1_levels(t1m, stamp, pair, level):
         stamp[j] = pair
 
 
+@njit(**VECTOR)
+def _positive_extent(level):
+    """First and last index j with level[j] > 0; (n, -1) if none (vectorisable)."""
+    n = level.shape[0]
+    first, last = n, -1
+    for j in range(n):
+        inside = level[j] > 0
+        first = min(first, j if inside else n)
+        last = max(last, j if inside else -1)
+    return first, last
+
+
 @njit(inline="always", **EXACT)
 def _theta1_margin_once(shoulder, d, k, pair, t1m, stamp):
     """``theta1_margin`` at node k for design pair ``pair``, computed once per pair (stamp[k] == pair)."""
@@ -380,7 +396,7 @@ def _theta1_margin_once(shoulder, d, k, pair, t1m, stamp):
 
 
 @njit(**EXACT)
-def evaluate_designs(bounds, nx, ny, step, designs, shoulder, shoulder_rng, out):
+def evaluate_designs(bounds, nx, ny, step, designs, shoulder, shoulder_rng, out, scratch=None, pair_base=0):
     """All (alpha, beta, Iso_min) designs of one geometry (ports and shoulder axes fixed).
 
     ``bounds``: ``plane_node_bounds`` of the geometry's plane grid; ``designs``:
@@ -391,7 +407,9 @@ def evaluate_designs(bounds, nx, ny, step, designs, shoulder, shoulder_rng, out)
     marching squares runs on the margin of ``_node_margin`` (zero on the boundary),
     the smaller of it and the theta1 margin when theta1 is limited. A node's isotropy is the minimum
     over the arms (``node_isotropy``). ``out`` (A*B*I, 6): area_mm2, perimeter_mm, n_points,
-    iso_sum, iso_min_actual, 1 if any point.
+    iso_sum, iso_min_actual, 1 if any point. ``scratch``: (levels, stamps, margins) of at least nx ny
+    each to reuse across geometries, stamps never above ``pair_base`` (the stamps of (alpha, beta) pairs
+    here are pair_base + pair), or None to allocate.
 
     Work sharing. Per geometry: each node's lowest and highest cos psi over
     the arms decide its membership for every design (``plane_node_bounds``). Per
@@ -408,7 +426,9 @@ def evaluate_designs(bounds, nx, ny, step, designs, shoulder, shoulder_rng, out)
     psi_lo, psi_hi, has_interval = designs.psi_lo_rad, designs.psi_hi_rad, designs.has_interval
     n_iso = iso_mins.shape[0]
     order = np.argsort(iso_mins)
-    level = np.zeros(nx * ny, np.int64)
+    if scratch is None:
+        scratch = (np.empty(nx * ny, np.int64), np.full(nx * ny, -1, np.int64), np.empty(nx * ny))
+    level = scratch[0][:nx * ny]  # every node of a design's box is set before it is read
     iso_node = np.empty(ny)
     lmin = np.empty(ny, np.int64)
     lmax = np.empty(ny, np.int64)
@@ -421,8 +441,8 @@ def evaluate_designs(bounds, nx, ny, step, designs, shoulder, shoulder_rng, out)
     length = np.zeros(n_iso + 1)
     part = np.zeros(n_iso + 1)
     limited = shoulder_rng.limited
-    t1m = np.empty(nx * ny if limited else 0)  # theta1 margins of boundary-cell corners, per (alpha, beta) ...
-    stamp = np.full(nx * ny if limited else 0, -1, np.int64)  # ... of the pair stamped here
+    t1m = scratch[2][:nx * ny]  # theta1 margins of the nodes, per (alpha, beta) ...
+    stamp = scratch[1][:nx * ny]  # ... of the pair stamped here
     for ia in range(alphas.shape[0]):
         for ib in range(betas.shape[0]):
             base = (ia * betas.shape[0] + ib) * n_iso
@@ -440,7 +460,7 @@ def evaluate_designs(bounds, nx, ny, step, designs, shoulder, shoulder_rng, out)
                 n_lev += 1
             if n_lev == 0:
                 continue
-            pair = ia * betas.shape[0] + ib
+            pair = pair_base + ia * betas.shape[0] + ib
             t1d = shoulder_design(alphas[ia], betas[ib], shoulder_rng)
             b0, b1, d0, d1 = _bounding_box(member, hi, c_los[0], c_his[0], nx, ny)
             if b1 < b0:
@@ -454,6 +474,7 @@ def evaluate_designs(bounds, nx, ny, step, designs, shoulder, shoulder_rng, out)
             length[:] = 0.0
             part[:] = 0.0
             # nodes: level, isotropy (min over arms) of the inside ones, per-level sums
+            tb0, tb1, tc0, tc1 = nx, -1, w, -1  # with theta1 limited: the box of the nodes it leaves inside
             for i in range(i0, i1 + 1):
                 s = i * ny + j0
                 _row_levels(member[s:s + w], hi[s:s + w], c_los, c_his, n_lev, level[s:s + w])
@@ -463,6 +484,11 @@ def evaluate_designs(bounds, nx, ny, step, designs, shoulder, shoulder_rng, out)
                 if limited:  # theta1 depends on (alpha, beta) and the node, not on Iso_min: every level at once
                     theta1_row(shoulder, s + f, s + e + 1, t1d, t1m[s + f:s + e + 1])
                     _theta1_levels(t1m[s + f:s + e + 1], stamp[s + f:s + e + 1], pair, level[s + f:s + e + 1])
+                    f2, e2 = _positive_extent(level[s + f:s + e + 1])
+                    if e2 < f2:
+                        continue
+                    f, e = f + f2, f + e2
+                    tb0, tb1, tc0, tc1 = min(tb0, i), i, min(tc0, f), max(tc1, e)
                 node_isotropy(lo[s + f:s + e + 1], hi[s + f:s + e + 1], alphas[ia], betas[ib], iso_node[:e + 1 - f])
                 for j in range(f, e + 1):
                     lev = level[s + j]
@@ -472,15 +498,22 @@ def evaluate_designs(bounds, nx, ny, step, designs, shoulder, shoulder_rng, out)
                         mn[lev] = min(mn[lev], v)
                         for m in range(lev):  # per design, in node order: the sum a design gets alone
                             tot[m] += v
-            # cells: inside ones per level, boundary ones through the contour routine
-            for i in range(i0, i1):
-                s = i * ny + j0
-                n_edge = _row_cell_levels(level[s:s + w], level[s + ny:s + ny + w], lmin[:w - 1], lmax[:w - 1])
+            # cells: inside ones per level, boundary ones through the contour routine; with theta1 limited
+            # only those touching a node it leaves inside (the others have every corner at level 0)
+            ci0, ci1, cj, cw = i0, i1, j0, w
+            if limited:
+                if tb1 < 0:
+                    continue
+                ci0, ci1 = max(i0, tb0 - 1), min(i1, tb1 + 1)
+                cj, cw = j0 + max(0, tc0 - 1), min(w - 1, tc1 + 1) - max(0, tc0 - 1) + 1
+            for i in range(ci0, ci1):
+                s = i * ny + cj
+                n_edge = _row_cell_levels(level[s:s + cw], level[s + ny:s + ny + cw], lmin[:cw - 1], lmax[:cw - 1])
                 for m in range(n_lev):
-                    full[m + 1] += _count_above(lmin[:w - 1], m)  # cells inside design m
+                    full[m + 1] += _count_above(lmin[:cw - 1], m)  # cells inside design m
                 if n_edge == 0:
                     continue
-                for j in range(w - 1):
+                for j in range(cw - 1):
                     if lmin[j] == lmax[j]:
                         continue
                     k = s + j
@@ -526,15 +559,27 @@ def evaluate_geometries(ports, axes, zero_axes, left, plane, designs, shoulder_r
     """
     depth, step, d4_max = plane.depth_mm, plane.step_mm, plane.d4_max_mm
     per = designs.alphas_rad.shape[0] * designs.betas_rad.shape[0] * designs.iso_mins.shape[0]
+    # memory reused from geometry to geometry, grown to the largest plane grid: fresh megabytes would
+    # cost page faults on every geometry (with theta1 limited, half its time)
+    buffer, bounds_buffer = np.empty(0), np.empty(0)
+    scratch = (np.empty(0, np.int64), np.empty(0, np.int64), np.empty(0))
+    pairs = designs.alphas_rad.shape[0] * designs.betas_rad.shape[0]
     for g in range(ports.shape[0]):
         block = out[g * per:(g + 1) * per]
         block[:, :] = 0.0
         xs, ys = plane_grid(ports[g], depth, d4_max, step)
         if xs.shape[0] == 0:
             continue
-        bounds = plane_node_bounds(xs, ys, depth, ports[g], axes[g], d4_max)
+        n = xs.shape[0] * ys.shape[0]
+        if bounds_buffer.shape[0] < 6 * n:
+            bounds_buffer = np.empty(6 * n)
+            scratch = (np.empty(n, np.int64), np.full(n, -1, np.int64), np.empty(n))
+        bounds = plane_node_bounds(xs, ys, depth, ports[g], axes[g], d4_max, bounds_buffer)
+        if shoulder_rng.limited and buffer.shape[0] < 3 * ports.shape[1] * xs.shape[0] * ys.shape[0]:
+            buffer = np.empty(3 * ports.shape[1] * xs.shape[0] * ys.shape[0])
         if shoulder_rng.limited:
-            shoulder = shoulder_fields(xs, ys, depth, ports[g], axes[g], zero_axes[g], left)
+            shoulder = shoulder_fields(xs, ys, depth, ports[g], axes[g], zero_axes[g], left, buffer)
         else:
-            shoulder = shoulder_fields(xs[:0], ys[:0], depth, ports[g], axes[g], zero_axes[g], left)
-        evaluate_designs(bounds, xs.shape[0], ys.shape[0], step, designs, shoulder, shoulder_rng, block)
+            shoulder = shoulder_fields(xs[:0], ys[:0], depth, ports[g], axes[g], zero_axes[g], left, buffer)
+        evaluate_designs(bounds, xs.shape[0], ys.shape[0], step, designs, shoulder, shoulder_rng, block, scratch,
+                         g * pairs)

@@ -66,33 +66,40 @@ def shoulder_range(range_deg) -> ShoulderRange:
 
 
 @njit(**VECTOR)
-def _fields_row(x, ys, depth, p, z, e1, e2, sigma, cp, u, w):
-    """One grid row (x, ys[j], -depth) of ``shoulder_fields`` for one arm (vectorisable)."""
+def _fields_row(x, ys, depth, px, py, pz, zx, zy, zz, ex, ey, ez, fx, fy, fz, cp, u, w):
+    """One grid row (x, ys[j], -depth) of ``shoulder_fields`` for one arm at port p with axis z and
+    in-plane directions e = x0 and f = sigma y0 (scalars, so the loop vectorises)."""
     for j in range(ys.shape[0]):
-        vx, vy, vz = x - p[0], ys[j] - p[1], -depth - p[2]
+        vx, vy, vz = x - px, ys[j] - py, -depth - pz
         r = math.sqrt(vx * vx + vy * vy + vz * vz)
-        cp[j] = min(1.0, max(-1.0, (vx * z[0] + vy * z[1] + vz * z[2]) / r))
-        u[j] = vx * e1[0] + vy * e1[1] + vz * e1[2]
-        w[j] = sigma * (vx * e2[0] + vy * e2[1] + vz * e2[2])
+        cp[j] = min(1.0, max(-1.0, (vx * zx + vy * zy + vz * zz) / r))
+        u[j] = vx * ex + vy * ey + vz * ez
+        w[j] = vx * fx + vy * fy + vz * fz
 
 
 @njit(**EXACT)
-def shoulder_fields(xs, ys, depth, ports, axes, zero_axes, left):
+def shoulder_fields(xs, ys, depth, ports, axes, zero_axes, left, buffer=None):
     """``ShoulderFields`` of the plane nodes (xs[i], ys[j], -depth), node index i*ny + j.
 
     ``axes``: the shoulder axes z0 (arms, 3); ``zero_axes``: x0, perpendicular to z0 (arms, 3);
-    ``left``: per arm, True for the mirrored (left) arms. y0 = z0 x x0.
+    ``left``: per arm, True for the mirrored (left) arms. y0 = z0 x x0. ``buffer``: at least
+    3 * arms * nx * ny floats to fill instead of allocating (fresh megabytes cost page faults, about
+    half the time of one geometry); the fields are C-contiguous views of its start.
     """
     n_arms, nx, ny = ports.shape[0], xs.shape[0], ys.shape[0]
     n = nx * ny
-    cp, u, w = np.empty((n_arms, n)), np.empty((n_arms, n)), np.empty((n_arms, n))
+    if buffer is None:
+        buffer = np.empty(3 * n_arms * n)
+    block = buffer[:3 * n_arms * n].reshape((3, n_arms, n))
+    cp, u, w = block[0], block[1], block[2]
     for a in range(n_arms):
         z, x = axes[a], zero_axes[a]
-        y = np.array([z[1] * x[2] - z[2] * x[1], z[2] * x[0] - z[0] * x[2], z[0] * x[1] - z[1] * x[0]])
+        y = (z[1] * x[2] - z[2] * x[1], z[2] * x[0] - z[0] * x[2], z[0] * x[1] - z[1] * x[0])
         sigma = 1.0 if left[a] else -1.0
         for i in range(nx):
             s, e = i * ny, (i + 1) * ny
-            _fields_row(xs[i], ys, depth, ports[a], z, x, y, sigma, cp[a, s:e], u[a, s:e], w[a, s:e])
+            _fields_row(xs[i], ys, depth, ports[a, 0], ports[a, 1], ports[a, 2], z[0], z[1], z[2], x[0], x[1], x[2],
+                        sigma * y[0], sigma * y[1], sigma * y[2], cp[a, s:e], u[a, s:e], w[a, s:e])
     return ShoulderFields(cp, u, w)
 
 
