@@ -9,7 +9,7 @@ zero along x or y, ranges 90 deg wide (the Raven II's width) every 45 deg and 18
 writes docs/raven_geometry_fit_theta1.csv).
 
 Each combination of shoulder tilt (negative: inward), tilt direction, φ mirroring (and its plane), φ
-rotation order and θ2 range is run through the product (`surgopt.run` with overrides of the
+rotation order and θ2 range, with θ1 unlimited, is run through the product (`surgopt.run` with overrides of the
 `[geometry]` fields) three times: Table II's 250,000 designs (the paper's optimum's rank), Fig. 4's two
 two-arm designs (ς 2.23 / 4.48 cm), and Fig. 7's α, β grid in 5° steps at φ = 0 with Table II's port
 spacing 100 × 50 mm (ς max 6.64 / 6.55 cm at (80°, 40°) / (70°, 35°) for Iso_min 0 / 0.5). A run's store
@@ -39,7 +39,7 @@ def combos():
             ((True, "yz"), (True, "xz"), (False, "yz")), ("zyx", "xyz"), ((20.0, 140.0), (0.0, 180.0))):
         yield {"geometry.shoulder_tilt_deg": tilt, "geometry.shoulder_tilt_toward": toward,
                "geometry.mirror_left_phi": mirror[0], "geometry.mirror_plane": mirror[1], "geometry.phi_order": order,
-               "geometry.theta2_range_deg": list(theta2)}
+               "geometry.theta2_range_deg": list(theta2), "geometry.theta1_range_deg": [-180.0, 180.0]}
 
 
 def evaluate(geo, store):
@@ -134,7 +134,8 @@ def main():
     print("|---|---|---|---|---|---|---|---|---|---|---|")
     for r in rows[:12]:
         mirror = r["mirror_plane"] if r["mirror_left_phi"] else "none"
-        t1 = f"{r['theta1_range_deg']} ({r['theta1_zero_toward']})" if "theta1_range_deg" in r else "unlimited"
+        t1 = r.get("theta1_range_deg", [-180.0, 180.0])
+        t1 = "unlimited" if t1[1] - t1[0] >= 360 else f"{t1} ({r.get('theta1_zero_toward', 'x')})"
         print(f"| {r['shoulder_tilt_deg']:g} | {r['shoulder_tilt_toward']} | {mirror} | {r['phi_order']} | "
               f"{r['theta2_range_deg']} | {t1} | {r['rank']:,} | {r['fig4_15_15']:.2f} / {r['fig4_65_80']:.2f} | "
               f"{r['fig7_0_max']:.2f} / {r['fig7_0.5_max']:.2f} | {r['fig7_0_at']}, {r['fig7_0.5_at']} | "

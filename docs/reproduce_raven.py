@@ -52,7 +52,9 @@ def main():
 
     base = load_embedded(S.DEFAULT_CONFIG, S.Config)
     variants = {
-        "default: horizontal axes (outward along x), theta2 [20, 140], mirrored": {},
+        "default: horizontal axes (outward along x), theta2 [20, 140], mirrored, theta1 [0, 90] (Raven II)": {},
+        "theta1 unlimited": dict(geometry__theta1_range_deg=[-180.0, 180.0]),
+        "theta1 [0, 180]": dict(geometry__theta1_range_deg=[0.0, 180.0]),
         "theta2 [0, 180]": dict(geometry__theta2_range_deg=[0.0, 180.0]),
         "axes tilted 75 deg": dict(geometry__shoulder_tilt_deg=75.0),
         "axes tilted 45 deg": dict(geometry__shoulder_tilt_deg=45.0),

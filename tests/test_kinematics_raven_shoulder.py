@@ -142,10 +142,10 @@ def test_phi_x_and_the_zero_direction_matter_once_theta1_is_limited():
     assert np.array_equal(free[0], free[1])
     lim = W.evaluate_many(_layout(), plane, (20.0, 140.0), geos, *args, theta1_range_deg=(0.0, 90.0))
     assert abs(lim[0, 2] - lim[1, 2]) > 10
-    other = W.evaluate_many(_layout(theta1_zero_toward="x"), plane, (20.0, 140.0), geos[:1], *args,
+    other = W.evaluate_many(_layout(theta1_zero_toward="y"), plane, (20.0, 140.0), geos[:1], *args,
                             theta1_range_deg=(0.0, 90.0))
     assert abs(other[0, 2] - lim[0, 2]) > 10
-    same = W.evaluate_many(_layout(theta1_zero_toward="x"), plane, (20.0, 140.0), geos[:1], *args)
+    same = W.evaluate_many(_layout(theta1_zero_toward="y"), plane, (20.0, 140.0), geos[:1], *args)
     assert np.array_equal(same[0], free[0])
 
 

@@ -29,9 +29,9 @@ step_mm = 1.0
 
 @pytest.mark.parametrize("a_deg, b_deg", [(15, 15), (20, 40), (30, 20), (65, 80)])
 def test_single_arm_workspace_is_the_closed_form_annulus(a_deg, b_deg):
-    """One arm, vertical shoulder axis, theta2 over [0, 180]: tool axes fill the cone band
-    |alpha - beta| .. alpha + beta around straight down, cut by d4 <= 250 mm."""
-    cfg = S.Config.model_validate({"geometry": {"n_arms": 1, "shoulder_tilt_deg": 0.0,
+    """One arm, vertical shoulder axis, theta2 over [0, 180], theta1 unlimited: tool axes fill the cone
+    band |alpha - beta| .. alpha + beta around straight down, cut by d4 <= 250 mm."""
+    cfg = S.Config.model_validate({"geometry": {"n_arms": 1, "shoulder_tilt_deg": 0.0, "theta1_range_deg": None,
                                                 "theta2_range_deg": [0.0, 180.0]}, "sweep": {
         "alpha_deg": [a_deg], "beta_deg": [b_deg], "phi_x_deg": [0], "phi_y_deg": [0], "phi_z_deg": [0],
         "bx_mm": [0], "by_mm": [0], "iso_min": [0.0]}})
@@ -165,7 +165,7 @@ def test_embedded_default_is_table_ii():
 
 def test_the_geometry_fit_numbers_the_doc_quotes(tmp_path):
     """docs/reproduction.md's geometry fit (docs/fit_raven_geometry.py, docs/raven_geometry_fit.csv): the
-    default geometry ranks the paper's optimum 206th of 250,000, the best of the 192 combinations tried;
+    geometry with theta1 unlimited ranks the paper's optimum 206th of 250,000, the best of the 192 tried;
     shoulder axes 60 deg inward along y bring Fig. 7's ceilings at 100 x 50 mm within 10% but not its argmax."""
     import csv
 
@@ -175,11 +175,12 @@ def test_the_geometry_fit_numbers_the_doc_quotes(tmp_path):
 
     rows = list(csv.DictReader(open(REPO / "docs" / "raven_geometry_fit.csv")))
     assert len(rows) == 192 and min(int(r["rank"]) for r in rows) == 206
-    t2 = surgopt.run("raven-sweep", store=tmp_path / "s")
+    free = {"geometry.theta1_range_deg": [-180.0, 180.0]}  # the first pass: theta1 unlimited
+    t2 = surgopt.run("raven-sweep", overrides=free, store=tmp_path / "s")
     import pyarrow as pa
 
     assert S.paper_optimum_rank(pa.Table.from_pandas(t2, preserve_index=False))[0] == 206
-    geo = {"geometry.shoulder_tilt_deg": -60.0, "geometry.shoulder_tilt_toward": "y", "sweep.by_mm": [50.0]}
+    geo = {**free, "geometry.shoulder_tilt_deg": -60.0, "geometry.shoulder_tilt_toward": "y", "sweep.by_mm": [50.0]}
     f7 = surgopt.run("raven-sweep", REPO / "configs" / "raven_fig7.toml", overrides=geo, store=tmp_path / "s")
     for iso, paper in ((0.0, 6.64), (0.5, 6.55)):
         sub = f7[np.isclose(f7["iso_min"], iso)]
@@ -188,8 +189,8 @@ def test_the_geometry_fit_numbers_the_doc_quotes(tmp_path):
 
 def test_the_theta1_fit_numbers_the_doc_quotes(tmp_path):
     """docs/reproduction.md's shoulder-range fit (docs/raven_geometry_fit_theta1.csv): 96 combinations, the
-    paper's optimum 6th at best; under the Raven II's [0, 90] deg (configs/raven_table2_theta1.toml) it
-    ranks 10th, and our best design shares its alpha, beta, phi_x and phi_y."""
+    paper's optimum 6th at best; under the Raven II's [0, 90] deg (the default geometry) it ranks 10th,
+    and our best design shares its alpha, beta, phi_x and phi_y."""
     import csv
 
     import surgopt
@@ -198,7 +199,7 @@ def test_the_theta1_fit_numbers_the_doc_quotes(tmp_path):
 
     rows = list(csv.DictReader(open(REPO / "docs" / "raven_geometry_fit_theta1.csv")))
     assert len(rows) == 96 and min(int(r["rank"]) for r in rows) == 6
-    t = surgopt.run("raven-sweep", REPO / "configs" / "raven_table2_theta1.toml", store=tmp_path / "s")
+    t = surgopt.run("raven-sweep", store=tmp_path / "s")  # the embedded default: the fitted geometry
     import pyarrow as pa
 
     assert S.paper_optimum_rank(pa.Table.from_pandas(t, preserve_index=False))[0] == 10
@@ -213,7 +214,7 @@ def test_a_limited_theta1_counts_every_geometry_in_the_estimate():
 
     from conftest import REPO
 
-    free = load_config(REPO / "configs" / "raven_table2.toml", S.Config)
-    limited = load_config(REPO / "configs" / "raven_table2_theta1.toml", S.Config)
+    limited = load_config(REPO / "configs" / "raven_table2.toml", S.Config)
+    free = limited.model_copy(update={"geometry": limited.geometry.model_copy(update={"theta1_range_deg": None})})
     assert S.distinct_geometries(free) == 400 and S.distinct_geometries(limited) == 2000
     assert S.estimate(limited).seconds_one_core > 5 * S.estimate(free).seconds_one_core

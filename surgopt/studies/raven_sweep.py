@@ -181,13 +181,19 @@ def _plane_nodes(geo: Geometry) -> float:
 NS_PER_NODE_ARM = 5.4
 NS_PER_NODE_DESIGN_EST = 0.35
 #: A limited theta1 adds, per distinct geometry, its fields (NS_PER_NODE_ARM_THETA1 per node and arm) and
-#: its test for each (alpha, beta) (NS_PER_NODE_PAIR_ARM_THETA1); fitted to Table II at [0, 90] and
-#: [0, 180] deg (1.1 and 2.4 ms per geometry over the unlimited 2.5 ms; docs/performance.md).
-NS_PER_NODE_ARM_THETA1 = 3.0
-NS_PER_NODE_PAIR_ARM_THETA1 = 0.4
+#: its test for each (alpha, beta) (NS_PER_NODE_PAIR_ARM_THETA1), and makes every geometry distinct;
+#: fitted to Table II at [0, 90] deg (1.9-2.2 s on 2 threads; docs/performance.md).
+NS_PER_NODE_ARM_THETA1 = 1.0
+NS_PER_NODE_PAIR_ARM_THETA1 = 0.1
 #: Up to this many geometries the estimate counts the distinct ones (identical ports and axes are
 #: evaluated once); beyond it every geometry counts, an upper bound.
 DISTINCT_COUNT_MAX = 20_000
+
+
+def theta1_limited(geo: Geometry) -> bool:
+    """Whether the shoulder range limits anything (a range of 360 deg or more is no limit)."""
+    r = geo.theta1_range_deg
+    return r is not None and r[1] - r[0] < 360
 
 
 def distinct_geometries(cfg: RavenSweepConfig) -> int:
@@ -198,7 +204,7 @@ def distinct_geometries(cfg: RavenSweepConfig) -> int:
     from surgopt.kinematics.raven_workspace import arm_frames
 
     layout = arm_layout(cfg.geometry)
-    limited = cfg.geometry.theta1_range_deg is not None
+    limited = theta1_limited(cfg.geometry)
     seen = set()
     for g in geometries(cfg, 0, n):
         ports, axes, zero_axes = arm_frames(layout, *g)
@@ -238,7 +244,7 @@ def estimate(cfg: RavenSweepConfig) -> Estimate:
     per = len(values(sw.alpha_deg)) * len(values(sw.beta_deg)) * len(values(sw.iso_min))
     g = n_geometries(cfg)
     ns_node = cfg.geometry.n_arms * NS_PER_NODE_ARM + per * NS_PER_NODE_DESIGN_EST
-    if cfg.geometry.theta1_range_deg is not None:
+    if theta1_limited(cfg.geometry):
         pairs = len(values(sw.alpha_deg)) * len(values(sw.beta_deg))
         ns_node += cfg.geometry.n_arms * (NS_PER_NODE_ARM_THETA1 + pairs * NS_PER_NODE_PAIR_ARM_THETA1)
     seconds = distinct_geometries(cfg) * nodes * ns_node

@@ -99,12 +99,14 @@ class Geometry(StrictModel):
     d4_max_mm: float = Field(raven_iv.D4_RANGE_MM[1], gt=0)
     theta2_range_deg: list[float] = Field(list(raven_iv.THETA2_RANGE_DEG), min_length=2, max_length=2)
     theta1_range_deg: list[float] | None = Field(
-        None, min_length=2, max_length=2,
-        description="shoulder range [lo, hi] about theta1_zero_toward; None: unlimited (Table I lists none). "
-                    f"The Raven II hardware's: {list(raven_iv.THETA1_RANGE_RAVEN_II_DEG)}")
+        list(raven_iv.THETA1_RANGE_RAVEN_II_DEG), min_length=2, max_length=2,
+        description="shoulder range [lo, hi] about theta1_zero_toward (Table I lists none): the Raven II "
+                    "hardware's, the range under which the paper's optimum ranks highest; [-180, 180] (or None "
+                    "from Python): unlimited")
     theta1_zero_toward: Literal["x", "y", "-x", "-y"] = Field(
-        "y", description="theta1 = 0: the elbow axis in the plane of the shoulder axis and this world direction "
-                         "(x negated for left arms), carried by the tilt and phi rotations")
+        "x", description="theta1 = 0: the elbow axis in the plane of the shoulder axis and this world direction "
+                         "(as seen by arm 2; x negated for left arms), carried by the tilt and phi rotations: "
+                         "'x' under horizontal shoulder axes is the downward vertical")
 
     @field_validator("theta1_range_deg")
     @classmethod
