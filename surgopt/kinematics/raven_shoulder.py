@@ -109,9 +109,10 @@ def theta1_cross(cos_psi, u, w, sa, ca, sb, cb, k, cos_lo, sin_lo, cos_hi, sin_h
 
     theta2 from cos psi by eq. 22 (c2 = (cos psi + ca cb) / (sa sb), k = 1 / (sa sb)); theta1's direction
     is (u, w) = rho (cos az, sigma sin az) (``ShoulderFields``) turned by -off, off the direction of
-    (x, y) = (s2 sb, -(ca c2 sb + sa cb)) (module docstring), r = |(x, y)|. With u_lo, u_hi the range ends: for a range under 180 deg (``wide``
-    = 1.0) inside is both r cross(u_lo, u) > 0 and r cross(u, u_hi) > 0; for a wider one (``wide`` =
-    -1.0), not both < 0 (the complement is the narrow arc): w * min(w a, w b) is min(a, b) or max(a, b).
+    (x, y) = (s2 sb, -(ca c2 sb + sa cb)) (module docstring), r = |(x, y)|. With u_lo, u_hi the range
+    ends: for a range under 180 deg (``wide`` = 1.0) inside is both r cross(u_lo, u) > 0 and
+    r cross(u, u_hi) > 0; for a wider one (``wide`` = -1.0), not both < 0 (the complement is the narrow
+    arc): w * min(w a, w b) is min(a, b) or max(a, b). The sign needs neither r nor rho.
     """
     c2 = min(1.0, max(-1.0, (cos_psi + ca * cb) * k))
     x = math.sqrt(max(0.0, 1.0 - c2 * c2)) * sb
