@@ -157,7 +157,8 @@ def test_turning_the_zero_by_90_deg_is_shifting_the_range():
     geos = [(20.0, 10.0, -20.0, 100.0, 50.0), (-10.0, 0.0, 20.0, 150.0, 50.0)]
     args = ([65.0, 85.0], [45.0, 65.0], [0.1, 0.5])
     for lo, hi in ((0.0, 90.0), (-45.0, 135.0)):
-        a = W.evaluate_many(_layout(theta1_zero_toward="x"), plane, (20.0, 140.0), geos, *args, theta1_range_deg=(lo, hi))
+        a = W.evaluate_many(_layout(theta1_zero_toward="x"), plane, (20.0, 140.0), geos, *args,
+                            theta1_range_deg=(lo, hi))
         b = W.evaluate_many(_layout(theta1_zero_toward="y"), plane, (20.0, 140.0), geos, *args,
                             theta1_range_deg=(lo + 90.0, hi + 90.0))
         assert a[:, 2].sum() > 0 and np.allclose(a, b, rtol=1e-9, atol=1e-9)
