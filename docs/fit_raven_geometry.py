@@ -23,11 +23,12 @@ import tempfile
 from pathlib import Path
 
 import numpy as np
+import pyarrow as pa
 
 import surgopt
+from surgopt.studies import raven_sweep as S
 
 REPO = Path(__file__).resolve().parents[1]
-PAPER_OPT = (85.0, 65.0, 20.0, 10.0, -20.0, 100.0, 50.0, 0.5)
 PARAMS = ("alpha_deg", "beta_deg", "phi_x_deg", "phi_y_deg", "phi_z_deg", "bx_mm", "by_mm", "iso_min")
 FIG4 = {(15.0, 15.0): 2.23, (65.0, 80.0): 4.48}
 FIG7 = {0.0: (6.64, (80.0, 40.0)), 0.5: (6.55, (70.0, 35.0))}
@@ -44,11 +45,8 @@ def combos():
 
 def evaluate(geo, store):
     t2 = surgopt.run("raven-sweep", overrides=geo, store=store, quiet=True)
-    key = np.ones(len(t2), bool)
-    for p, v in zip(PARAMS, PAPER_OPT):
-        key &= np.isclose(t2[p].to_numpy(), v)
-    c_opt = float(t2["cost"][key].iloc[0])
-    rank = int((t2["cost"] > c_opt).sum()) + 1 if c_opt > 0 else len(t2)  # no workspace: last (study's rule)
+    rank, row = S.paper_optimum_rank(pa.Table.from_pandas(t2, preserve_index=False))
+    c_opt = row["cost"]
     best = t2.loc[t2["cost"].idxmax()]
     f4 = surgopt.run("raven-sweep", REPO / "configs" / "raven_fig4.toml", overrides=geo, store=store, quiet=True)
     z4 = {(r.alpha_deg, r.beta_deg): r.zeta_cm for r in f4.itertuples()}

@@ -8,7 +8,7 @@ import numpy as np
 
 from surgopt.kinematics.raven import isotropy_at, theta2_interval
 from surgopt.studies.figures import columns, pyplot, save
-from surgopt.studies.raven_sweep import PAPER_OPTIMUM, PARAMS, design_fields
+from surgopt.studies.raven_sweep import PARAMS, design_fields, paper_optimum_rank
 
 
 def _workspace_panel(ax, plt, cfg, params, title):
@@ -24,16 +24,14 @@ def _workspace_panel(ax, plt, cfg, params, title):
     ax.set_title(title, fontsize=9)
 
 
-def _fig8(plt, cfg, c, best):
+def _fig8(plt, cfg, table, c, best):
     """Fig. 8 style: the paper's optimal design's common workspace beside our best design's, when the
     table holds the paper's optimum (Table II's sweep)."""
-    sel = np.ones(c["cost"].shape[0], bool)
-    for p, v in PAPER_OPTIMUM.items():
-        sel &= np.isclose(c[p], v)
-    if not sel.any():
+    found = paper_optimum_rank(table)
+    if found is None:
         return None
-    k = int(np.flatnonzero(sel)[0])
-    rank = int((c["cost"] > c["cost"][k]).sum()) + 1 if c["cost"][k] > 0 else c["cost"].shape[0]  # as paper_optimum_rank
+    rank, row = found
+    k = int(np.flatnonzero(c["design_id"] == row["design_id"])[0])
     fig, axes = plt.subplots(1, 2, figsize=(11, 5.2))
     for ax, j, who in ((axes[0], k, f"the paper's optimum (rank {rank:,} here)"), (axes[1], best, "our best design")):
         params = {p: float(c[p][j]) for p in PARAMS}
@@ -65,7 +63,7 @@ def figures(cfg, table, out, design_id=None):
                      c["area_cm2"][i], c["zeta_cm"][i], **params), fontsize=9)
     ax.legend(fontsize=7, loc="upper right")
     paths.append(save(fig, out / "raven_workspace.png"))
-    fig8 = _fig8(plt, cfg, c, i)
+    fig8 = _fig8(plt, cfg, table, c, i)
     if fig8 is not None:
         paths.append(save(fig8, out / "raven_fig8.png"))
     # zeta over (alpha, beta): best over the other parameters, one panel per Iso_min (Fig. 7)
