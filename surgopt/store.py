@@ -64,6 +64,24 @@ def _sha256_bytes(data: bytes) -> str:
     return hashlib.sha256(data).hexdigest()
 
 
+def arrow_owned(data: bytes):
+    """``data`` copied into memory Arrow allocates, for Arrow's readers.
+
+    A reader over Python ``bytes`` holds a Python buffer, and Arrow's thread pool may drop its last
+    reference after ``read_table`` has returned; if that happens while the interpreter is exiting,
+    the worker blocks on the GIL, is unwound by ``pthread_exit`` and the process aborts with
+    "terminate called without an active exception" (exit -6, after all output was written: seen in
+    CI on ``summarize`` and on a cache hit; apache/arrow#34314, #36389). Arrow-owned memory frees
+    without the GIL. The copy costs a memcpy of a compressed part.
+    """
+    import numpy as np
+    import pyarrow as pa
+
+    buf = pa.allocate_buffer(len(data))
+    np.frombuffer(buf, dtype=np.uint8)[:] = np.frombuffer(data, dtype=np.uint8)
+    return buf
+
+
 def atomic_write(path: Path, write) -> None:
     """Create or replace ``path`` atomically: ``write(tmp)`` fills a temporary file beside it, which is
     fsynced and renamed into place (readers see the old file or the new one, never a part), then the
@@ -214,7 +232,7 @@ class Run:
         import pyarrow.parquet as pq
 
         for i in sorted(self.manifest["parts"], key=int):
-            return pq.read_schema(pa.BufferReader(self._verified(i)))
+            return pq.read_schema(pa.BufferReader(arrow_owned(self._verified(i))))
         raise StoreError(f"{self.path}: no parts written yet")
 
     def _verified(self, i: str) -> bytes:
@@ -236,7 +254,8 @@ class Run:
 
         i = str(index)
         try:
-            return pq.read_table(pa.BufferReader(self._verified(i)), schema=schema, columns=columns)
+            return pq.read_table(pa.BufferReader(arrow_owned(self._verified(i))), schema=schema, columns=columns,
+                                 use_threads=False)
         except (pa.ArrowException, ValueError) as exc:
             raise StoreError(f"{self.path / self.manifest['parts'][i]['file']}: passes its checksum but "
                              f"does not match the study's schema ({exc})") from None
