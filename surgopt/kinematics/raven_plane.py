@@ -16,7 +16,11 @@ import numpy as np
 from numba import njit
 
 from surgopt.jit import EXACT, VECTOR
-from surgopt.kinematics.raven_shoulder import shoulder_design, shoulder_fields, theta1_margin, theta1_row
+from surgopt.kinematics.raven_shoulder import shoulder_design, shoulder_fields, theta1_inside_row, theta1_margin
+
+
+LEVEL = np.int16  # a node's level: how many nested Iso_min designs hold it (at most MAX_ISO_MINS)
+MAX_ISO_MINS = int(np.iinfo(LEVEL).max)
 
 
 class PlaneGrid(NamedTuple):
@@ -133,13 +137,13 @@ def _cell_contour(v0, v1, v2, v3):
         else:
             a, b = a3, b3
         tri = 0.5 * a * b
-        return math.hypot(a, b), (tri if n_in == 1 else 1.0 - tri)
+        return math.sqrt(a * a + b * b), (tri if n_in == 1 else 1.0 - tri)
     if i0 == i2:  # saddle
         centre = 0.25 * (v0 + v1 + v2 + v3)
         if (centre > 0) == i0:  # corners 1 and 3 cut off
-            length = math.hypot(a1, b1) + math.hypot(a3, b3)
+            length = math.sqrt(a1 * a1 + b1 * b1) + math.sqrt(a3 * a3 + b3 * b3)
         else:
-            length = math.hypot(a0, b0) + math.hypot(a2, b2)
+            length = math.sqrt(a0 * a0 + b0 * b0) + math.sqrt(a2 * a2 + b2 * b2)
         if i0:
             return length, 1.0 - 0.5 * (a1 * b1 + a3 * b3)
         return length, 1.0 - 0.5 * (a0 * b0 + a2 * b2)
@@ -152,7 +156,7 @@ def _cell_contour(v0, v1, v2, v3):
         b, a = b2, a3
     else:
         b, a = b3, a0
-    return math.hypot(1.0, a - b), 0.5 * (a + b)
+    return math.sqrt(1.0 + (a - b) * (a - b)), 0.5 * (a + b)
 
 
 @njit(**EXACT)
@@ -367,11 +371,10 @@ def _count_above(lmin, m):
 
 
 @njit(**VECTOR)
-def _theta1_levels(t1m, stamp, pair, level):
-    """level[j] = 0 where the theta1 margin t1m[j] is not positive; stamp the margins as pair's."""
+def _theta1_levels(inside, level):
+    """level[j] = 0 where theta1's test ``inside[j]`` (``theta1_inside_row``) is not positive."""
     for j in range(level.shape[0]):
-        level[j] = level[j] if t1m[j] > 0.0 else 0
-        stamp[j] = pair
+        level[j] = level[j] if inside[j] > 0.0 else 0
 
 
 @njit(**VECTOR)
@@ -427,11 +430,12 @@ def evaluate_designs(bounds, nx, ny, step, designs, shoulder, shoulder_rng, out,
     n_iso = iso_mins.shape[0]
     order = np.argsort(iso_mins)
     if scratch is None:
-        scratch = (np.empty(nx * ny, np.int64), np.full(nx * ny, -1, np.int64), np.empty(nx * ny))
+        scratch = (np.empty(nx * ny, LEVEL), np.full(nx * ny, -1, np.int64), np.empty(nx * ny))
     level = scratch[0][:nx * ny]  # every node of a design's box is set before it is read
     iso_node = np.empty(ny)
-    lmin = np.empty(ny, np.int64)
-    lmax = np.empty(ny, np.int64)
+    t1_row = np.empty(ny)
+    lmin = np.empty(ny, LEVEL)
+    lmax = np.empty(ny, LEVEL)
     c_los = np.empty(n_iso)
     c_his = np.empty(n_iso)
     cnt = np.zeros(n_iso + 1, np.int64)
@@ -482,8 +486,8 @@ def evaluate_designs(bounds, nx, ny, step, designs, shoulder, shoulder_rng, out,
                 if e < f:
                     continue
                 if limited:  # theta1 depends on (alpha, beta) and the node, not on Iso_min: every level at once
-                    theta1_row(shoulder, s + f, s + e + 1, t1d, t1m[s + f:s + e + 1])
-                    _theta1_levels(t1m[s + f:s + e + 1], stamp[s + f:s + e + 1], pair, level[s + f:s + e + 1])
+                    theta1_inside_row(shoulder, s + f, s + e + 1, t1d, t1_row)
+                    _theta1_levels(t1_row[:e + 1 - f], level[s + f:s + e + 1])
                     f2, e2 = _positive_extent(level[s + f:s + e + 1])
                     if e2 < f2:
                         continue
@@ -562,7 +566,7 @@ def evaluate_geometries(ports, axes, zero_axes, left, plane, designs, shoulder_r
     # memory reused from geometry to geometry, grown to the largest plane grid: fresh megabytes would
     # cost page faults on every geometry (with theta1 limited, half its time)
     buffer, bounds_buffer = np.empty(0), np.empty(0)
-    scratch = (np.empty(0, np.int64), np.empty(0, np.int64), np.empty(0))
+    scratch = (np.empty(0, LEVEL), np.empty(0, np.int64), np.empty(0))
     pairs = designs.alphas_rad.shape[0] * designs.betas_rad.shape[0]
     for g in range(ports.shape[0]):
         block = out[g * per:(g + 1) * per]
@@ -573,7 +577,7 @@ def evaluate_geometries(ports, axes, zero_axes, left, plane, designs, shoulder_r
         n = xs.shape[0] * ys.shape[0]
         if bounds_buffer.shape[0] < 6 * n:
             bounds_buffer = np.empty(6 * n)
-            scratch = (np.empty(n, np.int64), np.full(n, -1, np.int64), np.empty(n))
+            scratch = (np.empty(n, LEVEL), np.full(n, -1, np.int64), np.empty(n))
         bounds = plane_node_bounds(xs, ys, depth, ports[g], axes[g], d4_max, bounds_buffer)
         if shoulder_rng.limited and buffer.shape[0] < 3 * ports.shape[1] * xs.shape[0] * ys.shape[0]:
             buffer = np.empty(3 * ports.shape[1] * xs.shape[0] * ys.shape[0])

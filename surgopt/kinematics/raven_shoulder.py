@@ -165,6 +165,37 @@ def theta1_row(fields, s, e, d, out):
         _margin_arm_row(cp[a, s:e], u[a, s:e], w[a, s:e], d, out[:e - s])
 
 
+@njit(inline="always", **VECTOR)
+def theta1_sign(cos_psi, u, w, sa, ca, sb, cb, k, cos_lo, sin_lo, cos_hi, sin_hi, wide):
+    """m of ``theta1_cross`` alone: its sign is the membership (r > 0), with neither r's square root nor
+    the division by it."""
+    c2 = min(1.0, max(-1.0, (cos_psi + ca * cb) * k))
+    x = math.sqrt(max(0.0, 1.0 - c2 * c2)) * sb
+    y = -(ca * c2 * sb + sa * cb)
+    c1 = u * x + w * y
+    s1 = w * x - u * y
+    return wide * min(wide * (cos_lo * s1 - sin_lo * c1), wide * (c1 * sin_hi - s1 * cos_hi))
+
+
+@njit(**VECTOR)
+def _sign_arm_row(cp, u, w, d, out):
+    """out[j] = min(out[j], ``theta1_sign`` at node j) along one row of one arm (vectorisable)."""
+    for j in range(out.shape[0]):
+        out[j] = min(out[j], theta1_sign(cp[j], u[j], w[j], d.sa, d.ca, d.sb, d.cb, d.k, d.cos_lo, d.sin_lo,
+                                         d.cos_hi, d.sin_hi, d.wide))
+
+
+@njit(**EXACT)
+def theta1_inside_row(fields, s, e, d, out):
+    """out[j] > 0 exactly where ``theta1_margin`` at node s + j is (j < e - s): every arm's theta1 in its
+    range along one grid row, as the sign of min over the arms of ``theta1_sign`` (cheaper than
+    ``theta1_row``: the margin's size is only needed on boundary cells)."""
+    cp, u, w = fields
+    out[:e - s] = np.inf
+    for a in range(cp.shape[0]):
+        _sign_arm_row(cp[a, s:e], u[a, s:e], w[a, s:e], d, out[:e - s])
+
+
 @njit(inline="always", **EXACT)
 def theta1_margin(fields, k, d):
     """The smallest over the arms of m / r (``theta1_cross``) at node k: about the distance (mm) the
