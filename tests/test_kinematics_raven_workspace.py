@@ -45,6 +45,20 @@ def test_arm_frames_equal_the_written_out_layout():
         assert np.allclose(np.linalg.norm(axes, axis=1), 1.0)
 
 
+def test_arm_frames_are_the_same_from_the_cache_and_for_unhashable_layouts():
+    """The shoulder frames are cached per (layout, phi, port rows); a repeated call, a layout holding lists
+    (not hashable, computed directly) and a tilt along y (the rows matter) give the uncached numbers."""
+    for toward in ("x", "y"):
+        layout = W.ArmLayout(4, None, None, -30.0, toward, True, "zyx", "yz", "x")
+        listed = layout._replace(left_arms=[True, False, True, False])
+        for g in [(10.0, -5.0, 20.0, 80.0, 60.0), (10.0, -5.0, 20.0, 120.0, 0.0), (-20.0, 0.0, 0.0, 50.0, 50.0)]:
+            direct = W._shoulder_frames.__wrapped__(layout, *g[:3], tuple(bool(y >= 0) for y in
+                                                                           W.arm_frames(layout, *g)[0][:, 1]))
+            for frames in (W.arm_frames(layout, *g), W.arm_frames(layout, *g), W.arm_frames(listed, *g)):
+                assert np.array_equal(frames[1], direct[0]) and np.array_equal(frames[2], direct[1])
+                frames[1][:] = 0.0  # callers get copies: the cache is not changed through them
+
+
 def test_plane_grid_covers_every_reachable_node():
     geo = S.Config().geometry
     for g in [(0, 0, 0, 50, 50), (20, -10, 10, 200, 150), (0, 0, 0, 200, 200)]:

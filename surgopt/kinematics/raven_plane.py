@@ -19,8 +19,9 @@ from surgopt.jit import EXACT, VECTOR
 from surgopt.kinematics.raven_shoulder import shoulder_design, shoulder_fields, theta1_inside_row, theta1_margin
 
 
-LEVEL = np.int16  # a node's level: how many nested Iso_min designs hold it (at most MAX_ISO_MINS)
-MAX_ISO_MINS = int(np.iinfo(LEVEL).max)
+#: A node's level: how many of the nested Iso_min designs hold it, at most the number of Iso_min values
+#: (a sweep parameter has at most 10,001 values, ``surgopt.studies.raven_sweep_config``; int16 holds 32,767).
+LEVEL = np.int16
 
 
 class PlaneGrid(NamedTuple):
