@@ -3,9 +3,10 @@
 Kernels only (numba); lengths mm, angles rad. Inputs travel as ``PlaneGrid`` and ``DesignGrid``
 named tuples; ``surgopt.kinematics.raven_workspace`` is the public driver.
 
-One module of ~540 lines because ``evaluate_designs`` and the inline helpers it compiles into one
-loop (node bounds, nested design levels, per-cell contours) are one computation, read together; the
-shoulder-range test it calls lives in ``surgopt.kinematics.raven_shoulder``.
+One module of ~640 lines because ``evaluate_designs`` and the inline helpers it compiles into one
+loop (node bounds, nested design levels, per-cell contours, the mirror-symmetry halving) are one
+computation, read together; the shoulder-range test it calls lives in
+``surgopt.kinematics.raven_shoulder``.
 """
 from __future__ import annotations
 
@@ -400,7 +401,8 @@ def _theta1_margin_once(shoulder, d, k, pair, t1m, stamp):
 
 
 @njit(**EXACT)
-def evaluate_designs(bounds, nx, ny, step, designs, shoulder, shoulder_rng, out, scratch=None, pair_base=0):
+def evaluate_designs(bounds, nx, ny, step, designs, shoulder, shoulder_rng, out, scratch=None, pair_base=0,
+                     mirrored=False):
     """All (alpha, beta, Iso_min) designs of one geometry (ports and shoulder axes fixed).
 
     ``bounds``: ``plane_node_bounds`` of the geometry's plane grid; ``designs``:
@@ -413,7 +415,9 @@ def evaluate_designs(bounds, nx, ny, step, designs, shoulder, shoulder_rng, out,
     over the arms (``node_isotropy``). ``out`` (A*B*I, 6): area_mm2, perimeter_mm, n_points,
     iso_sum, iso_min_actual, 1 if any point. ``scratch``: (levels, stamps, margins) of at least nx ny
     each to reuse across geometries, stamps never above ``pair_base`` (the stamps of (alpha, beta) pairs
-    here are pair_base + pair), or None to allocate.
+    here are pair_base + pair), or None to allocate. ``mirrored``: the grid is the half x >= 0 of one
+    whose common workspace is symmetric in x = 0 (``mirror_symmetric``), row 0 the nodes on x = 0:
+    every other node and every cell then stands for itself and its mirror image, and counts twice.
 
     Work sharing. Per geometry: each node's lowest and highest cos psi over
     the arms decide its membership for every design (``plane_node_bounds``). Per
@@ -446,6 +450,7 @@ def evaluate_designs(bounds, nx, ny, step, designs, shoulder, shoulder_rng, out,
     length = np.zeros(n_iso + 1)
     part = np.zeros(n_iso + 1)
     limited = shoulder_rng.limited
+    cells = 2.0 if mirrored else 1.0  # each cell and its mirror image
     t1m = scratch[2][:nx * ny]  # theta1 margins of the nodes, per (alpha, beta) ...
     stamp = scratch[1][:nx * ny]  # ... of the pair stamped here
     for ia in range(alphas.shape[0]):
@@ -495,12 +500,14 @@ def evaluate_designs(bounds, nx, ny, step, designs, shoulder, shoulder_rng, out,
                     f, e = f + f2, f + e2
                     tb0, tb1, tc0, tc1 = min(tb0, i), i, min(tc0, f), max(tc1, e)
                 node_isotropy(lo[s + f:s + e + 1], hi[s + f:s + e + 1], alphas[ia], betas[ib], iso_node[:e + 1 - f])
+                twice = mirrored and i > 0  # the node and its mirror image
                 for j in range(f, e + 1):
                     lev = level[s + j]
                     if lev > 0:
                         v = iso_node[j - f]
-                        cnt[lev] += 1
+                        cnt[lev] += 2 if twice else 1
                         mn[lev] = min(mn[lev], v)
+                        v = v + v if twice else v
                         for m in range(lev):  # per design, in node order: the sum a design gets alone
                             tot[m] += v
             # cells: inside ones per level, boundary ones through the contour routine; with theta1 limited
@@ -545,12 +552,49 @@ def evaluate_designs(bounds, nx, ny, step, designs, shoulder, shoulder_rng, out,
                 if n_pts == 0:
                     continue
                 row = base + order[m]
-                out[row, 0] = (n_full + part[m]) * step * step
-                out[row, 1] = length[m] * step
+                out[row, 0] = (n_full + part[m]) * cells * step * step
+                out[row, 1] = length[m] * cells * step
                 out[row, 2] = n_pts
                 out[row, 3] = tot[m]
                 out[row, 4] = iso_low
                 out[row, 5] = 1.0
+
+
+@njit(**EXACT)
+def mirror_symmetric(ports, axes, zero_axes, left, limited):
+    """Whether the arms, as a set, are their own mirror image in the plane x = 0: every arm's mirror
+    (port, shoulder axis and, when theta1 is ``limited``, its zero direction with x negated, and the other
+    side) is one of the arms, every number equal. Then every quantity of a node at (x, y) equals the
+    one at (-x, y), to the last bit (the mirrored arm's products are the same products), and the common
+    workspace is symmetric: the four-arm and two-arm layouts with the left arms mirroring the right
+    ones (``mirror_left_phi``, ``mirror_plane = "yz"``), whatever phi, tilt and theta1 range."""
+    n = ports.shape[0]
+    for a in range(n):
+        found = False
+        for b in range(n):
+            same = (ports[b, 0] == -ports[a, 0] and ports[b, 1] == ports[a, 1] and ports[b, 2] == ports[a, 2]
+                    and axes[b, 0] == -axes[a, 0] and axes[b, 1] == axes[a, 1] and axes[b, 2] == axes[a, 2])
+            if same and limited:
+                same = (left[b] != left[a] and zero_axes[b, 0] == -zero_axes[a, 0]
+                        and zero_axes[b, 1] == zero_axes[a, 1] and zero_axes[b, 2] == zero_axes[a, 2])
+            if same:
+                found = True
+                break
+        if not found:
+            return False
+    return True
+
+
+@njit(inline="always", **EXACT)
+def _mirror_row(xs):
+    """The index of x = 0 in a grid axis symmetric about it (xs[k] = -xs[-1 - k] for every k), or -1."""
+    n = xs.shape[0]
+    if n % 2 == 0 or xs[n // 2] != 0.0:
+        return -1
+    for k in range(n // 2):
+        if xs[k] != -xs[n - 1 - k]:
+            return -1
+    return n // 2
 
 
 @njit(**EXACT)
@@ -575,6 +619,9 @@ def evaluate_geometries(ports, axes, zero_axes, left, plane, designs, shoulder_r
         xs, ys = plane_grid(ports[g], depth, d4_max, step)
         if xs.shape[0] == 0:
             continue
+        half = _mirror_row(xs) if mirror_symmetric(ports[g], axes[g], zero_axes[g], left, shoulder_rng.limited) else -1
+        if half >= 0:  # the half x >= 0, x = 0 its row 0
+            xs = xs[half:]
         n = xs.shape[0] * ys.shape[0]
         if bounds_buffer.shape[0] < 6 * n:
             bounds_buffer = np.empty(6 * n)
@@ -587,4 +634,4 @@ def evaluate_geometries(ports, axes, zero_axes, left, plane, designs, shoulder_r
         else:
             shoulder = shoulder_fields(xs[:0], ys[:0], depth, ports[g], axes[g], zero_axes[g], left, buffer)
         evaluate_designs(bounds, xs.shape[0], ys.shape[0], step, designs, shoulder, shoulder_rng, block, scratch,
-                         g * pairs)
+                         g * pairs, half >= 0)

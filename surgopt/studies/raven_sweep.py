@@ -170,9 +170,21 @@ def auto_chunk(cfg: RavenSweepConfig) -> int:
 
 
 def _plane_nodes(geo: Geometry) -> float:
-    """Nodes of the plane grid one geometry evaluates (the square around one arm's reach)."""
+    """Nodes of the plane grid one geometry evaluates (the square around one arm's reach; its half
+    x >= 0 when the arms are their own mirror image, ``mirror_symmetric``)."""
     reach = math.sqrt(geo.d4_max_mm ** 2 - geo.depth_mm ** 2)
-    return (2 * reach / geo.step_mm) ** 2
+    return (2 * reach / geo.step_mm) ** 2 * (0.5 if mirrored_layout(geo) else 1.0)
+
+
+def mirrored_layout(geo: Geometry) -> bool:
+    """Whether the kernel evaluates half the plane: the arms mirror themselves in x = 0
+    (``raven_plane.mirror_symmetric``, a property of the layout, checked on one placement)."""
+    from surgopt.kinematics.raven_plane import mirror_symmetric
+    from surgopt.kinematics.raven_workspace import arm_frames, left_arms
+
+    layout = arm_layout(geo)
+    ports, axes, zero_axes = arm_frames(layout, 10.0, 5.0, -5.0, 100.0, 50.0)
+    return bool(mirror_symmetric.py_func(ports, axes, zero_axes, left_arms(layout), theta1_limited(geo)))
 
 
 #: Time model of the estimate, fitted to single-core runs of Table II and a 12-design sweep (within
