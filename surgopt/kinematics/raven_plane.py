@@ -627,8 +627,8 @@ def evaluate_geometries(ports, axes, zero_axes, left, plane, designs, shoulder_r
             bounds_buffer = np.empty(6 * n)
             scratch = (np.empty(n, LEVEL), np.full(n, -1, np.int64), np.empty(n))
         bounds = plane_node_bounds(xs, ys, depth, ports[g], axes[g], d4_max, bounds_buffer)
-        if shoulder_rng.limited and buffer.shape[0] < 3 * ports.shape[1] * xs.shape[0] * ys.shape[0]:
-            buffer = np.empty(3 * ports.shape[1] * xs.shape[0] * ys.shape[0])
+        if shoulder_rng.limited and buffer.shape[0] < 3 * ports.shape[1] * n:
+            buffer = np.empty(3 * ports.shape[1] * n)
         if shoulder_rng.limited:
             shoulder = shoulder_fields(xs, ys, depth, ports[g], axes[g], zero_axes[g], left, buffer)
         else:
