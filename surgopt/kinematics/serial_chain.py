@@ -414,7 +414,7 @@ def _predict(q, q1, q2, q3, q4, run, jac, dp, step, work):
 
 
 @njit(**CONTRACT)
-def _seed_solve(rot, pos, prismatic, lower, upper, seed, restarts, target, c, ref, q, bufs):
+def seed_solve(rot, pos, prismatic, lower, upper, seed, restarts, target, c, ref, q, bufs):
     """Solve at ``target`` from the seed, then from each restart; True with ``q`` set when one converges."""
     axes, origins, jac, res, step, work, trig = bufs
     for r in range(restarts.shape[0] + 1):
@@ -451,7 +451,45 @@ def _continue(rot, pos, prismatic, q, target, c, ref, end, bufs):
 
 
 @njit(**CONTRACT)
-def _walk(chain_arrays, seed, restarts, c, offsets, start, probes, gii_to_beat, q_out):
+def constraint_reference(start):
+    """The constraint rows' reference axis for a walk around RCM + ``start``: the base axis least aligned
+    with the RCM -> workspace-centre direction (``reference_axis``)."""
+    ref = np.zeros(3)
+    a0, a1, a2 = abs(start[0]), abs(start[1]), abs(start[2])
+    ref[0 if (a0 <= a1 and a0 <= a2) else (1 if a1 <= a2 else 2)] = 1.0
+    return ref
+
+
+@njit(**CONTRACT)
+def seed_and_probe(chain_arrays, seed, restarts, c, start, probes, ref, q, target, bufs):
+    """Solve at RCM + ``start`` from the seed (``seed_solve``), then reach each of the ``probes`` (offsets)
+    from there by continuation (IK only): a candidate that loses one is infeasible at once.
+
+    Returns (ok, Newton steps); when ok, ``q`` is the start's solution, ``target`` = RCM + ``start`` and
+    ``bufs``' Jacobian the one there."""
+    rot, pos, prismatic, lower, upper, qdot_max = chain_arrays
+    axes, origins, jac, res, step, work, trig = bufs
+    for i in range(3):
+        target[i] = c[i] + start[i]
+    if not seed_solve(rot, pos, prismatic, lower, upper, seed, restarts, target, c, ref, q, bufs):
+        return False, 0
+    q0 = q.copy()
+    steps_total = 0
+    for k in range(probes.shape[0]):
+        it = _continue(rot, pos, prismatic, q, target, c, ref, probes[k], bufs)
+        if it < 0 or not within_limits(q, prismatic, lower, upper):
+            return False, steps_total
+        steps_total += it
+        for i in range(N_ACTIVE):
+            q[i] = q0[i]
+        for i in range(3):
+            target[i] = c[i] + start[i]
+        newton_rcm(rot, pos, prismatic, q, target, c, ref, 0, axes, origins, jac, res, step, work, trig)
+    return True, steps_total
+
+
+@njit(**CONTRACT)
+def chain_walk(chain_arrays, seed, restarts, c, offsets, start, probes, gii_to_beat, q_out):
     """One candidate: seed solve at RCM + ``start``, the ``probes`` (offsets, each reached by continuation
     from the start and abandoned), continuation to the first point, the walk.
 
@@ -474,27 +512,11 @@ def _walk(chain_arrays, seed, restarts, c, offsets, start, probes, gii_to_beat, 
     dp = np.empty(N_ACTIVE)  # tip step, then (dp, 0, 0) for the tangent predictor
     p = offsets.shape[0]
     q_out[:] = np.nan
-    for i in range(3):
-        target[i] = c[i] + start[i]
-    # the constraint rows' reference axis: the base axis least aligned with the RCM -> centre direction
-    ref = np.zeros(3)
-    a0, a1, a2 = abs(start[0]), abs(start[1]), abs(start[2])
-    ref[0 if (a0 <= a1 and a0 <= a2) else (1 if a1 <= a2 else 2)] = 1.0
-    if not _seed_solve(rot, pos, prismatic, lower, upper, seed, restarts, target, c, ref, q, bufs):
-        return 0.0, 0.0, 1, 0, 0, 0
-    # probes first (corner and face points, IK only): a candidate that loses one is infeasible at once
+    ref = constraint_reference(start)
+    ok, steps_total = seed_and_probe(chain_arrays, seed, restarts, c, start, probes, ref, q, target, bufs)
+    if not ok:
+        return 0.0, 0.0, 1, 0, 0, steps_total
     q0 = q.copy()
-    steps_total = 0
-    for k in range(probes.shape[0]):
-        it = _continue(rot, pos, prismatic, q, target, c, ref, probes[k], bufs)
-        if it < 0 or not within_limits(q, prismatic, lower, upper):
-            return 0.0, 0.0, 1, 0, 0, steps_total
-        steps_total += it
-        for i in range(N_ACTIVE):
-            q[i] = q0[i]
-        for i in range(3):
-            target[i] = c[i] + start[i]
-        newton_rcm(rot, pos, prismatic, q, target, c, ref, 0, axes, origins, jac, res, step, work, trig)
     # continuation: start -> offsets[0]
     it = _continue(rot, pos, prismatic, q, target, c, ref, offsets[0], bufs)
     if it < 0:
@@ -561,7 +583,7 @@ def _candidates(chain_arrays, seed, restarts, rcms, offsets, start, probes, gii_
     counts = np.empty((m, 4), np.int64)
     q_out = np.empty((offsets.shape[0], N_ACTIVE))
     for i in range(m):
-        lo, hi, n_unr, n_sing, n_eval, steps = _walk(chain_arrays, seed, restarts, rcms[i], offsets, start, probes,
+        lo, hi, n_unr, n_sing, n_eval, steps = chain_walk(chain_arrays, seed, restarts, rcms[i], offsets, start, probes,
                                                      gii_to_beat[i], q_out)
         out[i, 0], out[i, 1] = np.sqrt(lo), np.sqrt(hi)
         counts[i, 0], counts[i, 1], counts[i, 2], counts[i, 3] = n_unr, n_sing, n_eval, steps
@@ -569,7 +591,7 @@ def _candidates(chain_arrays, seed, restarts, rcms, offsets, start, probes, gii_
 
 
 @njit(**CONTRACT)
-def _standard_over(chain_arrays, q_out, n, task_scale):
+def standard_over(chain_arrays, q_out, n, task_scale):
     """(min sigma_min^2, max sigma_max^2, singular count) of the standard Jacobian over the walk's first n
     solutions ``q_out`` (``standard_extremes``)."""
     rot, pos, prismatic, lower, upper, qdot_max = chain_arrays
@@ -599,10 +621,10 @@ def _candidates_standard(chain_arrays, seed, restarts, rcms, offsets, start, pro
     counts = np.empty((m, 4), np.int64)
     q_out = np.empty((offsets.shape[0], N_ACTIVE))
     for i in range(m):
-        lo, hi, n_unr, n_sing, n_eval, steps = _walk(chain_arrays, seed, restarts, rcms[i], offsets, start, probes,
+        lo, hi, n_unr, n_sing, n_eval, steps = chain_walk(chain_arrays, seed, restarts, rcms[i], offsets, start, probes,
                                                      0.0, q_out)
         if n_unr == 0:
-            lo, hi, n_sing = _standard_over(chain_arrays, q_out, n_eval, task_scale)
+            lo, hi, n_sing = standard_over(chain_arrays, q_out, n_eval, task_scale)
             out[i, 0], out[i, 1] = np.sqrt(lo), np.sqrt(hi)
         counts[i, 0], counts[i, 1], counts[i, 2], counts[i, 3] = n_unr, n_sing, n_eval, steps
     return out, counts
@@ -668,14 +690,14 @@ def rcm_walk(chain: Chain, rcm, offsets, seed, start=None, restarts=None):
     start = offsets.mean(axis=0) if start is None else np.asarray(start, np.float64)
     restarts = default_restarts(seed) if restarts is None else np.asarray(restarts, np.float64).reshape(-1, 5)
     q_out = np.empty((offsets.shape[0], 5))
-    lo, hi, n_unr, n_sing, n_eval, steps = _walk(kernel_arrays(chain), seed, restarts, np.asarray(rcm, np.float64),
+    lo, hi, n_unr, n_sing, n_eval, steps = chain_walk(kernel_arrays(chain), seed, restarts, np.asarray(rcm, np.float64),
                                                  offsets, start, np.empty((0, 3)), 0.0, q_out)
     return {"q": q_out, "sigma_min": float(np.sqrt(lo)), "sigma_max": float(np.sqrt(hi)), "n_unreachable": n_unr,
             "n_singular": n_sing, "points_evaluated": n_eval, "newton_steps": steps}
 
 
 def chain_candidates_extremes(rcms, offsets, chain: Chain, seed, gii_to_beat=None, start=None, probe_first=True,
-                              standard_task_scale=None):
+                              standard_task_scale=None, lanes=None):
     """For each RCM candidate (M, 3): the walk over ``offsets`` (P, 3, in walk order, relative to the RCM).
 
     Returns (sigma_min (M,), sigma_max (M,), n_unreachable (M,), n_singular (M,), points_evaluated (M,)),
@@ -685,6 +707,8 @@ def chain_candidates_extremes(rcms, offsets, chain: Chain, seed, gii_to_beat=Non
     from the start first (IK only), so that most infeasible candidates are known before any walk.
     ``standard_task_scale`` (linear m/s, angular rad/s, the tool-spin joint's rated speed or 0): report
     the standard Jacobian's extremes at the same IK poses instead of the RCM metric (Sec. III-E).
+    ``lanes``: walk each candidate in SIMD lanes (``serial_lanes``: the same points, rules and answers to
+    within Newton's tolerance, ~5x faster); None chooses them when the walk is long enough to pay.
     """
     rcms = np.ascontiguousarray(rcms, dtype=np.float64).reshape(-1, 3)
     offsets = np.ascontiguousarray(offsets, dtype=np.float64).reshape(-1, 3)
@@ -693,7 +717,14 @@ def chain_candidates_extremes(rcms, offsets, chain: Chain, seed, gii_to_beat=Non
     g = np.zeros(rcms.shape[0]) if gii_to_beat is None else np.asarray(gii_to_beat, np.float64).reshape(-1)
     probes = np.ascontiguousarray(offsets[probe_points(offsets)]) if probe_first else np.empty((0, 3))
     scale = np.zeros(3) if standard_task_scale is None else np.asarray(standard_task_scale, np.float64)
-    if standard_task_scale is None:
+    from surgopt.kinematics import serial_lanes as SL
+
+    if lanes is None:
+        lanes = offsets.shape[0] >= SL.LANES * SL.MIN_POINTS_PER_LANE
+    if lanes:
+        out, counts = SL.candidates_lanes(kernel_arrays(chain), seed, default_restarts(seed), rcms, offsets, start,
+                                          probes, g, SL.segments(offsets.shape[0]), scale)
+    elif standard_task_scale is None:
         out, counts = _candidates(kernel_arrays(chain), seed, default_restarts(seed), rcms, offsets, start, probes, g)
     else:
         out, counts = _candidates_standard(kernel_arrays(chain), seed, default_restarts(seed), rcms, offsets, start, probes,
