@@ -30,7 +30,9 @@ tried once more by continuation from the start's solution (a near-singular step 
 elbow at full stretch, is then approached from the interior); if that fails too the point is
 unreachable, and the walk stops there (``n_unreachable`` is then 1: the rest is not tried).
 
-Public drivers: ``rcm_walk`` (one candidate, every joint vector), ``chain_candidates_extremes``
+A long walk runs in SIMD lanes instead (``serial_lanes``: eight segments side by side, this module's
+Newton finishing any pose the lanes cannot). Public drivers: ``rcm_walk`` (one candidate, every joint
+vector, scalar), ``chain_candidates_extremes``
 (many candidates, the PA10 kernel's outputs), ``chain_fk`` (tip frame and joint axes).
 
 One module of ~700 lines: forward kinematics, the five equations and their Jacobian, the two small
