@@ -446,6 +446,21 @@ def _scalar_to_lane(S, lane, row, src, n):
 
 
 @njit(**CONTRACT)
+def continue_from_start(chain_arrays, q, q0, target, c, start, ref, end, bufs):
+    """``_continue`` from the start's solution ``q0`` at RCM + ``start`` to RCM + ``end`` (the scalar
+    walk's way to a point it lost); ``q``, ``target`` and ``bufs`` end at the solution. Returns the
+    Newton steps taken, or -1."""
+    rot, pos, prismatic = chain_arrays[0], chain_arrays[1], chain_arrays[2]
+    axes, origins, jac, res, step, work, trig = bufs
+    for i in range(N):
+        q[i] = q0[i]
+    for i in range(3):
+        target[i] = c[i] + start[i]
+    newton_rcm(rot, pos, prismatic, q, target, c, ref, 0, axes, origins, jac, res, step, work, trig)
+    return _continue(rot, pos, prismatic, q, target, c, ref, end, bufs)
+
+
+@njit(**CONTRACT)
 def continue_lanes(chain_arrays, S, q0, jac0, c, start, ref, ends, sync, bufs):
     """Carry the start's solution ``q0`` (Jacobian ``jac0``) from RCM + ``start`` to RCM + each of ``ends``
     (k <= LANES offsets, one per lane) by continuation in lanes: the scalar ``_continue``'s equal steps
@@ -495,12 +510,7 @@ def continue_lanes(chain_arrays, S, q0, jac0, c, start, ref, ends, sync, bufs):
     target = np.empty(3)
     for lane in range(k):
         if scalar[lane]:
-            for i in range(N):
-                q[i] = q0[i]
-            for i in range(3):
-                target[i] = c[i] + start[i]
-            newton_rcm(rot, pos, prismatic, q, target, c, ref, 0, axes, origins, jac, res, step, work, trig)
-            it = _continue(rot, pos, prismatic, q, target, c, ref, ends[lane], bufs)
+            it = continue_from_start(chain_arrays, q, q0, target, c, start, ref, ends[lane], bufs)
             ok[lane] = it >= 0
             steps_total += max(it, 0)
             _scalar_to_lane(S, lane, Q, q, N)
@@ -610,12 +620,7 @@ def walk_lanes(chain_arrays, seed, restarts, c, offsets, start, probes, gii_to_b
                 ok = it >= 0 and within_limits(q, prismatic, lower, upper)
                 steps_total += max(it, 0)
             if not ok:  # reach the point once more from the start's solution (as the scalar walk does)
-                for i in range(N):
-                    q[i] = q0[i]
-                for i in range(3):
-                    target[i] = c[i] + start[i]
-                newton_rcm(rot, pos, prismatic, q, target, c, ref, 0, axes, origins, jac, res, step, work, trig)
-                it = _continue(rot, pos, prismatic, q, target, c, ref, offsets[j], bufs)
+                it = continue_from_start(chain_arrays, q, q0, target, c, start, ref, offsets[j], bufs)
                 if it < 0 or not within_limits(q, prismatic, lower, upper):
                     return 0.0, 0.0, 1, 0, n_eval + 1, steps_total
                 steps_total += it
