@@ -3,6 +3,7 @@ linear algebra: same feasible set, GII to 1e-9, IK solutions that satisfy the fi
 from __future__ import annotations
 
 import numpy as np
+from numba import njit
 
 from surgopt.config import validate
 from surgopt.kinematics import serial_chain as sc
@@ -50,7 +51,7 @@ def test_lane_solver_and_jacobian_match_numpy_and_the_scalar_kernel():
     b = rng.normal(size=(5, SL.W))
     view(SL.JAC, 25)[:] = a.reshape(SL.W, 25).T
     view(SL.RES, 5)[:] = b
-    solve = SL.njit(lambda s: SL.lane_lu_solve(s, SL.RES))
+    solve = njit(lambda s: SL.lane_lu_solve(s, SL.RES))
     solve(S_)
     ok = view(SL.OK, 1)[0]
     assert ok.tolist() == [1, 1, 1, 0, 1, 1, 1, 1]

@@ -64,6 +64,10 @@ TRIG_RESYNC = 64.0
 #: Below this squared residual (m^2) Newton takes undamped steps.
 NEWTON_ZONE_M2 = 1e-6
 TWO_PI = 2.0 * np.pi
+#: The walk's extrapolation weights on (q, q1, q2, q3, q4), the solutions 1..5 points back, after a
+#: straight run of 1..4 steps (linear .. quartic, ``_predict``); run 0 is the tangent step.
+EXTRAPOLATION = ((1.0, 0.0, 0.0, 0.0, 0.0), (2.0, -1.0, 0.0, 0.0, 0.0), (3.0, -3.0, 1.0, 0.0, 0.0),
+                 (4.0, -6.0, 4.0, -1.0, 0.0), (5.0, -10.0, 10.0, -5.0, 1.0))
 
 
 @njit(inline="always", **CONTRACT)
@@ -391,23 +395,12 @@ def _predict(q, q1, q2, q3, q4, run, jac, dp, step, work):
     direction; q1, q2, q3 the solutions one, two and three points back) extrapolate: cubic after three
     steps (4 q - 6 q1 + 4 q2 - q3: error O(h^4)) and quartic after four (5 q - 10 q1 + 10 q2 - 5 q3 + q4:
     O(h^5), so one Newton step usually meets the tolerance),
-    quadratic after two, linear after one; otherwise the tangent q + J^-1 (dp, 0, 0) (the RCM rows
-    stay satisfied to first order)."""
-    if run >= 4:
+    quadratic after two, linear after one (weights ``EXTRAPOLATION``; the history must be finite);
+    otherwise the tangent q + J^-1 (dp, 0, 0) (the RCM rows stay satisfied to first order)."""
+    if run > 0:
+        k0, k1, k2, k3, k4 = EXTRAPOLATION[min(run, 4)]
         for i in range(N_ACTIVE):
-            q[i] = 5.0 * q[i] - 10.0 * q1[i] + 10.0 * q2[i] - 5.0 * q3[i] + q4[i]
-        return
-    if run == 3:
-        for i in range(N_ACTIVE):
-            q[i] = 4.0 * q[i] - 6.0 * q1[i] + 4.0 * q2[i] - q3[i]
-        return
-    if run == 2:
-        for i in range(N_ACTIVE):
-            q[i] = 3.0 * q[i] - 3.0 * q1[i] + q2[i]
-        return
-    if run == 1:
-        for i in range(N_ACTIVE):
-            q[i] = 2.0 * q[i] - q1[i]
+            q[i] = k0 * q[i] + k1 * q1[i] + k2 * q2[i] + k3 * q3[i] + k4 * q4[i]
         return
     dp[3], dp[4] = 0.0, 0.0
     if lu_solve(jac, dp, step, work):
@@ -491,6 +484,16 @@ def seed_and_probe(chain_arrays, seed, restarts, c, start, probes, ref, q, targe
 
 
 @njit(**CONTRACT)
+def scalar_buffers():
+    """Scratch for one scalar Newton solve: (axes, origins, jac, res, step, work, trig), the arguments
+    ``newton_rcm``, ``_continue`` and ``seed_solve`` take (``trig`` empty: exact cos/sin first)."""
+    trig = np.zeros((4, N_ACTIVE))
+    trig[2, :] = np.nan
+    return (np.empty((N_ACTIVE, 3)), np.empty((N_ACTIVE, 3)), np.empty((N_ACTIVE, N_ACTIVE)), np.empty(N_ACTIVE),
+            np.empty(N_ACTIVE), np.empty((N_ACTIVE, N_ACTIVE + 1)), trig)
+
+
+@njit(**CONTRACT)
 def chain_walk(chain_arrays, seed, restarts, c, offsets, start, probes, gii_to_beat, q_out):
     """One candidate: seed solve at RCM + ``start``, the ``probes`` (offsets, each reached by continuation
     from the start and abandoned), continuation to the first point, the walk.
@@ -500,15 +503,8 @@ def chain_walk(chain_arrays, seed, restarts, c, offsets, start, probes, gii_to_b
     bound min sigma_min / max sigma_max falls to ``gii_to_beat`` (the Culling step; 0 never stops).
     """
     rot, pos, prismatic, lower, upper, qdot_max = chain_arrays
-    axes = np.empty((N_ACTIVE, 3))
-    origins = np.empty((N_ACTIVE, 3))
-    jac = np.empty((N_ACTIVE, N_ACTIVE))
-    res = np.empty(N_ACTIVE)
-    step = np.empty(N_ACTIVE)
-    work = np.empty((N_ACTIVE, N_ACTIVE + 1))
-    trig = np.zeros((4, N_ACTIVE))
-    trig[2, :] = np.nan
-    bufs = (axes, origins, jac, res, step, work, trig)
+    bufs = scalar_buffers()
+    axes, origins, jac, res, step, work, trig = bufs
     q = np.empty(N_ACTIVE)
     target = np.empty(3)
     dp = np.empty(N_ACTIVE)  # tip step, then (dp, 0, 0) for the tangent predictor
@@ -528,10 +524,10 @@ def chain_walk(chain_arrays, seed, restarts, c, offsets, start, probes, gii_to_b
     hi = 0.0
     n_sing = 0
     bound2 = gii_to_beat * gii_to_beat
-    q1 = np.empty(N_ACTIVE)
-    q2 = np.empty(N_ACTIVE)
-    q3 = np.empty(N_ACTIVE)
-    q4 = np.empty(N_ACTIVE)
+    q1 = np.zeros(N_ACTIVE)
+    q2 = np.zeros(N_ACTIVE)
+    q3 = np.zeros(N_ACTIVE)
+    q4 = np.zeros(N_ACTIVE)
     qj = np.empty(N_ACTIVE)
     last = np.zeros(3)
     run = 0

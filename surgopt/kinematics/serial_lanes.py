@@ -34,8 +34,8 @@ from numba import njit
 from surgopt.jit import CONTRACT
 from surgopt.kinematics.rcm_metric import constrained_extremes
 from surgopt.kinematics.serial_chain import (
-    CONTINUATION_STEP_M, IK_TOL_M, N_ACTIVE, NEWTON_ZONE_M2, TRIG_RESYNC, TRIG_STEP_RAD, WALK_ITER, _continue, chain_walk,
-    constraint_reference, newton_rcm, seed_solve, standard_over, within_limits,
+    CONTINUATION_STEP_M, EXTRAPOLATION, IK_TOL_M, N_ACTIVE, NEWTON_ZONE_M2, TRIG_RESYNC, TRIG_STEP_RAD, WALK_ITER,
+    _continue, chain_walk, constraint_reference, newton_rcm, scalar_buffers, seed_solve, standard_over, within_limits,
 )
 
 #: Segments walked side by side (one AVX-512 vector of doubles).
@@ -84,10 +84,6 @@ KQ = INLIM + 1  # predictor weights of Q, H1..H4 (5), and 1.0 for the tangent st
 KT = KQ + 5
 ROWS = KT + 1
 
-#: the scalar walk's extrapolation weights on (q, q1, q2, q3, q4) after a straight run of 1..4 steps
-#: (``serial_chain._predict``); run 0 is the tangent step
-EXTRAPOLATION = ((0.0, 0.0, 0.0, 0.0, 0.0), (2.0, -1.0, 0.0, 0.0, 0.0), (3.0, -3.0, 1.0, 0.0, 0.0),
-                 (4.0, -6.0, 4.0, -1.0, 0.0), (5.0, -10.0, 10.0, -5.0, 1.0))
 
 
 @njit(inline="always", **CONTRACT)
@@ -334,11 +330,10 @@ def set_predictor(S, lane, run, active, first):
     """The predictor weights of one lane (KQ..KT): the scalar walk's extrapolation after a straight run
     of ``run`` steps, the tangent after a turn (run 0), the point itself at a segment's first point or
     for an idle lane."""
-    keep = first or not active
-    r = min(run, 4)
+    r = 0 if (first or not active) else min(run, 4)
     for k in range(5):
-        S[_at(KQ + k, lane)] = (1.0 if k == 0 else 0.0) if (keep or r == 0) else EXTRAPOLATION[r][k]
-    S[_at(KT, lane)] = 1.0 if (r == 0 and not keep) else 0.0
+        S[_at(KQ + k, lane)] = EXTRAPOLATION[r][k]
+    S[_at(KT, lane)] = 1.0 if (r == 0 and active and not first) else 0.0
 
 
 @njit(**CONTRACT)
@@ -522,6 +517,15 @@ def continue_lanes(chain_arrays, S, q0, jac0, c, start, ref, ends, sync, bufs):
     return ok, steps_total, sync
 
 
+@njit(inline="always", **CONTRACT)
+def lanes_extremes(S):
+    """(min sigma_min^2, max sigma_max^2, singular count) over every lane's points so far."""
+    lo, hi, n_sing = np.inf, 0.0, 0
+    for lane in range(W):
+        lo, hi, n_sing = min(lo, S[_at(LO, lane)]), max(hi, S[_at(HI, lane)]), n_sing + int(S[_at(NSING, lane)])
+    return lo, hi, n_sing
+
+
 @njit(**CONTRACT)
 def walk_lanes(chain_arrays, seed, restarts, c, offsets, start, probes, gii_to_beat, q_out, seg):
     """``serial_chain.chain_walk`` for one candidate with the walk cut into ``LANES`` segments
@@ -529,15 +533,8 @@ def walk_lanes(chain_arrays, seed, restarts, c, offsets, start, probes, gii_to_b
     n_unreachable of -1 means a segment's first point could not be reached from the start, and the
     caller walks this candidate with the scalar kernel (whose walk gets there step by step)."""
     rot, pos, prismatic, lower, upper, qdot_max = chain_arrays
-    axes = np.empty((N, 3))
-    origins = np.empty((N, 3))
-    jac = np.empty((N, N))
-    res = np.empty(N)
-    step = np.empty(N)
-    work = np.empty((N, N + 1))
-    trig = np.zeros((4, N))
-    trig[2, :] = np.nan
-    bufs = (axes, origins, jac, res, step, work, trig)
+    bufs = scalar_buffers()
+    axes, origins, jac, res, step, work, trig = bufs
     q = np.empty(N)
     target = np.empty(3)
     ref = constraint_reference(start)
@@ -634,17 +631,15 @@ def walk_lanes(chain_arrays, seed, restarts, c, offsets, start, probes, gii_to_b
                         S[_at(JAC + i * N + k, lane)] = jac[i, k]
                 S[_at(ANG, lane)] = np.nan  # the lane's cos/sin cache no longer holds its joints
         lane_metric(S, qdot_max)
-        lo, hi = np.inf, 0.0
         for lane in range(W):
-            lo, hi = min(lo, S[_at(LO, lane)]), max(hi, S[_at(HI, lane)])
             if S[_at(ACT, lane)] != 0.0:
                 _lane_to_scalar(S, lane, Q, q_out[seg[lane] + t], N)
                 n_eval += 1
-        if bound2 > 0.0 and lo <= bound2 * hi:
-            break
-    lo, hi, n_sing = np.inf, 0.0, 0
-    for lane in range(W):
-        lo, hi, n_sing = min(lo, S[_at(LO, lane)]), max(hi, S[_at(HI, lane)]), n_sing + int(S[_at(NSING, lane)])
+        if bound2 > 0.0:
+            lo, hi, _ = lanes_extremes(S)
+            if lo <= bound2 * hi:
+                break
+    lo, hi, n_sing = lanes_extremes(S)
     return lo, hi, 0, n_sing, n_eval, steps_total
 
 
