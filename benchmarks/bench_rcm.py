@@ -7,7 +7,8 @@ np.linalg.svd), their ratio measured in the same run, the wall time of the
 paper's full 121 x 121 x 17^3 map on 2 workers, the --cull argmax time on the
 5 mm grid, and `surgopt rcm-grid` end to end with a warm JIT cache.
 The generic serial-chain kernel (any arm) on the same PA10 from its DH table: poses/second beside the
-closed-form kernel in the same run, the same candidate, the full map through it, and
+closed-form kernel and beside its own scalar walk (no SIMD lanes) in the same run, the same candidate,
+the full map through it, and
 `surgopt rcm-grid --robot ur5e` end to end.
 benchmarks/rcm_floor.py says how far the per-pose ratio can go on this machine.
 """
@@ -151,6 +152,8 @@ def generic(cfg, rcm, off, t_closed, quick):
     print(f"generic kernel (1 core, the same {n} poses, Newton walk from the seed): "
           f"{n / t_g / 1e6:6.2f} M poses/s  ({t_g / n * 1e9:5.0f} ns/pose, {steps / n:.2f} Newton steps/pose)")
     print(f"ratio generic/closed-form per pose: {t_g / t_closed:.0f}x  (target <= 10x)")
+    t_s = best_of(lambda: C.chain_candidates_extremes(np.repeat(rcm[None], 4, 0), walk, chain, seed, lanes=False), 3) / 4
+    print(f"the same walk on the scalar kernel (no SIMD lanes): {t_s / n * 1e9:5.0f} ns/pose; lanes {t_s / t_g:.1f}x faster")
     # the same candidates through both kernels (the closed form with its mirror half, as the study runs it)
     rcms = S.candidate_rcms(cfg, S.candidate_xyz(cfg))
     sub = np.ascontiguousarray(rcms[::97])
