@@ -151,7 +151,7 @@ def generic(cfg, rcm, off, t_closed, quick):
     steps = C.rcm_walk(chain, rcm, walk, seed)["newton_steps"]
     print(f"generic kernel (1 core, the same {n} poses, Newton walk from the seed): "
           f"{n / t_g / 1e6:6.2f} M poses/s  ({t_g / n * 1e9:5.0f} ns/pose, {steps / n:.2f} Newton steps/pose)")
-    print(f"ratio generic/closed-form per pose: {t_g / t_closed:.0f}x  (target <= 10x)")
+    print(f"ratio generic/closed-form per pose: {t_g / t_closed:.1f}x  (target <= 10x)")
     t_s = best_of(lambda: C.chain_candidates_extremes(np.repeat(rcm[None], 4, 0), walk, chain, seed, lanes=False), 3) / 4
     print(f"the same walk on the scalar kernel (no SIMD lanes): {t_s / n * 1e9:5.0f} ns/pose; lanes {t_s / t_g:.1f}x faster")
     # the same candidates through both kernels (the closed form with its mirror half, as the study runs it)

@@ -18,10 +18,16 @@ def pa10_generic():
     return chain, np.asarray(seed, float), walk
 
 
-def test_segments_cover_the_walk_in_order():
-    assert SL.segments(20, 8).tolist() == [0, 2, 5, 8, 10, 12, 15, 18, 20]
-    b = SL.segments(4913)
-    assert b[0] == 0 and b[-1] == 4913 and (np.diff(b) > 0).all() and np.ptp(np.diff(b)) <= 1
+def test_segments_start_where_the_walk_turns():
+    """On a serpentine every segment starts a line (the lanes stay in phase); a straight walk, with no
+    turn, is split evenly."""
+    assert SL.segments(np.arange(60.0).reshape(20, 3), 8).tolist() == [0, 2, 5, 8, 10, 12, 15, 18, 20]
+    n = 17
+    cube = np.stack(np.meshgrid(*[np.arange(n)] * 3, indexing="ij"), axis=-1).reshape(-1, 3) * 0.00625
+    b = SL.segments(np.ascontiguousarray(cube[sc.serpentine_order(n)]))
+    assert b[0] == 0 and b[-1] == n ** 3 and (np.diff(b) > 0).all()
+    assert (b[:-1] % n == 0).all() and np.ptp(np.diff(b)) <= 2 * n
+    assert SL.line_starts(np.ascontiguousarray(cube[sc.serpentine_order(n)]))[:3].tolist() == [17, 34, 51]
 
 
 def test_lane_solver_and_jacobian_match_numpy_and_the_scalar_kernel():
@@ -78,7 +84,7 @@ def test_lane_walk_gives_the_scalar_walk_results():
     i = int(np.nonzero(feasible)[0][0])
     q_lanes = np.empty((walk.shape[0], 5))
     args = (sc.kernel_arrays(chain), seed, sc.default_restarts(seed), rcms[i], walk, walk.mean(axis=0))
-    SL.walk_lanes(*args, np.empty((0, 3)), 0.0, q_lanes, SL.segments(walk.shape[0]))
+    SL.walk_lanes(*args, np.empty((0, 3)), 0.0, q_lanes, SL.segments(walk))
     q_scalar = sc.rcm_walk(chain, rcms[i], walk, seed)["q"]
     np.testing.assert_allclose(q_lanes, q_scalar, atol=1e-6)
     for j in range(0, walk.shape[0], 37):

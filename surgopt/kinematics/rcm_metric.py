@@ -202,9 +202,41 @@ def constrained_extremes(c0, c1, c2, c3, c4):
     return (0.0 if singular else smin2), smax2, singular
 
 
-def probe_points(offsets):
-    """Indices of the 8 corner-most and 6 face-most points: where a workspace is left first."""
-    signs = np.array([[sx, sy, sz] for sx in (-1, 1) for sy in (-1, 1) for sz in (-1, 1)]
-                     + [[s if i == a else 0 for i in range(3)] for a in range(3) for s in (-1, 1)], float)
-    centred = offsets - offsets.mean(axis=0)
-    return np.unique(np.argmax(centred @ signs.T, axis=0)).astype(np.int64)
+#: The 8 corner and 6 face directions along which ``probe_points`` looks for the workspace's extremes.
+PROBE_DIRECTIONS = np.array([[sx, sy, sz] for sx in (-1, 1) for sy in (-1, 1) for sz in (-1, 1)]
+                            + [[s if i == a else 0 for i in range(3)] for a in range(3) for s in (-1, 1)], float)
+
+
+@njit(**CONTRACT)
+def workspace_centre(offsets):
+    """The mean of the workspace points (P, 3) (a plain loop: numpy's axis-0 mean of a narrow array
+    costs ~60 us here, more than a short kernel call)."""
+    c = np.zeros(3)
+    for j in range(offsets.shape[0]):
+        for i in range(3):
+            c[i] += offsets[j, i]
+    return c / offsets.shape[0]
+
+
+@njit(**CONTRACT)
+def _farthest_along(offsets, centre, directions):
+    """For each direction d, the first point maximising (p - centre) . d."""
+    m = directions.shape[0]
+    out = np.zeros(m, np.int64)
+    best = np.full(m, -np.inf)
+    for j in range(offsets.shape[0]):
+        x, y, z = offsets[j, 0] - centre[0], offsets[j, 1] - centre[1], offsets[j, 2] - centre[2]
+        for k in range(m):
+            v = x * directions[k, 0] + y * directions[k, 1] + z * directions[k, 2]
+            if v > best[k]:
+                best[k] = v
+                out[k] = j
+    return out
+
+
+def probe_points(offsets, centre=None):
+    """Indices of the 8 corner-most and 6 face-most points: where a workspace is left first (sorted,
+    each once). ``centre``: the points' mean (``workspace_centre``), when the caller has it."""
+    offsets = np.ascontiguousarray(offsets, dtype=np.float64).reshape(-1, 3)
+    centre = workspace_centre(offsets) if centre is None else np.asarray(centre, np.float64)
+    return np.array(sorted(set(_farthest_along(offsets, centre, PROBE_DIRECTIONS).tolist())), np.int64)

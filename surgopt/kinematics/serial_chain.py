@@ -46,7 +46,7 @@ import numpy as np
 from numba import njit
 
 from surgopt.jit import CONTRACT
-from surgopt.kinematics.rcm_metric import constrained_extremes, probe_points
+from surgopt.kinematics.rcm_metric import constrained_extremes, probe_points, workspace_centre
 from surgopt.robots.chain import Chain  # noqa: F401 - the kernel's input, defined with the data that builds it
 
 
@@ -685,7 +685,7 @@ def rcm_walk(chain: Chain, rcm, offsets, seed, start=None, restarts=None):
     """
     offsets = np.ascontiguousarray(offsets, dtype=np.float64).reshape(-1, 3)
     seed = np.asarray(seed, np.float64)
-    start = offsets.mean(axis=0) if start is None else np.asarray(start, np.float64)
+    start = workspace_centre(offsets) if start is None else np.asarray(start, np.float64)
     restarts = default_restarts(seed) if restarts is None else np.asarray(restarts, np.float64).reshape(-1, 5)
     q_out = np.empty((offsets.shape[0], 5))
     lo, hi, n_unr, n_sing, n_eval, steps = chain_walk(kernel_arrays(chain), seed, restarts, np.asarray(rcm, np.float64),
@@ -711,9 +711,10 @@ def chain_candidates_extremes(rcms, offsets, chain: Chain, seed, gii_to_beat=Non
     rcms = np.ascontiguousarray(rcms, dtype=np.float64).reshape(-1, 3)
     offsets = np.ascontiguousarray(offsets, dtype=np.float64).reshape(-1, 3)
     seed = np.asarray(seed, np.float64)
-    start = offsets.mean(axis=0) if start is None else np.asarray(start, np.float64)
+    centre = workspace_centre(offsets)
+    start = centre if start is None else np.asarray(start, np.float64)
     g = np.zeros(rcms.shape[0]) if gii_to_beat is None else np.asarray(gii_to_beat, np.float64).reshape(-1)
-    probes = np.ascontiguousarray(offsets[probe_points(offsets)]) if probe_first else np.empty((0, 3))
+    probes = np.ascontiguousarray(offsets[probe_points(offsets, centre)]) if probe_first else np.empty((0, 3))
     scale = np.zeros(3) if standard_task_scale is None else np.asarray(standard_task_scale, np.float64)
     from surgopt.kinematics import serial_lanes as SL
 
@@ -721,7 +722,7 @@ def chain_candidates_extremes(rcms, offsets, chain: Chain, seed, gii_to_beat=Non
         lanes = offsets.shape[0] >= SL.LANES * SL.MIN_POINTS_PER_LANE
     if lanes:
         out, counts = SL.candidates_lanes(kernel_arrays(chain), seed, default_restarts(seed), rcms, offsets, start,
-                                          probes, g, SL.segments(offsets.shape[0]), scale)
+                                          probes, g, SL.segments(offsets), scale)
     elif standard_task_scale is None:
         out, counts = _candidates(kernel_arrays(chain), seed, default_restarts(seed), rcms, offsets, start, probes, g)
     else:

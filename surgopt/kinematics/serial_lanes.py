@@ -34,12 +34,18 @@ from numba import njit
 from surgopt.jit import CONTRACT
 from surgopt.kinematics.rcm_metric import constrained_extremes
 from surgopt.kinematics.serial_chain import (
-    CONTINUATION_STEP_M, EXTRAPOLATION, IK_TOL_M, N_ACTIVE, NEWTON_ZONE_M2, TRIG_RESYNC, TRIG_STEP_RAD, WALK_ITER,
+    CONTINUATION_STEP_M, EXTRAPOLATION, IK_TOL_M, N_ACTIVE, TRIG_RESYNC, TRIG_STEP_RAD, WALK_ITER,
     _continue, chain_walk, constraint_reference, newton_rcm, scalar_buffers, seed_solve, standard_over, within_limits,
 )
 
 #: Segments walked side by side (one AVX-512 vector of doubles).
 LANES = 8
+#: Below this squared residual (m^2) the lanes take undamped Newton steps (the scalar walk: below
+#: ``NEWTON_ZONE_M2`` = (1 mm)^2, Levenberg-Marquardt with damping |e|^2 above). The tangent prediction
+#: after a turn of the walk lands 0.6-1.5 mm off on the PA10's map (measured); there |e|^2 <= 2.3e-6 is
+#: negligible beside J^T J, so the damped step is the Newton step, and a lane would otherwise go to
+#: the scalar code at nearly every turn. Beyond (5 mm)^2, or where Newton fails, the scalar code.
+LANE_NEWTON_ZONE_M2 = 2.5e-5
 #: A walk shorter than this many points per lane is walked by the scalar kernel (continuation to each
 #: segment's start would cost more than the lanes save).
 MIN_POINTS_PER_LANE = 16
@@ -361,7 +367,8 @@ def predict_lanes(S):
 @njit(**CONTRACT)
 def newton_check(S, it, last):
     """After an evaluation: lanes that meet IK_TOL_M stop (their ``it`` Newton steps counted); lanes that
-    cannot go on undamped (the ``last`` iteration, a non-finite or large residual) stop with FB set.
+    cannot go on undamped (the ``last`` iteration, a non-finite residual or one beyond
+    LANE_NEWTON_ZONE_M2) stop with FB set.
     Returns (lanes still pending, Newton steps of the lanes that converged now)."""
     pending = 0
     steps = 0
@@ -371,7 +378,7 @@ def newton_check(S, it, last):
         e2 = (S[_at(RES, lane)] ** 2 + S[_at(RES + 1, lane)] ** 2 + S[_at(RES + 2, lane)] ** 2
               + S[_at(RES + 3, lane)] ** 2 + S[_at(RES + 4, lane)] ** 2)
         done = worst < IK_TOL_M
-        stuck = last or not (e2 < NEWTON_ZONE_M2)  # also NaN
+        stuck = last or not (e2 < LANE_NEWTON_ZONE_M2)  # also NaN
         S[_at(FB, lane)] = 1.0 if (pend and not done and stuck) or S[_at(FB, lane)] != 0.0 else 0.0
         still = pend and not done and not stuck
         S[_at(PEND, lane)] = 1.0 if still else 0.0
@@ -455,6 +462,26 @@ def continue_from_start(chain_arrays, q, q0, target, c, start, ref, end, bufs):
     return _continue(rot, pos, prismatic, q, target, c, ref, end, bufs)
 
 
+@njit(inline="always", **CONTRACT)
+def newton_from_prediction(rot, pos, prismatic, S, lane, c, ref, q, target, bufs):
+    """The scalar ``newton_rcm`` (damped where it must be) from one lane's prediction QP at its target
+    TGT, as the scalar walk would run it; ``q`` ends at the solution. Returns its steps, or -1."""
+    axes, origins, jac, res, step, work, trig = bufs
+    _lane_to_scalar(S, lane, QP, q, N)
+    _lane_to_scalar(S, lane, TGT, target, 3)
+    return newton_rcm(rot, pos, prismatic, q, target, c, ref, WALK_ITER, axes, origins, jac, res, step, work, trig)
+
+
+@njit(inline="always", **CONTRACT)
+def solution_to_lane(S, lane, q, jac):
+    """A scalar solution and its Jacobian into one lane (its cos/sin cache marked stale)."""
+    _scalar_to_lane(S, lane, Q, q, N)
+    for i in range(N):
+        for k in range(N):
+            S[_at(JAC + i * N + k, lane)] = jac[i, k]
+    S[_at(ANG, lane)] = np.nan
+
+
 @njit(**CONTRACT)
 def continue_lanes(chain_arrays, S, q0, jac0, c, start, ref, ends, sync, bufs):
     """Carry the start's solution ``q0`` (Jacobian ``jac0``) from RCM + ``start`` to RCM + each of ``ends``
@@ -466,6 +493,8 @@ def continue_lanes(chain_arrays, S, q0, jac0, c, start, ref, ends, sync, bufs):
     rot, pos, prismatic = chain_arrays[0], chain_arrays[1], chain_arrays[2]
     axes, origins, jac, res, step, work, trig = bufs
     k = ends.shape[0]
+    q = np.empty(N)
+    target = np.empty(3)
     n_steps = np.zeros(W, np.int64)
     scalar = np.zeros(W, np.bool_)
     longest = 0
@@ -498,22 +527,22 @@ def continue_lanes(chain_arrays, S, q0, jac0, c, start, ref, ends, sync, bufs):
         predict_lanes(S)
         steps, sync = newton_lanes(rot, pos, prismatic, S, sync)
         steps_total += steps
-        for lane in range(W):
-            scalar[lane] |= S[_at(FB, lane)] != 0.0
+        for lane in range(W):  # this step of a lane the lanes' Newton could not finish, by the scalar one
+            if S[_at(FB, lane)] != 0.0:
+                it = newton_from_prediction(rot, pos, prismatic, S, lane, c, ref, q, target, bufs)
+                if it >= 0:
+                    steps_total += it
+                    solution_to_lane(S, lane, q, jac)
+                else:
+                    scalar[lane] = True
     ok = np.ones(k, np.bool_)
-    q = np.empty(N)
-    target = np.empty(3)
     for lane in range(k):
         if scalar[lane]:
             it = continue_from_start(chain_arrays, q, q0, target, c, start, ref, ends[lane], bufs)
             ok[lane] = it >= 0
             steps_total += max(it, 0)
-            _scalar_to_lane(S, lane, Q, q, N)
+            solution_to_lane(S, lane, q, jac)
             _scalar_to_lane(S, lane, TGT, target, 3)
-            for i in range(N):
-                for j in range(N):
-                    S[_at(JAC + i * N + j, lane)] = jac[i, j]
-            S[_at(ANG, lane)] = np.nan
     return ok, steps_total, sync
 
 
@@ -610,10 +639,7 @@ def walk_lanes(chain_arrays, seed, restarts, c, offsets, start, probes, gii_to_b
                 ok = within_limits(q, prismatic, lower, upper)
                 _scalar_to_lane(S, lane, Q, q, N)
             else:  # the scalar Newton from the same prediction (damped where it must be)
-                _lane_to_scalar(S, lane, QP, q, N)
-                _lane_to_scalar(S, lane, TGT, target, 3)
-                it = newton_rcm(rot, pos, prismatic, q, target, c, ref, WALK_ITER, axes, origins, jac, res, step,
-                                work, trig)
+                it = newton_from_prediction(rot, pos, prismatic, S, lane, c, ref, q, target, bufs)
                 ok = it >= 0 and within_limits(q, prismatic, lower, upper)
                 steps_total += max(it, 0)
             if not ok:  # reach the point once more from the start's solution (as the scalar walk does)
@@ -625,11 +651,7 @@ def walk_lanes(chain_arrays, seed, restarts, c, offsets, start, probes, gii_to_b
                 for i in range(3):
                     last[lane, i] = np.nan
             if fallback or not ok:
-                _scalar_to_lane(S, lane, Q, q, N)
-                for i in range(N):
-                    for k in range(N):
-                        S[_at(JAC + i * N + k, lane)] = jac[i, k]
-                S[_at(ANG, lane)] = np.nan  # the lane's cos/sin cache no longer holds its joints
+                solution_to_lane(S, lane, q, jac)
         lane_metric(S, qdot_max)
         for lane in range(W):
             if S[_at(ACT, lane)] != 0.0:
@@ -643,11 +665,50 @@ def walk_lanes(chain_arrays, seed, restarts, c, offsets, start, probes, gii_to_b
     return lo, hi, 0, n_sing, n_eval, steps_total
 
 
-def segments(n_points: int, lanes: int = LANES) -> np.ndarray:
-    """Boundaries of ``lanes`` contiguous segments of a walk of ``n_points`` (as equal as can be).
+@njit(**CONTRACT)
+def line_starts(offsets):
+    """Indices j where a straight line of the walk starts: the step j -> j+1 differs from the step into j
+    (j-1 -> j), and the step after it (j+1 -> j+2) is the same as it."""
+    n = offsets.shape[0]
+    bend = np.zeros(n, np.bool_)  # bend[j]: the walk changes direction at point j
+    for j in range(1, n - 1):
+        for i in range(3):
+            bend[j] |= abs((offsets[j + 1, i] - offsets[j, i]) - (offsets[j, i] - offsets[j - 1, i])) > 1e-12
+    out = np.empty(n, np.int64)
+    k = 0
+    for j in range(1, n - 2):
+        if bend[j] and not bend[j + 1]:
+            out[k] = j
+            k += 1
+    return out[:k]
 
-    Example (tested): segments(20, 8) -> [0, 2, 5, 8, 10, 12, 15, 18, 20]."""
-    return np.round(np.linspace(0, n_points, lanes + 1)).astype(np.int64)
+
+def segments(offsets, lanes: int = LANES) -> np.ndarray:
+    """Boundaries of ``lanes`` contiguous segments of the walk ``offsets`` (P, 3), as equal as can be,
+    each starting where a straight line of the walk starts (the step out of the point differs from the
+    step into it, and the step after is the same as the step out).
+
+    Starting every segment at a turn keeps the lanes in phase on a serpentine: they turn at the same
+    steps, so the tangent predictor's LU and the low-order steps after a turn, which need more Newton
+    iterations, happen for all lanes at once instead of holding up a lockstep step nearly every time.
+    Without a turn near a split point the split stays where it is.
+
+    Example (tested): a serpentine over a 17^3 cube (lines of 17) gives boundaries at multiples of 17."""
+    offsets = np.asarray(offsets, np.float64).reshape(-1, 3)
+    n = offsets.shape[0]
+    even = np.round(np.linspace(0, n, lanes + 1)).astype(np.int64)
+    if n < 3:
+        return even
+    turns = line_starts(offsets)
+    if turns.size == 0:
+        return even
+    cut = even.copy()
+    spacing = n / lanes
+    for k in range(1, lanes):
+        near = turns[np.argmin(np.abs(turns - even[k]))]
+        if abs(near - even[k]) <= spacing / 4:
+            cut[k] = near
+    return cut if (np.diff(cut) > 0).all() else even
 
 
 @njit(**CONTRACT)
