@@ -104,3 +104,18 @@ def test_lane_walk_culls_and_keeps_the_standard_metric():
     b = sc.chain_candidates_extremes(rcm, walk, chain, seed, standard_task_scale=scale, lanes=False)
     np.testing.assert_allclose(a[0], b[0], rtol=1e-9)
     np.testing.assert_allclose(a[1], b[1], rtol=1e-9)
+
+
+def test_a_point_lost_in_lanes_gets_the_scalar_walks_verdict():
+    """LBR iiwa at (0.46, 0, -0.2) m, next to a singular region: the lanes, reaching a segment's points
+    along another path, lose one; the candidate is walked again by the scalar walk, which reaches every
+    point (GII ~5e-4), so both paths report it feasible with the same extremes."""
+    cfg = validate({"robot": {"model": "lbr_iiwa_14"}}, S.Config, "test")
+    kernel = S.kernel_for(cfg)
+    walk = kernel._walk(S.workspace_offsets(cfg.workspace), cfg.workspace.points_per_side)
+    rcm = np.array([[0.46, 0.0, -0.2], [0.40, 0.0, 0.44]])
+    a = sc.chain_candidates_extremes(rcm, walk, kernel.chain, kernel.seed, lanes=True)
+    b = sc.chain_candidates_extremes(rcm, walk, kernel.chain, kernel.seed, lanes=False)
+    assert a[2].tolist() == b[2].tolist() == [0, 0]
+    np.testing.assert_allclose(a[0], b[0], rtol=1e-9)
+    np.testing.assert_allclose(a[1], b[1], rtol=1e-9)

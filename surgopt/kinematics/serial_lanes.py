@@ -9,10 +9,12 @@ reaches its first point), and then every segment advances one point per step in 
 predictor, the five equations and their Jacobian (``lane_eval``), the Newton step's LU
 (``lane_lu_solve``) and the metric (``lane_metric``, the shared ``constrained_extremes``) run for all
 lanes at once. Each segment follows the scalar walk's rules (polynomial predictor on a straight run,
-tangent predictor after a turn, ``IK_TOL_M``, ``WALK_ITER`` steps, joint limits); a lane whose Newton
-leaves the undamped zone, meets a singular pivot or does not converge is finished by the scalar
-code (``newton_rcm``, then the retry from the start's solution), so every point gets the scalar
-walk's treatment and the same answer to within Newton's tolerance.
+tangent predictor after a turn, Newton's step undamped within 1 mm and damped beyond, ``IK_TOL_M``,
+``WALK_ITER`` steps, joint limits); a lane more than 5 mm off, with a singular pivot or not
+converging is finished by the scalar code (``newton_rcm``, then the retry from the start's
+solution), and a candidate that loses a point in lanes is walked again by the scalar walk, whose
+verdict stands (near a singularity two paths to a point can disagree). So every point gets the
+scalar walk's treatment and the same answer to within Newton's tolerance.
 
 Memory layout, and why: every lane quantity is a row of ``LANES`` doubles in one flat buffer ``S``
 (``S[(ROW + k) * LANES + lane]``, the rows named below), and each joint's code is written out with
@@ -34,17 +36,19 @@ from numba import njit
 from surgopt.jit import CONTRACT
 from surgopt.kinematics.rcm_metric import constrained_extremes
 from surgopt.kinematics.serial_chain import (
-    CONTINUATION_STEP_M, EXTRAPOLATION, IK_TOL_M, N_ACTIVE, TRIG_RESYNC, TRIG_STEP_RAD, WALK_ITER,
+    CONTINUATION_STEP_M, EXTRAPOLATION, IK_TOL_M, N_ACTIVE, NEWTON_ZONE_M2, TRIG_RESYNC, TRIG_STEP_RAD, WALK_ITER,
     _continue, chain_walk, constraint_reference, newton_rcm, scalar_buffers, seed_solve, standard_over, within_limits,
 )
 
 #: Segments walked side by side (one AVX-512 vector of doubles).
 LANES = 8
-#: Below this squared residual (m^2) the lanes take undamped Newton steps (the scalar walk: below
-#: ``NEWTON_ZONE_M2`` = (1 mm)^2, Levenberg-Marquardt with damping |e|^2 above). The tangent prediction
-#: after a turn of the walk lands 0.6-1.5 mm off on the PA10's map (measured); there |e|^2 <= 2.3e-6 is
-#: negligible beside J^T J, so the damped step is the Newton step, and a lane would otherwise go to
-#: the scalar code at nearly every turn. Beyond (5 mm)^2, or where Newton fails, the scalar code.
+#: Below this squared residual (m^2) the lanes solve a pose themselves, with the scalar walk's steps:
+#: undamped Newton below ``NEWTON_ZONE_M2`` = (1 mm)^2, Levenberg-Marquardt with damping |e|^2 above
+#: (``damp_lanes``). The tangent prediction after a turn of the walk lands 0.6-1.5 mm off on the PA10's
+#: map (measured), so without the damped step in lanes a lane went to the scalar code at nearly every
+#: turn (65 hand-offs per walk); with undamped steps there instead, the last iterate met the tolerance
+#: by less and GII moved up to 3.7e-9 from the closed form's (8.9e-10 with the damped step, as the
+#: scalar walk). Beyond (5 mm)^2, or where Newton fails, the scalar code takes over.
 LANE_NEWTON_ZONE_M2 = 2.5e-5
 #: A walk shorter than this many points per lane is walked by the scalar kernel (continuation to each
 #: segment's start would cost more than the lanes save).
@@ -367,11 +371,12 @@ def predict_lanes(S):
 @njit(**CONTRACT)
 def newton_check(S, it, last):
     """After an evaluation: lanes that meet IK_TOL_M stop (their ``it`` Newton steps counted); lanes that
-    cannot go on undamped (the ``last`` iteration, a non-finite residual or one beyond
-    LANE_NEWTON_ZONE_M2) stop with FB set.
-    Returns (lanes still pending, Newton steps of the lanes that converged now)."""
+    cannot go on in lanes (the ``last`` iteration, a non-finite residual or one beyond
+    LANE_NEWTON_ZONE_M2) stop with FB set. Returns (lanes still pending, Newton steps of the lanes
+    that converged now, pending lanes that need the damped step)."""
     pending = 0
     steps = 0
+    damped = 0
     for lane in range(W):
         pend = S[_at(PEND, lane)] != 0.0
         worst = S[_at(WORST, lane)]
@@ -383,8 +388,49 @@ def newton_check(S, it, last):
         still = pend and not done and not stuck
         S[_at(PEND, lane)] = 1.0 if still else 0.0
         pending += 1 if still else 0
+        damped += 1 if (still and not (e2 < NEWTON_ZONE_M2)) else 0
         steps += it if (pend and done) else 0
-    return pending, steps
+    return pending, steps, damped
+
+
+@njit(inline="always", **CONTRACT)
+def _column(S, lane, j):
+    return (S[_at(JAC + j, lane)], S[_at(JAC + N + j, lane)], S[_at(JAC + 2 * N + j, lane)],
+            S[_at(JAC + 3 * N + j, lane)], S[_at(JAC + 4 * N + j, lane)])
+
+
+@njit(inline="always", **CONTRACT)
+def _dot(a, b):
+    return a[0] * b[0] + a[1] * b[1] + a[2] * b[2] + a[3] * b[3] + a[4] * b[4]
+
+
+@njit(inline="always", **CONTRACT)
+def _damped_row(S, lane, i, ci, c0, c1, c2, c3, c4, e, e2, damp):
+    """Row i of (J^T J + e2 I | J^T e) into JAC / RES where ``damp`` (``ci`` = column i of J)."""
+    row = (_dot(ci, c0), _dot(ci, c1), _dot(ci, c2), _dot(ci, c3), _dot(ci, c4))
+    for j in range(N):
+        a = row[j] + (e2 if i == j else 0.0)
+        S[_at(JAC + i * N + j, lane)] = a if damp else S[_at(JAC + i * N + j, lane)]
+    S[_at(RES + i, lane)] = _dot(ci, e) if damp else S[_at(RES + i, lane)]
+
+
+@njit(**CONTRACT)
+def damp_lanes(S):
+    """The Levenberg-Marquardt system in place of J and the residual for pending lanes whose squared
+    residual |e|^2 is at least NEWTON_ZONE_M2: (J^T J + |e|^2 I) and J^T e, so that ``lane_lu_solve``
+    gives the scalar walk's damped step there (``serial_chain.damped_solve``, Sugihara 2011)."""
+    for lane in range(W):
+        e = (S[_at(RES, lane)], S[_at(RES + 1, lane)], S[_at(RES + 2, lane)], S[_at(RES + 3, lane)],
+             S[_at(RES + 4, lane)])
+        e2 = _dot(e, e)
+        damp = S[_at(PEND, lane)] != 0.0 and not (e2 < NEWTON_ZONE_M2)
+        c0, c1, c2, c3, c4 = _column(S, lane, 0), _column(S, lane, 1), _column(S, lane, 2), _column(S, lane, 3), \
+            _column(S, lane, 4)
+        _damped_row(S, lane, 0, c0, c0, c1, c2, c3, c4, e, e2, damp)
+        _damped_row(S, lane, 1, c1, c0, c1, c2, c3, c4, e, e2, damp)
+        _damped_row(S, lane, 2, c2, c0, c1, c2, c3, c4, e, e2, damp)
+        _damped_row(S, lane, 3, c3, c0, c1, c2, c3, c4, e, e2, damp)
+        _damped_row(S, lane, 4, c4, c0, c1, c2, c3, c4, e, e2, damp)
 
 
 @njit(**CONTRACT)
@@ -414,9 +460,9 @@ def limits_lanes(S, lower, upper):
 
 @njit(**CONTRACT)
 def newton_lanes(rot, pos, prismatic, S, sync):
-    """Undamped Newton on every lane with PEND set, in lockstep, until each meets IK_TOL_M; a lane that
-    leaves the undamped zone, meets a singular pivot or is not done in WALK_ITER steps gets FB (the
-    scalar code finishes it). Returns (Newton steps of the converged lanes, the cos/sin caches'
+    """Newton on every lane with PEND set, in lockstep, until each meets IK_TOL_M (damped where the
+    scalar walk damps, ``damp_lanes``); a lane beyond LANE_NEWTON_ZONE_M2, with a singular pivot or not
+    done in WALK_ITER steps gets FB (the scalar code finishes it). Returns (Newton steps of the converged lanes, the cos/sin caches'
     increments since their last exact evaluation)."""
     steps = 0
     for it in range(WALK_ITER + 1):
@@ -426,10 +472,12 @@ def newton_lanes(rot, pos, prismatic, S, sync):
             trig_exact(S)
             sync = 0.0
         lane_eval(rot, pos, prismatic, S)
-        pending, done = newton_check(S, it, it == WALK_ITER)
+        pending, done, damped = newton_check(S, it, it == WALK_ITER)
         steps += done
         if pending == 0:
             break
+        if damped:
+            damp_lanes(S)
         lane_lu_solve(S, RES)
         newton_update(S)
     return steps, sync
@@ -725,7 +773,10 @@ def candidates_lanes(chain_arrays, seed, restarts, rcms, offsets, start, probes,
         g = 0.0 if standard else gii_to_beat[i]
         lo, hi, n_unr, n_sing, n_eval, steps = walk_lanes(chain_arrays, seed, restarts, rcms[i], offsets, start,
                                                           probes, g, q_out, seg)
-        if n_unr < 0:
+        if n_unr < 0 or (n_unr > 0 and n_eval > 0):
+            # a segment start out of the continuation's reach, or a point lost mid-walk: the verdict is
+            # the scalar walk's (a lane reaches its points along another path than the scalar walk, and
+            # near a singularity the two can differ; the scalar walk defines the seeded branch)
             lo, hi, n_unr, n_sing, n_eval, steps = chain_walk(chain_arrays, seed, restarts, rcms[i], offsets, start,
                                                               probes, g, q_out)
         if standard and n_unr == 0:
