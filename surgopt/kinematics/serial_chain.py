@@ -71,6 +71,18 @@ EXTRAPOLATION = ((1.0, 0.0, 0.0, 0.0, 0.0), (2.0, -1.0, 0.0, 0.0, 0.0), (3.0, -3
 
 
 @njit(inline="always", **CONTRACT)
+def increment_cos_sin(d):
+    """(cos d, sin d) by their series to d^11, error < 1e-19 for |d| < TRIG_STEP_RAD; multiplications
+    by the reciprocal factorial ratios only (a division each cost the lanes' update 5x its time)."""
+    d2 = d * d
+    sd = d * (1.0 - d2 * (1.0 / 6.0) * (1.0 - d2 * (1.0 / 20.0) * (1.0 - d2 * (1.0 / 42.0) * (
+        1.0 - d2 * (1.0 / 72.0) * (1.0 - d2 * (1.0 / 110.0))))))
+    cd = 1.0 - d2 * 0.5 * (1.0 - d2 * (1.0 / 12.0) * (1.0 - d2 * (1.0 / 30.0) * (
+        1.0 - d2 * (1.0 / 56.0) * (1.0 - d2 * (1.0 / 90.0)))))
+    return cd, sd
+
+
+@njit(inline="always", **CONTRACT)
 def joint_cos_sin(q, i, trig):
     """cos and sin of q[i] through the cache ``trig`` (4, 5): rows cos, sin, the angle they belong to,
     and how many increments since the last exact evaluation.
@@ -84,9 +96,7 @@ def joint_cos_sin(q, i, trig):
     if d == 0.0:
         return trig[0, i], trig[1, i]
     if abs(d) < TRIG_STEP_RAD and trig[3, i] < TRIG_RESYNC:
-        d2 = d * d
-        sd = d * (1.0 - d2 / 6.0 * (1.0 - d2 / 20.0 * (1.0 - d2 / 42.0 * (1.0 - d2 / 72.0 * (1.0 - d2 / 110.0)))))
-        cd = 1.0 - d2 / 2.0 * (1.0 - d2 / 12.0 * (1.0 - d2 / 30.0 * (1.0 - d2 / 56.0 * (1.0 - d2 / 90.0))))
+        cd, sd = increment_cos_sin(d)
         c0, s0 = trig[0, i], trig[1, i]
         c, s = c0 * cd - s0 * sd, s0 * cd + c0 * sd
         trig[3, i] += 1.0

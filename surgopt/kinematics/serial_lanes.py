@@ -37,7 +37,7 @@ from surgopt.jit import CONTRACT
 from surgopt.kinematics.rcm_metric import constrained_extremes
 from surgopt.kinematics.serial_chain import (
     CONTINUATION_STEP_M, EXTRAPOLATION, IK_TOL_M, N_ACTIVE, NEWTON_ZONE_M2, TRIG_RESYNC, TRIG_STEP_RAD, WALK_ITER,
-    _continue, chain_walk, constraint_reference, newton_rcm, scalar_buffers, seed_solve, standard_over, within_limits,
+    _continue, chain_walk, constraint_reference, increment_cos_sin, newton_rcm, scalar_buffers, seed_solve, standard_over, within_limits,
 )
 
 #: Segments walked side by side (one AVX-512 vector of doubles).
@@ -110,9 +110,7 @@ def trig_taylor(S):
         for i in range(N):
             d = S[_at(Q + i, lane)] - S[_at(ANG + i, lane)]
             big = max(big, abs(d)) if abs(d) == abs(d) else np.inf
-            d2 = d * d
-            sd = d * (1.0 - d2 / 6.0 * (1.0 - d2 / 20.0 * (1.0 - d2 / 42.0 * (1.0 - d2 / 72.0 * (1.0 - d2 / 110.0)))))
-            cd = 1.0 - d2 / 2.0 * (1.0 - d2 / 12.0 * (1.0 - d2 / 30.0 * (1.0 - d2 / 56.0 * (1.0 - d2 / 90.0))))
+            cd, sd = increment_cos_sin(d)
             c0, s0 = S[_at(CS + i, lane)], S[_at(SN + i, lane)]
             S[_at(CS + i, lane)] = c0 * cd - s0 * sd
             S[_at(SN + i, lane)] = s0 * cd + c0 * sd
