@@ -24,7 +24,7 @@ offsets LLVM can prove that the lanes of a loop do not overlap and vectorises ev
 100 ns per pose-evaluation, measured). Culling is checked after each lockstep step, so a culled
 walk may evaluate up to ``LANES - 1`` points more than the scalar walk would.
 
-One module of ~670 lines: the buffer's row layout is shared by every function here (each reads and
+One module of ~800 lines: the buffer's row layout is shared by every function here (each reads and
 writes rows by name), and the vectorised pieces only vectorise when inlined beside the loops that
 call them; splitting it would split the layout from the code that depends on it.
 """
@@ -37,7 +37,8 @@ from surgopt.jit import CONTRACT
 from surgopt.kinematics.rcm_metric import constrained_extremes
 from surgopt.kinematics.serial_chain import (
     CONTINUATION_STEP_M, EXTRAPOLATION, IK_TOL_M, N_ACTIVE, NEWTON_ZONE_M2, TRIG_RESYNC, TRIG_STEP_RAD, WALK_ITER,
-    _continue, chain_walk, constraint_reference, increment_cos_sin, newton_rcm, scalar_buffers, seed_solve, standard_over, within_limits,
+    _continue, chain_walk, constraint_reference, increment_cos_sin, newton_rcm, scalar_buffers, seed_solve,
+    standard_over, within_limits,
 )
 
 #: Segments walked side by side (one AVX-512 vector of doubles).
@@ -151,9 +152,15 @@ def fk_joint(rot, pos, prismatic, S, i):
             px = S[_at(POS, lane)] + r00 * b0 + r01 * b1 + r02 * b2
             py = S[_at(POS + 1, lane)] + r10 * b0 + r11 * b1 + r12 * b2
             pz = S[_at(POS + 2, lane)] + r20 * b0 + r21 * b1 + r22 * b2
-        n00, n01, n02 = r00 * a00 + r01 * a10 + r02 * a20, r00 * a01 + r01 * a11 + r02 * a21, r00 * a02 + r01 * a12 + r02 * a22
-        n10, n11, n12 = r10 * a00 + r11 * a10 + r12 * a20, r10 * a01 + r11 * a11 + r12 * a21, r10 * a02 + r11 * a12 + r12 * a22
-        n20, n21, n22 = r20 * a00 + r21 * a10 + r22 * a20, r20 * a01 + r21 * a11 + r22 * a21, r20 * a02 + r21 * a12 + r22 * a22
+        n00 = r00 * a00 + r01 * a10 + r02 * a20
+        n01 = r00 * a01 + r01 * a11 + r02 * a21
+        n02 = r00 * a02 + r01 * a12 + r02 * a22
+        n10 = r10 * a00 + r11 * a10 + r12 * a20
+        n11 = r10 * a01 + r11 * a11 + r12 * a21
+        n12 = r10 * a02 + r11 * a12 + r12 * a22
+        n20 = r20 * a00 + r21 * a10 + r22 * a20
+        n21 = r20 * a01 + r21 * a11 + r22 * a21
+        n22 = r20 * a02 + r21 * a12 + r22 * a22
         if i < N:
             S[_at(AX + 3 * i, lane)], S[_at(AX + 3 * i + 1, lane)], S[_at(AX + 3 * i + 2, lane)] = n02, n12, n22
             S[_at(OR + 3 * i, lane)], S[_at(OR + 3 * i + 1, lane)], S[_at(OR + 3 * i + 2, lane)] = px, py, pz
@@ -213,8 +220,10 @@ def jacobian_column_lanes(prismatic, S, j):
         if pr != 0.0:
             tx, ty, tz, gx, gy, gz = zx, zy, zz, zx, zy, zz
         S[_at(JAC + j, lane)], S[_at(JAC + N + j, lane)], S[_at(JAC + 2 * N + j, lane)] = tx, ty, tz
-        S[_at(JAC + 3 * N + j, lane)] = S[_at(ROT + 3, lane)] * gx + S[_at(ROT + 4, lane)] * gy + S[_at(ROT + 5, lane)] * gz
-        S[_at(JAC + 4 * N + j, lane)] = S[_at(ROT + 6, lane)] * gx + S[_at(ROT + 7, lane)] * gy + S[_at(ROT + 8, lane)] * gz
+        u1x, u1y, u1z = S[_at(ROT + 3, lane)], S[_at(ROT + 4, lane)], S[_at(ROT + 5, lane)]
+        u2x, u2y, u2z = S[_at(ROT + 6, lane)], S[_at(ROT + 7, lane)], S[_at(ROT + 8, lane)]
+        S[_at(JAC + 3 * N + j, lane)] = u1x * gx + u1y * gy + u1z * gz
+        S[_at(JAC + 4 * N + j, lane)] = u2x * gx + u2y * gy + u2z * gz
 
 
 @njit(**CONTRACT)
@@ -307,6 +316,19 @@ def lane_lu_solve(S, rhs):
         S[_at(STEP, lane)], S[_at(STEP + 1, lane)], S[_at(STEP + 2, lane)] = x0, x1, x2
         S[_at(STEP + 3, lane)], S[_at(STEP + 4, lane)] = x3, x4
         S[_at(OK, lane)] = 1.0 if ok else 0.0
+
+
+@njit(**CONTRACT)
+def newton_step_lanes(S):
+    """STEP = JAC^-1 RES for every lane (``lane_lu_solve`` with the residual as right-hand side)."""
+    lane_lu_solve(S, RES)
+
+
+@njit(**CONTRACT)
+def tangent_step_lanes(S):
+    """STEP = JAC^-1 RHS for every lane: the tangent predictor's step (dp, 0, 0) mapped to the joints.
+    (Each inlines the LU once, with its right-hand side a constant row; compiled once each.)"""
+    lane_lu_solve(S, RHS)
 
 
 @njit(**CONTRACT)
@@ -460,8 +482,8 @@ def limits_lanes(S, lower, upper):
 def newton_lanes(rot, pos, prismatic, S, sync):
     """Newton on every lane with PEND set, in lockstep, until each meets IK_TOL_M (damped where the
     scalar walk damps, ``damp_lanes``); a lane beyond LANE_NEWTON_ZONE_M2, with a singular pivot or not
-    done in WALK_ITER steps gets FB (the scalar code finishes it). Returns (Newton steps of the converged lanes, the cos/sin caches'
-    increments since their last exact evaluation)."""
+    done in WALK_ITER steps gets FB (the scalar code finishes it). Returns (Newton steps of the
+    converged lanes, the cos/sin caches' increments since their last exact evaluation)."""
     steps = 0
     for it in range(WALK_ITER + 1):
         big = trig_taylor(S)
@@ -476,7 +498,7 @@ def newton_lanes(rot, pos, prismatic, S, sync):
             break
         if damped:
             damp_lanes(S)
-        lane_lu_solve(S, RES)
+        newton_step_lanes(S)
         newton_update(S)
     return steps, sync
 
@@ -569,7 +591,7 @@ def continue_lanes(chain_arrays, S, q0, jac0, c, start, ref, ends, sync, bufs):
                 S[_at(TGT + i, lane)] += d
             S[_at(RHS + 3, lane)], S[_at(RHS + 4, lane)] = 0.0, 0.0
             set_predictor(S, lane, 0, act, False)
-        lane_lu_solve(S, RHS)
+        tangent_step_lanes(S)
         predict_lanes(S)
         steps, sync = newton_lanes(rot, pos, prismatic, S, sync)
         steps_total += steps
@@ -670,7 +692,7 @@ def walk_lanes(chain_arrays, seed, restarts, c, offsets, start, probes, gii_to_b
                 tangent |= run[lane] == 0
             set_predictor(S, lane, run[lane], act, t == 0)
         if tangent:
-            lane_lu_solve(S, RHS)  # the tangent q + J^-1 (dp, 0, 0), J at the last solution
+            tangent_step_lanes(S)  # the tangent q + J^-1 (dp, 0, 0), J at the last solution
         predict_lanes(S)
         steps, sync = newton_lanes(rot, pos, prismatic, S, sync)
         steps_total += steps
