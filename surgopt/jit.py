@@ -1,8 +1,11 @@
 """Numba settings in one place: the compile flags every kernel uses and the process environment.
 
 ``configure_numba()`` must run before numba is imported (numba reads NUMBA_CACHE_DIR and
-NUMBA_CPU_FEATURES once, at import): ``surgopt.kinematics`` calls it first thing, so importing any
-kernel, the Python API or the CLI configures numba without the caller doing anything.
+NUMBA_CPU_FEATURES once, at import): ``surgopt.kinematics`` calls it first thing, so the first import
+of a kernel configures numba without the caller doing anything. Nothing else imports the kernels at
+module level: ``import surgopt``, ``import surgopt.cli`` and every ``--help`` load no numba or llvmlite
+and change no environment variable (tests/test_cli.py); a study imports its kernels when it first
+computes, and worker processes do the same.
 
 Flag sets (every kernel is ``nogil`` so the threads backend runs chunks in parallel, and ``cache``d
 on disk so a second run loads instead of compiling):

@@ -179,6 +179,8 @@ def test_sigterm_and_sighup_stop_like_ctrl_c(tmp_path, sig, code):
 
 @pytest.mark.parametrize("backend", ["threads", "loky", "dask"])
 def test_kill_9_resumes_to_the_same_table_on_every_backend(tmp_path, backend):
+    if backend == "dask":
+        pytest.importorskip("distributed", reason="dask[distributed] not installed (pip install 'surgopt[dask]')")
     cfg = tmp_path / "slow.toml"
     cfg.write_text(RCM_SLOW)
     ref = tmp_path / "ref"
@@ -303,6 +305,8 @@ def test_bad_command_line_uses_are_one_line_exit_2(stored, tmp_path, case):
     file = tmp_path / "a-file"
     file.write_text("x")
     args, words = BAD_USES[case]
+    if case == "--scheduler malformed":
+        pytest.importorskip("distributed", reason="dask[distributed] not installed (pip install 'surgopt[dask]')")
     args = [a.format(cfg=cfg, store=store, file=file, new=tmp_path / "new") for a in args]
     code, out = invoke(*args)
     assert code == 2, out

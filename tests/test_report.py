@@ -31,6 +31,30 @@ def test_check_passes_on_the_stored_baseline(store, name):
     assert r.stdout.startswith("OK:")
 
 
+#: numba targeting a CPU without AVX-512 (Haswell: AVX2 and FMA, 4-wide vectors), whatever this machine has
+NO_AVX512 = {"NUMBA_CPU_NAME": "haswell", "NUMBA_CPU_FEATURES": ""}
+#: compiles a loop the way every kernel is compiled and says whether AVX-512 registers appear in it
+ZMM_PROBE = ("import surgopt.kinematics, numpy as np\nfrom numba import njit\n"
+             "@njit\ndef f(a):\n    for i in range(a.size): a[i] = a[i] * a[i] + 1.0\n"
+             "f(np.ones(64)); print('zmm' in next(iter(f.inspect_asm().values())))")
+
+
+def test_every_baseline_holds_on_a_cpu_without_avx512(tmp_path):
+    """CI may run on any x86-64 CPU: the kernels compiled for Haswell (into their own cache) reproduce every
+    baseline. The premise, that this target has no AVX-512 code, is checked first."""
+    import os
+    import subprocess
+    import sys
+
+    env = dict(os.environ, NUMBA_CACHE_DIR=str(tmp_path / "numba-haswell"), **NO_AVX512)
+    probe = subprocess.run([sys.executable, "-c", ZMM_PROBE], capture_output=True, text=True, env=env, check=True)
+    assert probe.stdout.strip() == "False"
+    for name in STUDY_OF:
+        r = cli("check", BASE / f"{name}.toml", "--baseline", BASE / f"{name}.parquet", "--store", tmp_path / "s",
+                env=env)
+        assert r.stdout.startswith("OK:"), r.stdout
+
+
 @pytest.mark.parametrize("name", sorted(STUDY_OF))
 def test_check_fails_on_a_perturbed_baseline(store, tmp_path, name):
     t = pq.read_table(BASE / f"{name}.parquet")

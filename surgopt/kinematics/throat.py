@@ -20,7 +20,7 @@ from numba import njit
 
 from surgopt.jit import EXACT
 from surgopt.kinematics.small_linalg import cross, dot, mat_mul, mat_vec, solve_spd
-from surgopt.kinematics.throat_modes import SutureMode
+from surgopt.robots.throat_arm import SutureMode
 
 
 class ThroatGeometry(NamedTuple):

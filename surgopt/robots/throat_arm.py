@@ -37,6 +37,7 @@ Not given by the paper, chosen here (docs/reproduction.md says why):
 from __future__ import annotations
 
 import math
+from enum import IntEnum
 
 JOINT_NAMES = ("q1", "q2", "q3", "q4", "theta_L", "delta", "phi_L", "psi")
 JOINT_UNITS = ("rad", "rad", "mm", "rad", "rad", "rad", "rad", "rad")
@@ -48,3 +49,25 @@ PMU_LENGTH_MM = 12.0
 FULCRUM_TO_TIP_MM = 150.0
 START_POSE = (1.4522, 2.4707, 50.0, 0.0, math.pi / 2, -math.pi / 3, 0.0, -math.pi / 3)
 Q_MAX = (math.pi, math.pi, 100.0, 2 * math.pi, math.pi, math.pi, math.pi, math.pi)
+
+
+# The suture task modes (configs name them; the kernel takes their integer values).
+class SutureMode(IntEnum):
+    """How the gripper follows the suture (``throat.suture_target``); configs use the lower-case names.
+
+    spin: the gripper spins about its own axis at a fixed point (a needle held off the axis traces
+    the arc); orbit_parallel: the platform circles in its own x-y plane, orientation fixed;
+    orbit_tangent: it circles in its y-z plane with its axis kept tangent to the path.
+    """
+
+    SPIN = 0
+    ORBIT_PARALLEL = 1
+    ORBIT_TANGENT = 2
+
+    @property
+    def config_name(self) -> str:
+        return self.name.lower()
+
+
+#: The config names, in kernel order.
+MODE_NAMES = tuple(m.config_name for m in SutureMode)

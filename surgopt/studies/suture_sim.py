@@ -16,7 +16,7 @@ import numpy as np
 from pydantic import Field, model_validator
 
 from surgopt.config import StrictModel
-from surgopt.kinematics.throat_modes import MODE_NAMES, SutureMode
+from surgopt.robots.throat_arm import MODE_NAMES, SutureMode
 from surgopt.robots import throat_arm as arm
 from surgopt.studies import Estimate, Study, Summary, figures_in, peak_bytes
 
