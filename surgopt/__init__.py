@@ -4,7 +4,7 @@ The Python API (``surgopt.run``, ``surgopt.load``, ``surgopt.runs``) is in ``sur
 imported on first use so that ``import surgopt`` (and the CLI's --help) stays light.
 """
 
-__version__ = "0.1.0"
+from surgopt._version import __version__
 __all__ = ["run", "load", "runs", "__version__"]
 
 

@@ -35,13 +35,17 @@ def run(study: str, config: str | Path | None = None, overrides: dict[str, Any] 
     return res.table.to_pandas()
 
 
-def load(run: str | Path | None = None, store: str | Path | None = None, study: str | None = None):
-    """A stored run's rows (every part verified) as a DataFrame: by key prefix, config file, or the latest."""
-    from surgopt.results import resolve_run
+def load(run: str | Path | None = None, store: str | Path | None = None, study: str | None = None,
+         allow_partial: bool = False):
+    """A stored run's rows (every part verified) as a DataFrame: by key prefix, config file, or the latest.
+    A partial run (interrupted, or being written) raises ``StoreError`` saying how many chunks are stored,
+    unless ``allow_partial``."""
+    from surgopt.results import require_complete, resolve_run
     from surgopt.store import Store
 
-    st, r = resolve_run(Store(store), None if run is None else str(run), study)
-    return r.read_table(st.schema()).to_pandas()
+    s = Store(store)
+    st, r = resolve_run(s, None if run is None else str(run), study)
+    return require_complete(s, r, allow_partial).read_table(st.schema()).to_pandas()
 
 
 def runs(store: str | Path | None = None, study: str | None = None):

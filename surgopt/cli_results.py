@@ -208,6 +208,9 @@ def export(
                                                               "needed for parquet].", show_default=False)] = None,
     store: StoreOpt = None,
     study: StudyOpt = None,
+    partial: Annotated[bool, typer.Option("--partial", help="Export a partial run's stored rows (an interrupted "
+                                                            "run, or one being written); without it such a run "
+                                                            "is refused.")] = False,
 ) -> None:
     """A run's whole table as one tidy table, with the run key (and, for several runs, the config fields
     that differ between them) as columns. The CSV reads back with pandas.read_csv as it is."""
@@ -219,7 +222,7 @@ def export(
             _fail("--format parquet needs --out FILE", 2)
         if out is not None and out.is_dir():
             _fail(f"--out: {out} is a folder; give a file", 2)
-        table = export_table(Store(store), runs_, study)
+        table = export_table(Store(store), runs_, study, allow_partial=partial)
         if fmt == ExportFormat.parquet:
             import pyarrow.parquet as pq
 

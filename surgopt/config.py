@@ -282,9 +282,20 @@ def load_embedded(filename: str, model: type[M]) -> M:
     return validate(parse_text(embedded_default_text(filename), source, ".toml"), model, source)
 
 
+def _unsigned_zeros(v):
+    """``v`` with every -0.0 written 0.0: the two are the same value in every computation a config feeds."""
+    if isinstance(v, float) and v == 0.0:
+        return 0.0
+    if isinstance(v, dict):
+        return {k: _unsigned_zeros(x) for k, x in v.items()}
+    if isinstance(v, list):
+        return [_unsigned_zeros(x) for x in v]
+    return v
+
+
 def canonical_json(model: BaseModel) -> str:
-    """Canonical form of a validated config: defaults filled, keys sorted, compact."""
-    return json.dumps(model.model_dump(mode="json"), sort_keys=True, separators=(",", ":"))
+    """Canonical form of a validated config: defaults filled, keys sorted, compact, -0.0 as 0.0."""
+    return json.dumps(_unsigned_zeros(model.model_dump(mode="json")), sort_keys=True, separators=(",", ":"))
 
 
 def study_key(study: str, model: BaseModel, kernel_version: str) -> str:

@@ -44,7 +44,10 @@ def study_of_config(path: Path, study_name: str | None):
 
 
 def resolve_run(store: Store, ref: str | None, study_name: str | None = None):
-    """(study, run) for a key prefix, a config file, or (ref None) the latest run."""
+    """(study, run) for a key prefix, a config file, or (ref None) the latest run. ``study_name`` must be a
+    registered study (it never reaches a path otherwise)."""
+    if study_name is not None and study_name not in STUDIES:
+        raise UsageError(f"--study: unknown study {study_name[:80]!r} (one of {', '.join(STUDIES)})")
     if ref is not None and Path(ref).is_file():
         study, cfg = study_of_config(Path(ref), study_name)
         run = store.open(study.name, study_key(study.name, cfg, study.kernel_version))
@@ -65,6 +68,20 @@ def resolve_run(store: Store, ref: str | None, study_name: str | None = None):
         raise UsageError(f"no runs in {store.root}{extra}")
     run = runs[-1]
     return get_study(run.study), run
+
+
+def require_complete(store: Store, run: Run, allow_partial: bool = False) -> Run:
+    """``run`` when it is complete (or ``allow_partial``); else a StoreError that says how much of it is there,
+    whether it is being written, and how to finish or read it: a partial table is never handed out unasked."""
+    if run.complete or allow_partial:
+        return run
+    from surgopt.errors import StoreError
+
+    who = store.holder(run.study, run.key)
+    now = f", being written now by {who}" if who else ""
+    raise StoreError(f"{run.study} run {run.key[:12]} is partial: {len(run.manifest['parts'])} of "
+                     f"{run.manifest['n_tasks']} chunks stored ({run.rows:,} rows){now}; run {run.repair_hint()} "
+                     f"to finish it, or pass --partial (Python: allow_partial=True) to read the rows there are")
 
 
 def run_state(store: Store, run: Run) -> str:
@@ -173,12 +190,14 @@ def write_baseline(table, keys, path: Path) -> None:
                                                   compression="zstd"))
 
 
-def export_table(store: Store, refs: list[str], study_name: str | None = None):
+def export_table(store: Store, refs: list[str], study_name: str | None = None, allow_partial: bool = False):
     """The tables of the runs ``refs`` stacked, with ``run_key`` and the config fields that differ
-    between the runs (dotted names) as leading columns."""
+    between the runs (dotted names) as leading columns. A partial run is refused unless ``allow_partial``."""
     import pyarrow as pa
 
     resolved = [resolve_run(store, ref, study_name) for ref in refs]
+    for _, r in resolved:
+        require_complete(store, r, allow_partial)
     studies = {st.name for st, _ in resolved}
     if len(studies) > 1:
         raise UsageError(f"the runs are of different studies ({', '.join(sorted(studies))}); export them one by one")

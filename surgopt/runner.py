@@ -217,7 +217,7 @@ def provenance(backend: str, jobs: int) -> dict:
     import numba
     import numpy
 
-    from surgopt import __version__
+    from surgopt._version import __version__
 
     return {"versions": {"surgopt": __version__, "numba": numba.__version__, "numpy": numpy.__version__,
                          "python": platform.python_version()},
@@ -277,9 +277,12 @@ def _worker_died(exc: BaseException) -> bool:
 def _stored_run(store: Store, study, key: str, say):
     """The run if the store holds it complete and every part checks out (size, sha256), else None."""
     from surgopt.errors import StoreError
+    from surgopt.store import UnknownFormat
 
     try:
         run = store.open(study.name, key)
+    except UnknownFormat:
+        raise  # never rebuilt over: a later surgopt's run
     except StoreError:
         return None  # an unusable manifest: the locked path says so and starts anew
     if run is None or not run.complete:
@@ -295,9 +298,12 @@ def _stored_run(store: Store, study, key: str, say):
 def _open_or_discard(store: Store, study_name: str, key: str, say):
     """The stored run, or None (and a message) when its manifest is unusable: it is then rebuilt."""
     from surgopt.errors import StoreError
+    from surgopt.store import UnknownFormat
 
     try:
         return store.open(study_name, key)
+    except UnknownFormat:
+        raise
     except StoreError as exc:
         say(f"{exc}".split(";")[0] + "; starting this run anew")
         return None

@@ -32,6 +32,7 @@ import shutil
 from dataclasses import dataclass
 from pathlib import Path
 
+from surgopt._version import __version__
 from surgopt.errors import StoreError, UsageError
 
 DEFAULT_STORE = "surgopt-store"
@@ -41,6 +42,8 @@ STAGING = ".staging"
 FORMAT_VERSION = 1
 #: How often a reader re-reads a run whose parts were replaced under it (a --force rerun) before giving up.
 READ_RETRIES = 3
+#: The largest part a reader accepts when the manifest gives no size (a part is one chunk: ~2 s of work).
+MAX_PART_BYTES = 4 * 2 ** 30
 
 
 def store_root(path: str | os.PathLike | None = None) -> Path:
@@ -58,6 +61,49 @@ def store_root(path: str | os.PathLike | None = None) -> Path:
                 raise UsageError(f"--store: {root} {what}; give a folder")
             break
     return root
+
+
+#: A manifest larger than this is not one surgopt wrote (a 10^6-task run's is ~150 MB; the default studies' < 1 MB).
+MAX_MANIFEST_BYTES = 512 * 2 ** 20
+
+
+def read_bounded(path: Path, limit: int, expected: int | None = None) -> bytes:
+    """The bytes of ``path`` if it is a regular file (a link to one counts) of at most ``limit`` bytes (and of
+    exactly ``expected`` bytes when given), else StoreError; size and kind are checked before anything is
+    read, so a FIFO, a device such as /dev/zero or an oversized file is never read. FileNotFoundError and
+    IsADirectoryError pass through for callers that handle them."""
+    import stat
+
+    fd = os.open(path, os.O_RDONLY | os.O_NONBLOCK)  # a FIFO must not block the open itself
+    try:
+        st = os.fstat(fd)
+        if stat.S_ISDIR(st.st_mode):
+            raise IsADirectoryError(errno.EISDIR, "is a folder", str(path))
+        if not stat.S_ISREG(st.st_mode):
+            raise StoreError(f"{path}: not a regular file (a device, FIFO or socket); surgopt reads only files")
+        if expected is not None and st.st_size != expected:
+            raise StoreError(f"{path}: has {st.st_size} bytes where the manifest says {expected}")
+        if st.st_size > limit:
+            raise StoreError(f"{path}: {st.st_size:,} bytes, more than the {limit:,} such a file can have")
+        os.set_blocking(fd, True)
+        chunks, size = [], 0
+        while size <= limit:
+            b = os.read(fd, min(1 << 24, limit + 1 - size))
+            if not b:
+                break
+            chunks.append(b)
+            size += len(b)
+        if size > limit:  # grew while read
+            raise StoreError(f"{path}: more than the {limit:,} bytes such a file can have")
+        return b"".join(chunks)
+    finally:
+        os.close(fd)
+
+
+def load_manifest(mpath: Path) -> dict:
+    """A run's manifest, read within its size bound and checked (``check_manifest``). OSError for a file that
+    cannot be opened, ValueError for one that is not JSON, StoreError otherwise."""
+    return check_manifest(json.loads(read_bounded(mpath, MAX_MANIFEST_BYTES)), mpath)
 
 
 def _sha256_bytes(data: bytes) -> str:
@@ -117,6 +163,11 @@ def check_manifest(manifest, where: Path) -> dict:
 
     if not isinstance(manifest, dict):
         raise bad("not a JSON object")
+    fmt = manifest.get("format")
+    if isinstance(fmt, int) and not isinstance(fmt, bool) and fmt != FORMAT_VERSION:
+        raise UnknownFormat(f"{where}: store format {fmt}, which this surgopt ({__version__}) does not know (it "
+                            f"reads and writes format {FORMAT_VERSION}); the run is left as it is: use the "
+                            f"surgopt that wrote it, or another --store")
     for k, t in (("format", int), ("study", str), ("key", str), ("n_tasks", int), ("chunk", int),
                  ("parts", dict), ("config", dict)):
         if not isinstance(manifest.get(k), t) or isinstance(manifest.get(k), bool):
@@ -128,6 +179,11 @@ def check_manifest(manifest, where: Path) -> dict:
                 and Path(meta["file"]).name == meta["file"] and meta["file"].startswith("part-")):
             raise bad(f"part entry {i!r} malformed")
     return manifest
+
+
+class UnknownFormat(StoreError):
+    """A manifest of a store format this version does not know (written by a later surgopt): never read,
+    rewritten or deleted."""
 
 
 class RunReplaced(StoreError):
@@ -176,15 +232,15 @@ class Run:
         meta = self.manifest["parts"][index]
         f = self.path / meta["file"]
         try:
-            data = f.read_bytes()
+            data = read_bounded(f, MAX_PART_BYTES, meta.get("bytes"))
         except FileNotFoundError:
             return "is missing", None
         except IsADirectoryError:
             return "is a folder, not a file", None
         except OSError as exc:
             return f"cannot be read ({exc.strerror})", None
-        if "bytes" in meta and len(data) != meta["bytes"]:
-            return f"has {len(data)} bytes where the manifest says {meta['bytes']}", None
+        except StoreError as exc:
+            return str(exc).split(": ", 1)[-1], None
         if _sha256_bytes(data) != meta["sha256"]:
             return "fails its sha256 check (damaged or replaced)", None
         return None, data
@@ -267,13 +323,17 @@ class Run:
     def _reload(self) -> bool:
         """Re-read the manifest from disk; True if it changed (the run was replaced)."""
         try:
-            fresh = check_manifest(json.loads((self.path / MANIFEST).read_text()), self.path / MANIFEST)
+            fresh = load_manifest(self.path / MANIFEST)
+        except UnknownFormat:
+            raise
         except (OSError, ValueError, StoreError):
             import time
 
             time.sleep(0.05)  # between the two renames of a swap
             try:
-                fresh = check_manifest(json.loads((self.path / MANIFEST).read_text()), self.path / MANIFEST)
+                fresh = load_manifest(self.path / MANIFEST)
+            except UnknownFormat:
+                raise
             except (OSError, ValueError, StoreError):
                 return False
         changed = fresh != self.manifest
@@ -286,6 +346,7 @@ class Store:
         self.root = store_root(root)
 
     def study_dir(self, study: str) -> Path:
+        check_study_name(study)
         return self.root / f"study={study}"
 
     def run_dir(self, study: str, key: str) -> Path:
@@ -298,21 +359,38 @@ class Store:
         return self.study_dir(study) / LOCKS / f"{key}.lock"
 
     def _manifests(self, study: str | None) -> list[Path]:
-        """Manifest files of every run (hive-style folders, then an older store's)."""
-        new = self.root.glob(f"study={study or '*'}/key=*/{MANIFEST}")
-        old = [m for m in self.root.glob(f"{study or '*'}/*/{MANIFEST}") if not m.parent.parent.name.startswith("study=")]
-        return sorted(new) + sorted(old)
+        """Manifest files of every run (hive-style folders, then an older store's for keys not in the former)."""
+        check_study_name(study)
+        new = sorted(self.root.glob(f"study={study or '*'}/key=*/{MANIFEST}"))
+        seen = {folder_study_key(m.parent) for m in new}
+        old = [m for m in self.root.glob(f"{study or '*'}/*/{MANIFEST}")
+               if not m.parent.parent.name.startswith("study=") and folder_study_key(m.parent) not in seen]
+        return new + sorted(old)
 
     def open(self, study: str, key: str) -> Run | None:
         path = self.run_dir(study, key)
         mpath = path / MANIFEST
+        if not mpath.exists() and self.recover_swaps(study, key):
+            path = self.run_dir(study, key)
+            mpath = path / MANIFEST
         if not mpath.exists():
             return None
         try:
-            manifest = json.loads(mpath.read_text())
-        except (OSError, json.JSONDecodeError, UnicodeDecodeError) as exc:
+            return Run(path, load_manifest(mpath))
+        except (OSError, ValueError) as exc:
             raise StoreError(f"{mpath}: unreadable manifest ({exc}); delete the folder to recompute") from None
-        return Run(path, check_manifest(manifest, mpath))
+
+    @staticmethod
+    def _refuse_unknown_format(mpath: Path) -> None:
+        """UnknownFormat if ``mpath`` is a manifest of another store format (anything else passes)."""
+        try:
+            manifest = json.loads(read_bounded(mpath, MAX_MANIFEST_BYTES))
+        except (ValueError, StoreError):
+            return
+        if isinstance(manifest, dict):
+            fmt = manifest.get("format")
+            if isinstance(fmt, int) and not isinstance(fmt, bool) and fmt != FORMAT_VERSION:
+                check_manifest(manifest, mpath)
 
     def _mkdir(self, path: Path) -> None:
         try:
@@ -377,7 +455,12 @@ class Store:
         in place, whatever is there (the caller found no usable one).
         """
         path = self.run_dir(study, key)
-        run = None if (force or fresh) else self.open(study, key)
+        if force or fresh:
+            run = None
+            with contextlib.suppress(FileNotFoundError):
+                self._refuse_unknown_format(path / MANIFEST)
+        else:
+            run = self.open(study, key)
         if force:
             path = self.study_dir(study) / STAGING / f"{key}-{os.getpid()}"
             if path.exists():
@@ -461,14 +544,50 @@ class Store:
         data = json.dumps(run.manifest, indent=1, sort_keys=True).encode()
         atomic_write(run.path / MANIFEST, lambda tmp: tmp.write_bytes(data))
 
+    def recover_swaps(self, study: str | None = None, key: str | None = None) -> list[Path]:
+        """Put back the runs a ``--force`` swap left in the staging area when it was killed between its two
+        renames (the old run moved aside, the new one not yet in place): for each key with no run in place
+        and nobody holding its lock, the complete staged run (the rebuilt one before the old one) is
+        renamed into place. Returns the folders restored. A store that cannot be written is left as it is."""
+        from filelock import FileLock, Timeout
+
+        restored = []
+        staged = sorted(self.root.glob(f"study={study or '*'}/{STAGING}/{key or ''}*"),
+                        key=lambda p: ("-old-" in p.name, p.name))  # the rebuilt run first
+        for folder in staged:
+            try:
+                manifest = load_manifest(folder / MANIFEST)
+            except (OSError, ValueError, StoreError):
+                continue
+            s, k = manifest["study"], manifest["key"]
+            final = self.study_dir(s) / f"key={k}"
+            if not folder.name.startswith(k) or final.exists() or not Run(folder, manifest).complete:
+                continue
+            lock = FileLock(self.lock_path(s, k))
+            try:
+                lock.acquire(timeout=0)
+            except (Timeout, OSError):
+                continue  # a study is writing it now: its own swap completes it
+            try:
+                if not final.exists():
+                    os.rename(folder, final)
+                    _fsync_dir(final.parent)
+                    restored.append(final)
+            except OSError:
+                continue
+            finally:
+                lock.release()
+        return restored
+
     def runs(self, study: str | None = None) -> list[Run]:
         """Every run with a valid manifest, oldest first (``unreadable`` lists the others)."""
         if not self.root.exists():
             return []
+        self.recover_swaps(study)
         out = []
         for mpath in self._manifests(study):
             with contextlib.suppress(OSError, ValueError, StoreError):
-                out.append(Run(mpath.parent, check_manifest(json.loads(mpath.read_text()), mpath)))
+                out.append(Run(mpath.parent, load_manifest(mpath)))
         return sorted(out, key=lambda r: r.manifest.get("created", ""))
 
     def unreadable(self, study: str | None = None) -> list[tuple[Path, str]]:
@@ -478,7 +597,7 @@ class Store:
         out = []
         for mpath in self._manifests(study):
             try:
-                check_manifest(json.loads(mpath.read_text()), mpath)
+                load_manifest(mpath)
             except (OSError, ValueError) as exc:
                 out.append((mpath.parent, f"unreadable manifest ({exc.__class__.__name__})"))
             except StoreError as exc:
@@ -504,9 +623,13 @@ class Store:
             for tmp in run.path.glob(".*.tmp-*"):
                 tmp.unlink(missing_ok=True)
                 removed.append(tmp)
+        self.recover_swaps()  # a complete run left by an interrupted swap is put back, never collected
         for staged in self.root.glob(f"study=*/{STAGING}/*"):
             key = staged.name.split("-")[0]
-            if not self.holder(staged.parent.parent.name.removeprefix("study="), key):
+            study = staged.parent.parent.name.removeprefix("study=")
+            if not (self.study_dir(study) / f"key={key}" / MANIFEST).exists():
+                continue  # no run in place for this key: what is staged is all there is (partial: resumable)
+            if not self.holder(study, key):
                 shutil.rmtree(staged, ignore_errors=True)
                 removed.append(staged)
         return removed
@@ -522,6 +645,15 @@ class Store:
             raise StoreError(f"{run.study} run {run.key[:12]} is being written now ({who} holds its lock); "
                              f"wait for it to finish or stop it first")
         shutil.rmtree(target)
+
+
+def check_study_name(study: str | None) -> None:
+    """A study name is a plain word (letters, digits, '-', '_'): never a path or a pattern that could reach
+    out of the store."""
+    import re
+
+    if study is not None and not re.fullmatch(r"[A-Za-z0-9][A-Za-z0-9_-]{0,63}", study):
+        raise UsageError(f"--study: {study[:80]!r} is not a study name")
 
 
 def folder_study_key(path: Path) -> tuple[str, str]:

@@ -1,0 +1,163 @@
+"""Reliability, second round (issue #25): the store never discards a complete run, readers say "partial",
+files that are not what they claim are never read whole, names never reach out of the store. Each test
+fails on c728bb9. Bounded: small rcm-grid runs (under a second each), no sleeps."""
+import json
+import os
+import shutil
+
+import pytest
+from typer.testing import CliRunner
+
+from surgopt.cli import app
+from surgopt.config import load_config, study_key
+from surgopt.errors import StoreError
+from surgopt.runner import run_study
+from surgopt.store import STAGING, Store
+from surgopt.studies import get_study
+
+from conftest import RCM_SMALL, single_run
+
+RCM = get_study("rcm-grid")
+
+
+def invoke(*args):
+    r = CliRunner().invoke(app, [str(a) for a in args])
+    return r.exit_code, r.output
+
+
+@pytest.fixture
+def stored(tmp_path):
+    """A complete small rcm-grid run in 15 parts: (config path, store path, table)."""
+    cfg = tmp_path / "small.toml"
+    cfg.write_text(RCM_SMALL)
+    store = tmp_path / "store"
+    res = run_study(RCM, load_config(cfg, RCM.config_model), config_name="small", store=Store(store),
+                    jobs=1, quiet=True, chunk=4)
+    return cfg, store, res.table
+
+
+def _run(cfg, store, **kw):
+    return run_study(RCM, load_config(cfg, RCM.config_model), config_name="small", store=Store(store), jobs=1,
+                     quiet=True, say=lambda m: None, **kw)
+
+
+# --- data loss ---------------------------------------------------------------------------------------------
+
+def test_a_run_of_an_unknown_store_format_is_never_rewritten_read_or_collected(stored):
+    cfg, store, _ = stored
+    run = single_run(store)
+    m = json.loads((run.path / "manifest.json").read_text())
+    m["format"] = 2  # written by a later surgopt
+    (run.path / "manifest.json").write_text(json.dumps(m))
+    parts = sorted(p.name for p in run.path.glob("part-*"))
+    for force in (False, True):
+        with pytest.raises(StoreError, match="store format 2"):
+            _run(cfg, store, force=force)
+    code, out = invoke("rcm-grid", cfg, "--store", store, "--quiet")
+    assert code == 1 and "store format 2" in out and len(out.strip().splitlines()) == 1, out
+    code, out = invoke("summarize", run.key[:12], "--store", store)
+    assert code != 0 and "Traceback" not in out
+    assert invoke("runs", "gc", "--store", store)[0] == 0
+    code, out = invoke("runs", "--store", store)
+    assert "UNREADABLE" in out and "store format 2" in out
+    assert sorted(p.name for p in run.path.glob("part-*")) == parts  # nothing deleted
+    assert json.loads((run.path / "manifest.json").read_text())["format"] == 2
+
+
+def test_a_swap_killed_between_its_two_renames_is_restored_and_never_collected(stored):
+    """--force builds the new run in .staging, moves the old one aside, then moves the new one in: killed
+    between the two renames, both complete runs sit in .staging and no run is in place."""
+    cfg, store, table = stored
+    run = single_run(store)
+    staging = store / "study=rcm-grid" / STAGING
+    staging.mkdir()
+    shutil.copytree(run.path, staging / f"{run.key}-4242")  # the rebuilt run, complete
+    os.rename(run.path, staging / f"{run.key}-old-4242")  # the first rename happened, the second did not
+    assert not run.path.exists()
+    code, out = invoke("runs", "--store", store)
+    assert code == 0 and run.key[:12] in out and "complete" in out, out
+    assert run.path.exists() and single_run(store).read_table(RCM.schema()).equals(table)
+    invoke("runs", "gc", "--store", store)
+    assert single_run(store).complete
+    # gc alone (no reader first) restores too
+    os.rename(run.path, staging / f"{run.key}-9")
+    assert invoke("runs", "gc", "--store", store)[0] == 0
+    assert run.path.exists() and _run(cfg, store).cache_hit
+
+
+# --- silent wrong answers ------------------------------------------------------------------------------------
+
+def _make_partial(store, keep):
+    run = single_run(store)
+    for i in list(run.manifest["parts"])[keep:]:
+        (run.path / run.manifest["parts"].pop(i)["file"]).unlink()
+    (run.path / "manifest.json").write_text(json.dumps(run.manifest))
+    return run
+
+
+def test_export_and_load_refuse_a_partial_run_unless_asked(stored, tmp_path):
+    import surgopt
+
+    cfg, store, table = stored
+    run = _make_partial(store, 4)
+    code, out = invoke("export", run.key[:12], "--store", store, "--out", tmp_path / "x.csv")
+    assert code == 1 and "partial: 4 of 14 chunks" in out and "--partial" in out, out
+    assert not (tmp_path / "x.csv").exists()
+    with pytest.raises(StoreError, match="partial: 4 of 14 chunks"):
+        surgopt.load(run.key[:12], store=store)
+    df = surgopt.load(run.key[:12], store=store, allow_partial=True)
+    assert len(df) == run.rows < table.num_rows
+    code, out = invoke("export", run.key[:12], "--store", store, "--out", tmp_path / "x.csv", "--partial")
+    assert code == 0 and f"({run.rows} rows" in out
+
+
+# --- files that are not what they claim ----------------------------------------------------------------------
+
+def test_a_part_or_manifest_that_is_a_device_or_oversized_is_never_read(stored, tmp_path):
+    cfg, store, table = stored
+    run = single_run(store)
+    part = run.part_files()[1]
+    part.unlink()
+    part.symlink_to("/dev/zero")
+    code, out = invoke("summarize", "--store", store)
+    assert code == 1 and "not a regular file" in out, out
+    part.unlink()
+    big = tmp_path / "big"
+    with open(big, "wb") as f:
+        f.truncate(8 * 2 ** 30)  # 8 GB, sparse: a read of it would take minutes and 8 GB of memory
+    part.symlink_to(big)
+    code, out = invoke("summarize", "--store", store)
+    assert code == 1 and "8589934592 bytes where the manifest says" in out, out
+    mpath = run.path / "manifest.json"
+    mpath.unlink()
+    mpath.symlink_to("/dev/zero")
+    code, out = invoke("runs", "--store", store)
+    assert code == 0 and "UNREADABLE" in out and "not a regular file" in out, out
+
+
+# --- names ---------------------------------------------------------------------------------------------------
+
+@pytest.mark.parametrize("command", ["summarize", "plot", "export", "runs"])
+def test_a_study_name_never_reaches_out_of_the_store(stored, command):
+    _, store, _ = stored
+    outside = store.parent / "outside" / "k"
+    outside.mkdir(parents=True)
+    shutil.copy(single_run(store).path / "manifest.json", outside / "manifest.json")
+    args = [command] + (["x"] if command == "export" else []) + ["--study", "../outside", "--store", store]
+    code, out = invoke(*args)
+    assert code == 2 and "study" in out and "Traceback" not in out, out
+
+
+def test_a_key_in_both_layouts_is_one_run(stored):
+    _, store, table = stored
+    run = single_run(store)
+    shutil.copytree(run.path, store / "rcm-grid" / run.key)  # the older layout, same run
+    assert len(Store(store).runs()) == 1
+    code, out = invoke("summarize", run.key, "--store", store)
+    assert code == 0, out
+
+
+def test_minus_zero_and_zero_are_one_config():
+    a = RCM.config_model.model_validate({"candidates": {"grid": {"z_max_m": 0.0}}})
+    b = RCM.config_model.model_validate({"candidates": {"grid": {"z_max_m": -0.0}}})
+    assert study_key("rcm-grid", a, "v") == study_key("rcm-grid", b, "v")
