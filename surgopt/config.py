@@ -31,6 +31,64 @@ class StrictModel(BaseModel):
 MAX_QUOTED_CHARS = 120
 #: How many validation errors one message lists.
 MAX_ERRORS_LISTED = 5
+#: What a config may be before it is validated: its file's size, how deep tables and lists nest, and how
+#: many values it holds once YAML aliases are expanded (the largest shipped config: depth 4, ~300 values).
+MAX_CONFIG_BYTES = 8 * 2 ** 20
+MAX_CONFIG_DEPTH = 32
+MAX_CONFIG_VALUES = 1_000_000
+
+
+#: The physical bound of a config value by the unit its name ends in (every field name carries its unit):
+#: no surgical robot, workspace or task reaches past these, so a value beyond is a typo, not a design.
+#: The longest suffix that matches applies. Lengths 10 m, angles ten turns, speeds of a fast industrial arm
+#: (1,000 rad/s, 100 m/s), times a million seconds.
+UNIT_BOUNDS = {"_mm": 1e4, "_m": 10.0, "_deg": 3600.0, "_rad": 20 * 3.141592653589793,
+               "_rad_s": 1e3, "_rad_per_s": 1e3, "_m_s": 100.0, "_m_per_s": 100.0, "_mm_s": 1e5,
+               "_per_s": 1e6, "_s": 1e6, "_hz": 1e6}
+
+
+def unit_bound(name: str) -> tuple[str, float] | None:
+    """(unit suffix, bound) of a field name, or None for a name without a unit."""
+    matches = [u for u in UNIT_BOUNDS if name.endswith(u)]
+    if not matches:
+        return None
+    unit = max(matches, key=len)
+    return unit, UNIT_BOUNDS[unit]
+
+
+def check_physical_bounds(data: Any, source: str, path: str = "", bound: tuple[str, float] | None = None) -> None:
+    """ConfigError naming the field if any number under a field with a unit is beyond that unit's
+    UNIT_BOUNDS (a value nested in a list or a {start, stop, step} span takes its field's unit)."""
+    if isinstance(data, dict):
+        for k, v in data.items():
+            sub = f"{path}.{k}" if path else str(k)
+            check_physical_bounds(v, source, sub, unit_bound(str(k)) or bound)
+    elif isinstance(data, (list, tuple)):
+        for i, v in enumerate(data):
+            check_physical_bounds(v, source, f"{path}[{i}]", bound)
+    elif bound is not None and isinstance(data, (int, float)) and not isinstance(data, bool):
+        unit, limit = bound
+        if abs(data) > limit:
+            raise ConfigError(source, f"{_quote(data)} is beyond what any surgical robot set-up has "
+                                      f"(|value| <= {limit:g} for a field in {unit.lstrip('_')})", path)
+
+
+def check_config_size(data: Any, source: str) -> None:
+    """ConfigError if ``data`` nests deeper than MAX_CONFIG_DEPTH or holds more than MAX_CONFIG_VALUES values
+    counting every alias expansion (a YAML alias bomb): an iterative walk that stops at the first excess."""
+    stack, count = [(data, 0)], 0
+    while stack:
+        v, depth = stack.pop()
+        count += 1
+        if count > MAX_CONFIG_VALUES:
+            raise ConfigError(source, f"holds more than {MAX_CONFIG_VALUES:,} values (with YAML aliases expanded); "
+                                      f"no study's config is that large")
+        if depth > MAX_CONFIG_DEPTH:
+            raise ConfigError(source, f"nests deeper than {MAX_CONFIG_DEPTH} levels; no study's config does")
+        if isinstance(v, dict):
+            stack.extend((x, depth + 1) for x in v.values())
+        elif isinstance(v, (list, tuple)):
+            stack.extend((x, depth + 1) for x in v)
 
 
 def _quote(value: Any) -> str:
@@ -66,6 +124,8 @@ def parse_text(text: str, source: str, suffix: str) -> Any:
             return tomllib.loads(text)
         except tomllib.TOMLDecodeError as exc:
             raise ConfigError(source, f"not valid TOML: {exc}") from None
+        except RecursionError:
+            raise ConfigError(source, f"nests deeper than {MAX_CONFIG_DEPTH} levels; no study's config does") from None
     if suffix in (".yaml", ".yml"):
         import yaml
 
@@ -74,6 +134,8 @@ def parse_text(text: str, source: str, suffix: str) -> Any:
         except yaml.YAMLError as exc:
             msg = " ".join(str(exc).split())
             raise ConfigError(source, f"not valid YAML: {msg}") from None
+        except RecursionError:
+            raise ConfigError(source, f"nests deeper than {MAX_CONFIG_DEPTH} levels; no study's config does") from None
         return {} if data is None else data
     raise ConfigError(source, "unknown config format (use .toml, .yaml or .yml)")
 
@@ -134,6 +196,8 @@ def validate(data: Any, model: type[M], source: str, context: dict | None = None
     it names are not read again)."""
     if not isinstance(data, dict):
         raise ConfigError(source, "expected a table of settings at the top level")
+    check_config_size(data, source)
+    check_physical_bounds(data, source)
     try:
         return model.model_validate(data, context=context)
     except ValidationError as exc:
@@ -150,14 +214,18 @@ def validate(data: Any, model: type[M], source: str, context: dict | None = None
 
 def read_config_data(path: str | Path) -> Any:
     """The parsed (not yet validated) contents of a TOML or YAML config file."""
+    from surgopt.files import FileProblem, read_bounded
+
     p = Path(path)
     source = str(path)
     try:
-        text = p.read_text(encoding="utf-8")
+        text = read_bounded(p, MAX_CONFIG_BYTES).decode("utf-8")
     except FileNotFoundError:
         raise ConfigError(source, "file not found") from None
     except IsADirectoryError:
         raise ConfigError(source, "is a directory, not a config file") from None
+    except FileProblem as exc:
+        raise ConfigError(source, str(exc).split(": ", 1)[-1]) from None
     except (OSError, UnicodeDecodeError) as exc:
         raise ConfigError(source, f"cannot read: {exc}") from None
     return parse_text(text, source, p.suffix.lower())
@@ -201,6 +269,8 @@ def parse_value(text: str) -> Any:
         return tomllib.loads(f"v = {text}")["v"]
     except tomllib.TOMLDecodeError:
         return text
+    except RecursionError:
+        raise ConfigError("<command line>", f"a value nests deeper than {MAX_CONFIG_DEPTH} levels") from None
 
 
 def parse_overrides(items: list[str]) -> list[tuple[str, list[Any]]]:

@@ -2,10 +2,22 @@
 from __future__ import annotations
 
 
+#: The longest error message (a megabyte-long key or path named in one is cut, not echoed whole).
+MAX_MESSAGE_CHARS = 2000
+
+
+def capped(text: str, limit: int = MAX_MESSAGE_CHARS) -> str:
+    """``text`` cut to ``limit`` characters, saying how long it was."""
+    return text if len(text) <= limit else text[:limit] + f"... ({len(text):,} characters)"
+
+
 class SurgoptError(Exception):
-    """Base class: ``exit_code`` is what the CLI exits with."""
+    """Base class: ``exit_code`` is what the CLI exits with; the message is capped at MAX_MESSAGE_CHARS."""
 
     exit_code = 1
+
+    def __str__(self) -> str:
+        return capped(super().__str__())
 
 
 class ConfigError(SurgoptError):

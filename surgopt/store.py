@@ -33,6 +33,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from surgopt._version import __version__
+from surgopt import files
 from surgopt.errors import StoreError, UsageError
 
 DEFAULT_STORE = "surgopt-store"
@@ -68,36 +69,11 @@ MAX_MANIFEST_BYTES = 512 * 2 ** 20
 
 
 def read_bounded(path: Path, limit: int, expected: int | None = None) -> bytes:
-    """The bytes of ``path`` if it is a regular file (a link to one counts) of at most ``limit`` bytes (and of
-    exactly ``expected`` bytes when given), else StoreError; size and kind are checked before anything is
-    read, so a FIFO, a device such as /dev/zero or an oversized file is never read. FileNotFoundError and
-    IsADirectoryError pass through for callers that handle them."""
-    import stat
-
-    fd = os.open(path, os.O_RDONLY | os.O_NONBLOCK)  # a FIFO must not block the open itself
+    """``surgopt.files.read_bounded``, its refusals as StoreErrors."""
     try:
-        st = os.fstat(fd)
-        if stat.S_ISDIR(st.st_mode):
-            raise IsADirectoryError(errno.EISDIR, "is a folder", str(path))
-        if not stat.S_ISREG(st.st_mode):
-            raise StoreError(f"{path}: not a regular file (a device, FIFO or socket); surgopt reads only files")
-        if expected is not None and st.st_size != expected:
-            raise StoreError(f"{path}: has {st.st_size} bytes where the manifest says {expected}")
-        if st.st_size > limit:
-            raise StoreError(f"{path}: {st.st_size:,} bytes, more than the {limit:,} such a file can have")
-        os.set_blocking(fd, True)
-        chunks, size = [], 0
-        while size <= limit:
-            b = os.read(fd, min(1 << 24, limit + 1 - size))
-            if not b:
-                break
-            chunks.append(b)
-            size += len(b)
-        if size > limit:  # grew while read
-            raise StoreError(f"{path}: more than the {limit:,} bytes such a file can have")
-        return b"".join(chunks)
-    finally:
-        os.close(fd)
+        return files.read_bounded(path, limit, expected)
+    except files.FileProblem as exc:
+        raise StoreError(str(exc)) from None
 
 
 def load_manifest(mpath: Path) -> dict:

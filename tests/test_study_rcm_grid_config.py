@@ -42,6 +42,23 @@ BAD_URDF = [
     ("no speed", ('velocity="2.0" effort="100"/>\n  </joint>\n  <joint name="E1"',
                   'effort="100"/>\n  </joint>\n  <joint name="E1"'), "", "joint 'S3'", "velocity"),
     ("not xml", ("<robot", "<<robot"), "", "arm.urdf", "not a readable URDF: line 7"),
+    # lxml's recovering parser (yourdfpy's fallback) accepted this and dropped S2's origin: another arm
+    ("unquoted attribute", ('<origin xyz="0 0 0.117" rpy="0 0 0"/>', '<origin xyz="0 0 0.117" rpy=0/>'), "",
+     "arm.urdf", "not a readable URDF: line 30, column"),
+    ("nan origin", ('<origin xyz="0 0 0.117"', '<origin xyz="0 0 nan"'), "", "joint 'S2' (line 28) <origin xyz>",
+     "is not finite"),
+    ("inf rpy", ('<origin xyz="0 0 0.117" rpy="0 0 0"/>', '<origin xyz="0 0 0.117" rpy="0 inf 0"/>'), "",
+     "joint 'S2' (line 28) <origin rpy>", "is not finite"),
+    ("huge origin", ('<origin xyz="0 0 0.117"', '<origin xyz="0 0 1e308"'), "", "<origin xyz>", "beyond 10 (m)"),
+    ("huge limit", ('upper="1.5882496193148399"', 'upper="1e300"'), "", "joint 'S2' (line 28) <limit upper>",
+     "not finite or beyond"),
+    ("two parents", ('<joint name="S2" type="revolute">\n    <parent link="link_s1"/><child link="link_s2"/>',
+                     '<joint name="S2" type="revolute">\n    <parent link="link_s1"/><child link="link_s1"/>'), "",
+     "joint 'S2'", "already the child of joint 'S1'"),
+    ("loop", ('<parent link="world"/><child link="base_link"/>', '<parent link="flange"/><child link="base_link"/>'),
+     'base_link = "world"\ntip_link = "flange"', "tip_link", "does not descend from base_link 'world'"),
+    ("limit without range", ('<limit lower="-1.5882496193148399" upper="1.5882496193148399"', '<limit'), "",
+     "joint 'S2'", "cannot move: its limits are [0, 0]"),
 ]
 
 

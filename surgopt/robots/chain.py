@@ -159,6 +159,7 @@ def from_urdf(path: str | Path, base_link: str | None, tip_link: str | None) -> 
 
     import yourdfpy
 
+    check_urdf_numbers(parse_urdf_strictly(path))
     log = logging.getLogger("yourdfpy")
     level = log.level
     log.setLevel(logging.CRITICAL)  # its parse errors are ours to report, in one line
@@ -166,13 +167,17 @@ def from_urdf(path: str | Path, base_link: str | None, tip_link: str | None) -> 
         urdf = yourdfpy.URDF.load(str(path), load_meshes=False, build_scene_graph=False,
                                   load_collision_meshes=False)
     except Exception as exc:  # noqa: BLE001 - lxml, ValueError, KeyError: a file that is not a URDF
-        raise ChainError(str(path), f"not a readable URDF: {_xml_problem(path) or _first_line(exc)}") from None
+        raise ChainError(str(path), f"not a readable URDF: {_first_line(exc)}") from None
     finally:
         log.setLevel(level)
     robot = urdf.robot
     links = {link.name for link in robot.links}
     by_child = {}
     for j in robot.joints:
+        if j.child in by_child:
+            raise ChainError(f"joint {j.name!r}", f"link {j.child!r} is already the child of joint "
+                                                  f"{by_child[j.child].name!r}: a link has one parent in a tree "
+                                                  f"(a kinematic loop or a duplicated joint)")
         if j.child not in links:
             raise ChainError(f"joint {j.name!r}", f"child link {j.child!r} is not a <link> of the URDF")
         if j.parent not in links:
@@ -195,7 +200,7 @@ def from_urdf(path: str | Path, base_link: str | None, tip_link: str | None) -> 
     path_joints = []
     link = tip_link
     while link != base_link:
-        if link not in by_child:
+        if link not in by_child or len(path_joints) > len(by_child):  # the second: a loop of links
             raise ChainError("tip_link", f"link {tip_link!r} does not descend from base_link {base_link!r}")
         j = by_child[link]
         path_joints.append(j)
@@ -222,8 +227,9 @@ def from_urdf(path: str | Path, base_link: str | None, tip_link: str | None) -> 
             kind, lo, hi = CONTINUOUS, -math.inf, math.inf
         else:
             kind = PRISMATIC if j.type == "prismatic" else REVOLUTE
-            lo = -math.inf if lim.lower is None else float(lim.lower)
-            hi = math.inf if lim.upper is None else float(lim.upper)
+            # the URDF specification (and urdfdom, Pinocchio): a missing lower or upper is 0
+            lo = 0.0 if lim.lower is None else float(lim.lower)
+            hi = 0.0 if lim.upper is None else float(lim.upper)
             if not lo <= hi:
                 raise ChainError(f"joint {j.name!r}", f"limit lower {lo} > upper {hi}")
         joints.append(Joint(j.name, pending @ origin, axis / np.linalg.norm(axis), kind, lo, hi, float(speed)))
@@ -233,22 +239,87 @@ def from_urdf(path: str | Path, base_link: str | None, tip_link: str | None) -> 
     return ChainSpec(tuple(joints), pending)
 
 
+#: The largest URDF read (a robot description with every mesh inlined is a few MB).
+MAX_URDF_BYTES = 64 * 2 ** 20
+#: Physical bounds of what a URDF of an arm may say: a joint origin within 10 m of its parent, an angle
+#: within two turns, a joint limit within 10 m or two turns, a rated speed up to 100 rad/s or m/s.
+MAX_URDF_LENGTH_M = 10.0
+MAX_URDF_ANGLE_RAD = 4 * math.pi
+MAX_URDF_SPEED = 100.0
+
+
+def parse_urdf_strictly(path):
+    """The URDF's XML tree, parsed strictly (lxml's recovering parser, which yourdfpy falls back to, drops
+    what it cannot read and computes another arm): a file that is not a regular, well-formed XML file of at
+    most MAX_URDF_BYTES is a ChainError with the line and column."""
+    import stat
+
+    from lxml import etree
+
+    p = Path(path)
+    try:
+        st = p.stat()
+    except OSError as exc:
+        raise ChainError(str(path), f"cannot be read ({exc.strerror or exc})") from None
+    if not stat.S_ISREG(st.st_mode):
+        raise ChainError(str(path), "is not a regular file")
+    if st.st_size > MAX_URDF_BYTES:
+        raise ChainError(str(path), f"{st.st_size:,} bytes, more than a URDF has ({MAX_URDF_BYTES:,})")
+    parser = etree.XMLParser(recover=False, resolve_entities=False, no_network=True, huge_tree=False)
+    try:
+        return etree.parse(str(p), parser)
+    except etree.XMLSyntaxError as exc:
+        line, col = exc.position
+        msg = exc.msg.split(f", line {line}")[0]
+        raise ChainError(str(path), f"not a readable URDF: line {line}, column {col}: {msg} "
+                                    f"(not well-formed XML)") from None
+
+
+def _numbers(text: str | None, n: int, what: str) -> list[float]:
+    try:
+        values = [float(v) for v in (text or "").split()]
+    except ValueError:
+        raise ChainError(what, f"{text!r} is not {n} number(s)") from None
+    if len(values) != n:
+        raise ChainError(what, f"{text!r} is not {n} number(s)")
+    return values
+
+
+def check_urdf_numbers(tree) -> None:
+    """Every number surgopt reads from a URDF is finite and physically bounded: each joint's origin xyz
+    (m) and rpy (rad), axis (a direction), limit lower/upper (rad or m) and velocity (rad/s or m/s); else a
+    ChainError naming the joint, element and attribute (and its line)."""
+    for joint in tree.getroot().iter("joint"):
+        name = joint.get("name", "?")
+        where = f"joint {name!r} (line {joint.sourceline})"
+        for el, attr, n, bound in (("origin", "xyz", 3, MAX_URDF_LENGTH_M), ("origin", "rpy", 3, MAX_URDF_ANGLE_RAD),
+                                   ("axis", "xyz", 3, None)):
+            e = joint.find(el)
+            if e is None or e.get(attr) is None:
+                continue
+            values = _numbers(e.get(attr), n, f"{where} <{el} {attr}>")
+            if not all(math.isfinite(v) for v in values):
+                raise ChainError(f"{where} <{el} {attr}>", f"{e.get(attr)!r} is not finite")
+            if bound is not None and max(abs(v) for v in values) > bound:
+                raise ChainError(f"{where} <{el} {attr}>", f"{e.get(attr)!r} is beyond {bound:g} "
+                                                           f"({'m' if attr == 'xyz' else 'rad'}): not an arm's")
+        lim = joint.find("limit")
+        if lim is None:
+            continue
+        prismatic = joint.get("type") == "prismatic"
+        for attr, bound in (("lower", MAX_URDF_LENGTH_M if prismatic else MAX_URDF_ANGLE_RAD),
+                            ("upper", MAX_URDF_LENGTH_M if prismatic else MAX_URDF_ANGLE_RAD),
+                            ("velocity", MAX_URDF_SPEED)):
+            if lim.get(attr) is None:
+                continue
+            (v,) = _numbers(lim.get(attr), 1, f"{where} <limit {attr}>")
+            if not math.isfinite(v) or abs(v) > bound:
+                raise ChainError(f"{where} <limit {attr}>", f"{lim.get(attr)!r} is not finite or beyond {bound:g}")
+
+
 def _first_line(exc: Exception) -> str:
     text = str(exc).strip()
     return text.splitlines()[0] if text else type(exc).__name__
-
-
-def _xml_problem(path) -> str | None:
-    """Where a file fails to parse as XML (line and column), or None when it is well-formed XML."""
-    from lxml import etree
-
-    try:
-        etree.parse(str(path))
-    except etree.XMLSyntaxError as exc:
-        return f"line {exc.position[0]}, column {exc.position[1]}: {exc.msg}"
-    except OSError as exc:
-        return str(exc)
-    return None
 
 
 def chain_transform(spec: ChainSpec, q) -> np.ndarray:
@@ -299,6 +370,12 @@ def reduce_chain(spec: ChainSpec, locked: dict[str, float], tool: np.ndarray, sp
         raise ChainError("locked_joints_deg", f"{len(active)} joints remain active ({', '.join(j.name for j in active)}); "
                                               f"the RCM study needs exactly five: lock {len(active) - 5} more"
                          if len(active) > 5 else f"only {len(active)} joints remain active; the RCM study needs five")
+    for j in active:
+        lo, hi = (limits or {}).get(j.name, (j.lower, j.upper))
+        if not lo < hi:
+            raise ChainError(f"joint {j.name!r}", f"cannot move: its limits are [{lo:g}, {hi:g}] (a URDF <limit> "
+                                                  f"without lower/upper reads as 0, as the URDF specification "
+                                                  f"says); lock it or give its range")
     fixed = []  # P_0..P_5
     pending = np.eye(4)
     prev_align_t = np.eye(4)

@@ -205,10 +205,15 @@ class Robot(StrictModel):
         object.__setattr__(self, "urdf", str(path))
         if context.get("stored"):
             return
+        from surgopt.files import FileProblem, read_bounded
+        from surgopt.robots.chain import MAX_URDF_BYTES
+
         try:
-            data = path.read_bytes()
+            data = read_bounded(path, MAX_URDF_BYTES)
         except FileNotFoundError:
             raise ValueError(f"urdf: file not found: {path}") from None
+        except FileProblem as exc:
+            raise ValueError(f"urdf: {exc}") from None
         except OSError as exc:
             raise ValueError(f"urdf: cannot read {path}: {exc.strerror or exc}") from None
         sha = hashlib.sha256(data).hexdigest()

@@ -1,0 +1,44 @@
+"""Reading a file a user or the store names: regular files only, their size checked before anything is
+read, and a bound on how much is read (a FIFO never blocks, /dev/zero or an 8 GB file is never read whole)."""
+from __future__ import annotations
+
+import errno
+import os
+from pathlib import Path
+
+
+class FileProblem(ValueError):
+    """A path that is not a regular file of an acceptable size; the message names it."""
+
+
+def read_bounded(path: Path, limit: int, expected: int | None = None) -> bytes:
+    """The bytes of ``path`` if it is a regular file (a link to one counts) of at most ``limit`` bytes (and of
+    exactly ``expected`` bytes when given), else FileProblem; size and kind are checked before anything is
+    read, so a FIFO, a device such as /dev/zero or an oversized file is never read. FileNotFoundError and
+    IsADirectoryError pass through for callers that handle them."""
+    import stat
+
+    fd = os.open(path, os.O_RDONLY | os.O_NONBLOCK)  # a FIFO must not block the open itself
+    try:
+        st = os.fstat(fd)
+        if stat.S_ISDIR(st.st_mode):
+            raise IsADirectoryError(errno.EISDIR, "is a folder", str(path))
+        if not stat.S_ISREG(st.st_mode):
+            raise FileProblem(f"{path}: not a regular file (a device, FIFO or socket); not read")
+        if expected is not None and st.st_size != expected:
+            raise FileProblem(f"{path}: has {st.st_size} bytes where {expected} were expected")
+        if st.st_size > limit:
+            raise FileProblem(f"{path}: {st.st_size:,} bytes, more than the {limit:,} such a file can have")
+        os.set_blocking(fd, True)
+        chunks, size = [], 0
+        while size <= limit:
+            b = os.read(fd, min(1 << 24, limit + 1 - size))
+            if not b:
+                break
+            chunks.append(b)
+            size += len(b)
+        if size > limit:  # grew while read
+            raise FileProblem(f"{path}: more than the {limit:,} bytes such a file can have")
+        return b"".join(chunks)
+    finally:
+        os.close(fd)
