@@ -13,6 +13,20 @@ from surgopt.studies.figures import columns
 STATS = ("count", "min", "p25", "median", "p75", "max", "mean")
 
 
+def check_sort_column(schema, column: str) -> None:
+    """UsageError unless ``column`` is a numeric (or boolean) column of the table: what --sort can rank by."""
+    import pyarrow as pa
+
+    from surgopt.errors import UsageError
+
+    numeric = [f.name for f in schema if pa.types.is_integer(f.type) or pa.types.is_floating(f.type)
+               or pa.types.is_boolean(f.type)]
+    if column not in schema.names:
+        raise UsageError(f"--sort: no column {column[:80]!r}; columns: {', '.join(schema.names)}")
+    if column not in numeric:
+        raise UsageError(f"--sort: {column!r} is not a number column; rank by one of: {', '.join(numeric)}")
+
+
 def summary_sections(study, run, parts, top: int = 10, sort: str | None = None) -> list[tuple[str, list[str], list[list]]]:
     """Study-aware summary: header, top designs, objective statistics, feasibility, study tables.
 
@@ -33,10 +47,7 @@ def summary_sections(study, run, parts, top: int = 10, sort: str | None = None) 
     objective = sort or study.objective
     if objective is not None and parts.num_rows:
         names_all = parts.schema.names
-        if objective not in names_all:
-            from surgopt.errors import UsageError
-
-            raise UsageError(f"--sort: no column {objective!r}; columns: {', '.join(names_all)}")
+        check_sort_column(parts.schema, objective)
         best = parts.top(objective, top)
         cols = columns(best)
         names = [c for c in names_all if cols[c].dtype != object or c in study.key_columns]
@@ -91,6 +102,7 @@ def summary_record(study, run, parts, top: int = 10, sort: str | None = None) ->
            "feasibility": summary.feasibility if summary else {}, "headline": summary.headline if summary else {}}
     objective = sort or study.objective
     if objective is not None and parts.num_rows:
+        check_sort_column(parts.schema, objective)
         out["objective"] = objective
         out["top"] = parts.top(objective, top).to_pylist()
         out["distribution"] = {}

@@ -59,6 +59,12 @@ def resolve_run(store: Store, ref: str | None, study_name: str | None = None):
     if ref is not None:
         runs = [r for r in runs if r.key.startswith(ref)]
         if not runs:
+            from surgopt.errors import StoreError
+            from surgopt.store import folder_study_key
+
+            for path, why in store.unreadable(study_name):
+                if folder_study_key(path)[1].startswith(ref):
+                    raise StoreError(f"{path}: {why}; `surgopt runs rm {ref}` deletes it")
             raise UsageError(f"{ref}: neither a config file nor the key prefix of a run in {store.root}")
         if len(runs) > 1:
             raise UsageError(f"{ref}: matches {len(runs)} runs; give more of the key")
@@ -67,7 +73,17 @@ def resolve_run(store: Store, ref: str | None, study_name: str | None = None):
         extra = f" ({len(broken)} with an unusable manifest: see `surgopt runs`)" if broken else ""
         raise UsageError(f"no runs in {store.root}{extra}")
     run = runs[-1]
-    return get_study(run.study), run
+    return study_of_run(run), run
+
+
+def study_of_run(run: Run):
+    """The declared study a stored run belongs to; StoreError for a study this surgopt does not have."""
+    from surgopt.errors import StoreError
+
+    if run.study not in STUDIES:
+        raise StoreError(f"{run.path}: a run of study {run.study!r}, which this surgopt does not have "
+                         f"(one of {', '.join(STUDIES)})")
+    return get_study(run.study)
 
 
 def require_complete(store: Store, run: Run, allow_partial: bool = False) -> Run:
@@ -128,7 +144,18 @@ def flat_config(config: dict, prefix: str = "") -> dict:
 
 
 def config_of(study, run: Run):
-    return study.config_model.model_validate(run.manifest["config"], context={"stored": True})
+    """A stored run's config, validated; StoreError when the manifest's config is not one of this study."""
+    from pydantic import ValidationError
+
+    from surgopt.errors import StoreError
+
+    try:
+        return study.config_model.model_validate(run.manifest["config"], context={"stored": True})
+    except ValidationError as exc:
+        first = exc.errors()[0]
+        where = ".".join(str(p) for p in first["loc"]) or "(top level)"
+        raise StoreError(f"{run.path / 'manifest.json'}: its config is not a valid {study.name} config "
+                         f"({where}: {first['msg']}); delete the run (`surgopt runs rm {run.key[:12]}`)") from None
 
 
 @dataclass

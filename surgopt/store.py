@@ -28,6 +28,7 @@ import errno
 import hashlib
 import json
 import os
+import re
 import shutil
 from dataclasses import dataclass
 from pathlib import Path
@@ -41,6 +42,8 @@ MANIFEST = "manifest.json"
 LOCKS = ".locks"
 STAGING = ".staging"
 FORMAT_VERSION = 1
+#: What a study name may be (it becomes a folder name): a plain word.
+STUDY_NAME = r"[A-Za-z0-9][A-Za-z0-9_-]{0,63}"
 #: How often a reader re-reads a run whose parts were replaced under it (a --force rerun) before giving up.
 READ_RETRIES = 3
 #: The largest part a reader accepts when the manifest gives no size (a part is one chunk: ~2 s of work).
@@ -148,6 +151,10 @@ def check_manifest(manifest, where: Path) -> dict:
                  ("parts", dict), ("config", dict)):
         if not isinstance(manifest.get(k), t) or isinstance(manifest.get(k), bool):
             raise bad(f"'{k}' is missing or of the wrong type")
+    if manifest["chunk"] < 1 or manifest["n_tasks"] < 1:
+        raise bad("'chunk' and 'n_tasks' must be at least 1")
+    if not re.fullmatch(STUDY_NAME, manifest["study"]) or not re.fullmatch(r"[0-9a-f]{64}", manifest["key"]):
+        raise bad("'study' or 'key' is not a study name or a sha256 key")
     for i, meta in manifest["parts"].items():
         if not (isinstance(i, str) and i.isdigit() and isinstance(meta, dict)
                 and isinstance(meta.get("file"), str) and isinstance(meta.get("rows"), int)
@@ -626,9 +633,7 @@ class Store:
 def check_study_name(study: str | None) -> None:
     """A study name is a plain word (letters, digits, '-', '_'): never a path or a pattern that could reach
     out of the store."""
-    import re
-
-    if study is not None and not re.fullmatch(r"[A-Za-z0-9][A-Za-z0-9_-]{0,63}", study):
+    if study is not None and not re.fullmatch(STUDY_NAME, study):
         raise UsageError(f"--study: {study[:80]!r} is not a study name")
 
 

@@ -202,3 +202,52 @@ def test_a_config_path_that_is_not_a_regular_file_is_never_read(tmp_path, kind):
         path.symlink_to("/dev/zero")  # a plain read would fill memory
     code, out = invoke("rcm-grid", path, "--dry-run")
     assert code == 2 and "not a regular file" in out, out
+
+
+# --- readers: one line for whatever the store holds -----------------------------------------------------------
+
+BAD_MANIFEST_FIELDS = {
+    "chunk 0": (lambda m: m.update(chunk=0), "'chunk' and 'n_tasks' must be at least 1"),
+    "unknown study": (lambda m: m.update(study="nosuch"), "which this surgopt does not have"),
+    "config of the wrong shape": (lambda m: m.update(config={"workspace": 5}), "not a valid rcm-grid config"),
+}
+
+
+@pytest.mark.parametrize("case", sorted(BAD_MANIFEST_FIELDS))
+def test_a_manifest_with_bad_fields_is_one_line(stored, tmp_path, case):
+    _, store, _ = stored
+    run = single_run(store)
+    change, words = BAD_MANIFEST_FIELDS[case]
+    m = json.loads((run.path / "manifest.json").read_text())
+    change(m)
+    (run.path / "manifest.json").write_text(json.dumps(m))
+    code, out = invoke("plot", run.key[:12], "--store", store, "--out", tmp_path / "figs")
+    assert code in (1, 2) and words in out and "Traceback" not in out, out
+    assert len(out.strip().splitlines()) == 1
+
+
+def test_sort_by_a_text_column_is_one_line(tmp_path):
+    from conftest import REPO
+
+    store = tmp_path / "store"
+    code, _ = invoke("suture-sim", REPO / "tests" / "baselines" / "suture_small.toml", "--store", store, "--quiet")
+    assert code == 0
+    code, out = invoke("summarize", "--store", store, "--sort", "mode")
+    assert code == 2 and "'mode' is not a number column" in out and "Traceback" not in out, out
+
+
+def test_no_feasible_candidate_is_never_called_best():
+    """A workspace 2 m below the RCM: no candidate reaches it; the headline names no unreachable RCM 'best'."""
+    from surgopt.parts import Parts
+
+    cfg = RCM.config_model.model_validate({"workspace": {"depth_below_rcm_m": 2.0, "points_per_side": 3},
+                                           "candidates": {"grid": {"x_count": 5, "z_count": 3}}})
+    RCM.warm_up(cfg)
+    cols = RCM.compute_task(cfg, 100, 0)
+    import pyarrow as pa
+
+    table = pa.Table.from_pydict(cols, schema=RCM.schema())
+    assert not table["feasible"].to_numpy().any() and table["gii"].to_numpy().max() >= 0  # the premise
+    s = RCM.summary(Parts(lambda columns=None: iter([table.select(columns) if columns else table]),
+                          table.num_rows, table.schema))
+    assert "best_gii" not in s.headline and s.headline["best"].startswith("none")

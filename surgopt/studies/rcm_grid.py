@@ -386,16 +386,20 @@ def cull_search(cfg: RcmGridConfig) -> dict:
 
 
 def summary(parts) -> Summary:
-    """Feasible count, the best candidate whose GII is exact, and the five best such candidates
+    """Feasible count, the best feasible candidate whose GII is exact, and the five best such candidates
     (``parts``: a ``surgopt.parts.Parts``, read part by part)."""
     n = parts.num_rows
     feasible = parts.count(lambda t: t["feasible"], columns=["feasible"])
     counts = {"feasible": feasible, "infeasible": n - feasible}
     headline = {"candidates": n, "feasible": feasible}
-    top = parts.top("gii", 5, where=lambda t: t["gii_is_exact"])
+    import pyarrow.compute as pc
+
+    top = parts.top("gii", 5, where=lambda t: pc.and_(t["gii_is_exact"], t["feasible"]))
     cols = ["x_rcm_m", "y_rcm_m", "z_rcm_m", "gii"]
-    if top.num_rows:
+    if top.num_rows:  # the best is a feasible candidate: one whose whole workspace is reachable
         headline.update({f"best_{k}": top[k][0].as_py() for k in cols})
+    else:
+        headline["best"] = "none: no candidate reaches the whole workspace"
     rows = [[f"{x:.3f}", f"{y:.3f}", f"{z:.3f}", f"{g:.5f}"] for x, y, z, g in zip(*(top[k].to_pylist() for k in cols))]
     return Summary(headline, counts, [("best RCM candidates", cols, rows)])
 
