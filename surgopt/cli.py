@@ -9,7 +9,6 @@ from __future__ import annotations
 
 import contextlib
 import enum
-import signal
 import sys
 from typing import Annotated, Optional
 
@@ -123,18 +122,6 @@ def _fail(exc: BaseException, code: int) -> None:
     raise typer.Exit(code)
 
 
-class Stopped(KeyboardInterrupt):
-    """SIGTERM or SIGHUP (what cluster schedulers send before SIGKILL), handled like Ctrl-C."""
-
-    def __init__(self, signum: int):
-        super().__init__(signum)
-        self.signum = signum
-
-
-def _stop_on(signum, _frame):
-    raise Stopped(signum)
-
-
 RESUME = "finished chunks are stored, run the same command again to resume"
 
 
@@ -148,12 +135,10 @@ def _guard():
         yield
     except SurgoptError as exc:
         _fail(exc, exc.exit_code)
-    except Stopped as exc:
-        typer.echo(f"surgopt: stopped by {signal.Signals(exc.signum).name}; {RESUME}", err=True)
-        raise typer.Exit(128 + exc.signum)
-    except KeyboardInterrupt:
-        typer.echo(f"surgopt: interrupted; {RESUME}", err=True)
-        raise typer.Exit(130)
+    except KeyboardInterrupt as exc:  # Ctrl-C, or SIGTERM / SIGHUP (surgopt.interrupts.Stopped)
+        from surgopt import interrupts
+
+        raise typer.Exit(interrupts.report(exc, RESUME))
     except MemoryError:
         _fail(f"out of memory; {RESUME} (a smaller config, or --jobs 1)", 1)
     except OSError as exc:
@@ -366,9 +351,27 @@ from surgopt import cli_results  # noqa: E402,F401
 
 
 def main() -> None:
-    for sig in (signal.SIGTERM, signal.SIGHUP):
-        signal.signal(sig, _stop_on)
-    app(prog_name="surgopt")
+    """The CLI with every stop signal handled (``surgopt.__main__.main`` installs the handlers before it
+    imports this module)."""
+    from surgopt import interrupts
+
+    interrupts.install()
+    run()
+
+
+def run() -> None:
+    """The commands, under handlers already installed: a stop at whatever instant it lands (parsing,
+    computing, the closing report, shutting down) ends in one line with its exit code."""
+    from surgopt import interrupts
+
+    try:
+        app(prog_name="surgopt")  # ends in SystemExit; a stop outside a command's guard is typer's silent 130
+    except (SystemExit, KeyboardInterrupt) as exc:
+        interrupts.ignore()
+        code = exc.code if isinstance(exc, SystemExit) else None
+        if interrupts.received() is not None:  # also a stop whose exception a callback swallowed
+            code = interrupts.report(None, RESUME, once=True)
+        sys.exit(code)
 
 
 if __name__ == "__main__":

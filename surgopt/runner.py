@@ -18,6 +18,7 @@ from dataclasses import dataclass, field
 
 from surgopt.config import study_key
 from surgopt.errors import SurgoptError, UsageError
+from surgopt.interrupts import raise_if_stopped
 from surgopt.jit import numba_cache_dir
 from surgopt.store import Run, Store
 
@@ -225,43 +226,70 @@ def provenance(backend: str, jobs: int) -> dict:
 
 
 def _run_search(study, cfg, plan, run, store, jobs, quiet, total, schema, backend, dask) -> None:
-    """An Optuna search, batch after batch: ask the batch's trials (recorded in Optuna's journal in the
-    run's folder), evaluate them as one task through the backend, store them as part k, then tell
-    Optuna. On resume, trials asked but not told are taken up again: told from their part if it was
-    stored, else evaluated; the sampler is re-seeded per batch, so resuming gives the trials an
-    uninterrupted search gives (except after a kill inside the few milliseconds of one batch's asks)."""
+    """An Optuna search, batch after batch, on a study in memory: ask the batch's trials (sampler seeded by
+    (seed, batch)), evaluate them as one task through the backend, tell them, append them to Optuna's
+    journal in the run's folder, then store them as part k. Resuming rebuilds the study from the journal's
+    complete batches: a batch in the journal whose part is missing is evaluated again from its recorded
+    parameters; the rest is asked anew from the same history with the same seed, so the trials are an
+    uninterrupted search's wherever the kill fell. A journal that is gone or unreadable while parts are
+    stored cannot give the same trials: refused, with the repair."""
     from surgopt.errors import StoreError
     from surgopt.studies import search as S
 
     spec = plan.spec
     names = list(plan.space)
-    st = S.open_study(run.path / "optuna.journal", plan, 0)
+    repair = (f"delete the run (`surgopt runs rm {run.key[:12]}`) or rerun with --force to search again "
+              f"from the start")
+    try:
+        journal = S.Journal.open(run.path / "optuna.journal", plan)
+    except S.JournalProblem as exc:
+        raise StoreError(f"{exc}; {repair}") from None
+    beyond = sorted(k for k in run.done_tasks() if k >= journal.batches)
+    if beyond:
+        raise StoreError(f"{run.path}: part {beyond[0]} is stored but Optuna's journal holds only "
+                         f"{journal.batches} complete batch(es) (deleted or replaced?): the search cannot resume "
+                         f"to the same trials; {repair}")
+    mem = S.memory_study(plan)
+    mem.add_trials(journal.trials)
+    dists = S.distributions(plan.space)
+
+    def evaluate(k, points, before_store):
+        cfg_k = cfg.model_copy(update={"search": spec.model_copy(update={"points": points})})
+        _dispatch(study, cfg_k, spec.batch, [k], run, store, jobs, quiet, total, schema, backend, dask,
+                  before_store=before_store)
+
     for k in range(total):
         first, n = k * spec.batch, min(spec.batch, spec.trials - k * spec.batch)
-        trials = sorted((t for t in st.get_trials(deepcopy=False) if first <= t.number < first + n),
-                        key=lambda t: t.number)
-        if len(trials) == n and all(t.state.is_finished() for t in trials) and k in run.done_tasks():
+        if k < journal.batches:  # told and recorded before the interruption
+            if k not in run.done_tasks():
+                recorded = journal.trials[first:first + n]
+                evaluate(k, [[float(t.params[name]) for name in names] for t in recorded],
+                         lambda index, cols, recorded=recorded: _same_trials(run, index, cols, recorded, plan, names))
             continue
-        if k not in run.done_tasks():  # not evaluated yet: take up the trials asked before, ask the rest
-            if any(t.state.is_finished() for t in trials):
-                raise StoreError(f"{run.path}: Optuna's journal has told trials of batch {k}, whose part is not "
-                                 f"stored; delete the run and search again")
-            st.sampler = S.sampler_for(spec, k)
-            pending = [S.running_trial(st, t) for t in trials] + S.ask(st, plan, n - len(trials))
-            points = [[float(x.params[name]) for name in names] for x in pending]
-            cfg_k = cfg.model_copy(update={"search": spec.model_copy(update={"points": points})})
-            _dispatch(study, cfg_k, spec.batch, [k], run, store, jobs, quiet, total, schema, backend, dask)
-            rows = list(range(n))
-        else:  # stored, but (some of) its trials not told: killed while telling
-            pending = [S.running_trial(st, t) for t in trials if not t.state.is_finished()]
-            rows = [t.number - first for t in trials if not t.state.is_finished()]
-            points = [[float(t.params[name]) for name in names] for t in trials if not t.state.is_finished()]
-        table = run.part_table(k, schema)
-        stored = [[float(table[name][r].as_py()) for name in names] for r in rows]
-        if stored != points:
-            raise StoreError(f"{run.path}: part {k} holds other trials than Optuna's journal; delete the run "
-                             f"and search again")
-        S.tell(st, pending, [[float(table[c][r].as_py()) for c, _ in plan.objectives] for r in rows])
+        mem.sampler = S.sampler_for(spec, k)
+        asked = [mem.ask(dists) for _ in range(n)]
+        points = [[float(x.params[name]) for name in names] for x in asked]
+
+        def tell_and_record(index, cols, asked=asked, first=first):
+            S.tell(mem, asked, [[float(cols[c][r]) for c, _ in plan.objectives] for r in range(len(asked))])
+            journal.append(mem.get_trials(deepcopy=False)[first:first + len(asked)])
+
+        evaluate(k, points, tell_and_record)
+
+
+def _same_trials(run, index, cols, recorded, plan, names) -> None:
+    """A batch evaluated again from its journal record gives the journal's values, or the store is inconsistent."""
+    import math
+
+    from surgopt.errors import StoreError
+
+    for r, t in enumerate(recorded):
+        values = [float(cols[c][r]) for c, _ in plan.objectives]
+        told = t.values if t.values is not None else [math.nan] * len(values)
+        same = all(a == b or (math.isnan(a) and math.isnan(b)) or not math.isfinite(a) for a, b in zip(values, told))
+        if not same or [float(cols[name][r]) for name in names] != [float(t.params[name]) for name in names]:
+            raise StoreError(f"{run.path}: batch {index} evaluated again differs from Optuna's journal "
+                             f"(trial {t.number}); delete the run and search again")
 
 
 #: How many times the chunks of a worker process that died (killed, out of memory) are retried.
@@ -310,7 +338,9 @@ def _open_or_discard(store: Store, study_name: str, key: str, say):
 
 
 def _dispatch(study, cfg, chunk, missing, run, store, jobs, quiet, total, schema, backend="threads",
-              dask_client=None):
+              dask_client=None, before_store=None):
+    """Compute the ``missing`` chunks on the backend and store each as it finishes (``before_store(index,
+    cols)``, if given, runs first: a search tells its optimiser and records the trials there)."""
     import pyarrow as pa
 
     progress = _progress(quiet)
@@ -321,6 +351,9 @@ def _dispatch(study, cfg, chunk, missing, run, store, jobs, quiet, total, schema
 
         def record(index, cols):
             nonlocal done_now
+            raise_if_stopped()  # a stop signal whose exception a callback swallowed still stops the run
+            if before_store is not None:
+                before_store(index, cols)
             store.write_part(run, index, pa.Table.from_pydict(cols, schema=schema))
             log.debug("stored part %d (%d rows)", index, len(next(iter(cols.values()))))
             done_now += 1
@@ -406,6 +439,19 @@ def _die_with_parent(parent_pid: int) -> None:
 WORKER_ENV = {v: "1" for v in ("NUMBA_NUM_THREADS", "OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS")}
 
 
+#: The warning the resource trackers of loky and multiprocessing print when worker processes were killed (an
+#: interrupted run kills them on purpose): passed to the trackers, which inherit this process's -W options.
+QUIET_TRACKER = "ignore:resource_tracker:UserWarning"
+
+
+def _quiet_resource_trackers() -> None:
+    """A run stopped on purpose ends in one line: the helpers that clean up after killed workers say nothing."""
+    import sys
+
+    if QUIET_TRACKER not in sys.warnoptions:
+        sys.warnoptions.append(QUIET_TRACKER)
+
+
 def _dispatch_loky(study_name, cfg, chunk, missing, jobs, record):
     """Chunks on ``jobs`` loky worker processes that die with this process; rows recorded here.
 
@@ -414,6 +460,7 @@ def _dispatch_loky(study_name, cfg, chunk, missing, jobs, record):
     """
     from joblib.externals.loky import get_reusable_executor
 
+    _quiet_resource_trackers()
     pool = get_reusable_executor(max_workers=jobs, timeout=30, initializer=_die_with_parent,
                                  initargs=(os.getpid(),), env=WORKER_ENV)
     try:
@@ -442,6 +489,7 @@ def _dask_client(scheduler: str | None, jobs: int):
     """A distributed.Client on ``scheduler``, or on a LocalCluster of ``jobs`` one-thread workers."""
     from distributed import Client, LocalCluster
 
+    _quiet_resource_trackers()
     if scheduler:
         try:
             client = Client(scheduler, timeout=SCHEDULER_TIMEOUT_S)
@@ -453,8 +501,11 @@ def _dask_client(scheduler: str | None, jobs: int):
         finally:
             client.close()
         return
-    # worker processes inherit this environment: one numba thread each, our numba cache
+    # worker processes inherit this environment: one numba thread each, our numba cache, and distributed's
+    # own log at errors only (its info and warnings about nannies and cancelled tasks are not the user's)
     os.environ.setdefault("NUMBA_NUM_THREADS", "1")
+    os.environ.setdefault("DASK_LOGGING__DISTRIBUTED", "error")
+    logging.getLogger("distributed").setLevel(logging.ERROR)
     cluster = LocalCluster(n_workers=jobs, threads_per_worker=1, processes=True, dashboard_address=None)
     client = Client(cluster)
     try:

@@ -191,3 +191,85 @@ def test_a_search_stopped_between_ask_store_and_tell_resumes_to_the_same_trials(
     monkeypatch.undo()
     again = run_study(rcm, cfg, config_name="x", store=Store(tmp_path / "x"), jobs=1, quiet=True).table
     assert again.equals(ref)
+
+
+def _tpe(tmp_path, trials=60, batch=10):
+    rcm = get_study("rcm-grid")
+    cfg = validate({"workspace": {"points_per_side": 5},
+                    "search": {"method": "tpe", "trials": trials, "batch": batch, "seed": 3}}, rcm.config_model, "x")
+    ref = run_study(rcm, cfg, config_name="ref", store=Store(tmp_path / "ref"), jobs=1, quiet=True).table
+    return rcm, cfg, ref
+
+
+def test_a_search_killed_after_recording_a_batch_but_before_storing_it_resumes(tmp_path, monkeypatch):
+    """The window between the journal's append and the part's write: the batch is evaluated again from its
+    recorded parameters (and must give the recorded values)."""
+    rcm, cfg, ref = _tpe(tmp_path)
+    real = Store.write_part
+
+    def stop_at_2(self, run, index, table):
+        if index == 2:
+            raise KeyboardInterrupt
+        return real(self, run, index, table)
+
+    monkeypatch.setattr(Store, "write_part", stop_at_2)
+    with pytest.raises(KeyboardInterrupt):
+        run_study(rcm, cfg, config_name="x", store=Store(tmp_path / "x"), jobs=1, quiet=True)
+    monkeypatch.undo()
+    run = single_run(tmp_path / "x")
+    assert sorted(run.done_tasks()) == [0, 1]
+    from surgopt.studies.search import Journal
+
+    assert Journal.open(run.path / "optuna.journal", rcm.search_plan(cfg)).batches == 3  # the premise
+    assert run_study(rcm, cfg, config_name="x", store=Store(tmp_path / "x"), jobs=1, quiet=True).table.equals(ref)
+
+
+def _partial(tmp_path, rcm, cfg, stop_at=3):
+    real = Store.write_part
+
+    def stop(self, run, index, table):
+        if index == stop_at:
+            raise KeyboardInterrupt
+        return real(self, run, index, table)
+
+    Store.write_part = stop
+    try:
+        with pytest.raises(KeyboardInterrupt):
+            run_study(rcm, cfg, config_name="x", store=Store(tmp_path / "x"), jobs=1, quiet=True)
+    finally:
+        Store.write_part = real
+    return single_run(tmp_path / "x")
+
+
+@pytest.mark.parametrize("damage", ["deleted", "garbage inside", "half-written last line"])
+def test_a_damaged_journal_is_refused_with_the_repair_or_resumed_exactly(tmp_path, damage):
+    rcm, cfg, ref = _tpe(tmp_path)
+    run = _partial(tmp_path, rcm, cfg)
+    journal = run.path / "optuna.journal"
+    lines = journal.read_bytes().splitlines(keepends=True)
+    if damage == "deleted":
+        journal.unlink()
+    elif damage == "garbage inside":
+        journal.write_bytes(b"".join(lines[:5]) + b"{not json\n" + b"".join(lines[5:]))
+    else:
+        journal.write_bytes(b"".join(lines) + lines[-1][: len(lines[-1]) // 2])  # killed mid-append
+    if damage == "half-written last line":
+        again = run_study(rcm, cfg, config_name="x", store=Store(tmp_path / "x"), jobs=1, quiet=True).table
+        assert again.equals(ref)
+        return
+    code, out = _invoke_cli(run, cfg, tmp_path)
+    assert code == 1 and "runs rm" in out and "--force" in out and "Traceback" not in out, out
+    assert len(out.strip().splitlines()) == 1
+    assert sorted(single_run(tmp_path / "x").done_tasks()) == [0, 1, 2]  # nothing discarded
+
+
+def _invoke_cli(run, cfg, tmp_path):
+    from typer.testing import CliRunner
+
+    from surgopt.cli import app
+    from surgopt.config import to_toml
+
+    path = tmp_path / "search.toml"
+    path.write_text(to_toml(cfg.model_dump(mode="json", exclude_none=True)))
+    r = CliRunner().invoke(app, ["rcm-grid", str(path), "--store", str(tmp_path / "x"), "--quiet"])
+    return r.exit_code, r.output

@@ -157,29 +157,113 @@ def distributions(space: dict[str, Any]) -> dict:
     return out
 
 
-def open_study(journal, plan: SearchPlan, batch_index: int):
-    """The run's Optuna study (journal file ``journal``) with this batch's sampler."""
+def memory_study(plan: SearchPlan):
+    """A fresh Optuna study in memory, in the plan's directions (the search runs on it; the journal is its record)."""
+    import optuna
+
+    optuna.logging.set_verbosity(optuna.logging.WARNING)
+    return optuna.create_study(study_name="surgopt", storage=optuna.storages.InMemoryStorage(),
+                               directions=[d for _, d in plan.objectives])
+
+
+def _journal_study(path, plan: SearchPlan):
     import optuna
     from optuna.storages import JournalStorage
     from optuna.storages.journal import JournalFileBackend
 
     optuna.logging.set_verbosity(optuna.logging.WARNING)
-    storage = JournalStorage(JournalFileBackend(str(journal)))
-    return optuna.create_study(study_name="surgopt", storage=storage, load_if_exists=True,
-                               sampler=sampler_for(plan.spec, batch_index),
-                               directions=[d for _, d in plan.objectives])
+    return optuna.create_study(study_name="surgopt", storage=JournalStorage(JournalFileBackend(str(path))),
+                               load_if_exists=True, directions=[d for _, d in plan.objectives])
+
+
+class Journal:
+    """The search's record on disk: Optuna's journal file in the run's folder (optuna-dashboard reads it),
+    holding every trial of every *complete* batch, appended batch by batch once the batch is told.
+
+    ``Journal.open`` reads what an interrupted search left: the trials of its leading complete batches
+    (a batch cut short by a kill, or a half-written last line, is dropped and the file rewritten without
+    it). An unreadable journal raises ``JournalProblem``.
+    """
+
+    def __init__(self, path, plan: SearchPlan, study, trials: list):
+        self.path, self.plan, self._study, self.trials = path, plan, study, trials
+
+    @classmethod
+    def open(cls, path, plan: SearchPlan) -> "Journal":
+        from pathlib import Path
+
+        path = Path(path)
+        batch = plan.spec.batch
+        trials = []
+        ends_cleanly = not path.exists() or path.stat().st_size == 0 or _last_byte(path) == b"\n"
+        if path.exists() and path.stat().st_size:
+            try:
+                trials = _read_journal(path)
+            except Exception as exc:  # noqa: BLE001 - whatever Optuna raises on a damaged file
+                raise JournalProblem(f"{path}: Optuna's journal cannot be read ({type(exc).__name__}: "
+                                     f"{str(exc)[:120]})") from None
+        complete = []
+        for k in range(0, len(trials), batch):
+            n = min(batch, plan.spec.trials - k)
+            chunk = trials[k:k + n]
+            if len(chunk) < n or not all(t.state.is_finished() for t in chunk) \
+                    or [t.number for t in chunk] != list(range(k, k + n)):
+                break
+            complete += chunk
+        if len(complete) != len(trials) or not ends_cleanly:
+            _rewrite_journal(path, plan, complete)
+        return cls(path, plan, None, complete)
+
+    @property
+    def batches(self) -> int:
+        """How many complete batches the journal holds."""
+        return -(-len(self.trials) // self.plan.spec.batch) if self.trials else 0
+
+    def append(self, frozen_trials: list) -> None:
+        if self._study is None:
+            self._study = _journal_study(self.path, self.plan)
+        self._study.add_trials(frozen_trials)
+        self.trials += frozen_trials
+
+
+def _read_journal(path) -> list:
+    """The trials a journal holds, read without writing to it (creating the study would append to the file)."""
+    import optuna
+    from optuna.storages import JournalStorage
+    from optuna.storages.journal import JournalFileBackend
+
+    storage = JournalStorage(JournalFileBackend(str(path)))
+    if not storage.get_all_studies():
+        return []
+    return optuna.load_study(study_name="surgopt", storage=storage).get_trials(deepcopy=False)
+
+
+class JournalProblem(ValueError):
+    """A journal that cannot be read."""
+
+
+def _last_byte(path) -> bytes:
+    with open(path, "rb") as f:
+        f.seek(-1, 2)
+        return f.read(1)
+
+
+def _rewrite_journal(path, plan: SearchPlan, trials: list) -> None:
+    """Replace the journal with one holding exactly ``trials`` (written beside it, then renamed)."""
+    import os
+
+    tmp = path.with_name(f".{path.name}.tmp-{os.getpid()}")
+    tmp.unlink(missing_ok=True)
+    try:
+        _journal_study(tmp, plan).add_trials(trials)
+        os.replace(tmp, path)
+    finally:
+        tmp.unlink(missing_ok=True)
 
 
 def ask(study, plan: SearchPlan, n: int) -> list:
     dists = distributions(plan.space)
     return [study.ask(dists) for _ in range(n)]
-
-
-def running_trial(study, frozen):
-    """A trial asked before an interruption (RUNNING in the journal) as a Trial that can be told."""
-    import optuna
-
-    return optuna.trial.Trial(study, frozen._trial_id)
 
 
 def tell(study, trials, values: list[list[float]]) -> None:

@@ -1,0 +1,86 @@
+"""Signals: SIGINT, SIGTERM and SIGHUP stop a command the same way, at any instant, with one line and the
+conventional exit code (130, 143, 129); whatever was stored stays stored and the next command resumes.
+
+The handlers raise ``Stopped`` (a ``KeyboardInterrupt``) in the main thread and remember the signal: a
+handler's exception can be swallowed when the signal lands inside a callback that ignores exceptions (a
+garbage-collection callback of dask's ``distributed``, a ``__del__``), so the runner asks
+``raise_if_stopped()`` between chunks and the CLI once more at the end. Nothing here runs on import.
+"""
+from __future__ import annotations
+
+import signal
+
+#: The signals that stop a command, and the exit code each ends with (128 + the signal's number).
+STOP_SIGNALS = (signal.SIGINT, signal.SIGTERM, signal.SIGHUP)
+
+_received: list[int] = []
+_reported: list[bool] = []
+
+
+class Stopped(KeyboardInterrupt):
+    """A stop signal was received (``signum``)."""
+
+    def __init__(self, signum: int):
+        super().__init__(signum)
+        self.signum = signum
+
+
+def _on_signal(signum, _frame):
+    _received.append(signum)
+    raise Stopped(signum)
+
+
+def install() -> None:
+    """Handle every STOP_SIGNALS in this (main) thread: raise ``Stopped``, and remember it."""
+    import sys
+
+    _received.clear()
+    _reported.clear()
+    for sig in STOP_SIGNALS:
+        signal.signal(sig, _on_signal)
+    previous = sys.unraisablehook
+
+    def quiet_about_stops(unraisable):
+        """A ``Stopped`` raised inside a callback that swallows exceptions (distributed's gc callback) is
+        remembered (``received``) and acted on by the runner; Python would otherwise print its traceback."""
+        if _received or (unraisable.exc_type is not None and issubclass(unraisable.exc_type, Stopped)):
+            return  # after a stop, whatever a library's callback or atexit handler fails at is not news
+        previous(unraisable)
+
+    sys.unraisablehook = quiet_about_stops
+
+
+def received() -> int | None:
+    """The first stop signal received since ``install``, or None."""
+    return _received[0] if _received else None
+
+
+def raise_if_stopped() -> None:
+    """Raise ``Stopped`` if a stop signal arrived and its exception was swallowed on the way."""
+    if _received:
+        raise Stopped(_received[0])
+
+
+def report(exc: BaseException | None, resume: str, once: bool = False) -> int:
+    """Say on stderr that the command was stopped (and that ``resume`` holds; with ``once``, only if nothing
+    said it yet); the exit code."""
+    import sys
+
+    signum = exc.signum if isinstance(exc, Stopped) else (received() or signal.SIGINT)
+    if not (once and _reported):
+        import logging
+        import warnings
+
+        warnings.simplefilter("ignore")  # libraries' complaints about work cut short (joblib, distributed)
+        logging.disable(logging.WARNING)
+        _reported.append(True)
+        what = f"stopped by {signal.Signals(signum).name}" if signum != signal.SIGINT else "interrupted"
+        sys.stderr.write(f"surgopt: {what}; {resume}\n")
+        sys.stderr.flush()
+    return 128 + signum
+
+
+def ignore() -> None:
+    """The command has ended: a stop signal that lands while the process exits changes nothing."""
+    for sig in STOP_SIGNALS:
+        signal.signal(sig, signal.SIG_IGN)
