@@ -140,7 +140,8 @@ def _guard():
 
         raise typer.Exit(interrupts.report(exc, RESUME))
     except MemoryError:
-        _fail(f"out of memory; {RESUME} (a smaller config, or --jobs 1)", 1)
+        _fail("out of memory; what finished before it is stored (`surgopt runs` says how much): run the same "
+              "command again with more memory, a smaller config or --jobs 1", 1)
     except OSError as exc:
         from surgopt.store import is_disk_full
 
@@ -224,7 +225,7 @@ def _run_study_command(study, args, store, jobs, force, quiet, chunk_size=None, 
             return
         budget = dict(max_hours=max_hours, max_memory_bytes=None if max_memory_gb is None else int(max_memory_gb * 2 ** 30))
         if dry_run:
-            _dry_run(study, todo, Store(store), jobs, chunk_size, budget)
+            _dry_run(study, todo, Store(store), jobs, chunk_size, budget, backend, scheduler)
             return
         say = lambda m: typer.echo(m, err=True)  # noqa: E731
         finished = []
@@ -255,10 +256,13 @@ def _print_configs(todo) -> None:
         typer.echo(to_toml(v.config.model_dump(mode="json")))
 
 
-def _dry_run(study, todo, store, jobs, chunk_size, budget) -> None:
-    """What each run would be: size, chunks, store key and state, estimated time and memory."""
+def _dry_run(study, todo, store, jobs, chunk_size, budget, backend="threads", scheduler=None) -> None:
+    """What each run would be: size, chunks, store key and state, estimated time and memory (the whole
+    process tree's: the backend's worker processes counted)."""
     from surgopt.config import study_key
-    from surgopt.runner import check_budget, duration_text, wall_seconds
+    from surgopt.runner import check_budget, duration_text, run_bytes, usable_jobs, wall_seconds
+
+    jobs = usable_jobs(jobs, backend, scheduler, say=lambda m: _console().print(m))
 
     rows = []
     for v in todo:
@@ -272,13 +276,14 @@ def _dry_run(study, todo, store, jobs, chunk_size, budget) -> None:
         chunk = chunk_size or (run.manifest["chunk"] if run else study.auto_chunk(v.config))
         est = study.estimate(v.config) if study.estimate else None
         try:
-            check_budget(study, v.config, jobs, budget["max_hours"], budget["max_memory_bytes"], est=est)
+            check_budget(study, v.config, jobs, budget["max_hours"], budget["max_memory_bytes"], est=est,
+                         backend=backend, scheduler=scheduler)
             verdict = "within budget"
         except Exception as exc:  # noqa: BLE001 - shown, not raised: this is a dry run
             verdict = f"REFUSED: {str(exc).split(';')[0]}"
         rows.append([v.config_name, f"{est.items:,} {est.what}" if est else "?", study.n_tasks(v.config, chunk),
                      key[:12], state, duration_text(wall_seconds(est, jobs)) if est else "?",
-                     f"{est.peak_bytes / 2 ** 20:,.0f} MB" if est else "?", verdict])
+                     f"{run_bytes(est, backend, jobs, scheduler) / 2 ** 20:,.0f} MB" if est else "?", verdict])
     _print_table(_console(), f"{study.name} --dry-run (nothing computed or written)",
                  ["config", "size", "chunks", "key", "store", f"time on {jobs} core(s)", "peak memory", "budget"], rows)
 

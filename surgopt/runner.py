@@ -30,6 +30,10 @@ class WorkerLost(SurgoptError):
     """Worker processes kept dying (exit code 1)."""
 
 
+class OutOfMemory(SurgoptError):
+    """The run ran out of memory; the message says how many chunks are stored (exit code 1)."""
+
+
 @dataclass
 class RunResult:
     """A stored run: ``parts`` streams its rows (what reports use); ``table`` reads them all at once."""
@@ -114,10 +118,41 @@ def wall_seconds(est, jobs: int) -> float:
     return est.seconds_one_core / max(1, min(jobs, os.cpu_count() or 1))
 
 
-def check_budget(study, cfg, jobs: int, max_hours: float | None, max_memory_bytes: int | None, est=None) -> None:
+#: Memory of one worker process of a backend once it has loaded a study's kernels (proportional set size,
+#: measured on rcm-grid: loky ~100 MB, a dask worker more with distributed loaded), and of the helper
+#: processes a process backend starts (resource tracker, loky's or dask's manager).
+WORKER_PROCESS_BYTES = {"threads": 0, "loky": 120 * 2 ** 20, "dask": 200 * 2 ** 20}
+HELPER_PROCESS_BYTES = {"threads": 0, "loky": 40 * 2 ** 20, "dask": 60 * 2 ** 20}
+
+
+def local_workers(backend: str, jobs: int, scheduler: str | None = None) -> int:
+    """How many worker processes the backend starts on this machine (a --scheduler's cluster is elsewhere)."""
+    if backend == "threads" or (backend == "dask" and scheduler):
+        return 0
+    return jobs
+
+
+def run_bytes(est, backend: str = "threads", jobs: int = 1, scheduler: str | None = None) -> int:
+    """The whole process tree's peak memory: the parent's estimate plus every worker process it starts."""
+    n = local_workers(backend, jobs, scheduler)
+    return est.peak_bytes + n * WORKER_PROCESS_BYTES[backend] + (HELPER_PROCESS_BYTES[backend] if n else 0)
+
+
+def usable_jobs(jobs: int, backend: str, scheduler: str | None = None, say=print) -> int:
+    """``jobs`` capped at this machine's cores for the local backends (more workers than cores only cost
+    memory and start-up), with one line saying so; a --scheduler's cluster takes what it is given."""
+    cores = os.cpu_count() or 1
+    if jobs > cores and not (backend == "dask" and scheduler):
+        say(f"--jobs {jobs}: this machine has {cores} core(s); running {cores} worker(s)")
+        return cores
+    return jobs
+
+
+def check_budget(study, cfg, jobs: int, max_hours: float | None, max_memory_bytes: int | None, est=None,
+                 backend: str = "threads", scheduler: str | None = None) -> None:
     """Refuse, before anything runs or is written, a config whose estimated work or memory is past the
     budget; the message gives the estimate and the flag that lifts the limit. ``est``: the study's
-    estimate of ``cfg`` when already computed."""
+    estimate of ``cfg`` when already computed. Memory counts every worker process the backend starts."""
     if study.estimate is None:
         return
     est = est or study.estimate(cfg)
@@ -129,11 +164,14 @@ def check_budget(study, cfg, jobs: int, max_hours: float | None, max_memory_byte
     if max_memory_bytes is None:
         ram = physical_memory_bytes()
         max_memory_bytes = int(ram * DEFAULT_MEMORY_SHARE) if ram else None
-    if max_memory_bytes is not None and est.peak_bytes > max_memory_bytes:
+    need = run_bytes(est, backend, jobs, scheduler)
+    if max_memory_bytes is not None and need > max_memory_bytes:
+        workers = local_workers(backend, jobs, scheduler)
+        with_workers = f" with {workers} {backend} worker process(es)" if workers else ""
         raise UsageError(f"this config is {est.items:,} {est.what} ({est.rows:,} rows), about "
-                         f"{est.peak_bytes / 2 ** 30:,.1f} GiB of memory (estimate), past the "
+                         f"{need / 2 ** 30:,.1f} GiB of memory{with_workers} (estimate), past the "
                          f"{max_memory_bytes / 2 ** 30:,.1f} GiB budget; pass --max-memory-gb "
-                         f"{math.ceil(est.peak_bytes / 2 ** 30 * 1.2)} to run it anyway, or make it smaller")
+                         f"{math.ceil(need / 2 ** 30 * 1.2)} to run it anyway, or make it smaller")
 
 
 def run_study(study, cfg, *, config_name: str, store: Store, jobs: int = DEFAULT_JOBS,
@@ -157,6 +195,7 @@ def run_study(study, cfg, *, config_name: str, store: Store, jobs: int = DEFAULT
         raise UsageError(f"--scheduler goes with --backend dask (the {backend} backend runs on this machine)")
     if backend == "dask":
         _require_distributed()
+    jobs = usable_jobs(jobs, backend, scheduler, say)
     t0 = time.perf_counter()
     schema = study.schema()
     key = study_key(study.name, cfg, study.kernel_version)
@@ -165,7 +204,7 @@ def run_study(study, cfg, *, config_name: str, store: Store, jobs: int = DEFAULT
         if run is not None:  # nothing to compute: no budget to hold it to
             log.info("cache hit: %s %s in %s", study.name, key[:12], run.path)
             return RunResult(run, run.parts(schema), True, 0, time.perf_counter() - t0)
-    check_budget(study, cfg, jobs, max_hours, max_memory_bytes)
+    check_budget(study, cfg, jobs, max_hours, max_memory_bytes, backend=backend, scheduler=scheduler)
 
     lock = store.lock(study.name, key, on_wait=lambda who: say(f"waiting for {who} to finish this study ..."))
     cluster = _dask_client(scheduler, jobs) if backend == "dask" else contextlib.nullcontext()
@@ -186,28 +225,39 @@ def run_study(study, cfg, *, config_name: str, store: Store, jobs: int = DEFAULT
         if len(missing) < total:
             messages.append(f"resuming: {total - len(missing)} of {total} chunks already stored")
         computed = len(missing)
-        plan = study.search_plan(cfg) if study.search_plan else None
-        if missing and plan is not None:
-            _warm_up(study, cfg)
-            _run_search(study, cfg, plan, run, store, jobs, quiet, total, schema, backend, dask)
-        elif missing:
-            _warm_up(study, cfg)  # compile once in the parent; workers load the cache
-            for attempt in range(WORKER_RETRIES + 1):
-                try:
-                    _dispatch(study, cfg, chunk, missing, run, store, jobs, quiet, total, schema, backend, dask)
-                    break
-                except Exception as exc:  # noqa: BLE001 - only a lost worker is retried
-                    if not _worker_died(exc):
-                        raise
-                    missing = [i for i in range(total) if i not in run.done_tasks()]
-                    if attempt == WORKER_RETRIES:
-                        raise WorkerLost(f"a worker process died {WORKER_RETRIES + 1} times "
-                                         f"({exc.__class__.__name__}); the {total - len(missing)} finished "
-                                         f"chunks are stored, run the same command again to resume") from None
-                    say(f"a worker process died ({exc.__class__.__name__}); retrying its "
-                        f"{len(missing)} unfinished chunk(s)")
+        try:
+            _compute_missing(study, cfg, chunk, missing, run, store, jobs, quiet, total, schema, backend, dask, say)
+        except MemoryError:
+            done = len(run.done_tasks())
+            raise OutOfMemory(f"out of memory with {done} of {total} chunks stored; run the same command again "
+                              f"to resume (with more memory, a smaller config or --jobs 1)") from None
         run = store.finish(run, wall_time_s=round(time.perf_counter() - t0, 3), last_backend=backend, last_jobs=jobs)
     return RunResult(run, run.parts(schema), False, computed, time.perf_counter() - t0, messages)
+
+
+def _compute_missing(study, cfg, chunk, missing, run, store, jobs, quiet, total, schema, backend, dask, say) -> None:
+    """Compute and store the ``missing`` chunks (a search's batches through its optimiser), retrying the
+    chunks of worker processes that died."""
+    plan = study.search_plan(cfg) if study.search_plan else None
+    if missing and plan is not None:
+        _warm_up(study, cfg)
+        _run_search(study, cfg, plan, run, store, jobs, quiet, total, schema, backend, dask)
+    elif missing:
+        _warm_up(study, cfg)  # compile once in the parent; workers load the cache
+        for attempt in range(WORKER_RETRIES + 1):
+            try:
+                _dispatch(study, cfg, chunk, missing, run, store, jobs, quiet, total, schema, backend, dask)
+                break
+            except Exception as exc:  # noqa: BLE001 - only a lost worker is retried
+                if not _worker_died(exc):
+                    raise
+                missing = [i for i in range(total) if i not in run.done_tasks()]
+                if attempt == WORKER_RETRIES:
+                    raise WorkerLost(f"a worker process died {WORKER_RETRIES + 1} times "
+                                     f"({exc.__class__.__name__}); the {total - len(missing)} finished "
+                                     f"chunks are stored, run the same command again to resume") from None
+                say(f"a worker process died ({exc.__class__.__name__}); retrying its "
+                    f"{len(missing)} unfinished chunk(s)")
 
 
 def provenance(backend: str, jobs: int) -> dict:

@@ -1,0 +1,90 @@
+"""Worker processes under signals and memory (issue #30): a stop signal swallowed by a library callback still
+stops the run; the memory budget counts every worker process; --jobs beyond the cores is capped; a run
+under an address-space limit ends, in one line, instead of hanging. Bounded: small configs, timeouts."""
+import os
+import resource
+import subprocess
+import sys
+
+import pytest
+
+from surgopt.errors import UsageError
+from surgopt.runner import check_budget, run_bytes, usable_jobs
+from surgopt.studies import get_study
+
+from conftest import RCM_SMALL, cli, single_run
+
+SWALLOWED_SIGTERM = """
+import gc, os, signal, sys
+from surgopt import interrupts
+interrupts.install()
+fired = []
+def callback(phase, info):  # what distributed's gc diagnosis does: a callback whose exceptions are ignored
+    if not fired:
+        fired.append(1)
+        os.kill(os.getpid(), signal.SIGTERM)
+gc.callbacks.append(callback)
+gc.collect()
+assert fired and interrupts.received() == signal.SIGTERM  # the premise: the handler ran inside the callback
+sys.argv = ["surgopt", "rcm-grid", sys.argv[1], "--store", sys.argv[2], "--quiet"]
+from surgopt.cli import run
+run()
+"""
+
+
+def test_a_sigterm_swallowed_by_a_callback_still_stops_the_run(tmp_path):
+    cfg = tmp_path / "small.toml"
+    cfg.write_text(RCM_SMALL)
+    r = subprocess.run([sys.executable, "-c", SWALLOWED_SIGTERM, str(cfg), str(tmp_path / "store")],
+                       capture_output=True, text=True, timeout=300)
+    assert r.returncode == 143, (r.returncode, r.stderr)
+    assert r.stderr.strip().splitlines() == ["surgopt: stopped by SIGTERM; finished chunks are stored, run the same "
+                                             "command again to resume"]
+
+
+def test_the_memory_budget_counts_every_worker_process():
+    study = get_study("rcm-grid")
+    cfg = study.config_model.model_validate({})
+    est = study.estimate(cfg)
+    threads, loky = run_bytes(est, "threads", 2), run_bytes(est, "loky", 2)
+    assert threads == est.peak_bytes and loky > threads + 2 * 100 * 2 ** 20
+    assert run_bytes(est, "dask", 2, scheduler="tcp://elsewhere:8786") == est.peak_bytes  # workers elsewhere
+    budget = (threads + loky) // 2
+    check_budget(study, cfg, 2, None, budget, backend="threads")
+    with pytest.raises(UsageError, match="2 loky worker process"):
+        check_budget(study, cfg, 2, None, budget, backend="loky")
+
+
+def test_jobs_beyond_the_cores_are_capped_with_one_line(tmp_path):
+    said = []
+    cores = os.cpu_count() or 1
+    assert usable_jobs(cores + 100, "loky", say=said.append) == cores and len(said) == 1
+    assert usable_jobs(cores + 100, "dask", "tcp://elsewhere:8786", say=said.append) == cores + 100
+    cfg = tmp_path / "small.toml"
+    cfg.write_text(RCM_SMALL)
+    r = cli("rcm-grid", cfg, "--store", tmp_path / "store", "--quiet", "--backend", "loky", "--jobs", "200")
+    assert f"--jobs 200: this machine has {cores} core(s); running {cores}" in r.stderr
+    assert single_run(tmp_path / "store").manifest["jobs"] == cores
+
+
+def _limit_address_space(megabytes):
+    def apply():
+        resource.setrlimit(resource.RLIMIT_AS, (megabytes * 2 ** 20, megabytes * 2 ** 20))
+    return apply
+
+
+@pytest.mark.parametrize("megabytes", [760, 960])
+def test_a_loky_run_under_an_address_space_limit_ends_in_one_line(tmp_path, megabytes):
+    """Whether it fits depends on the machine's allocators and thread stacks: it must end (not hang), with
+    exit 0, or exit 1 and one line that says how much is stored; and resume once the limit is gone."""
+    cfg = tmp_path / "small.toml"
+    cfg.write_text(RCM_SMALL)
+    args = [sys.executable, "-m", "surgopt", "rcm-grid", str(cfg), "--store", str(tmp_path / "store"), "--quiet",
+            "--backend", "loky"]
+    r = subprocess.run(args, capture_output=True, text=True, timeout=240, preexec_fn=_limit_address_space(megabytes))
+    assert r.returncode in (0, 1), (r.returncode, r.stderr[-2000:])
+    if r.returncode == 1:
+        lines = r.stderr.strip().splitlines()
+        assert len(lines) == 1 and "out of memory" in lines[0] and "Traceback" not in r.stderr, r.stderr[-2000:]
+    r = subprocess.run(args[:-2], capture_output=True, text=True, timeout=240)
+    assert r.returncode == 0 and single_run(tmp_path / "store").complete
