@@ -557,3 +557,36 @@ def pa10_standard_gii(rcm, offsets, links, tool_m, qdot_max7, linear_m_s=0.01, a
         sv = np.linalg.svd(np.array(cols).T, compute_uv=False)
         lo, hi = min(lo, sv[-1]), max(hi, sv[0])
     return lo / hi
+
+
+# ---------------------------------------------------------------------------
+# port-place: dVRK PSM / ECM (the shared dvrk-kinematics.md tables, typed in here again)
+# ---------------------------------------------------------------------------
+
+#: (alpha, A, D, prismatic, offset) of the PSM Classic's yaw, pitch, insertion rows and the Large Needle
+#: Driver's roll row, as ../shared/robots/dvrk-kinematics.md lists them (not read from surgopt).
+PSM_CLASSIC_MDH = [(np.pi / 2, 0.0, 0.0, False, np.pi / 2), (-np.pi / 2, 0.0, 0.0, False, -np.pi / 2),
+                   (np.pi / 2, 0.0, 0.0, True, -0.4318), (0.0, 0.0, 0.4162, False, 0.0)]
+ECM_CLASSIC_MDH = [(np.pi / 2, 0.0, 0.0, False, np.pi / 2), (-np.pi / 2, 0.0, 0.0, False, -np.pi / 2),
+                   (np.pi / 2, 0.0, 0.0, True, -0.3822), (0.0, 0.0, 0.3829, False, 0.0)]
+
+
+def mdh_chain(rows, q):
+    """Base (RCM) -> last frame of modified-DH ``rows`` at joints q (q4, the roll, 0 if not given)."""
+    q = list(q) + [0.0] * (len(rows) - len(q))
+    t = np.eye(4)
+    for (alpha, a, d, prismatic, offset), v in zip(rows, q):
+        t = t @ (dh_modified(0.0, v + offset + d, a, alpha) if prismatic else dh_modified(v + offset, d, a, alpha))
+    return t
+
+
+def brute_force_reach(points, rows, limits, n=(46, 31, 31)):
+    """Which base-frame points a yaw/pitch/insertion arm reaches, by sampling its joint space on a grid and
+    taking the nearest sample: (nearest distance per point, the grid's largest gap between neighbours)."""
+    grids = [np.linspace(lo, hi, k) for (lo, hi), k in zip(limits, n)]
+    q1, q2, q3 = np.meshgrid(*grids, indexing="ij")
+    samples = np.stack([mdh_chain(rows, q)[:3, 3] for q in zip(q1.ravel(), q2.ravel(), q3.ravel())])
+    d = np.array([np.min(np.linalg.norm(samples - p, axis=1)) for p in points])
+    steps = [g[1] - g[0] for g in grids]
+    rho_max = limits[2][1] + abs(rows[2][4] + rows[3][2])
+    return d, max(rho_max * steps[0], rho_max * steps[1], steps[2])

@@ -88,3 +88,45 @@ def test_a_loky_run_under_an_address_space_limit_ends_in_one_line(tmp_path, mega
         assert len(lines) == 1 and "out of memory" in lines[0] and "Traceback" not in r.stderr, r.stderr[-2000:]
     r = subprocess.run(args[:-2], capture_output=True, text=True, timeout=240)
     assert r.returncode == 0 and single_run(tmp_path / "store").complete
+
+
+SEARCH = """
+[workspace]
+points_per_side = 7
+[search]
+method = "tpe"
+trials = 200
+batch = 20
+seed = 5
+"""
+
+
+@pytest.mark.parametrize("kind", ["study", "search"])
+def test_sigint_at_random_instants_on_threads_is_one_line_and_resumes_identically(tmp_path, kind):
+    """A bounded, seeded sample of docs/interrupt_trials.py (which runs 20 per backend and kind): Ctrl-C at a
+    random instant of the run, from start-up to the closing report."""
+    import random
+    import signal
+    import time
+
+    from conftest import RCM_SLOW, single_table
+
+    cfg = tmp_path / "c.toml"
+    cfg.write_text(RCM_SLOW if kind == "study" else SEARCH)
+    base = [sys.executable, "-m", "surgopt", "rcm-grid", str(cfg), "--quiet", "--store"]
+    t0 = time.perf_counter()
+    subprocess.run(base + [str(tmp_path / "ref")], check=True, capture_output=True, timeout=300)
+    duration = time.perf_counter() - t0
+    rng = random.Random(7)
+    for trial in range(3):
+        store = tmp_path / f"s{trial}"
+        p = subprocess.Popen(base + [str(store)], stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+        time.sleep(rng.uniform(0, duration))
+        p.send_signal(signal.SIGINT)
+        err = p.communicate(timeout=300)[1]
+        assert p.returncode in (0, 130), (p.returncode, err)
+        if p.returncode == 130:
+            assert err.strip().splitlines() == ["surgopt: interrupted; finished chunks are stored, run the same "
+                                                "command again to resume"] or "nothing was run" in err, err
+        subprocess.run(base + [str(store)], check=True, capture_output=True, timeout=300)
+        assert single_table(store).equals(single_table(tmp_path / "ref"))

@@ -16,7 +16,8 @@ from typing import Any, Callable, Mapping
 
 #: Study name (the CLI command) -> module defining ``STUDY``.
 STUDIES = {"rcm-grid": "surgopt.studies.rcm_grid", "rcm-track": "surgopt.studies.rcm_track",
-           "raven-sweep": "surgopt.studies.raven_sweep", "suture-sim": "surgopt.studies.suture_sim"}
+           "raven-sweep": "surgopt.studies.raven_sweep", "suture-sim": "surgopt.studies.suture_sim",
+           "port-place": "surgopt.studies.port_place"}
 
 
 @dataclass(frozen=True)

@@ -1,0 +1,399 @@
+"""Port placement for RCM arms (dVRK PSMs + ECM) on a patient: per-port, per-pair and per-design kernels.
+
+Numba kernels only; arrays and named tuples in, arrays out. Lengths in m, angles in rad. Each arm's base
+frame sits at its port (the RCM) with its neutral shaft (q1 = q2 = 0) pointing at the target's centre
+(``docking_frames``); a target point p, in that frame, is reached by the yaw/pitch/insertion mechanism in
+closed form (``rcm_inverse``, the inverse of ``rcm_point``; ``surgopt/robots/dvrk.py`` derives it from the
+modified-DH rows and tests/reference.py multiplies them out independently).
+
+The design space factors: what one arm does at one port depends on the port alone (``port_tables``: reach
+and dexterity at every target point, the camera's coverage), what two arms do together on the pair of
+ports (``pair_tables``: common reach, manipulation angle, shaft clearance inside, arm clearance outside),
+and a design (two instrument ports and a camera port) combines them (``design_columns``) at a few
+operations per design, so every assignment of >= 10^6 designs is affordable.
+"""
+from __future__ import annotations
+
+import math
+from typing import NamedTuple
+
+import numpy as np
+from numba import njit
+
+from surgopt.jit import EXACT
+
+
+class ArmLimits(NamedTuple):
+    """An RCM arm's joint ranges and the reaching point's shaft offset (``dvrk.RcmArm``)."""
+
+    yaw_lo: float
+    yaw_hi: float
+    pitch_lo: float
+    pitch_hi: float
+    insertion_lo: float
+    insertion_hi: float
+    along_shaft_m: float
+
+
+class Camera(NamedTuple):
+    """The endoscope: its arm, its field of view (full cone angle), how far before the target's centre its
+    tip stops, and the depth range it images sharply (from the tip)."""
+
+    arm: ArmLimits
+    half_fov_rad: float
+    standoff_m: float
+    near_m: float
+    far_m: float
+
+
+class Criteria(NamedTuple):
+    """What makes a design feasible and how it is scored (``port_place`` study's [constraints], [objective])."""
+
+    dexterity_length_m: float  # characteristic length L of the isotropy (angular columns scaled by rho / L)
+    angle_lo_rad: float  # manipulation angle range (Hanna et al. 1997: 45-75 deg)
+    angle_hi_rad: float
+    angle_best_rad: float  # 60 deg
+    tip_zone_m: float  # the shafts' last stretch before the target centre, left out of their clearance
+    min_shaft_gap_m: float  # axis-to-axis distance the shafts need inside (diameter + clearance)
+    min_external_m: float  # axis-to-axis distance the arms need outside (along OUTSIDE_LENGTH_M)
+    outside_length_m: float
+    min_spacing_m: float
+    w_reach: float
+    w_angle: float
+    w_azimuth: float
+    w_camera: float
+    w_dexterity: float
+
+
+#: Reasons a design is infeasible (bits of the ``infeasible`` column).
+REACH, CAMERA, SPACING, SHAFTS, OUTSIDE, ANGLE, CAMERA_SIDE = 1, 2, 4, 8, 16, 32, 64
+REASONS = {REACH: "instruments do not both reach every target point", CAMERA: "the camera does not see every "
+           "target point", SPACING: "ports closer than the minimum spacing", SHAFTS: "shafts closer than their "
+           "clearance inside the body", OUTSIDE: "arms closer than their clearance outside the body",
+           ANGLE: "manipulation angle at the target centre outside its range", CAMERA_SIDE: "the camera is not "
+           "between the instruments"}
+
+
+@njit(**EXACT)
+def shaft_direction(q1, q2):
+    """u(q1, q2) = (sin q1 cos q2, -sin q2, -cos q1 cos q2): the shaft's unit direction in the base frame."""
+    c2 = math.cos(q2)
+    return np.array([math.sin(q1) * c2, -math.sin(q2), -math.cos(q1) * c2])
+
+
+@njit(**EXACT)
+def rcm_point(q1, q2, q3, along_shaft_m):
+    """The reaching point (wrist or scope tip) in the base frame: (q3 + along_shaft_m) u(q1, q2)."""
+    return (q3 + along_shaft_m) * shaft_direction(q1, q2)
+
+
+@njit(**EXACT)
+def rcm_inverse(p, along_shaft_m):
+    """(q1, q2, q3) with rcm_point(q1, q2, q3) = p for a point below the RCM's equator (u_z < 0 branch,
+    |q1| < pi/2, |q2| < pi/2): rho = |p|, q2 = -asin(p_y / rho), q1 = atan2(p_x, -p_z), q3 = rho - offset."""
+    rho = math.sqrt(p[0] * p[0] + p[1] * p[1] + p[2] * p[2])
+    if rho == 0.0:
+        return 0.0, 0.0, -along_shaft_m
+    q2 = -math.asin(min(1.0, max(-1.0, p[1] / rho)))
+    q1 = math.atan2(p[0], -p[2])
+    return q1, q2, rho - along_shaft_m
+
+
+@njit(**EXACT)
+def isotropy(q2, rho, length_m):
+    """sigma_min / sigma_max of the position Jacobian [rho du/dq1, rho du/dq2, u] with its angular columns
+    divided by the characteristic length L: the columns are orthogonal, of norms rho cos q2 / L, rho / L, 1."""
+    a = rho * math.cos(q2) / length_m
+    b = rho / length_m
+    lo = min(a, min(b, 1.0))
+    hi = max(a, max(b, 1.0))
+    return lo / hi if hi > 0 else 0.0
+
+
+@njit(**EXACT)
+def within(q1, q2, q3, arm):
+    return (arm.yaw_lo <= q1 <= arm.yaw_hi and arm.pitch_lo <= q2 <= arm.pitch_hi
+            and arm.insertion_lo <= q3 <= arm.insertion_hi)
+
+
+@njit(**EXACT)
+def docking_frames(sites, centre, lateral):
+    """Each port's base rotation (columns x, y, z): z = (site - centre)/|.| so the neutral shaft -z points at
+    the target's centre, x = the patient's ``lateral`` axis made orthogonal to z (yaw swings the shaft
+    across the patient), y = z x x."""
+    n = sites.shape[0]
+    rot = np.zeros((n, 3, 3))
+    for i in range(n):
+        z = sites[i] - centre
+        z = z / math.sqrt(z[0] ** 2 + z[1] ** 2 + z[2] ** 2)
+        x = lateral - (lateral[0] * z[0] + lateral[1] * z[1] + lateral[2] * z[2]) * z
+        nx = math.sqrt(x[0] ** 2 + x[1] ** 2 + x[2] ** 2)
+        if nx < 1e-9:
+            x = np.array([0.0, 1.0, 0.0]) - z[1] * z
+            nx = math.sqrt(x[0] ** 2 + x[1] ** 2 + x[2] ** 2)
+        x = x / nx
+        y = np.array([z[1] * x[2] - z[2] * x[1], z[2] * x[0] - z[0] * x[2], z[0] * x[1] - z[1] * x[0]])
+        for r in range(3):
+            rot[i, r, 0] = x[r]
+            rot[i, r, 1] = y[r]
+            rot[i, r, 2] = z[r]
+    return rot
+
+
+@njit(**EXACT)
+def to_base(rot, site, p):
+    """A world point in the base frame of the arm at ``site`` (rotation ``rot``): rot^T (p - site)."""
+    d = p - site
+    return np.array([rot[0, 0] * d[0] + rot[1, 0] * d[1] + rot[2, 0] * d[2],
+                     rot[0, 1] * d[0] + rot[1, 1] * d[1] + rot[2, 1] * d[2],
+                     rot[0, 2] * d[0] + rot[1, 2] * d[1] + rot[2, 2] * d[2]])
+
+
+@njit(**EXACT)
+def instrument_tables(sites, rot, targets, arm, length_m):
+    """(reach[site, point], dexterity[site, point]): the RCM inverse kinematics of every target point at every
+    port within the joint limits, and the isotropy there (0 where unreachable)."""
+    n, m = sites.shape[0], targets.shape[0]
+    reach = np.zeros((n, m), dtype=np.bool_)
+    dex = np.zeros((n, m))
+    for i in range(n):
+        for k in range(m):
+            q1, q2, q3 = rcm_inverse(to_base(rot[i], sites[i], targets[k]), arm.along_shaft_m)
+            if within(q1, q2, q3, arm):
+                reach[i, k] = True
+                dex[i, k] = isotropy(q2, q3 + arm.along_shaft_m, length_m)
+    return reach, dex
+
+
+@njit(**EXACT)
+def camera_coverage(sites, rot, targets, centre, camera):
+    """The share of target points each port's endoscope images: its shaft on the neutral axis toward the
+    centre, inserted to stop ``standoff_m`` before it (within the insertion range), a point counting when
+    it lies inside the view cone and between ``near_m`` and ``far_m`` from the tip. A port whose insertion
+    cannot be reached (too close, too far) covers nothing."""
+    n, m = sites.shape[0], targets.shape[0]
+    out = np.zeros(n)
+    arm = camera.arm
+    for i in range(n):
+        d = centre - sites[i]
+        dist = math.sqrt(d[0] ** 2 + d[1] ** 2 + d[2] ** 2)
+        u = d / dist
+        q3 = dist - camera.standoff_m - arm.along_shaft_m
+        q3 = max(q3, arm.insertion_lo)
+        if q3 > arm.insertion_hi:
+            continue
+        tip = sites[i] + (q3 + arm.along_shaft_m) * u
+        seen = 0
+        for k in range(m):
+            v = targets[k] - tip
+            r = math.sqrt(v[0] ** 2 + v[1] ** 2 + v[2] ** 2)
+            if r < camera.near_m or r > camera.far_m:
+                continue
+            if (v[0] * u[0] + v[1] * u[1] + v[2] * u[2]) >= r * math.cos(camera.half_fov_rad):
+                seen += 1
+        out[i] = seen / m
+    return out
+
+
+@njit(**EXACT)
+def segment_distance(p0, p1, q0, q1):
+    """The shortest distance between segments [p0, p1] and [q0, q1] (Ericson, Real-Time Collision Detection,
+    Sec. 5.1.9: the closest points of the lines, clamped to the segments)."""
+    d1, d2, r = p1 - p0, q1 - q0, p0 - q0
+    a = d1[0] ** 2 + d1[1] ** 2 + d1[2] ** 2
+    e = d2[0] ** 2 + d2[1] ** 2 + d2[2] ** 2
+    f = d2[0] * r[0] + d2[1] * r[1] + d2[2] * r[2]
+    c = d1[0] * r[0] + d1[1] * r[1] + d1[2] * r[2]
+    b = d1[0] * d2[0] + d1[1] * d2[1] + d1[2] * d2[2]
+    denom = a * e - b * b
+    s = min(1.0, max(0.0, (b * f - c * e) / denom)) if denom > 1e-18 else 0.0
+    t = (b * s + f) / e
+    if t < 0.0:
+        t, s = 0.0, min(1.0, max(0.0, -c / a))
+    elif t > 1.0:
+        t, s = 1.0, min(1.0, max(0.0, (b - c) / a))
+    w = p0 + s * d1 - (q0 + t * d2)
+    return math.sqrt(w[0] ** 2 + w[1] ** 2 + w[2] ** 2)
+
+
+@njit(**EXACT)
+def angle_between(a, b):
+    """The angle between two vectors (rad), by atan2 of |a x b| and a.b (accurate near 0 and pi)."""
+    cx = a[1] * b[2] - a[2] * b[1]
+    cy = a[2] * b[0] - a[0] * b[2]
+    cz = a[0] * b[1] - a[1] * b[0]
+    return math.atan2(math.sqrt(cx * cx + cy * cy + cz * cz), a[0] * b[0] + a[1] * b[1] + a[2] * b[2])
+
+
+@njit(**EXACT)
+def pair_tables(sites, reach, dex, targets, centre, crit):
+    """Per ordered pair (i < j) of instrument ports, over the target points both reach: the count, the mean
+    of the smaller isotropy, the manipulation angle (the angle at the point between the two shafts, Hanna
+    et al. 1997) mean / min / max and share within [lo, hi]; the manipulation angle at the centre; the
+    shafts' axis distance inside (ports to the centre, less the tip zone); and the distance outside (each
+    shaft continued ``outside_length_m`` behind its port). Arrays n x n (entries i < j filled)."""
+    n, m = sites.shape[0], targets.shape[0]
+    count = np.zeros((n, n), dtype=np.int64)
+    dex_mean = np.zeros((n, n))
+    ang_mean = np.zeros((n, n))
+    ang_min = np.zeros((n, n))
+    ang_max = np.zeros((n, n))
+    ang_share = np.zeros((n, n))
+    ang_centre = np.zeros((n, n))
+    inside = np.zeros((n, n))
+    outside = np.zeros((n, n))
+    ends = np.zeros((n, 3))  # where each shaft's clearance stretch ends, before the tip zone
+    backs = np.zeros((n, 3))  # the outside end of each shaft
+    for i in range(n):
+        d = centre - sites[i]
+        dist = math.sqrt(d[0] ** 2 + d[1] ** 2 + d[2] ** 2)
+        ends[i] = sites[i] + max(0.0, dist - crit.tip_zone_m) / dist * d
+        backs[i] = sites[i] - crit.outside_length_m / dist * d
+    for i in range(n):
+        for j in range(i + 1, n):
+            c, dsum, asum, amin, amax, ain = 0, 0.0, 0.0, 10.0, 0.0, 0
+            for k in range(m):
+                if reach[i, k] and reach[j, k]:
+                    c += 1
+                    dsum += min(dex[i, k], dex[j, k])
+                    a = angle_between(sites[i] - targets[k], sites[j] - targets[k])
+                    asum += a
+                    amin = min(amin, a)
+                    amax = max(amax, a)
+                    if crit.angle_lo_rad <= a <= crit.angle_hi_rad:
+                        ain += 1
+            count[i, j] = c
+            if c > 0:
+                dex_mean[i, j] = dsum / c
+                ang_mean[i, j] = asum / c
+                ang_min[i, j] = amin
+                ang_max[i, j] = amax
+                ang_share[i, j] = ain / c
+            ang_centre[i, j] = angle_between(sites[i] - centre, sites[j] - centre)
+            inside[i, j] = segment_distance(sites[i], ends[i], sites[j], ends[j])
+            outside[i, j] = segment_distance(backs[i], sites[i], backs[j], sites[j])
+    return count, dex_mean, ang_mean, ang_min, ang_max, ang_share, ang_centre, inside, outside
+
+
+@njit(**EXACT)
+def camera_pair_tables(sites, centre, lateral):
+    """Per (instrument port i, camera port k): the azimuth (the angle at the centre between the shaft and the
+    optical axis) and the instrument's side of the optical axis (its offset from the camera port along the
+    patient's lateral axis made orthogonal to the optical axis, in m)."""
+    n = sites.shape[0]
+    azimuth = np.zeros((n, n))
+    side = np.zeros((n, n))
+    for k in range(n):
+        axis = centre - sites[k]
+        axis = axis / math.sqrt(axis[0] ** 2 + axis[1] ** 2 + axis[2] ** 2)
+        lat = lateral - (lateral[0] * axis[0] + lateral[1] * axis[1] + lateral[2] * axis[2]) * axis
+        lat = lat / math.sqrt(lat[0] ** 2 + lat[1] ** 2 + lat[2] ** 2)
+        for i in range(n):
+            azimuth[i, k] = angle_between(sites[i] - centre, sites[k] - centre)
+            d = sites[i] - sites[k]
+            side[i, k] = d[0] * lat[0] + d[1] * lat[1] + d[2] * lat[2]
+    return azimuth, side
+
+
+class PortTables(NamedTuple):
+    """What ``design_columns`` combines (from ``instrument_tables``, ``camera_coverage``, ``pair_tables``,
+    ``camera_pair_tables``, plus port distances and the target's distance from each port)."""
+
+    reach_count: np.ndarray  # per site: target points the instrument reaches
+    coverage: np.ndarray  # per site: share of target points the camera sees
+    count: np.ndarray  # per pair i < j
+    dex_mean: np.ndarray
+    ang_mean: np.ndarray
+    ang_min: np.ndarray
+    ang_max: np.ndarray
+    ang_share: np.ndarray
+    ang_centre: np.ndarray
+    inside: np.ndarray
+    outside: np.ndarray
+    spacing: np.ndarray  # port-to-port distance, every pair
+    azimuth: np.ndarray  # [instrument port, camera port]
+    side: np.ndarray
+    n_points: int
+
+
+@njit(**EXACT)
+def pair_of(index, n):
+    """The (i, j), i < j, of the ``index``-th pair in the order (0,1), (0,2) ... (0,n-1), (1,2) ..."""
+    i = 0
+    left = index
+    while left >= n - 1 - i:
+        left -= n - 1 - i
+        i += 1
+    return i, i + 1 + left
+
+
+@njit(**EXACT)
+def design_columns(t, crit, start, stop):
+    """Designs ``start`` .. ``stop`` - 1: design d is instrument pair p = d // (n - 2) (``pair_of``) and camera
+    port the (d mod (n - 2))-th site that is neither. Returns the columns (see the study's schema)."""
+    n = t.reach_count.shape[0]
+    size = stop - start
+    ids = np.zeros((size, 3), dtype=np.int64)
+    f = np.zeros((size, 14))
+    bad = np.zeros(size, dtype=np.int64)
+    cost = np.zeros(size)
+    per_pair = n - 2
+    i, j = pair_of(start // per_pair, n)
+    kk = start % per_pair
+    for r in range(size):
+        k = kk  # the kk-th site that is neither i nor j (i < j)
+        if k >= i:
+            k += 1
+        if k >= j:
+            k += 1
+        ids[r, 0], ids[r, 1], ids[r, 2] = i, j, k
+        common = t.count[i, j] / t.n_points
+        reach_1 = t.reach_count[i] / t.n_points
+        reach_2 = t.reach_count[j] / t.n_points
+        imbalance = abs(t.azimuth[i, k] - t.azimuth[j, k])
+        spacing = min(t.spacing[i, j], min(t.spacing[i, k], t.spacing[j, k]))
+        outside = min(t.outside[i, j], min(t.outside[min(i, k), max(i, k)], t.outside[min(j, k), max(j, k)]))
+        f[r, 0] = reach_1
+        f[r, 1] = reach_2
+        f[r, 2] = common
+        f[r, 3] = t.dex_mean[i, j]
+        f[r, 4] = t.ang_mean[i, j]
+        f[r, 5] = t.ang_min[i, j]
+        f[r, 6] = t.ang_max[i, j]
+        f[r, 7] = t.ang_share[i, j]
+        f[r, 8] = t.ang_centre[i, j]
+        f[r, 9] = imbalance
+        f[r, 10] = t.coverage[k]
+        f[r, 11] = t.inside[i, j]
+        f[r, 12] = outside
+        # how far the optical axis is off the arc between the instruments (0 when it lies between them, in
+        # their plane; spherical triangle inequality: azimuth_i + azimuth_j >= their angle)
+        off_arc = max(0.0, t.azimuth[i, k] + t.azimuth[j, k] - t.ang_centre[i, j])
+        f[r, 13] = off_arc
+        b = 0
+        if t.count[i, j] < t.n_points:
+            b |= REACH
+        if t.coverage[k] < 1.0:
+            b |= CAMERA
+        if spacing < crit.min_spacing_m:
+            b |= SPACING
+        if t.inside[i, j] < crit.min_shaft_gap_m:
+            b |= SHAFTS
+        if outside < crit.min_external_m:
+            b |= OUTSIDE
+        if not (crit.angle_lo_rad <= t.ang_centre[i, j] <= crit.angle_hi_rad):
+            b |= ANGLE
+        if t.side[i, k] * t.side[j, k] >= 0.0:
+            b |= CAMERA_SIDE
+        bad[r] = b
+        cost[r] = (crit.w_reach * (1.0 - common) + crit.w_angle * abs(t.ang_mean[i, j] - crit.angle_best_rad)
+                   + crit.w_azimuth * (imbalance + off_arc) + crit.w_camera * (1.0 - t.coverage[k])
+                   + crit.w_dexterity * (1.0 - t.dex_mean[i, j]))
+        kk += 1
+        if kk == per_pair:
+            kk = 0
+            j += 1
+            if j == n:
+                i += 1
+                j = i + 1
+    return ids, f, bad, cost

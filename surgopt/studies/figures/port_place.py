@@ -1,0 +1,104 @@
+"""port-place figures: the layout in 3-D on the patient, the port region unrolled (top view) with every
+candidate site coloured by the best feasible design that uses it, and why designs are infeasible."""
+from __future__ import annotations
+
+import numpy as np
+
+from surgopt.studies.figures import columns, pyplot, save
+
+ARMS = (("psm1", "C3", "PSM1"), ("psm2", "C1", "PSM2"), ("ecm", "C0", "ECM"))
+
+
+def best_per_site(c: dict, n_sites: int) -> np.ndarray:
+    """The least cost of a feasible design that puts any arm at each site (NaN where none does)."""
+    out = np.full(n_sites, np.inf)
+    ok = c["feasible"]
+    for arm in ("psm1", "psm2", "ecm"):
+        np.minimum.at(out, c[f"{arm}_site"][ok], c["cost"][ok])
+    out[~np.isfinite(out)] = np.nan
+    return out
+
+
+def chosen(c: dict, design_id: int | None) -> int | None:
+    """The row of ``design_id``, or of the best feasible design."""
+    if design_id is not None:
+        rows = np.flatnonzero(c["design_id"] == design_id)
+        return int(rows[0]) if len(rows) else None
+    ok = np.flatnonzero(c["feasible"])
+    return int(ok[np.argmin(c["cost"][ok])]) if len(ok) else None
+
+
+def figures(cfg, table, out, design_id=None):
+    from surgopt.studies import port_place as S
+
+    plt = pyplot()
+    c = columns(table)
+    sites_m, _, _, reach, dex = S.tables(cfg)
+    sites = sites_m * 1000
+    targets = S.target_points_mm(cfg.target)
+    per_site = best_per_site(c, len(sites))
+    row = chosen(c, design_id)
+    paths = []
+
+    # 3-D: the dome, the candidate sites, the chosen ports with their shafts, the target by dexterity
+    fig = plt.figure(figsize=(7.6, 6.2))
+    ax = fig.add_subplot(projection="3d")
+    a, b, h = cfg.patient.semi_axes_mm
+    u, v = np.meshgrid(np.linspace(0, 2 * np.pi, 49), np.linspace(0, np.pi / 2, 13))
+    ax.plot_wireframe(a * np.cos(u) * np.cos(v), b * np.sin(u) * np.cos(v), h * np.sin(v), color="0.8", lw=0.4)
+    sc = ax.scatter(*sites.T, c=per_site, cmap="viridis_r", s=14, depthshade=False)
+    fig.colorbar(sc, ax=ax, shrink=0.6, pad=0.1, label="least cost of a feasible design using the site")
+    if row is not None:
+        i, j = c["psm1_site"][row], c["psm2_site"][row]
+        iso = np.minimum(dex[i], dex[j])
+        ax.scatter(*targets.T, c=iso, cmap="magma", s=3, depthshade=False)
+        centre = np.asarray(cfg.target.centre_mm)
+        for arm, colour, label in ARMS:
+            p = sites[c[f"{arm}_site"][row]]
+            ax.plot(*np.stack([p, centre]).T, color=colour, lw=2)
+            ax.scatter(*p, color=colour, s=60, label=f"{label} site {c[f'{arm}_site'][row]}")
+        ax.set_title(f"port-place: design {c['design_id'][row]} (cost {c['cost'][row]:.3f}); target points "
+                     f"by the smaller isotropy", fontsize=9)
+        ax.legend(fontsize=8, loc="upper left")
+    ax.set_xlabel("x lateral (mm)")
+    ax.set_ylabel("y cranial (mm)")
+    ax.set_zlabel("z anterior (mm)")
+    ax.set_box_aspect((a, b, h))
+    ax.view_init(elev=28, azim=-120)
+    paths.append(save(fig, out / "port_place_layout_3d.png"))
+
+    # 2-D: the port region from above
+    fig, ax = plt.subplots(figsize=(6.0, 6.4))
+    t = np.linspace(0, 2 * np.pi, 200)
+    ax.plot(a * np.cos(t), b * np.sin(t), color="0.6", lw=1, label="dome base")
+    rx, ry = cfg.target.radii_mm[:2]
+    cx, cy = cfg.target.centre_mm[:2]
+    ax.fill(cx + rx * np.cos(t), cy + ry * np.sin(t), color="C4", alpha=0.25, label="target (top view)")
+    sc = ax.scatter(sites[:, 0], sites[:, 1], c=per_site, cmap="viridis_r", s=40)
+    none = np.isnan(per_site)
+    ax.scatter(sites[none, 0], sites[none, 1], facecolors="none", edgecolors="0.5", s=40,
+               label="no feasible design uses it")
+    fig.colorbar(sc, ax=ax, shrink=0.8, label="least cost of a feasible design using the site")
+    if row is not None:
+        for arm, colour, label in ARMS:
+            p = sites[c[f"{arm}_site"][row]]
+            ax.plot(p[0], p[1], "*", color=colour, ms=16, mec="k", label=label)
+    ax.set_aspect("equal")
+    ax.set_xlabel("x lateral (mm)")
+    ax.set_ylabel("y cranial (mm)")
+    ax.set_title("candidate ports (top view) and the best layout", fontsize=9)
+    ax.legend(fontsize=7, loc="lower right")
+    paths.append(save(fig, out / "port_place_sites_top.png"))
+
+    # why designs fail
+    from surgopt.kinematics.port_place import REASONS
+
+    fig, ax = plt.subplots(figsize=(7.0, 3.4))
+    counts = [int(np.count_nonzero(c["infeasible"] & bit)) for bit in REASONS]
+    ax.barh(range(len(REASONS)), counts, color="C7")
+    ax.set_yticks(range(len(REASONS)), list(REASONS.values()), fontsize=7)
+    ax.set_xlabel(f"designs (of {len(c['design_id']):,}; {int(c['feasible'].sum()):,} feasible)")
+    ax.invert_yaxis()
+    ax.set_title("why designs are infeasible (a design can fail several)", fontsize=9)
+    paths.append(save(fig, out / "port_place_reasons.png"))
+    return paths

@@ -1,0 +1,425 @@
+"""Study ``port-place``: where the ports go for a multi-arm RCM robot on a patient (dVRK: two PSMs + the ECM).
+
+Beyond the three papers (issue #29; ../shared/robots/dvrk-kinematics.md). A design is one port for each
+instrument arm and one for the camera arm, each chosen from candidate sites sampled on the insufflated
+abdominal wall; each arm is docked with its neutral shaft through the target's centre. Per design: each
+instrument's reach of the target (RCM inverse kinematics within the joint limits), the common reach, the
+instruments' dexterity (isotropy with a stated characteristic length), the manipulation angle between
+them (Hanna et al. 1997: 45-75 deg, 60 best), the azimuth imbalance about the optical axis, the camera's
+coverage of the target, the port spacing and the shafts' clearance inside and the arms' outside, a cost
+and the reasons a design is infeasible. Every assignment of two instrument ports (unordered: the PSMs are
+the same arm) and a distinct camera port is evaluated; docs/port_placement.md has the model, its sources
+and assumptions.
+"""
+from __future__ import annotations
+
+import math
+from functools import lru_cache
+from typing import Literal
+
+import numpy as np
+from pydantic import Field, model_validator
+
+from surgopt.config import StrictModel
+from surgopt.robots import dvrk
+from surgopt.studies import Estimate, Study, Summary, figures_in, peak_bytes
+
+NAME = "port-place"
+KERNEL_VERSION = "port-place-1"
+DEFAULT_CONFIG = "port_place_dvrk.toml"
+HELP = """Port placement for the da Vinci Research Kit on a patient: two PSMs and the ECM (issue #29).
+
+    Candidate ports on an insufflated abdomen (a half-ellipsoid dome), a target inside it (sphere, ellipsoid
+    or box sampled at a spacing). Every assignment of the two instrument ports and the camera port is one
+    design: reach of each instrument (closed-form RCM inverse kinematics within the joint limits), common
+    reach, dexterity, manipulation angle (45-75 deg, Hanna 1997), azimuth imbalance, camera coverage, port
+    spacing, shaft and arm clearances, cost, and why a design is infeasible (a bit mask). Rows: one per
+    design. The summary ranks feasible designs by cost and checks the best against the clinical numbers."""
+CONFIG_HELP = "TOML or YAML config ([patient], [target], [robot], [constraints], [objective]); default: the dVRK example."
+
+Vec3 = list[float]
+
+
+class PortRegion(StrictModel):
+    """Where on the wall ports may go: sites on a grid of ``site_spacing_mm`` in the top view, on the dome where
+    its height is at least ``min_height_fraction`` of the top (the flanks are too steep to dock)."""
+
+    site_spacing_mm: float = Field(18.0, ge=5.0, le=200.0)
+    min_height_fraction: float = Field(0.45, ge=0.0, lt=1.0)
+
+
+class Patient(StrictModel):
+    """The insufflated abdomen: a half-ellipsoid dome over the plane z = 0 (x lateral, patient's left +x; y
+    toward the head; z anterior), semi-axes in mm. Default 170 x 210 x 140 mm: an assumption (an adult
+    abdomen ~34 cm wide and ~42 cm long; insufflation raises the wall ~6 cm, J Endourol 18(6):572, 2004)."""
+
+    shape: Literal["dome"] = "dome"
+    semi_axes_mm: Vec3 = Field([170.0, 210.0, 140.0], min_length=3, max_length=3)
+    port_region: PortRegion = PortRegion()
+
+    @model_validator(mode="after")
+    def _positive(self):
+        if min(self.semi_axes_mm) <= 0:
+            raise ValueError("semi_axes_mm: every semi-axis must be > 0")
+        return self
+
+
+class Target(StrictModel):
+    """The anatomy every instrument must reach: a sphere, ellipsoid or box (``radii_mm``: semi-axes, or half
+    sides), sampled on a grid of ``spacing_mm``. Default: an ellipsoid of 35 x 45 x 30 mm semi-axes in the
+    pelvis, 100 mm caudal of the dome's top and 40 mm above its base (a prostate-bed-like target; an
+    assumption)."""
+
+    shape: Literal["sphere", "ellipsoid", "box"] = "ellipsoid"
+    centre_mm: Vec3 = Field([0.0, -100.0, 40.0], min_length=3, max_length=3)
+    radii_mm: Vec3 = Field([35.0, 45.0, 30.0], min_length=3, max_length=3)
+    spacing_mm: float = Field(6.0, ge=0.5, le=100.0)
+
+    @model_validator(mode="after")
+    def _positive(self):
+        if min(self.radii_mm) <= 0:
+            raise ValueError("radii_mm: every radius must be > 0")
+        return self
+
+
+class Robot(StrictModel):
+    instrument_arm: Literal[tuple(dvrk.INSTRUMENT_ARMS)] = "dvrk_psm_classic"
+    camera_arm: Literal[tuple(dvrk.CAMERA_ARMS)] = "dvrk_ecm_classic"
+    camera_fov_deg: float = Field(70.0, gt=0, lt=180, description="full view angle of a 0-deg scope (60-70 typical)")
+    camera_standoff_mm: float = Field(100.0, gt=0, description="the scope tip stops this far before the target centre")
+    camera_range_mm: list[float] = Field([10.0, 200.0], min_length=2, max_length=2,
+                                         description="sharp imaging range from the tip")
+
+
+class Constraints(StrictModel):
+    min_port_spacing_mm: float = Field(80.0, ge=0, description="between any two ports (assumption: 8 cm)")
+    port_to_target_mm: list[float] = Field([80.0, 180.0], min_length=2, max_length=2,
+                                           description="candidate sites this far from the target centre "
+                                                       "(<= 18 cm: J Endourol 18(6):572, 2004)")
+    shaft_diameter_mm: float = Field(dvrk.INSTRUMENT_SHAFT_DIAMETER_MM, gt=0)
+    min_shaft_clearance_mm: float = Field(5.0, ge=0, description="between shaft surfaces inside the body")
+    tip_zone_mm: float = Field(30.0, ge=0, description="last stretch before the target centre left out of the "
+                                                        "shafts' clearance (the instruments meet there)")
+    min_external_clearance_mm: float = Field(60.0, ge=0, description="between arm axes outside the body, along "
+                                                                     "the 0.4318 m behind each port")
+    manipulation_angle_deg: list[float] = Field([45.0, 75.0], min_length=2, max_length=2)
+    dexterity_length_m: float = Field(0.1, gt=0, description="characteristic length L of the isotropy")
+
+
+class Objective(StrictModel):
+    """Weights of the cost (minimised): unreached share, |mean manipulation angle - 60 deg| (rad), azimuth
+    imbalance plus the optical axis's angle off the arc between the instruments (rad), unseen share,
+    1 - mean isotropy."""
+
+    reach: float = Field(10.0, ge=0)
+    angle: float = Field(1.0, ge=0)
+    azimuth: float = Field(1.0, ge=0)
+    camera: float = Field(5.0, ge=0)
+    dexterity: float = Field(1.0, ge=0)
+
+
+class PortPlaceConfig(StrictModel):
+    patient: Patient = Patient()
+    target: Target = Target()
+    robot: Robot = Robot()
+    constraints: Constraints = Constraints()
+    objective: Objective = Objective()
+
+    @model_validator(mode="after")
+    def _target_inside_and_ranges_ordered(self):
+        for name, (lo, hi) in (("robot.camera_range_mm", self.robot.camera_range_mm),
+                               ("constraints.port_to_target_mm", self.constraints.port_to_target_mm),
+                               ("constraints.manipulation_angle_deg", self.constraints.manipulation_angle_deg)):
+            if not 0 <= lo < hi:
+                raise ValueError(f"{name}: [{lo:g}, {hi:g}] must be 0 <= low < high")
+        pts = target_points_mm(self.target)
+        if len(pts) == 0:
+            raise ValueError("target: no sample point (a spacing larger than the target)")
+        if len(pts) > 20_000:
+            raise ValueError(f"target: {len(pts):,} sample points (at most 20,000: a larger spacing_mm)")
+        outside = ~inside_dome(pts, self.patient.semi_axes_mm)
+        if outside.any():
+            p = pts[np.argmax(outside)]
+            raise ValueError(f"target: the point ({p[0]:.0f}, {p[1]:.0f}, {p[2]:.0f}) mm is outside the body "
+                             f"(the dome {self.patient.semi_axes_mm} mm over z = 0)")
+        n = len(sites_mm(self))
+        if n < 3:
+            raise ValueError(f"patient.port_region: {n} candidate site(s) within constraints.port_to_target_mm; "
+                             f"three ports need at least three")
+        return self
+
+
+Config = PortPlaceConfig
+
+
+# --- the geometry the config implies (numpy; mm) -------------------------------------------------------------
+
+def grid_1d(half: float, spacing: float) -> np.ndarray:
+    """Points -half .. half at ``spacing``, symmetric about 0 (0 included when they fit)."""
+    k = int(math.floor(half / spacing + 1e-9))
+    return np.arange(-k, k + 1) * spacing
+
+
+def target_points_mm(t: Target) -> np.ndarray:
+    """The target sampled on a grid of ``spacing_mm`` centred on it (points inside the shape)."""
+    gx, gy, gz = (grid_1d(r, t.spacing_mm) for r in t.radii_mm)
+    x, y, z = np.meshgrid(gx, gy, gz, indexing="ij")
+    pts = np.stack([x.ravel(), y.ravel(), z.ravel()], axis=1)
+    if t.shape != "box":
+        r = np.asarray(t.radii_mm, float)
+        pts = pts[((pts / r) ** 2).sum(axis=1) <= 1.0 + 1e-12]
+    return pts + np.asarray(t.centre_mm, float)
+
+
+def inside_dome(p: np.ndarray, semi_axes_mm) -> np.ndarray:
+    a = np.asarray(semi_axes_mm, float)
+    return (p[:, 2] >= 0) & (((p / a) ** 2).sum(axis=1) < 1.0)
+
+
+def dome_height_mm(x, y, semi_axes_mm):
+    a, b, c = semi_axes_mm
+    s = 1.0 - (np.asarray(x) / a) ** 2 - (np.asarray(y) / b) ** 2
+    return c * np.sqrt(np.clip(s, 0.0, None))
+
+
+def sites_mm(cfg: PortPlaceConfig) -> np.ndarray:
+    """Candidate ports: a top-view grid at ``site_spacing_mm`` (symmetric about x = 0) lifted onto the dome,
+    kept where the dome is at least ``min_height_fraction`` of its height and the target centre is within
+    ``port_to_target_mm``."""
+    a, b, c = cfg.patient.semi_axes_mm
+    s = cfg.patient.port_region.site_spacing_mm
+    gx, gy = np.meshgrid(grid_1d(a, s), grid_1d(b, s), indexing="ij")
+    x, y = gx.ravel(), gy.ravel()
+    z = dome_height_mm(x, y, cfg.patient.semi_axes_mm)
+    keep = z >= cfg.patient.port_region.min_height_fraction * c
+    pts = np.stack([x[keep], y[keep], z[keep]], axis=1)
+    dist = np.linalg.norm(pts - np.asarray(cfg.target.centre_mm), axis=1)
+    lo, hi = cfg.constraints.port_to_target_mm
+    return pts[(dist >= lo) & (dist <= hi)]
+
+
+def arm_limits(arm: dvrk.RcmArm):
+    from surgopt.kinematics.port_place import ArmLimits
+
+    return ArmLimits(*arm.yaw_limits_rad, *arm.pitch_limits_rad, *arm.insertion_limits_m, arm.along_shaft_m)
+
+
+def criteria(cfg: PortPlaceConfig):
+    from surgopt.kinematics.port_place import Criteria
+
+    k, o = cfg.constraints, cfg.objective
+    lo, hi = (math.radians(v) for v in k.manipulation_angle_deg)
+    return Criteria(k.dexterity_length_m, lo, hi, math.radians(60.0), k.tip_zone_mm / 1000,
+                    (k.shaft_diameter_mm + k.min_shaft_clearance_mm) / 1000, k.min_external_clearance_mm / 1000,
+                    dvrk.OUTSIDE_LENGTH_M, k.min_port_spacing_mm / 1000, o.reach, o.angle, o.azimuth, o.camera,
+                    o.dexterity)
+
+
+LATERAL = np.array([1.0, 0.0, 0.0])
+
+
+@lru_cache(maxsize=4)
+def _tables(cfg_json: str):
+    """Every per-port and per-pair quantity of a config, computed once per process (the tasks share them)."""
+    from surgopt.kinematics import port_place as K
+
+    cfg = PortPlaceConfig.model_validate_json(cfg_json)
+    sites = sites_mm(cfg) / 1000
+    targets = target_points_mm(cfg.target) / 1000
+    centre = np.asarray(cfg.target.centre_mm, float) / 1000
+    crit = criteria(cfg)
+    rot = K.docking_frames(sites, centre, LATERAL)
+    reach, dex = K.instrument_tables(sites, rot, targets, arm_limits(dvrk.INSTRUMENT_ARMS[cfg.robot.instrument_arm]),
+                                     crit.dexterity_length_m)
+    r = cfg.robot
+    camera = K.Camera(arm_limits(dvrk.CAMERA_ARMS[r.camera_arm]), math.radians(r.camera_fov_deg) / 2,
+                      r.camera_standoff_mm / 1000, r.camera_range_mm[0] / 1000, r.camera_range_mm[1] / 1000)
+    coverage = K.camera_coverage(sites, rot, targets, centre, camera)
+    pairs = K.pair_tables(sites, reach, dex, targets, centre, crit)
+    azimuth, side = K.camera_pair_tables(sites, centre, LATERAL)
+    spacing = np.linalg.norm(sites[:, None, :] - sites[None, :, :], axis=2)
+    tables = K.PortTables(reach.sum(axis=1).astype(np.int64), coverage, *pairs, spacing, azimuth, side,
+                          len(targets))
+    return sites, tables, crit, reach, dex
+
+
+def tables(cfg: PortPlaceConfig):
+    """(sites m, ``PortTables``, ``Criteria``, reach[site, point], isotropy[site, point]) of a config (memoised
+    per process)."""
+    return _tables(cfg.model_dump_json())
+
+
+def n_designs(n_sites: int) -> int:
+    """Unordered instrument pairs times the camera ports left: C(n, 2) (n - 2)."""
+    return n_sites * (n_sites - 1) // 2 * max(0, n_sites - 2)
+
+
+def n_total(cfg: PortPlaceConfig) -> int:
+    return n_designs(len(sites_mm(cfg)))
+
+
+#: Designs per task: ~1 s of combining and a few MB of rows.
+CHUNK = 200_000
+
+
+def auto_chunk(cfg) -> int:
+    from surgopt.studies import chunk_for_seconds
+
+    return min(CHUNK, chunk_for_seconds(n_total(cfg), NS_PER_DESIGN * 1e-9))
+
+
+def n_tasks(cfg, chunk: int) -> int:
+    return max(1, math.ceil(n_total(cfg) / chunk))
+
+
+FLOAT_COLUMNS = ("psm1_reach", "psm2_reach", "common_reach", "dexterity_mean", "manipulation_angle_mean_deg",
+                 "manipulation_angle_min_deg", "manipulation_angle_max_deg", "manipulation_angle_share_45_75",
+                 "manipulation_angle_centre_deg", "azimuth_imbalance_deg", "camera_coverage",
+                 "shaft_clearance_mm", "external_clearance_mm", "camera_off_arc_deg")
+ANGLE_COLUMNS = {4, 5, 6, 8, 9, 13}
+
+
+def schema():
+    import pyarrow as pa
+
+    fields = [pa.field("design_id", pa.int64()), pa.field("psm1_site", pa.int64()), pa.field("psm2_site", pa.int64()),
+              pa.field("ecm_site", pa.int64())]
+    fields += [pa.field(f"{arm}_{c}_mm", pa.float64()) for arm in ("psm1", "psm2", "ecm") for c in "xyz"]
+    fields += [pa.field(c, pa.float64()) for c in FLOAT_COLUMNS]
+    fields += [pa.field("min_port_spacing_mm", pa.float64()), pa.field("psm_to_target_mm", pa.float64()),
+               pa.field("cost", pa.float64()),
+               pa.field("score", pa.float64(), metadata={"meaning": "what summarize ranks by (higher is better): "
+                                                                     "-cost, less 100 per reason a design fails"}),
+               pa.field("feasible", pa.bool_()),
+               pa.field("infeasible", pa.int64(), metadata={"meaning": "bit mask: " + "; ".join(
+                   f"{bit} {why}" for bit, why in _reasons().items())})]
+    return pa.schema(fields)
+
+
+def _reasons():
+    from surgopt.kinematics.port_place import REASONS
+
+    return REASONS
+
+
+#: What each reason a design fails takes off its score, so that feasible designs rank first.
+INFEASIBLE_PENALTY = 100.0
+
+
+def compute_task(cfg, chunk: int, index: int) -> dict:
+    from surgopt.kinematics.port_place import design_columns
+
+    sites, t, crit, _, _ = tables(cfg)
+    start = index * chunk
+    stop = min(n_total(cfg), start + chunk)
+    ids, f, bad, cost = design_columns(t, crit, start, stop)
+    cols = {"design_id": np.arange(start, stop, dtype=np.int64), "psm1_site": ids[:, 0], "psm2_site": ids[:, 1],
+            "ecm_site": ids[:, 2]}
+    for a, arm in enumerate(("psm1", "psm2", "ecm")):
+        for c, axis in enumerate("xyz"):
+            cols[f"{arm}_{axis}_mm"] = sites[ids[:, a], c] * 1000
+    for c, name in enumerate(FLOAT_COLUMNS):
+        v = f[:, c]
+        cols[name] = np.degrees(v) if c in ANGLE_COLUMNS else (v * 1000 if name.endswith("_mm") else v)
+    centre = np.asarray(cfg.target.centre_mm) / 1000
+    d = np.linalg.norm(sites - centre, axis=1) * 1000
+    cols["min_port_spacing_mm"] = np.minimum(np.minimum(t.spacing[ids[:, 0], ids[:, 1]], t.spacing[ids[:, 0], ids[:, 2]]),
+                                             t.spacing[ids[:, 1], ids[:, 2]]) * 1000
+    cols["psm_to_target_mm"] = np.maximum(d[ids[:, 0]], d[ids[:, 1]])
+    cols["cost"] = cost
+    failed = sum((bad >> bit) & 1 for bit in range(len(_reasons())))
+    cols["score"] = -cost - INFEASIBLE_PENALTY * failed
+    cols["feasible"] = bad == 0
+    cols["infeasible"] = bad
+    return cols
+
+
+def warm_up(cfg) -> None:
+    tables(cfg)
+
+
+#: Cost model: ~60 ns to combine one design and turn it into columns on one core, plus the tables
+#: (~3 us per site x target point, ~0.3 us per instrument pair x target point); a row is ~190 bytes.
+NS_PER_DESIGN = 60.0
+NS_PER_SITE_POINT = 3000.0
+NS_PER_PAIR_POINT = 300.0
+
+
+def estimate(cfg) -> Estimate:
+    n = len(sites_mm(cfg))
+    m = len(target_points_mm(cfg.target))
+    d = n_designs(n)
+    seconds = (d * NS_PER_DESIGN + n * m * NS_PER_SITE_POINT * 1e-3 + n * n / 2 * m * NS_PER_PAIR_POINT) * 1e-9
+    return Estimate(d, "port designs", d, seconds, peak_bytes(d, 190, working_bytes=n * n * 8 * 12 + n * m * 9))
+
+
+def feasible_mask(table):
+    return table["feasible"].to_numpy(zero_copy_only=False)
+
+
+def summary(parts) -> Summary:
+    """Feasible count, each reason's count, the best feasible design by cost with its clinical checks."""
+    import pyarrow.compute as pc
+
+    from surgopt.kinematics.port_place import REASONS
+
+    n = parts.num_rows
+    feasible = parts.count(lambda t: t["feasible"], columns=["feasible"])
+    counts = {"feasible": feasible, "infeasible": n - feasible}
+    for bit, why in REASONS.items():
+        counts[f"infeasible: {why}"] = parts.count(lambda t, bit=bit: pc.not_equal(pc.bit_wise_and(t["infeasible"], bit), 0),
+                                                   columns=["infeasible"])
+    headline = {"designs": n, "feasible": feasible}
+    best = _best(parts, 5)
+    tables = []
+    if best.num_rows:
+        b = best.to_pylist()[0]
+        headline.update({"best_design_id": b["design_id"], "best_cost": b["cost"]})
+        checks = [
+            ["port spacing (mm)", f"{b['min_port_spacing_mm']:.0f}", ">= 80 (assumption: 8 cm)"],
+            ["instrument port to target centre (mm)", f"{b['psm_to_target_mm']:.0f}", "<= 180 (J Endourol 2004)"],
+            ["manipulation angle at the centre (deg)", f"{b['manipulation_angle_centre_deg']:.1f}",
+             "45-75, 60 best (Hanna 1997)"],
+            ["manipulation angle over the target (deg)", f"{b['manipulation_angle_min_deg']:.1f} - "
+             f"{b['manipulation_angle_max_deg']:.1f}", "45-75"],
+            ["azimuth imbalance (deg)", f"{b['azimuth_imbalance_deg']:.1f}", "0: equal azimuths (Hanna 1997)"],
+            ["optical axis off the instruments' arc (deg)", f"{b['camera_off_arc_deg']:.1f}", "0: camera between them"],
+            ["common reach", f"{b['common_reach']:.3f}", "1"],
+            ["camera coverage", f"{b['camera_coverage']:.3f}", "1"],
+        ]
+        tables.append(("best layout: clinical checks", ["quantity", "value", "clinical number"], checks))
+        ports = [[arm, str(b[f"{arm}_site"]), f"{b[f'{arm}_x_mm']:.0f}", f"{b[f'{arm}_y_mm']:.0f}",
+                  f"{b[f'{arm}_z_mm']:.0f}"] for arm in ("psm1", "psm2", "ecm")]
+        tables.append(("best layout: ports (x lateral, y cranial, z anterior)", ["arm", "site", "x_mm", "y_mm", "z_mm"],
+                       ports))
+        cols = ["design_id", "cost", "common_reach", "dexterity_mean", "manipulation_angle_mean_deg",
+                "azimuth_imbalance_deg", "camera_coverage"]
+        tables.append(("best feasible designs by cost", cols,
+                       [[f"{r[c]:.4g}" if isinstance(r[c], float) else str(r[c]) for c in cols] for r in best.to_pylist()]))
+    else:
+        headline["best"] = "none: no design is feasible (see the reasons' counts)"
+    return Summary(headline, counts, tables)
+
+
+def _best(parts, k: int):
+    """The k feasible designs of least cost (ties by design id), read part by part."""
+    import pyarrow as pa
+
+    kept = []
+    for t in parts:
+        t = t.filter(t["feasible"])
+        if t.num_rows:
+            order = np.lexsort((t["design_id"].to_numpy(), t["cost"].to_numpy()))[:k]
+            kept.append(t.take(pa.array(order)))
+    if not kept:
+        return parts.schema.empty_table()
+    t = pa.concat_tables(kept)
+    order = np.lexsort((t["design_id"].to_numpy(), t["cost"].to_numpy()))[:k]
+    return t.take(pa.array(order))
+
+
+STUDY = Study(
+    name=NAME, kernel_version=KERNEL_VERSION, config_model=PortPlaceConfig, default_config=DEFAULT_CONFIG,
+    help=HELP, config_help=CONFIG_HELP, schema=schema, key_columns=("design_id",), objective="score",
+    auto_chunk=auto_chunk, n_tasks=n_tasks, warm_up=warm_up, compute_task=compute_task, summary=summary,
+    feasible_mask=feasible_mask, figures=figures_in("port_place"), estimate=estimate)

@@ -1,0 +1,166 @@
+"""port-place (surgopt/studies/port_place.py, surgopt/kinematics/port_place.py): the dVRK arms' RCM kinematics
+against the modified-DH tables multiplied out in tests/reference.py, reach against joint-space sampling,
+angles and clearances against closed forms, a mirror-symmetric patient's optimum, bad input, the CLI."""
+import math
+
+import numpy as np
+import pytest
+
+from surgopt.kinematics import port_place as K
+from surgopt.robots import dvrk
+from surgopt.studies import port_place as S
+
+from conftest import cli
+from reference import ECM_CLASSIC_MDH, PSM_CLASSIC_MDH, brute_force_reach, finite_difference_jacobian, mdh_chain
+
+RNG = np.random.default_rng(29)
+SMALL = {"patient": {"port_region": {"site_spacing_mm": 36.0}}, "target": {"spacing_mm": 15.0}}
+
+
+def _limits(arm):
+    return S.arm_limits(arm)
+
+
+@pytest.mark.parametrize("arm, rows", [(dvrk.PSM_CLASSIC, PSM_CLASSIC_MDH), (dvrk.ECM_CLASSIC, ECM_CLASSIC_MDH)])
+def test_closed_form_rcm_point_is_the_dh_product_and_inverts(arm, rows):
+    lim = _limits(arm)
+    for _ in range(200):
+        q = [RNG.uniform(lim.yaw_lo, lim.yaw_hi), RNG.uniform(lim.pitch_lo, lim.pitch_hi),
+             RNG.uniform(lim.insertion_lo, lim.insertion_hi)]
+        ref = mdh_chain(rows, q)
+        p = K.rcm_point(*q, lim.along_shaft_m)
+        assert np.allclose(p, ref[:3, 3], atol=1e-12)
+        assert np.allclose(K.shaft_direction(q[0], q[1]), ref[:3, 2], atol=1e-12)  # the shaft is the last z axis
+        back = K.rcm_inverse(p, lim.along_shaft_m)
+        if q[2] + lim.along_shaft_m > 1e-3:  # away from the RCM itself, where the direction is undefined
+            assert np.allclose(back, q, atol=1e-10), (q, back)
+
+
+def test_the_rcm_stays_at_the_port_for_every_joint_value():
+    """The shaft line through the wrist at two insertions passes through the base origin (the port)."""
+    for _ in range(100):
+        q1, q2 = RNG.uniform(-1.5, 1.5), RNG.uniform(-0.9, 0.9)
+        a, b = mdh_chain(PSM_CLASSIC_MDH, [q1, q2, 0.05])[:3, 3], mdh_chain(PSM_CLASSIC_MDH, [q1, q2, 0.2])[:3, 3]
+        assert np.linalg.norm(np.cross(a, b)) < 1e-12  # collinear with the origin
+        assert np.linalg.norm(b - a) == pytest.approx(0.15, abs=1e-12)
+
+
+def test_isotropy_is_the_scaled_jacobian_condition_from_finite_differences():
+    lim, length = _limits(dvrk.PSM_CLASSIC), 0.1
+    for _ in range(50):
+        q = np.array([RNG.uniform(-1.5, 1.5), RNG.uniform(-0.9, 0.9), RNG.uniform(0.02, 0.24)])
+        J = finite_difference_jacobian(lambda v: mdh_chain(PSM_CLASSIC_MDH, v)[:3, 3], q, h=1e-6)
+        J[:, :2] /= length  # angular columns in units of the characteristic length
+        s = np.linalg.svd(J, compute_uv=False)
+        assert K.isotropy(q[1], q[2] + lim.along_shaft_m, length) == pytest.approx(s[-1] / s[0], rel=1e-6)
+
+
+def test_reach_matches_joint_space_sampling():
+    """Target points around one port: the closed-form verdict against the nearest of ~44,000 joint-space
+    samples (reference.brute_force_reach), on every point not within a grid gap of the reach boundary."""
+    lim = _limits(dvrk.PSM_CLASSIC)
+    site, centre = np.array([0.0, 0.0, 0.0]), np.array([0.02, -0.03, -0.15])
+    rot = K.docking_frames(site[None], centre, np.array([1.0, 0.0, 0.0]))
+    pts = centre + RNG.uniform(-0.12, 0.12, size=(150, 3))
+    reach, _ = K.instrument_tables(site[None], rot, pts, lim, 0.1)
+    base = np.array([K.to_base(rot[0], site, p) for p in pts])
+    d, gap = brute_force_reach(base, PSM_CLASSIC_MDH, [(lim.yaw_lo, lim.yaw_hi), (lim.pitch_lo, lim.pitch_hi),
+                                                        (lim.insertion_lo, lim.insertion_hi)])
+    clear_out = d > gap
+    assert clear_out.sum() > 20  # the premise: the sample has points the arm cannot reach
+    assert reach[0][clear_out].sum() == 0  # far from every sample: never called reachable
+    near = d < 0.25 * gap
+    # a point near a sample is reachable unless it sits at the boundary (then the sample is a limit value)
+    q = np.array([K.rcm_inverse(p, lim.along_shaft_m) for p in base])
+    margin = np.minimum.reduce([q[:, 0] - lim.yaw_lo, lim.yaw_hi - q[:, 0], q[:, 1] - lim.pitch_lo,
+                                lim.pitch_hi - q[:, 1], q[:, 2] - lim.insertion_lo, lim.insertion_hi - q[:, 2]])
+    inside = near & (margin > 0.05)
+    assert inside.sum() > 20 and reach[0][inside].all()
+
+
+def test_manipulation_angle_and_shaft_distance_closed_forms():
+    """Two ports at (+-d, 0, h) over a point target at the origin: the angle 2 atan(d / h); two shafts that
+    cross at right angles a height g apart: distance g."""
+    d, h = 0.05, 0.1
+    sites = np.array([[-d, 0.0, h], [d, 0.0, h]])
+    target = np.zeros((1, 3))
+    crit = S.criteria(S.PortPlaceConfig())
+    reach = np.ones((2, 1), dtype=bool)
+    out = K.pair_tables(sites, reach, np.ones((2, 1)), target, np.zeros(3), crit)
+    assert out[2][0, 1] == pytest.approx(2 * math.atan(d / h), abs=1e-14)
+    assert out[6][0, 1] == pytest.approx(2 * math.atan(d / h), abs=1e-14)
+    g = 0.013
+    a0, a1 = np.array([-1.0, 0.0, 0.0]), np.array([1.0, 0.0, 0.0])
+    b0, b1 = np.array([0.0, -1.0, g]), np.array([0.0, 1.0, g])
+    assert K.segment_distance(a0, a1, b0, b1) == pytest.approx(g, abs=1e-15)
+    # against sampling both segments
+    for _ in range(20):
+        p0, p1, q0, q1 = RNG.normal(size=(4, 3))
+        s = np.linspace(0, 1, 401)
+        P, Q = p0 + s[:, None] * (p1 - p0), q0 + s[:, None] * (q1 - q0)
+        brute = np.min(np.linalg.norm(P[:, None] - Q[None], axis=2))
+        assert brute - 1e-2 <= K.segment_distance(p0, p1, q0, q1) <= brute + 1e-12
+
+
+def test_design_enumeration_covers_every_assignment_once():
+    n = 7
+    t = K.PortTables(np.ones(n, np.int64), np.ones(n), *(np.zeros((n, n)) for _ in range(9)), np.ones((n, n)),
+                     np.zeros((n, n)), np.zeros((n, n)), 1)
+    t = t._replace(count=np.ones((n, n), np.int64))
+    crit = S.criteria(S.PortPlaceConfig())
+    total = S.n_designs(n)
+    ids = np.concatenate([K.design_columns(t, crit, s, min(total, s + 13))[0] for s in range(0, total, 13)])
+    triples = {(i, j, k) for i, j, k in ids.tolist()}
+    assert len(ids) == len(triples) == total == n * (n - 1) // 2 * (n - 2)
+    assert all(i < j and k not in (i, j) for i, j, k in triples)
+
+
+def test_a_mirror_symmetric_patient_gives_a_mirror_symmetric_optimum():
+    cfg = S.PortPlaceConfig.model_validate(SMALL)
+    sites = S.sites_mm(cfg)
+    mirror = {i: int(np.flatnonzero(np.all(np.isclose(sites, sites[i] * [-1, 1, 1]), axis=1))[0])
+              for i in range(len(sites))}  # the premise: the sites are symmetric about x = 0
+    cols = S.compute_task(cfg, S.n_total(cfg), 0)
+    ok = np.flatnonzero(cols["feasible"])
+    assert len(ok) > 0
+    best = ok[np.argmin(cols["cost"][ok])]
+    i, j, k = (cols[c][best] for c in ("psm1_site", "psm2_site", "ecm_site"))
+    mi, mj, mk = sorted((mirror[i], mirror[j]))[0], sorted((mirror[i], mirror[j]))[1], mirror[k]
+    twin = np.flatnonzero((cols["psm1_site"] == mi) & (cols["psm2_site"] == mj) & (cols["ecm_site"] == mk))[0]
+    assert cols["feasible"][twin]
+    assert cols["cost"][twin] == pytest.approx(cols["cost"][best], rel=1e-9, abs=1e-12)
+
+
+BAD = {
+    "target outside the body": ("[target]\ncentre_mm = [0.0, -100.0, 130.0]\n", "target", "outside the body"),
+    "reversed range": ("[constraints]\nport_to_target_mm = [180.0, 80.0]\n", "port_to_target_mm", "low < high"),
+    "no sites": ("[constraints]\nport_to_target_mm = [5.0, 10.0]\n", "port_region", "candidate site"),
+    "unknown arm": ('[robot]\ninstrument_arm = "kuka"\n', "robot.instrument_arm", "dvrk_psm_classic"),
+}
+
+
+@pytest.mark.parametrize("case", sorted(BAD))
+def test_bad_input_is_one_line_naming_the_field(tmp_path, case):
+    text, where, what = BAD[case]
+    (tmp_path / "p.toml").write_text(text)
+    r = cli("port-place", tmp_path / "p.toml", "--store", tmp_path / "store", check=False)
+    assert r.returncode == 2, r.stderr
+    line = r.stderr.strip()
+    assert len(line.splitlines()) == 1 and "p.toml" in line and where in line and what in line, line
+    assert not (tmp_path / "store").exists()
+
+
+def test_the_cli_runs_stores_and_reports_the_clinical_checks(tmp_path):
+    import json
+
+    overrides = ["patient.port_region.site_spacing_mm=36", "target.spacing_mm=15"]
+    r = cli("port-place", *overrides, "--store", tmp_path / "s", "--quiet")
+    assert "clinical checks" in r.stdout and "manipulation angle at the centre" in r.stdout
+    cfg = S.PortPlaceConfig.model_validate(SMALL)
+    rec = json.loads(cli("summarize", "--store", tmp_path / "s", "--format", "json").stdout)
+    assert rec["rows"] == S.n_total(cfg) and rec["headline"]["feasible"] > 0
+    best = rec["top"][0]
+    assert best["feasible"] and 45 <= best["manipulation_angle_centre_deg"] <= 75
+    assert best["min_port_spacing_mm"] >= 80 and best["common_reach"] == 1.0
+    out = cli("plot", "--store", tmp_path / "s", "--out", tmp_path / "fig").stdout
+    assert "port_place_layout_3d.png" in out and "port_place_sites_top.png" in out
