@@ -13,7 +13,8 @@ from surgopt.store import Store
 from conftest import cli
 
 BASE = Path(__file__).parent / "baselines"
-STUDY_OF = {"rcm_small": "rcm-grid", "raven_small": "raven-sweep", "suture_small": "suture-sim"}
+STUDY_OF = {"rcm_small": "rcm-grid", "raven_small": "raven-sweep", "suture_small": "suture-sim",
+            "port_small": "port-place"}
 
 
 @pytest.fixture(scope="module")
@@ -58,7 +59,7 @@ def test_every_baseline_holds_on_a_cpu_without_avx512(tmp_path):
 @pytest.mark.parametrize("name", sorted(STUDY_OF))
 def test_check_fails_on_a_perturbed_baseline(store, tmp_path, name):
     t = pq.read_table(BASE / f"{name}.parquet")
-    col = {"rcm_small": "gii", "raven_small": "zeta_cm", "suture_small": "q4_rad"}[name]
+    col = {"rcm_small": "gii", "raven_small": "zeta_cm", "suture_small": "q4_rad", "port_small": "cost"}[name]
     v = t[col].to_numpy().copy()
     i = int(np.argmax(np.abs(v)))
     v[i] *= 1 + 1e-6

@@ -152,16 +152,28 @@ def to_base(rot, site, p):
 @njit(**EXACT)
 def instrument_tables(sites, rot, targets, arm, length_m):
     """(reach[site, point], dexterity[site, point]): the RCM inverse kinematics of every target point at every
-    port within the joint limits, and the isotropy there (0 where unreachable)."""
+    port within the joint limits, and the isotropy there (0 where unreachable). Scalar arithmetic in the
+    loop (``rcm_inverse`` and ``isotropy`` written out: no array per point)."""
     n, m = sites.shape[0], targets.shape[0]
     reach = np.zeros((n, m), dtype=np.bool_)
     dex = np.zeros((n, m))
     for i in range(n):
+        r = rot[i]
         for k in range(m):
-            q1, q2, q3 = rcm_inverse(to_base(rot[i], sites[i], targets[k]), arm.along_shaft_m)
-            if within(q1, q2, q3, arm):
+            dx, dy, dz = targets[k, 0] - sites[i, 0], targets[k, 1] - sites[i, 1], targets[k, 2] - sites[i, 2]
+            px = r[0, 0] * dx + r[1, 0] * dy + r[2, 0] * dz
+            py = r[0, 1] * dx + r[1, 1] * dy + r[2, 1] * dz
+            pz = r[0, 2] * dx + r[1, 2] * dy + r[2, 2] * dz
+            rho = math.sqrt(px * px + py * py + pz * pz)
+            if rho == 0.0:
+                continue
+            q2 = -math.asin(min(1.0, max(-1.0, py / rho)))
+            q1 = math.atan2(px, -pz)
+            q3 = rho - arm.along_shaft_m
+            if (arm.yaw_lo <= q1 <= arm.yaw_hi and arm.pitch_lo <= q2 <= arm.pitch_hi
+                    and arm.insertion_lo <= q3 <= arm.insertion_hi):
                 reach[i, k] = True
-                dex[i, k] = isotropy(q2, q3 + arm.along_shaft_m, length_m)
+                dex[i, k] = isotropy(q2, rho, length_m)
     return reach, dex
 
 
@@ -231,7 +243,8 @@ def pair_tables(sites, reach, dex, targets, centre, crit):
     of the smaller isotropy, the manipulation angle (the angle at the point between the two shafts, Hanna
     et al. 1997) mean / min / max and share within [lo, hi]; the manipulation angle at the centre; the
     shafts' axis distance inside (ports to the centre, less the tip zone); and the distance outside (each
-    shaft continued ``outside_length_m`` behind its port). Arrays n x n (entries i < j filled)."""
+    shaft continued ``outside_length_m`` behind its port). Arrays n x n (entries i < j filled). The unit
+    vectors from every point to every port are computed once (no array per pair and point)."""
     n, m = sites.shape[0], targets.shape[0]
     count = np.zeros((n, n), dtype=np.int64)
     dex_mean = np.zeros((n, n))
@@ -244,11 +257,16 @@ def pair_tables(sites, reach, dex, targets, centre, crit):
     outside = np.zeros((n, n))
     ends = np.zeros((n, 3))  # where each shaft's clearance stretch ends, before the tip zone
     backs = np.zeros((n, 3))  # the outside end of each shaft
+    unit = np.zeros((n, m, 3))  # from target point k toward port i
     for i in range(n):
         d = centre - sites[i]
         dist = math.sqrt(d[0] ** 2 + d[1] ** 2 + d[2] ** 2)
         ends[i] = sites[i] + max(0.0, dist - crit.tip_zone_m) / dist * d
         backs[i] = sites[i] - crit.outside_length_m / dist * d
+        for k in range(m):
+            vx, vy, vz = sites[i, 0] - targets[k, 0], sites[i, 1] - targets[k, 1], sites[i, 2] - targets[k, 2]
+            s = 1.0 / math.sqrt(vx * vx + vy * vy + vz * vz)
+            unit[i, k, 0], unit[i, k, 1], unit[i, k, 2] = vx * s, vy * s, vz * s
     for i in range(n):
         for j in range(i + 1, n):
             c, dsum, asum, amin, amax, ain = 0, 0.0, 0.0, 10.0, 0.0, 0
@@ -256,7 +274,10 @@ def pair_tables(sites, reach, dex, targets, centre, crit):
                 if reach[i, k] and reach[j, k]:
                     c += 1
                     dsum += min(dex[i, k], dex[j, k])
-                    a = angle_between(sites[i] - targets[k], sites[j] - targets[k])
+                    ax, ay, az = unit[i, k, 0], unit[i, k, 1], unit[i, k, 2]
+                    bx, by, bz = unit[j, k, 0], unit[j, k, 1], unit[j, k, 2]
+                    cx, cy, cz = ay * bz - az * by, az * bx - ax * bz, ax * by - ay * bx
+                    a = math.atan2(math.sqrt(cx * cx + cy * cy + cz * cz), ax * bx + ay * by + az * bz)
                     asum += a
                     amin = min(amin, a)
                     amax = max(amax, a)

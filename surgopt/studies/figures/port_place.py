@@ -87,7 +87,7 @@ def figures(cfg, table, out, design_id=None):
     ax.set_xlabel("x lateral (mm)")
     ax.set_ylabel("y cranial (mm)")
     ax.set_title("candidate ports (top view) and the best layout", fontsize=9)
-    ax.legend(fontsize=7, loc="lower right")
+    ax.legend(fontsize=7, loc="upper center", bbox_to_anchor=(0.5, -0.1), ncol=3)
     paths.append(save(fig, out / "port_place_sites_top.png"))
 
     # why designs fail

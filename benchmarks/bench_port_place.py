@@ -1,0 +1,105 @@
+"""port-place throughput: the numba kernels against plain numpy versions of the same math, same run.
+
+Run:  python benchmarks/bench_port_place.py
+Prints, for the default config (164 candidate sites, 915 target points, 2,165,292 designs):
+- per-port tables (RCM inverse kinematics + limits + isotropy at every site x target point): numba vs a
+  numpy version vectorised over the points (one site at a time);
+- per-pair tables (common reach, smaller isotropy, manipulation angle statistics over the points both reach):
+  numba vs numpy vectorised over the points (one pair at a time);
+- combining designs (design_columns) in designs/s;
+- `surgopt port-place` end to end, warm, and the estimate it printed beforehand.
+"""
+from __future__ import annotations
+
+import math
+import subprocess
+import sys
+import tempfile
+import time
+
+import numpy as np
+
+from surgopt.kinematics import port_place as K
+from surgopt.robots import dvrk
+from surgopt.studies import port_place as S
+
+
+def numpy_instrument_tables(sites, rot, targets, arm, length):
+    reach = np.zeros((len(sites), len(targets)), bool)
+    dex = np.zeros((len(sites), len(targets)))
+    for i in range(len(sites)):
+        p = (targets - sites[i]) @ rot[i]  # rot^T (p - site), row-wise
+        rho = np.linalg.norm(p, axis=1)
+        q2 = -np.arcsin(np.clip(p[:, 1] / rho, -1, 1))
+        q1 = np.arctan2(p[:, 0], -p[:, 2])
+        q3 = rho - arm.along_shaft_m
+        ok = ((arm.yaw_lo <= q1) & (q1 <= arm.yaw_hi) & (arm.pitch_lo <= q2) & (q2 <= arm.pitch_hi)
+              & (arm.insertion_lo <= q3) & (q3 <= arm.insertion_hi))
+        sv = np.stack([rho * np.cos(q2) / length, rho / length, np.ones_like(rho)])
+        reach[i] = ok
+        dex[i] = np.where(ok, sv.min(axis=0) / sv.max(axis=0), 0.0)
+    return reach, dex
+
+
+def numpy_pair_angles(sites, reach, dex, targets, lo, hi, pairs):
+    out = []
+    for i, j in pairs:
+        both = reach[i] & reach[j]
+        a, b = sites[i] - targets[both], sites[j] - targets[both]
+        ang = np.arctan2(np.linalg.norm(np.cross(a, b), axis=1), (a * b).sum(axis=1))
+        out.append((both.sum(), np.minimum(dex[i, both], dex[j, both]).mean(), ang.mean(), ang.min(), ang.max(),
+                    ((ang >= lo) & (ang <= hi)).mean()))
+    return out
+
+
+def best_of(f, repeat=3):
+    times = []
+    for _ in range(repeat):
+        t = time.perf_counter()
+        out = f()
+        times.append(time.perf_counter() - t)
+    return min(times), out
+
+
+def main() -> None:
+    cfg = S.PortPlaceConfig()
+    sites = S.sites_mm(cfg) / 1000
+    targets = S.target_points_mm(cfg.target) / 1000
+    centre = np.asarray(cfg.target.centre_mm) / 1000
+    arm = S.arm_limits(dvrk.PSM_CLASSIC)
+    crit = S.criteria(cfg)
+    rot = K.docking_frames(sites, centre, S.LATERAL)
+    n, m = len(sites), len(targets)
+    print(f"default config: {n} sites, {m} target points, {S.n_designs(n):,} designs")
+    K.instrument_tables(sites, rot, targets, arm, 0.1)  # compiled or loaded
+    tk, (reach, dex) = best_of(lambda: K.instrument_tables(sites, rot, targets, arm, 0.1))
+    tn, (reach_np, dex_np) = best_of(lambda: numpy_instrument_tables(sites, rot, targets, arm, 0.1))
+    assert np.array_equal(reach, reach_np) and np.allclose(dex, dex_np, atol=1e-12)
+    print(f"per-port tables: numba {n * m / tk / 1e6:.1f} M site-points/s, numpy {n * m / tn / 1e6:.2f} M/s, "
+          f"ratio {tn / tk:.1f}x")
+    K.pair_tables(sites, reach, dex, targets, centre, crit)
+    tk, pairs = best_of(lambda: K.pair_tables(sites, reach, dex, targets, centre, crit), repeat=2)
+    some = [(i, j) for i in range(0, n, 7) for j in range(i + 1, n, 7)]  # a sample of pairs for numpy
+    tn, ref = best_of(lambda: numpy_pair_angles(sites, reach, dex, targets, crit.angle_lo_rad, crit.angle_hi_rad,
+                                                some), repeat=1)
+    for (i, j), r in zip(some, ref):
+        assert pairs[0][i, j] == r[0] and math.isclose(pairs[2][i, j], r[2], rel_tol=1e-12)
+    n_pairs = n * (n - 1) // 2
+    print(f"per-pair tables: numba {n_pairs * m / tk / 1e6:.1f} M pair-points/s ({tk:.2f} s for {n_pairs:,} pairs), "
+          f"numpy {len(some) * m / tn / 1e6:.2f} M/s, ratio {(tn / len(some)) / (tk / n_pairs):.1f}x")
+    _, t, crit, _, _ = S.tables(cfg)
+    total = S.n_designs(n)
+    tk, _ = best_of(lambda: K.design_columns(t, crit, 0, total), repeat=2)
+    print(f"design_columns: {total / tk / 1e6:.1f} M designs/s ({tk:.2f} s for all)")
+    with tempfile.TemporaryDirectory() as tmp:
+        est = subprocess.run([sys.executable, "-m", "surgopt", "port-place", "--dry-run"], capture_output=True, text=True)
+        line = [x for x in est.stdout.splitlines() if "port designs" in x]
+        t0 = time.perf_counter()
+        subprocess.run([sys.executable, "-m", "surgopt", "port-place", "--store", tmp, "-q"], check=True,
+                       capture_output=True)
+        print(f"surgopt port-place end to end (warm, 2 threads): {time.perf_counter() - t0:.1f} s; "
+              f"dry-run said: {' '.join(line[0].split()) if line else '?'}")
+
+
+if __name__ == "__main__":
+    main()
