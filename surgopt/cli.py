@@ -129,26 +129,33 @@ RESUME = "finished chunks are stored, run the same command again to resume"
 def _guard():
     """Every failure a command can meet ends in one line on stderr and an exit code: 2 bad input,
     1 a failed run or store, 130 / 143 / 129 interrupted by SIGINT / SIGTERM / SIGHUP."""
+    from surgopt import interrupts
     from surgopt.errors import SurgoptError
 
     try:
         yield
-    except SurgoptError as exc:
-        _fail(exc, exc.exit_code)
     except KeyboardInterrupt as exc:  # Ctrl-C, or SIGTERM / SIGHUP (surgopt.interrupts.Stopped)
-        from surgopt import interrupts
-
         raise typer.Exit(interrupts.report(exc, RESUME))
-    except MemoryError:
+    except (SurgoptError, MemoryError, OSError) as exc:
+        if interrupts.received() is not None:  # what failed while a stop unwound (a lock file, a pipe) is the stop
+            raise typer.Exit(interrupts.report(None, RESUME)) from None
+        _fail_on(exc)
+
+
+def _fail_on(exc: BaseException) -> None:
+    """One line and the exit code for a library error, out of memory, or an OS error."""
+    from surgopt.errors import SurgoptError
+    from surgopt.store import is_disk_full
+
+    if isinstance(exc, SurgoptError):
+        _fail(exc, exc.exit_code)
+    if isinstance(exc, MemoryError):
         _fail("out of memory; what finished before it is stored (`surgopt runs` says how much): run the same "
               "command again with more memory, a smaller config or --jobs 1", 1)
-    except OSError as exc:
-        from surgopt.store import is_disk_full
-
-        where = f" writing {exc.filename}" if exc.filename else ""
-        if is_disk_full(exc):
-            _fail(f"the disk is full{where}; {RESUME} once there is space", 1)
-        _fail(f"{exc.strerror or exc}{where}", 1)
+    where = f" writing {exc.filename}" if getattr(exc, "filename", None) else ""
+    if is_disk_full(exc):
+        _fail(f"the disk is full{where}; {RESUME} once there is space", 1)
+    _fail(f"{getattr(exc, 'strerror', None) or exc}{where}", 1)
 
 
 def _study_command(study) -> None:

@@ -27,7 +27,18 @@ class Stopped(KeyboardInterrupt):
 
 def _on_signal(signum, _frame):
     _received.append(signum)
+    _quiet()
     raise Stopped(signum)
+
+
+def _quiet() -> None:
+    """From a stop on, libraries' complaints about work cut short (joblib's and distributed's warnings, their
+    and asyncio's logged errors while the cluster winds down) are not printed: the one line is ours."""
+    import logging
+    import warnings
+
+    warnings.simplefilter("ignore")
+    logging.disable(logging.CRITICAL)
 
 
 def install() -> None:
@@ -68,11 +79,7 @@ def report(exc: BaseException | None, resume: str, once: bool = False) -> int:
 
     signum = exc.signum if isinstance(exc, Stopped) else (received() or signal.SIGINT)
     if not (once and _reported):
-        import logging
-        import warnings
-
-        warnings.simplefilter("ignore")  # libraries' complaints about work cut short (joblib, distributed)
-        logging.disable(logging.WARNING)
+        _quiet()
         _reported.append(True)
         what = f"stopped by {signal.Signals(signum).name}" if signum != signal.SIGINT else "interrupted"
         sys.stderr.write(f"surgopt: {what}; {resume}\n")
