@@ -23,16 +23,20 @@ Not given by the paper, chosen here (docs/reproduction.md says why):
     4.8 mm holder that bend through +-90 deg reach a few tens of mm, enough
     for a 50 mm x 100 mm cylindrical field together with the five-bar and
     Z-theta stage.
-  - the five-bar assembly branch: C on the left of the directed line D -> B
-    (the mirror branch has the same conditioning at the start pose).
+  - the five-bar assembly branch: C on the right of the directed line D -> B. At the paper's start pose
+    the other branch ("left", this model's default before 2026-12) closes the loop as a crossed,
+    self-intersecting pentagon (edge A1-D crosses edge C-B), which no physical five-bar can be built
+    as; it is refused. The two branches give joint ranges 2-5x apart under W1 (docs/reproduction.md).
   - the fulcrum P_F: on the snake arm's axis at the start pose, 150 mm
     before the holder tip (the seal near the laryngoscope's distal end);
     ``fulcrum_to_tip_mm`` moves it.
-  - joint ranges |q_i| <= q_imax: q1, q2 pi rad (rotary actuators),
-    q3 100 mm (stage stroke), q4 2 pi rad (the stage turns the holder a
-    full turn either way), theta_L and phi_L' in [0, pi]
-    (bends up to +-90 deg, so |q/q_max| = 0.5 when straight), delta and
-    psi pi rad.
+  - joint ranges, each its own [lower, upper] (JOINT_RANGES): q1, q2 in
+    [-pi, pi] (rotary actuators), q3 in [-100, 100] mm (stage stroke), q4 in
+    [-2 pi, 2 pi] (the stage turns the holder a full turn either way),
+    theta_L and phi_L' in [0, pi] (bends up to +-90 deg; pi/2 is straight),
+    delta and psi in [-pi, pi]. The PMU starts at phi_L' = 0, exactly at its
+    lower limit (the paper's start pose). Q_MAX (q_imax of the paper's
+    |q_i / q_imax| in Fig. 7) is kept for that normalisation only.
 """
 from __future__ import annotations
 
@@ -49,6 +53,10 @@ PMU_LENGTH_MM = 12.0
 FULCRUM_TO_TIP_MM = 150.0
 START_POSE = (1.4522, 2.4707, 50.0, 0.0, math.pi / 2, -math.pi / 3, 0.0, -math.pi / 3)
 Q_MAX = (math.pi, math.pi, 100.0, 2 * math.pi, math.pi, math.pi, math.pi, math.pi)
+#: Each joint's range (lower, upper), in the joint's unit (rad; q3 mm): what the limit check holds a run to.
+JOINT_RANGES = ((-math.pi, math.pi), (-math.pi, math.pi), (-100.0, 100.0), (-2 * math.pi, 2 * math.pi),
+                (0.0, math.pi), (-math.pi, math.pi), (0.0, math.pi), (-math.pi, math.pi))
+FIVE_BAR_BRANCH = "right"
 
 
 # The suture task modes (configs name them; the kernel takes their integer values).

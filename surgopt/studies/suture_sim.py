@@ -32,13 +32,15 @@ HELP = """Suturing with one arm of the two-armed throat robot (Wei, Xu & Simaan:
     """
 CONFIG_HELP = ("TOML or YAML config. Without it: the paper's suturing simulation (W1 and W2, 550 and 800 mm "
              "arms, 6 mm half circle at 0.5 mm/s, dt 0.01 s).")
-KERNEL_VERSION = "throat-1"
+KERNEL_VERSION = "throat-2"  # 2: per-joint range margins stored with every step
 DEFAULT_CONFIG = "suture_wei_xu_simaan.toml"
 OBJECTIVE = None  # runs are compared side by side, not ranked
 KEY_COLUMNS = ("run_id", "step")
 
 JOINT_COLUMNS = ("q1_rad", "q2_rad", "q3_mm", "q4_rad", "q5_rad", "q6_rad", "q7_rad", "q8_rad")
 NORM_COLUMNS = tuple(f"q{i}_norm" for i in range(1, 9))
+#: min(q - lower, upper - q) of each joint at each step, in the joint's unit: negative beyond its range.
+MARGIN_COLUMNS = tuple(c.replace("_rad", "_margin_rad").replace("_mm", "_margin_mm") for c in JOINT_COLUMNS)
 
 Positive = Annotated[float, Field(gt=0)]
 
@@ -52,7 +54,7 @@ class FiveBar(StrictModel):
     l4_mm: Positive = arm.FIVE_BAR_LINKS_MM[3]
     l5_mm: Positive = arm.FIVE_BAR_LINKS_MM[4]
     l6_mm: Positive = arm.FIVE_BAR_LINKS_MM[5]
-    branch: Literal["left", "right"] = "left"
+    branch: Literal["left", "right"] = arm.FIVE_BAR_BRANCH
 
 
 class StartPose(StrictModel):
@@ -68,8 +70,31 @@ class StartPose(StrictModel):
     psi_rad: float = arm.START_POSE[7]
 
 
+Range = Annotated[list[float], Field(min_length=2, max_length=2)]
+
+
+class JointRange(StrictModel):
+    """Each joint's [lower, upper] (rad; q3 mm): the limit check (the robot file's JOINT_RANGES)."""
+
+    q1_rad: Range = list(arm.JOINT_RANGES[0])
+    q2_rad: Range = list(arm.JOINT_RANGES[1])
+    q3_mm: Range = list(arm.JOINT_RANGES[2])
+    q4_rad: Range = list(arm.JOINT_RANGES[3])
+    theta_L_rad: Range = list(arm.JOINT_RANGES[4])
+    delta_rad: Range = list(arm.JOINT_RANGES[5])
+    phi_L_rad: Range = list(arm.JOINT_RANGES[6])
+    psi_rad: Range = list(arm.JOINT_RANGES[7])
+
+    @model_validator(mode="after")
+    def _ordered(self):
+        for name, (lo, hi) in self:
+            if not lo <= hi:
+                raise ValueError(f"{name}: [{lo:g}, {hi:g}] has lower > upper")
+        return self
+
+
 class JointMax(StrictModel):
-    """q_imax used for |q_i / q_imax| (Fig. 7) and the limit check (our choice; see the robot file)."""
+    """q_imax of the paper's normalisation |q_i / q_imax| (Fig. 7); the limit check uses ``joint_range``."""
 
     q1_rad: Positive = arm.Q_MAX[0]
     q2_rad: Positive = arm.Q_MAX[1]
@@ -87,6 +112,7 @@ class Robot(StrictModel):
     pmu_length_mm: Positive = arm.PMU_LENGTH_MM
     start_pose: StartPose = StartPose()
     joint_max: JointMax = JointMax()
+    joint_range: JointRange = JointRange()
 
     @model_validator(mode="after")
     def _five_bar_closes_at_the_start_pose(self):
@@ -95,11 +121,57 @@ class Robot(StrictModel):
         dx = fb.l2_mm * math.sin(s.q2_rad) - fb.l5_mm * math.sin(s.q1_rad)
         dy = fb.l2_mm * math.cos(s.q2_rad) + fb.l1_mm / 2 - (fb.l5_mm * math.cos(s.q1_rad) - fb.l1_mm / 2)
         d = math.hypot(dx, dy)
+        if abs(fb.l4_mm - fb.l3_mm) <= d <= fb.l3_mm + fb.l4_mm:
+            crossing = five_bar_crossing(fb, s.q1_rad, s.q2_rad)
+            if crossing:
+                raise ValueError(f"five_bar.branch: {fb.branch!r} assembles the five-bar at the start pose as a crossed "
+                                 f"(self-intersecting) pentagon: {crossing}; no physical five-bar is built that way "
+                                 f"(use the other branch)")
         if not abs(fb.l4_mm - fb.l3_mm) <= d <= fb.l3_mm + fb.l4_mm:
             raise ValueError(f"the five-bar cannot close at the start pose: its actuated links' ends are {d:.1f} mm "
                              f"apart, the distal links l3, l4 reach {abs(fb.l4_mm - fb.l3_mm):g} to "
                              f"{fb.l3_mm + fb.l4_mm:g} mm (change robot.five_bar or robot.start_pose q1_rad, q2_rad)")
         return self
+
+
+def five_bar_pentagon(fb: FiveBar, q1: float, q2: float) -> list:
+    """The five-bar's joints A1 (q1's actuator), D, C, B, A2 (q2's actuator) in the base plane (eqs. 3-5;
+    C on the side of D -> B that ``fb.branch`` names), or [] when the loop cannot close."""
+    a1, a2 = np.array([0.0, -fb.l1_mm / 2]), np.array([0.0, fb.l1_mm / 2])
+    D = np.array([fb.l5_mm * math.sin(q1), fb.l5_mm * math.cos(q1) - fb.l1_mm / 2])
+    B = np.array([fb.l2_mm * math.sin(q2), fb.l2_mm * math.cos(q2) + fb.l1_mm / 2])
+    e = B - D
+    d = float(np.hypot(*e))
+    a = (fb.l4_mm ** 2 - fb.l3_mm ** 2 + d * d) / (2 * d)
+    if fb.l4_mm ** 2 < a * a:
+        return []
+    h = math.sqrt(fb.l4_mm ** 2 - a * a)
+    eh = e / d
+    C = D + a * eh + (1.0 if fb.branch == "left" else -1.0) * h * np.array([-eh[1], eh[0]])
+    return [a1, D, C, B, a2]
+
+
+def _segments_cross(p, q, r, s) -> bool:
+    """Whether segments pq and rs cross at a point inside both (orientation test)."""
+    def orient(a, b, c):
+        return np.sign((b[0] - a[0]) * (c[1] - a[1]) - (b[1] - a[1]) * (c[0] - a[0]))
+
+    return orient(p, q, r) * orient(p, q, s) < 0 and orient(r, s, p) * orient(r, s, q) < 0
+
+
+def five_bar_crossing(fb: FiveBar, q1: float, q2: float) -> str:
+    """'' for a simple pentagon A1-D-C-B-A2, else which two of its edges cross."""
+    names = ["A1", "D", "C", "B", "A2"]
+    pts = five_bar_pentagon(fb, q1, q2)
+    if not pts:
+        return ""
+    for i in range(5):
+        for j in range(i + 2, 5):
+            if (i, j) == (0, 4):
+                continue
+            if _segments_cross(pts[i], pts[(i + 1) % 5], pts[j], pts[(j + 1) % 5]):
+                return f"edge {names[i]}-{names[(i + 1) % 5]} crosses edge {names[j]}-{names[(j + 1) % 5]}"
+    return ""
 
 
 class Task(StrictModel):
@@ -157,6 +229,11 @@ def start_q(cfg: SutureSimConfig) -> np.ndarray:
     return np.array([s.q1_rad, s.q2_rad, s.q3_mm, s.q4_rad, s.theta_L_rad, s.delta_rad, s.phi_L_rad, s.psi_rad])
 
 
+def joint_ranges(cfg: SutureSimConfig) -> np.ndarray:
+    """8 x 2: each joint's [lower, upper]."""
+    return np.array([v for _, v in cfg.robot.joint_range], float)
+
+
 def q_max(cfg: SutureSimConfig) -> np.ndarray:
     m = cfg.robot.joint_max
     return np.array([m.q1_rad, m.q2_rad, m.q3_mm, m.q4_rad, m.theta_L_rad, m.delta_rad, m.phi_L_rad, m.psi_rad])
@@ -187,6 +264,9 @@ def schema():
               pa.field("mode", pa.string()), pa.field("radius_mm", pa.float64()),
               pa.field("speed_mm_s", pa.float64()), pa.field("step", pa.int64()), pa.field("t_s", pa.float64())]
     fields += [pa.field(c, pa.float64()) for c in JOINT_COLUMNS + NORM_COLUMNS]
+    fields += [pa.field(c, pa.float64(), metadata={"meaning": "min(q - lower, upper - q): negative beyond the "
+                                                              "joint's range (robot.joint_range)"})
+               for c in MARGIN_COLUMNS]
     fields += [pa.field("pos_err_mm", pa.float64()), pa.field("rot_err_deg", pa.float64()),
                pa.field("run_completed", pa.bool_(), metadata={
                    "meaning": "false: the run stopped where J W^-1 J^T became singular (set task.damping > 0)"})]
@@ -240,9 +320,13 @@ def compute_task(cfg: SutureSimConfig, chunk: int, index: int) -> dict:
             "mode": [run["mode"]] * n, "radius_mm": np.full(n, run["radius_mm"]),
             "speed_mm_s": np.full(n, run["speed_mm_s"]), "step": np.arange(n, dtype=np.int64), "t_s": ts}
     qn = np.abs(qs / q_max(cfg))
+    rng = joint_ranges(cfg)
+    margin = np.minimum(qs - rng[:, 0], rng[:, 1] - qs)
     for i, c in enumerate(JOINT_COLUMNS):
         cols[c] = qs[:, i].copy()
         cols[NORM_COLUMNS[i]] = qn[:, i].copy()
+    for i, c in enumerate(MARGIN_COLUMNS):
+        cols[c] = margin[:, i].copy()
     cols["pos_err_mm"] = pe
     cols["rot_err_deg"] = re
     cols["run_completed"] = np.full(n, n == run_steps(cfg, run))
@@ -253,7 +337,8 @@ RUN_KEYS = ["run_id", "weight_set", "arm_length_mm", "fulcrum_to_tip_mm", "mode"
 
 
 def run_summary(parts):
-    """One row per run: each joint's range and peak |q/q_max|, limit violations, max tracking errors.
+    """One row per run: each joint's range, peak |q/q_max| and least margin to its own [lower, upper] range,
+    the steps beyond a range (limit violations), max tracking errors.
 
     ``parts``: a ``Parts`` (each stored part holds whole runs: one run per task) or one table.
     """
@@ -270,10 +355,11 @@ def _run_summary(table):
     df = table.to_pandas()
     g = df.groupby("run_id", sort=True)
     out = g[RUN_KEYS[1:]].first()
-    for c, nc in zip(JOINT_COLUMNS, NORM_COLUMNS):
+    for c, nc, mc in zip(JOINT_COLUMNS, NORM_COLUMNS, MARGIN_COLUMNS):
         out[f"{c}_range"] = g[c].max() - g[c].min()
         out[f"{nc}_peak"] = g[nc].max()
-    out["limit_violations"] = (df[list(NORM_COLUMNS)] > 1.0).any(axis=1).groupby(df["run_id"]).sum()
+        out[f"{mc}_min"] = g[mc].min()
+    out["limit_violations"] = (df[list(MARGIN_COLUMNS)] < 0.0).any(axis=1).groupby(df["run_id"]).sum()
     out["max_pos_err_mm"] = g["pos_err_mm"].max()
     out["max_rot_err_deg"] = g["rot_err_deg"].max()
     out["steps"] = g.size() - 1
@@ -294,12 +380,14 @@ def summary(parts) -> Summary:
     out = []
     others = ["arm_length_mm", "fulcrum_to_tip_mm", "mode", "radius_mm", "speed_mm_s"]
     for key, grp in s.groupby(others, sort=False):
-        header = ["joint"] + [f"{w} range" for w in grp["weight_set"]] + [f"{w} peak |q/qmax|" for w in grp["weight_set"]]
+        header = (["joint"] + [f"{w} range" for w in grp["weight_set"]] + [f"{w} peak |q/qmax|" for w in grp["weight_set"]]
+                  + [f"{w} least margin" for w in grp["weight_set"]])
         rows = []
-        for c, nc in zip(JOINT_COLUMNS, NORM_COLUMNS):
-            rows.append([c] + [f"{v:.4g}" for v in grp[f"{c}_range"]] + [f"{v:.3f}" for v in grp[f"{nc}_peak"]])
-        rows.append(["max pos err (mm)"] + [f"{v:.2e}" for v in grp["max_pos_err_mm"]] + [""] * len(grp))
-        rows.append(["max rot err (deg)"] + [f"{v:.2e}" for v in grp["max_rot_err_deg"]] + [""] * len(grp))
+        for c, nc, mc in zip(JOINT_COLUMNS, NORM_COLUMNS, MARGIN_COLUMNS):
+            rows.append([c] + [f"{v:.4g}" for v in grp[f"{c}_range"]] + [f"{v:.3f}" for v in grp[f"{nc}_peak"]]
+                        + [f"{v:.4g}" + (" BEYOND" if v < 0 else "") for v in grp[f"{mc}_min"]])
+        rows.append(["max pos err (mm)"] + [f"{v:.2e}" for v in grp["max_pos_err_mm"]] + [""] * 2 * len(grp))
+        rows.append(["max rot err (deg)"] + [f"{v:.2e}" for v in grp["max_rot_err_deg"]] + [""] * 2 * len(grp))
         title = "joint ranges: arm {} mm, fulcrum {} mm before the tip, {}, r {} mm, {} mm/s".format(*key)
         out.append((title, header, rows))
     return Summary(headline, {"runs_within_limits": ok, "runs_violating_or_stopped": len(s) - ok}, out)
