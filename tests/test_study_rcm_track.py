@@ -47,6 +47,22 @@ def test_table_I_error_column_aims(table1):
     assert (e[12:] > 3 * e[7]).all()
 
 
+def test_the_tracking_magnitudes_are_not_reproduced_as_the_doc_says(table1):
+    """docs/reproduction.md says plainly that the magnitudes are not reproduced: both directions held. The
+    x = 0.26 m rows are about 5x the paper's (90 mm against 16-17 mm), (0.350, -0.210) about 3x (21 against
+    6.3 mm); the unsaturated rows sit within 0.5 mm of the paper's, which the gain calibrated on row 7 makes
+    close to automatic (their error is mostly the lag v / K)."""
+    _, rows = table1
+    e, paper = rows["max_tip_error_mm"], np.asarray(S.PAPER_MAX_ERROR_MM)
+    ratio = e / paper
+    assert (ratio[12:] > 4.5).all() and (ratio[12:] < 6.0).all()
+    assert 3.0 < ratio[9] < 4.0  # (0.350, -0.210)
+    unsaturated = rows["saturated_s"] < 0.3  # (0.400, -0.110) saturates for 0.24 s at no visible cost
+    assert unsaturated.sum() == 11 and (np.abs(e - paper)[unsaturated] < 0.5).all()
+    lag = 54.6 / S.CALIBRATED_GAIN_PER_S  # mm: the tip speed's lag under the calibrated gain
+    assert (np.abs(e[unsaturated] - lag) < 1.5).all()
+
+
 def test_the_ik_every_tenth_step_costs_microns(table1):
     cfg, rows = table1
     fine = cfg.model_copy(update={"candidates": G.Candidates(z_reference="shoulder", list_m=[[0.535, -0.21], [0.26, -0.14]]),
