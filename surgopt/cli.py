@@ -168,12 +168,13 @@ def _study_command(study) -> None:
 
     P = inspect.Parameter
     params = [P("args", P.KEYWORD_ONLY, default=None, annotation=Annotated[Optional[list[str]], typer.Argument(
-        help=f"{study.config_help} Then any KEY=VALUE overrides (dotted keys, e.g. workspace.points_per_side=9; "
-             f"a comma list with --multirun).", show_default=False, metavar="[CONFIG] [KEY=VALUE]")])]
+        help=_literal(f"{study.config_help} Then any KEY=VALUE overrides (dotted keys, e.g. "
+                      f"{_example_override(study.config_model)}; a comma list with --multirun)."),
+        show_default=False, metavar="[CONFIG] [KEY=VALUE]")])]
     params += [P(f.dest, P.KEYWORD_ONLY, default=None if f.metavar else False,
-                 annotation=Annotated[Optional[str], typer.Option(f.option, help=f.help, metavar=f.metavar,
+                 annotation=Annotated[Optional[str], typer.Option(f.option, help=_literal(f.help), metavar=f.metavar,
                                                                   show_default=False)]
-                 if f.metavar else Annotated[bool, typer.Option(f.option, help=f.help)])
+                 if f.metavar else Annotated[bool, typer.Option(f.option, help=_literal(f.help))])
                for f in study.flags]
     shared = [("multirun", MultirunOpt, False), ("print_config", PrintConfigOpt, False), ("dry_run", DryRunOpt, False),
               ("store", StoreOpt, None), ("jobs", JobsOpt, 2), ("force", ForceOpt, False), ("quiet", QuietOpt, False)]
@@ -190,9 +191,26 @@ def _study_command(study) -> None:
 
     command.__signature__ = inspect.Signature(params)
     command.__annotations__ = {p.name: p.annotation for p in params}
-    command.__doc__ = _reflow(study.help)
+    command.__doc__ = _literal(_reflow(study.help))
     command.__name__ = study.name.replace("-", "_")
     app.command(study.name)(command)
+
+
+def _literal(text: str) -> str:
+    """Help text shown as written: Rich would read "[robot]" or "[track]" as markup and drop it."""
+    return text.replace("[", "\\[")
+
+
+def _example_override(model) -> str:
+    """A dotted KEY=VALUE of this study's own config (its first section's first number), for the help."""
+    for name, info in model.model_fields.items():
+        sub = info.annotation
+        if isinstance(sub, type) and hasattr(sub, "model_fields"):
+            for leaf, leaf_info in sub.model_fields.items():
+                value = leaf_info.default
+                if isinstance(value, (int, float)) and not isinstance(value, bool):
+                    return f"{name}.{leaf}={value:g}"
+    return "section.field=value"
 
 
 def _reflow(text: str) -> str:
