@@ -119,6 +119,11 @@ RunRef = Annotated[Optional[str], typer.Argument(
 StudyOpt = Annotated[Optional[str], typer.Option("--study", help="Study name, when a config fits several.")]
 
 
+def _shortest(x) -> str:
+    """A float as the shortest text that reads back to the same float (repr)."""
+    return repr(float(x))
+
+
 @app.command("summarize")
 def summarize(
     run: RunRef = None,
@@ -127,8 +132,12 @@ def summarize(
     fmt: Annotated[SummaryFormat, typer.Option("--format", help="table, csv, json (stable snake_case keys, full "
                                                                  "precision) or markdown.")] = SummaryFormat.table,
     top: Annotated[int, typer.Option("--top", min=1, help="How many designs to list.")] = 10,
-    sort: Annotated[Optional[str], typer.Option("--sort", help="Column to rank by (default: the study's objective).",
+    sort: Annotated[Optional[str], typer.Option("--sort", help="Column to rank by, largest first; -COLUMN ranks the "
+                                                               "smallest first (default: the study's objective).",
                                                 show_default=False)] = None,
+    columns: Annotated[Optional[str], typer.Option("--columns", help="Comma-separated columns of the top table "
+                                                                     "(default: every number column).",
+                                                   show_default=False)] = None,
 ) -> None:
     """Summary of a stored run: top designs by the study's objective, its distribution, feasibility,
     and for studies without an objective their own comparison tables. Works on partial runs and says so."""
@@ -147,7 +156,19 @@ def summarize(
             typer.echo(json.dumps(summary_record(st, r, r.parts(st.schema()), top=top, sort=sort), indent=1,
                                   default=str))
             return
-        sections = summary_sections(st, r, r.parts(st.schema()), top=top, sort=sort)
+        if fmt == "csv":  # one table pandas.read_csv reads as it is: the top rows, every column, full precision
+            from surgopt.report import top_table
+
+            table = top_table(st, r.parts(st.schema()), top=top, sort=sort)
+            if table is None:
+                _fail(f"--format csv writes the top rows by a column: {st.name} ranks nothing by default, so give "
+                      f"--sort COLUMN (or use --format json / markdown for its comparison tables)", 2)
+            if columns:
+                table = table.select([c.strip() for c in columns.split(",") if c.strip()])
+            sys.stdout.write(table.to_pandas().to_csv(index=False, float_format=_shortest))
+            return
+        shown = [c.strip() for c in columns.split(",") if c.strip()] if columns else None
+        sections = summary_sections(st, r, r.parts(st.schema()), top=top, sort=sort, columns_shown=shown)
     if fmt != "table":
         typer.echo(render(sections, fmt))
         return
@@ -231,7 +252,7 @@ def export(
             atomic_write(out, lambda tmp: pq.write_table(table, tmp, compression="zstd"))
         else:
             df = table.to_pandas()
-            text = df.to_csv(index=False) if fmt == ExportFormat.csv else df.to_json(orient="records", indent=1)
+            text = df.to_csv(index=False, float_format=_shortest) if fmt == ExportFormat.csv else df.to_json(orient="records", indent=1)
             if out is None:
                 sys.stdout.write(text)
             else:

@@ -53,9 +53,10 @@ class Parts:
             chunks.append(v[_np(where(t))] if where is not None else v)
         return np.concatenate(chunks) if chunks else np.zeros(0)
 
-    def top(self, column: str, k: int, where: Callable | None = None):
-        """The k rows with the largest ``column`` (first occurrence wins ties, as a stable sort of the
-        whole table would), over rows where ``where(part)`` if given; an Arrow table, best first."""
+    def top(self, column: str, k: int, where: Callable | None = None, ascending: bool = False):
+        """The k rows with the largest ``column`` (``ascending``: the smallest; first occurrence wins ties, as a
+        stable sort of the whole table would), over rows where ``where(part)`` if given; an Arrow table, best
+        first."""
         import pyarrow as pa
 
         best, offset = None, 0
@@ -70,7 +71,7 @@ class Parts:
             cand = t.append_column("__order", pa.array(pos + offset, pa.int64()))
             offset += n
             best = cand if best is None else pa.concat_tables([best, cand])
-            best = _top_k(best, column, k)
+            best = _top_k(best, column, k, ascending)
         if best is None:
             return self.schema.empty_table()
         return best.drop_columns(["__order"])
@@ -87,8 +88,8 @@ def _np(mask) -> np.ndarray:
     return np.asarray(mask.to_numpy(zero_copy_only=False) if hasattr(mask, "to_numpy") else mask, dtype=bool)
 
 
-def _top_k(table, column: str, k: int):
+def _top_k(table, column: str, k: int, ascending: bool = False):
     v = table[column].to_numpy(zero_copy_only=False).astype(float)
     order = table["__order"].to_numpy()
-    idx = np.lexsort((order, -v))[:k]  # by value descending, then first occurrence
+    idx = np.lexsort((order, v if ascending else -v))[:k]  # by value, then first occurrence
     return table.take(idx)

@@ -13,6 +13,24 @@ from surgopt.studies.figures import columns
 STATS = ("count", "min", "p25", "median", "p75", "max", "mean")
 
 
+def sort_order(sort: str | None, study) -> tuple[str | None, bool]:
+    """(column, ascending) of a --sort value: "name" ranks the largest first, "-name" the smallest (as a
+    [search] objective's "-name" minimises); no value: the study's objective, largest first."""
+    if sort is None:
+        return study.objective, False
+    return (sort[1:], True) if sort.startswith("-") else (sort, False)
+
+
+def top_table(study, parts, top: int = 10, sort: str | None = None):
+    """The top rows as an Arrow table (full precision): what ``summarize --format csv`` writes; None for a
+    study without an objective when no --sort is given."""
+    column, ascending = sort_order(sort, study)
+    if column is None or not parts.num_rows:
+        return None
+    check_sort_column(parts.schema, column)
+    return parts.top(column, top, ascending=ascending)
+
+
 def check_sort_column(schema, column: str) -> None:
     """UsageError unless ``column`` is a numeric (or boolean) column of the table: what --sort can rank by."""
     import pyarrow as pa
@@ -27,7 +45,8 @@ def check_sort_column(schema, column: str) -> None:
         raise UsageError(f"--sort: {column!r} is not a number column; rank by one of: {', '.join(numeric)}")
 
 
-def summary_sections(study, run, parts, top: int = 10, sort: str | None = None) -> list[tuple[str, list[str], list[list]]]:
+def summary_sections(study, run, parts, top: int = 10, sort: str | None = None,
+                     columns_shown: list[str] | None = None) -> list[tuple[str, list[str], list[list]]]:
     """Study-aware summary: header, top designs, objective statistics, feasibility, study tables.
 
     ``parts``: the run's rows (``surgopt.parts.Parts``, or one Arrow table), read part by part: memory
@@ -44,14 +63,21 @@ def summary_sections(study, run, parts, top: int = 10, sort: str | None = None) 
             ["rows", parts.num_rows], ["state", state], ["created", run.manifest.get("created", "?")]]
     head += [[k, v] for k, v in summary.feasibility.items()] if summary else []
     sections = [("run", ["field", "value"], head)]
-    objective = sort or study.objective
+    objective, ascending = sort_order(sort, study)
     if objective is not None and parts.num_rows:
         names_all = parts.schema.names
         check_sort_column(parts.schema, objective)
-        best = parts.top(objective, top)
+        best = parts.top(objective, top, ascending=ascending)
         cols = columns(best)
         names = [c for c in names_all if cols[c].dtype != object or c in study.key_columns]
-        sections.append((f"top {best.num_rows} by {objective}", names,
+        if columns_shown:
+            unknown = [c for c in columns_shown if c not in names_all]
+            if unknown:
+                from surgopt.errors import UsageError
+
+                raise UsageError(f"--columns: no column {unknown[0][:80]!r}; columns: {', '.join(names_all)}")
+            names = list(columns_shown)
+        sections.append((f"top {best.num_rows} by {objective}{' (smallest first)' if ascending else ''}", names,
                          [[_fmt(cols[c][i]) for c in names] for i in range(best.num_rows)]))
         rows = []
         for label, v in (("all", parts.column(objective).astype(float)),
@@ -100,11 +126,12 @@ def summary_record(study, run, parts, top: int = 10, sort: str | None = None) ->
            "rows": parts.num_rows, "complete": done == total, "chunks_stored": done, "chunks": total,
            "created": run.manifest.get("created"),
            "feasibility": summary.feasibility if summary else {}, "headline": summary.headline if summary else {}}
-    objective = sort or study.objective
+    objective, ascending = sort_order(sort, study)
     if objective is not None and parts.num_rows:
         check_sort_column(parts.schema, objective)
         out["objective"] = objective
-        out["top"] = parts.top(objective, top).to_pylist()
+        out["ascending"] = ascending
+        out["top"] = parts.top(objective, top, ascending=ascending).to_pylist()
         out["distribution"] = {}
         for label, v in (("all", parts.column(objective).astype(float)),
                          ("feasible", parts.column(objective, where=study.feasible_mask).astype(float))):
