@@ -72,13 +72,14 @@ def wide_vector_features() -> str | None:
     return features + ",-prefer-256-bit"
 
 
-def compile_lock(timeout_s: float = 600.0):
+def compile_lock(timeout_s: float = 600.0, on_wait=None):
     """A lock across processes on the numba cache folder, held while a study compiles its kernels.
 
     Two surgopt processes compiling the same kernels into one cache at once (e.g. two commands started
     together after an upgrade) race on the cache's index files; once a process was seen to abort
     (SIGABRT) loading a half-written entry. With the lock the second waits, then loads the first's
     result. Past ``timeout_s`` it compiles anyway (a stale holder must not block a run for ever).
+    ``on_wait()`` is called once before waiting on another process.
     """
     import contextlib
 
@@ -91,7 +92,12 @@ def compile_lock(timeout_s: float = 600.0):
     @contextlib.contextmanager
     def held():
         try:
-            lock.acquire(timeout=timeout_s)
+            try:
+                lock.acquire(timeout=0)
+            except Timeout:
+                if on_wait is not None:
+                    on_wait()  # another process compiles into this cache now: say so before waiting
+                lock.acquire(timeout=timeout_s)
         except Timeout:
             yield
             return

@@ -240,10 +240,10 @@ def _compute_missing(study, cfg, chunk, missing, run, store, jobs, quiet, total,
     chunks of worker processes that died."""
     plan = study.search_plan(cfg) if study.search_plan else None
     if missing and plan is not None:
-        _warm_up(study, cfg)
+        _warm_up(study, cfg, say)
         _run_search(study, cfg, plan, run, store, jobs, quiet, total, schema, backend, dask)
     elif missing:
-        _warm_up(study, cfg)  # compile once in the parent; workers load the cache
+        _warm_up(study, cfg, say)  # compile once in the parent; workers load the cache
         for attempt in range(WORKER_RETRIES + 1):
             try:
                 _dispatch(study, cfg, chunk, missing, run, store, jobs, quiet, total, schema, backend, dask)
@@ -577,12 +577,36 @@ def _worker_setup(cache_dir: str, study_name: str, cfg) -> str:
     return os.environ["NUMBA_CACHE_DIR"]
 
 
-def _warm_up(study, cfg) -> None:
-    """``study.warm_up`` under the numba cache's compile lock (``surgopt.jit.compile_lock``)."""
-    from surgopt.jit import compile_lock
+#: How long loading the kernels may take before the user is told they are being compiled (s).
+COMPILE_NOTICE_S = 2.0
 
-    with compile_lock():
-        study.warm_up(cfg)
+
+def _warm_up(study, cfg, say=None) -> None:
+    """``study.warm_up`` under the numba cache's compile lock (``surgopt.jit.compile_lock``). With ``say``: a word
+    when the lock is held by another process, and when loading takes over COMPILE_NOTICE_S (a first run compiles
+    the kernels: up to a minute or two on a loaded 2-core machine), with the time it took."""
+    import threading
+
+    from surgopt.jit import compile_lock, numba_cache_dir
+
+    on_wait = None if say is None else (lambda: say(f"waiting for another surgopt process compiling the kernels "
+                                                   f"into {numba_cache_dir()} ..."))
+    with compile_lock(on_wait=on_wait):
+        t0 = time.perf_counter()
+        timer = None
+        if say is not None:
+            timer = threading.Timer(COMPILE_NOTICE_S, lambda: say(
+                f"compiling the {study.name} kernels (the first run after an install or an update; later runs load "
+                f"them from {numba_cache_dir()}) ..."))
+            timer.daemon = True
+            timer.start()
+        try:
+            study.warm_up(cfg)
+        finally:
+            if timer is not None:
+                timer.cancel()
+                if timer.finished.is_set() and time.perf_counter() - t0 > COMPILE_NOTICE_S:
+                    say(f"kernels ready after {time.perf_counter() - t0:.0f} s")
 
 
 def _prepare_dask_workers(client, study_name: str, cfg) -> None:

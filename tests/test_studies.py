@@ -90,3 +90,22 @@ def test_the_budget_refuses_before_anything_runs(tmp_path):
     r = cli("rcm-grid", cfg, "--store", tmp_path / "store", "--max-hours", f"{hours / 2:.6f}", check=False)
     assert r.returncode == 2 and "--max-hours" in r.stderr
     assert not (tmp_path / "store").exists() or not any((tmp_path / "store").rglob("*.parquet"))
+
+
+def test_a_slow_warm_up_is_announced_with_its_time(toy, tmp_path, monkeypatch):
+    """Compiling the kernels on a first run takes a minute: the runner says so (and how long it took) once
+    loading takes longer than COMPILE_NOTICE_S; a fast one says nothing."""
+    import time
+
+    import surgopt.runner as R
+
+    monkeypatch.setattr(R, "COMPILE_NOTICE_S", 0.05)
+    said = []
+    slow = toy.__class__(**{**toy.__dict__, "warm_up": lambda cfg: time.sleep(0.3)})
+    run_study(slow, slow.config_model(n=5), config_name="t", store=Store(tmp_path / "a"), jobs=1, quiet=True,
+              say=said.append)
+    assert any(m.startswith("compiling the toy kernels") for m in said) and said[-1].startswith("kernels ready")
+    said.clear()
+    run_study(toy, toy.config_model(n=5), config_name="t", store=Store(tmp_path / "b"), jobs=1, quiet=True,
+              say=said.append)
+    assert not any("compiling" in m for m in said)
