@@ -2,6 +2,7 @@
 import subprocess
 import sys
 
+import numpy as np
 import pyarrow.parquet as pq
 
 from conftest import RCM_SLOW, cli, single_run, single_table, wait_for_parts
@@ -46,6 +47,26 @@ def test_hive_layout_reads_in_duckdb_with_study_and_key_columns(tmp_path, small_
     got = duckdb.sql(f"SELECT study, key, count(*) AS n, max(gii) AS best FROM read_parquet("
                      f"'{store}/study=rcm-grid/*/*.parquet', hive_partitioning = true) GROUP BY study, key").fetchall()
     assert got == [("rcm-grid", run.key, run.rows, max(single_table(store)["gii"].to_pylist()))]
+
+
+def test_the_readmes_python_snippets_read_a_real_store(tmp_path, small_cfg, monkeypatch):
+    """README, "Results": the duckdb and pandas code blocks, run as written in a folder with a store (the
+    key filled in): the pandas read of a run folder failed on manifest.json before the README said how."""
+    import re
+
+    from conftest import REPO
+
+    store = tmp_path / "surgopt-store"
+    cli("rcm-grid", small_cfg, "--store", store, "--quiet")
+    run = single_run(store)
+    readme = (REPO / "README.md").read_text()
+    block = next(b for b in re.findall(r"```python\n(.*?)```", readme, re.S) if "duckdb.sql" in b)
+    code = block.replace("597ae5d5310c...", run.key).replace(".show()", ".fetchall()")
+    monkeypatch.chdir(tmp_path)
+    scope = {}
+    exec(code, scope)  # noqa: S102 - the README's own code
+    df = scope["df"]
+    assert len(df) == run.rows and np.array_equal(df["gii"].to_numpy(), single_table(store)["gii"].to_numpy())
 
 
 def test_a_store_in_the_older_layout_is_still_read(tmp_path, small_cfg):
