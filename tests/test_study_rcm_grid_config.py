@@ -264,3 +264,21 @@ def test_standard_metric_errors(tmp_path, data, what):
     with pytest.raises(ConfigError) as e:
         validate_for(S.STUDY, data, "cfg.toml", tmp_path / "cfg.toml")
     assert what in str(e.value)
+
+
+@pytest.mark.parametrize("data, what", [
+    # the issue's UR5e: a 0.30 m tool, the cube 0.4 m below the RCM (1,642 'feasible' candidates, GII 0.468 before)
+    ({"robot": {"model": "ur5e", "tool_length_m": 0.3}, "workspace": {"depth_below_rcm_m": 0.4}},
+     "farthest point is 426 mm from the RCM but the tool reaches 300 mm past the flange"),
+    # the PA10 with the cube 0.75 m below (GII 0.133 against the paper's 0.044 before)
+    ({"workspace": {"depth_below_rcm_m": 0.75}}, "farthest point is 776 mm from the RCM but the tool reaches 587 mm"),
+    ({"workspace": {"depth_below_rcm_m": 0.02, "cube_side_m": 0.05}}, "reaches 5 mm above the RCM"),
+])
+def test_a_workspace_no_tool_reaches_from_the_rcm_is_refused_before_running(data, what):
+    """docs/robots.md's RCM geometry: the tip below the RCM and the RCM on the tool (insertion <= the tool's length
+    past the flange); it depends on the workspace and the tool only, so no candidate of such a config is real."""
+    from surgopt.errors import ConfigError
+
+    with pytest.raises(ConfigError, match="workspace: ") as e:
+        validate(data, S.Config, "x.toml")
+    assert what in str(e.value), str(e.value)

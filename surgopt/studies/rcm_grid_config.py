@@ -234,6 +234,16 @@ class Robot(StrictModel):
         return self.is_pa10 and self.kernel in ("auto", "closed_form")
 
     @property
+    def tool_past_flange_m(self) -> float | None:
+        """How far the tool reaches past the flange (the tip link's origin for other arms): the longest
+        insertion below the RCM a tool can take."""
+        if self.tool_length_m is None:
+            return None
+        if self.is_pa10 and self.tool_length_from == "wrist_centre":
+            return self.tool_length_m - self.link_d7_m
+        return self.tool_length_m
+
+    @property
     def tool_offset_pa10_m(self) -> float:
         """PA10: wrist centre to tool tip along the tool axis."""
         return self.tool_length_m + (self.link_d7_m if self.tool_length_from == "flange" else 0.0)
@@ -419,6 +429,27 @@ class RcmSetup(StrictModel):
                 update={"z_reference": "shoulder" if self.robot.is_pa10 else "base"}))
         if self.candidates.z_reference == "shoulder" and not self.robot.is_pa10:
             raise ValueError("candidates.z_reference = 'shoulder' is the PA10's; other arms use 'base'")
+        return self
+
+    @model_validator(mode="after")
+    def _workspace_on_the_tool(self):
+        """The RCM geometry every pose must satisfy (docs/robots.md): the tip is below the RCM, inside the body
+        (insertion > 0), and the RCM lies on the tool, between the flange and the tip (insertion <= the tool's
+        length past the flange), so the arm stays outside. The workspace is placed relative to the RCM, so this
+        holds for every candidate or for none: checked before anything runs."""
+        ws = self.workspace
+        half = ws.cube_side_m / 2 if ws.points_per_side > 1 else 0.0  # one point per side: the centre alone
+        near = ws.depth_below_rcm_m - half
+        if near <= 0:
+            raise ValueError(f"workspace: the cube reaches {-near * 1000:.0f} mm above the RCM; every tool tip must "
+                             f"be below it, inside the body (depth_below_rcm_m > cube_side_m / 2)")
+        far = math.sqrt((ws.depth_below_rcm_m + half) ** 2 + 2 * half ** 2)
+        tool = self.robot.tool_past_flange_m
+        if tool is not None and far > tool:
+            raise ValueError(f"workspace: its farthest point is {far * 1000:.0f} mm from the RCM but the tool reaches "
+                             f"{tool * 1000:.0f} mm past the flange, so the RCM would lie on the arm, not on the tool: "
+                             f"no candidate can be a real set-up (a tool of at least {far:.3f} m past the flange, or "
+                             f"a workspace closer to the RCM)")
         return self
 
 
