@@ -369,8 +369,11 @@ def canonical_json(model: BaseModel) -> str:
 
 
 def study_key(study: str, model: BaseModel, kernel_version: str) -> str:
-    """Store key: sha256 of study name + kernel version + canonical config."""
+    """Store key: sha256 of study name + kernel version + the row code's sha256 (``surgopt.code_identity``:
+    an edited kernel, model or study is a new key) + canonical config."""
+    from surgopt.code_identity import code_sha256
+
     h = hashlib.sha256()
-    h.update(f"{study}\n{kernel_version}\n".encode())
+    h.update(f"{study}\n{kernel_version}\n{code_sha256()}\n".encode())
     h.update(canonical_json(model).encode())
     return h.hexdigest()

@@ -270,8 +270,11 @@ def provenance(backend: str, jobs: int) -> dict:
 
     from surgopt._version import __version__
 
+    from surgopt.code_identity import code_sha256, git_commit
+
     return {"versions": {"surgopt": __version__, "numba": numba.__version__, "numpy": numpy.__version__,
                          "python": platform.python_version()},
+            "code_sha256": code_sha256(), "git_commit": git_commit(),
             "backend": backend, "jobs": jobs, "host": socket.gethostname()}
 
 

@@ -1,6 +1,7 @@
 """The result store (surgopt/store.py): corrupt parts, locking between processes."""
 import subprocess
 import sys
+from pathlib import Path
 
 import numpy as np
 import pyarrow.parquet as pq
@@ -105,3 +106,40 @@ def test_parts_are_read_from_arrow_owned_memory():
     reader = pa.BufferReader(arrow_owned(data))
     assert sys.getrefcount(data) == before
     assert pq.read_table(reader).column("x").to_pylist() == [1.5, 2.5]
+
+
+def test_the_key_knows_the_code_that_computes_rows(tmp_path, monkeypatch):
+    """An edited kernel, model or study (an editable install) is a new key, never the old rows as a cache hit;
+    figures are not row code. The manifest records the code's sha256 and the checkout's commit."""
+    import shutil
+
+    import surgopt
+    from surgopt import code_identity as C
+    from surgopt.config import load_config, study_key
+    from surgopt.runner import run_study
+    from surgopt.store import Store
+    from surgopt.studies import get_study
+
+    rcm = get_study("rcm-grid")
+    cfg = load_config(Path(__file__).parent / "baselines" / "rcm_small.toml", rcm.config_model)
+    key = study_key("rcm-grid", cfg, rcm.kernel_version)
+    copy = tmp_path / "surgopt"
+    shutil.copytree(Path(surgopt.__file__).parent, copy, ignore=shutil.ignore_patterns("__pycache__"))
+    hashes = {}
+    for what, path in (("as is", None), ("metrics.py", "metrics.py"), ("a figure", "studies/figures/rcm_grid.py")):
+        if path:
+            (copy / path).write_text((copy / path).read_text() + "\n# edited\n")
+        monkeypatch.setattr(C, "PACKAGE", copy)
+        C.code_sha256.cache_clear()
+        hashes[what] = C.code_sha256()
+    C.code_sha256.cache_clear()
+    monkeypatch.undo()
+    assert hashes["as is"] == C.code_sha256()  # the copy hashes like the package
+    assert hashes["metrics.py"] != hashes["as is"] and hashes["a figure"] == hashes["metrics.py"]
+    store = Store(tmp_path / "store")
+    first = run_study(rcm, cfg, config_name="s", store=store, jobs=1, quiet=True)
+    assert first.run.key == key and first.run.manifest["code_sha256"] == C.code_sha256()
+    assert "git_commit" in first.run.manifest
+    monkeypatch.setattr(C, "code_sha256", lambda: hashes["metrics.py"])
+    again = run_study(rcm, cfg, config_name="s", store=store, jobs=1, quiet=True)
+    assert not again.cache_hit and again.run.key != key
