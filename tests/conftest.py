@@ -110,3 +110,30 @@ def cli(*args, check=True, **kw):
     if check and r.returncode != 0:
         raise AssertionError(f"exit {r.returncode}\n{r.stdout}\n{r.stderr}")
     return r
+
+
+def invoke(*args):
+    """The CLI in this process (no start-up cost): (exit code, stdout + stderr)."""
+    from typer.testing import CliRunner
+
+    from surgopt.cli import app
+
+    r = CliRunner().invoke(app, [str(a) for a in args])
+    return r.exit_code, r.output
+
+
+@pytest.fixture
+def stored(tmp_path):
+    """A complete small rcm-grid run (RCM_SMALL) in 14 parts: (config path, store path, table)."""
+    from surgopt.config import load_config
+    from surgopt.runner import run_study
+    from surgopt.store import Store
+    from surgopt.studies import get_study
+
+    rcm = get_study("rcm-grid")
+    cfg = tmp_path / "small.toml"
+    cfg.write_text(RCM_SMALL)
+    store = tmp_path / "store"
+    res = run_study(rcm, load_config(cfg, rcm.config_model), config_name="small", store=Store(store),
+                    jobs=1, quiet=True, chunk=4)
+    return cfg, store, res.table

@@ -12,34 +12,15 @@ import threading
 import time
 
 import pytest
-from typer.testing import CliRunner
 
-from surgopt.cli import app
 from surgopt.config import load_config
 from surgopt.runner import run_study
 from surgopt.store import Store
 from surgopt.studies import get_study
 
-from conftest import RCM_SLOW, RCM_SMALL, cli, single_run, single_table, wait_for_parts
+from conftest import RCM_SLOW, cli, invoke, single_run, single_table, wait_for_parts
 
 RCM = get_study("rcm-grid")
-
-
-def invoke(*args):
-    """The CLI in this process (no start-up cost): (exit code, stdout + stderr)."""
-    r = CliRunner().invoke(app, [str(a) for a in args])
-    return r.exit_code, r.output
-
-
-@pytest.fixture
-def stored(tmp_path):
-    """A complete small rcm-grid run in 15 parts, and its table."""
-    cfg = tmp_path / "small.toml"
-    cfg.write_text(RCM_SMALL)
-    store = tmp_path / "store"
-    res = run_study(RCM, load_config(cfg, RCM.config_model), config_name="small", store=Store(store),
-                    jobs=1, quiet=True, chunk=4)
-    return cfg, store, res.table
 
 
 def _flip(p):

@@ -6,34 +6,16 @@ import os
 import shutil
 
 import pytest
-from typer.testing import CliRunner
 
-from surgopt.cli import app
 from surgopt.config import load_config, study_key
 from surgopt.errors import StoreError
 from surgopt.runner import run_study
 from surgopt.store import STAGING, Store
 from surgopt.studies import get_study
 
-from conftest import RCM_SMALL, single_run
+from conftest import invoke, single_run
 
 RCM = get_study("rcm-grid")
-
-
-def invoke(*args):
-    r = CliRunner().invoke(app, [str(a) for a in args])
-    return r.exit_code, r.output
-
-
-@pytest.fixture
-def stored(tmp_path):
-    """A complete small rcm-grid run in 15 parts: (config path, store path, table)."""
-    cfg = tmp_path / "small.toml"
-    cfg.write_text(RCM_SMALL)
-    store = tmp_path / "store"
-    res = run_study(RCM, load_config(cfg, RCM.config_model), config_name="small", store=Store(store),
-                    jobs=1, quiet=True, chunk=4)
-    return cfg, store, res.table
 
 
 def _run(cfg, store, **kw):
@@ -237,11 +219,13 @@ def test_sort_by_a_text_column_is_one_line(tmp_path):
 
 
 def test_no_feasible_candidate_is_never_called_best():
-    """A workspace 2 m below the RCM: no candidate reaches it; the headline names no unreachable RCM 'best'."""
+    """RCMs 1.3-1.5 m from the PA10's base: no candidate reaches the workspace; the headline names no
+    unreachable RCM 'best'."""
     from surgopt.parts import Parts
 
-    cfg = RCM.config_model.model_validate({"workspace": {"depth_below_rcm_m": 2.0, "points_per_side": 3},
-                                           "candidates": {"grid": {"x_count": 5, "z_count": 3}}})
+    cfg = RCM.config_model.model_validate({"workspace": {"points_per_side": 3},
+                                           "candidates": {"grid": {"x_min_m": 1.3, "x_max_m": 1.5, "x_count": 5,
+                                                                   "z_count": 3}}})
     RCM.warm_up(cfg)
     cols = RCM.compute_task(cfg, 100, 0)
     import pyarrow as pa
