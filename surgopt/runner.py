@@ -3,8 +3,9 @@
 Knows nothing of kinematics: a ``Study`` (``surgopt.studies``) supplies ``n_tasks``,
 ``warm_up``, ``compute_task`` and ``schema``; workers look the study up by name.
 
-One module of ~430 lines: a run's life in order (budget, cache hit, lock, the three backends'
-dispatch with bounded in-flight chunks, retries of dead workers, the swap of a --force rebuild).
+One module of ~620 lines: a run's life in order (budget with every worker counted, cache hit, lock, the
+three backends' dispatch with bounded in-flight chunks, retries of dead workers, a search's batches and
+journal, the compile notice, the swap of a --force rebuild). Issue #24 splits the exploration out (plans/).
 """
 from __future__ import annotations
 

@@ -10,6 +10,9 @@ coverage of the target, the port spacing and the shafts' clearance inside and th
 and the reasons a design is infeasible. Every assignment of two instrument ports (unordered: the PSMs are
 the same arm) and a distinct camera port is evaluated; docs/port_placement.md has the model, its sources
 and assumptions.
+
+One module of ~420 lines: the study's config, the geometry it implies (patient, sites, target),
+the memoised tables, the rows and the summary are one declaration, read together.
 """
 from __future__ import annotations
 
