@@ -1,7 +1,7 @@
 """Command line, the commands that read the store: runs (rm, gc), summarize, plot, export, diff, check.
 
-Registered on ``surgopt.cli.app`` when ``surgopt.cli`` is imported; see ``surgopt.cli`` for the study
-commands and the options, error handling and tables they share.
+Registered on ``surgopt.cli_common.app`` when ``surgopt.cli`` is imported; the options, error handling and
+tables are ``surgopt.cli_common``'s.
 """
 from __future__ import annotations
 
@@ -11,7 +11,7 @@ from typing import Annotated, Optional
 
 import typer
 
-from surgopt.cli import (
+from surgopt.cli_common import (
     ExportFormat,
     FigureFormat,
     JobsOpt,
@@ -19,11 +19,11 @@ from surgopt.cli import (
     QuietOpt,
     StoreOpt,
     SummaryFormat,
-    _console,
-    _fail,
-    _guard,
-    _print_table,
     app,
+    wide_console,
+    fail,
+    guard,
+    print_table,
 )
 
 runs_app = typer.Typer(help="List and delete stored runs.", no_args_is_help=False)
@@ -48,13 +48,13 @@ def runs(
 
     from rich.table import Table
 
-    with _guard():
+    with guard():
         from surgopt.results import run_records
         from surgopt.store import Store
         from surgopt.studies import STUDIES
 
         if study is not None and study not in STUDIES:
-            _fail(f"--study: unknown study {study!r} (one of {', '.join(STUDIES)})", 2)
+            fail(f"--study: unknown study {study!r} (one of {', '.join(STUDIES)})", 2)
         s = Store(store)
         records = run_records(s, study)
     if fmt == ListFormat.json:
@@ -69,7 +69,7 @@ def runs(
     for r in records:
         t.add_row(r["study"], r["key"][:12], r["config_name"] or "?", str(r["rows"] if r["rows"] is not None else "?"),
                   r["state"], r.get("created") or "?")
-    _console(100).print(t)
+    wide_console(100).print(t)
 
 
 @runs_app.command("rm")
@@ -80,18 +80,18 @@ def runs_rm(
     """Delete one stored run (only ever inside the store root; refused while a study is writing it)."""
     import shutil
 
-    with _guard():
+    with guard():
         from surgopt.store import Store
 
         if len(key) < 4 or any(c not in "0123456789abcdef" for c in key):
-            _fail(f"{key!r}: give at least 4 hex digits of a key (see `surgopt runs`)", 2)
+            fail(f"{key!r}: give at least 4 hex digits of a key (see `surgopt runs`)", 2)
         s = Store(store)
         matches = [r for r in s.runs() if r.key.startswith(key)]
         from surgopt.store import folder_study_key
 
         broken = [p for p, _ in s.unreadable() if folder_study_key(p)[1].startswith(key)]
         if len(matches) + len(broken) != 1:
-            _fail(f"{key}: matches {len(matches) + len(broken)} runs in {s.root}", 2)
+            fail(f"{key}: matches {len(matches) + len(broken)} runs in {s.root}", 2)
         if broken:
             shutil.rmtree(broken[0])
             study_name, folder_key = folder_study_key(broken[0])
@@ -105,7 +105,7 @@ def runs_rm(
 def runs_gc(store: StoreOpt = None) -> None:
     """Delete partial (interrupted) runs, stray part and temporary files left by killed writers, and
     abandoned --force rebuilds. Runs that a study is writing now (their lock is held) are left alone."""
-    with _guard():
+    with guard():
         from surgopt.store import Store
 
         s = Store(store)
@@ -142,7 +142,7 @@ def summarize(
     """Summary of a stored run: top designs by the study's objective, its distribution, feasibility,
     and for studies without an objective their own comparison tables. Works on partial runs and says so."""
     fmt = fmt.value
-    with _guard():
+    with guard():
         from surgopt.report import render, summary_sections
         from surgopt.results import resolve_run
         from surgopt.store import Store
@@ -161,7 +161,7 @@ def summarize(
 
             table = top_table(st, r.parts(st.schema()), top=top, sort=sort)
             if table is None:
-                _fail(f"--format csv writes the top rows by a column: {st.name} ranks nothing by default, so give "
+                fail(f"--format csv writes the top rows by a column: {st.name} ranks nothing by default, so give "
                       f"--sort COLUMN (or use --format json / markdown for its comparison tables)", 2)
             if columns:
                 table = table.select([c.strip() for c in columns.split(",") if c.strip()])
@@ -172,9 +172,9 @@ def summarize(
     if fmt != "table":
         typer.echo(render(sections, fmt))
         return
-    console = _console(0)  # the terminal's width; cells fold rather than being cut
+    console = wide_console(0)  # the terminal's width; cells fold rather than being cut
     for title, header, rows in sections:
-        _print_table(console, title, header, rows)
+        print_table(console, title, header, rows)
 
 
 @app.command("plot")
@@ -192,18 +192,18 @@ def plot(
     """Figures of a stored run in the style of its paper (each study's own; docs/figures shows them
     for the paper setups)."""
     if out.exists() and not out.is_dir():
-        _fail(f"--out: {out} is a file; give a folder for the figures", 2)
-    with _guard():
+        fail(f"--out: {out} is a file; give a folder for the figures", 2)
+    with guard():
         from surgopt.results import config_of, resolve_run
         from surgopt.store import Store
 
         st, r = resolve_run(Store(store), run, study)
         table = r.read_table(st.schema())
         if table.num_rows == 0:
-            _fail(f"{r.key[:12]}: the run has no rows yet", 1)
+            fail(f"{r.key[:12]}: the run has no rows yet", 1)
         id_column = st.key_columns[0]
         if design is not None and design not in set(table[id_column].to_pylist()):
-            _fail(f"--design: no {id_column} {design} in run {r.key[:12]}", 2)
+            fail(f"--design: no {id_column} {design} in run {r.key[:12]}", 2)
         out.mkdir(parents=True, exist_ok=True)
         from surgopt.studies.figures import set_format
 
@@ -235,14 +235,14 @@ def export(
 ) -> None:
     """A run's whole table as one tidy table, with the run key (and, for several runs, the config fields
     that differ between them) as columns. The CSV reads back with pandas.read_csv as it is."""
-    with _guard():
+    with guard():
         from surgopt.results import export_table
         from surgopt.store import Store
 
         if fmt == ExportFormat.parquet and out is None:
-            _fail("--format parquet needs --out FILE", 2)
+            fail("--format parquet needs --out FILE", 2)
         if out is not None and out.is_dir():
-            _fail(f"--out: {out} is a folder; give a file", 2)
+            fail(f"--out: {out} is a folder; give a file", 2)
         table = export_table(Store(store), runs_, study, allow_partial=partial)
         if fmt == ExportFormat.parquet:
             import pyarrow.parquet as pq
@@ -276,7 +276,7 @@ def diff(
     study's key columns (rows only in one run, largest changes, the best design of each)."""
     import json
 
-    with _guard():
+    with guard():
         from surgopt.results import diff_runs
         from surgopt.store import Store
 
@@ -284,19 +284,19 @@ def diff(
     if fmt == ListFormat.json:
         typer.echo(json.dumps(d, indent=1, default=str))
         return
-    console = _console(0)
-    _print_table(console, f"config: {d['a']['key'][:12]} vs {d['b']['key'][:12]}", ["field", "a", "b"],
+    console = wide_console(0)
+    print_table(console, f"config: {d['a']['key'][:12]} vs {d['b']['key'][:12]}", ["field", "a", "b"],
                  [[k, str(a), str(b)] for k, (a, b) in d["config"].items()] or [["(identical configs)", "", ""]])
-    _print_table(console, f"metrics over {d['rows_joined']} rows joined on {', '.join(d['key_columns'])} "
+    print_table(console, f"metrics over {d['rows_joined']} rows joined on {', '.join(d['key_columns'])} "
                           f"({d['rows_only_a']} only in a, {d['rows_only_b']} only in b)",
                  ["column", "rows changed", "max |b - a|", "mean b - a"],
                  [[c, m["changed"], f"{m['max_abs']:.6g}", f"{m['mean']:.6g}"] for c, m in d["metrics"].items()])
     if d["worst"]:
         cols = list(d["worst"][0])
-        _print_table(console, f"most changed rows (by |b - a| of {d['objective']})", cols,
+        print_table(console, f"most changed rows (by |b - a| of {d['objective']})", cols,
                      [[str(r[c]) for c in cols] for r in d["worst"]])
     if d["best"]:
-        _print_table(console, f"best design of each by {d['objective']}", ["run"] + list(d["best"]["a"]),
+        print_table(console, f"best design of each by {d['objective']}", ["run"] + list(d["best"]["a"]),
                      [["a"] + [str(v) for v in d["best"]["a"].values()], ["b"] + [str(v) for v in d["best"]["b"].values()]])
 
 
@@ -314,7 +314,7 @@ def check(
 ) -> None:
     """Run (or reuse) a study and compare it with a stored Parquet baseline: key columns exactly, float
     columns within rtol/atol, after sorting by the key. Exit 0 within tolerance, 1 when not, 2 on bad input."""
-    with _guard():
+    with guard():
         import pyarrow.parquet as pq
 
         from surgopt.results import compare_tables, study_of_config, write_baseline
@@ -323,7 +323,7 @@ def check(
 
         st, cfg = study_of_config(config, study)
         if not write and not baseline.is_file():
-            _fail(f"{baseline}: baseline not found (create it with --write)", 2)
+            fail(f"{baseline}: baseline not found (create it with --write)", 2)
         res = run_study(st, cfg, config_name=config.stem, store=Store(store), jobs=jobs, quiet=quiet,
                         say=lambda m: typer.echo(m, err=True))
         if write:
@@ -333,7 +333,7 @@ def check(
         try:
             base = pq.read_table(baseline)
         except Exception as exc:  # noqa: BLE001 - any unreadable file is bad input
-            _fail(f"{baseline}: not a readable Parquet file ({exc})", 2)
+            fail(f"{baseline}: not a readable Parquet file ({exc})", 2)
         current = res.table
         problems, diffs = compare_tables(current, base, st.key_columns, rtol, atol)
     for p in problems:

@@ -1,0 +1,173 @@
+"""Command line, what every command shares: the Typer app and its global options, the option types and
+formats, one-line error handling (``guard``: exit codes 2 bad input, 1 a failed run or store, 130 / 143 /
+129 stopped) and table printing. ``surgopt.cli`` (the study commands) and ``surgopt.cli_results`` (the
+commands that read the store) both import it; neither imports the other's internals.
+"""
+from __future__ import annotations
+
+import contextlib
+import enum
+import sys
+from typing import Annotated, Optional
+
+import typer
+
+app = typer.Typer(
+    name="surgopt",
+    help="Kinematic design studies of surgical robots, batch-run with a cached Parquet result store.\n\n"
+    "Each study command runs the paper's own setup when given no CONFIG. Results go to the store "
+    "(--store, $SURGOPT_STORE, or ./surgopt-store); an identical config is a cache hit and an "
+    "interrupted run resumes where it stopped.",
+    no_args_is_help=True,
+    add_completion=True,
+    pretty_exceptions_enable=False,
+)
+
+StoreOpt = Annotated[Optional[str], typer.Option(
+    "--store", envvar="SURGOPT_STORE", help="Result store folder \\[default: ./surgopt-store].",
+    show_default=False)]
+JobsOpt = Annotated[int, typer.Option("--jobs", "-j", min=1, max=256,
+                                      help="Parallel workers: threads (threads), worker processes (loky), or LocalCluster workers (dask).")]
+ForceOpt = Annotated[bool, typer.Option("--force", help="Recompute even if the store holds this study.")]
+MultirunOpt = Annotated[bool, typer.Option("--multirun", "-m", help="Overrides with comma lists (a=1,2 b=x,y) run "
+                                                                  "every combination, each its own stored run, and end "
+                                                                  "with one table of them.")]
+PrintConfigOpt = Annotated[bool, typer.Option("--print-config", help="Print the effective validated config as TOML "
+                                                                     "(what is hashed into the store key) and exit.")]
+DryRunOpt = Annotated[bool, typer.Option("--dry-run", help="Say what would run (size, chunks, store key, whether it "
+                                                           "is stored, estimated time and memory) and exit; nothing "
+                                                           "is computed or written.")]
+QuietOpt = Annotated[bool, typer.Option("--quiet", "-q", help="No progress bar.")]
+class Backend(str, enum.Enum):
+    threads = "threads"
+    loky = "loky"
+    dask = "dask"
+
+
+class ListFormat(str, enum.Enum):
+    table = "table"
+    json = "json"
+
+
+class SummaryFormat(str, enum.Enum):
+    table = "table"
+    csv = "csv"
+    json = "json"
+    markdown = "markdown"
+
+
+class FigureFormat(str, enum.Enum):
+    png = "png"
+    pdf = "pdf"
+    svg = "svg"
+
+
+class ExportFormat(str, enum.Enum):
+    csv = "csv"
+    parquet = "parquet"
+    json = "json"
+
+
+BackendOpt = Annotated[Backend, typer.Option(
+    "--backend", help="threads (a thread pool in this process: the kernels release the GIL, so they run "
+                      "in parallel with no worker start-up), loky (local worker processes) or dask (a "
+                      "distributed cluster through joblib's dask backend; needs pip install 'surgopt\\[dask]').")]
+SchedulerOpt = Annotated[Optional[str], typer.Option(
+    "--scheduler", help="With --backend dask: the scheduler address (tcp://host:8786). Without it, a "
+                        "LocalCluster of --jobs single-threaded workers.", show_default=False)]
+MaxHoursOpt = Annotated[float, typer.Option(
+    "--max-hours", min=0.0, help="Refuse a config whose estimated work exceeds this many hours on --jobs cores "
+                                 "(the estimate is printed; raise this to run it anyway).")]
+MaxMemoryOpt = Annotated[Optional[float], typer.Option(
+    "--max-memory-gb", min=0.0, help="Refuse a config whose estimated peak memory exceeds this "
+                                     "[default: half of this machine's memory].", show_default=False)]
+ChunkOpt = Annotated[Optional[int], typer.Option(
+    "--chunk-size", min=1, help="Design points per task (a resumed run keeps the size it started with).",
+    show_default=False)]
+
+
+def _version(value: bool) -> None:
+    if value:
+        from surgopt import __version__
+
+        typer.echo(f"surgopt {__version__}")
+        raise typer.Exit()
+
+
+@app.callback()
+def _main_options(
+    version: Annotated[bool, typer.Option("--version", callback=_version, is_eager=True,
+                                          help="Print the version and exit.")] = False,
+    verbose: Annotated[int, typer.Option("--verbose", "-v", count=True,
+                                         help="Say what the runner and store do (resumed parts, cache hits, chunk "
+                                              "sizes) on stderr; -vv for every part.")] = 0,
+) -> None:
+    """Kinematic design studies of surgical robots, batch-run with a cached Parquet result store.
+
+    Each study command runs the paper's own setup when given no CONFIG. Results go to the store (--store,
+    $SURGOPT_STORE, or ./surgopt-store); an identical config is a cache hit and an interrupted run resumes
+    where it stopped.
+    """
+    if verbose:
+        import logging
+
+        logging.basicConfig(level=logging.DEBUG if verbose > 1 else logging.INFO, stream=sys.stderr,
+                            format="surgopt: %(message)s")
+
+
+def fail(exc: BaseException, code: int) -> None:
+    typer.echo(f"surgopt: error: {exc}", err=True)
+    raise typer.Exit(code)
+
+
+RESUME = "finished chunks are stored, run the same command again to resume"
+
+
+@contextlib.contextmanager
+def guard():
+    """Every failure a command can meet ends in one line on stderr and an exit code: 2 bad input,
+    1 a failed run or store, 130 / 143 / 129 interrupted by SIGINT / SIGTERM / SIGHUP."""
+    from surgopt import interrupts
+    from surgopt.errors import SurgoptError
+
+    try:
+        yield
+    except KeyboardInterrupt as exc:  # Ctrl-C, or SIGTERM / SIGHUP (surgopt.interrupts.Stopped)
+        raise typer.Exit(interrupts.report(exc, RESUME))
+    except (SurgoptError, MemoryError, OSError) as exc:
+        if interrupts.received() is not None:  # what failed while a stop unwound (a lock file, a pipe) is the stop
+            raise typer.Exit(interrupts.report(None, RESUME)) from None
+        fail_on(exc)
+
+
+def fail_on(exc: BaseException) -> None:
+    """One line and the exit code for a library error, out of memory, or an OS error."""
+    from surgopt.errors import SurgoptError
+    from surgopt.store import is_disk_full
+
+    if isinstance(exc, SurgoptError):
+        fail(exc, exc.exit_code)
+    if isinstance(exc, MemoryError):
+        fail("out of memory; what finished before it is stored (`surgopt runs` says how much): run the same "
+              "command again with more memory, a smaller config or --jobs 1", 1)
+    where = f" writing {exc.filename}" if getattr(exc, "filename", None) else ""
+    if is_disk_full(exc):
+        fail(f"the disk is full{where}; {RESUME} once there is space", 1)
+    fail(f"{getattr(exc, 'strerror', None) or exc}{where}", 1)
+
+
+def wide_console(min_width: int = 150):
+    from rich.console import Console
+
+    return Console(width=max(Console().width, min_width))  # wide tables stay readable when piped
+
+
+def print_table(console, title, header, rows) -> None:
+    from rich.table import Table
+
+    t = Table(title=title)
+    for h in header:
+        t.add_column(str(h), justify="left" if h == header[0] else "right", overflow="fold")
+    for row in rows:
+        t.add_row(*[str(v) for v in row])
+    console.print(t)
