@@ -139,6 +139,7 @@ def generic(cfg, rcm, off, t_closed, quick):
     """The serial-chain kernel on the PA10 (from its DH table) beside the closed-form kernel."""
     from surgopt.config import validate
     from surgopt.kinematics import pa10_rcm as K
+    from surgopt.kinematics import chain_candidates as CC
     from surgopt.kinematics import serial_chain as C
     from surgopt.studies import rcm_grid as S
 
@@ -146,20 +147,20 @@ def generic(cfg, rcm, off, t_closed, quick):
     chain, _, seed = gcfg.robot.chain()
     walk = np.ascontiguousarray(off[C.serpentine_order(gcfg.workspace.points_per_side)])
     n = walk.shape[0]
-    C.chain_candidates_extremes(rcm[None], walk, chain, seed)
-    t_g = best_of(lambda: C.chain_candidates_extremes(np.repeat(rcm[None], 4, 0), walk, chain, seed), 5) / 4
+    CC.chain_candidates_extremes(rcm[None], walk, chain, seed)
+    t_g = best_of(lambda: CC.chain_candidates_extremes(np.repeat(rcm[None], 4, 0), walk, chain, seed), 5) / 4
     steps = C.rcm_walk(chain, rcm, walk, seed)["newton_steps"]
     print(f"generic kernel (1 core, the same {n} poses, Newton walk from the seed): "
           f"{n / t_g / 1e6:6.2f} M poses/s  ({t_g / n * 1e9:5.0f} ns/pose, {steps / n:.2f} Newton steps/pose)")
     print(f"ratio generic/closed-form per pose: {t_g / t_closed:.1f}x  (target <= 10x)")
-    t_s = best_of(lambda: C.chain_candidates_extremes(np.repeat(rcm[None], 4, 0), walk, chain, seed, lanes=False), 3) / 4
+    t_s = best_of(lambda: CC.chain_candidates_extremes(np.repeat(rcm[None], 4, 0), walk, chain, seed, lanes=False), 3) / 4
     print(f"the same walk on the scalar kernel (no SIMD lanes): {t_s / n * 1e9:5.0f} ns/pose; lanes {t_s / t_g:.1f}x faster")
     # the same candidates through both kernels (the closed form with its mirror half, as the study runs it)
     rcms = S.candidate_rcms(cfg, S.candidate_xyz(cfg))
     sub = np.ascontiguousarray(rcms[::97])
     arm = S.arm_model(cfg)
     t_cf = best_of(lambda: K.rcm_candidates_extremes(sub, off, arm), 3)
-    t_gm = best_of(lambda: C.chain_candidates_extremes(sub, walk, chain, seed), 1)
+    t_gm = best_of(lambda: CC.chain_candidates_extremes(sub, walk, chain, seed), 1)
     print(f"every 97th candidate of the map ({sub.shape[0]}), as the study runs them: closed form {t_cf:.3f} s, "
           f"generic {t_gm:.2f} s ({t_gm / t_cf:.0f}x; one core)")
     if quick:

@@ -12,6 +12,7 @@ import pytest
 
 import reference as ref
 from surgopt.config import load_embedded, validate
+from surgopt.kinematics import chain_candidates as cc
 from surgopt.kinematics import serial_chain as sc
 from surgopt.robots import pa10_7c
 from surgopt.robots.chain import chain_transform
@@ -199,7 +200,7 @@ def test_unreachable_candidate_and_joint_limits():
     _, dh, _ = pa10_configs()
     chain, names, seed = dh.robot.chain()
     offsets = S.workspace_offsets(dh.workspace.model_copy(update={"points_per_side": 5}))[sc.serpentine_order(5)]
-    lo, hi, n_unr, n_sing, n_eval = sc.chain_candidates_extremes(
+    lo, hi, n_unr, n_sing, n_eval = cc.chain_candidates_extremes(
         np.array([[3.0, 0.0, 0.3], [0.535, 0.0, 0.107]]), offsets, chain, seed)
     assert n_unr.tolist() == [1, 0] and lo[0] == 0 and hi[0] == 0 and n_eval[1] == 125
     r = sc.rcm_walk(chain, [0.535, 0.0, 0.107], offsets, seed)
@@ -215,7 +216,7 @@ def test_culling_bound_stops_the_walk():
     chain, _, seed = dh.robot.chain()
     offsets = S.workspace_offsets(dh.workspace.model_copy(update={"points_per_side": 9}))[sc.serpentine_order(9)]
     rcm = np.array([[0.535, 0.0, 0.107]])
-    lo, hi, _, _, n_eval = sc.chain_candidates_extremes(rcm, offsets, chain, seed)
+    lo, hi, _, _, n_eval = cc.chain_candidates_extremes(rcm, offsets, chain, seed)
     gii = lo[0] / hi[0]
-    lo2, hi2, _, _, n_eval2 = sc.chain_candidates_extremes(rcm, offsets, chain, seed, gii_to_beat=[2 * gii])
+    lo2, hi2, _, _, n_eval2 = cc.chain_candidates_extremes(rcm, offsets, chain, seed, gii_to_beat=[2 * gii])
     assert n_eval2[0] < n_eval[0] and lo2[0] / hi2[0] >= gii

@@ -5,6 +5,7 @@ from __future__ import annotations
 import numpy as np
 
 from surgopt.config import validate
+from surgopt.kinematics import chain_candidates as cc
 from surgopt.kinematics import serial_chain as sc
 from surgopt.kinematics import serial_lanes as SL
 from surgopt.studies import rcm_grid as S
@@ -70,8 +71,8 @@ def test_lane_walk_gives_the_scalar_walk_results():
     chain, seed, walk = pa10_generic()
     xs, zs = np.linspace(0.25, 0.8, 7), np.linspace(-0.5, 0.3, 5) + 0.317
     rcms = np.array([[x, 0.0, z] for x in xs for z in zs])
-    a = sc.chain_candidates_extremes(rcms, walk, chain, seed, lanes=True)
-    b = sc.chain_candidates_extremes(rcms, walk, chain, seed, lanes=False)
+    a = cc.chain_candidates_extremes(rcms, walk, chain, seed, lanes=True)
+    b = cc.chain_candidates_extremes(rcms, walk, chain, seed, lanes=False)
     feasible = b[2] == 0
     assert 5 < feasible.sum() < len(rcms) - 5
     assert (a[2] == b[2]).all() and (a[3] == b[3]).all()
@@ -93,13 +94,13 @@ def test_lane_walk_gives_the_scalar_walk_results():
 def test_lane_walk_culls_and_keeps_the_standard_metric():
     chain, seed, walk = pa10_generic()
     rcm = np.array([[0.535, 0.0, 0.107]])
-    lo, hi, _, _, n = sc.chain_candidates_extremes(rcm, walk, chain, seed, lanes=True)
-    lo2, hi2, _, _, n2 = sc.chain_candidates_extremes(rcm, walk, chain, seed, gii_to_beat=[2 * lo[0] / hi[0]],
+    lo, hi, _, _, n = cc.chain_candidates_extremes(rcm, walk, chain, seed, lanes=True)
+    lo2, hi2, _, _, n2 = cc.chain_candidates_extremes(rcm, walk, chain, seed, gii_to_beat=[2 * lo[0] / hi[0]],
                                                       lanes=True)
     assert n2[0] < n[0] and lo2[0] / hi2[0] >= lo[0] / hi[0]
     scale = (1.0, 1.0, 1.0)
-    a = sc.chain_candidates_extremes(rcm, walk, chain, seed, standard_task_scale=scale, lanes=True)
-    b = sc.chain_candidates_extremes(rcm, walk, chain, seed, standard_task_scale=scale, lanes=False)
+    a = cc.chain_candidates_extremes(rcm, walk, chain, seed, standard_task_scale=scale, lanes=True)
+    b = cc.chain_candidates_extremes(rcm, walk, chain, seed, standard_task_scale=scale, lanes=False)
     np.testing.assert_allclose(a[0], b[0], rtol=1e-9)
     np.testing.assert_allclose(a[1], b[1], rtol=1e-9)
 
@@ -112,8 +113,8 @@ def test_a_point_lost_in_lanes_gets_the_scalar_walks_verdict():
     kernel = S.kernel_for(cfg)
     walk = kernel._walk(S.workspace_offsets(cfg.workspace), cfg.workspace.points_per_side)
     rcm = np.array([[0.46, 0.0, -0.2], [0.40, 0.0, 0.44]])
-    a = sc.chain_candidates_extremes(rcm, walk, kernel.chain, kernel.seed, lanes=True)
-    b = sc.chain_candidates_extremes(rcm, walk, kernel.chain, kernel.seed, lanes=False)
+    a = cc.chain_candidates_extremes(rcm, walk, kernel.chain, kernel.seed, lanes=True)
+    b = cc.chain_candidates_extremes(rcm, walk, kernel.chain, kernel.seed, lanes=False)
     assert a[2].tolist() == b[2].tolist() == [0, 0]
     np.testing.assert_allclose(a[0], b[0], rtol=1e-9)
     np.testing.assert_allclose(a[1], b[1], rtol=1e-9)

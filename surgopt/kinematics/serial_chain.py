@@ -32,7 +32,7 @@ unreachable, and the walk stops there (``n_unreachable`` is then 1: the rest is 
 
 A long walk runs in SIMD lanes instead (``serial_lanes``: eight segments side by side, this module's
 Newton finishing any pose the lanes cannot). Public drivers: ``rcm_walk`` (one candidate, every joint
-vector, scalar), ``chain_candidates_extremes``
+vector, scalar), ``chain_candidates.chain_candidates_extremes``
 (many candidates, the PA10 kernel's outputs), ``chain_fk`` (tip frame and joint axes).
 
 One module of ~700 lines: forward kinematics, the five equations and their Jacobian, the two small
@@ -46,7 +46,7 @@ import numpy as np
 from numba import njit
 
 from surgopt.jit import CONTRACT
-from surgopt.kinematics.rcm_metric import constrained_extremes, probe_points, workspace_centre
+from surgopt.kinematics.rcm_metric import constrained_extremes, workspace_centre
 from surgopt.robots.chain import Chain  # noqa: F401 - the kernel's input, defined with the data that builds it
 
 
@@ -432,7 +432,7 @@ def seed_solve(rot, pos, prismatic, lower, upper, seed, restarts, target, c, ref
 
 
 @njit(**CONTRACT)
-def _continue(rot, pos, prismatic, q, target, c, ref, end, bufs):
+def continue_walk(rot, pos, prismatic, q, target, c, ref, end, bufs):
     """Carry the solution ``q`` at ``target`` to RCM + ``end`` in equal steps of at most
     CONTINUATION_STEP_M (tangent predictor, Newton corrector). Returns the Newton steps taken, or -1."""
     axes, origins, jac, res, step, work, trig = bufs
@@ -481,7 +481,7 @@ def seed_and_probe(chain_arrays, seed, restarts, c, start, probes, ref, q, targe
     q0 = q.copy()
     steps_total = 0
     for k in range(probes.shape[0]):
-        it = _continue(rot, pos, prismatic, q, target, c, ref, probes[k], bufs)
+        it = continue_walk(rot, pos, prismatic, q, target, c, ref, probes[k], bufs)
         if it < 0 or not within_limits(q, prismatic, lower, upper):
             return False, steps_total
         steps_total += it
@@ -496,7 +496,7 @@ def seed_and_probe(chain_arrays, seed, restarts, c, start, probes, ref, q, targe
 @njit(**CONTRACT)
 def scalar_buffers():
     """Scratch for one scalar Newton solve: (axes, origins, jac, res, step, work, trig), the arguments
-    ``newton_rcm``, ``_continue`` and ``seed_solve`` take (``trig`` empty: exact cos/sin first)."""
+    ``newton_rcm``, ``continue_walk`` and ``seed_solve`` take (``trig`` empty: exact cos/sin first)."""
     trig = np.zeros((4, N_ACTIVE))
     trig[2, :] = np.nan
     return (np.empty((N_ACTIVE, 3)), np.empty((N_ACTIVE, 3)), np.empty((N_ACTIVE, N_ACTIVE)), np.empty(N_ACTIVE),
@@ -526,7 +526,7 @@ def chain_walk(chain_arrays, seed, restarts, c, offsets, start, probes, gii_to_b
         return 0.0, 0.0, 1, 0, 0, steps_total
     q0 = q.copy()
     # continuation: start -> offsets[0]
-    it = _continue(rot, pos, prismatic, q, target, c, ref, offsets[0], bufs)
+    it = continue_walk(rot, pos, prismatic, q, target, c, ref, offsets[0], bufs)
     if it < 0:
         return 0.0, 0.0, 1, 0, 0, steps_total
     steps_total += it
@@ -566,7 +566,7 @@ def chain_walk(chain_arrays, seed, restarts, c, offsets, start, probes, gii_to_b
             for i in range(3):
                 target[i] = c[i] + start[i]
             newton_rcm(rot, pos, prismatic, q, target, c, ref, 0, axes, origins, jac, res, step, work, trig)
-            it = _continue(rot, pos, prismatic, q, target, c, ref, offsets[j], bufs)
+            it = continue_walk(rot, pos, prismatic, q, target, c, ref, offsets[j], bufs)
             if it < 0 or not within_limits(q, prismatic, lower, upper):
                 return 0.0, 0.0, 1, 0, j + 1, steps_total
             run = 0
@@ -585,7 +585,7 @@ def chain_walk(chain_arrays, seed, restarts, c, offsets, start, probes, gii_to_b
 
 
 @njit(**CONTRACT)
-def _candidates(chain_arrays, seed, restarts, rcms, offsets, start, probes, gii_to_beat):
+def candidates_scalar(chain_arrays, seed, restarts, rcms, offsets, start, probes, gii_to_beat):
     m = rcms.shape[0]
     out = np.empty((m, 2))
     counts = np.empty((m, 4), np.int64)
@@ -622,8 +622,8 @@ def standard_over(chain_arrays, q_out, n, task_scale):
 
 
 @njit(**CONTRACT)
-def _candidates_standard(chain_arrays, seed, restarts, rcms, offsets, start, probes, task_scale):
-    """``_candidates`` with the standard Jacobian's extremes (Sec. III-E) at the walk's solutions."""
+def candidates_standard(chain_arrays, seed, restarts, rcms, offsets, start, probes, task_scale):
+    """``candidates_scalar`` with the standard Jacobian's extremes (Sec. III-E) at the walk's solutions."""
     m = rcms.shape[0]
     out = np.zeros((m, 2))
     counts = np.empty((m, 4), np.int64)
@@ -702,40 +702,3 @@ def rcm_walk(chain: Chain, rcm, offsets, seed, start=None, restarts=None):
                                                  offsets, start, np.empty((0, 3)), 0.0, q_out)
     return {"q": q_out, "sigma_min": float(np.sqrt(lo)), "sigma_max": float(np.sqrt(hi)), "n_unreachable": n_unr,
             "n_singular": n_sing, "points_evaluated": n_eval, "newton_steps": steps}
-
-
-def chain_candidates_extremes(rcms, offsets, chain: Chain, seed, gii_to_beat=None, start=None, probe_first=True,
-                              standard_task_scale=None, lanes=None):
-    """For each RCM candidate (M, 3): the walk over ``offsets`` (P, 3, in walk order, relative to the RCM).
-
-    Returns (sigma_min (M,), sigma_max (M,), n_unreachable (M,), n_singular (M,), points_evaluated (M,)),
-    the PA10 kernel's outputs (``pa10_rcm.rcm_candidates_extremes``); an unreachable candidate has
-    sigma 0 and n_unreachable 1. ``gii_to_beat`` (M,) stops a candidate's walk once its running GII bound
-    falls to it (Culling); None evaluates every point. ``probe_first``: reach the corner and face points
-    from the start first (IK only), so that most infeasible candidates are known before any walk.
-    ``standard_task_scale`` (linear m/s, angular rad/s, the tool-spin joint's rated speed or 0): report
-    the standard Jacobian's extremes at the same IK poses instead of the RCM metric (Sec. III-E).
-    ``lanes``: walk each candidate in SIMD lanes (``serial_lanes``: the same points, rules and answers to
-    within Newton's tolerance, ~5x faster); None chooses them when the walk is long enough to pay.
-    """
-    rcms = np.ascontiguousarray(rcms, dtype=np.float64).reshape(-1, 3)
-    offsets = np.ascontiguousarray(offsets, dtype=np.float64).reshape(-1, 3)
-    seed = np.asarray(seed, np.float64)
-    centre = workspace_centre(offsets)
-    start = centre if start is None else np.asarray(start, np.float64)
-    g = np.zeros(rcms.shape[0]) if gii_to_beat is None else np.asarray(gii_to_beat, np.float64).reshape(-1)
-    probes = np.ascontiguousarray(offsets[probe_points(offsets, centre)]) if probe_first else np.empty((0, 3))
-    scale = np.zeros(3) if standard_task_scale is None else np.asarray(standard_task_scale, np.float64)
-    from surgopt.kinematics import serial_lanes as SL
-
-    if lanes is None:
-        lanes = offsets.shape[0] >= SL.LANES * SL.MIN_POINTS_PER_LANE
-    if lanes:
-        out, counts = SL.candidates_lanes(kernel_arrays(chain), seed, default_restarts(seed), rcms, offsets, start,
-                                          probes, g, SL.segments(offsets), scale)
-    elif standard_task_scale is None:
-        out, counts = _candidates(kernel_arrays(chain), seed, default_restarts(seed), rcms, offsets, start, probes, g)
-    else:
-        out, counts = _candidates_standard(kernel_arrays(chain), seed, default_restarts(seed), rcms, offsets, start, probes,
-                                           scale)
-    return out[:, 0], out[:, 1], counts[:, 0], counts[:, 1], counts[:, 2]

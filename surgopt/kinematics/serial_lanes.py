@@ -37,7 +37,7 @@ from surgopt.jit import CONTRACT
 from surgopt.kinematics.rcm_metric import constrained_extremes
 from surgopt.kinematics.serial_chain import (
     CONTINUATION_STEP_M, EXTRAPOLATION, IK_TOL_M, N_ACTIVE, NEWTON_ZONE_M2, TRIG_RESYNC, TRIG_STEP_RAD, WALK_ITER,
-    _continue, chain_walk, constraint_reference, increment_cos_sin, newton_rcm, scalar_buffers, seed_solve,
+    continue_walk, chain_walk, constraint_reference, increment_cos_sin, newton_rcm, scalar_buffers, seed_solve,
     standard_over, within_limits,
 )
 
@@ -517,7 +517,7 @@ def _scalar_to_lane(S, lane, row, src, n):
 
 @njit(**CONTRACT)
 def continue_from_start(chain_arrays, q, q0, target, c, start, ref, end, bufs):
-    """``_continue`` from the start's solution ``q0`` at RCM + ``start`` to RCM + ``end`` (the scalar
+    """``continue_walk`` from the start's solution ``q0`` at RCM + ``start`` to RCM + ``end`` (the scalar
     walk's way to a point it lost); ``q``, ``target`` and ``bufs`` end at the solution. Returns the
     Newton steps taken, or -1."""
     rot, pos, prismatic = chain_arrays[0], chain_arrays[1], chain_arrays[2]
@@ -527,7 +527,7 @@ def continue_from_start(chain_arrays, q, q0, target, c, start, ref, end, bufs):
     for i in range(3):
         target[i] = c[i] + start[i]
     newton_rcm(rot, pos, prismatic, q, target, c, ref, 0, axes, origins, jac, res, step, work, trig)
-    return _continue(rot, pos, prismatic, q, target, c, ref, end, bufs)
+    return continue_walk(rot, pos, prismatic, q, target, c, ref, end, bufs)
 
 
 @njit(inline="always", **CONTRACT)
@@ -553,9 +553,9 @@ def solution_to_lane(S, lane, q, jac):
 @njit(**CONTRACT)
 def continue_lanes(chain_arrays, S, q0, jac0, c, start, ref, ends, sync, bufs):
     """Carry the start's solution ``q0`` (Jacobian ``jac0``) from RCM + ``start`` to RCM + each of ``ends``
-    (k <= LANES offsets, one per lane) by continuation in lanes: the scalar ``_continue``'s equal steps
+    (k <= LANES offsets, one per lane) by continuation in lanes: the scalar ``continue_walk``'s equal steps
     of at most CONTINUATION_STEP_M, tangent predictor, Newton corrector. A lane the lanes' Newton cannot
-    finish is carried by ``_continue`` itself. Lane l ends with its solution in Q, its Jacobian in JAC.
+    finish is carried by ``continue_walk`` itself. Lane l ends with its solution in Q, its Jacobian in JAC.
 
     Returns (ok (k,) bool, Newton steps, ``sync``): ok False where the continuation failed."""
     rot, pos, prismatic = chain_arrays[0], chain_arrays[1], chain_arrays[2]

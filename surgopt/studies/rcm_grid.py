@@ -198,13 +198,13 @@ class ChainKernel:
         return np.ascontiguousarray(offsets[serpentine_order(side)]) if side ** 3 == offsets.shape[0] else offsets
 
     def extremes(self, rcms, offsets, side):
-        from surgopt.kinematics.serial_chain import chain_candidates_extremes
+        from surgopt.kinematics.chain_candidates import chain_candidates_extremes
 
         return chain_candidates_extremes(rcms, self._walk(offsets, side), self.chain, self.seed,
                                          standard_task_scale=self.scale)
 
     def bounded(self, rcm, offsets, side, gii_to_beat):
-        from surgopt.kinematics.serial_chain import chain_candidates_extremes
+        from surgopt.kinematics.chain_candidates import chain_candidates_extremes
 
         r = chain_candidates_extremes(rcm[None], self._walk(offsets, side), self.chain, self.seed,
                                       gii_to_beat=[gii_to_beat], standard_task_scale=self.scale)
