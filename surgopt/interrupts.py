@@ -27,18 +27,26 @@ class Stopped(KeyboardInterrupt):
 
 def _on_signal(signum, _frame):
     _received.append(signum)
-    _quiet()
+    try:
+        _quiet()
+    except Exception:  # noqa: BLE001 - the stop itself must be what is raised, whatever the handler lands in
+        pass
     raise Stopped(signum)
 
 
 def _quiet() -> None:
     """From a stop on, libraries' complaints about work cut short (joblib's and distributed's warnings, their
-    and asyncio's logged errors while the cluster winds down) are not printed: the one line is ours."""
-    import logging
-    import warnings
+    and asyncio's logged errors while the cluster winds down) are not printed: the one line is ours. Imports
+    nothing: the signal may land while ``logging`` itself is being imported (half-initialised: a seeded
+    random SIGINT in the suite found it), so only modules that are already whole are touched."""
+    import sys
 
-    warnings.simplefilter("ignore")
-    logging.disable(logging.CRITICAL)
+    warnings = sys.modules.get("warnings")
+    if warnings is not None and hasattr(warnings, "simplefilter"):
+        warnings.simplefilter("ignore")
+    logging = sys.modules.get("logging")
+    if logging is not None and hasattr(logging, "disable") and hasattr(logging, "CRITICAL"):
+        logging.disable(logging.CRITICAL)
 
 
 def install() -> None:

@@ -130,3 +130,24 @@ def test_sigint_at_random_instants_on_threads_is_one_line_and_resumes_identicall
                                                 "command again to resume"] or "nothing was run" in err, err
         subprocess.run(base + [str(store)], check=True, capture_output=True, timeout=300)
         assert single_table(store).equals(single_table(tmp_path / "ref"))
+
+
+def test_a_stop_while_a_module_is_half_imported_is_still_one_line(tmp_path):
+    """The handler silences logging without importing it: a SIGINT that lands while ``logging`` is being
+    imported (found by the random series above: 'partially initialized module logging has no attribute
+    disable', exit 1 with a traceback) still ends in the stop's one line and 130."""
+    code = """
+import os, signal, sys
+from surgopt import interrupts
+interrupts.install()
+import types
+half = types.ModuleType("logging")  # what sys.modules holds mid-import: no disable() yet
+sys.modules["logging"] = half
+try:
+    os.kill(os.getpid(), signal.SIGINT)
+    import time; time.sleep(1)
+except KeyboardInterrupt as exc:
+    sys.exit(interrupts.report(exc, "resume"))
+"""
+    r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=60)
+    assert r.returncode == 130 and r.stderr.strip() == "surgopt: interrupted; resume", (r.returncode, r.stderr)
