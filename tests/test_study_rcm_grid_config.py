@@ -282,3 +282,29 @@ def test_a_workspace_no_tool_reaches_from_the_rcm_is_refused_before_running(data
     with pytest.raises(ConfigError, match="workspace: ") as e:
         validate(data, S.Config, "x.toml")
     assert what in str(e.value), str(e.value)
+
+
+def test_speeds_and_ranges_from_the_config_replace_the_files(tmp_path):
+    """A published URDF with velocity="0" (or placeholder speeds) runs once the config gives the rated speeds;
+    a joint range in the config replaces the file's, and both change the answer as they should."""
+    urdf = urdf_with(tmp_path, 'velocity="1.0" effort="100"/>\n  </joint>\n  <joint name="S2"',
+                     'velocity="0" effort="100"/>\n  </joint>\n  <joint name="S2"')
+    base = {"robot": {"urdf": str(tmp_path / urdf), "tool_length_m": 0.3,
+                      "locked_joints_deg": {"S3": 0.0, "W2": 0.0}},
+            "workspace": {"points_per_side": 3}, "candidates": {"list_m": [[0.535, -0.21], [0.45, -0.3]]}}
+    from surgopt.errors import ConfigError
+
+    with pytest.raises(ConfigError, match="joint 'S1'.*speed_override_rad_s"):
+        validate(base, S.Config, "x.toml")
+    fixed = validate({**base, "robot": {**base["robot"], "speed_override_rad_s": {"S1": 1.0}}}, S.Config, "x.toml")
+    ref = validate({**base, "robot": {**base["robot"], "urdf": str(DATA / "pa10_7c.urdf")}}, S.Config, "x.toml")
+    a, b = S.compute_task(fixed, 10, 0), S.compute_task(ref, 10, 0)
+    assert np.allclose(a["gii"], b["gii"], atol=1e-12) and a["feasible"].all()  # 1.0 is the file's own S1 speed
+    faster = validate({**base, "robot": {**base["robot"], "speed_override_rad_s": {"S1": 3.0}}}, S.Config, "x.toml")
+    assert not np.allclose(S.compute_task(faster, 10, 0)["gii"], b["gii"])
+    narrow = validate({**base, "robot": {**base["robot"], "speed_override_rad_s": {"S1": 1.0},
+                                         "range_override_deg": {"E1": [0.0, 1.0]}}}, S.Config, "x.toml")
+    assert not S.compute_task(narrow, 10, 0)["feasible"].any()  # the elbow cannot bend into any workspace
+    with pytest.raises(ConfigError, match="range_override_deg: no joint 'E9'"):
+        validate({**base, "robot": {**base["robot"], "speed_override_rad_s": {"S1": 1.0},
+                                    "range_override_deg": {"E9": [0.0, 1.0]}}}, S.Config, "x.toml")

@@ -148,7 +148,8 @@ def from_dh(rows, convention: str = "standard") -> ChainSpec:
     return ChainSpec(tuple(joints), before)
 
 
-def from_urdf(path: str | Path, base_link: str | None, tip_link: str | None) -> ChainSpec:
+def from_urdf(path: str | Path, base_link: str | None, tip_link: str | None,
+              speeds: dict[str, float] | None = None) -> ChainSpec:
     """The chain from ``base_link`` to ``tip_link`` of a URDF file (yourdfpy; no meshes loaded).
 
     Defaults: the URDF's root link, and its only leaf. Fixed joints fold into the next origin;
@@ -220,11 +221,15 @@ def from_urdf(path: str | Path, base_link: str | None, tip_link: str | None) -> 
         if not np.all(np.isfinite(axis)) or np.linalg.norm(axis) < 1e-9:
             raise ChainError(f"joint {j.name!r}", f"axis {axis.tolist()} is not a direction")
         lim = j.limit
-        speed = None if lim is None else lim.velocity
+        speed = (speeds or {}).get(j.name, None if lim is None else lim.velocity)
         if speed is None or not speed > 0 or not math.isfinite(speed):
-            raise ChainError(f"joint {j.name!r}", "needs <limit velocity=...> > 0 (the rated speed: the scaling Q)")
+            raise ChainError(f"joint {j.name!r}", "needs <limit velocity=...> > 0 (the rated speed: the scaling Q), "
+                                                  "or robot.speed_override_rad_s for it in the config")
         if j.type == "continuous":
             kind, lo, hi = CONTINUOUS, -math.inf, math.inf
+        elif lim is None:
+            raise ChainError(f"joint {j.name!r}", "a revolute or prismatic joint needs a <limit> (the URDF "
+                                                  "specification requires one)")
         else:
             kind = PRISMATIC if j.type == "prismatic" else REVOLUTE
             # the URDF specification (and urdfdom, Pinocchio): a missing lower or upper is 0

@@ -118,6 +118,11 @@ class Robot(StrictModel):
                                                description="tool base in the tip link's frame")
     spin_joint: str | None = Field(None, description="the locked joint that only spins the tool about its own axis "
                                                      "(the standard Jacobian's sixth joint); default: the model's")
+    speed_override_rad_s: dict[str, Annotated[float, Field(gt=0, le=100)]] | None = Field(
+        None, description="rated speed per joint name (rad/s; m/s if prismatic), replacing the URDF's or DH "
+                          "table's (e.g. a file with placeholder or zero velocities)")
+    range_override_deg: dict[str, Annotated[list[Finite], Field(min_length=2, max_length=2)]] | None = Field(
+        None, description="[lower, upper] per joint name (deg; m if prismatic), replacing the file's limits")
     # PA10-7C (closed-form kernel) parameters: only with model = "pa10_7c"
     link_d1_m: float | None = Field(None, gt=0, le=5, description="PA10: base to shoulder (S2 axis)")
     link_d3_m: float | None = Field(None, gt=0, le=5, description="PA10: shoulder to elbow")
@@ -149,6 +154,10 @@ class Robot(StrictModel):
                              f"{'DH table' if self.dh else 'URDF' if self.urdf else 'model'} instead")
         if self.kernel == "closed_form" and not pa10:
             raise ValueError("kernel = 'closed_form' exists only for the PA10-7C; other arms use 'generic'")
+        overrides = [f for f in ("speed_override_rad_s", "range_override_deg") if getattr(self, f)]
+        if overrides and pa10 and self.kernel != "generic":
+            raise ValueError(f"{overrides[0]} goes with the generic kernel; the PA10's closed form reads "
+                             f"joint_limit_deg and max_joint_speed_rad_s (or set kernel = 'generic')")
         if self.urdf is None and (self.base_link or self.tip_link):
             raise ValueError("base_link and tip_link go with urdf")
         if self.dh is None and self.dh_convention is not None:
@@ -253,9 +262,10 @@ class Robot(StrictModel):
         from surgopt.robots import chain
 
         if self.urdf is not None:  # parsed once per file content and chain ends (validation, tasks, kernels)
-            key = (self.urdf, self.urdf_sha256, self.base_link, self.tip_link)
+            speeds = dict(self.speed_override_rad_s or {})
+            key = (self.urdf, self.urdf_sha256, self.base_link, self.tip_link, tuple(sorted(speeds.items())))
             if key not in _URDF_CHAINS:
-                _URDF_CHAINS[key] = chain.from_urdf(self.urdf, self.base_link, self.tip_link)
+                _URDF_CHAINS[key] = chain.from_urdf(self.urdf, self.base_link, self.tip_link, speeds)
             return _URDF_CHAINS[key]
         if self.dh is not None:
             return chain.from_dh([r.row(i) for i, r in enumerate(self.dh)], self.dh_convention or "standard")
@@ -284,7 +294,16 @@ class Robot(StrictModel):
         spec = self.chain_spec()
         kinds = {j.name: j.kind for j in spec.joints}
         locked = {n: (v if kinds.get(n) == PRISMATIC else math.radians(v)) for n, v in self.locked_joints_deg.items()}
-        chain, names = reduce_chain(spec, locked, self.tool())
+        for field, given in (("speed_override_rad_s", self.speed_override_rad_s),
+                             ("range_override_deg", self.range_override_deg)):
+            unknown = [n for n in (given or {}) if n not in kinds]
+            if unknown:
+                from surgopt.robots.chain import ChainError
+
+                raise ChainError(field, f"no joint {unknown[0]!r} (joints: {', '.join(kinds)})")
+        limits = {n: tuple(v if kinds[n] == PRISMATIC else math.radians(v) for v in lo_hi)
+                  for n, lo_hi in (self.range_override_deg or {}).items()}
+        chain, names = reduce_chain(spec, locked, self.tool(), speeds=self.speed_override_rad_s, limits=limits)
         unknown = [n for n in self.seed_deg if n not in names]
         if unknown:
             from surgopt.robots.chain import ChainError
