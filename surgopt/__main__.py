@@ -11,9 +11,11 @@ def main() -> None:
     interrupts.install()
     try:
         from surgopt.cli import run
-    except KeyboardInterrupt as exc:  # stopped while loading: nothing ran, nothing to resume
-        interrupts.ignore()
-        sys.exit(interrupts.report(exc, "nothing was run"))
+    except BaseException as exc:  # noqa: BLE001 - stopped while loading: nothing ran, nothing to resume
+        if interrupts.received() is None and not isinstance(exc, KeyboardInterrupt):
+            raise  # a real import error
+        interrupts.ignore()  # (a library may have wrapped the stop: pydantic-core's SchemaError)
+        sys.exit(interrupts.report(exc if isinstance(exc, KeyboardInterrupt) else None, "nothing was run"))
     run()
 
 

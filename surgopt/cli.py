@@ -238,10 +238,12 @@ def run() -> None:
 
     try:
         app(prog_name="surgopt")  # ends in SystemExit; a stop outside a command's guard is typer's silent 130
-    except (SystemExit, KeyboardInterrupt) as exc:
+    except BaseException as exc:  # noqa: BLE001 - any exception a stop caused is the stop
+        if interrupts.received() is None and not isinstance(exc, (SystemExit, KeyboardInterrupt)):
+            raise
         interrupts.ignore()
         code = exc.code if isinstance(exc, SystemExit) else None
-        if interrupts.received() is not None:  # also a stop whose exception a callback swallowed
+        if interrupts.received() is not None:  # also a stop whose exception a callback swallowed or wrapped
             code = interrupts.report(None, RESUME, once=True)
         sys.exit(code)
 

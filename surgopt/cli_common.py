@@ -134,9 +134,13 @@ def guard():
         yield
     except KeyboardInterrupt as exc:  # Ctrl-C, or SIGTERM / SIGHUP (surgopt.interrupts.Stopped)
         raise typer.Exit(interrupts.report(exc, RESUME))
-    except (SurgoptError, MemoryError, OSError) as exc:
-        if interrupts.received() is not None:  # what failed while a stop unwound (a lock file, a pipe) is the stop
+    except Exception as exc:  # noqa: BLE001 - re-raised below unless it is a stop's consequence or ours to word
+        if interrupts.received() is not None:
+            # what failed while a stop unwound is the stop: a lock file mid-rename, a library that wraps the
+            # KeyboardInterrupt raised inside it (pydantic-core building a validator: SchemaError)
             raise typer.Exit(interrupts.report(None, RESUME)) from None
+        if not isinstance(exc, (SurgoptError, MemoryError, OSError)):
+            raise
         fail_on(exc)
 
 

@@ -151,3 +151,31 @@ except KeyboardInterrupt as exc:
 """
     r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=60)
     assert r.returncode == 130 and r.stderr.strip() == "surgopt: interrupted; resume", (r.returncode, r.stderr)
+
+
+def test_a_stop_a_library_wraps_in_its_own_error_is_still_the_stop(tmp_path):
+    """A SIGINT landing inside pydantic-core while it builds a validator comes out as a SchemaError, not a
+    KeyboardInterrupt (found by the seeded random SIGINT test): whatever error a received stop causes is
+    reported as the stop, one line and 130, wherever it surfaces (here: while the CLI loads its studies)."""
+    code = """
+import os, signal, sys, time
+sys.argv = ["surgopt", "--help"]
+import builtins
+orig_import = builtins.__import__
+fired = []
+def wrapping_import(name, *a, **k):
+    if name == "surgopt.cli" and not fired:
+        fired.append(1)
+        try:  # the stop arrives while this module loads, and a library turns it into its own error
+            os.kill(os.getpid(), signal.SIGINT)
+            time.sleep(1)
+        except KeyboardInterrupt as exc:
+            raise RuntimeError("Error building validator") from exc
+    return orig_import(name, *a, **k)
+builtins.__import__ = wrapping_import
+from surgopt.__main__ import main
+main()
+"""
+    r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=60)
+    assert r.returncode == 130 and r.stderr.strip() == "surgopt: interrupted; nothing was run", (r.returncode,
+                                                                                                r.stderr[-800:])
