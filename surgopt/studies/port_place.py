@@ -362,16 +362,18 @@ def feasible_mask(table):
 
 def summary(parts) -> Summary:
     """Feasible count, each reason's count, the best feasible design by cost with its clinical checks."""
-    import pyarrow.compute as pc
-
     from surgopt.kinematics.port_place import REASONS
 
     n = parts.num_rows
-    feasible = parts.count(lambda t: t["feasible"], columns=["feasible"])
+    by_bit = dict.fromkeys(REASONS, 0)
+    feasible = 0
+    for t in parts.only(["infeasible"]):  # one pass over one column: every count at once
+        bad = t["infeasible"].to_numpy()
+        feasible += int(np.count_nonzero(bad == 0))
+        for bit in by_bit:
+            by_bit[bit] += int(np.count_nonzero(bad & bit))
     counts = {"feasible": feasible, "infeasible": n - feasible}
-    for bit, why in REASONS.items():
-        counts[f"infeasible: {why}"] = parts.count(lambda t, bit=bit: pc.not_equal(pc.bit_wise_and(t["infeasible"], bit), 0),
-                                                   columns=["infeasible"])
+    counts.update({f"infeasible: {why}": by_bit[bit] for bit, why in REASONS.items()})
     headline = {"designs": n, "feasible": feasible}
     best = _best(parts, 5)
     tables = []
