@@ -1,68 +1,66 @@
-"""Optuna searches: trials per second through the runner and store against a plain ask/tell loop.
+"""Searches against the evaluator alone and against the grid (issue #24's targets), same run, same machine.
 
-Run:  python benchmarks/bench_search.py [TRIALS]   (default 640; raven-sweep Table II space, batch 64)
+Run:  python benchmarks/bench_search.py [TRIALS] [--tpe]   (default 5000; raven-sweep Table II, 2 workers)
 
-Same run, same evaluation function (the study's compute_task on one batch of points): (1) a plain
-loop of Optuna's ask/tell on an in-memory study, (2) the same with the journal file the runner uses,
-(3) `run_study` with a [search] section (journal, one stored part per batch, verification). Prints
-each one's trials per second, the evaluation's share, and the ratios.
+1. The whole 250,000-design Table II grid through `run_study` (threads, 2 workers).
+2. CMA-ES (the `cmaes` plan, IPOP restarts) with TRIALS trials through `run_study`: optimiser, runner, store.
+3. The evaluator alone on the same designs (the study's `evaluate`, 2 threads, no optimiser, no store).
+4. With --tpe: Optuna's TPE through `run_study` at 1,000 trials and at TRIALS, and its per-trial overhead.
+Prints wall times, trials per second and the ratios the targets are stated in: (2) <= 2 x (3), (2) <= 2 x (1).
+The kernels' memo of geometries is cleared before each, so no run reuses another's evaluations.
 """
 import sys
 import tempfile
 import time
-from pathlib import Path
+from concurrent.futures import ThreadPoolExecutor
 
 import numpy as np
 
 
-def main(trials: int) -> None:
-    import optuna
-    from optuna.storages import JournalStorage
-    from optuna.storages.journal import JournalFileBackend
-
+def main(trials: int, tpe: bool) -> None:
+    from surgopt.kinematics.raven_workspace import clear_memo
+    from surgopt.plans import split
     from surgopt.runner import run_study
     from surgopt.store import Store
     from surgopt.studies import raven_sweep as R
-    from surgopt.studies import search as S
+    from surgopt.studies.search import SearchSpec
 
-    optuna.logging.set_verbosity(optuna.logging.WARNING)
-    spec = S.SearchSpec(method="cmaes", trials=trials, batch=64, seed=0)
-    cfg = R.Config().model_copy(update={"search": spec})
-    plan = R.search_plan(cfg)
-    R.warm_up(cfg)
+    grid_cfg = R.Config()
+    R.warm_up(grid_cfg)
 
-    def evaluate(points):
-        c = cfg.model_copy(update={"search": spec.model_copy(update={"points": points})})
-        return R.compute_task(c, 64, 0)["cost"]
-
-    from surgopt.kinematics.raven_workspace import clear_memo
-
-    results = {}
-    for label, storage in (("plain ask/tell, in memory", None), ("plain ask/tell, journal file", "journal")):
-        clear_memo()  # the same seed asks the same trials: no run may reuse another's evaluations
+    def timed_run(cfg):
+        clear_memo()
         with tempfile.TemporaryDirectory() as tmp:
-            st = optuna.create_study(storage=None if storage is None else JournalStorage(
-                JournalFileBackend(str(Path(tmp) / "j"))), directions=["maximize"])
-            t_eval = 0.0
             t0 = time.perf_counter()
-            for k in range(int(np.ceil(trials / 64))):
-                st.sampler = S.sampler_for(spec, k)
-                batch = S.ask(st, plan, min(64, trials - 64 * k))
-                t1 = time.perf_counter()
-                values = evaluate([[t.params[n] for n in plan.space] for t in batch])
-                t_eval += time.perf_counter() - t1
-                S.tell(st, batch, [[float(v)] for v in values])
-            results[label] = (time.perf_counter() - t0, t_eval)
+            res = run_study(R.STUDY, cfg, config_name="bench", store=Store(tmp), jobs=2, quiet=True, max_hours=None)
+            table = res.table
+            return time.perf_counter() - t0, table
+
+    t_grid, grid = timed_run(grid_cfg)
+    print(f"grid, {grid.num_rows:,} designs                      {t_grid:6.2f} s  "
+          f"{grid.num_rows / t_grid:9,.0f} designs/s  best C {np.nanmax(grid['cost'].to_numpy()):,.0f}")
+    cma_cfg = grid_cfg.model_copy(update={"search": SearchSpec(method="cmaes", trials=trials, batch=64, seed=0)})
+    t_cma, cma = timed_run(cma_cfg)
+    print(f"CMA-ES (cmaes plan), {trials:,} trials               {t_cma:6.2f} s  {trials / t_cma:9,.0f} trials/s  "
+          f"best C {np.nanmax(cma['cost'].to_numpy()):,.0f}")
+    x = np.column_stack([cma[p].to_numpy() for p in R.PARAMS])
+    ids = np.arange(len(x))
     clear_memo()
-    with tempfile.TemporaryDirectory() as tmp:
-        t0 = time.perf_counter()
-        run_study(R.STUDY, cfg, config_name="bench", store=Store(tmp), jobs=1, quiet=True, max_hours=None)
-        results["surgopt run_study (journal, parts, verification)"] = (time.perf_counter() - t0, float("nan"))
-    base = results["plain ask/tell, in memory"][0]
-    for label, (wall, t_eval) in results.items():
-        share = f", evaluation {t_eval / wall:.0%} of it" if np.isfinite(t_eval) else ""
-        print(f"{label:52s} {trials / wall:7.1f} trials/s ({wall:6.2f} s{share}); {wall / base:4.1f}x the in-memory loop")
+    t0 = time.perf_counter()
+    with ThreadPoolExecutor(2) as pool:
+        list(pool.map(lambda s: R.evaluate_designs(grid_cfg, s[0], s[1], "bench"), split(x, ids, 2)))
+    t_eval = time.perf_counter() - t0
+    print(f"evaluator alone, the same {trials:,} designs, 2 threads   {t_eval:6.2f} s  {trials / t_eval:9,.0f} designs/s")
+    print(f"CMA-ES / evaluator alone: {t_cma / t_eval:.2f}x (target <= 2);  CMA-ES / grid: {t_cma / t_grid:.2f}x "
+          f"(target <= 2);  optimiser + runner + store: {(t_cma - t_eval) / trials * 1e3:.3f} ms a trial")
+    if tpe:
+        for n in (1000, trials):
+            cfg = grid_cfg.model_copy(update={"search": SearchSpec(method="tpe", trials=n, batch=64, seed=0)})
+            t, _ = timed_run(cfg)
+            print(f"TPE (Optuna), {n:,} trials                       {t:6.2f} s  {n / t:9,.0f} trials/s  "
+                  f"~{(t - t_eval * n / trials) / n * 1e3:.2f} ms a trial beyond the evaluation")
 
 
 if __name__ == "__main__":
-    main(int(sys.argv[1]) if len(sys.argv) > 1 else 640)
+    args = [a for a in sys.argv[1:] if not a.startswith("--")]
+    main(int(args[0]) if args else 5000, "--tpe" in sys.argv)

@@ -17,22 +17,35 @@ from typing import Any
 
 def run(study: str, config: str | Path | None = None, overrides: dict[str, Any] | list[str] | None = None,
         store: str | Path | None = None, jobs: int = 2, backend: str = "threads", force: bool = False,
-        quiet: bool = True, max_hours: float | None = 1.0):
+        quiet: bool = True, max_hours: float | None = 1.0, plan: Any = None):
     """Run (or fetch from the store) one study and return its rows as a DataFrame.
 
     ``config``: a TOML/YAML file, or None for the paper's setup; ``overrides``: {"a.b": value} or
     ["a.b=value", ...] applied on top (one value each; use the CLI's --multirun for families).
+    ``plan``: None (the plan the config names: its [search] method, else the study's grid); the name of a
+    follow-up plan ("refine": the config's own run first, then a compass search from its best designs, as
+    ``--refine`` does; its rows are returned); or a plan object (``surgopt.plans``).
+    The DataFrame's ``attrs`` hold the run's ``key`` and its ``plan`` record.
     """
     from surgopt.compose import variants
+    from surgopt.plans import follow_up_plan
     from surgopt.runner import run_study
     from surgopt.store import Store
     from surgopt.studies import get_study
 
     st = _study(study)
     (v,) = variants(st, config, overrides)
-    res = run_study(get_study(st.name), v.config, config_name=v.config_name, store=Store(store), jobs=jobs,
-                    backend=backend, force=force, quiet=quiet, say=lambda m: None, max_hours=max_hours)
-    return res.table.to_pandas()
+    kw = dict(config_name=v.config_name, store=Store(store), jobs=jobs, backend=backend, force=force, quiet=quiet,
+              say=lambda m: None, max_hours=max_hours)
+    st = get_study(st.name)
+    if isinstance(plan, str):
+        first = run_study(st, v.config, **kw)
+        kw["config_name"] = f"{v.config_name}+{plan}"
+        plan = follow_up_plan(plan, st, v.config, first)
+    res = run_study(st, v.config, plan=plan, **kw)
+    df = res.table.to_pandas()
+    df.attrs.update(key=res.run.key, plan=res.run.manifest.get("plan"))
+    return df
 
 
 def load(run: str | Path | None = None, store: str | Path | None = None, study: str | None = None,

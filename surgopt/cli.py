@@ -122,7 +122,9 @@ def _run_study_command(study, args, store, jobs, force, quiet, chunk_size=None, 
             for f in flags:
                 if f.follow_up is None:
                     continue
-                follow = run_study(study, f.follow_up(v.config, result.parts),
+                from surgopt.plans import follow_up_plan
+
+                follow = run_study(study, v.config, plan=follow_up_plan(f.follow_up, study, v.config, result),
                                    config_name=v.config_name + f.follow_up_suffix, store=Store(store), jobs=jobs,
                                    force=force, quiet=quiet, backend=backend, scheduler=scheduler, say=say, **budget)
                 _report(study, follow)

@@ -52,11 +52,12 @@ class RunResult:
         return self.parts.table()
 
 
-def _compute(study_name: str, cfg, chunk: int, index: int):
-    """Worker entry point: one task's rows as a dict of numpy columns."""
+def _compute(study_name: str, cfg, chunk: int, task):
+    """Worker entry point: one task (``surgopt.plans.Task``) and its rows as a dict of numpy columns."""
+    from surgopt.plans import run_task
     from surgopt.studies import get_study
 
-    return index, get_study(study_name).compute_task(cfg, chunk, index)
+    return task, run_task(get_study(study_name), cfg, chunk, task)
 
 
 def _progress(quiet: bool):
@@ -74,7 +75,7 @@ def _progress(quiet: bool):
         TextColumn("[bold]{task.description}"),
         BarColumn(),
         MofNCompleteColumn(),
-        TextColumn("chunks"),
+        TextColumn("{task.fields[unit]}"),
         TextColumn("{task.fields[rate]}"),
         TimeElapsedColumn(),
         TimeRemainingColumn(),
@@ -178,18 +179,21 @@ def check_budget(study, cfg, jobs: int, max_hours: float | None, max_memory_byte
 def run_study(study, cfg, *, config_name: str, store: Store, jobs: int = DEFAULT_JOBS,
               force: bool = False, quiet: bool = False, chunk: int | None = None,
               backend: str = "threads", scheduler: str | None = None, say=print,
-              max_hours: float | None = DEFAULT_MAX_HOURS, max_memory_bytes: int | None = None) -> RunResult:
-    """Compute (or fetch from the store) the table of one study config.
+              max_hours: float | None = DEFAULT_MAX_HOURS, max_memory_bytes: int | None = None,
+              plan=None) -> RunResult:
+    """Compute (or fetch from the store) the table of one study config explored by one plan.
 
-    ``backend`` "threads" (a thread pool in this process; every kernel is
-    compiled ``nogil``, so chunks run in parallel and nothing has to start or
-    load kernels), "loky" (local worker processes) or "dask" (joblib's dask
-    backend on a ``distributed`` cluster: ``scheduler`` address, or a
-    LocalCluster of ``jobs`` single-threaded workers). Either way the same chunks run the same
-    kernels and only this process writes to the store, part by part as chunks
-    complete. ``max_hours``, ``max_memory_bytes`` (None: half this machine's memory): the
-    budget ``check_budget`` holds the study's estimate to before it starts.
+    ``plan``: how the design space is explored (``surgopt.plans``); None: the plan the config names (its
+    [search] method, else the study's grid). ``backend`` "threads" (a thread pool in this process; every kernel
+    is compiled ``nogil``, so tasks run in parallel and nothing has to start or load kernels), "loky" (local
+    worker processes) or "dask" (joblib's dask backend on a ``distributed`` cluster: ``scheduler`` address, or
+    a LocalCluster of ``jobs`` single-threaded workers). Every plan runs the same way: its session gives tasks,
+    the backend computes them, the session turns their rows into parts, and only this process writes them to
+    the store. ``max_hours``, ``max_memory_bytes`` (None: half this machine's memory): the budget
+    ``check_budget`` holds the study's estimate to before it starts.
     """
+    from surgopt.plans import plan_for
+
     if backend not in BACKENDS:
         raise UsageError(f"--backend: {backend!r} is not one of {', '.join(BACKENDS)}")
     if scheduler is not None and backend != "dask":
@@ -199,7 +203,8 @@ def run_study(study, cfg, *, config_name: str, store: Store, jobs: int = DEFAULT
     jobs = usable_jobs(jobs, backend, scheduler, say)
     t0 = time.perf_counter()
     schema = study.schema()
-    key = study_key(study.name, cfg, study.kernel_version)
+    plan = plan if plan is not None else plan_for(study, cfg)
+    key = plan.key(study, cfg, study_key(study.name, cfg, study.kernel_version))
     if not force:
         run = _stored_run(store, study, key, say)
         if run is not None:  # nothing to compute: no budget to hold it to
@@ -210,55 +215,89 @@ def run_study(study, cfg, *, config_name: str, store: Store, jobs: int = DEFAULT
     lock = store.lock(study.name, key, on_wait=lambda who: say(f"waiting for {who} to finish this study ..."))
     cluster = _dask_client(scheduler, jobs) if backend == "dask" else contextlib.nullcontext()
     with cluster as dask, lock:  # connect to the cluster before anything is written
-        chunk = chunk or study.auto_chunk(cfg)
+        chunk = chunk or plan.chunk(study, cfg)
         existing = None if force else _open_or_discard(store, study.name, key, say)
         if existing is not None:
             chunk = existing.manifest["chunk"]  # parts already cut this way
         run = store.begin(study.name, key, config=cfg.model_dump(mode="json"),
                           config_name=config_name, kernel_version=study.kernel_version,
-                          n_tasks=study.n_tasks(cfg, chunk), chunk=chunk, force=force, fresh=existing is None,
-                          meta=provenance(backend, jobs))
-        log.info("%s %s: %d chunks of %d, %d stored", study.name, key[:12], run.manifest["n_tasks"], chunk,
-                 len(run.manifest["parts"]))
-        total = run.manifest["n_tasks"]
-        missing = [i for i in range(total) if i not in run.done_tasks()]
+                          n_tasks=plan.n_parts(study, cfg, chunk), chunk=chunk, force=force,
+                          fresh=existing is None, meta={**provenance(backend, jobs), "plan": plan.record()})
+        log.info("%s %s: %s plan, %d parts of %d, %d stored", study.name, key[:12], plan.name,
+                 run.manifest["n_tasks"], chunk, len(run.manifest["parts"]))
+        stored = len(run.manifest["parts"])
+        session = plan.session(study, cfg, chunk, run, workers=jobs)
         messages = []
-        if len(missing) < total:
-            messages.append(f"resuming: {total - len(missing)} of {total} chunks already stored")
-        computed = len(missing)
+        if stored and session.remaining:
+            messages.append(f"resuming: {session.done:,} of {session.total:,} {session.unit} already stored")
         try:
-            _compute_missing(study, cfg, chunk, missing, run, store, jobs, quiet, total, schema, backend, dask, say)
+            computed = _execute(study, cfg, chunk, session, run, store, jobs, quiet, schema, backend, dask, say)
         except MemoryError:
-            done = len(run.done_tasks())
-            raise OutOfMemory(f"out of memory with {done} of {total} chunks stored; run the same command again "
-                              f"to resume (with more memory, a smaller config or --jobs 1)") from None
-        run = store.finish(run, wall_time_s=round(time.perf_counter() - t0, 3), last_backend=backend, last_jobs=jobs)
+            raise OutOfMemory(f"out of memory with {len(run.done_tasks())} of {run.manifest['n_tasks']} parts "
+                              f"stored; run the same command again to resume (with more memory, a smaller config "
+                              f"or --jobs 1)") from None
+        run = store.finish(run, wall_time_s=round(time.perf_counter() - t0, 3), last_backend=backend,
+                           last_jobs=jobs, **session.final_meta())
     return RunResult(run, run.parts(schema), False, computed, time.perf_counter() - t0, messages)
 
 
-def _compute_missing(study, cfg, chunk, missing, run, store, jobs, quiet, total, schema, backend, dask, say) -> None:
-    """Compute and store the ``missing`` chunks (a search's batches through its optimiser), retrying the
-    chunks of worker processes that died."""
-    plan = study.search_plan(cfg) if study.search_plan else None
-    if missing and plan is not None:
-        _warm_up(study, cfg, say)
-        _run_search(study, cfg, plan, run, store, jobs, quiet, total, schema, backend, dask)
-    elif missing:
-        _warm_up(study, cfg, say)  # compile once in the parent; workers load the cache
-        for attempt in range(WORKER_RETRIES + 1):
-            try:
-                _dispatch(study, cfg, chunk, missing, run, store, jobs, quiet, total, schema, backend, dask)
-                break
-            except Exception as exc:  # noqa: BLE001 - only a lost worker is retried
-                if not _worker_died(exc):
-                    raise
-                missing = [i for i in range(total) if i not in run.done_tasks()]
-                if attempt == WORKER_RETRIES:
-                    raise WorkerLost(f"a worker process died {WORKER_RETRIES + 1} times "
-                                     f"({exc.__class__.__name__}); the {total - len(missing)} finished "
-                                     f"chunks are stored, run the same command again to resume") from None
-                say(f"a worker process died ({exc.__class__.__name__}); retrying its "
-                    f"{len(missing)} unfinished chunk(s)")
+def _execute(study, cfg, chunk, session, run, store, jobs, quiet, schema, backend, dask, say) -> int:
+    """The one path of every plan: ask the session for tasks, compute them on the backend, hand each task's
+    rows back and store the parts it gives, until it has no more; the tasks of worker processes that died are
+    retried. Returns how many tasks were computed."""
+    import pyarrow as pa
+
+    if not session.remaining:
+        return 0
+    _warm_up(study, cfg, say)  # compile once in the parent; workers load the cache
+    if backend == "dask":
+        _prepare_dask_workers(dask, study.name, cfg)
+    progress = _progress(quiet)
+    t_start = time.perf_counter()
+    done_before = session.done
+    computed = 0
+    with progress:
+        bar = progress.add_task(study.name, total=session.total, completed=session.done, rate="",
+                                unit=session.unit)
+
+        def record(task, cols):
+            nonlocal computed
+            raise_if_stopped()  # a stop signal whose exception a callback swallowed still stops the run
+            computed += 1
+            for index, part in session.on_result(task, cols):
+                store.write_part(run, index, pa.Table.from_pydict(part, schema=schema))
+                log.debug("stored part %d (%d rows)", index, len(next(iter(part.values()))))
+            dt = time.perf_counter() - t_start
+            rate = (session.done - done_before) / dt if dt > 0 else 0
+            progress.update(bar, completed=session.done, rate=f"{rate:,.1f} {session.unit}/s" if dt > 0 else "")
+
+        while True:
+            tasks = session.next_tasks()
+            if not tasks:
+                return computed
+            _with_retries(study, cfg, chunk, tasks, jobs, backend, record, say)
+
+
+def _with_retries(study, cfg, chunk, tasks, jobs, backend, record, say) -> None:
+    """Compute ``tasks`` on the backend, recording each as it finishes; the tasks not recorded when a worker
+    process died are computed again on a fresh pool (WORKER_RETRIES times)."""
+    pending = {(t.index, t.sub): t for t in tasks}
+
+    def record_once(task, cols):
+        pending.pop((task.index, task.sub), None)
+        record(task, cols)
+
+    for attempt in range(WORKER_RETRIES + 1):
+        try:
+            _dispatch(study.name, cfg, chunk, list(pending.values()), jobs, backend, record_once)
+            return
+        except Exception as exc:  # noqa: BLE001 - only a lost worker is retried
+            if not _worker_died(exc):
+                raise
+            if attempt == WORKER_RETRIES:
+                raise WorkerLost(f"a worker process died {WORKER_RETRIES + 1} times ({exc.__class__.__name__}); "
+                                 f"what finished is stored, run the same command again to resume") from None
+            say(f"a worker process died ({exc.__class__.__name__}); retrying its {len(pending)} unfinished task(s)")
 
 
 def provenance(backend: str, jobs: int) -> dict:
@@ -277,73 +316,6 @@ def provenance(backend: str, jobs: int) -> dict:
                          "python": platform.python_version()},
             "code_sha256": code_sha256(), "git_commit": git_commit(),
             "backend": backend, "jobs": jobs, "host": socket.gethostname()}
-
-
-def _run_search(study, cfg, plan, run, store, jobs, quiet, total, schema, backend, dask) -> None:
-    """An Optuna search, batch after batch, on a study in memory: ask the batch's trials (sampler seeded by
-    (seed, batch)), evaluate them as one task through the backend, tell them, append them to Optuna's
-    journal in the run's folder, then store them as part k. Resuming rebuilds the study from the journal's
-    complete batches: a batch in the journal whose part is missing is evaluated again from its recorded
-    parameters; the rest is asked anew from the same history with the same seed, so the trials are an
-    uninterrupted search's wherever the kill fell. A journal that is gone or unreadable while parts are
-    stored cannot give the same trials: refused, with the repair."""
-    from surgopt.errors import StoreError
-    from surgopt.studies import search as S
-
-    spec = plan.spec
-    names = list(plan.space)
-    repair = (f"delete the run (`surgopt runs rm {run.key[:12]}`) or rerun with --force to search again "
-              f"from the start")
-    try:
-        journal = S.Journal.open(run.path / "optuna.journal", plan)
-    except S.JournalProblem as exc:
-        raise StoreError(f"{exc}; {repair}") from None
-    beyond = sorted(k for k in run.done_tasks() if k >= journal.batches)
-    if beyond:
-        raise StoreError(f"{run.path}: part {beyond[0]} is stored but Optuna's journal holds only "
-                         f"{journal.batches} complete batch(es) (deleted or replaced?): the search cannot resume "
-                         f"to the same trials; {repair}")
-    mem = S.memory_study(plan)
-    mem.add_trials(journal.trials)
-    dists = S.distributions(plan.space)
-
-    def evaluate(k, points, before_store):
-        cfg_k = cfg.model_copy(update={"search": spec.model_copy(update={"points": points})})
-        _dispatch(study, cfg_k, spec.batch, [k], run, store, jobs, quiet, total, schema, backend, dask,
-                  before_store=before_store)
-
-    for k in range(total):
-        first, n = k * spec.batch, min(spec.batch, spec.trials - k * spec.batch)
-        if k < journal.batches:  # told and recorded before the interruption
-            if k not in run.done_tasks():
-                recorded = journal.trials[first:first + n]
-                evaluate(k, [[float(t.params[name]) for name in names] for t in recorded],
-                         lambda index, cols, recorded=recorded: _same_trials(run, index, cols, recorded, plan, names))
-            continue
-        mem.sampler = S.sampler_for(spec, k)
-        asked = [mem.ask(dists) for _ in range(n)]
-        points = [[float(x.params[name]) for name in names] for x in asked]
-
-        def tell_and_record(index, cols, asked=asked, first=first):
-            S.tell(mem, asked, [[float(cols[c][r]) for c, _ in plan.objectives] for r in range(len(asked))])
-            journal.append(mem.get_trials(deepcopy=False)[first:first + len(asked)])
-
-        evaluate(k, points, tell_and_record)
-
-
-def _same_trials(run, index, cols, recorded, plan, names) -> None:
-    """A batch evaluated again from its journal record gives the journal's values, or the store is inconsistent."""
-    import math
-
-    from surgopt.errors import StoreError
-
-    for r, t in enumerate(recorded):
-        values = [float(cols[c][r]) for c, _ in plan.objectives]
-        told = t.values if t.values is not None else [math.nan] * len(values)
-        same = all(a == b or (math.isnan(a) and math.isnan(b)) or not math.isfinite(a) for a, b in zip(values, told))
-        if not same or [float(cols[name][r]) for name in names] != [float(t.params[name]) for name in names]:
-            raise StoreError(f"{run.path}: batch {index} evaluated again differs from Optuna's journal "
-                             f"(trial {t.number}); delete the run and search again")
 
 
 #: How many times the chunks of a worker process that died (killed, out of memory) are retried.
@@ -391,46 +363,24 @@ def _open_or_discard(store: Store, study_name: str, key: str, say):
         return None
 
 
-def _dispatch(study, cfg, chunk, missing, run, store, jobs, quiet, total, schema, backend="threads",
-              dask_client=None, before_store=None):
-    """Compute the ``missing`` chunks on the backend and store each as it finishes (``before_store(index,
-    cols)``, if given, runs first: a search tells its optimiser and records the trials there)."""
-    import pyarrow as pa
+def _dispatch(study_name, cfg, chunk, tasks, jobs, backend, record) -> None:
+    """Compute ``tasks`` on the backend and ``record(task, cols)`` each as it finishes, in this thread."""
+    if backend in ("threads", "loky") and (jobs == 1 or len(tasks) == 1):
+        for t in tasks:
+            record(*_compute(study_name, cfg, chunk, t))
+        return
+    if backend == "threads":
+        _dispatch_threads(study_name, cfg, chunk, tasks, jobs, record)
+        return
+    if backend == "loky":
+        _dispatch_loky(study_name, cfg, chunk, tasks, jobs, record)
+        return
+    from joblib import Parallel, delayed, parallel_config
 
-    progress = _progress(quiet)
-    t_start = time.perf_counter()
-    with progress:
-        bar = progress.add_task(study.name, total=total, completed=total - len(missing), rate="")
-        done_now = 0
-
-        def record(index, cols):
-            nonlocal done_now
-            raise_if_stopped()  # a stop signal whose exception a callback swallowed still stops the run
-            if before_store is not None:
-                before_store(index, cols)
-            store.write_part(run, index, pa.Table.from_pydict(cols, schema=schema))
-            log.debug("stored part %d (%d rows)", index, len(next(iter(cols.values()))))
-            done_now += 1
-            dt = time.perf_counter() - t_start
-            progress.update(bar, advance=1, rate=f"{done_now / dt:.1f} chunks/s" if dt > 0 else "")
-
-        if backend in ("threads", "loky") and (jobs == 1 or len(missing) == 1):
-            for i in missing:
-                record(*_compute(study.name, cfg, chunk, i))
-            return
-        if backend == "threads":
-            _dispatch_threads(study.name, cfg, chunk, missing, jobs, record)
-            return
-        if backend == "loky":
-            _dispatch_loky(study.name, cfg, chunk, missing, jobs, record)
-            return
-        from joblib import Parallel, delayed, parallel_config
-
-        tasks = (delayed(_compute)(study.name, cfg, chunk, i) for i in missing)
-        _prepare_dask_workers(dask_client, study.name, cfg)
-        with parallel_config(backend="dask"):
-            for index, cols in Parallel(return_as="generator_unordered")(tasks):
-                record(index, cols)
+    with parallel_config(backend="dask"):
+        for task, cols in Parallel(return_as="generator_unordered")(
+                delayed(_compute)(study_name, cfg, chunk, t) for t in tasks):
+            record(task, cols)
 
 
 def _dispatch_threads(study_name, cfg, chunk, missing, jobs, record):

@@ -481,6 +481,8 @@ class Store:
         (``--force``) into place, replacing the stored one; call under ``lock``."""
         if meta:
             run.manifest.update(meta)
+            if run.complete and "completed" not in run.manifest:  # a search that set its part count at its end
+                run.manifest["completed"] = _now()
             self._write_manifest(run)
         if run.path.parent.name != STAGING:
             return run

@@ -60,11 +60,7 @@ def _search(tmp_path, name, method="cmaes", trials=60, batch=10):
 
 
 @pytest.mark.parametrize("method", ["cmaes", "tpe", "random"])
-def test_a_search_is_deterministic_bounded_and_its_parts_are_optunas_record(tmp_path, method):
-    import optuna
-    from optuna.storages import JournalStorage
-    from optuna.storages.journal import JournalFileBackend
-
+def test_a_search_is_deterministic_bounded_and_same_on_one_or_two_workers(tmp_path, method):
     rcm = get_study("rcm-grid")
     cfg = validate({"workspace": {"points_per_side": 5},
                     "search": {"method": method, "trials": 50, "batch": 10, "seed": 1}}, rcm.config_model, "x")
@@ -75,12 +71,57 @@ def test_a_search_is_deterministic_bounded_and_its_parts_are_optunas_record(tmp_
     g = cfg.candidates.grid
     x, z = a["x_rcm_m"].to_numpy(), a["z_rcm_m"].to_numpy()
     assert x.min() >= g.x_min_m and x.max() <= g.x_max_m and z.min() >= g.z_min_m and z.max() <= g.z_max_m
+    assert len(set(x.tolist())) > 10  # it explores
+    manifest = single_run(tmp_path / "a").manifest
+    assert manifest["plan"]["name"] == ("cmaes" if method == "cmaes" else "optuna")
+    assert single_run(tmp_path / "a").complete
+
+
+@pytest.mark.parametrize("method", ["tpe", "random"])
+def test_an_optuna_search_parts_are_optunas_record(tmp_path, method):
+    import optuna
+    from optuna.storages import JournalStorage
+    from optuna.storages.journal import JournalFileBackend
+
+    rcm = get_study("rcm-grid")
+    cfg = validate({"workspace": {"points_per_side": 5},
+                    "search": {"method": method, "trials": 30, "batch": 10, "seed": 1}}, rcm.config_model, "x")
+    a = run_study(rcm, cfg, config_name="a", store=Store(tmp_path), jobs=2, quiet=True).table
     study = optuna.load_study(study_name="surgopt", storage=JournalStorage(JournalFileBackend(
-        str(single_run(tmp_path / "a").path / "optuna.journal"))))
+        str(single_run(tmp_path).path / "optuna.journal"))))
     trials = study.get_trials()
-    assert [t.number for t in trials] == list(range(50))
-    assert [t.params["x_rcm_m"] for t in trials] == x.tolist()
+    assert [t.number for t in trials] == list(range(30))
+    assert [t.params["x_rcm_m"] for t in trials] == a["x_rcm_m"].to_pylist()
     assert [t.value for t in trials] == a["gii"].to_pylist()
+
+
+def test_the_cmaes_plan_is_the_cmaes_package_asked_and_told(tmp_path):
+    """The plan's trials are those of ``cmaes.CMA`` driven by hand (same seed, [0, 1] coordinates, the box's
+    centre, sigma 0.3, GII maximised, an infeasible candidate ranked last) until its first restart."""
+    import cmaes
+    import numpy as np
+
+    rcm = get_study("rcm-grid")
+    cfg = validate({"workspace": {"points_per_side": 5},
+                    "search": {"method": "cmaes", "trials": 42, "batch": 12, "seed": 4}}, rcm.config_model, "x")
+    t = run_study(rcm, cfg, config_name="a", store=Store(tmp_path), jobs=2, quiet=True).table
+    g = cfg.candidates.grid
+    lo, hi = np.array([g.x_min_m, g.z_min_m]), np.array([g.x_max_m, g.z_max_m])
+    opt = cmaes.CMA(mean=np.full(2, 0.5), sigma=0.3, bounds=np.tile([0.0, 1.0], (2, 1)), seed=4 * 1_000_003)
+    assert opt.population_size == 6  # 4 + floor(3 ln 2): seven generations
+    rows, values = [], []
+    while len(rows) < 42:
+        u = [opt.ask() for _ in range(opt.population_size)]
+        x = np.array([lo + ui * (hi - lo) for ui in u])
+        gii = rcm.evaluate(cfg, x, np.arange(len(u)), "hand")["gii"]
+        rows += x.tolist()
+        values += gii.tolist()
+        opt.tell([(ui, -v if np.isfinite(v) else 1e300) for ui, v in zip(u, gii)])
+        assert not opt.should_stop()  # the premise: no restart within these trials
+    assert np.column_stack([t["x_rcm_m"].to_numpy(), t["z_rcm_m"].to_numpy()]).tolist() == rows
+    np.testing.assert_array_equal(t["gii"].to_numpy(), values)
+    # parts hold whole generations, at least `batch` trials each: 12, 12, 12, 6 (the last, cut at the budget)
+    assert single_run(tmp_path).manifest["n_tasks"] == 4
 
 
 def test_a_killed_search_resumes_to_the_same_trials(tmp_path):
@@ -157,17 +198,20 @@ def test_pareto_front_and_the_nsga2_summary(tmp_path):
                                      capture_output=True, text=True).stdout)[0]["rows"] == 40
 
 
-@pytest.mark.parametrize("stop_in", ["evaluation", "tell"])
-def test_a_search_stopped_between_ask_store_and_tell_resumes_to_the_same_trials(tmp_path, monkeypatch, stop_in):
-    """The windows a kill -9 rarely hits, made to happen: after a batch's asks (before its part), and
-    in the middle of telling a stored batch."""
+@pytest.mark.parametrize("method,stop_in", [("tpe", "evaluation"), ("tpe", "tell"), ("cmaes", "evaluation"),
+                                            ("cmaes", "store")])
+def test_a_search_stopped_between_ask_store_and_tell_resumes_to_the_same_trials(tmp_path, monkeypatch, method,
+                                                                                 stop_in):
+    """The windows a kill -9 rarely hits, made to happen: in a batch's evaluation (after its asks, before its
+    part), in the middle of telling Optuna a batch, and after CMA-ES was told but before the part was stored."""
+    from surgopt import runner
     from surgopt.studies import search as S
 
     rcm = get_study("rcm-grid")
     cfg = validate({"workspace": {"points_per_side": 5},
-                    "search": {"method": "cmaes", "trials": 60, "batch": 10, "seed": 2}}, rcm.config_model, "x")
+                    "search": {"method": method, "trials": 60, "batch": 10, "seed": 2}}, rcm.config_model, "x")
     ref = run_study(rcm, cfg, config_name="ref", store=Store(tmp_path / "ref"), jobs=1, quiet=True).table
-    real_tell, real_compute = S.tell, rcm.compute_task
+    real_tell, real_compute, real_write = S.tell, runner._compute, Store.write_part
     calls = {"n": 0}
 
     def tell_then_stop(study, trials, values):
@@ -177,18 +221,23 @@ def test_a_search_stopped_between_ask_store_and_tell_resumes_to_the_same_trials(
             raise KeyboardInterrupt
         real_tell(study, trials, values)
 
-    if stop_in == "tell":
-        monkeypatch.setattr(S, "tell", tell_then_stop)
-    else:
-        def compute_then_stop(c, chunk, index):
-            if index == 3:
-                raise KeyboardInterrupt
-            return real_compute(c, chunk, index)
+    def compute_then_stop(name, c, chunk, task):
+        calls["n"] += 1
+        if calls["n"] == 4:
+            raise KeyboardInterrupt
+        return real_compute(name, c, chunk, task)
 
-        monkeypatch.setattr("surgopt.runner._compute", lambda name, c, chunk, i: (i, compute_then_stop(c, chunk, i)))
+    def write_then_stop(self, run, index, table):
+        if index == 2:
+            raise KeyboardInterrupt
+        return real_write(self, run, index, table)
+
+    monkeypatch.setattr(*{"tell": (S, "tell", tell_then_stop), "evaluation": (runner, "_compute", compute_then_stop),
+                          "store": (Store, "write_part", write_then_stop)}[stop_in])
     with pytest.raises(KeyboardInterrupt):
         run_study(rcm, cfg, config_name="x", store=Store(tmp_path / "x"), jobs=1, quiet=True)
     monkeypatch.undo()
+    assert not single_run(tmp_path / "x").complete  # the premise: stopped part-way
     again = run_study(rcm, cfg, config_name="x", store=Store(tmp_path / "x"), jobs=1, quiet=True).table
     assert again.equals(ref)
 

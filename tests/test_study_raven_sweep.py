@@ -77,20 +77,29 @@ def test_cost_formula_and_shared_geometry():
     assert r["area_cm2"][1] <= r["area_cm2"][0] and r["area_cm2"][3] <= r["area_cm2"][2]
 
 
-def test_refine_improves_on_the_grid():
+def test_refine_improves_on_the_grid_and_records_its_parent(tmp_path):
+    from surgopt.plans import follow_up_plan
+    from surgopt.runner import run_study
+    from surgopt.store import Store
+
     cfg = S.Config.model_validate({"sweep": {
         "alpha_deg": {"start": 25, "stop": 85, "step": 30}, "beta_deg": {"start": 25, "stop": 85, "step": 30},
         "phi_x_deg": [0], "phi_y_deg": [0], "phi_z_deg": [0], "bx_mm": [100], "by_mm": [50],
         "iso_min": [0.5]}, "geometry": {"step_mm": 4.0}, "refine": {"top_k": 1, "max_evals": 60}})
-    import pyarrow as pa
-
-    grid = pa.Table.from_pydict(S.compute_task(cfg, 1, 0), schema=S.schema())
-    rcfg = S.refine_config(cfg, grid)
-    rows = S.compute_task(rcfg, 1, 0)
-    assert rows["cost"].max() > max(grid["cost"].to_pylist())
+    grid = run_study(S.STUDY, cfg, config_name="g", store=Store(tmp_path), jobs=1, quiet=True)
+    plan = follow_up_plan("refine", S.STUDY, cfg, grid)
+    refined = run_study(S.STUDY, cfg, config_name="g+refine", store=Store(tmp_path), jobs=1, quiet=True, plan=plan)
+    rows = refined.table.to_pydict()
+    assert max(rows["cost"]) > max(grid.table["cost"].to_pylist())
     assert set(rows["source"]) == {"refine"}
     for p, (lo, hi) in zip(S.PARAMS, S.sweep_bounds(cfg)):
-        assert rows[p].min() >= lo - 1e-9 and rows[p].max() <= hi + 1e-9
+        assert min(rows[p]) >= lo - 1e-9 and max(rows[p]) <= hi + 1e-9
+    m = refined.run.manifest
+    assert m["plan"]["name"] == "refine" and m["plan"]["parent"] == grid.run.key
+    assert refined.run.key != grid.run.key and m["config"] == grid.run.manifest["config"]  # the config as written
+    # the first row is the start: the grid's best design
+    best = grid.parts.top("cost", 1)
+    assert [rows[p][0] for p in S.PARAMS] == [best[p][0].as_py() for p in S.PARAMS]
 
 
 def test_span_values_and_validation():

@@ -65,14 +65,14 @@ class Flag:
 
     ``config_update`` is merged into the config before the run (``--cull``: ``{"search": "cull"}``);
     ``value_update(value)`` gives the update of a flag with a value (``--robot ur5e``);
-    ``follow_up(cfg, table)`` returns the config of a second run made after the first and stored
-    beside it (``--refine``), named ``<config name><follow_up_suffix>``.
+    ``follow_up`` names a plan (``surgopt.plans``) that explores the same config after the run, from its
+    rows, stored as a second run named ``<config name><follow_up_suffix>`` (``--refine``).
     """
 
     option: str
     help: str
     config_update: Mapping[str, Any] | None = None
-    follow_up: Callable[[Any, Any], Any] | None = None
+    follow_up: str | None = None
     follow_up_suffix: str = ""
     metavar: str | None = None
     value_update: Callable[[str], Mapping[str, Any]] | None = None
@@ -92,8 +92,9 @@ class Flag:
 class Study:
     """One study: config model -> tasks -> rows (a dict of numpy columns per task) -> summary, figures.
 
-    ``compute_task(cfg, chunk, index)`` must be a pure function of its arguments (it runs in threads,
-    worker processes or on a cluster); ``warm_up(cfg)`` compiles the kernels in the parent first.
+    ``compute_task(cfg, chunk, index)`` (the study's grid, chunk by chunk) and ``evaluate`` (any designs) must be
+    pure functions of their arguments (they run in threads, worker processes or on a cluster); how the design
+    space is explored is a plan (``surgopt.plans``), not the study's; ``warm_up(cfg)`` compiles the kernels in the parent first.
     ``objective`` ranks designs (descending) in ``summarize``; None compares runs side by side.
     ``figures(cfg, table, out_dir, design_id)`` writes PNG files and returns their paths.
     ``estimate(cfg)`` says what the config costs before anything runs (an ``Estimate``).
@@ -119,6 +120,11 @@ class Study:
     chunked: bool = True  # False: one task per run, no --chunk-size
     estimate: Callable[[Any], Estimate] | None = None  # work and memory, checked before a run starts
     search_plan: Callable[[Any], Any] | None = None  # a SearchPlan when the config asks for an optimiser
+    #: ``evaluate(cfg, x, ids, source)``: rows of any designs (rows of x in ``search_plan``'s dimension order),
+    #: what the optimiser and refine plans evaluate; None: the study is explored by its grid alone
+    evaluate: Callable[[Any, Any, Any, str], dict] | None = None
+    #: ``refine_space(cfg)``: (dimension names, bounds, compass steps) for the refine plan
+    refine_space: Callable[[Any], Any] | None = None
     #: this study runs another study's configs plus a section of its own (rcm-track: rcm-grid's + [track]);
     #: a config file without that section is the other study's when a command must tell them apart
     extends: str | None = None

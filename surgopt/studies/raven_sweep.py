@@ -28,7 +28,7 @@ from surgopt.studies.raven_sweep_config import (  # noqa: F401
     Sweep,
     values,
 )
-from surgopt.studies.search import SearchPlan, compass_search, objectives_of, optimiser_of
+from surgopt.studies.search import SearchPlan, objectives_of, optimiser_of
 
 NAME = "raven-sweep"
 HELP = """Raven IV port placement and link design (Li, Glozman, Milutinovic, Rosen, ICRA 2011: eqs. 1-43,
@@ -161,10 +161,6 @@ def auto_chunk(cfg: RavenSweepConfig) -> int:
     from surgopt.studies import chunk_for_seconds
 
     sw = cfg.sweep
-    if cfg.search == "refine":
-        return 1
-    if optimiser(cfg) is not None:
-        return optimiser(cfg).batch
     designs = len(values(sw.alpha_deg)) * len(values(sw.beta_deg)) * len(values(sw.iso_min))
     return chunk_for_seconds(n_geometries(cfg), _plane_nodes(cfg.geometry) * designs * NS_PER_NODE_DESIGN * 1e-9)
 
@@ -224,7 +220,7 @@ def distinct_geometries(cfg: RavenSweepConfig) -> int:
     return len(seen)
 
 
-optimiser = optimiser_of  # the [search] optimiser of a config, or None (the grid, or refine)
+optimiser = optimiser_of  # the [search] optimiser of a config, or None (the grid)
 
 
 def search_plan(cfg: RavenSweepConfig) -> SearchPlan | None:
@@ -248,11 +244,6 @@ def estimate(cfg: RavenSweepConfig) -> Estimate:
         return Estimate(n, f"{spec.method} trials", n,
                         n * nodes * (cfg.geometry.n_arms * NS_PER_NODE_ARM + NS_PER_NODE_DESIGN_EST) * 1e-9,
                         peak_bytes(n, 160))
-    if cfg.search == "refine":
-        n = len(cfg.refine.starts or []) * cfg.refine.max_evals
-        return Estimate(n, "designs evaluated by the compass search", n,
-                        n * nodes * (cfg.geometry.n_arms * NS_PER_NODE_ARM + NS_PER_NODE_DESIGN_EST) * 1e-9,
-                        peak_bytes(n, 160))
     per = len(values(sw.alpha_deg)) * len(values(sw.beta_deg)) * len(values(sw.iso_min))
     g = n_geometries(cfg)
     ns_node = cfg.geometry.n_arms * NS_PER_NODE_ARM + per * NS_PER_NODE_DESIGN_EST
@@ -264,10 +255,7 @@ def estimate(cfg: RavenSweepConfig) -> Estimate:
 
 
 def n_tasks(cfg: RavenSweepConfig, chunk: int) -> int:
-    if cfg.search == "refine":
-        return len(cfg.refine.starts or [])
-    if optimiser(cfg) is not None:
-        return math.ceil(optimiser(cfg).trials / optimiser(cfg).batch)
+    """Chunks of the sweep's geometries."""
     return max(1, math.ceil(n_geometries(cfg) / chunk))
 
 
@@ -276,14 +264,15 @@ def warm_up(cfg: RavenSweepConfig) -> None:
     evaluate(small, [(0.0, 0.0, 0.0, 100.0, 50.0)], [45.0], [45.0], [0.5])
 
 
+def evaluate_designs(cfg: RavenSweepConfig, x: np.ndarray, ids: np.ndarray, source: str) -> dict:
+    """Rows of any designs (rows of ``x`` in PARAMS order), one by one (a plan's batch: ids are its trial numbers)."""
+    x = np.asarray(x, dtype=np.float64).reshape(-1, len(PARAMS))
+    metrics = np.vstack([evaluate(cfg, [tuple(d[2:7])], [d[0]], [d[1]], [d[7]]) for d in x])
+    return _rows(x, metrics, cfg.geometry.step_mm, np.asarray(ids), source)
+
+
 def compute_task(cfg: RavenSweepConfig, chunk: int, index: int) -> dict:
-    if cfg.search == "refine":
-        return refine_from(cfg, cfg.refine.starts[index], index)
-    spec = optimiser(cfg)
-    if spec is not None:  # one batch of an optimiser's trials, design by design; ids are trial numbers
-        x = np.asarray(spec.points, dtype=np.float64).reshape(-1, len(PARAMS))
-        metrics = np.vstack([evaluate(cfg, [tuple(d[2:7])], [d[0]], [d[1]], [d[7]]) for d in x])
-        return _rows(x, metrics, cfg.geometry.step_mm, index * chunk + np.arange(x.shape[0]), spec.method)
+    """Rows of the sweep's geometries [index*chunk, (index+1)*chunk), each with every (alpha, beta, Iso_min)."""
     sw = cfg.sweep
     al, be, iso = values(sw.alpha_deg), values(sw.beta_deg), values(sw.iso_min)
     per_geo = len(al) * len(be) * len(iso)
@@ -311,37 +300,15 @@ def sweep_bounds(cfg: RavenSweepConfig) -> list[tuple[float, float]]:
     return [(min(values(getattr(cfg.sweep, p))), max(values(getattr(cfg.sweep, p)))) for p in PARAMS]
 
 
-def refine_from(cfg: RavenSweepConfig, start, index: int) -> dict:
-    """Compass search (``surgopt.studies.search``) inside the sweep's bounds from one grid design.
-
-    Steps start at half the grid spacing (or 1/8 of the range for listed values);
-    ``refine.max_evals`` evaluations at most. One row per evaluated design.
-    """
+def refine_space(cfg: RavenSweepConfig):
+    """The compass search's space (the refine plan): PARAMS, the sweep's bounds, and steps of half the grid
+    spacing (1/8 of the range for listed values, 0 for a single value)."""
     bounds = sweep_bounds(cfg)
     steps = []
     for p, (lo, hi) in zip(PARAMS, bounds):
         spec = getattr(cfg.sweep, p)
         steps.append(spec.step / 2 if isinstance(spec, Span) else (hi - lo) / 8 or 0.0)
-    metrics = []
-
-    def cost(x):
-        m = evaluate(cfg, [tuple(x[2:7])], [x[0]], [x[1]], [x[7]])
-        metrics.append(m[0])
-        return float(_rows(np.asarray([x]), m, cfg.geometry.step_mm, np.zeros(1), "refine")["cost"][0])
-
-    visited = compass_search(cost, start, bounds, steps, cfg.refine.max_evals)
-    ids = np.arange(len(visited)) + index * 1_000_000
-    return _rows(np.vstack(visited), np.vstack(metrics), cfg.geometry.step_mm, ids, "refine")
-
-
-def refine_config(cfg: RavenSweepConfig, parts) -> RavenSweepConfig:
-    """The refine study for a grid run (``Parts`` or a table): starts at its top-k designs by cost."""
-    from surgopt.parts import Parts
-
-    parts = parts if isinstance(parts, Parts) else Parts.of_table(parts)
-    top = parts.top("cost", cfg.refine.top_k)
-    starts = [[top[p][i].as_py() for p in PARAMS] for i in range(top.num_rows)]
-    return cfg.model_copy(update={"search": "refine", "refine": cfg.refine.model_copy(update={"starts": starts})})
+    return list(PARAMS), bounds, steps
 
 
 # ---------------------------------------------------------------------------
@@ -402,6 +369,7 @@ STUDY = Study(
     help=HELP, config_help=CONFIG_HELP, schema=schema, key_columns=KEY_COLUMNS, objective=OBJECTIVE,
     auto_chunk=auto_chunk, n_tasks=n_tasks, warm_up=warm_up, compute_task=compute_task, summary=summary,
     feasible_mask=feasible_mask, figures=figures_in("raven_sweep"), estimate=estimate, search_plan=search_plan,
-    flags=(Flag("--refine", "After the grid, a compass search from the top-k designs inside the sweep's bounds; "
-                            "its rows are stored as a second run.",
-                follow_up=refine_config, follow_up_suffix="+refine"),))
+    evaluate=evaluate_designs, refine_space=refine_space,
+    flags=(Flag("--refine", "After the run, a compass search from its top refine.top_k designs inside the sweep's "
+                            "bounds; stored as a second run that records the first's key.",
+                follow_up="refine", follow_up_suffix="+refine"),))

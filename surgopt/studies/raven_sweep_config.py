@@ -134,16 +134,25 @@ class Geometry(StrictModel):
 class Refine(StrictModel):
     top_k: int = Field(5, ge=1, le=100)
     max_evals: int = Field(300, ge=10, le=100_000)
-    starts: list[Annotated[list[float], Field(min_length=len(PARAMS), max_length=len(PARAMS))]] | None = Field(
-        None, min_length=1, max_length=100,
-        description="designs [alpha, beta, phi_x, phi_y, phi_z, bx, by, Iso_min] to start from; --refine fills it")
+
+    @model_validator(mode="before")
+    @classmethod
+    def _no_starts(cls, data):
+        """Starts are the refine plan's, taken from its parent run (manifests before plans held ``starts = null``)."""
+        if isinstance(data, dict) and "starts" in data:
+            if data["starts"] is not None:
+                raise ValueError("starts: a refine starts from its parent run's best designs (run the grid with "
+                                 "--refine); starts are no longer given in the config")
+            data = {k: v for k, v in data.items() if k != "starts"}
+        return data
 
 
 class RavenSweepConfig(StrictModel):
     sweep: Sweep = Sweep()
     geometry: Geometry = Geometry()
-    search: search_field("grid", "refine") = Field(
-        "grid", description="'grid' (the sweep), 'refine' (filled by --refine), or a [search] table (an optimiser)")
+    search: search_field("grid") = Field(
+        "grid", description="'grid' (the sweep) or a [search] table (an optimiser); --refine follows a run with "
+                            "a compass search from its best designs")
     refine: Refine = Refine()
 
     @model_validator(mode="after")
@@ -151,11 +160,13 @@ class RavenSweepConfig(StrictModel):
         check_objectives(self.search, SEARCH_OBJECTIVES)
         return self
 
-    @model_validator(mode="after")
-    def _refine_has_starts(self):
-        if self.search == "refine" and not self.refine.starts:
-            raise ValueError("search = 'refine' needs refine.starts (or run the grid with --refine, which fills them)")
-        return self
+    @model_validator(mode="before")
+    @classmethod
+    def _refine_is_a_plan(cls, data):
+        if isinstance(data, dict) and data.get("search") == "refine":
+            raise ValueError("search = 'refine': a refine is a plan that follows a run: run the grid with --refine "
+                             "(or surgopt.run(..., plan='refine'))")
+        return data
 
     @model_validator(mode="after")
     def _ports_fix_bx_by(self):

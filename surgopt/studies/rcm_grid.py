@@ -86,25 +86,31 @@ def search_plan(cfg: RcmGridConfig) -> SearchPlan | None:
 
 def candidate_xyz(cfg: RcmGridConfig) -> np.ndarray:
     """(M, 3) candidate (x, y, z) in config coordinates; a grid in x-major, then y, then z order (with
-    one y this is the paper's x-major x-z order); an optimiser's batch: its points."""
-    spec = optimiser(cfg)
+    one y this is the paper's x-major x-z order)."""
     c = cfg.candidates
-    if spec is not None and spec.points is not None:
-        pts = np.asarray(spec.points, dtype=np.float64).reshape(-1, len(search_axes(cfg)))
-    elif c.list_m is not None:
-        pts = np.asarray(c.list_m, dtype=np.float64)
-    else:
-        g = c.grid
-        axes = [np.linspace(getattr(g, f"{a}_min_m"), getattr(g, f"{a}_max_m"), getattr(g, f"{a}_count"))
-                for a in "xyz"]
-        return np.stack([v.ravel() for v in np.meshgrid(*axes, indexing="ij")], axis=1)
+    if c.list_m is not None:
+        return with_y(cfg, np.asarray(c.list_m, dtype=np.float64))
+    g = c.grid
+    axes = [np.linspace(getattr(g, f"{a}_min_m"), getattr(g, f"{a}_max_m"), getattr(g, f"{a}_count"))
+            for a in "xyz"]
+    return np.stack([v.ravel() for v in np.meshgrid(*axes, indexing="ij")], axis=1)
+
+
+def design_xyz(cfg: RcmGridConfig, x: np.ndarray) -> np.ndarray:
+    """(M, 3) candidates from designs in ``search_axes`` order (x, z: at the grid's y)."""
+    return with_y(cfg, np.asarray(x, dtype=np.float64).reshape(-1, len(search_axes(cfg))))
+
+
+def with_y(cfg: RcmGridConfig, pts: np.ndarray) -> np.ndarray:
+    """(M, 3) from (M, 2) x-z points at the grid's y (0 without a grid), or (M, 3) as they are."""
     if pts.shape[1] == 3:
         return pts
-    y = 0.0 if c.grid is None else c.grid.y_min_m
+    y = 0.0 if cfg.candidates.grid is None else cfg.candidates.grid.y_min_m
     return np.stack([pts[:, 0], np.full(pts.shape[0], y), pts[:, 1]], axis=1)
 
 
 def candidate_count(cfg: RcmGridConfig) -> int:
+    """Candidates a config's own plan evaluates (an optimiser's: its trials)."""
     spec = optimiser(cfg)
     c = cfg.candidates
     if spec is not None:
@@ -271,9 +277,6 @@ def auto_chunk(cfg: RcmGridConfig) -> int:
     """Candidates per task: about two seconds of single-core work, and at least 32 tasks."""
     from surgopt.studies import chunk_for_seconds
 
-    spec = optimiser(cfg)
-    if spec is not None:
-        return spec.batch
     return chunk_for_seconds(candidate_count(cfg), cfg.workspace.points_per_side ** 3 * ns_per_pose(cfg) * 1e-9)
 
 
@@ -295,11 +298,9 @@ def estimate(cfg: RcmGridConfig) -> Estimate:
 
 
 def n_tasks(cfg: RcmGridConfig, chunk: int) -> int:
+    """Chunks of the candidate grid (the cull: one task)."""
     if cfg.search == "cull":
         return 1
-    spec = optimiser(cfg)
-    if spec is not None:
-        return math.ceil(spec.trials / spec.batch)
     return max(1, math.ceil(candidate_count(cfg) / chunk))
 
 
@@ -332,11 +333,17 @@ def compute_task(cfg: RcmGridConfig, chunk: int, index: int) -> dict:
     if cfg.search == "cull":
         return cull_search(cfg)
     xyz_all = candidate_xyz(cfg)
-    if optimiser(cfg) is not None:  # one batch of trials: ids are the trial numbers
-        ids, xyz = index * chunk + np.arange(xyz_all.shape[0]), xyz_all
-    else:
-        ids = np.arange(index * chunk, min(xyz_all.shape[0], (index + 1) * chunk))
-        xyz = xyz_all[ids]
+    ids = np.arange(index * chunk, min(xyz_all.shape[0], (index + 1) * chunk))
+    return candidate_rows(cfg, ids, xyz_all[ids])
+
+
+def evaluate_designs(cfg: RcmGridConfig, x: np.ndarray, ids: np.ndarray, source: str) -> dict:
+    """Rows of any candidates (rows of ``x`` in ``search_axes`` order; a plan's batch: ids are its trial numbers)."""
+    return candidate_rows(cfg, np.asarray(ids), design_xyz(cfg, x))
+
+
+def candidate_rows(cfg: RcmGridConfig, ids: np.ndarray, xyz: np.ndarray) -> dict:
+    """The full-map rows of these candidates (every cube point evaluated)."""
     offsets = workspace_offsets(cfg.workspace)
     lo, hi, n_unr, n_sing, n_eval = kernel_for(cfg).extremes(candidate_rcms(cfg, xyz), offsets,
                                                              cfg.workspace.points_per_side)
@@ -428,6 +435,7 @@ STUDY = Study(
     help=HELP, config_help=CONFIG_HELP, schema=schema, key_columns=KEY_COLUMNS, objective=OBJECTIVE,
     auto_chunk=auto_chunk, n_tasks=n_tasks, warm_up=warm_up, compute_task=compute_task, summary=summary,
     feasible_mask=feasible_mask, figures=figures_in("rcm_grid"), estimate=estimate, search_plan=search_plan,
+    evaluate=evaluate_designs,
     flags=(Flag("--cull", "Fast exact argmax with the Culling algorithm (Stocco & Salcudean) instead of "
                           "the full GII map; culled candidates carry an upper bound.",
                 config_update={"search": "cull"}),

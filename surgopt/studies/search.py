@@ -64,10 +64,11 @@ METHODS = ("grid", "cmaes", "tpe", "nsga2", "random")
 
 
 class SearchSpec(StrictModel):
-    """``[search]``: an optimiser over the sweep's ranges read as continuous bounds (lists stay categorical).
+    """``[search]``: an optimiser over the study's design space (ranges as continuous bounds, lists categorical).
 
-    Each batch of ``batch`` trials is one task and one stored part; Optuna's journal lives in the run's
-    folder. Samplers are re-created for every batch with seed (seed, batch), so an interrupted search
+    How each method explores it is a plan (``surgopt.plans``): "cmaes" the ``cmaes`` package with ``restarts``,
+    "tpe" / "nsga2" / "random" Optuna's samplers. ``batch``: trials per stored part (Optuna: per ask, seeded by
+    (seed, batch); CMA-ES: a part holds whole generations, at least ``batch`` trials). An interrupted search
     resumes to the same trials as an uninterrupted one.
     """
 
@@ -78,7 +79,19 @@ class SearchSpec(StrictModel):
     objectives: list[Annotated[str, Field(min_length=1, max_length=64)]] | None = Field(
         None, min_length=1, max_length=4,
         description="row columns to maximise ('-name' to minimise); default: the study's objective")
-    points: list[list[float]] | None = Field(None, description="internal: one batch's trial parameters")
+    restarts: Literal["ipop", "bipop", "none"] = Field(
+        "ipop", description="cmaes: restart with twice the population (ipop), alternating with small local "
+                            "runs (bipop), or never (none)")
+
+    @model_validator(mode="before")
+    @classmethod
+    def _legacy_points(cls, data):
+        """Manifests written before plans held an empty ``points`` (runtime data no longer in the config)."""
+        if isinstance(data, dict) and "points" in data:
+            if data["points"] is not None:
+                raise ValueError("points: a search's trials are no longer given in the config")
+            data = {k: v for k, v in data.items() if k != "points"}
+        return data
 
     @model_validator(mode="after")
     def _methods_and_objectives(self):

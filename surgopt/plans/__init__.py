@@ -1,0 +1,187 @@
+"""Plans: how a study's design space is explored, one class each, in one registry.
+
+A study says *what* it evaluates (``surgopt.studies.Study``: its grid as chunks, ``evaluate`` for any batch of
+designs, ``search_plan`` for its named dimensions and objectives). A plan says *how* the space is explored:
+
+- ``grid``    the study's own chunks (rcm-grid's full map or its cull, raven-sweep's sweep, every study's default);
+- ``refine``  a compass search from the top-k designs of a parent run (``--refine``), recorded with its key;
+- ``optuna``  Optuna's TPE, NSGA-II or random sampler ([search] method = "tpe" | "nsga2" | "random");
+- ``cmaes``   CMA-ES on the ``cmaes`` package (ask/tell, IPOP or BIPOP restarts, CMA-ES with margin when a
+              dimension is categorical).
+
+The runner (``surgopt.runner``) has one path for every plan: it asks a plan's *session* for tasks, runs them on
+the backend, hands each task's rows back to the session and stores the parts the session gives it. Tasks carry
+their designs as payload; the config stays exactly what the user wrote. A new plan is a module here with a class
+that has ``name``, ``key``, ``record``, ``n_parts``, ``chunk``, ``session``, and one line in ``PLANS``.
+"""
+from __future__ import annotations
+
+import hashlib
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+#: Plan name -> "module:class" (imported on first use, so that importing surgopt loads no optimiser).
+PLANS = {"grid": "surgopt.plans.grid:GridPlan", "refine": "surgopt.plans.refine:RefinePlan",
+         "optuna": "surgopt.plans.optuna_plan:OptunaPlan", "cmaes": "surgopt.plans.cmaes_plan:CmaesPlan"}
+
+#: [search] method -> plan name.
+METHOD_PLANS = {"tpe": "optuna", "nsga2": "optuna", "random": "optuna", "cmaes": "cmaes"}
+
+
+@dataclass(frozen=True)
+class Designs:
+    """Payload of a task: evaluate these designs (rows x the plan's dimensions, in ``search_plan`` order) with
+    these row ids; ``source`` names the plan in the rows of studies that record it."""
+
+    x: np.ndarray
+    ids: np.ndarray
+    source: str
+
+
+@dataclass(frozen=True)
+class Compass:
+    """Payload of a task: a compass search (``compass_search``) from ``start`` inside ``bounds`` with ``steps``,
+    maximising ``sign * objective``; rows are every design it evaluated, ids from ``first_id``."""
+
+    start: tuple
+    bounds: tuple
+    steps: tuple
+    max_evals: int
+    objective: str
+    sign: float
+    first_id: int
+
+
+@dataclass(frozen=True)
+class Task:
+    """One unit of work on a backend: ``index`` (the study's chunk, or the plan's batch), ``sub`` (a slice of a
+    batch spread over the workers), ``payload`` (None: the study's own chunk ``index``; ``Designs``; ``Compass``)."""
+
+    index: int
+    sub: int = 0
+    payload: Any = None
+
+
+def run_task(study, cfg, chunk: int, task: Task) -> dict:
+    """A task's rows as a dict of numpy columns (runs in a thread, a worker process or on a cluster)."""
+    p = task.payload
+    if p is None:
+        return study.compute_task(cfg, chunk, task.index)
+    if isinstance(p, Designs):
+        return study.evaluate(cfg, p.x, p.ids, p.source)
+    if isinstance(p, Compass):
+        return compass_rows(study, cfg, p)
+    raise TypeError(f"unknown task payload {type(p).__name__}")
+
+
+def compass_rows(study, cfg, p: Compass) -> dict:
+    """Every design a compass search from ``p.start`` evaluated, as the study's rows (ids from ``p.first_id``)."""
+    from surgopt.studies.search import compass_search
+
+    rows = []
+
+    def value(x):
+        r = study.evaluate(cfg, np.asarray([x]), np.array([p.first_id + len(rows)]), "refine")
+        rows.append(r)
+        return p.sign * float(r[p.objective][0])  # NaN (no workspace) never counts as an improvement
+
+    compass_search(value, p.start, p.bounds, p.steps, p.max_evals)
+    return concat_rows(rows)
+
+
+def concat_rows(parts: list[dict]) -> dict:
+    """Column-wise concatenation of row dicts (in order)."""
+    if len(parts) == 1:
+        return parts[0]
+    return {c: np.concatenate([np.asarray(r[c]) for r in parts]) for c in parts[0]}
+
+
+def split(x: np.ndarray, ids: np.ndarray, parts: int) -> list[tuple[np.ndarray, np.ndarray]]:
+    """A batch's designs in at most ``parts`` contiguous slices (one per worker); concatenated, they are the batch."""
+    n = x.shape[0]
+    parts = max(1, min(parts, n))
+    cuts = np.linspace(0, n, parts + 1).round().astype(int)
+    return [(x[a:b], ids[a:b]) for a, b in zip(cuts[:-1], cuts[1:]) if b > a]
+
+
+@dataclass
+class BatchCollector:
+    """Rows of one batch's sub-tasks, put back in order once every slice is in."""
+
+    n: int
+    got: dict = field(default_factory=dict)
+
+    def add(self, sub: int, cols: dict) -> dict | None:
+        self.got[sub] = cols
+        if len(self.got) < self.n:
+            return None
+        return concat_rows([self.got[k] for k in range(self.n)])
+
+
+class TaskList:
+    """A session whose tasks are known up front (a grid's chunks, a refine's starts): each task is one part."""
+
+    def __init__(self, total: int, tasks: list[Task], unit: str):
+        self.total, self.done, self.unit, self._todo = total, total - len(tasks), unit, tasks
+
+    @property
+    def remaining(self) -> bool:
+        return bool(self._todo)
+
+    def next_tasks(self) -> list[Task]:
+        todo, self._todo = self._todo, []
+        return todo
+
+    def on_result(self, task: Task, cols: dict) -> list[tuple[int, dict]]:
+        self.done += 1
+        return [(task.index, cols)]
+
+    def final_meta(self) -> dict:
+        return {}
+
+
+def derived_key(base_key: str, plan_record: dict) -> str:
+    """The store key of a run that explores a config another way than its own plan (a refine from a parent run):
+    sha256 of the config's key and the plan's record."""
+    import json
+
+    h = hashlib.sha256(base_key.encode())
+    h.update(json.dumps(plan_record, sort_keys=True).encode())
+    return h.hexdigest()
+
+
+def get_plan_class(name: str):
+    import importlib
+
+    module, cls = PLANS[name].split(":")
+    return getattr(importlib.import_module(module), cls)
+
+
+def plan_for(study, cfg):
+    """The plan a config names: its [search] method's (an optimiser), else the study's own grid."""
+    from surgopt.studies.search import optimiser_of
+
+    spec = optimiser_of(cfg)
+    if spec is None:
+        return get_plan_class("grid")()
+    if study.search_plan is None or study.evaluate is None:
+        from surgopt.errors import UsageError
+
+        raise UsageError(f"{study.name}: [search] method {spec.method!r}: this study has no design space to search")
+    return get_plan_class(METHOD_PLANS[spec.method])(spec)
+
+
+def follow_up_plan(name: str, study, cfg, result):
+    """The plan ``name`` exploring ``cfg`` from a finished run (``runner.RunResult``): e.g. the refine from its
+    best designs, recording the run's key as its parent."""
+    from surgopt.errors import UsageError
+
+    cls = get_plan_class(name) if name in PLANS else None
+    if cls is None or not hasattr(cls, "from_run"):
+        follow = [n for n in PLANS if hasattr(get_plan_class(n), "from_run")]
+        raise UsageError(f"plan {name!r} does not follow a run (one of: {', '.join(follow)})")
+    if study.refine_space is None or study.evaluate is None:
+        raise UsageError(f"{study.name}: plan {name!r} needs a design space, which this study does not declare")
+    return cls.from_run(study, cfg, result.parts, result.run.key)
