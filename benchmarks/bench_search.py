@@ -25,6 +25,8 @@ def main(trials: int, tpe: bool) -> None:
     from surgopt.studies import raven_sweep as R
     from surgopt.studies.search import SearchSpec
 
+    import cmaes  # noqa: F401  (imports scipy.stats, ~0.75 s once a process: paid before timing, like compiling)
+
     grid_cfg = R.Config()
     R.warm_up(grid_cfg)
 

@@ -271,14 +271,15 @@ def _execute(study, cfg, chunk, session, run, store, jobs, quiet, schema, backen
             rate = (session.done - done_before) / dt if dt > 0 else 0
             progress.update(bar, completed=session.done, rate=f"{rate:,.1f} {session.unit}/s" if dt > 0 else "")
 
-        while True:
-            tasks = session.next_tasks()
-            if not tasks:
-                return computed
-            _with_retries(study, cfg, chunk, tasks, jobs, backend, record, say)
+        with _thread_pool(jobs) if backend == "threads" else contextlib.nullcontext() as pool:
+            while True:
+                tasks = session.next_tasks()
+                if not tasks:
+                    return computed
+                _with_retries(study, cfg, chunk, tasks, jobs, backend, record, say, pool)
 
 
-def _with_retries(study, cfg, chunk, tasks, jobs, backend, record, say) -> None:
+def _with_retries(study, cfg, chunk, tasks, jobs, backend, record, say, pool=None) -> None:
     """Compute ``tasks`` on the backend, recording each as it finishes; the tasks not recorded when a worker
     process died are computed again on a fresh pool (WORKER_RETRIES times)."""
     pending = {(t.index, t.sub): t for t in tasks}
@@ -289,7 +290,7 @@ def _with_retries(study, cfg, chunk, tasks, jobs, backend, record, say) -> None:
 
     for attempt in range(WORKER_RETRIES + 1):
         try:
-            _dispatch(study.name, cfg, chunk, list(pending.values()), jobs, backend, record_once)
+            _dispatch(study.name, cfg, chunk, list(pending.values()), jobs, backend, record_once, pool)
             return
         except Exception as exc:  # noqa: BLE001 - only a lost worker is retried
             if not _worker_died(exc):
@@ -363,14 +364,15 @@ def _open_or_discard(store: Store, study_name: str, key: str, say):
         return None
 
 
-def _dispatch(study_name, cfg, chunk, tasks, jobs, backend, record) -> None:
-    """Compute ``tasks`` on the backend and ``record(task, cols)`` each as it finishes, in this thread."""
+def _dispatch(study_name, cfg, chunk, tasks, jobs, backend, record, pool=None) -> None:
+    """Compute ``tasks`` on the backend and ``record(task, cols)`` each as it finishes, in this thread
+    (``pool``: the threads backend's, from ``_thread_pool``)."""
     if backend in ("threads", "loky") and (jobs == 1 or len(tasks) == 1):
         for t in tasks:
             record(*_compute(study_name, cfg, chunk, t))
         return
     if backend == "threads":
-        _dispatch_threads(study_name, cfg, chunk, tasks, jobs, record)
+        _run_bounded(pool, study_name, cfg, chunk, tasks, jobs, record)
         return
     if backend == "loky":
         _dispatch_loky(study_name, cfg, chunk, tasks, jobs, record)
@@ -383,10 +385,11 @@ def _dispatch(study_name, cfg, chunk, tasks, jobs, backend, record) -> None:
             record(task, cols)
 
 
-def _dispatch_threads(study_name, cfg, chunk, missing, jobs, record):
-    """Chunks on ``jobs`` threads of this process; rows recorded here, in the calling thread.
+@contextlib.contextmanager
+def _thread_pool(jobs: int):
+    """The threads backend's pool, one for the whole run (a search dispatches a batch at a time).
 
-    On an interrupt (Ctrl-C) the chunks not started are cancelled and the running ones are waited
+    On an interrupt (Ctrl-C) the tasks not started are cancelled and the running ones are waited
     for before the exception goes on: a thread still inside a compiled kernel when the interpreter
     shuts down would abort the process (SIGABRT) instead of letting it exit with code 130.
     """
@@ -394,7 +397,7 @@ def _dispatch_threads(study_name, cfg, chunk, missing, jobs, record):
 
     pool = ThreadPoolExecutor(max_workers=jobs, thread_name_prefix="surgopt")
     try:
-        _run_bounded(pool, study_name, cfg, chunk, missing, jobs, record)
+        yield pool
     finally:
         pool.shutdown(wait=True, cancel_futures=True)
 

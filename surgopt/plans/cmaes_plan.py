@@ -87,7 +87,7 @@ class CmaesSession:
         self.large_restarts = 0
         self.regime = "large"
         self.history: list[float] = []  # each generation's best told value since the last restart
-        self.opt = self._optimizer(np.full(len(self.space.names), 0.5), SIGMA0, None)  # the box's centre
+        self.opt = self._optimizer(np.full(len(self.space.names), 0.5), SIGMA0, self.spec.population)  # the centre
         self.pop0 = self.opt.population_size
         self.evaluated = 0
         self.part = 0

@@ -79,6 +79,9 @@ class SearchSpec(StrictModel):
     objectives: list[Annotated[str, Field(min_length=1, max_length=64)]] | None = Field(
         None, min_length=1, max_length=4,
         description="row columns to maximise ('-name' to minimise); default: the study's objective")
+    population: int | None = Field(
+        None, ge=4, le=10_000, description="cmaes: the first run's population (default 4 + 3 ln n for n dimensions); "
+                                           "restarts double it")
     restarts: Literal["ipop", "bipop", "none"] = Field(
         "ipop", description="cmaes: restart with twice the population (ipop), alternating with small local "
                             "runs (bipop), or never (none)")
