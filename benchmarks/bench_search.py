@@ -18,14 +18,14 @@ import numpy as np
 
 
 def main(trials: int, tpe: bool) -> None:
+    import cmaes  # noqa: F401  (imports scipy.stats, ~0.75 s once a process: paid before timing, like compiling)
+
     from surgopt.kinematics.raven_workspace import clear_memo
     from surgopt.plans import split
     from surgopt.runner import run_study
     from surgopt.store import Store
     from surgopt.studies import raven_sweep as R
     from surgopt.studies.search import SearchSpec
-
-    import cmaes  # noqa: F401  (imports scipy.stats, ~0.75 s once a process: paid before timing, like compiling)
 
     grid_cfg = R.Config()
     R.warm_up(grid_cfg)

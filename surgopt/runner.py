@@ -1,22 +1,19 @@
-"""Runner: tasks -> joblib workers -> progress bar -> single writer (the parent).
+"""Runner: budget -> cache hit -> lock -> a plan's session -> tasks on a backend -> the parent writes each part.
 
-Knows nothing of kinematics: a ``Study`` (``surgopt.studies``) supplies ``n_tasks``,
-``warm_up``, ``compute_task`` and ``schema``; workers look the study up by name.
-
-One module of ~620 lines: a run's life in order (budget with every worker counted, cache hit, lock, the
-three backends' dispatch with bounded in-flight chunks, retries of dead workers, a search's batches and
-journal, the compile notice, the swap of a --force rebuild). Issue #24 splits the exploration out (plans/).
+Knows nothing of kinematics or of how a space is explored: a ``Study`` (``surgopt.studies``) says what is
+evaluated, a plan (``surgopt.plans``) which tasks to run and which parts they make, a backend
+(``surgopt.backends``) where they run. One path for every plan: the budget with every worker counted, the cache
+hit, the lock, retries of dead workers, the compile notice, the swap of a --force rebuild.
 """
 from __future__ import annotations
 
-import contextlib
 import logging
 import math
 import os
-import signal
 import time
 from dataclasses import dataclass, field
 
+from surgopt.backends import get_backend
 from surgopt.config import study_key
 from surgopt.errors import SurgoptError, UsageError
 from surgopt.interrupts import raise_if_stopped
@@ -52,14 +49,6 @@ class RunResult:
         return self.parts.table()
 
 
-def _compute(study_name: str, cfg, chunk: int, task):
-    """Worker entry point: one task (``surgopt.plans.Task``) and its rows as a dict of numpy columns."""
-    from surgopt.plans import run_task
-    from surgopt.studies import get_study
-
-    return task, run_task(get_study(study_name), cfg, chunk, task)
-
-
 def _progress(quiet: bool):
     from rich.console import Console
     from rich.progress import (
@@ -84,9 +73,6 @@ def _progress(quiet: bool):
         transient=False,
     )
     return progress
-
-
-BACKENDS = ("threads", "loky", "dask")
 
 
 #: Work a run may imply without the user saying so (--max-hours), in hours of wall time on --jobs cores.
@@ -120,31 +106,23 @@ def wall_seconds(est, jobs: int) -> float:
     return est.seconds_one_core / max(1, min(jobs, os.cpu_count() or 1))
 
 
-#: Memory of one worker process of a backend once it has loaded a study's kernels (proportional set size,
-#: measured on rcm-grid: loky ~100 MB, a dask worker more with distributed loaded), and of the helper
-#: processes a process backend starts (resource tracker, loky's or dask's manager).
-WORKER_PROCESS_BYTES = {"threads": 0, "loky": 120 * 2 ** 20, "dask": 200 * 2 ** 20}
-HELPER_PROCESS_BYTES = {"threads": 0, "loky": 40 * 2 ** 20, "dask": 60 * 2 ** 20}
-
-
 def local_workers(backend: str, jobs: int, scheduler: str | None = None) -> int:
     """How many worker processes the backend starts on this machine (a --scheduler's cluster is elsewhere)."""
-    if backend == "threads" or (backend == "dask" and scheduler):
-        return 0
-    return jobs
+    return get_backend(backend).local_workers(jobs, scheduler)
 
 
 def run_bytes(est, backend: str = "threads", jobs: int = 1, scheduler: str | None = None) -> int:
     """The whole process tree's peak memory: the parent's estimate plus every worker process it starts."""
-    n = local_workers(backend, jobs, scheduler)
-    return est.peak_bytes + n * WORKER_PROCESS_BYTES[backend] + (HELPER_PROCESS_BYTES[backend] if n else 0)
+    b = get_backend(backend)
+    n = b.local_workers(jobs, scheduler)
+    return est.peak_bytes + n * b.worker_bytes + (b.helper_bytes if n else 0)
 
 
 def usable_jobs(jobs: int, backend: str, scheduler: str | None = None, say=print) -> int:
     """``jobs`` capped at this machine's cores for the local backends (more workers than cores only cost
     memory and start-up), with one line saying so; a --scheduler's cluster takes what it is given."""
     cores = os.cpu_count() or 1
-    if jobs > cores and not (backend == "dask" and scheduler):
+    if jobs > cores and not (get_backend(backend).takes_scheduler and scheduler):
         say(f"--jobs {jobs}: this machine has {cores} core(s); running {cores} worker(s)")
         return cores
     return jobs
@@ -194,12 +172,10 @@ def run_study(study, cfg, *, config_name: str, store: Store, jobs: int = DEFAULT
     """
     from surgopt.plans import plan_for
 
-    if backend not in BACKENDS:
-        raise UsageError(f"--backend: {backend!r} is not one of {', '.join(BACKENDS)}")
-    if scheduler is not None and backend != "dask":
+    where = get_backend(backend)
+    if scheduler is not None and not where.takes_scheduler:
         raise UsageError(f"--scheduler goes with --backend dask (the {backend} backend runs on this machine)")
-    if backend == "dask":
-        _require_distributed()
+    where.require()
     jobs = usable_jobs(jobs, backend, scheduler, say)
     t0 = time.perf_counter()
     schema = study.schema()
@@ -213,8 +189,7 @@ def run_study(study, cfg, *, config_name: str, store: Store, jobs: int = DEFAULT
     check_budget(study, cfg, jobs, max_hours, max_memory_bytes, backend=backend, scheduler=scheduler)
 
     lock = store.lock(study.name, key, on_wait=lambda who: say(f"waiting for {who} to finish this study ..."))
-    cluster = _dask_client(scheduler, jobs) if backend == "dask" else contextlib.nullcontext()
-    with cluster as dask, lock:  # connect to the cluster before anything is written
+    with where.open(jobs, scheduler) as handle, lock:  # connect to a cluster before anything is written
         chunk = chunk or plan.chunk(study, cfg)
         existing = None if force else _open_or_discard(store, study.name, key, say)
         if existing is not None:
@@ -231,7 +206,7 @@ def run_study(study, cfg, *, config_name: str, store: Store, jobs: int = DEFAULT
         if stored and session.remaining:
             messages.append(f"resuming: {session.done:,} of {session.total:,} {session.unit} already stored")
         try:
-            computed = _execute(study, cfg, chunk, session, run, store, jobs, quiet, schema, backend, dask, say)
+            computed = _execute(study, cfg, chunk, session, run, store, jobs, quiet, schema, where, handle, say)
         except MemoryError:
             raise OutOfMemory(f"out of memory with {len(run.done_tasks())} of {run.manifest['n_tasks']} parts "
                               f"stored; run the same command again to resume (with more memory, a smaller config "
@@ -241,17 +216,16 @@ def run_study(study, cfg, *, config_name: str, store: Store, jobs: int = DEFAULT
     return RunResult(run, run.parts(schema), False, computed, time.perf_counter() - t0, messages)
 
 
-def _execute(study, cfg, chunk, session, run, store, jobs, quiet, schema, backend, dask, say) -> int:
-    """The one path of every plan: ask the session for tasks, compute them on the backend, hand each task's
-    rows back and store the parts it gives, until it has no more; the tasks of worker processes that died are
-    retried. Returns how many tasks were computed."""
+def _execute(study, cfg, chunk, session, run, store, jobs, quiet, schema, where, handle, say) -> int:
+    """The one path of every plan: ask the session for tasks, compute them on the backend (``where``, opened as
+    ``handle``), hand each task's rows back and store the parts it gives, until it has no more; the tasks of
+    worker processes that died are retried. Returns how many tasks were computed."""
     import pyarrow as pa
 
     if not session.remaining:
         return 0
     _warm_up(study, cfg, say)  # compile once in the parent; workers load the cache
-    if backend == "dask":
-        _prepare_dask_workers(dask, study.name, cfg)
+    where.prepare(handle, study.name, cfg)
     progress = _progress(quiet)
     t_start = time.perf_counter()
     done_before = session.done
@@ -271,15 +245,14 @@ def _execute(study, cfg, chunk, session, run, store, jobs, quiet, schema, backen
             rate = (session.done - done_before) / dt if dt > 0 else 0
             progress.update(bar, completed=session.done, rate=f"{rate:,.1f} {session.unit}/s" if dt > 0 else "")
 
-        with _thread_pool(jobs) if backend == "threads" else contextlib.nullcontext() as pool:
-            while True:
-                tasks = session.next_tasks()
-                if not tasks:
-                    return computed
-                _with_retries(study, cfg, chunk, tasks, jobs, backend, record, say, pool)
+        while True:
+            tasks = session.next_tasks()
+            if not tasks:
+                return computed
+            _with_retries(study, cfg, chunk, tasks, jobs, where, handle, record, say)
 
 
-def _with_retries(study, cfg, chunk, tasks, jobs, backend, record, say, pool=None) -> None:
+def _with_retries(study, cfg, chunk, tasks, jobs, where, handle, record, say) -> None:
     """Compute ``tasks`` on the backend, recording each as it finishes; the tasks not recorded when a worker
     process died are computed again on a fresh pool (WORKER_RETRIES times)."""
     pending = {(t.index, t.sub): t for t in tasks}
@@ -290,9 +263,9 @@ def _with_retries(study, cfg, chunk, tasks, jobs, backend, record, say, pool=Non
 
     for attempt in range(WORKER_RETRIES + 1):
         try:
-            _dispatch(study.name, cfg, chunk, list(pending.values()), jobs, backend, record_once, pool)
+            where.map(handle, study.name, cfg, chunk, list(pending.values()), jobs, record_once)
             return
-        except Exception as exc:  # noqa: BLE001 - only a lost worker is retried
+        except Exception as exc:
             if not _worker_died(exc):
                 raise
             if attempt == WORKER_RETRIES:
@@ -310,7 +283,6 @@ def provenance(backend: str, jobs: int) -> dict:
     import numpy
 
     from surgopt._version import __version__
-
     from surgopt.code_identity import code_sha256, git_commit
 
     return {"versions": {"surgopt": __version__, "numba": numba.__version__, "numpy": numpy.__version__,
@@ -364,176 +336,6 @@ def _open_or_discard(store: Store, study_name: str, key: str, say):
         return None
 
 
-def _dispatch(study_name, cfg, chunk, tasks, jobs, backend, record, pool=None) -> None:
-    """Compute ``tasks`` on the backend and ``record(task, cols)`` each as it finishes, in this thread
-    (``pool``: the threads backend's, from ``_thread_pool``)."""
-    if backend in ("threads", "loky") and (jobs == 1 or len(tasks) == 1):
-        for t in tasks:
-            record(*_compute(study_name, cfg, chunk, t))
-        return
-    if backend == "threads":
-        _run_bounded(pool, study_name, cfg, chunk, tasks, jobs, record)
-        return
-    if backend == "loky":
-        _dispatch_loky(study_name, cfg, chunk, tasks, jobs, record)
-        return
-    from joblib import Parallel, delayed, parallel_config
-
-    with parallel_config(backend="dask"):
-        for task, cols in Parallel(return_as="generator_unordered")(
-                delayed(_compute)(study_name, cfg, chunk, t) for t in tasks):
-            record(task, cols)
-
-
-@contextlib.contextmanager
-def _thread_pool(jobs: int):
-    """The threads backend's pool, one for the whole run (a search dispatches a batch at a time).
-
-    On an interrupt (Ctrl-C) the tasks not started are cancelled and the running ones are waited
-    for before the exception goes on: a thread still inside a compiled kernel when the interpreter
-    shuts down would abort the process (SIGABRT) instead of letting it exit with code 130.
-    """
-    from concurrent.futures import ThreadPoolExecutor
-
-    pool = ThreadPoolExecutor(max_workers=jobs, thread_name_prefix="surgopt")
-    try:
-        yield pool
-    finally:
-        pool.shutdown(wait=True, cancel_futures=True)
-
-
-#: Chunks submitted ahead per worker: enough to keep workers busy, few enough that finished rows
-#: waiting to be written never pile up in memory.
-IN_FLIGHT_PER_WORKER = 2
-
-
-def _run_bounded(pool, study_name, cfg, chunk, missing, jobs, record):
-    """Submit chunks a few at a time and record each as it finishes, dropping it right after: memory
-    holds about ``jobs * IN_FLIGHT_PER_WORKER`` chunks' rows, whatever the number of chunks."""
-    from concurrent.futures import FIRST_COMPLETED, wait
-
-    todo = iter(missing)
-    running = set()
-    for i in todo:
-        running.add(pool.submit(_compute, study_name, cfg, chunk, i))
-        if len(running) >= jobs * IN_FLIGHT_PER_WORKER:
-            break
-    while running:
-        done, running = wait(running, return_when=FIRST_COMPLETED)
-        for f in done:
-            record(*f.result())
-        for i in todo:
-            running.add(pool.submit(_compute, study_name, cfg, chunk, i))
-            if len(running) >= jobs * IN_FLIGHT_PER_WORKER:
-                break
-        del done
-
-
-def _die_with_parent(parent_pid: int) -> None:
-    """loky worker initializer: end this worker when the parent dies, even by kill -9 (Linux
-    PR_SET_PDEATHSIG; elsewhere loky's own idle timeout ends it)."""
-    try:
-        import ctypes
-
-        ctypes.CDLL("libc.so.6", use_errno=True).prctl(1, signal.SIGKILL)  # PR_SET_PDEATHSIG
-    except (OSError, AttributeError):
-        return
-    if os.getppid() != parent_pid:  # the parent died before the call above took effect
-        os._exit(1)
-
-
-#: Environment of loky workers: one thread per numerical library (the workers are the parallelism).
-WORKER_ENV = {v: "1" for v in ("NUMBA_NUM_THREADS", "OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS")}
-
-
-#: The warning the resource trackers of loky and multiprocessing print when worker processes were killed (an
-#: interrupted run kills them on purpose): passed to the trackers, which inherit this process's -W options.
-QUIET_TRACKER = "ignore:resource_tracker:UserWarning"
-
-
-def _quiet_resource_trackers() -> None:
-    """A run stopped on purpose ends in one line: the helpers that clean up after killed workers say nothing."""
-    import sys
-
-    if QUIET_TRACKER not in sys.warnoptions:
-        sys.warnoptions.append(QUIET_TRACKER)
-
-
-def _dispatch_loky(study_name, cfg, chunk, missing, jobs, record):
-    """Chunks on ``jobs`` loky worker processes that die with this process; rows recorded here.
-
-    A worker that dies (killed, out of memory) breaks the pool: the exception reaches ``run_study``,
-    which retries the chunks not yet stored on a fresh pool. On Ctrl-C the workers are killed.
-    """
-    from joblib.externals.loky import get_reusable_executor
-
-    _quiet_resource_trackers()
-    pool = get_reusable_executor(max_workers=jobs, timeout=30, initializer=_die_with_parent,
-                                 initargs=(os.getpid(),), env=WORKER_ENV)
-    try:
-        _run_bounded(pool, study_name, cfg, chunk, missing, jobs, record)
-    except BaseException:
-        pool.shutdown(wait=False, kill_workers=True)
-        raise
-
-
-DASK_HINT = "--backend dask needs the optional extra: pip install 'surgopt[dask]'"
-
-
-def _require_distributed() -> None:
-    try:
-        import distributed  # noqa: F401
-    except ImportError:
-        raise UsageError(DASK_HINT) from None
-
-
-#: How long --scheduler may take to answer before the run is refused (s).
-SCHEDULER_TIMEOUT_S = 10
-
-
-@contextlib.contextmanager
-def _dask_client(scheduler: str | None, jobs: int):
-    """A distributed.Client on ``scheduler``, or on a LocalCluster of ``jobs`` one-thread workers."""
-    from distributed import Client, LocalCluster
-
-    _quiet_resource_trackers()
-    if scheduler:
-        try:
-            client = Client(scheduler, timeout=SCHEDULER_TIMEOUT_S)
-        except (OSError, TimeoutError, ValueError, TypeError) as exc:
-            msg = " ".join(str(exc).split())[:200] or exc.__class__.__name__
-            raise UsageError(f"--scheduler {scheduler}: cannot connect ({msg}); nothing was written") from None
-        try:
-            yield client
-        finally:
-            client.close()
-        return
-    # worker processes inherit this environment: one numba thread each, our numba cache, and distributed's
-    # own log at errors only (its info and warnings about nannies and cancelled tasks are not the user's)
-    os.environ.setdefault("NUMBA_NUM_THREADS", "1")
-    os.environ.setdefault("DASK_LOGGING__DISTRIBUTED", "error")
-    logging.getLogger("distributed").setLevel(logging.ERROR)
-    cluster = LocalCluster(n_workers=jobs, threads_per_worker=1, processes=True, dashboard_address=None)
-    client = Client(cluster)
-    try:
-        yield client
-    finally:
-        client.close()
-        cluster.close()
-
-
-def _worker_setup(cache_dir: str, study_name: str, cfg) -> str:
-    """On a dask worker: one numba thread (dask does not set NUMBA_NUM_THREADS), a numba cache, compiled kernels."""
-    os.environ.setdefault("NUMBA_CACHE_DIR", cache_dir)
-    import numba
-
-    numba.set_num_threads(1)
-    from surgopt.studies import get_study
-
-    _warm_up(get_study(study_name), cfg)
-    return os.environ["NUMBA_CACHE_DIR"]
-
-
 #: How long loading the kernels may take before the user is told they are being compiled (s).
 COMPILE_NOTICE_S = 2.0
 
@@ -544,7 +346,7 @@ def _warm_up(study, cfg, say=None) -> None:
     the kernels: up to a minute or two on a loaded 2-core machine), with the time it took."""
     import threading
 
-    from surgopt.jit import compile_lock, numba_cache_dir
+    from surgopt.jit import compile_lock
 
     on_wait = None if say is None else (lambda: say(f"waiting for another surgopt process compiling the kernels "
                                                    f"into {numba_cache_dir()} ..."))
@@ -564,15 +366,3 @@ def _warm_up(study, cfg, say=None) -> None:
                 timer.cancel()
                 if timer.finished.is_set() and time.perf_counter() - t0 > COMPILE_NOTICE_S:
                     say(f"kernels ready after {time.perf_counter() - t0:.0f} s")
-
-
-def _prepare_dask_workers(client, study_name: str, cfg) -> None:
-    """Compile or load the kernels on one worker first, then on the rest, so that workers sharing a
-    cache folder find it written instead of all compiling into it at once."""
-    workers = sorted(client.scheduler_info()["workers"])
-    cache = str(numba_cache_dir())
-    if workers:
-        client.run(_worker_setup, cache, study_name, cfg, workers=workers[:1])
-    if len(workers) > 1:
-        client.run(_worker_setup, cache, study_name, cfg, workers=workers[1:])
-

@@ -204,14 +204,14 @@ def test_a_search_stopped_between_ask_store_and_tell_resumes_to_the_same_trials(
                                                                                  stop_in):
     """The windows a kill -9 rarely hits, made to happen: in a batch's evaluation (after its asks, before its
     part), in the middle of telling Optuna a batch, and after CMA-ES was told but before the part was stored."""
-    from surgopt import runner
+    from surgopt import backends
     from surgopt.studies import search as S
 
     rcm = get_study("rcm-grid")
     cfg = validate({"workspace": {"points_per_side": 5},
                     "search": {"method": method, "trials": 60, "batch": 10, "seed": 2}}, rcm.config_model, "x")
     ref = run_study(rcm, cfg, config_name="ref", store=Store(tmp_path / "ref"), jobs=1, quiet=True).table
-    real_tell, real_compute, real_write = S.tell, runner._compute, Store.write_part
+    real_tell, real_compute, real_write = S.tell, backends.compute, Store.write_part
     calls = {"n": 0}
 
     def tell_then_stop(study, trials, values):
@@ -232,7 +232,7 @@ def test_a_search_stopped_between_ask_store_and_tell_resumes_to_the_same_trials(
             raise KeyboardInterrupt
         return real_write(self, run, index, table)
 
-    monkeypatch.setattr(*{"tell": (S, "tell", tell_then_stop), "evaluation": (runner, "_compute", compute_then_stop),
+    monkeypatch.setattr(*{"tell": (S, "tell", tell_then_stop), "evaluation": (backends, "compute", compute_then_stop),
                           "store": (Store, "write_part", write_then_stop)}[stop_in])
     with pytest.raises(KeyboardInterrupt):
         run_study(rcm, cfg, config_name="x", store=Store(tmp_path / "x"), jobs=1, quiet=True)

@@ -47,7 +47,7 @@ class CmaesPlan:
         # every part but the last holds at least `batch` trials: an upper bound, set exactly when the search ends
         return math.ceil(self.spec.trials / self.spec.batch)
 
-    def session(self, study, cfg, chunk: int, run, workers: int) -> "CmaesSession":
+    def session(self, study, cfg, chunk: int, run, workers: int) -> CmaesSession:
         return CmaesSession(study.search_plan(cfg), run, workers)
 
 
@@ -129,7 +129,7 @@ class CmaesSession:
             self.regime = "small"
             u = rng.uniform()
             large = self.pop0 * 2 ** self.large_restarts
-            pop = max(self.pop0, int(math.floor(self.pop0 * (0.5 * large / self.pop0) ** (u ** 2))))
+            pop = max(self.pop0, math.floor(self.pop0 * (0.5 * large / self.pop0) ** (u ** 2)))
             self.opt = self._optimizer(mean, SIGMA0 * 10 ** (-2 * rng.uniform()), pop)
             return
         self.regime = "large"

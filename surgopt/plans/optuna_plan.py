@@ -34,7 +34,7 @@ class OptunaPlan:
     def n_parts(self, study, cfg, chunk: int) -> int:
         return math.ceil(self.spec.trials / self.spec.batch)
 
-    def session(self, study, cfg, chunk: int, run, workers: int) -> "OptunaSession":
+    def session(self, study, cfg, chunk: int, run, workers: int) -> OptunaSession:
         return OptunaSession(study.search_plan(cfg), run, workers)
 
 

@@ -20,7 +20,7 @@ class RefinePlan:
         self.objective, self.sign = objective, float(sign)
 
     @classmethod
-    def from_run(cls, study, cfg, parts, parent_key: str) -> "RefinePlan":
+    def from_run(cls, study, cfg, parts, parent_key: str) -> RefinePlan:
         """The refine of a stored run: its top ``cfg.refine.top_k`` designs by the study's objective."""
         names, _, _ = study.refine_space(cfg)
         top = parts.top(study.objective, cfg.refine.top_k)
