@@ -146,6 +146,8 @@ def _dry_run(study, todo, store, jobs, chunk_size, budget, backend="threads", sc
     """What each run would be: size, chunks, store key and state, estimated time and memory (the whole
     process tree's: the backend's worker processes counted)."""
     from surgopt.config import study_key
+    from surgopt.plans import estimate as plan_estimate
+    from surgopt.plans import plan_for
     from surgopt.runner import check_budget, duration_text, run_bytes, usable_jobs, wall_seconds
 
     jobs = usable_jobs(jobs, backend, scheduler, say=lambda m: wide_console().print(m))
@@ -159,19 +161,20 @@ def _dry_run(study, todo, store, jobs, chunk_size, budget, backend="threads", sc
             run = None
         state = "not stored" if run is None else ("stored (a cache hit)" if run.complete
                                                   else f"partial {len(run.manifest['parts'])}/{run.manifest['n_tasks']}")
-        chunk = chunk_size or (run.manifest["chunk"] if run else study.auto_chunk(v.config))
-        est = study.estimate(v.config) if study.estimate else None
+        plan = plan_for(study, v.config)
+        chunk = chunk_size or (run.manifest["chunk"] if run else plan.chunk(study, v.config))
+        est = plan_estimate(study, v.config, plan)
         try:
             check_budget(study, v.config, jobs, budget["max_hours"], budget["max_memory_bytes"], est=est,
                          backend=backend, scheduler=scheduler)
             verdict = "within budget"
         except Exception as exc:  # noqa: BLE001 - shown, not raised: this is a dry run
             verdict = f"REFUSED: {str(exc).split(';')[0]}"
-        rows.append([v.config_name, f"{est.items:,} {est.what}" if est else "?", study.n_tasks(v.config, chunk),
+        rows.append([v.config_name, f"{est.items:,} {est.what}" if est else "?", plan.n_parts(study, v.config, chunk),
                      key[:12], state, duration_text(wall_seconds(est, jobs)) if est else "?",
                      f"{run_bytes(est, backend, jobs, scheduler) / 2 ** 20:,.0f} MB" if est else "?", verdict])
     print_table(wide_console(), f"{study.name} --dry-run (nothing computed or written)",
-                 ["config", "size", "chunks", "key", "store", f"time on {jobs} core(s)", "peak memory", "budget"], rows)
+                 ["config", "size", "parts", "key", "store", f"time on {jobs} core(s)", "peak memory", "budget"], rows)
 
 
 def _multirun_table(study, finished) -> None:

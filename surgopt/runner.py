@@ -129,13 +129,15 @@ def usable_jobs(jobs: int, backend: str, scheduler: str | None = None, say=print
 
 
 def check_budget(study, cfg, jobs: int, max_hours: float | None, max_memory_bytes: int | None, est=None,
-                 backend: str = "threads", scheduler: str | None = None) -> None:
+                 backend: str = "threads", scheduler: str | None = None, plan=None) -> None:
     """Refuse, before anything runs or is written, a config whose estimated work or memory is past the
     budget; the message gives the estimate and the flag that lifts the limit. ``est``: the study's
     estimate of ``cfg`` when already computed. Memory counts every worker process the backend starts."""
-    if study.estimate is None:
+    from surgopt.plans import estimate
+
+    est = est or estimate(study, cfg, plan)
+    if est is None:
         return
-    est = est or study.estimate(cfg)
     wall = wall_seconds(est, jobs)
     if max_hours is not None and wall > max_hours * 3600:
         raise UsageError(f"this config is {est.items:,} {est.what}, about {duration_text(wall)} on {jobs} core(s) "
@@ -186,7 +188,7 @@ def run_study(study, cfg, *, config_name: str, store: Store, jobs: int = DEFAULT
         if run is not None:  # nothing to compute: no budget to hold it to
             log.info("cache hit: %s %s in %s", study.name, key[:12], run.path)
             return RunResult(run, run.parts(schema), True, 0, time.perf_counter() - t0)
-    check_budget(study, cfg, jobs, max_hours, max_memory_bytes, backend=backend, scheduler=scheduler)
+    check_budget(study, cfg, jobs, max_hours, max_memory_bytes, backend=backend, scheduler=scheduler, plan=plan)
 
     lock = store.lock(study.name, key, on_wait=lambda who: say(f"waiting for {who} to finish this study ..."))
     with where.open(jobs, scheduler) as handle, lock:  # connect to a cluster before anything is written

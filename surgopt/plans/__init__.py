@@ -152,6 +152,22 @@ def derived_key(base_key: str, plan_record: dict) -> str:
     return h.hexdigest()
 
 
+def estimate(study, cfg, plan=None):
+    """What ``cfg`` explored by ``plan`` (None: the config's own) costs before it runs: the study's estimate of
+    its evaluations plus the plan's own time (an optimiser's ask and tell), or None if the study has none."""
+    if study.estimate is None:
+        return None
+    plan = plan if plan is not None else plan_for(study, cfg)
+    return plan.estimate(study, cfg)
+
+
+def with_overhead(est, seconds_per_item: float):
+    """``est`` with ``seconds_per_item`` of the plan's own work added per item (trial)."""
+    from dataclasses import replace
+
+    return replace(est, seconds_one_core=est.seconds_one_core + est.items * seconds_per_item)
+
+
 def get_plan_class(name: str):
     import importlib
 

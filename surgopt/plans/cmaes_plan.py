@@ -28,6 +28,10 @@ NOT_FINITE = 1e300
 STALL_RELATIVE = 1e-6
 
 
+#: The cmaes package's ask and tell per trial on one core (benchmarks/bench_search.py: ~0.06-0.09 ms).
+SECONDS_PER_TRIAL = 0.0001
+
+
 class CmaesPlan:
     name = "cmaes"
 
@@ -39,6 +43,11 @@ class CmaesPlan:
 
     def record(self) -> dict:
         return {"name": self.name, "restarts": self.spec.restarts}
+
+    def estimate(self, study, cfg):
+        from surgopt.plans import with_overhead
+
+        return with_overhead(study.estimate(cfg), SECONDS_PER_TRIAL)
 
     def chunk(self, study, cfg) -> int:
         return self.spec.batch

@@ -15,6 +15,9 @@ class GridPlan:
     def record(self) -> dict:
         return {"name": self.name}
 
+    def estimate(self, study, cfg):
+        return study.estimate(cfg)
+
     def chunk(self, study, cfg) -> int:
         return study.auto_chunk(cfg)
 

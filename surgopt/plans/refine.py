@@ -34,6 +34,16 @@ class RefinePlan:
     def key(self, study, cfg, base_key: str) -> str:
         return derived_key(base_key, self.record())
 
+    def estimate(self, study, cfg):
+        """Starts x max_evals designs, each costed as the study costs one trial of a search."""
+        from dataclasses import replace
+
+        from surgopt.studies.search import SearchSpec
+
+        n = max(1, len(self.starts)) * self.max_evals
+        as_trials = study.estimate(cfg.model_copy(update={"search": SearchSpec(method="random", trials=n)}))
+        return replace(as_trials, what="designs evaluated by the compass search (at most)")
+
     def chunk(self, study, cfg) -> int:
         return 1
 
