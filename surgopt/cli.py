@@ -217,6 +217,12 @@ def _report(study, result, brief: bool = False):
     t.add_row("time_s", f"{result.elapsed_s:.2f}")
     t.add_row("store", f"{run.path}")
     console.print(t)
+    from rich.markup import escape
+
+    from surgopt.report import best_edges
+
+    for note in best_edges(study, run, result.parts):
+        console.print(f"note: {escape(note)}")
     if not brief:
         for title, header, rows in summary.tables:
             print_table(console, title, header, rows)

@@ -62,6 +62,7 @@ def summary_sections(study, run, parts, top: int = 10, sort: str | None = None,
     head = [["study", study.name], ["key", run.key[:12]], ["config", run.manifest.get("config_name", "?")],
             ["rows", parts.num_rows], ["state", state], ["created", run.manifest.get("created", "?")]]
     head += [[k, v] for k, v in summary.feasibility.items()] if summary else []
+    head += [["best on an edge", note] for note in best_edges(study, run, parts)]
     sections = [("run", ["field", "value"], head)]
     objective, ascending = sort_order(sort, study)
     if objective is not None and parts.num_rows:
@@ -113,6 +114,31 @@ def search_front(study, run, parts):
     return (title, names, rows)
 
 
+#: A best design within this share of a dimension's range of a bound is on that edge of the box.
+EDGE_SHARE = 1e-6
+
+
+def edges_of_best(study, cfg, parts) -> list[str]:
+    """What the closing report, ``summarize`` and a search say when the best design (by the study's objective)
+    lies on an edge of the box the config explores: one line per dimension, with the field to widen."""
+    if study.design_box is None or study.objective is None or not parts.num_rows:
+        return []
+    best = parts.top(study.objective, 1)
+    if not best.num_rows or best[study.objective][0].as_py() is None:
+        return []
+    notes = []
+    for e in study.design_box(cfg):
+        if e.high <= e.low or e.column not in best.column_names:
+            continue
+        v = float(best[e.column][0].as_py())
+        tol = EDGE_SHARE * (e.high - e.low)
+        for bound, field, word in ((e.low, e.low_field, "lower"), (e.high, e.high_field, "upper")):
+            if abs(v - bound) <= tol:
+                notes.append(f"best design on the {word} edge of the box: {e.column} = {v:g} ({field}); "
+                             f"widen it to see whether a better one lies beyond")
+    return notes
+
+
 def summary_record(study, run, parts, top: int = 10, sort: str | None = None) -> dict:
     """``summarize --format json``: the same facts as ``summary_sections`` with stable snake_case keys and
     values at full precision."""
@@ -125,7 +151,8 @@ def summary_record(study, run, parts, top: int = 10, sort: str | None = None) ->
     out = {"study": study.name, "key": run.key, "config_name": run.manifest.get("config_name"),
            "rows": parts.num_rows, "complete": done == total, "chunks_stored": done, "chunks": total,
            "created": run.manifest.get("created"),
-           "feasibility": summary.feasibility if summary else {}, "headline": summary.headline if summary else {}}
+           "feasibility": summary.feasibility if summary else {}, "headline": summary.headline if summary else {},
+           "best_on_an_edge": best_edges(study, run, parts)}
     objective, ascending = sort_order(sort, study)
     if objective is not None and parts.num_rows:
         check_sort_column(parts.schema, objective)
@@ -141,6 +168,17 @@ def summary_record(study, run, parts, top: int = 10, sort: str | None = None) ->
     if summary and summary.tables:
         out["tables"] = [{"title": title, "header": header, "rows": rows} for title, header, rows in summary.tables]
     return out
+
+
+def best_edges(study, run, parts) -> list[str]:
+    """``edges_of_best`` for a stored run (its config read from its manifest)."""
+    from surgopt.errors import StoreError
+    from surgopt.results import config_of
+
+    try:
+        return edges_of_best(study, config_of(study, run), parts)
+    except StoreError:  # a config this version no longer reads: no box to compare with
+        return []
 
 
 def _fmt(x):

@@ -197,3 +197,19 @@ def test_summarize_csv_is_one_table_pandas_reads_and_sort_goes_both_ways(store):
     assert up["zeta_cm"].is_monotonic_decreasing and down["zeta_cm"].is_monotonic_increasing
     out = cli("summarize", BASE / "raven_small.toml", "--store", store, "--columns", "design_id,zeta_cm").stdout
     assert "zeta_cm" in out and "perimeter_cm" not in out
+
+
+def test_a_best_design_on_an_edge_of_the_box_is_said_with_the_field_to_widen(tmp_path):
+    """#27 item 2: the PA10 map's best (x = 0.535 m) inside the default box is not flagged; cut the box at
+    x <= 0.45 m and the best moves onto that edge: the closing report, summarize (table and JSON) say so."""
+    import json
+
+    small = ["workspace.points_per_side=5"]
+    r = cli("rcm-grid", *small, "--store", tmp_path)
+    assert "edge of the box" not in r.stdout
+    r = cli("rcm-grid", *small, "candidates.grid.x_max_m=0.45", "--store", tmp_path)
+    assert "note: best design on the upper edge of the box: x_rcm_m = 0.45 (candidates.grid.x_max_m)" in \
+        " ".join(r.stdout.split())
+    out = json.loads(cli("summarize", "--store", tmp_path, "--format", "json").stdout)
+    edges = [note for run in (out if isinstance(out, list) else [out]) for note in run["best_on_an_edge"]]
+    assert any("x_rcm_m = 0.45" in note for note in edges)

@@ -125,10 +125,23 @@ class Study:
     evaluate: Callable[[Any, Any, Any, str], dict] | None = None
     #: ``refine_space(cfg)``: (dimension names, bounds, compass steps) for the refine plan
     refine_space: Callable[[Any], Any] | None = None
+    #: ``design_box(cfg)``: the box the config explores, as ``Edge``s: an optimum on one is reported
+    design_box: Callable[[Any], list] | None = None
     #: this study runs another study's configs plus a section of its own (rcm-track: rcm-grid's + [track]);
     #: a config file without that section is the other study's when a command must tell them apart
     extends: str | None = None
     config_section: str | None = None
+
+
+@dataclass(frozen=True)
+class Edge:
+    """One dimension of the box a config explores: its row ``column``, bounds and the config fields that set them."""
+
+    column: str
+    low: float
+    high: float
+    low_field: str
+    high_field: str
 
 
 def figures_in(module: str) -> Callable:

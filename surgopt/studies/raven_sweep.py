@@ -300,6 +300,18 @@ def sweep_bounds(cfg: RavenSweepConfig) -> list[tuple[float, float]]:
     return [(min(values(getattr(cfg.sweep, p))), max(values(getattr(cfg.sweep, p)))) for p in PARAMS]
 
 
+def design_box(cfg: RavenSweepConfig) -> list:
+    """The sweep's box: each parameter with more than one value (a span's start and stop, a list's extremes)."""
+    from surgopt.studies import Edge
+
+    out = []
+    for p, (lo, hi) in zip(PARAMS, sweep_bounds(cfg)):
+        spec = getattr(cfg.sweep, p)
+        fields = (f"sweep.{p}.start", f"sweep.{p}.stop") if isinstance(spec, Span) else (f"sweep.{p}", f"sweep.{p}")
+        out.append(Edge(p, lo, hi, *fields))
+    return out
+
+
 def refine_space(cfg: RavenSweepConfig):
     """The compass search's space (the refine plan): PARAMS, the sweep's bounds, and steps of half the grid
     spacing (1/8 of the range for listed values, 0 for a single value)."""
@@ -369,7 +381,7 @@ STUDY = Study(
     help=HELP, config_help=CONFIG_HELP, schema=schema, key_columns=KEY_COLUMNS, objective=OBJECTIVE,
     auto_chunk=auto_chunk, n_tasks=n_tasks, warm_up=warm_up, compute_task=compute_task, summary=summary,
     feasible_mask=feasible_mask, figures=figures_in("raven_sweep"), estimate=estimate, search_plan=search_plan,
-    evaluate=evaluate_designs, refine_space=refine_space,
+    evaluate=evaluate_designs, refine_space=refine_space, design_box=design_box,
     flags=(Flag("--refine", "After the run, a compass search from its top refine.top_k designs inside the sweep's "
                             "bounds; stored as a second run that records the first's key.",
                 follow_up="refine", follow_up_suffix="+refine"),))

@@ -109,6 +109,17 @@ def with_y(cfg: RcmGridConfig, pts: np.ndarray) -> np.ndarray:
     return np.stack([pts[:, 0], np.full(pts.shape[0], y), pts[:, 1]], axis=1)
 
 
+def design_box(cfg: RcmGridConfig) -> list:
+    """The candidate grid's box: x, y and z where the grid varies them (a candidate list has no box)."""
+    from surgopt.studies import Edge
+
+    g = cfg.candidates.grid
+    if g is None:
+        return []
+    return [Edge(f"{a}_rcm_m", getattr(g, f"{a}_min_m"), getattr(g, f"{a}_max_m"), f"candidates.grid.{a}_min_m",
+                 f"candidates.grid.{a}_max_m") for a in "xyz" if getattr(g, f"{a}_count") > 1]
+
+
 def candidate_count(cfg: RcmGridConfig) -> int:
     """Candidates a config's own plan evaluates (an optimiser's: its trials)."""
     spec = optimiser(cfg)
@@ -435,7 +446,7 @@ STUDY = Study(
     help=HELP, config_help=CONFIG_HELP, schema=schema, key_columns=KEY_COLUMNS, objective=OBJECTIVE,
     auto_chunk=auto_chunk, n_tasks=n_tasks, warm_up=warm_up, compute_task=compute_task, summary=summary,
     feasible_mask=feasible_mask, figures=figures_in("rcm_grid"), estimate=estimate, search_plan=search_plan,
-    evaluate=evaluate_designs,
+    evaluate=evaluate_designs, design_box=design_box,
     flags=(Flag("--cull", "Fast exact argmax with the Culling algorithm (Stocco & Salcudean) instead of "
                           "the full GII map; culled candidates carry an upper bound.",
                 config_update={"search": "cull"}),
