@@ -14,7 +14,7 @@ import typer
 
 from surgopt.cli_common import (  # noqa: F401 - app and the options: the commands below register on them
     RESUME, Backend, BackendOpt, ChunkOpt, DryRunOpt, ForceOpt, JobsOpt, MaxHoursOpt, MaxMemoryOpt, MultirunOpt,
-    PrintConfigOpt, QuietOpt, SchedulerOpt, StoreOpt, app, guard, print_table, wide_console,
+    NameOpt, PrintConfigOpt, QuietOpt, SchedulerOpt, StoreOpt, app, guard, print_table, wide_console,
 )
 
 def _study_command(study) -> None:
@@ -36,7 +36,8 @@ def _study_command(study) -> None:
                  if f.metavar else Annotated[bool, typer.Option(f.option, help=_literal(f.help))])
                for f in study.flags]
     shared = [("multirun", MultirunOpt, False), ("print_config", PrintConfigOpt, False), ("dry_run", DryRunOpt, False),
-              ("store", StoreOpt, None), ("jobs", JobsOpt, 2), ("force", ForceOpt, False), ("quiet", QuietOpt, False)]
+              ("store", StoreOpt, None), ("jobs", JobsOpt, 2), ("force", ForceOpt, False), ("quiet", QuietOpt, False),
+              ("name", NameOpt, None)]
     if study.chunked:
         shared.append(("chunk_size", ChunkOpt, None))
     shared += [("backend", BackendOpt, Backend.threads), ("scheduler", SchedulerOpt, None),
@@ -93,7 +94,7 @@ def _split_args(args: list[str] | None) -> tuple[Optional[str], list[str]]:
 
 def _run_study_command(study, args, store, jobs, force, quiet, chunk_size=None, backend="threads", scheduler=None,
                        max_hours=1.0, max_memory_gb=None, flags=(), multirun=False, print_config=False,
-                       dry_run=False):
+                       dry_run=False, name=None):
     with guard():
         from surgopt.compose import variants
         from surgopt.runner import run_study
@@ -114,9 +115,10 @@ def _run_study_command(study, args, store, jobs, force, quiet, chunk_size=None, 
         say = lambda m: typer.echo(m, err=True)  # noqa: E731
         finished = []
         for v in todo:
+            run_name = name if name is None or len(todo) == 1 else f"{name}[{len(finished)}]"
             result = run_study(study, v.config, config_name=v.config_name, store=Store(store), jobs=jobs,
                                force=force, quiet=quiet, chunk=chunk_size, backend=backend, scheduler=scheduler,
-                               say=say, **budget)
+                               say=say, name=run_name, **budget)
             summary = _report(study, result, brief=len(todo) > 1)
             finished.append((v, result, summary))
             for f in flags:

@@ -38,6 +38,9 @@ DryRunOpt = Annotated[bool, typer.Option("--dry-run", help="Say what would run (
                                                            "is stored, estimated time and memory) and exit; nothing "
                                                            "is computed or written.")]
 QuietOpt = Annotated[bool, typer.Option("--quiet", "-q", help="No progress bar.")]
+NameOpt = Annotated[Optional[str], typer.Option(
+    "--name", help="A name for the run, shown by `surgopt runs` (not part of the store key: a cache hit takes "
+                   "the name too).", show_default=False)]
 class Backend(str, enum.Enum):
     threads = "threads"
     loky = "loky"

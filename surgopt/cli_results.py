@@ -37,6 +37,9 @@ def runs(
     study: Annotated[Optional[str], typer.Option("--study", help="Only this study.")] = None,
     fmt: Annotated[ListFormat, typer.Option("--format", help="table, or json (every run's manifest facts, "
                                                               "snake_case keys).")] = ListFormat.table,
+    compare: Annotated[bool, typer.Option("--compare", help="The complete runs of --study side by side: the config "
+                                                            "values that differ between them and the study's headline "
+                                                            "metrics (as dvc exp show).")] = False,
 ) -> None:
     """List the runs held in the store: study, key prefix, config (with its overrides), rows, state, created.
 
@@ -56,6 +59,9 @@ def runs(
         if study is not None and study not in STUDIES:
             fail(f"--study: unknown study {study!r} (one of {', '.join(STUDIES)})", 2)
         s = Store(store)
+        if compare:
+            _compare(s, study, fmt)
+            return
         records = run_records(s, study)
     if fmt == ListFormat.json:
         typer.echo(json.dumps(records, indent=1))
@@ -64,12 +70,38 @@ def runs(
         typer.echo(f"no runs in {s.root}")
         return
     t = Table(title=f"runs in {s.root}")
-    for col in ("study", "key", "config", "rows", "state", "created"):
+    for col in ("study", "key", "name", "config", "plan", "rows", "state", "created"):
         t.add_column(col, overflow="fold")
     for r in records:
-        t.add_row(r["study"], r["key"][:12], r["config_name"] or "?", str(r["rows"] if r["rows"] is not None else "?"),
-                  r["state"], r.get("created") or "?")
+        t.add_row(r["study"], r["key"][:12], r.get("name") or "", r["config_name"] or "?", r.get("plan") or "?",
+                  str(r["rows"] if r["rows"] is not None else "?"), r["state"], r.get("created") or "?")
     wide_console(100).print(t)
+
+
+def _compare(s, study: str | None, fmt) -> None:
+    """``runs --compare``: one row per complete run of the study, varying config values and headline metrics."""
+    import json
+
+    from surgopt.results import compare_records
+    from surgopt.studies import get_study
+
+    if study is None:
+        fail("--compare needs --study (the runs of one study are compared)", 2)
+    varying, metrics, records = compare_records(s, get_study(study))
+    if fmt == ListFormat.json:
+        typer.echo(json.dumps([{"key": r["key"], "name": r["name"], "plan": r["plan"],
+                                "params": {k: r["config"].get(k) for k in varying},
+                                "metrics": {k: r["headline"][k] for k in metrics}} for r in records], indent=1,
+                              default=str))
+        return
+    if not records:
+        typer.echo(f"no complete {study} runs in {s.root}")
+        return
+    rows = [[r["key"][:12], r["name"], r["plan"]] + [json.dumps(r["config"].get(k), default=str) for k in varying]
+            + [f"{r['headline'][k]:.6g}" if isinstance(r["headline"][k], float) else str(r["headline"][k])
+               for k in metrics] for r in records]
+    print_table(wide_console(), f"{study} runs in {s.root}: the config values that differ, and the headline",
+                ["key", "name", "plan"] + varying + metrics, rows)
 
 
 @runs_app.command("rm")

@@ -118,7 +118,8 @@ def run_records(store: Store, study: str | None = None) -> list[dict]:
     out = []
     for r in store.runs(study):
         m = r.manifest
-        out.append({"study": r.study, "key": r.key, "config_name": m.get("config_name"), "rows": r.rows,
+        out.append({"study": r.study, "key": r.key, "name": m.get("name"), "config_name": m.get("config_name"),
+                    "plan": (m.get("plan") or {}).get("name", "grid"), "rows": r.rows,
                     "state": run_state(store, r), "created": m.get("created"), "completed": m.get("completed"),
                     "kernel_version": m.get("kernel_version"), "n_tasks": m["n_tasks"], "chunk": m["chunk"],
                     "backend": m.get("backend"), "jobs": m.get("jobs"), "host": m.get("host"),
@@ -130,6 +131,25 @@ def run_records(store: Store, study: str | None = None) -> list[dict]:
         out.append({"study": folder_study, "key": folder_key, "config_name": None, "rows": None,
                     "state": f"UNREADABLE: {why}", "path": str(path)})
     return out
+
+
+def compare_records(store: Store, study) -> tuple[list[str], list[str], list[dict]]:
+    """The complete runs of one study side by side (``surgopt runs --compare``, as ``dvc exp show``): the config
+    keys whose values differ between them, the study's numeric headline metrics, and one record per run."""
+    records = []
+    for r in store.runs(study.name):
+        if not r.complete:
+            continue
+        headline = study.summary(r.parts(study.schema())).headline if r.rows else {}
+        records.append({"key": r.key, "name": r.manifest.get("name") or "", "plan": (r.manifest.get("plan") or {})
+                        .get("name", "grid"), "config": flat_config(r.manifest["config"]), "headline": headline,
+                        "created": r.manifest.get("created")})
+    keys = sorted({k for rec in records for k in rec["config"]})
+    varying = [k for k in keys if len({repr(rec["config"].get(k)) for rec in records}) > 1]
+    metrics = [k for k in (records[0]["headline"] if records else {})
+               if all(isinstance(rec["headline"].get(k), (int, float)) and not isinstance(rec["headline"].get(k), bool)
+                      for rec in records)]
+    return varying, metrics, sorted(records, key=lambda rec: rec["created"] or "")
 
 
 def flat_config(config: dict, prefix: str = "") -> dict:

@@ -160,7 +160,7 @@ def run_study(study, cfg, *, config_name: str, store: Store, jobs: int = DEFAULT
               force: bool = False, quiet: bool = False, chunk: int | None = None,
               backend: str = "threads", scheduler: str | None = None, say=print,
               max_hours: float | None = DEFAULT_MAX_HOURS, max_memory_bytes: int | None = None,
-              plan=None) -> RunResult:
+              plan=None, name: str | None = None) -> RunResult:
     """Compute (or fetch from the store) the table of one study config explored by one plan.
 
     ``plan``: how the design space is explored (``surgopt.plans``); None: the plan the config names (its
@@ -170,7 +170,8 @@ def run_study(study, cfg, *, config_name: str, store: Store, jobs: int = DEFAULT
     a LocalCluster of ``jobs`` single-threaded workers). Every plan runs the same way: its session gives tasks,
     the backend computes them, the session turns their rows into parts, and only this process writes them to
     the store. ``max_hours``, ``max_memory_bytes`` (None: half this machine's memory): the budget
-    ``check_budget`` holds the study's estimate to before it starts.
+    ``check_budget`` holds the study's estimate to before it starts. ``name``: recorded in the manifest (not
+    in the key); a cache hit given another name records it.
     """
     from surgopt.plans import plan_for
 
@@ -187,6 +188,9 @@ def run_study(study, cfg, *, config_name: str, store: Store, jobs: int = DEFAULT
         run = _stored_run(store, study, key, say)
         if run is not None:  # nothing to compute: no budget to hold it to
             log.info("cache hit: %s %s in %s", study.name, key[:12], run.path)
+            if name is not None and run.manifest.get("name") != name:
+                with store.lock(study.name, key):
+                    run = store.finish(run, name=name)
             return RunResult(run, run.parts(schema), True, 0, time.perf_counter() - t0)
     check_budget(study, cfg, jobs, max_hours, max_memory_bytes, backend=backend, scheduler=scheduler, plan=plan)
 
@@ -199,7 +203,8 @@ def run_study(study, cfg, *, config_name: str, store: Store, jobs: int = DEFAULT
         run = store.begin(study.name, key, config=cfg.model_dump(mode="json"),
                           config_name=config_name, kernel_version=study.kernel_version,
                           n_tasks=plan.n_parts(study, cfg, chunk), chunk=chunk, force=force,
-                          fresh=existing is None, meta={**provenance(backend, jobs), "plan": plan.record()})
+                          fresh=existing is None, meta={**provenance(backend, jobs), "plan": plan.record(),
+                                                        **({"name": name} if name else {})})
         log.info("%s %s: %s plan, %d parts of %d, %d stored", study.name, key[:12], plan.name,
                  run.manifest["n_tasks"], chunk, len(run.manifest["parts"]))
         stored = len(run.manifest["parts"])

@@ -138,6 +138,27 @@ def test_overrides_multirun_table_and_cache_hits(tmp_path):
     assert cli("rcm-grid", "robot.tool_length_m=0.5,0.6", "--store", tmp_path / "none", check=False).returncode == 2
 
 
+def test_runs_are_named_and_compared_side_by_side(tmp_path):
+    """#27 item 4: --name labels a run (not in its key: a cache hit takes the new name), `runs` shows names and
+    plans, and `runs --compare` lists the config values that differ between runs beside their headline metrics."""
+    import json
+
+    store = tmp_path / "store"
+    cli("rcm-grid", *SMALL_OVERRIDES, "robot.tool_length_m=0.5,0.587", "--multirun", "--name", "tool", "--store", store,
+        "-q")
+    runs = json.loads(cli("runs", "--store", store, "--format", "json").stdout)
+    assert sorted(r["name"] for r in runs) == ["tool[0]", "tool[1]"] and {r["plan"] for r in runs} == {"grid"}
+    hit = cli("rcm-grid", *SMALL_OVERRIDES, "robot.tool_length_m=0.5", "--name", "short tool", "--store", store, "-q")
+    assert "cache hit" in hit.stdout
+    assert "short tool" in {r["name"] for r in json.loads(cli("runs", "--store", store, "--format", "json").stdout)}
+    table = json.loads(cli("runs", "--store", store, "--compare", "--study", "rcm-grid", "--format", "json").stdout)
+    assert [list(r["params"]) for r in table] == [["robot.tool_length_m"]] * 2  # only what differs
+    assert sorted(r["params"]["robot.tool_length_m"] for r in table) == [0.5, 0.587]
+    assert all("best_gii" in r["metrics"] for r in table)
+    assert "robot.tool_length_m" in cli("runs", "--store", store, "--compare", "--study", "rcm-grid").stdout
+    assert cli("runs", "--store", store, "--compare", check=False).returncode == 2  # needs --study
+
+
 def test_print_config_round_trips_to_the_same_key(tmp_path):
     from surgopt.config import study_key
 
