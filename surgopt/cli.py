@@ -14,7 +14,8 @@ import typer
 
 from surgopt.cli_common import (  # noqa: F401 - app and the options: the commands below register on them
     RESUME, Backend, BackendOpt, ChunkOpt, DryRunOpt, ForceOpt, JobsOpt, MaxHoursOpt, MaxMemoryOpt, MultirunOpt,
-    NameOpt, PrintConfigOpt, QuietOpt, SchedulerOpt, StoreOpt, app, guard, print_table, wide_console,
+    NameOpt, PrintConfigOpt, QuietOpt, SchedulerOpt, StoreOpt, VerboseOpt, app, guard, print_table, set_verbosity,
+    wide_console,
 )
 
 def _study_command(study) -> None:
@@ -33,11 +34,11 @@ def _study_command(study) -> None:
     params += [P(f.dest, P.KEYWORD_ONLY, default=None if f.metavar else False,
                  annotation=Annotated[Optional[str], typer.Option(f.option, help=_literal(f.help), metavar=f.metavar,
                                                                   show_default=False)]
-                 if f.metavar else Annotated[bool, typer.Option(f.option, help=_literal(f.help))])
+                 if f.metavar else Annotated[bool, typer.Option(f.option, metavar="", help=_literal(f.help))])
                for f in study.flags]
     shared = [("multirun", MultirunOpt, False), ("print_config", PrintConfigOpt, False), ("dry_run", DryRunOpt, False),
               ("store", StoreOpt, None), ("jobs", JobsOpt, 2), ("force", ForceOpt, False), ("quiet", QuietOpt, False),
-              ("name", NameOpt, None)]
+              ("name", NameOpt, None), ("verbose", VerboseOpt, 0)]
     if study.chunked:
         shared.append(("chunk_size", ChunkOpt, None))
     shared += [("backend", BackendOpt, Backend.threads), ("scheduler", SchedulerOpt, None),
@@ -94,7 +95,8 @@ def _split_args(args: list[str] | None) -> tuple[Optional[str], list[str]]:
 
 def _run_study_command(study, args, store, jobs, force, quiet, chunk_size=None, backend="threads", scheduler=None,
                        max_hours=1.0, max_memory_gb=None, flags=(), multirun=False, print_config=False,
-                       dry_run=False, name=None):
+                       dry_run=False, name=None, verbose=0):
+    set_verbosity(verbose)
     with guard():
         from surgopt.compose import variants
         from surgopt.runner import run_study

@@ -28,16 +28,16 @@ StoreOpt = Annotated[Optional[str], typer.Option(
     show_default=False)]
 JobsOpt = Annotated[int, typer.Option("--jobs", "-j", min=1, max=256,
                                       help="Parallel workers: threads (threads), worker processes (loky), or LocalCluster workers (dask).")]
-ForceOpt = Annotated[bool, typer.Option("--force", help="Recompute even if the store holds this study.")]
-MultirunOpt = Annotated[bool, typer.Option("--multirun", "-m", help="Overrides with comma lists (a=1,2 b=x,y) run "
+ForceOpt = Annotated[bool, typer.Option("--force", metavar="", help="Recompute even if the store holds this study.")]
+MultirunOpt = Annotated[bool, typer.Option("--multirun", "-m", metavar="", help="Overrides with comma lists (a=1,2 b=x,y) run "
                                                                   "every combination, each its own stored run, and end "
                                                                   "with one table of them.")]
-PrintConfigOpt = Annotated[bool, typer.Option("--print-config", help="Print the effective validated config as TOML "
+PrintConfigOpt = Annotated[bool, typer.Option("--print-config", metavar="", help="Print the effective validated config as TOML "
                                                                      "(what is hashed into the store key) and exit.")]
-DryRunOpt = Annotated[bool, typer.Option("--dry-run", help="Say what would run (size, chunks, store key, whether it "
+DryRunOpt = Annotated[bool, typer.Option("--dry-run", metavar="", help="Say what would run (size, chunks, store key, whether it "
                                                            "is stored, estimated time and memory) and exit; nothing "
                                                            "is computed or written.")]
-QuietOpt = Annotated[bool, typer.Option("--quiet", "-q", help="No progress bar.")]
+QuietOpt = Annotated[bool, typer.Option("--quiet", "-q", metavar="", help="No progress bar.")]
 NameOpt = Annotated[Optional[str], typer.Option(
     "--name", help="A name for the run, shown by `surgopt runs` (not part of the store key: a cache hit takes "
                    "the name too).", show_default=False)]
@@ -97,13 +97,25 @@ def _version(value: bool) -> None:
         raise typer.Exit()
 
 
+#: -v / -vv: the runner's and store's log on stderr, given before the subcommand or after it.
+VerboseOpt = Annotated[int, typer.Option("--verbose", "-v", count=True, metavar="",
+                                         help="Say what the runner and store do (resumed parts, cache hits, chunk "
+                                              "sizes) on stderr; -vv for every part.")]
+
+
+def set_verbosity(verbose: int) -> None:
+    if verbose:
+        import logging
+
+        logging.basicConfig(level=logging.DEBUG if verbose > 1 else logging.INFO, stream=sys.stderr,
+                            format="surgopt: %(message)s", force=True)
+
+
 @app.callback()
 def _main_options(
-    version: Annotated[bool, typer.Option("--version", callback=_version, is_eager=True,
+    version: Annotated[bool, typer.Option("--version", metavar="", callback=_version, is_eager=True,
                                           help="Print the version and exit.")] = False,
-    verbose: Annotated[int, typer.Option("--verbose", "-v", count=True,
-                                         help="Say what the runner and store do (resumed parts, cache hits, chunk "
-                                              "sizes) on stderr; -vv for every part.")] = 0,
+    verbose: VerboseOpt = 0,
 ) -> None:
     """Kinematic design studies of surgical robots, batch-run with a cached Parquet result store.
 
@@ -111,11 +123,7 @@ def _main_options(
     $SURGOPT_STORE, or ./surgopt-store); an identical config is a cache hit and an interrupted run resumes
     where it stopped.
     """
-    if verbose:
-        import logging
-
-        logging.basicConfig(level=logging.DEBUG if verbose > 1 else logging.INFO, stream=sys.stderr,
-                            format="surgopt: %(message)s")
+    set_verbosity(verbose)
 
 
 def fail(exc: BaseException, code: int) -> None:

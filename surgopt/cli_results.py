@@ -37,7 +37,7 @@ def runs(
     study: Annotated[Optional[str], typer.Option("--study", help="Only this study.")] = None,
     fmt: Annotated[ListFormat, typer.Option("--format", help="table, or json (every run's manifest facts, "
                                                               "snake_case keys).")] = ListFormat.table,
-    compare: Annotated[bool, typer.Option("--compare", help="The complete runs of --study side by side: the config "
+    compare: Annotated[bool, typer.Option("--compare", metavar="", help="The complete runs of --study side by side: the config "
                                                             "values that differ between them and the study's headline "
                                                             "metrics (as dvc exp show).")] = False,
 ) -> None:
@@ -261,7 +261,7 @@ def export(
                                                               "needed for parquet].", show_default=False)] = None,
     store: StoreOpt = None,
     study: StudyOpt = None,
-    partial: Annotated[bool, typer.Option("--partial", help="Export a partial run's stored rows (an interrupted "
+    partial: Annotated[bool, typer.Option("--partial", metavar="", help="Export a partial run's stored rows (an interrupted "
                                                             "run, or one being written); without it such a run "
                                                             "is refused.")] = False,
 ) -> None:
@@ -338,7 +338,7 @@ def check(
     baseline: Annotated[Path, typer.Option("--baseline", help="Parquet baseline to compare with.")],
     rtol: Annotated[float, typer.Option("--rtol", min=0, help="Relative tolerance on float columns.")] = 1e-9,
     atol: Annotated[float, typer.Option("--atol", min=0, help="Absolute tolerance on float columns.")] = 1e-12,
-    write: Annotated[bool, typer.Option("--write", help="(Re)create the baseline from this run instead.")] = False,
+    write: Annotated[bool, typer.Option("--write", metavar="", help="(Re)create the baseline from this run instead.")] = False,
     store: StoreOpt = None,
     study: StudyOpt = None,
     jobs: JobsOpt = 2,

@@ -115,6 +115,17 @@ def test_help_texts():
     for args in (["--help"], ["rcm-grid", "--help"], ["runs", "--help"]):
         assert "Usage" in cli(*args).stdout
     assert "Global Isotropy Index" in cli("rcm-grid", "--help").stdout
+    # #27 item 8: no "<bool>" metavar on surgopt's flags (Typer's own --help keeps its), -v after the subcommand
+    for args in (["rcm-grid", "--help"], ["raven-sweep", "--help"], ["runs", "--help"], ["export", "--help"]):
+        shown = [line for line in cli(*args, env={**os.environ, "COLUMNS": "200"}).stdout.splitlines()
+                 if "<bool>" in line]
+        assert all("--help" in line for line in shown), shown
+
+
+def test_verbose_goes_before_or_after_the_subcommand(tmp_path):
+    for args in (["-v", "rcm-grid"], ["rcm-grid", "-v"]):
+        r = cli(*args, *SMALL_OVERRIDES, "--store", tmp_path, "-q")
+        assert "surgopt: " in r.stderr and ("cache hit" in r.stderr or "parts of" in r.stderr), r.stderr
 
 
 # --- a researcher's daily use: overrides, multirun, print-config, dry-run, export, diff, formats --------
