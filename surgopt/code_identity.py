@@ -9,8 +9,9 @@ from functools import lru_cache
 from pathlib import Path
 
 PACKAGE = Path(__file__).resolve().parent
-#: The package paths whose source computes rows (figures, the CLI, the store and the reports do not).
-ROW_CODE = ("kinematics", "robots", "studies", "metrics.py", "jit.py")
+#: The package paths whose source computes rows (a plan chooses which designs a search evaluates; figures, the
+#: CLI, the backends, the store and the reports do not).
+ROW_CODE = ("kinematics", "robots", "studies", "plans", "metrics.py", "jit.py")
 
 
 def row_code_files() -> list[Path]:
