@@ -105,8 +105,9 @@ def _run_study_command(study, args, store, jobs, force, quiet, chunk_size=None, 
         backend = getattr(backend, "value", backend)
         config, overrides = _split_args(args)
         updates = {k: v for f, value in flags for k, v in f.update(value).items()}
+        flags_text = " ".join(f"{f.option} {v}" for f, v in flags if f.value_update is not None)
         flags = [f for f, _ in flags]
-        todo = variants(study, config, overrides, updates, multirun=multirun)
+        todo = variants(study, config, overrides, updates, multirun=multirun, flags_text=flags_text)
         if print_config:
             _print_configs(todo)
             return

@@ -49,9 +49,10 @@ def _format(v: Any) -> str:
 
 
 def variants(study, config: str | Path | None = None, overrides: list[str] | dict | None = None,
-             updates: dict | None = None, multirun: bool = False) -> list[Variant]:
+             updates: dict | None = None, multirun: bool = False, flags_text: str = "") -> list[Variant]:
     """Validated configs for a study: the base config with ``overrides`` ("a.b=1,2" strings or a dict
-    {"a.b": value}) applied, and ``updates`` (a study flag's config update) on top.
+    {"a.b": value}) applied, and ``updates`` (a study flag's config update) on top. ``flags_text``: the flags
+    that made ``updates`` as the user typed them ("--robot arm.urdf"): errors and run labels name them first.
 
     A comma list in an override value is several values: with ``multirun`` every combination is a
     config of its own (cartesian product, in the order given); without it, that is an error.
@@ -72,6 +73,8 @@ def variants(study, config: str | Path | None = None, overrides: list[str] | dic
         raise ConfigError("<command line>", f"--multirun would make {n:,} runs (at most {MAX_VARIANTS:,})")
     if pairs:
         source = f"{source} with the command-line overrides"
+    if flags_text:
+        source, name = f"{flags_text} (on {source})", f"{name}+{flags_text.replace(' ', '=')}"
     out = []
     for values in itertools.product(*[vs for _, vs in pairs]):
         d = data

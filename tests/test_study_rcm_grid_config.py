@@ -178,6 +178,13 @@ def test_robot_flag_runs_a_shipped_model_and_a_urdf(tmp_path):
     assert r.returncode == 0
     bad = cli("rcm-grid", "--robot", "nosuch", "--store", store, check=False)
     assert bad.returncode == 2 and "neither a shipped model" in bad.stderr
+    # #28 item 7: an error in what --robot FILE brought names the flag first, not only the embedded PA10 config
+    bad = cli("rcm-grid", "--robot", "pa10.urdf", "--store", store, check=False, cwd=tmp_path)
+    assert bad.returncode == 2 and bad.stderr.startswith("surgopt: error: --robot pa10.urdf (on <embedded default")
+    assert "tool_length_m is required" in bad.stderr
+    # and its runs are labelled with it
+    runs = cli("runs", "--store", store, "--format", "json").stdout
+    assert "--robot=pa10.urdf" in runs and "--robot=lbr_iiwa_14" in runs
 
 
 def test_urdf_paths_are_relative_to_the_config_and_its_content_is_in_the_key(tmp_path):
