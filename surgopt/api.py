@@ -25,7 +25,8 @@ def run(study: str, config: str | Path | None = None, overrides: dict[str, Any] 
     ``plan``: None (the plan the config names: its [search] method, else the study's grid); the name of a
     follow-up plan ("refine": the config's own run first, then a compass search from its best designs, as
     ``--refine`` does; its rows are returned); or a plan object (``surgopt.plans``).
-    The DataFrame's ``attrs`` hold the run's ``key`` and its ``plan`` record.
+    The DataFrame's ``attrs`` hold the run's ``key``, ``config`` (as validated and hashed), ``config_name`` and
+    ``plan`` record.
     """
     from surgopt.compose import variants
     from surgopt.plans import follow_up_plan
@@ -44,7 +45,8 @@ def run(study: str, config: str | Path | None = None, overrides: dict[str, Any] 
         plan = follow_up_plan(plan, st, v.config, first)
     res = run_study(st, v.config, plan=plan, **kw)
     df = res.table.to_pandas()
-    df.attrs.update(key=res.run.key, plan=res.run.manifest.get("plan"))
+    df.attrs.update(key=res.run.key, config=res.run.manifest["config"], config_name=res.run.manifest["config_name"],
+                    plan=res.run.manifest.get("plan"))
     return df
 
 

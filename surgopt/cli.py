@@ -112,6 +112,9 @@ def _run_study_command(study, args, store, jobs, force, quiet, chunk_size=None, 
             _print_configs(todo)
             return
         budget = dict(max_hours=max_hours, max_memory_bytes=None if max_memory_gb is None else int(max_memory_gb * 2 ** 30))
+        for v in todo if study.advice else ():
+            for note in study.advice(v.config):
+                typer.echo(f"note: {note}", err=True)
         if dry_run:
             _dry_run(study, todo, Store(store), jobs, chunk_size, budget, backend, scheduler)
             return

@@ -106,31 +106,42 @@ def _compare(s, study: str | None, fmt) -> None:
 
 @runs_app.command("rm")
 def runs_rm(
-    key: Annotated[str, typer.Argument(help="Key prefix of the run (see `surgopt runs`).")],
+    keys: Annotated[list[str], typer.Argument(help="Key prefixes of the runs (see `surgopt runs`).")],
     store: StoreOpt = None,
+    dry_run: Annotated[bool, typer.Option("--dry-run", metavar="", help="Say what would be removed; remove "
+                                                                        "nothing.")] = False,
 ) -> None:
-    """Delete one stored run (only ever inside the store root; refused while a study is writing it)."""
+    """Delete stored runs (only ever inside the store root; refused while a study is writing one). Every key
+    must match exactly one run, or nothing is removed."""
     import shutil
 
     with guard():
-        from surgopt.store import Store
+        from surgopt.store import Store, folder_study_key
 
-        if len(key) < 4 or any(c not in "0123456789abcdef" for c in key):
-            fail(f"{key!r}: give at least 4 hex digits of a key (see `surgopt runs`)", 2)
         s = Store(store)
-        matches = [r for r in s.runs() if r.key.startswith(key)]
-        from surgopt.store import folder_study_key
-
-        broken = [p for p, _ in s.unreadable() if folder_study_key(p)[1].startswith(key)]
-        if len(matches) + len(broken) != 1:
-            fail(f"{key}: matches {len(matches) + len(broken)} runs in {s.root}", 2)
-        if broken:
-            shutil.rmtree(broken[0])
-            study_name, folder_key = folder_study_key(broken[0])
-            typer.echo(f"removed {study_name} {folder_key[:12]} (its manifest was unreadable)")
-            return
-        s.remove(matches[0])
-    typer.echo(f"removed {matches[0].study} {matches[0].key[:12]}")
+        found = []
+        for key in keys:
+            if len(key) < 4 or any(c not in "0123456789abcdef" for c in key):
+                fail(f"{key!r}: give at least 4 hex digits of a key (see `surgopt runs`)", 2)
+            matches = [r for r in s.runs() if r.key.startswith(key)]
+            broken = [p for p, _ in s.unreadable() if folder_study_key(p)[1].startswith(key)]
+            if len(matches) + len(broken) != 1:
+                fail(f"{key}: matches {len(matches) + len(broken)} runs in {s.root}; nothing was removed", 2)
+            found.append(matches[0] if matches else broken[0])
+        for item in found:
+            if isinstance(item, Path):
+                study_name, folder_key = folder_study_key(item)
+                if dry_run:
+                    typer.echo(f"would remove {study_name} {folder_key[:12]} (its manifest is unreadable)")
+                    continue
+                shutil.rmtree(item)
+                typer.echo(f"removed {study_name} {folder_key[:12]} (its manifest was unreadable)")
+                continue
+            if dry_run:
+                typer.echo(f"would remove {item.study} {item.key[:12]} ({item.rows:,} rows, {item.path})")
+                continue
+            s.remove(item)
+            typer.echo(f"removed {item.study} {item.key[:12]}")
 
 
 @runs_app.command("gc")

@@ -123,7 +123,7 @@ def edges_of_best(study, cfg, parts) -> list[str]:
     lies on an edge of the box the config explores: one line per dimension, with the field to widen."""
     if study.design_box is None or study.objective is None or not parts.num_rows:
         return []
-    best = parts.top(study.objective, 1)
+    best = parts.top(study.objective, 1, where=study.feasible_mask)  # the best feasible design, if any
     if not best.num_rows or best[study.objective][0].as_py() is None:
         return []
     notes = []

@@ -23,10 +23,16 @@ def test_run_load_runs_and_errors(tmp_path):
     df = surgopt.run("rcm-grid", overrides=small, store=store)
     assert len(df) == 20 and {"gii", "x_rcm_m", "feasible"} <= set(df.columns)
     assert surgopt.load(store=store).equals(df)
+    assert df.attrs["config"]["workspace"]["points_per_side"] == 3 and df.attrs["plan"] == {"name": "grid"}
     listing = surgopt.runs(store=store)
+    assert listing.loc[0, "key"] == df.attrs["key"]
     assert listing.loc[0, "state"] == "complete" and listing.loc[0, "backend"] == "threads"
     with pytest.raises(ConfigError, match=r"workspace.points_per_side: Input should be greater than or equal to 1"):
         surgopt.run("rcm-grid", overrides={"workspace.points_per_side": 0}, store=store)
     with pytest.raises(UsageError, match="unknown study"):
         surgopt.run("nosuch")
+    with pytest.raises(UsageError, match="does not follow a run"):
+        surgopt.run("rcm-grid", overrides=small, store=store, plan="cmaes")
+    with pytest.raises(UsageError, match="needs a design space"):
+        surgopt.run("suture-sim", store=store, plan="refine", overrides={"task.arc_deg": 20.0})
     assert surgopt.__version__ and "run" in surgopt.__all__

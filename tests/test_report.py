@@ -150,6 +150,14 @@ def test_runs_filter_and_rm(store, tmp_path):
     cli("runs", "rm", key[:12], "--store", s2)
     assert {r.study for r in Store(s2).runs()} == set(STUDY_OF.values()) - {"raven-sweep"}
     assert cli("runs", "rm", "zzzz", "--store", s2, check=False).returncode == 2
+    # several keys at once, with a dry run first; one bad key removes nothing
+    keys = [r.key[:12] for r in Store(s2).runs() if r.study in ("rcm-grid", "suture-sim")]
+    dry = cli("runs", "rm", *keys, "--dry-run", "--store", s2).stdout
+    assert dry.count("would remove") == 2 and len(Store(s2).runs()) == len(STUDY_OF) - 1
+    assert cli("runs", "rm", *keys, "ffff0000", "--store", s2, check=False).returncode == 2
+    assert len(Store(s2).runs()) == len(STUDY_OF) - 1
+    cli("runs", "rm", *keys, "--store", s2)
+    assert {r.study for r in Store(s2).runs()} == set(STUDY_OF.values()) - {"raven-sweep", "rcm-grid", "suture-sim"}
 
 
 def _png_ok(path, min_px=300):

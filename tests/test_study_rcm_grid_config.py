@@ -315,3 +315,19 @@ def test_speeds_and_ranges_from_the_config_replace_the_files(tmp_path):
     with pytest.raises(ConfigError, match="range_override_deg: no joint 'E9'"):
         validate({**base, "robot": {**base["robot"], "speed_override_rad_s": {"S1": 1.0},
                                     "range_override_deg": {"E9": [0.0, 1.0]}}}, S.Config, "x.toml")
+
+
+def test_a_tool_pointing_sideways_is_noted_and_a_map_with_nothing_feasible_says_why(tmp_path):
+    """#28 item 3: the UR5e's wrist_3 is locked and spins the flange; with tool_axis along x the tool sticks out
+    sideways: a note before the run (and with --dry-run), none for the shipped set-ups. A map where nothing is
+    feasible says which constraint failed on how many candidates, and names no best design on an edge."""
+    r = cli("rcm-grid", "--robot", "ur5e", "robot.tool_axis=[1,0,0]", "--dry-run", "--store", tmp_path)
+    assert "note: robot: the last joint 'wrist_3' is locked but the tool does not point along its axis (at 90 deg" \
+        in r.stderr
+    for model in ("ur5e", "panda", "lbr_iiwa_14"):
+        assert "note:" not in cli("rcm-grid", "--robot", model, "--dry-run", "--store", tmp_path).stderr
+    far = ["candidates.grid.x_min_m=1.4", "candidates.grid.x_max_m=1.5", "candidates.grid.x_count=2",
+           "candidates.grid.z_count=2", "workspace.points_per_side=3"]
+    out = " ".join(cli("rcm-grid", *far, "--store", tmp_path, "-q").stdout.split())
+    assert "4 of 4 candidates leave workspace points unreachable" in out.replace("│ │", "")
+    assert "edge of the box" not in out

@@ -127,6 +127,9 @@ class Study:
     refine_space: Callable[[Any], Any] | None = None
     #: ``design_box(cfg)``: the box the config explores, as ``Edge``s: an optimum on one is reported
     design_box: Callable[[Any], list] | None = None
+    #: ``advice(cfg)``: lines the CLI prints before a run (and --dry-run shows): a set-up that runs but is likely
+    #: not what the user meant (a tool pointing sideways)
+    advice: Callable[[Any], list[str]] | None = None
     #: this study runs another study's configs plus a section of its own (rcm-track: rcm-grid's + [track]);
     #: a config file without that section is the other study's when a command must tell them apart
     extends: str | None = None

@@ -417,9 +417,21 @@ def summary(parts) -> Summary:
     if top.num_rows:  # the best is a feasible candidate: one whose whole workspace is reachable
         headline.update({f"best_{k}": top[k][0].as_py() for k in cols})
     else:
-        headline["best"] = "none: no candidate reaches the whole workspace"
+        headline["best"] = "none: no candidate reaches the whole workspace" + why_none_feasible(parts, n)
     rows = [[f"{x:.3f}", f"{y:.3f}", f"{z:.3f}", f"{g:.5f}"] for x, y, z, g in zip(*(top[k].to_pylist() for k in cols))]
     return Summary(headline, counts, [("best RCM candidates", cols, rows)])
+
+
+def why_none_feasible(parts, n: int) -> str:
+    """Which constraint failed on how many candidates, when none is feasible (#28 item 3)."""
+    import pyarrow.compute as pc
+
+    if not n:
+        return ""
+    unreachable = parts.count(lambda t: pc.greater(t["n_unreachable"], 0), columns=["n_unreachable"])
+    singular = parts.count(lambda t: pc.greater(t["n_singular"], 0), columns=["n_singular"])
+    return (f" ({unreachable:,} of {n:,} candidates leave workspace points unreachable within the joint limits or "
+            f"the tool's length, {singular:,} meet a singular pose)")
 
 
 def robot_flag(value: str) -> dict:
@@ -446,7 +458,7 @@ STUDY = Study(
     help=HELP, config_help=CONFIG_HELP, schema=schema, key_columns=KEY_COLUMNS, objective=OBJECTIVE,
     auto_chunk=auto_chunk, n_tasks=n_tasks, warm_up=warm_up, compute_task=compute_task, summary=summary,
     feasible_mask=feasible_mask, figures=figures_in("rcm_grid"), estimate=estimate, search_plan=search_plan,
-    evaluate=evaluate_designs, design_box=design_box,
+    evaluate=evaluate_designs, design_box=design_box, advice=lambda cfg: cfg.robot.tool_axis_advice(),
     flags=(Flag("--cull", "Fast exact argmax with the Culling algorithm (Stocco & Salcudean) instead of "
                           "the full GII map; culled candidates carry an upper bound.",
                 config_update={"search": "cull"}),

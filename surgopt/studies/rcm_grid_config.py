@@ -319,7 +319,7 @@ class Robot(StrictModel):
         the tool's (a ``ChainError`` otherwise)."""
         import numpy as np
 
-        from surgopt.robots.chain import ChainError, axis_motion
+        from surgopt.robots.chain import ChainError
 
         spec = self.chain_spec()
         joints = {j.name: j for j in spec.joints}
@@ -331,22 +331,54 @@ class Robot(StrictModel):
         if self.spin_joint not in self.locked_joints_deg:
             raise ChainError("spin_joint", f"{self.spin_joint!r} must be one of locked_joints_deg (the RCM study's "
                                            f"five active joints do not include it)")
-        q = {j.name: math.radians(self.locked_joints_deg.get(j.name, self.seed_deg.get(j.name, 0.0)))
-             for j in spec.joints}
+        angle, offset = self.spin_geometry(self.spin_joint)
+        if angle > 1e-9 or offset > 1e-9:
+            raise ChainError("spin_joint", f"{self.spin_joint!r} does not turn about the tool's axis (an angled "
+                                           f"tool mount?): the standard metric's sixth column would be wrong")
+        return joints[self.spin_joint].max_speed
+
+    def spin_geometry(self, joint: str) -> tuple[float, float]:
+        """How far ``joint`` is from spinning the tool about its own axis at the seed pose: (the angle between
+        its axis and the tool's, rad; the tool tip's distance from its axis, m). Both 0 for a true spin joint."""
+        import numpy as np
+
+        from surgopt.robots.chain import axis_motion
+
+        spec = self.chain_spec()
+        locked, seed = self.locked_joints_deg or {}, self.seed_deg or {}
+        q = {j.name: math.radians(locked.get(j.name, seed.get(j.name, 0.0))) for j in spec.joints}
         t = np.eye(4)
         axis = origin = None
         for j in spec.joints:
             t = t @ j.origin
-            if j.name == self.spin_joint:
+            if j.name == joint:
                 axis, origin = t[:3, :3] @ j.axis, t[:3, 3].copy()
             t = t @ axis_motion(j.axis, j.kind, q[j.name])
         tool = t @ spec.tail @ self.tool()
         k, tip = tool[:3, 2], tool[:3, 3]
+        axis = axis / np.linalg.norm(axis)
         d = tip - origin
-        if np.linalg.norm(np.cross(axis, k)) > 1e-9 or np.linalg.norm(d - (d @ axis) * axis) > 1e-9:
-            raise ChainError("spin_joint", f"{self.spin_joint!r} does not turn about the tool's axis (an angled "
-                                           f"tool mount?): the standard metric's sixth column would be wrong")
-        return joints[self.spin_joint].max_speed
+        angle = float(np.arctan2(np.linalg.norm(np.cross(axis, k)), abs(float(axis @ k))))
+        return angle, float(np.linalg.norm(d - (d @ axis) * axis))
+
+    def tool_axis_advice(self) -> list[str]:
+        """A word when the arm's last joint is locked but does not turn about the tool's axis (#28 item 3): on
+        a wrist whose last joint spins the flange, that means the tool points sideways (a wrong tool_axis, or a
+        tip link whose z axis is not the flange's). Empty for the PA10's closed form and for other arms."""
+        from surgopt.robots.chain import PRISMATIC
+
+        if self.closed_form or (self.urdf is None and self.dh is None and self.model is None):
+            return []
+        spec = self.chain_spec()
+        last = spec.joints[-1]
+        if last.name not in (self.locked_joints_deg or {}) or last.kind == PRISMATIC:
+            return []
+        angle, offset = self.spin_geometry(last.name)
+        if angle <= math.radians(1.0) and offset <= 1e-3:
+            return []
+        return [f"robot: the last joint {last.name!r} is locked but the tool does not point along its axis (at "
+                f"{math.degrees(angle):.0f} deg, the tip {offset * 1000:.0f} mm off it): the tool may stick out "
+                f"sideways; check robot.tool_axis (in the tip link's frame) and robot.tip_link"]
 
     def check_chain(self):
         from surgopt.robots.chain import ChainError
