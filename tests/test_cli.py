@@ -64,6 +64,7 @@ def test_cull_flag_is_a_separate_cached_study(tmp_path, small_cfg):
     a, b = full.read_table(S.schema()), cull.read_table(S.schema())
     ga, gb = a["gii"].to_numpy(), b["gii"].to_numpy()
     assert ga.max() == gb[b["gii_is_exact"].to_numpy()].max()
+    assert full.manifest["plan"] == {"name": "grid"} and cull.manifest["plan"] == {"name": "cull"}
 
 
 #: what --help and ``import surgopt`` must not load: the kernels' compiler, Arrow, pandas, matplotlib

@@ -3,7 +3,8 @@
 A study says *what* it evaluates (``surgopt.studies.Study``: its grid as chunks, ``evaluate`` for any batch of
 designs, ``search_plan`` for its named dimensions and objectives). A plan says *how* the space is explored:
 
-- ``grid``    the study's own chunks (rcm-grid's full map or its cull, raven-sweep's sweep, every study's default);
+- ``grid``    the study's own chunks (rcm-grid's full map, raven-sweep's sweep, every study's default);
+- ``cull``    a study's exact argmax by culling in one task (rcm-grid's ``--cull``);
 - ``refine``  a compass search from the top-k designs of a parent run (``--refine``), recorded with its key;
 - ``optuna``  Optuna's TPE, NSGA-II or random sampler ([search] method = "tpe" | "nsga2" | "random");
 - ``cmaes``   CMA-ES on the ``cmaes`` package (ask/tell, IPOP or BIPOP restarts, CMA-ES with margin when a
@@ -23,7 +24,8 @@ from typing import Any
 import numpy as np
 
 #: Plan name -> "module:class" (imported on first use, so that importing surgopt loads no optimiser).
-PLANS = {"grid": "surgopt.plans.grid:GridPlan", "refine": "surgopt.plans.refine:RefinePlan",
+PLANS = {"grid": "surgopt.plans.grid:GridPlan", "cull": "surgopt.plans.cull:CullPlan",
+         "refine": "surgopt.plans.refine:RefinePlan",
          "optuna": "surgopt.plans.optuna_plan:OptunaPlan", "cmaes": "surgopt.plans.cmaes_plan:CmaesPlan"}
 
 #: [search] method -> plan name.
@@ -73,6 +75,10 @@ def run_task(study, cfg, chunk: int, task: Task) -> dict:
         return study.evaluate(cfg, p.x, p.ids, p.source)
     if isinstance(p, Compass):
         return compass_rows(study, cfg, p)
+    from surgopt.plans.cull import Cull
+
+    if isinstance(p, Cull):
+        return study.cull(cfg)
     raise TypeError(f"unknown task payload {type(p).__name__}")
 
 
@@ -181,7 +187,7 @@ def plan_for(study, cfg):
 
     spec = optimiser_of(cfg)
     if spec is None:
-        return get_plan_class("grid")()
+        return get_plan_class("cull" if getattr(cfg, "search", None) == "cull" and study.cull else "grid")()
     if study.search_plan is None or study.evaluate is None:
         from surgopt.errors import UsageError
 

@@ -127,6 +127,8 @@ class Study:
     refine_space: Callable[[Any], Any] | None = None
     #: ``design_box(cfg)``: the box the config explores, as ``Edge``s: an optimum on one is reported
     design_box: Callable[[Any], list] | None = None
+    #: ``cull(cfg)``: the rows of the study's exact argmax by culling (the cull plan), if it has one
+    cull: Callable[[Any], dict] | None = None
     #: ``advice(cfg)``: lines the CLI prints before a run (and --dry-run shows): a set-up that runs but is likely
     #: not what the user meant (a tool pointing sideways)
     advice: Callable[[Any], list[str]] | None = None

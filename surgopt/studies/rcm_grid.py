@@ -309,9 +309,7 @@ def estimate(cfg: RcmGridConfig) -> Estimate:
 
 
 def n_tasks(cfg: RcmGridConfig, chunk: int) -> int:
-    """Chunks of the candidate grid (the cull: one task)."""
-    if cfg.search == "cull":
-        return 1
+    """Chunks of the candidate grid."""
     return max(1, math.ceil(candidate_count(cfg) / chunk))
 
 
@@ -340,9 +338,7 @@ def _rows(ids, xyz, lo, hi, n_unr, n_sing, n_eval, exact):
 
 
 def compute_task(cfg: RcmGridConfig, chunk: int, index: int) -> dict:
-    """Rows for candidates [index*chunk, (index+1)*chunk) (full map), or the cull search."""
-    if cfg.search == "cull":
-        return cull_search(cfg)
+    """Rows for candidates [index*chunk, (index+1)*chunk) of the full map (the cull is its own plan)."""
     xyz_all = candidate_xyz(cfg)
     ids = np.arange(index * chunk, min(xyz_all.shape[0], (index + 1) * chunk))
     return candidate_rows(cfg, ids, xyz_all[ids])
@@ -458,7 +454,7 @@ STUDY = Study(
     help=HELP, config_help=CONFIG_HELP, schema=schema, key_columns=KEY_COLUMNS, objective=OBJECTIVE,
     auto_chunk=auto_chunk, n_tasks=n_tasks, warm_up=warm_up, compute_task=compute_task, summary=summary,
     feasible_mask=feasible_mask, figures=figures_in("rcm_grid"), estimate=estimate, search_plan=search_plan,
-    evaluate=evaluate_designs, design_box=design_box, advice=lambda cfg: cfg.robot.tool_axis_advice(),
+    evaluate=evaluate_designs, design_box=design_box, cull=lambda cfg: cull_search(cfg), advice=lambda cfg: cfg.robot.tool_axis_advice(),
     flags=(Flag("--cull", "Fast exact argmax with the Culling algorithm (Stocco & Salcudean) instead of "
                           "the full GII map; culled candidates carry an upper bound.",
                 config_update={"search": "cull"}),
