@@ -21,7 +21,7 @@ from functools import lru_cache
 from typing import Literal
 
 import numpy as np
-from pydantic import Field, model_validator
+from pydantic import Field, ValidationInfo, model_validator
 
 from surgopt.config import StrictModel
 from surgopt.robots import dvrk
@@ -56,15 +56,48 @@ class Patient(StrictModel):
     toward the head; z anterior), semi-axes in mm. Default 170 x 210 x 140 mm: an assumption (an adult
     abdomen ~34 cm wide and ~42 cm long; insufflation raises the wall ~6 cm, J Endourol 18(6):572, 2004)."""
 
-    shape: Literal["dome"] = "dome"
+    shape: Literal["dome", "mesh"] = Field("dome", description="'dome' (semi_axes_mm) or 'mesh' (mesh_file)")
     semi_axes_mm: Vec3 = Field([170.0, 210.0, 140.0], min_length=3, max_length=3)
+    mesh_file: str | None = Field(None, min_length=1, description="a closed triangle mesh of the insufflated body "
+                                  "(STL, OBJ or PLY, read by trimesh), relative to the config file")
+    mesh_units: Literal["mm", "m"] = Field("mm", description="the mesh file's length unit")
+    mesh_offset_mm: Vec3 = Field([0.0, 0.0, 0.0], min_length=3, max_length=3,
+                                 description="added to the mesh (after units): its base on z = 0, x lateral, y "
+                                             "toward the head, z anterior, as for the dome")
+    mesh_sha256: str | None = Field(None, description="filled in: the mesh file's content hash (in the store key)")
     port_region: PortRegion = PortRegion()
 
     @model_validator(mode="after")
-    def _positive(self):
+    def _positive(self, info: ValidationInfo):
         if min(self.semi_axes_mm) <= 0:
             raise ValueError("semi_axes_mm: every semi-axis must be > 0")
+        if self.shape == "mesh":
+            self._resolve_mesh(info.context or {})
+        elif self.mesh_file is not None:
+            raise ValueError("mesh_file is given but shape is 'dome': set shape = 'mesh' to use it")
         return self
+
+    def _resolve_mesh(self, context) -> None:
+        """The mesh file, relative to the config's folder, read (bounded), hashed and checked closed."""
+        import hashlib
+        from pathlib import Path
+
+        if self.mesh_file is None:
+            raise ValueError("shape = 'mesh' needs mesh_file (an STL, OBJ or PLY file)")
+        path = Path(self.mesh_file).expanduser()
+        if not path.is_absolute():
+            path = Path(context.get("config_dir") or Path.cwd()) / path
+        path = path.resolve()
+        object.__setattr__(self, "mesh_file", str(path))
+        if context.get("stored"):
+            return
+        data = _read_mesh_bytes(path)
+        sha = hashlib.sha256(data).hexdigest()
+        if self.mesh_sha256 is not None and self.mesh_sha256 != sha:
+            raise ValueError(f"mesh_file: {path} changed since this config was written (mesh_sha256 differs); drop "
+                             f"mesh_sha256 to use the file as it is now")
+        object.__setattr__(self, "mesh_sha256", sha)
+        body_mesh(str(path), sha, self.mesh_units, tuple(self.mesh_offset_mm))  # parsed and checked once here
 
 
 class Target(StrictModel):
@@ -140,11 +173,13 @@ class PortPlaceConfig(StrictModel):
             raise ValueError("target: no sample point (a spacing larger than the target)")
         if len(pts) > 20_000:
             raise ValueError(f"target: {len(pts):,} sample points (at most 20,000: a larger spacing_mm)")
-        outside = ~inside_dome(pts, self.patient.semi_axes_mm)
+        outside = ~inside_body(pts, self.patient)
         if outside.any():
             p = pts[np.argmax(outside)]
+            body = (f"the dome {self.patient.semi_axes_mm} mm over z = 0" if self.patient.shape == "dome"
+                    else f"the mesh {self.patient.mesh_file}")
             raise ValueError(f"target: the point ({p[0]:.0f}, {p[1]:.0f}, {p[2]:.0f}) mm is outside the body "
-                             f"(the dome {self.patient.semi_axes_mm} mm over z = 0)")
+                             f"({body})")
         n = len(sites_mm(self))
         if n < 3:
             raise ValueError(f"patient.port_region: {n} candidate site(s) within constraints.port_to_target_mm; "
@@ -185,16 +220,102 @@ def dome_height_mm(x, y, semi_axes_mm):
     return c * np.sqrt(np.clip(s, 0.0, None))
 
 
+#: The largest mesh file read (bytes) and the most triangles accepted.
+MAX_MESH_BYTES = 200 * 2 ** 20
+MAX_MESH_FACES = 2_000_000
+
+
+def _read_mesh_bytes(path) -> bytes:
+    from surgopt.files import FileProblem, read_bounded
+
+    try:
+        return read_bounded(path, MAX_MESH_BYTES)
+    except FileNotFoundError:
+        raise ValueError(f"mesh_file: file not found: {path}") from None
+    except FileProblem as exc:
+        raise ValueError(f"mesh_file: {exc}") from None
+    except OSError as exc:
+        raise ValueError(f"mesh_file: cannot read {path}: {exc.strerror or exc}") from None
+
+
+@lru_cache(maxsize=4)
+def body_mesh(path: str, sha256: str, units: str, offset_mm: tuple):
+    """The patient's mesh (trimesh) in mm, offset; a ValueError naming the problem if it cannot be read, is not
+    closed (inside and outside would be undefined) or is too large. Cached per file content."""
+    import io
+    from pathlib import Path
+
+    import trimesh
+
+    data = _read_mesh_bytes(path)
+    kind = Path(path).suffix.lower().lstrip(".")
+    if kind not in ("stl", "obj", "ply"):
+        raise ValueError(f"mesh_file: {path}: not an STL, OBJ or PLY file")
+    try:
+        mesh = trimesh.load(io.BytesIO(data), file_type=kind, force="mesh", process=True)
+    except Exception as exc:  # noqa: BLE001 - whatever trimesh raises on a malformed file
+        raise ValueError(f"mesh_file: {path}: cannot be read as {kind.upper()} ({type(exc).__name__}: "
+                         f"{str(exc)[:120]})") from None
+    if len(mesh.faces) == 0:
+        raise ValueError(f"mesh_file: {path}: no triangles")
+    if len(mesh.faces) > MAX_MESH_FACES:
+        raise ValueError(f"mesh_file: {path}: {len(mesh.faces):,} triangles (at most {MAX_MESH_FACES:,})")
+    if not np.all(np.isfinite(mesh.vertices)):
+        raise ValueError(f"mesh_file: {path}: a vertex is not finite")
+    if not mesh.is_watertight:
+        raise ValueError(f"mesh_file: {path}: the mesh is not closed (watertight), so inside and outside the body "
+                         f"are undefined; close it (e.g. cap the base plane)")
+    mesh.apply_scale(1000.0 if units == "m" else 1.0)
+    mesh.apply_translation(np.asarray(offset_mm, float))
+    if mesh.bounds[1][2] <= 0:
+        raise ValueError(f"mesh_file: {path}: the mesh lies below z = 0 (mesh_offset_mm puts its base on z = 0)")
+    return mesh
+
+
+def _mesh_of(patient: Patient):
+    return body_mesh(patient.mesh_file, patient.mesh_sha256, patient.mesh_units, tuple(patient.mesh_offset_mm))
+
+
+def inside_body(p: np.ndarray, patient: Patient) -> np.ndarray:
+    """Which points (mm) lie inside the body: the dome, or the closed mesh (trimesh's containment test)."""
+    if patient.shape == "dome":
+        return inside_dome(p, patient.semi_axes_mm)
+    return np.asarray(_mesh_of(patient).contains(p), bool) & (p[:, 2] >= 0)
+
+
+def wall_height_mm(x: np.ndarray, y: np.ndarray, patient: Patient) -> np.ndarray:
+    """Height (mm) of the body's upper wall over each top-view point: the dome's, or the highest crossing of a
+    vertical ray with the mesh (NaN where the ray misses it)."""
+    if patient.shape == "dome":
+        return dome_height_mm(x, y, patient.semi_axes_mm)
+    mesh = _mesh_of(patient)
+    top = mesh.bounds[1][2] + 10.0
+    origins = np.stack([x, y, np.full(len(x), top)], axis=1)
+    dirs = np.tile([0.0, 0.0, -1.0], (len(x), 1))
+    locations, index_ray, _ = mesh.ray.intersects_location(origins, dirs, multiple_hits=True)
+    z = np.full(len(x), np.nan)
+    np.fmax.at(z, index_ray, locations[:, 2])
+    return z
+
+
+def body_extent_mm(patient: Patient) -> tuple[float, float, float]:
+    """Half widths in x and y about 0 and the height of the body (the dome's semi-axes, the mesh's bounds)."""
+    if patient.shape == "dome":
+        return tuple(patient.semi_axes_mm)
+    lo, hi = _mesh_of(patient).bounds
+    return max(abs(lo[0]), abs(hi[0])), max(abs(lo[1]), abs(hi[1])), float(hi[2])
+
+
 def sites_mm(cfg: PortPlaceConfig) -> np.ndarray:
-    """Candidate ports: a top-view grid at ``site_spacing_mm`` (symmetric about x = 0) lifted onto the dome,
-    kept where the dome is at least ``min_height_fraction`` of its height and the target centre is within
-    ``port_to_target_mm``."""
-    a, b, c = cfg.patient.semi_axes_mm
+    """Candidate ports: a top-view grid at ``site_spacing_mm`` (symmetric about x = 0) lifted onto the body's
+    upper wall (the dome, or the mesh by vertical rays), kept where the wall is at least
+    ``min_height_fraction`` of the body's height and the target centre is within ``port_to_target_mm``."""
+    a, b, c = body_extent_mm(cfg.patient)
     s = cfg.patient.port_region.site_spacing_mm
     gx, gy = np.meshgrid(grid_1d(a, s), grid_1d(b, s), indexing="ij")
     x, y = gx.ravel(), gy.ravel()
-    z = dome_height_mm(x, y, cfg.patient.semi_axes_mm)
-    keep = z >= cfg.patient.port_region.min_height_fraction * c
+    z = wall_height_mm(x, y, cfg.patient)
+    keep = np.nan_to_num(z, nan=-1.0) >= cfg.patient.port_region.min_height_fraction * c
     pts = np.stack([x[keep], y[keep], z[keep]], axis=1)
     dist = np.linalg.norm(pts - np.asarray(cfg.target.centre_mm), axis=1)
     lo, hi = cfg.constraints.port_to_target_mm

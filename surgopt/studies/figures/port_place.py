@@ -43,9 +43,16 @@ def figures(cfg, table, out, design_id=None):
     # 3-D: the dome, the candidate sites, the chosen ports with their shafts, the target by dexterity
     fig = plt.figure(figsize=(7.6, 6.2))
     ax = fig.add_subplot(projection="3d")
-    a, b, h = cfg.patient.semi_axes_mm
-    u, v = np.meshgrid(np.linspace(0, 2 * np.pi, 49), np.linspace(0, np.pi / 2, 13))
-    ax.plot_wireframe(a * np.cos(u) * np.cos(v), b * np.sin(u) * np.cos(v), h * np.sin(v), color="0.8", lw=0.4)
+    from surgopt.studies.port_place import _mesh_of, body_extent_mm
+
+    a, b, h = body_extent_mm(cfg.patient)
+    if cfg.patient.shape == "dome":
+        u, v = np.meshgrid(np.linspace(0, 2 * np.pi, 49), np.linspace(0, np.pi / 2, 13))
+        ax.plot_wireframe(a * np.cos(u) * np.cos(v), b * np.sin(u) * np.cos(v), h * np.sin(v), color="0.8", lw=0.4)
+    else:  # the mesh's triangles, thinned to at most ~4,000 for a readable figure
+        mesh = _mesh_of(cfg.patient)
+        faces = mesh.faces[:: max(1, len(mesh.faces) // 4000)]
+        ax.plot_trisurf(*mesh.vertices.T, triangles=faces, color="0.85", alpha=0.25, lw=0.1, edgecolor="0.7")
     sc = ax.scatter(*sites.T, c=per_site, cmap="viridis_r", s=14, depthshade=False)
     fig.colorbar(sc, ax=ax, shrink=0.6, pad=0.1, label="least cost of a feasible design using the site")
     if row is not None:
@@ -70,7 +77,10 @@ def figures(cfg, table, out, design_id=None):
     # 2-D: the port region from above
     fig, ax = plt.subplots(figsize=(6.0, 6.4))
     t = np.linspace(0, 2 * np.pi, 200)
-    ax.plot(a * np.cos(t), b * np.sin(t), color="0.6", lw=1, label="dome base")
+    if cfg.patient.shape == "dome":
+        ax.plot(a * np.cos(t), b * np.sin(t), color="0.6", lw=1, label="dome base")
+    else:
+        ax.plot([-a, a, a, -a, -a], [-b, -b, b, b, -b], color="0.6", lw=1, label="mesh extent")
     rx, ry = cfg.target.radii_mm[:2]
     cx, cy = cfg.target.centre_mm[:2]
     ax.fill(cx + rx * np.cos(t), cy + ry * np.sin(t), color="C4", alpha=0.25, label="target (top view)")
