@@ -234,3 +234,57 @@ def test_a_bad_mesh_is_refused_with_the_field_named(tmp_path, case):
     assert words in str(e.value), str(e.value)
     with pytest.raises(ConfigError, match="set shape = 'mesh'"):
         validate({"patient": {"mesh_file": "open.stl"}}, S.Config, "c.toml", {"config_dir": str(tmp_path)})
+
+
+# --- searches over the ports and the docking (plans) ----------------------------------------------------------
+
+COARSE = {"patient": {"port_region": {"site_spacing_mm": 72.0}}, "target": {"spacing_mm": 20.0}}
+
+
+def test_a_design_evaluated_alone_equals_its_row_of_the_enumeration():
+    """The search's evaluator (each design from the tables of its own three ports) against the enumeration's
+    combined tables: every column equal (floats to 1e-9) for every design of the small config."""
+    from surgopt.config import validate
+
+    cfg = validate(COARSE, S.Config, "x")
+    grid = S.compute_task(cfg, 10 ** 6, 0)
+    x = np.column_stack([grid["psm1_site"], grid["psm2_site"], grid["ecm_site"]]).astype(float)
+    alone = S.evaluate_designs(cfg, x, grid["design_id"], "grid")
+    assert set(alone) == set(grid)
+    for c, v in grid.items():
+        if np.asarray(v).dtype.kind == "f":
+            np.testing.assert_allclose(alone[c], v, rtol=0, atol=1e-9, err_msg=c)
+        else:
+            assert np.array_equal(alone[c], v), c
+
+
+def test_free_docking_turns_the_base_and_a_search_explores_ports_and_docking(tmp_path):
+    """Docking offsets turn the arm's base: 0 is the default docking; a large pitch moves target points out of
+    the pitch range (reach falls) and moves the arms' outside clearance. A CMA-ES search over the three ports
+    (categorical, with margin) and the four docking angles runs, deterministic, within the bounds, and its
+    coinciding-port designs are infeasible."""
+    from surgopt.config import validate
+    from surgopt.runner import run_study
+    from surgopt.store import Store
+
+    cfg = validate({**COARSE, "robot": {"docking_range_deg": 60.0},
+                    "search": {"method": "cmaes", "trials": 120, "batch": 40, "seed": 3}}, S.Config, "x")
+    base = [0.0, 1.0, 2.0]
+    rows = S.evaluate_designs(cfg, np.array([base + [0, 0, 0, 0], base + [0, 60, 0, 0]]), np.arange(2), "t")
+    # PSM1 pitched 60 deg off the centre, past its +-53 deg pitch range: most points out of reach, and its arm
+    # swung toward the others outside the body
+    assert rows["psm1_reach"][1] < 0.5 * rows["psm1_reach"][0] and rows["psm2_reach"][1] == rows["psm2_reach"][0]
+    assert rows["external_clearance_mm"][1] < rows["external_clearance_mm"][0]
+    same = S.evaluate_designs(cfg, np.array([[0.0, 0.0, 2.0, 0, 0, 0, 0]]), np.arange(1), "t")
+    assert not same["feasible"][0] and same["min_port_spacing_mm"][0] == 0.0
+    plan = S.search_plan(cfg)
+    assert list(plan.space) == ["psm1_site", "psm2_site", "ecm_site", *S.DOCKING_COLUMNS]
+    a = run_study(S.STUDY, cfg, config_name="a", store=Store(tmp_path / "a"), jobs=2, quiet=True).table
+    b = run_study(S.STUDY, cfg, config_name="b", store=Store(tmp_path / "b"), jobs=1, quiet=True).table
+    assert a.equals(b) and a.num_rows == 120
+    n = len(S.sites_mm(cfg))
+    for c in S.SITE_COLUMNS:
+        assert set(a[c].to_pylist()) <= set(range(n))
+    for c in S.DOCKING_COLUMNS:
+        v = a[c].to_numpy()
+        assert v.min() >= -60 and v.max() <= 60 and len(set(v.tolist())) > 10

@@ -143,6 +143,32 @@ def docking_frames(sites, centre, lateral):
     return rot
 
 
+def tilted_frames(rot, yaw_rad, pitch_rad):
+    """Docking offsets (free docking): each base frame turned by ``yaw_rad`` about its y axis, then by
+    ``pitch_rad`` about the turned x axis, rot R_y(yaw) R_x(pitch); (0, 0) is the default docking. The arm's
+    neutral shaft (-z) then points that far off the target's centre."""
+    out = np.array(rot, dtype=np.float64, copy=True)
+    for i in range(out.shape[0]):
+        cy, sy, cp, sp = math.cos(yaw_rad[i]), math.sin(yaw_rad[i]), math.cos(pitch_rad[i]), math.sin(pitch_rad[i])
+        ry = np.array([[cy, 0.0, sy], [0.0, 1.0, 0.0], [-sy, 0.0, cy]])
+        rx = np.array([[1.0, 0.0, 0.0], [0.0, cp, -sp], [0.0, sp, cp]])
+        out[i] = out[i] @ ry @ rx
+    return out
+
+
+@njit(**EXACT)
+def external_clearances(sites, axes, length_m):
+    """Per pair of ports: the distance between the arms' neutral shaft lines outside the body, each the
+    segment from its port ``length_m`` back along its base's outward ``axes[i]`` (unit z of the base frame)."""
+    n = sites.shape[0]
+    out = np.zeros((n, n))
+    for i in range(n):
+        for j in range(i + 1, n):
+            out[i, j] = segment_distance(sites[i] + length_m * axes[i], sites[i], sites[j] + length_m * axes[j],
+                                         sites[j])
+    return out
+
+
 @njit(**EXACT)
 def to_base(rot, site, p):
     """A world point in the base frame of the arm at ``site`` (rotation ``rot``): rot^T (p - site)."""
