@@ -18,6 +18,8 @@ that has ``name``, ``key``, ``record``, ``n_parts``, ``chunk``, ``session``, and
 from __future__ import annotations
 
 import hashlib
+import itertools
+import math
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -109,7 +111,7 @@ def split(x: np.ndarray, ids: np.ndarray, parts: int) -> list[tuple[np.ndarray, 
     n = x.shape[0]
     parts = max(1, min(parts, n))
     cuts = np.linspace(0, n, parts + 1).round().astype(int)
-    return [(x[a:b], ids[a:b]) for a, b in zip(cuts[:-1], cuts[1:]) if b > a]
+    return [(x[a:b], ids[a:b]) for a, b in itertools.pairwise(cuts) if b > a]
 
 
 @dataclass
@@ -146,6 +148,30 @@ class TaskList:
 
     def final_meta(self) -> dict:
         return {}
+
+
+class OptimiserPlan:
+    """What the optimiser plans share: a [search] section (``spec``) names them, so the run's key is the config's;
+    a part holds ``batch`` trials (CMA-ES: at least, whole generations); the estimate adds the optimiser's own
+    time per trial (``seconds_per_trial``) to the study's for its evaluations."""
+
+    name = "optimiser"
+    seconds_per_trial = 0.0
+
+    def __init__(self, spec):
+        self.spec = spec
+
+    def key(self, study, cfg, base_key: str) -> str:
+        return base_key
+
+    def estimate(self, study, cfg):
+        return with_overhead(study.estimate(cfg), self.seconds_per_trial)
+
+    def chunk(self, study, cfg) -> int:
+        return self.spec.batch
+
+    def n_parts(self, study, cfg, chunk: int) -> int:
+        return math.ceil(self.spec.trials / self.spec.batch)
 
 
 def derived_key(base_key: str, plan_record: dict) -> str:

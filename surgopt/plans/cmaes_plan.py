@@ -16,7 +16,7 @@ import math
 
 import numpy as np
 
-from surgopt.plans import BatchCollector, Designs, Task, concat_rows, split
+from surgopt.plans import BatchCollector, Designs, OptimiserPlan, Task, concat_rows, split
 
 #: Initial step size in the [0, 1] search coordinates (a third of each range).
 SIGMA0 = 0.3
@@ -32,29 +32,15 @@ STALL_RELATIVE = 1e-6
 SECONDS_PER_TRIAL = 0.0001
 
 
-class CmaesPlan:
+class CmaesPlan(OptimiserPlan):
     name = "cmaes"
-
-    def __init__(self, spec):
-        self.spec = spec
-
-    def key(self, study, cfg, base_key: str) -> str:
-        return base_key  # named by the config's [search] section, which is in the key
+    seconds_per_trial = SECONDS_PER_TRIAL
 
     def record(self) -> dict:
         return {"name": self.name, "restarts": self.spec.restarts}
 
-    def estimate(self, study, cfg):
-        from surgopt.plans import with_overhead
-
-        return with_overhead(study.estimate(cfg), SECONDS_PER_TRIAL)
-
-    def chunk(self, study, cfg) -> int:
-        return self.spec.batch
-
-    def n_parts(self, study, cfg, chunk: int) -> int:
-        # every part but the last holds at least `batch` trials: an upper bound, set exactly when the search ends
-        return math.ceil(self.spec.trials / self.spec.batch)
+    # n_parts: every part but the last holds at least `batch` trials, so ceil(trials / batch) is an upper bound;
+    # the session sets the exact count when the search ends (final_meta)
 
     def session(self, study, cfg, chunk: int, run, workers: int) -> CmaesSession:
         return CmaesSession(study.search_plan(cfg), run, workers)

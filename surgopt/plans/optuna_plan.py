@@ -13,36 +13,22 @@ import math
 
 import numpy as np
 
-from surgopt.plans import BatchCollector, Designs, Task, split
-
+from surgopt.plans import BatchCollector, Designs, OptimiserPlan, Task, split
 
 #: Optuna's own time per trial on one core, beyond the evaluation (benchmarks/bench_search.py, raven-sweep, batch
 #: 64, in memory): TPE's grows with the history (~6 ms a trial over 1,000 trials, ~8 ms over 5,000).
 SECONDS_PER_TRIAL = {"tpe": 0.008, "nsga2": 0.001, "random": 0.001}
 
 
-class OptunaPlan:
+class OptunaPlan(OptimiserPlan):
     name = "optuna"
 
-    def __init__(self, spec):
-        self.spec = spec
-
-    def key(self, study, cfg, base_key: str) -> str:
-        return base_key  # named by the config's [search] section, which is in the key
+    @property
+    def seconds_per_trial(self) -> float:
+        return SECONDS_PER_TRIAL[self.spec.method]
 
     def record(self) -> dict:
         return {"name": self.name, "method": self.spec.method}
-
-    def estimate(self, study, cfg):
-        from surgopt.plans import with_overhead
-
-        return with_overhead(study.estimate(cfg), SECONDS_PER_TRIAL[self.spec.method])
-
-    def chunk(self, study, cfg) -> int:
-        return self.spec.batch
-
-    def n_parts(self, study, cfg, chunk: int) -> int:
-        return math.ceil(self.spec.trials / self.spec.batch)
 
     def session(self, study, cfg, chunk: int, run, workers: int) -> OptunaSession:
         return OptunaSession(study.search_plan(cfg), run, workers)
