@@ -234,6 +234,11 @@ def _report(study, result, brief: bool = False):
     if not brief:
         for title, header, rows in summary.tables:
             print_table(console, title, header, rows)
+        from surgopt.report import search_front
+
+        front = search_front(study, run, result.parts)  # a multi-objective search: its Pareto front, not one rank
+        if front is not None:
+            print_table(console, *front)
     return summary
 
 

@@ -337,10 +337,17 @@ def diff(
     if d["worst"]:
         cols = list(d["worst"][0])
         print_table(console, f"most changed rows (by |b - a| of {d['objective']})", cols,
-                     [[str(r[c]) for c in cols] for r in d["worst"]])
+                     [[_cell(r[c]) for c in cols] for r in d["worst"]])
     if d["best"]:
         print_table(console, f"best design of each by {d['objective']}", ["run"] + list(d["best"]["a"]),
-                     [["a"] + [str(v) for v in d["best"]["a"].values()], ["b"] + [str(v) for v in d["best"]["b"].values()]])
+                     [["a"] + [_cell(v) for v in d["best"]["a"].values()],
+                      ["b"] + [_cell(v) for v in d["best"]["b"].values()]])
+
+
+def _cell(v) -> str:
+    """A value as a table shows it: floats to 6 significant digits (the JSON format keeps full precision), so a
+    number is never folded across lines."""
+    return f"{v:.6g}" if isinstance(v, float) else str(v)
 
 
 @app.command("check")

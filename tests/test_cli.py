@@ -224,7 +224,12 @@ def test_export_diff_and_json_formats(tmp_path):
     d = json.loads(cli("diff", a, b, "--store", store, "--format", "json").stdout)
     assert d["config"] == {"robot.tool_length_m": [0.5, 0.587]} or d["config"] == {"robot.tool_length_m": [0.587, 0.5]}
     assert d["rows_joined"] == 20 and "gii" in d["metrics"] and d["objective"] == "gii"
-    assert "robot.tool_length_m" in cli("diff", a, b, "--store", store).stdout
+    table = cli("diff", a, b, "--store", store, env={**os.environ, "COLUMNS": "100"}).stdout
+    assert "robot.tool_length_m" in table
+    # floats to 6 significant digits in the tables (#27 item 10: they were folded mid-number)
+    import re
+
+    assert not re.search(r"\d{9,}", table), table  # no 15-17 digit reprs
     s = json.loads(cli("summarize", a, "--store", store, "--format", "json").stdout)
     assert set(s) >= {"study", "key", "rows", "complete", "feasibility", "headline", "objective", "top", "distribution"}
     assert s["headline"]["best_gii"] == max(t["gii"] for t in s["top"])  # full precision, not rounded
