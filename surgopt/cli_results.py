@@ -354,6 +354,9 @@ def _cell(v) -> str:
 def check(
     config: Annotated[Path, typer.Argument(help="Config of the study to run (or reuse from the store).")],
     baseline: Annotated[Path, typer.Option("--baseline", help="Parquet baseline to compare with.")],
+    overrides: Annotated[Optional[list[str]], typer.Argument(
+        help="KEY=VALUE overrides on the config, as for the study commands.", metavar="[KEY=VALUE]...",
+        show_default=False)] = None,
     rtol: Annotated[float, typer.Option("--rtol", min=0, help="Relative tolerance on float columns.")] = 1e-9,
     atol: Annotated[float, typer.Option("--atol", min=0, help="Absolute tolerance on float columns.")] = 1e-12,
     write: Annotated[bool, typer.Option("--write", metavar="", help="(Re)create the baseline from this run instead.")] = False,
@@ -372,9 +375,18 @@ def check(
         from surgopt.store import Store
 
         st, cfg = study_of_config(config, study)
+        name = config.stem
+        if overrides:
+            from surgopt.compose import variants
+
+            bad = [o for o in overrides if "=" not in o]
+            if bad:
+                fail(f"{bad[0]!r}: after CONFIG only KEY=VALUE overrides are allowed", 2)
+            (v,) = variants(st, config, overrides)
+            cfg, name = v.config, f"{config.stem}{v.config_name[v.config_name.index('+'):]}"
         if not write and not baseline.is_file():
             fail(f"{baseline}: baseline not found (create it with --write)", 2)
-        res = run_study(st, cfg, config_name=config.stem, store=Store(store), jobs=jobs, quiet=quiet,
+        res = run_study(st, cfg, config_name=name, store=Store(store), jobs=jobs, quiet=quiet,
                         say=lambda m: typer.echo(m, err=True))
         if write:
             write_baseline(res.table, st.key_columns, baseline)
