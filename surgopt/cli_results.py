@@ -220,10 +220,17 @@ def summarize(
         print_table(console, title, header, rows)
 
 
+#: A run's figures in its own folder: the leading "_" makes pyarrow, pandas and the README's readers skip it.
+FIGURES_FOLDER = "_figures"
+
+
 @app.command("plot")
 def plot(
     run: RunRef = None,
-    out: Annotated[Path, typer.Option("--out", help="Folder for the figures.")] = Path("figures"),
+    out: Annotated[Optional[Path], typer.Option(
+        "--out", help="Folder for the figures [default: the run's own folder in the store, "
+                      "STORE/study=<study>/key=<key>/_figures, kept with the run as MLflow keeps artifacts; "
+                      "Parquet readers skip it]", show_default=False)] = None,
     fmt: Annotated[FigureFormat, typer.Option("--format", help="png, pdf or svg.")] = FigureFormat.png,
     store: StoreOpt = None,
     study: StudyOpt = None,
@@ -234,7 +241,7 @@ def plot(
 ) -> None:
     """Figures of a stored run in the style of its paper (each study's own; docs/figures shows them
     for the paper setups)."""
-    if out.exists() and not out.is_dir():
+    if out is not None and out.exists() and not out.is_dir():
         fail(f"--out: {out} is a file; give a folder for the figures", 2)
     with guard():
         from surgopt.results import config_of, resolve_run
@@ -247,6 +254,7 @@ def plot(
         id_column = st.key_columns[0]
         if design is not None and design not in set(table[id_column].to_pylist()):
             fail(f"--design: no {id_column} {design} in run {r.key[:12]}", 2)
+        out = out if out is not None else r.path / FIGURES_FOLDER
         out.mkdir(parents=True, exist_ok=True)
         from surgopt.studies.figures import set_format
 
