@@ -14,7 +14,7 @@ import typer
 
 from surgopt.cli_common import (  # noqa: F401 - app and the options: the commands below register on them
     RESUME, Backend, BackendOpt, ChunkOpt, DryRunOpt, ForceOpt, JobsOpt, MaxHoursOpt, MaxMemoryOpt, MultirunOpt,
-    NameOpt, PrintConfigOpt, QuietOpt, SchedulerOpt, StoreOpt, VerboseOpt, app, guard, print_table, set_verbosity,
+    NameOpt, PrintConfigOpt, TagOpt, QuietOpt, SchedulerOpt, StoreOpt, VerboseOpt, app, guard, print_table, set_verbosity,
     wide_console,
 )
 
@@ -38,7 +38,7 @@ def _study_command(study) -> None:
                for f in study.flags]
     shared = [("multirun", MultirunOpt, False), ("print_config", PrintConfigOpt, False), ("dry_run", DryRunOpt, False),
               ("store", StoreOpt, None), ("jobs", JobsOpt, 2), ("force", ForceOpt, False), ("quiet", QuietOpt, False),
-              ("name", NameOpt, None), ("verbose", VerboseOpt, 0)]
+              ("name", NameOpt, None), ("tag", TagOpt, None), ("verbose", VerboseOpt, 0)]
     if study.chunked:
         shared.append(("chunk_size", ChunkOpt, None))
     shared += [("backend", BackendOpt, Backend.threads), ("scheduler", SchedulerOpt, None),
@@ -95,9 +95,10 @@ def _split_args(args: list[str] | None) -> tuple[Optional[str], list[str]]:
 
 def _run_study_command(study, args, store, jobs, force, quiet, chunk_size=None, backend="threads", scheduler=None,
                        max_hours=1.0, max_memory_gb=None, flags=(), multirun=False, print_config=False,
-                       dry_run=False, name=None, verbose=0):
+                       dry_run=False, name=None, tag=None, verbose=0):
     set_verbosity(verbose)
     with guard():
+        tags = _tags(tag)
         from surgopt.compose import variants
         from surgopt.runner import run_study
         from surgopt.store import Store
@@ -124,7 +125,7 @@ def _run_study_command(study, args, store, jobs, force, quiet, chunk_size=None, 
             run_name = name if name is None or len(todo) == 1 else f"{name}[{len(finished)}]"
             result = run_study(study, v.config, config_name=v.config_name, store=Store(store), jobs=jobs,
                                force=force, quiet=quiet, chunk=chunk_size, backend=backend, scheduler=scheduler,
-                               say=say, name=run_name, **budget)
+                               say=say, name=run_name, tags=tags, **budget)
             summary = _report(study, result, brief=len(todo) > 1)
             finished.append((v, result, summary))
             for f in flags:
@@ -138,6 +139,21 @@ def _run_study_command(study, args, store, jobs, force, quiet, chunk_size=None, 
                 _report(study, follow)
         if len(todo) > 1:
             _multirun_table(study, finished)
+
+
+def _tags(given: list[str] | None) -> dict[str, str] | None:
+    """--tag KEY=VALUE ... as a dict (a UsageError naming a malformed one)."""
+    from surgopt.errors import UsageError
+
+    if not given:
+        return None
+    out = {}
+    for t in given:
+        k, sep, v = t.partition("=")
+        if not sep or not k.strip() or len(t) > 200:
+            raise UsageError(f"--tag {t[:80]!r}: give KEY=VALUE (at most 200 characters)")
+        out[k.strip()] = v.strip()
+    return out
 
 
 def _print_configs(todo) -> None:

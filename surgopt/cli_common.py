@@ -38,6 +38,9 @@ DryRunOpt = Annotated[bool, typer.Option("--dry-run", metavar="", help="Say what
                                                            "is stored, estimated time and memory) and exit; nothing "
                                                            "is computed or written.")]
 QuietOpt = Annotated[bool, typer.Option("--quiet", "-q", metavar="", help="No progress bar.")]
+TagOpt = Annotated[Optional[list[str]], typer.Option(
+    "--tag", help="KEY=VALUE labels for the run (repeatable), shown by `surgopt runs`; not part of the store key.",
+    show_default=False)]
 NameOpt = Annotated[Optional[str], typer.Option(
     "--name", help="A name for the run, shown by `surgopt runs` (not part of the store key: a cache hit takes "
                    "the name too).", show_default=False)]

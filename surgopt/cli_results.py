@@ -70,10 +70,11 @@ def runs(
         typer.echo(f"no runs in {s.root}")
         return
     t = Table(title=f"runs in {s.root}")
-    for col in ("study", "key", "name", "config", "plan", "rows", "state", "created"):
+    for col in ("study", "key", "name, tags", "config", "plan", "rows", "state", "created"):
         t.add_column(col, overflow="fold")
     for r in records:
-        t.add_row(r["study"], r["key"][:12], r.get("name") or "", r["config_name"] or "?", r.get("plan") or "?",
+        label = " ".join([r.get("name") or ""] + [f"{k}={v}" for k, v in (r.get("tags") or {}).items()]).strip()
+        t.add_row(r["study"], r["key"][:12], label, r["config_name"] or "?", r.get("plan") or "?",
                   str(r["rows"] if r["rows"] is not None else "?"), r["state"], r.get("created") or "?")
     wide_console(100).print(t)
 

@@ -118,7 +118,8 @@ def run_records(store: Store, study: str | None = None) -> list[dict]:
     out = []
     for r in store.runs(study):
         m = r.manifest
-        out.append({"study": r.study, "key": r.key, "name": m.get("name"), "config_name": m.get("config_name"),
+        out.append({"study": r.study, "key": r.key, "name": m.get("name"), "tags": m.get("tags", {}),
+                    "config_name": m.get("config_name"),
                     "plan": (m.get("plan") or {}).get("name", "grid"), "rows": r.rows,
                     "state": run_state(store, r), "created": m.get("created"), "completed": m.get("completed"),
                     "kernel_version": m.get("kernel_version"), "n_tasks": m["n_tasks"], "chunk": m["chunk"],

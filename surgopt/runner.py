@@ -160,7 +160,7 @@ def run_study(study, cfg, *, config_name: str, store: Store, jobs: int = DEFAULT
               force: bool = False, quiet: bool = False, chunk: int | None = None,
               backend: str = "threads", scheduler: str | None = None, say=print,
               max_hours: float | None = DEFAULT_MAX_HOURS, max_memory_bytes: int | None = None,
-              plan=None, name: str | None = None) -> RunResult:
+              plan=None, name: str | None = None, tags: dict | None = None) -> RunResult:
     """Compute (or fetch from the store) the table of one study config explored by one plan.
 
     ``plan``: how the design space is explored (``surgopt.plans``); None: the plan the config names (its
@@ -170,8 +170,8 @@ def run_study(study, cfg, *, config_name: str, store: Store, jobs: int = DEFAULT
     a LocalCluster of ``jobs`` single-threaded workers). Every plan runs the same way: its session gives tasks,
     the backend computes them, the session turns their rows into parts, and only this process writes them to
     the store. ``max_hours``, ``max_memory_bytes`` (None: half this machine's memory): the budget
-    ``check_budget`` holds the study's estimate to before it starts. ``name``: recorded in the manifest (not
-    in the key); a cache hit given another name records it.
+    ``check_budget`` holds the study's estimate to before it starts. ``name``, ``tags``: recorded in the
+    manifest (not in the key); a cache hit given another name or new tags records them.
     """
     from surgopt.plans import plan_for
 
@@ -188,9 +188,11 @@ def run_study(study, cfg, *, config_name: str, store: Store, jobs: int = DEFAULT
         run = _stored_run(store, study, key, say)
         if run is not None:  # nothing to compute: no budget to hold it to
             log.info("cache hit: %s %s in %s", study.name, key[:12], run.path)
-            if name is not None and run.manifest.get("name") != name:
+            label = {**({"name": name} if name is not None else {}),
+                     **({"tags": {**run.manifest.get("tags", {}), **tags}} if tags else {})}
+            if any(run.manifest.get(k) != v for k, v in label.items()):
                 with store.lock(study.name, key):
-                    run = store.finish(run, name=name)
+                    run = store.finish(run, **label)
             return RunResult(run, run.parts(schema), True, 0, time.perf_counter() - t0)
     check_budget(study, cfg, jobs, max_hours, max_memory_bytes, backend=backend, scheduler=scheduler, plan=plan)
 
@@ -204,7 +206,8 @@ def run_study(study, cfg, *, config_name: str, store: Store, jobs: int = DEFAULT
                           config_name=config_name, kernel_version=study.kernel_version,
                           n_tasks=plan.n_parts(study, cfg, chunk), chunk=chunk, force=force,
                           fresh=existing is None, meta={**provenance(backend, jobs), "plan": plan.record(),
-                                                        **({"name": name} if name else {})})
+                                                        **({"name": name} if name else {}),
+                                                        **({"tags": tags} if tags else {})})
         log.info("%s %s: %s plan, %d parts of %d, %d stored", study.name, key[:12], plan.name,
                  run.manifest["n_tasks"], chunk, len(run.manifest["parts"]))
         stored = len(run.manifest["parts"])

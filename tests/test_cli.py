@@ -163,6 +163,11 @@ def test_runs_are_named_and_compared_side_by_side(tmp_path):
     hit = cli("rcm-grid", *SMALL_OVERRIDES, "robot.tool_length_m=0.5", "--name", "short tool", "--store", store, "-q")
     assert "cache hit" in hit.stdout
     assert "short tool" in {r["name"] for r in json.loads(cli("runs", "--store", store, "--format", "json").stdout)}
+    cli("rcm-grid", *SMALL_OVERRIDES, "robot.tool_length_m=0.5", "--tag", "surgeon=A", "--tag", "case=12", "--store",
+        store, "-q")
+    tagged = [r for r in json.loads(cli("runs", "--store", store, "--format", "json").stdout) if r["tags"]]
+    assert [r["tags"] for r in tagged] == [{"surgeon": "A", "case": "12"}] and tagged[0]["name"] == "short tool"
+    assert cli("rcm-grid", *SMALL_OVERRIDES, "--tag", "nokey", "--store", store, check=False).returncode == 2
     table = json.loads(cli("runs", "--store", store, "--compare", "--study", "rcm-grid", "--format", "json").stdout)
     assert [list(r["params"]) for r in table] == [["robot.tool_length_m"]] * 2  # only what differs
     assert sorted(r["params"]["robot.tool_length_m"] for r in table) == [0.5, 0.587]
