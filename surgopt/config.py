@@ -363,9 +363,31 @@ def _unsigned_zeros(v):
     return v
 
 
+#: json_schema_extra of a field the store key leaves out: a file's path, whose content hash is in the key beside
+#: it (a copied or moved file with the same content is the same run).
+NOT_IN_KEY = {"key": False}
+
+
 def canonical_json(model: BaseModel) -> str:
-    """Canonical form of a validated config: defaults filled, keys sorted, compact, -0.0 as 0.0."""
-    return json.dumps(_unsigned_zeros(model.model_dump(mode="json")), sort_keys=True, separators=(",", ":"))
+    """Canonical form of a validated config: defaults filled, keys sorted, compact, -0.0 as 0.0, and the fields
+    marked NOT_IN_KEY left out."""
+    return json.dumps(_unsigned_zeros(_keyed(model, model.model_dump(mode="json"))), sort_keys=True,
+                      separators=(",", ":"))
+
+
+def _keyed(model, data):
+    """``data`` (the model's JSON dump) without the fields marked NOT_IN_KEY, at any depth."""
+    if isinstance(model, BaseModel) and isinstance(data, dict):
+        out = {}
+        for name, value in data.items():
+            info = type(model).model_fields.get(name)
+            if info is not None and info.json_schema_extra == NOT_IN_KEY:
+                continue
+            out[name] = _keyed(getattr(model, name, None), value)
+        return out
+    if isinstance(model, (list, tuple)) and isinstance(data, list):
+        return [_keyed(m, d) for m, d in zip(model, data)]
+    return data
 
 
 def study_key(study: str, model: BaseModel, kernel_version: str) -> str:

@@ -198,6 +198,12 @@ def test_urdf_paths_are_relative_to_the_config_and_its_content_is_in_the_key(tmp
     k2 = cli("rcm-grid", tmp_path / "sub" / "arm.toml", *SMALL, "--dry-run").stdout
     key = lambda out: [w for w in out.split() if len(w) == 12 and all(c in "0123456789abcdef" for c in w)]  # noqa: E731
     assert key(k1) and key(k1) != key(k2)
+    # #27 item 4: the key holds the URDF's content, not its path: a copy elsewhere (same content) is the same run
+    (tmp_path / "elsewhere").mkdir()
+    (tmp_path / "elsewhere" / "copy.urdf").write_text((tmp_path / "sub" / "arm.urdf").read_text())
+    (tmp_path / "elsewhere" / "arm.toml").write_text(ARM.format(urdf="copy.urdf", extra=""))
+    k3 = cli("rcm-grid", tmp_path / "elsewhere" / "arm.toml", *SMALL, "--dry-run").stdout
+    assert key(k3) == key(k2)
     # a config that pins the hash refuses a changed file
     pinned = tmp_path / "sub" / "pinned.toml"
     pinned.write_text(ARM.format(urdf="arm.urdf", extra='urdf_sha256 = "' + "0" * 64 + '"'))

@@ -23,7 +23,7 @@ from typing import Literal
 import numpy as np
 from pydantic import Field, ValidationInfo, model_validator
 
-from surgopt.config import StrictModel
+from surgopt.config import NOT_IN_KEY, StrictModel
 from surgopt.robots import dvrk
 from surgopt.studies import Estimate, Study, Summary, figures_in, peak_bytes
 from surgopt.studies.search import check_objectives, search_field
@@ -65,7 +65,9 @@ class Patient(StrictModel):
     shape: Literal["dome", "mesh"] = Field("dome", description="'dome' (semi_axes_mm) or 'mesh' (mesh_file)")
     semi_axes_mm: Vec3 = Field([170.0, 210.0, 140.0], min_length=3, max_length=3)
     mesh_file: str | None = Field(None, min_length=1, description="a closed triangle mesh of the insufflated body "
-                                  "(STL, OBJ or PLY, read by trimesh), relative to the config file")
+                                  "(STL, OBJ or PLY, read by trimesh), relative to the config file (its content "
+                                  "hash, mesh_sha256, is in the store key, not its path)",
+                                  json_schema_extra=NOT_IN_KEY)
     mesh_units: Literal["mm", "m"] = Field("mm", description="the mesh file's length unit")
     mesh_offset_mm: Vec3 = Field([0.0, 0.0, 0.0], min_length=3, max_length=3,
                                  description="added to the mesh (after units): its base on z = 0, x lateral, y "

@@ -17,7 +17,7 @@ from typing import Annotated, Literal
 
 from pydantic import Field, ValidationInfo, model_validator
 
-from surgopt.config import StrictModel
+from surgopt.config import NOT_IN_KEY, StrictModel
 from surgopt.robots import pa10_7c
 from surgopt.robots.models import MODELS, get_model
 from surgopt.studies.search import SearchSpec, check_objectives, search_field
@@ -102,7 +102,8 @@ class Robot(StrictModel):
     """The arm: a shipped ``model``, a ``urdf`` file, or an inline ``dh`` table (docs/robots.md)."""
 
     model: str | None = Field(None, description=f"a shipped model: {', '.join(MODELS)}")
-    urdf: str | None = Field(None, min_length=1, description="URDF file, relative to the config file")
+    urdf: str | None = Field(None, min_length=1, description="URDF file, relative to the config file (its content "
+                             "hash, urdf_sha256, is in the store key, not its path)", json_schema_extra=NOT_IN_KEY)
     base_link: str | None = Field(None, min_length=1)
     tip_link: str | None = Field(None, min_length=1)
     urdf_sha256: str | None = Field(None, description="filled in: the URDF's content hash (part of the store key)")
