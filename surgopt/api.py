@@ -4,6 +4,7 @@
     df = surgopt.run("rcm-grid", overrides={"workspace.points_per_side": 9})
     surgopt.runs()                       # what the store holds
     df = surgopt.load("597ae5d5")        # a run by key prefix (or a config file)
+    surgopt.summarize("597ae5d5")        # headline, top designs, ... as a dict; plot(...), diff(a, b) likewise
 
 Configs and overrides are validated exactly as on the command line (the same errors); the store is
 ``store``, else $SURGOPT_STORE, else ./surgopt-store. Importing ``surgopt`` configures numba (its cache
@@ -71,6 +72,50 @@ def runs(store: str | Path | None = None, study: str | None = None):
     from surgopt.store import Store
 
     return pd.DataFrame(run_records(Store(store), study))
+
+
+def summarize(run: str | Path | None = None, store: str | Path | None = None, study: str | None = None,
+              top: int = 10, sort: str | None = None) -> dict:
+    """What ``surgopt summarize --format json`` prints, as a dict: headline, feasibility, the top designs, the
+    objective's distribution, the study's tables, the best design's edges of the box."""
+    from surgopt.report import summary_record
+    from surgopt.results import resolve_run
+    from surgopt.store import Store
+
+    st, r = resolve_run(Store(store), None if run is None else str(run), study)
+    return summary_record(st, r, r.parts(st.schema()), top=top, sort=sort)
+
+
+def plot(run: str | Path | None = None, store: str | Path | None = None, study: str | None = None,
+         out: str | Path | None = None, fmt: str = "png") -> list[Path]:
+    """The run's figures (``surgopt plot``): into ``out``, else the run's own folder in the store (``_figures``);
+    returns their paths."""
+    from surgopt.results import config_of, resolve_run
+    from surgopt.store import Store
+    from surgopt.studies.figures import set_format
+
+    s = Store(store)
+    st, r = resolve_run(s, None if run is None else str(run), study)
+    folder = Path(out) if out is not None else r.path / "_figures"
+    folder.mkdir(parents=True, exist_ok=True)
+    set_format(fmt)
+    cfg = config_of(st, r)
+    table = r.read_table(st.schema())
+    plan = st.search_plan(cfg) if st.search_plan else None
+    if plan is not None:
+        from surgopt.studies.figures import search_figures
+
+        return search_figures(cfg, table, folder, plan)
+    return st.figures(cfg, table, folder, None)
+
+
+def diff(run_a: str, run_b: str, store: str | Path | None = None, study: str | None = None, top: int = 5) -> dict:
+    """Two runs of one study compared (``surgopt diff --format json``): differing config fields, per-metric
+    changes on the rows joined by the key columns, the most changed rows, the best design of each."""
+    from surgopt.results import diff_runs
+    from surgopt.store import Store
+
+    return diff_runs(Store(store), run_a, run_b, study, top)
 
 
 def _study(name: str):

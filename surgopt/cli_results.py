@@ -268,8 +268,13 @@ def plot(
             paths = search_figures(cfg, table, out, plan, reference=_grid_best(Store(store), st, cfg, plan))
         else:
             paths = st.figures(cfg, table, out, design)
+        from surgopt.report import best_edges
+
+        notes = best_edges(st, r, r.parts(st.schema()))
     for p in paths:
         typer.echo(str(p))
+    for note in notes:  # what the figures show on an edge of the box (#27 item 2)
+        typer.echo(f"note: {note}", err=True)
 
 
 @app.command("export")

@@ -36,3 +36,23 @@ def test_run_load_runs_and_errors(tmp_path):
     with pytest.raises(UsageError, match="needs a design space"):
         surgopt.run("suture-sim", store=store, plan="refine", overrides={"task.arc_deg": 20.0})
     assert surgopt.__version__ and "run" in surgopt.__all__
+
+
+def test_the_api_can_do_what_the_result_commands_do(tmp_path):
+    """#27 item 10: summarize, plot and diff from Python, the same facts as the commands' JSON."""
+    import json
+    import subprocess
+    import sys
+
+    store = tmp_path / "store"
+    small = {"candidates.grid.x_count": 5, "candidates.grid.z_count": 4, "workspace.points_per_side": 3}
+    a = surgopt.run("rcm-grid", overrides=small, store=store).attrs["key"]
+    b = surgopt.run("rcm-grid", overrides={**small, "robot.tool_length_m": 0.5}, store=store).attrs["key"]
+    rec = surgopt.summarize(a, store=store)
+    cli = json.loads(subprocess.run([sys.executable, "-m", "surgopt", "summarize", a[:12], "--store", str(store),
+                                     "--format", "json"], capture_output=True, text=True, check=True).stdout)
+    assert rec["headline"] == cli["headline"] and rec["key"] == a
+    d = surgopt.diff(a, b, store=store)
+    assert list(d["config"]) == ["robot.tool_length_m"]
+    paths = surgopt.plot(b, store=store)
+    assert paths and all(p.is_file() and p.parent.name == "_figures" for p in paths)

@@ -233,3 +233,4 @@ def test_a_best_design_on_an_edge_of_the_box_is_said_with_the_field_to_widen(tmp
     out = json.loads(cli("summarize", "--store", tmp_path, "--format", "json").stdout)
     edges = [note for run in (out if isinstance(out, list) else [out]) for note in run["best_on_an_edge"]]
     assert any("x_rcm_m = 0.45" in note for note in edges)
+    assert "x_rcm_m = 0.45 (candidates.grid.x_max_m)" in cli("plot", "--store", tmp_path).stderr
