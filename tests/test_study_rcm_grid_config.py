@@ -332,6 +332,13 @@ def test_a_tool_pointing_sideways_is_noted_and_a_map_with_nothing_feasible_says_
         in r.stderr
     for model in ("ur5e", "panda", "lbr_iiwa_14"):
         assert "note:" not in cli("rcm-grid", "--robot", model, "--dry-run", "--store", tmp_path).stderr
+    # a URDF given no seed_deg: the branch the walk takes is said to be a choice (#27 item 10, #28)
+    (tmp_path / "pa10.urdf").write_text(PA10_URDF)
+    arm = ["--robot", "pa10.urdf", "robot.tool_length_m=0.587", "robot.locked_joints_deg={S3=0.0,W2=0.0}"]
+    r = cli("rcm-grid", *arm, "--dry-run", "--store", tmp_path, cwd=tmp_path)
+    assert "note: robot: no seed_deg: the inverse kinematics starts from every active joint at 0" in r.stderr
+    r = cli("rcm-grid", *arm, "robot.seed_deg={S2=30.0,E1=90.0,W1=60.0}", "--dry-run", "--store", tmp_path, cwd=tmp_path)
+    assert "seed_deg" not in r.stderr
     far = ["candidates.grid.x_min_m=1.4", "candidates.grid.x_max_m=1.5", "candidates.grid.x_count=2",
            "candidates.grid.z_count=2", "workspace.points_per_side=3"]
     out = " ".join(cli("rcm-grid", *far, "--store", tmp_path, "-q").stdout.split())
