@@ -109,6 +109,12 @@ def _run_study_command(study, args, store, jobs, force, quiet, chunk_size=None, 
         flags_text = " ".join(f"{f.option} {v}" for f, v in flags if f.value_update is not None)
         flags = [f for f, _ in flags]
         todo = variants(study, config, overrides, updates, multirun=multirun, flags_text=flags_text)
+        for f in flags:
+            if f.expand is not None:  # one config into several runs (--branches), reported like a --multirun
+                from surgopt.compose import Variant
+
+                todo = [Variant(c, f"{v.config_name}+{label}", {**v.varied, **dict([label.split("=", 1)])})
+                        for v in todo for label, c in f.expand(v.config)]
         if print_config:
             _print_configs(todo)
             return
@@ -139,6 +145,7 @@ def _run_study_command(study, args, store, jobs, force, quiet, chunk_size=None, 
                 _report(study, follow)
         if len(todo) > 1:
             _multirun_table(study, finished)
+            _best_of(study, finished)
 
 
 def _tags(given: list[str] | None) -> dict[str, str] | None:
@@ -154,6 +161,15 @@ def _tags(given: list[str] | None) -> dict[str, str] | None:
             raise UsageError(f"--tag {t[:80]!r}: give KEY=VALUE (at most 200 characters)")
         out[k.strip()] = v.strip()
     return out
+
+
+def _best_of(study, finished) -> None:
+    """The best of several runs by the study's headline best objective (``best_<objective>``), when it has one."""
+    key = f"best_{study.objective}"
+    scored = [(s.headline[key], v) for v, _, s in finished if isinstance(s.headline.get(key), (int, float))]
+    if scored:
+        value, v = max(scored, key=lambda t: t[0])
+        wide_console().print(f"best of the {len(finished)} runs by {key}: {value:.6g} ({v.config_name})")
 
 
 def _print_configs(todo) -> None:

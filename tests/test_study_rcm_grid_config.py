@@ -344,3 +344,33 @@ def test_a_tool_pointing_sideways_is_noted_and_a_map_with_nothing_feasible_says_
     out = " ".join(cli("rcm-grid", *far, "--store", tmp_path, "-q").stdout.split())
     assert "4 of 4 candidates leave workspace points unreachable" in out.replace("│ │", "")
     assert "edge of the box" not in out
+
+
+def test_branches_runs_the_map_once_per_ik_branch(tmp_path):
+    """#28 item 1: --branches finds the shipped UR5e's IK branches (seeds within its limits, distinct solutions at
+    the workspace's centre), runs the map once per branch and names the best overall. Branch 0 is the configured
+    seed's own: its best equals a plain run's; another branch ranks the RCMs differently (the issue's other
+    shoulder branch: a higher best GII elsewhere). The PA10's closed form is refused (its branch is robot.elbow)."""
+    import json
+
+    from surgopt.config import validate
+
+    small = ["workspace.points_per_side=3", "candidates.grid.x_count=13", "candidates.grid.z_count=16"]
+    cfg = validate({"robot": {"model": "ur5e"}, "workspace": {"points_per_side": 3},
+                    "candidates": {"grid": {"x_count": 13, "z_count": 16}}}, S.Config, "x")
+    branches = S.ik_branches(cfg)
+    assert len(branches) >= 2 and all(set(b) == set(branches[0]) for b in branches)
+    r = cli("rcm-grid", "--robot", "ur5e", *small, "--branches", "--store", tmp_path, "-q")
+    assert f"--multirun: {len(branches)} runs" in r.stdout and "best of the" in r.stdout
+    plain = json.loads(cli("rcm-grid", "--robot", "ur5e", *small, "--store", tmp_path / "plain", "-q").stdout
+                       and cli("summarize", "--store", tmp_path / "plain", "--format", "json").stdout)["headline"]
+    names = {r["key"]: r["config_name"].rsplit("branch=", 1)[1]
+             for r in json.loads(cli("runs", "--store", tmp_path, "--format", "json").stdout)}
+    compared = json.loads(cli("runs", "--compare", "--study", "rcm-grid", "--store", tmp_path, "--format", "json").stdout)
+    heads = {names[r["key"]]: r["metrics"] for r in compared}
+    assert any(k.startswith("robot.seed_deg.") for k in compared[0]["params"])  # each run's branch: its seed
+    assert heads["0"]["best_gii"] == pytest.approx(plain["best_gii"], rel=1e-9)
+    assert (heads["0"]["best_x_rcm_m"], heads["0"]["best_z_rcm_m"]) == (plain["best_x_rcm_m"], plain["best_z_rcm_m"])
+    assert max(h["best_gii"] for h in heads.values()) > 1.1 * heads["0"]["best_gii"]
+    bad = cli("rcm-grid", "--branches", "--dry-run", "--store", tmp_path / "none", check=False)
+    assert bad.returncode == 2 and "robot.elbow" in bad.stderr

@@ -66,7 +66,9 @@ class Flag:
     ``config_update`` is merged into the config before the run (``--cull``: ``{"search": "cull"}``);
     ``value_update(value)`` gives the update of a flag with a value (``--robot ur5e``);
     ``follow_up`` names a plan (``surgopt.plans``) that explores the same config after the run, from its
-    rows, stored as a second run named ``<config name><follow_up_suffix>`` (``--refine``).
+    rows, stored as a second run named ``<config name><follow_up_suffix>`` (``--refine``);
+    ``expand(cfg)`` turns one config into several (label, config), each its own run, reported side by side as a
+    --multirun is (``--branches``).
     """
 
     option: str
@@ -76,6 +78,7 @@ class Flag:
     follow_up_suffix: str = ""
     metavar: str | None = None
     value_update: Callable[[str], Mapping[str, Any]] | None = None
+    expand: Callable[[Any], list] | None = None
 
     def update(self, value) -> Mapping[str, Any]:
         """The config update this flag makes when given (``value``: True, or the flag's value)."""

@@ -430,6 +430,63 @@ def why_none_feasible(parts, n: int) -> str:
             f"the tool's length, {singular:,} meet a singular pose)")
 
 
+#: Branch search (``--branches``): random seeds within the joint limits, solutions closer than BRANCH_TOL_DEG in
+#: every joint (angles wrapped) are one branch.
+BRANCH_SAMPLES = 96
+BRANCH_TOL_DEG = 60.0
+#: Candidates tried, nearest the grid's centre first, until one is reached from some seed.
+BRANCH_PROBE_CANDIDATES = 25
+
+
+def ik_branches(cfg: RcmGridConfig) -> list[dict[str, float]]:
+    """The arm's IK branches at a reference candidate (#28): the configured seed's solution first, then every
+    distinct solution (joints in deg) of the RCM inverse kinematics at the workspace's centre reached from
+    BRANCH_SAMPLES seeds drawn within the joint limits (a fixed random stream: the same branches every time).
+    The reference is the candidate nearest the grid's centre that any seed reaches. Generic kernel arms only."""
+    from surgopt.kinematics.serial_chain import rcm_walk
+
+    chain, names, seed = cfg.robot.chain()
+    xyz = candidate_xyz(cfg)
+    order = np.argsort(np.linalg.norm(xyz - xyz.mean(axis=0), axis=1), kind="stable")[:BRANCH_PROBE_CANDIDATES]
+    centre = workspace_offsets(cfg.workspace).mean(axis=0)[None, :]
+    lo = np.where(np.isfinite(chain.lower), chain.lower, -np.pi)
+    hi = np.where(np.isfinite(chain.upper), chain.upper, np.pi)
+    rng = np.random.default_rng(2026)
+    seeds = [np.asarray(seed, float)] + [lo + rng.uniform(size=5) * (hi - lo) for _ in range(BRANCH_SAMPLES)]
+    for c in order:
+        rcm = candidate_rcms(cfg, xyz[c:c + 1])[0]
+        found = []
+        for q0 in seeds:
+            q = rcm_walk(chain, rcm, centre, q0, restarts=np.zeros((0, 5)))["q"][0]
+            if np.all(np.isfinite(q)) and not any(_same_branch(q, f, chain.prismatic) for f in found):
+                found.append(q)
+        if found:
+            return [{n: round(float(v if p else np.degrees(v)), 3) for n, v, p in zip(names, q, chain.prismatic)}
+                    for q in found]
+    return []
+
+
+def _same_branch(a, b, prismatic) -> bool:
+    d = np.where(prismatic > 0, np.abs(a - b) * 1000, np.degrees(np.abs((a - b + np.pi) % (2 * np.pi) - np.pi)))
+    return bool(np.all(d < BRANCH_TOL_DEG))
+
+
+def branch_variants(cfg: RcmGridConfig) -> list[tuple[str, RcmGridConfig]]:
+    """``--branches``: the config once per IK branch (``ik_branches``), each seeded on it: (label, config)."""
+    from surgopt.errors import UsageError
+
+    if cfg.robot.closed_form:
+        raise UsageError("--branches: the PA10's closed form takes its branch from robot.elbow (up or down); "
+                         "branches are searched for the generic kernel's arms (URDF, DH, shipped models)")
+    branches = ik_branches(cfg)
+    if not branches:
+        raise UsageError("--branches: no seed within the joint limits reaches the workspace's centre from any of "
+                         f"the {BRANCH_PROBE_CANDIDATES} candidates nearest the grid's centre")
+    robot = cfg.robot
+    return [(f"branch={k}", cfg.model_copy(update={"robot": robot.model_copy(update={"seed_deg": b})}))
+            for k, b in enumerate(branches)]
+
+
 def robot_flag(value: str) -> dict:
     """``--robot NAME|FILE``: a shipped model by name, or a URDF file (relative to the working directory)."""
     from pathlib import Path
@@ -458,6 +515,9 @@ STUDY = Study(
     flags=(Flag("--cull", "Fast exact argmax with the Culling algorithm (Stocco & Salcudean) instead of "
                           "the full GII map; culled candidates carry an upper bound.",
                 config_update={"search": "cull"}),
+           Flag("--branches", "Find the arm's IK branches (seeds within the joint limits, distinct solutions at "
+                              "the workspace's centre) and run the map once per branch, seeded on it: a table of "
+                              "the best RCM per branch (generic-kernel arms).", expand=branch_variants),
            Flag("--robot", "The arm: a shipped model (pa10_7c, ur5e, panda, lbr_iiwa_14) or a URDF file; "
                            "without a CONFIG, that model's own default study (docs/robots.md).",
                 metavar="NAME|FILE", value_update=robot_flag)))
