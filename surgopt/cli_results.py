@@ -76,7 +76,7 @@ def runs(
         label = " ".join([r.get("name") or ""] + [f"{k}={v}" for k, v in (r.get("tags") or {}).items()]).strip()
         t.add_row(r["study"], r["key"][:12], label, r["config_name"] or "?", r.get("plan") or "?",
                   str(r["rows"] if r["rows"] is not None else "?"), r["state"], r.get("created") or "?")
-    wide_console(100).print(t)
+    wide_console(170).print(t)
 
 
 def _compare(s, study: str | None, fmt) -> None:
