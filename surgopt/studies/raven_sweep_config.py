@@ -5,7 +5,7 @@ from __future__ import annotations
 import math
 from typing import Annotated, Literal, Union
 
-from pydantic import Discriminator, Field, Tag, field_validator, model_validator
+from pydantic import BeforeValidator, Discriminator, Field, Tag, field_validator, model_validator
 
 from surgopt.config import StrictModel
 from surgopt.robots import raven_iv
@@ -46,7 +46,9 @@ def _spec_form(value) -> str:
 #: A sweep parameter: a list of values, or a span {start, stop, step}. The discriminator picks the
 #: form from the input, so an error is reported for that form only (not "Input should be a valid list").
 ParamSpec = Annotated[Union[Annotated[list[float], Field(min_length=1, max_length=10_000), Tag("<list>")],
-                            Annotated[Span, Tag("<span>")]], Discriminator(_spec_form)]
+                            Annotated[Span, Tag("<span>")]], Discriminator(_spec_form),
+                      BeforeValidator(lambda v: [v] if isinstance(v, (int, float)) and not isinstance(v, bool) else v)]
+#: (a single number is the list of that value: sweep.iso_min=0.5, or sweep.iso_min=0.3,0.5,0.7 with --multirun)
 
 
 def values(spec: ParamSpec) -> list[float]:
