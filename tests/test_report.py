@@ -80,10 +80,11 @@ def test_check_fails_on_a_perturbed_baseline(store, tmp_path, name):
     assert cli("check", BASE / f"{name}.toml", "--baseline", bad, "--store", store, "--rtol", "1e-5").returncode == 0
 
 
-def test_check_takes_overrides(store, tmp_path):
+def test_check_takes_overrides(tmp_path):
     """#27 item 10: KEY=VALUE after the config, as for the study commands: one that changes the rows fails the
-    baseline, one equal to the config's value is the same run and passes."""
-    args = ["check", BASE / "rcm_small.toml", "--baseline", BASE / "rcm_small.parquet", "--store", store]
+    baseline, one equal to the config's value is the same run and passes. (Its own store: the module's shared
+    one must keep exactly the baselines' runs.)"""
+    args = ["check", BASE / "rcm_small.toml", "--baseline", BASE / "rcm_small.parquet", "--store", tmp_path / "s"]
     r = cli(*args, "robot.tool_length_m=0.5", check=False)
     assert r.returncode == 1 and "value(s) differ" in r.stdout
     assert cli(*args, "robot.tool_length_m=0.587").stdout.startswith("OK:")
