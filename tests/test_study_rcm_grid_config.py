@@ -374,3 +374,28 @@ def test_branches_runs_the_map_once_per_ik_branch(tmp_path):
     assert max(h["best_gii"] for h in heads.values()) > 1.1 * heads["0"]["best_gii"]
     bad = cli("rcm-grid", "--branches", "--dry-run", "--store", tmp_path / "none", check=False)
     assert bad.returncode == 2 and "robot.elbow" in bad.stderr
+
+
+
+def test_an_unseeded_urdf_arm_is_given_a_seed_that_works_or_told_why_none_does(tmp_path):
+    """#28 item 2: the PA10 URDF with W1 held negative: the all-zero seed (with the run's restarts) reaches none of
+    the candidates near the grid's centre and the map finds few feasible candidates; the branch search offers a
+    seed that reaches them, and the map seeded with it finds more. With E1 held negative no seed within the
+    limits reaches the workspace: one line says so and what to check."""
+    import re
+
+    (tmp_path / "pa10.urdf").write_text(PA10_URDF)
+    small = ["workspace.points_per_side=3", "candidates.grid.x_count=25", "candidates.grid.z_count=25"]
+    arm = ["--robot", "pa10.urdf", "robot.tool_length_m=0.587", "robot.locked_joints_deg={S3=0.0,W2=0.0}", *small]
+    neg_w1 = [*arm, "robot.range_override_deg={W1=[-120,-20]}"]
+    feasible = lambda out: int(re.search(r"│ feasible\s+│ (\d+)", out).group(1))  # noqa: E731
+    r = cli("rcm-grid", *neg_w1, "--store", tmp_path / "a", "-q", cwd=tmp_path)
+    assert "the all-zero seed (with its restarts) reaches none of the 25 candidates nearest the grid's centre" \
+        in r.stderr
+    seed = re.search(r"robot.seed_deg = (\{[^}]*\})", r.stderr).group(1).replace(" ", "")
+    seeded = cli("rcm-grid", *neg_w1, f"robot.seed_deg={seed}", "--store", tmp_path / "b", "-q", cwd=tmp_path)
+    assert "seed_deg" not in seeded.stderr
+    assert feasible(seeded.stdout) > 1.5 * feasible(r.stdout), (feasible(seeded.stdout), feasible(r.stdout))
+    none = cli("rcm-grid", *arm, "robot.range_override_deg={E1=[-150,-30]}", "--dry-run", "--store", tmp_path / "c",
+               cwd=tmp_path)
+    assert "no seed within the joint limits (96 tried) reaches the workspace's centre" in none.stderr

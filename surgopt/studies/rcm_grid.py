@@ -439,10 +439,16 @@ BRANCH_PROBE_CANDIDATES = 25
 
 
 def ik_branches(cfg: RcmGridConfig) -> list[dict[str, float]]:
-    """The arm's IK branches at a reference candidate (#28): the configured seed's solution first, then every
-    distinct solution (joints in deg) of the RCM inverse kinematics at the workspace's centre reached from
-    BRANCH_SAMPLES seeds drawn within the joint limits (a fixed random stream: the same branches every time).
-    The reference is the candidate nearest the grid's centre that any seed reaches. Generic kernel arms only."""
+    """The arm's IK branches at a reference candidate (#28): the configured seed's solution first (when it
+    converges), then every distinct solution (joints in deg) of the RCM inverse kinematics at the workspace's
+    centre reached from BRANCH_SAMPLES seeds drawn within the joint limits (a fixed random stream: the same
+    branches every time). The reference is the candidate nearest the grid's centre that any seed reaches.
+    Generic kernel arms only."""
+    return _branch_search(cfg)[0]
+
+
+def _branch_search(cfg: RcmGridConfig) -> tuple[list[dict[str, float]], bool]:
+    """(``ik_branches``, whether the configured seed itself reached the reference candidate)."""
     from surgopt.kinematics.serial_chain import rcm_walk
 
     chain, names, seed = cfg.robot.chain()
@@ -455,15 +461,41 @@ def ik_branches(cfg: RcmGridConfig) -> list[dict[str, float]]:
     seeds = [np.asarray(seed, float)] + [lo + rng.uniform(size=5) * (hi - lo) for _ in range(BRANCH_SAMPLES)]
     for c in order:
         rcm = candidate_rcms(cfg, xyz[c:c + 1])[0]
-        found = []
-        for q0 in seeds:
-            q = rcm_walk(chain, rcm, centre, q0, restarts=np.zeros((0, 5)))["q"][0]
-            if np.all(np.isfinite(q)) and not any(_same_branch(q, f, chain.prismatic) for f in found):
-                found.append(q)
+        found, seed_reached = [], False
+        for k, q0 in enumerate(seeds):  # the configured seed with the run's own restarts around it; samples alone
+            q = rcm_walk(chain, rcm, centre, q0, restarts=None if k == 0 else np.zeros((0, 5)))["q"][0]
+            if np.all(np.isfinite(q)):
+                seed_reached |= k == 0
+                if not any(_same_branch(q, f, chain.prismatic) for f in found):
+                    found.append(q)
         if found:
-            return [{n: round(float(v if p else np.degrees(v)), 3) for n, v, p in zip(names, q, chain.prismatic)}
-                    for q in found]
-    return []
+            return ([{n: round(float(v if p else np.degrees(v)), 3) for n, v, p in zip(names, q, chain.prismatic)}
+                     for q in found], seed_reached)
+    return [], False
+
+
+def seed_advice(cfg: RcmGridConfig) -> list[str]:
+    """For a URDF or DH arm given no seed_deg (#28 item 2): which branch its walk takes, and when the all-zero
+    seed reaches nothing near the grid's centre, a seed that does (found by the branch search) or, when none
+    does, one line on why."""
+    r = cfg.robot
+    if (r.urdf is None and r.dh is None) or r.seed_deg:
+        return []
+    branches, seed_reached = _branch_search(cfg)
+    if seed_reached:
+        which = ("the only branch found" if len(branches) == 1 else
+                 f"one of {len(branches)} branches found (another ranks the RCMs differently: --branches runs them "
+                 f"all)")
+        return [f"robot: no seed_deg: the inverse kinematics starts from every active joint at 0, {which} at the "
+                f"grid's centre; give robot.seed_deg on the branch you mean (docs/robots.md)"]
+    if branches:
+        seed = "{" + ", ".join(f"{n} = {v:g}" for n, v in branches[0].items()) + "}"
+        return [f"robot: no seed_deg, and the all-zero seed (with its restarts) reaches none of the "
+                f"{BRANCH_PROBE_CANDIDATES} candidates nearest the grid's centre; robot.seed_deg = {seed} reaches one "
+                f"(one of {len(branches)} branch(es) found; --branches runs them all)"]
+    return [f"robot: no seed within the joint limits ({BRANCH_SAMPLES} tried) reaches the workspace's centre from "
+            f"any of the {BRANCH_PROBE_CANDIDATES} candidates nearest the grid's centre: check robot.tool_length_m, "
+            f"workspace.depth_below_rcm_m, the locked joints and the candidate grid"]
 
 
 def _same_branch(a, b, prismatic) -> bool:
@@ -511,7 +543,7 @@ STUDY = Study(
     help=HELP, config_help=CONFIG_HELP, schema=schema, key_columns=KEY_COLUMNS, objective=OBJECTIVE,
     auto_chunk=auto_chunk, n_tasks=n_tasks, warm_up=warm_up, compute_task=compute_task, summary=summary,
     feasible_mask=feasible_mask, figures=figures_in("rcm_grid"), estimate=estimate, search_plan=search_plan,
-    evaluate=evaluate_designs, design_box=design_box, cull=lambda cfg: cull_search(cfg), advice=lambda cfg: cfg.robot.advice(),
+    evaluate=evaluate_designs, design_box=design_box, cull=lambda cfg: cull_search(cfg), advice=lambda cfg: cfg.robot.tool_axis_advice() + seed_advice(cfg),
     flags=(Flag("--cull", "Fast exact argmax with the Culling algorithm (Stocco & Salcudean) instead of "
                           "the full GII map; culled candidates carry an upper bound.",
                 config_update={"search": "cull"}),

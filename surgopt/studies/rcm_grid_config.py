@@ -362,19 +362,6 @@ class Robot(StrictModel):
         angle = float(np.arctan2(np.linalg.norm(np.cross(axis, k)), abs(float(axis @ k))))
         return angle, float(np.linalg.norm(d - (d @ axis) * axis))
 
-    def advice(self) -> list[str]:
-        """What the CLI says before a run of this arm (``Study.advice``): a sideways tool, an unchosen IK branch."""
-        return self.tool_axis_advice() + self.branch_advice()
-
-    def branch_advice(self) -> list[str]:
-        """A URDF or DH arm given no seed_deg starts its IK walk from every joint at 0, which picks one branch of
-        several (elbow, shoulder, wrist): say so, since another branch can rank the RCMs differently (#28)."""
-        if (self.urdf is None and self.dh is None) or self.seed_deg:
-            return []
-        return ["robot: no seed_deg: the inverse kinematics starts from every active joint at 0, which picks one of "
-                "the arm's branches (elbow, shoulder, wrist); another seed can find another branch and rank the RCMs "
-                "differently: give robot.seed_deg = {joint = deg, ...} on the branch you mean (docs/robots.md)"]
-
     def tool_axis_advice(self) -> list[str]:
         """A word when the arm's last joint is locked but does not turn about the tool's axis (#28 item 3): on
         a wrist whose last joint spins the flange, that means the tool points sideways (a wrong tool_axis, or a
