@@ -187,8 +187,6 @@ def _worker_setup(cache_dir: str, study_name: str, cfg) -> str:
     return os.environ["NUMBA_CACHE_DIR"]
 
 
-
-
 def _prepare_dask_workers(client, study_name: str, cfg) -> None:
     """Compile or load the kernels on one worker first, then on the rest, so that workers sharing a
     cache folder find it written instead of all compiling into it at once."""

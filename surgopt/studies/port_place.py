@@ -398,6 +398,12 @@ def port_tables(cfg: PortPlaceConfig, sites: np.ndarray, rot: np.ndarray, outsid
     return tables, reach, dex
 
 
+@lru_cache(maxsize=4)
+def _sites_m(cfg_json: str) -> np.ndarray:
+    """The candidate sites (m) of a config, once per process (a search's tasks share them)."""
+    return sites_mm(PortPlaceConfig.model_validate_json(cfg_json)) / 1000
+
+
 def tables(cfg: PortPlaceConfig):
     """(sites m, ``PortTables``, ``Criteria``, reach[site, point], isotropy[site, point]) of a config (memoised
     per process)."""
@@ -529,7 +535,8 @@ def evaluate_designs(cfg, x: np.ndarray, ids: np.ndarray, source: str) -> dict:
     from surgopt.kinematics import port_place as K
 
     x = np.asarray(x, dtype=np.float64).reshape(len(ids), -1)
-    all_sites = tables(cfg)[0]
+    all_sites = _sites_m(cfg.model_dump_json())  # not tables(cfg): a worker needs the sites, not every pair
+    crit = criteria(cfg)
     centre = np.asarray(cfg.target.centre_mm, float) / 1000
     out = []
     for r in range(x.shape[0]):
@@ -540,7 +547,7 @@ def evaluate_designs(cfg, x: np.ndarray, ids: np.ndarray, source: str) -> dict:
                               np.radians([docking[1], docking[3], 0.0]))
         outside = K.external_clearances(sites, np.ascontiguousarray(rot[:, :, 2]), dvrk.OUTSIDE_LENGTH_M)
         t, _, _ = port_tables(cfg, sites, rot, outside)
-        local, f, bad, cost = K.design_columns(t, criteria(cfg), 0, 1)
+        local, f, bad, cost = K.design_columns(t, crit, 0, 1)
         out.append(design_rows(cfg, sites, t, local, site_ids[None, :], f, bad, cost,
                                np.asarray(ids[r:r + 1], dtype=np.int64), docking[None, :]))
     from surgopt.plans import concat_rows

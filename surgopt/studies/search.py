@@ -277,11 +277,6 @@ def _rewrite_journal(path, plan: SearchPlan, trials: list) -> None:
         tmp.unlink(missing_ok=True)
 
 
-def ask(study, plan: SearchPlan, n: int) -> list:
-    dists = distributions(plan.space)
-    return [study.ask(dists) for _ in range(n)]
-
-
 def tell(study, trials, values: list[list[float]]) -> None:
     import optuna
 
