@@ -109,19 +109,14 @@ def _run_study_command(study, args, store, jobs, force, quiet, chunk_size=None, 
         flags_text = " ".join(f"{f.option} {v}" for f, v in flags if f.value_update is not None)
         flags = [f for f, _ in flags]
         todo = variants(study, config, overrides, updates, multirun=multirun, flags_text=flags_text)
-        for f in flags:
-            if f.expand is not None:  # one config into several runs (--branches), reported like a --multirun
-                from surgopt.compose import Variant
-
-                todo = [Variant(c, f"{v.config_name}+{label}", {**v.varied, **dict([label.split("=", 1)])})
-                        for v in todo for label, c in f.expand(v.config)]
+        todo = _expanded(study, todo, flags)
         if print_config:
             _print_configs(todo)
             return
         budget = dict(max_hours=max_hours, max_memory_bytes=None if max_memory_gb is None else int(max_memory_gb * 2 ** 30))
-        for v in todo if study.advice else ():
-            for note in study.advice(v.config):
-                typer.echo(f"note: {note}", err=True)
+        notes = [n for v in todo if study.advice for n in study.advice(v.config)]
+        for note in dict.fromkeys(notes):  # once each, in order (the runs of a --multirun often share one)
+            typer.echo(f"note: {note}", err=True)
         if dry_run:
             _dry_run(study, todo, Store(store), jobs, chunk_size, budget, backend, scheduler)
             return
@@ -146,6 +141,37 @@ def _run_study_command(study, args, store, jobs, force, quiet, chunk_size=None, 
         if len(todo) > 1:
             _multirun_table(study, finished)
             _best_of(study, finished)
+
+
+def _expanded(study, todo, flags) -> list:
+    """Each config into several runs where a flag expands it (``--branches``), given or implied by the config
+    (said in a note; an implied expansion that finds nothing leaves the config as it is, its advice says why)."""
+    from surgopt.compose import Variant
+    from surgopt.errors import UsageError
+
+    given = {id(f) for f in flags}
+    for f in study.flags:
+        if f.expand is None:
+            continue
+        out = []
+        for v in todo:
+            why = None if id(f) in given or f.implied is None else f.implied(v.config)
+            if id(f) not in given and why is None:
+                out.append(v)
+                continue
+            try:
+                pairs = f.expand(v.config)
+            except UsageError:
+                if why is None:
+                    raise
+                out.append(v)
+                continue
+            if why is not None:
+                typer.echo(f"note: {why} ({len(pairs)} runs; {f.option} is implied)", err=True)
+            out += [Variant(c, f"{v.config_name}+{label}", {**v.varied, **dict([label.split("=", 1)])})
+                    for label, c in pairs]
+        todo = out
+    return todo
 
 
 def _tags(given: list[str] | None) -> dict[str, str] | None:

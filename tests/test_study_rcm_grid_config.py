@@ -2,6 +2,7 @@
 --robot, y candidates; every URDF and DH error through the CLI (exit 2, file and field named, nothing
 written)."""
 import json
+import math
 from pathlib import Path
 
 import numpy as np
@@ -332,13 +333,17 @@ def test_a_tool_pointing_sideways_is_noted_and_a_map_with_nothing_feasible_says_
         in r.stderr
     for model in ("ur5e", "panda", "lbr_iiwa_14"):
         assert "note:" not in cli("rcm-grid", "--robot", model, "--dry-run", "--store", tmp_path).stderr
-    # a URDF given no seed_deg: the branch the walk takes is said to be a choice (#27 item 10, #28)
+    # a URDF given no seed_deg has no branch chosen: the map runs once per IK branch (#27 item 10, #28 item 1)
     (tmp_path / "pa10.urdf").write_text(PA10_URDF)
     arm = ["--robot", "pa10.urdf", "robot.tool_length_m=0.587", "robot.locked_joints_deg={S3=0.0,W2=0.0}"]
     r = cli("rcm-grid", *arm, "--dry-run", "--store", tmp_path, cwd=tmp_path)
-    assert "note: robot: no seed_deg: the inverse kinematics starts from every active joint at 0" in r.stderr
+    n = len(S.ik_branches(validate({"robot": {"urdf": str(tmp_path / "pa10.urdf"), "tool_length_m": 0.587,
+                                              "locked_joints_deg": {"S3": 0.0, "W2": 0.0}}}, S.Config, "x")))
+    assert n >= 1 and f"note: robot: no seed_deg: the map runs once per IK branch found at the grid's centre, " \
+        f"seeded on it (give robot.seed_deg to run one branch) ({n} runs; --branches is implied)" in r.stderr
+    assert r.stdout.count("+branch=") == n  # the dry-run's table: one run per branch
     r = cli("rcm-grid", *arm, "robot.seed_deg={S2=30.0,E1=90.0,W1=60.0}", "--dry-run", "--store", tmp_path, cwd=tmp_path)
-    assert "seed_deg" not in r.stderr
+    assert "seed_deg" not in r.stderr and "branch" not in r.stdout
     far = ["candidates.grid.x_min_m=1.4", "candidates.grid.x_max_m=1.5", "candidates.grid.x_count=2",
            "candidates.grid.z_count=2", "workspace.points_per_side=3"]
     out = " ".join(cli("rcm-grid", *far, "--store", tmp_path, "-q").stdout.split())
@@ -377,25 +382,64 @@ def test_branches_runs_the_map_once_per_ik_branch(tmp_path):
 
 
 
-def test_an_unseeded_urdf_arm_is_given_a_seed_that_works_or_told_why_none_does(tmp_path):
-    """#28 item 2: the PA10 URDF with W1 held negative: the all-zero seed (with the run's restarts) reaches none of
-    the candidates near the grid's centre and the map finds few feasible candidates; the branch search offers a
-    seed that reaches them, and the map seeded with it finds more. With E1 held negative no seed within the
-    limits reaches the workspace: one line says so and what to check."""
-    import re
-
+def test_an_unseeded_urdf_arm_runs_the_branches_the_search_finds_or_is_told_why_none_works(tmp_path):
+    """#28 items 1-2: the PA10 URDF with W1 held negative: the all-zero seed (with the run's restarts) finds few
+    feasible candidates; without seed_deg the command line runs the map once per branch the search finds (seeds
+    within the limits), and the best of those finds far more. With E1 held negative no seed within the limits
+    reaches the workspace: one line says so and what to check, and the one run is left as it is."""
     (tmp_path / "pa10.urdf").write_text(PA10_URDF)
-    small = ["workspace.points_per_side=3", "candidates.grid.x_count=25", "candidates.grid.z_count=25"]
+    small = ["workspace.points_per_side=3", "candidates.grid.x_count=25", "candidates.grid.z_count=25",
+             "candidates.grid.x_min_m=0.2", "candidates.grid.x_max_m=0.8", "candidates.grid.z_min_m=-0.6",
+             "candidates.grid.z_max_m=0.0"]
     arm = ["--robot", "pa10.urdf", "robot.tool_length_m=0.587", "robot.locked_joints_deg={S3=0.0,W2=0.0}", *small]
     neg_w1 = [*arm, "robot.range_override_deg={W1=[-120,-20]}"]
-    feasible = lambda out: int(re.search(r"│ feasible\s+│ (\d+)", out).group(1))  # noqa: E731
-    r = cli("rcm-grid", *neg_w1, "--store", tmp_path / "a", "-q", cwd=tmp_path)
-    assert "the all-zero seed (with its restarts) reaches none of the 25 candidates nearest the grid's centre" \
-        in r.stderr
-    seed = re.search(r"robot.seed_deg = (\{[^}]*\})", r.stderr).group(1).replace(" ", "")
-    seeded = cli("rcm-grid", *neg_w1, f"robot.seed_deg={seed}", "--store", tmp_path / "b", "-q", cwd=tmp_path)
-    assert "seed_deg" not in seeded.stderr
-    assert feasible(seeded.stdout) > 1.5 * feasible(r.stdout), (feasible(seeded.stdout), feasible(r.stdout))
+
+    def feasible(store):
+        runs = json.loads(cli("runs", "--compare", "--study", "rcm-grid", "--store", store, "--format", "json").stdout)
+        return [r["metrics"]["feasible"] for r in runs]
+
+    zero = cli("rcm-grid", *neg_w1, "robot.seed_deg={S2=0.0}", "--store", tmp_path / "a", "-q", cwd=tmp_path)
+    assert "branch" not in zero.stdout
+    r = cli("rcm-grid", *neg_w1, "--store", tmp_path / "b", "-q", cwd=tmp_path)
+    assert "--branches is implied" in r.stderr and "sized from the arm's reach" not in r.stderr
+    (zero_feasible,), branch_feasible = feasible(tmp_path / "a"), feasible(tmp_path / "b")
+    assert len(branch_feasible) >= 1 and max(branch_feasible) > 1.5 * zero_feasible, (branch_feasible, zero_feasible)
     none = cli("rcm-grid", *arm, "robot.range_override_deg={E1=[-150,-30]}", "--dry-run", "--store", tmp_path / "c",
                cwd=tmp_path)
     assert "no seed within the joint limits (96 tried) reaches the workspace's centre" in none.stderr
+    assert "implied" not in none.stderr and "branch" not in none.stdout
+
+
+UR5E_DH = [{"name": n, "a_m": a, "alpha_deg": al, "d_m": d, "lower_deg": -360.0, "upper_deg": 360.0,
+            "max_speed_rad_s": math.pi} for n, a, al, d in (
+    ("shoulder_pan", 0.0, 90.0, 0.1625), ("shoulder_lift", -0.425, 0.0, 0.0), ("elbow", -0.3922, 0.0, 0.0),
+    ("wrist_1", 0.0, 90.0, 0.1333), ("wrist_2", 0.0, -90.0, 0.0997), ("wrist_3", 0.0, 0.0, 0.0996))]
+
+
+def test_a_file_arms_default_grid_covers_its_reach(tmp_path):
+    """#28 item 5: a DH (or URDF) arm given no candidate grid gets one sized from its reach, not the PA10's.
+    The UR5e as a DH table (the shipped model's seed, so one branch): on the PA10's old grid (x 0.2-0.8,
+    z -0.6-0) its best lands on the z edge; on the reach-sized grid no feasible candidate lies on the box's
+    outer edges (the disc holds every RCM the tool can hold) and the best is the shipped model's, near
+    (0.34, -0.84) m. Counts given alone keep the reach's ranges."""
+    import surgopt
+
+    robot = {"dh": UR5E_DH, "locked_joints_deg": {"wrist_3": 0.0}, "tool_length_m": 0.3,
+             "seed_deg": {"shoulder_pan": 163.0, "shoulder_lift": -95.0, "elbow": 115.0, "wrist_1": -110.0,
+                          "wrist_2": -90.0}}
+    cfg = validate({"robot": robot}, S.Config, "x")
+    g = cfg.candidates.grid
+    assert cfg.grid_from_reach and g.x_min_m == 0.0 and g.x_max_m >= 1.2 and g.z_min_m <= -1.1 and g.z_max_m >= 1.4
+    assert "sized from the arm's reach" in S.reach_grid_advice(cfg)[0]
+    counts = validate({"robot": robot, "candidates": {"grid": {"x_count": 5}}}, S.Config, "x").candidates.grid
+    assert counts.x_count == 5 and (counts.x_max_m, counts.z_min_m, counts.z_count) == (g.x_max_m, g.z_min_m, g.z_count)
+    assert not validate({"robot": {"model": "ur5e"}}, S.Config, "x").grid_from_reach  # shipped models keep theirs
+    (tmp_path / "ur5e_dh.yaml").write_text(json.dumps({"robot": robot, "workspace": {"points_per_side": 5}}))
+    df = surgopt.run("rcm-grid", tmp_path / "ur5e_dh.yaml", store=tmp_path / "s")
+    ok = df[df.feasible]
+    assert len(ok) > 100
+    assert ok.x_rcm_m.max() < g.x_max_m and ok.z_rcm_m.min() > g.z_min_m and ok.z_rcm_m.max() < g.z_max_m
+    best = ok.loc[ok.gii.idxmax()]
+    assert abs(best.x_rcm_m - 0.34) < 0.06 and abs(best.z_rcm_m + 0.84) < 0.06, best
+    old = ok[(ok.x_rcm_m >= 0.2) & (ok.x_rcm_m <= 0.8) & (ok.z_rcm_m >= -0.6) & (ok.z_rcm_m <= 0.0)]
+    assert old.loc[old.gii.idxmax()].z_rcm_m <= -0.6 + 0.03  # the old default's best sits on its z edge

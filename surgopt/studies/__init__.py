@@ -68,7 +68,8 @@ class Flag:
     ``follow_up`` names a plan (``surgopt.plans``) that explores the same config after the run, from its
     rows, stored as a second run named ``<config name><follow_up_suffix>`` (``--refine``);
     ``expand(cfg)`` turns one config into several (label, config), each its own run, reported side by side as a
-    --multirun is (``--branches``).
+    --multirun is (``--branches``); ``implied(cfg)``: a reason the expansion applies without the flag (rcm-grid:
+    an unseeded URDF or DH arm runs once per IK branch), or None.
     """
 
     option: str
@@ -79,6 +80,7 @@ class Flag:
     metavar: str | None = None
     value_update: Callable[[str], Mapping[str, Any]] | None = None
     expand: Callable[[Any], list] | None = None
+    implied: Callable[[Any], str | None] | None = None
 
     def update(self, value) -> Mapping[str, Any]:
         """The config update this flag makes when given (``value``: True, or the flag's value)."""

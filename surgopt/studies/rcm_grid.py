@@ -434,7 +434,7 @@ def why_none_feasible(parts, n: int) -> str:
 #: every joint (angles wrapped) are one branch.
 BRANCH_SAMPLES = 96
 BRANCH_TOL_DEG = 60.0
-#: Candidates tried, nearest the grid's centre first, until one is reached from some seed.
+#: Candidates tried, this many nearest the grid's centre, then as many spread over the grid, until one is reached.
 BRANCH_PROBE_CANDIDATES = 25
 
 
@@ -442,60 +442,82 @@ def ik_branches(cfg: RcmGridConfig) -> list[dict[str, float]]:
     """The arm's IK branches at a reference candidate (#28): the configured seed's solution first (when it
     converges), then every distinct solution (joints in deg) of the RCM inverse kinematics at the workspace's
     centre reached from BRANCH_SAMPLES seeds drawn within the joint limits (a fixed random stream: the same
-    branches every time). The reference is the candidate nearest the grid's centre that any seed reaches.
-    Generic kernel arms only."""
-    return _branch_search(cfg)[0]
+    branches every time). The reference is the first candidate some seed reaches, trying the
+    BRANCH_PROBE_CANDIDATES nearest the grid's centre, then as many spread over the rest of the grid.
+    Searched once per arm, workspace and grid in a process. Generic kernel arms only."""
+    import json
+
+    key = json.dumps(cfg.model_dump(mode="json", include={"robot", "workspace", "candidates"}), sort_keys=True)
+    if key not in _BRANCHES:
+        _BRANCHES[key] = _search_branches(cfg)
+    return _BRANCHES[key]
 
 
-def _branch_search(cfg: RcmGridConfig) -> tuple[list[dict[str, float]], bool]:
-    """(``ik_branches``, whether the configured seed itself reached the reference candidate)."""
+_BRANCHES: dict = {}
+
+
+def _probe_order(xyz: np.ndarray) -> np.ndarray:
+    """Candidate indices for the branch search: the nearest the grid's centre, then a spread over the rest."""
+    by_distance = np.argsort(np.linalg.norm(xyz - xyz.mean(axis=0), axis=1), kind="stable")
+    near, rest = by_distance[:BRANCH_PROBE_CANDIDATES], by_distance[BRANCH_PROBE_CANDIDATES:]
+    spread = rest[np.unique(np.linspace(0, len(rest) - 1, min(len(rest), BRANCH_PROBE_CANDIDATES)).astype(int))]
+    return np.concatenate([near, spread]) if len(rest) else near
+
+
+def _search_branches(cfg: RcmGridConfig) -> list[dict[str, float]]:
     from surgopt.kinematics.serial_chain import rcm_walk
 
     chain, names, seed = cfg.robot.chain()
     xyz = candidate_xyz(cfg)
-    order = np.argsort(np.linalg.norm(xyz - xyz.mean(axis=0), axis=1), kind="stable")[:BRANCH_PROBE_CANDIDATES]
     centre = workspace_offsets(cfg.workspace).mean(axis=0)[None, :]
     lo = np.where(np.isfinite(chain.lower), chain.lower, -np.pi)
     hi = np.where(np.isfinite(chain.upper), chain.upper, np.pi)
     rng = np.random.default_rng(2026)
     seeds = [np.asarray(seed, float)] + [lo + rng.uniform(size=5) * (hi - lo) for _ in range(BRANCH_SAMPLES)]
-    for c in order:
+    for c in _probe_order(xyz):
         rcm = candidate_rcms(cfg, xyz[c:c + 1])[0]
-        found, seed_reached = [], False
+        found = []
         for k, q0 in enumerate(seeds):  # the configured seed with the run's own restarts around it; samples alone
             q = rcm_walk(chain, rcm, centre, q0, restarts=None if k == 0 else np.zeros((0, 5)))["q"][0]
-            if np.all(np.isfinite(q)):
-                seed_reached |= k == 0
-                if not any(_same_branch(q, f, chain.prismatic) for f in found):
-                    found.append(q)
+            if np.all(np.isfinite(q)) and not any(_same_branch(q, f, chain.prismatic) for f in found):
+                found.append(q)
         if found:
-            return ([{n: round(float(v if p else np.degrees(v)), 3) for n, v, p in zip(names, q, chain.prismatic)}
-                     for q in found], seed_reached)
-    return [], False
+            return [{n: round(float(v if p else np.degrees(v)), 3) for n, v, p in zip(names, q, chain.prismatic)}
+                    for q in found]
+    return []
 
 
 def seed_advice(cfg: RcmGridConfig) -> list[str]:
-    """For a URDF or DH arm given no seed_deg (#28 item 2): which branch its walk takes, and when the all-zero
-    seed reaches nothing near the grid's centre, a seed that does (found by the branch search) or, when none
-    does, one line on why."""
+    """For a URDF or DH arm given no seed_deg (#28 item 2) for which the branch search finds nothing (when it
+    finds branches the command line runs each, seeded on it): one line on why no seed works."""
+    r = cfg.robot
+    if (r.urdf is None and r.dh is None) or r.seed_deg or ik_branches(cfg):
+        return []
+    return [f"robot: no seed within the joint limits ({BRANCH_SAMPLES} tried) reaches the workspace's centre from "
+            f"any of {min(len(candidate_xyz(cfg)), 2 * BRANCH_PROBE_CANDIDATES)} candidates near the grid's centre "
+            f"and spread over it: check robot.tool_length_m, workspace.depth_below_rcm_m, the locked joints and the "
+            f"candidate grid"]
+
+
+def unseeded_file_arm(cfg: RcmGridConfig) -> str | None:
+    """Why ``--branches`` applies without the flag (#28 item 1): a URDF or DH arm given no seed_deg has no branch
+    chosen for it, so the command line runs the map once per branch found and reports each and the best."""
     r = cfg.robot
     if (r.urdf is None and r.dh is None) or r.seed_deg:
+        return None
+    return ("robot: no seed_deg: the map runs once per IK branch found at the grid's centre, seeded on it "
+            "(give robot.seed_deg to run one branch)")
+
+
+def reach_grid_advice(cfg: RcmGridConfig) -> list[str]:
+    """Says where a URDF or DH arm's candidate grid came from when the config left it out (#28 item 5)."""
+    g = cfg.candidates.grid
+    if g is None or not getattr(cfg, "grid_from_reach", False):
         return []
-    branches, seed_reached = _branch_search(cfg)
-    if seed_reached:
-        which = ("the only branch found" if len(branches) == 1 else
-                 f"one of {len(branches)} branches found (another ranks the RCMs differently: --branches runs them "
-                 f"all)")
-        return [f"robot: no seed_deg: the inverse kinematics starts from every active joint at 0, {which} at the "
-                f"grid's centre; give robot.seed_deg on the branch you mean (docs/robots.md)"]
-    if branches:
-        seed = "{" + ", ".join(f"{n} = {v:g}" for n, v in branches[0].items()) + "}"
-        return [f"robot: no seed_deg, and the all-zero seed (with its restarts) reaches none of the "
-                f"{BRANCH_PROBE_CANDIDATES} candidates nearest the grid's centre; robot.seed_deg = {seed} reaches one "
-                f"(one of {len(branches)} branch(es) found; --branches runs them all)"]
-    return [f"robot: no seed within the joint limits ({BRANCH_SAMPLES} tried) reaches the workspace's centre from "
-            f"any of the {BRANCH_PROBE_CANDIDATES} candidates nearest the grid's centre: check robot.tool_length_m, "
-            f"workspace.depth_below_rcm_m, the locked joints and the candidate grid"]
+    step = (g.z_max_m - g.z_min_m) / max(1, g.z_count - 1) * 1000
+    return [f"candidates: sized from the arm's reach: x {g.x_min_m:g} to {g.x_max_m:g} m, z {g.z_min_m:g} to "
+            f"{g.z_max_m:g} m, {step:.0f} mm apart ({g.x_count * g.z_count:,} candidates, every RCM the tool can "
+            f"hold; give candidates.grid to choose)"]
 
 
 def _same_branch(a, b, prismatic) -> bool:
@@ -513,7 +535,7 @@ def branch_variants(cfg: RcmGridConfig) -> list[tuple[str, RcmGridConfig]]:
     branches = ik_branches(cfg)
     if not branches:
         raise UsageError("--branches: no seed within the joint limits reaches the workspace's centre from any of "
-                         f"the {BRANCH_PROBE_CANDIDATES} candidates nearest the grid's centre")
+                         "the candidates tried near the grid's centre and spread over it")
     robot = cfg.robot
     return [(f"branch={k}", cfg.model_copy(update={"robot": robot.model_copy(update={"seed_deg": b})}))
             for k, b in enumerate(branches)]
@@ -543,13 +565,15 @@ STUDY = Study(
     help=HELP, config_help=CONFIG_HELP, schema=schema, key_columns=KEY_COLUMNS, objective=OBJECTIVE,
     auto_chunk=auto_chunk, n_tasks=n_tasks, warm_up=warm_up, compute_task=compute_task, summary=summary,
     feasible_mask=feasible_mask, figures=figures_in("rcm_grid"), estimate=estimate, search_plan=search_plan,
-    evaluate=evaluate_designs, design_box=design_box, cull=lambda cfg: cull_search(cfg), advice=lambda cfg: cfg.robot.tool_axis_advice() + seed_advice(cfg),
+    evaluate=evaluate_designs, design_box=design_box, cull=lambda cfg: cull_search(cfg),
+    advice=lambda cfg: cfg.robot.tool_axis_advice() + reach_grid_advice(cfg) + seed_advice(cfg),
     flags=(Flag("--cull", "Fast exact argmax with the Culling algorithm (Stocco & Salcudean) instead of "
                           "the full GII map; culled candidates carry an upper bound.",
                 config_update={"search": "cull"}),
            Flag("--branches", "Find the arm's IK branches (seeds within the joint limits, distinct solutions at "
                               "the workspace's centre) and run the map once per branch, seeded on it: a table of "
-                              "the best RCM per branch (generic-kernel arms).", expand=branch_variants),
+                              "the best RCM per branch (generic-kernel arms; implied for a URDF or DH arm "
+                              "given no robot.seed_deg).", expand=branch_variants, implied=unseeded_file_arm),
            Flag("--robot", "The arm: a shipped model (pa10_7c, ur5e, panda, lbr_iiwa_14) or a URDF file; "
                            "without a CONFIG, that model's own default study (docs/robots.md).",
                 metavar="NAME|FILE", value_update=robot_flag)))

@@ -15,7 +15,7 @@ import math
 from pathlib import Path
 from typing import Annotated, Literal
 
-from pydantic import Field, ValidationInfo, model_validator
+from pydantic import Field, PrivateAttr, ValidationInfo, model_validator
 
 from surgopt.config import NOT_IN_KEY, StrictModel
 from surgopt.robots import pa10_7c
@@ -425,6 +425,45 @@ class Grid(StrictModel):
         return self
 
 
+#: The paper's cube (50 mm side, 100 mm below the RCM): its farthest point from the RCM (m). A URDF or DH arm
+#: whose tool reaches less than this / WORKSPACE_TOOL_FRACTION past the flange gets the cube scaled down.
+PAPER_CUBE_FAR_M = math.sqrt(0.125 ** 2 + 2 * 0.025 ** 2)
+WORKSPACE_TOOL_FRACTION = 0.9
+#: The grid fields a reach-sized grid fills where the config leaves them out (y too, then: the arm's plane).
+REACH_FIELDS = ("x_min_m", "x_max_m", "x_count", "z_min_m", "z_max_m", "z_count")
+#: A reach-sized grid has about this many steps across its radius (its spacing rounded to 5 mm).
+REACH_GRID_STEPS = 45
+
+
+def reach_grid(chain) -> dict:
+    """``candidates.grid`` fields for an arm's reach (#28 item 5): every point of the tool (flange to tip) lies
+    within rho = |p_1 across axis 1| + sum_{k>=2} |p_k| (+ prismatic travel) of the first joint's axis point
+    c = o_1 + (p_1 . z_1) z_1, whatever the joint angles, since each joint only turns the links after it about
+    its own origin; an RCM lies on the tool, so the disc of radius rho about c in the base's x-z plane through c
+    holds every feasible candidate (x >= c_x only when the first axis is vertical: the arm's mirror side adds
+    nothing). Spacing rho / REACH_GRID_STEPS rounded to 5 mm: a few thousand candidates, most of them
+    unreachable and rejected at their first point."""
+    import numpy as np
+
+    z1 = chain.rot[0][:, 2]
+    p1 = chain.pos[1]
+    c = chain.pos[0] + chain.rot[0] @ np.array([0.0, 0.0, p1[2]])
+    travel = np.where(chain.prismatic > 0, np.maximum(np.abs(chain.lower), np.abs(chain.upper)), 0.0)
+    if not np.all(np.isfinite(travel)):
+        travel = np.where(np.isfinite(travel), travel, 1.0)  # an unlimited slide: a metre (the grid's bound)
+    rho = math.hypot(p1[0], p1[1]) + float(np.linalg.norm(chain.pos[2:], axis=1).sum() + travel.sum())
+    step = max(0.005, round(rho / REACH_GRID_STEPS / 0.005) * 0.005)
+    x0, z0 = (round(float(v) / step) * step for v in (c[0], c[2]))  # on the spacing: round coordinates
+    n = math.ceil((rho + step / 2) / step)
+    vertical = abs(z1[2]) > 0.999
+    x0 = x0 if x0 <= c[0] or not vertical else x0 - step
+    x_min = x0 if vertical else x0 - n * step
+    return dict(x_min_m=round(max(-3.0, x_min), 4), x_max_m=round(min(3.0, x0 + n * step), 4),
+                x_count=n + 1 if vertical else 2 * n + 1, y_min_m=round(float(c[1]), 3),
+                y_max_m=round(float(c[1]), 3), y_count=1, z_min_m=round(max(-3.0, z0 - n * step), 4),
+                z_max_m=round(min(3.0, z0 + n * step), 4), z_count=2 * n + 1)
+
+
 class Candidates(StrictModel):
     """RCM candidates: a grid, or an explicit list of [x, z] or [x, y, z] rows (m)."""
 
@@ -451,6 +490,7 @@ class RcmSetup(StrictModel):
     robot: Robot = Robot()
     workspace: Workspace = Workspace()
     candidates: Candidates = Candidates()
+    _grid_from_reach: bool = PrivateAttr(False)
 
     @model_validator(mode="before")
     @classmethod
@@ -482,6 +522,32 @@ class RcmSetup(StrictModel):
         if self.candidates.z_reference == "shoulder" and not self.robot.is_pa10:
             raise ValueError("candidates.z_reference = 'shoulder' is the PA10's; other arms use 'base'")
         return self
+
+    @model_validator(mode="after")
+    def _sized_to_the_arm(self):
+        """A URDF or DH arm's candidate grid, where the config leaves it out, covers every RCM its tool can hold
+        (#28 item 5; ``reach_grid``), and the paper's workspace cube shrinks to fit a tool too short for it."""
+        r = self.robot
+        if r.urdf is None and r.dh is None:
+            return self
+        ws = self.workspace
+        if not ws.model_fields_set and r.tool_length_m < PAPER_CUBE_FAR_M / WORKSPACE_TOOL_FRACTION:
+            k = r.tool_length_m * WORKSPACE_TOOL_FRACTION / PAPER_CUBE_FAR_M
+            object.__setattr__(self, "workspace", ws.model_copy(update={
+                "cube_side_m": round(ws.cube_side_m * k, 4), "depth_below_rcm_m": round(ws.depth_below_rcm_m * k, 4)}))
+        grid = self.candidates.grid
+        if grid is not None and set(REACH_FIELDS) - grid.model_fields_set:
+            fitted = reach_grid(*r.chain()[:1])
+            given = {f: getattr(grid, f) for f in grid.model_fields_set}
+            object.__setattr__(self, "candidates", self.candidates.model_copy(
+                update={"grid": Grid(**{**fitted, **given})}))
+            self._grid_from_reach = True
+        return self
+
+    @property
+    def grid_from_reach(self) -> bool:
+        """Whether the candidate grid (some of its fields) was sized from the arm's reach at validation."""
+        return self._grid_from_reach
 
     @model_validator(mode="after")
     def _workspace_on_the_tool(self):
