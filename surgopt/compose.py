@@ -71,10 +71,12 @@ def variants(study, config: str | Path | None = None, overrides: list[str] | dic
         n *= len(vs)
     if n > MAX_VARIANTS:
         raise ConfigError("<command line>", f"--multirun would make {n:,} runs (at most {MAX_VARIANTS:,})")
+    if flags_text and config is None:  # the flag replaces the embedded default's subject (--robot NAME|FILE):
+        source, name = flags_text, flags_text.replace(" ", "=")  # errors and labels name what the user gave
+    elif flags_text:
+        source, name = f"{flags_text} (on {source})", f"{name}+{flags_text.replace(' ', '=')}"
     if pairs:
         source = f"{source} with the command-line overrides"
-    if flags_text:
-        source, name = f"{flags_text} (on {source})", f"{name}+{flags_text.replace(' ', '=')}"
     out = []
     for values in itertools.product(*[vs for _, vs in pairs]):
         d = data

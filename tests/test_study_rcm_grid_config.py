@@ -3,6 +3,7 @@
 written)."""
 import json
 import math
+import re
 from pathlib import Path
 
 import numpy as np
@@ -181,7 +182,8 @@ def test_robot_flag_runs_a_shipped_model_and_a_urdf(tmp_path):
     assert bad.returncode == 2 and "neither a shipped model" in bad.stderr
     # #28 item 7: an error in what --robot FILE brought names the flag first, not only the embedded PA10 config
     bad = cli("rcm-grid", "--robot", "pa10.urdf", "--store", store, check=False, cwd=tmp_path)
-    assert bad.returncode == 2 and bad.stderr.startswith("surgopt: error: --robot pa10.urdf (on <embedded default")
+    assert bad.returncode == 2 and bad.stderr.startswith("surgopt: error: --robot pa10.urdf: robot: tool_length_m")
+    assert "embedded" not in bad.stderr  # #28 item 7: the PA10 default the user never gave is not named
     assert "tool_length_m is required" in bad.stderr
     # and its runs are labelled with it
     runs = cli("runs", "--store", store, "--format", "json").stdout
@@ -443,3 +445,65 @@ def test_a_file_arms_default_grid_covers_its_reach(tmp_path):
     assert abs(best.x_rcm_m - 0.34) < 0.06 and abs(best.z_rcm_m + 0.84) < 0.06, best
     old = ok[(ok.x_rcm_m >= 0.2) & (ok.x_rcm_m <= 0.8) & (ok.z_rcm_m >= -0.6) & (ok.z_rcm_m <= 0.0)]
     assert old.loc[old.gii.idxmax()].z_rcm_m <= -0.6 + 0.03  # the old default's best sits on its z edge
+
+
+def dh_rows_of(name: str) -> tuple[list[dict], str]:
+    """A shipped model's DH table as an inline [[robot.dh]] config, and its convention."""
+    from surgopt.robots.models import get_model
+
+    m = get_model(name)
+    rows = []
+    for r in m.dh:
+        row = dict(name=r.name, a_m=r.a_m, alpha_deg=r.alpha_deg, d_m=r.d_m, theta_offset_deg=r.theta_offset_deg,
+                   max_speed_rad_s=r.max_speed)
+        if r.lower is not None:
+            row.update(lower_deg=r.lower, upper_deg=r.upper)
+        rows.append(row)
+    return rows, m.convention
+
+
+def urdf_from_dh(rows: list[dict]) -> str:
+    """A URDF written from standard DH rows (joint i+1's origin: Tz(d_i) Tx(a_i) Rx(alpha_i)): a chain built
+    apart from surgopt's own DH reader."""
+    out, parent, origin = ['<?xml version="1.0"?>', '<robot name="from_dh">', '  <link name="base"/>'], "base", (0, 0, 0)
+    for i, r in enumerate(rows):
+        x, z, roll = origin
+        out += [f'  <joint name="{r["name"]}" type="revolute"><parent link="{parent}"/><child link="l{i}"/>'
+                f'<origin xyz="{x} 0 {z}" rpy="{roll} 0 0"/><axis xyz="0 0 1"/><limit lower="{math.radians(-360)}" '
+                f'upper="{math.radians(360)}" velocity="{r["max_speed_rad_s"]}" effort="1"/></joint>',
+                f'  <link name="l{i}"/>']
+        parent, origin = f"l{i}", (r["a_m"], r["d_m"], math.radians(r["alpha_deg"]))
+    x, z, roll = origin
+    out += [f'  <joint name="to_flange" type="fixed"><parent link="{parent}"/><child link="flange"/>'
+            f'<origin xyz="{x} 0 {z}" rpy="{roll} 0 0"/></joint>', '  <link name="flange"/>', '</robot>']
+    return "\n".join(out)
+
+
+def test_a_file_arm_runs_with_the_tool_length_alone(tmp_path):
+    """#28 done-means: `surgopt rcm-grid --robot ARM.urdf robot.tool_length_m=L` runs on a UR5-class URDF with no
+    other override: the joints to lock are found (the last when it spins the tool; a 7-axis arm's rotation
+    whose axis coincides with an earlier one's at the zero pose), each said in a note, and equal the shipped
+    models' choices for the UR5e, Panda and LBR iiwa tables; the grid is sized from the reach and every IK
+    branch runs. The UR5e URDF (written here from its DH table) gives the DH table's branch count and best."""
+    for name in ("ur5e", "panda", "lbr_iiwa_14"):
+        from surgopt.robots.models import get_model
+
+        rows, convention = dh_rows_of(name)
+        cfg = validate({"robot": {"dh": rows, "dh_convention": convention, "tool_length_m": 0.3}}, S.Config, "x")
+        assert cfg.robot.locked_joints_deg == get_model(name).locked_joints_deg, name
+        assert cfg.robot.auto_lock_advice()[0].startswith("robot: no locked_joints_deg: ")
+    given = validate({"robot": {"dh": rows, "dh_convention": convention, "tool_length_m": 0.3,
+                                "locked_joints_deg": {"A1": 0.0, "A7": 0.0}}}, S.Config, "x").robot
+    assert given.locked_joints_deg == {"A1": 0.0, "A7": 0.0} and not given.auto_lock_advice()
+    rows, _ = dh_rows_of("ur5e")
+    (tmp_path / "ur5e.urdf").write_text(urdf_from_dh(rows))
+    r = cli("rcm-grid", "--robot", "ur5e.urdf", "robot.tool_length_m=0.3", "workspace.points_per_side=5",
+            "--store", tmp_path / "s", "-q", cwd=tmp_path)
+    assert "wrist_3 locked at 0 (it spins the tool about its own axis)" in r.stderr
+    assert "sized from the arm's reach" in r.stderr and "--branches is implied" in r.stderr
+    (tmp_path / "dh.yaml").write_text(json.dumps({"robot": {"dh": rows, "tool_length_m": 0.3},
+                                                  "workspace": {"points_per_side": 5}}))
+    d = cli("rcm-grid", "dh.yaml", "--store", tmp_path / "s", "-q", cwd=tmp_path)
+    best = lambda out: re.search(r"best of the (\d+) runs by best_gii: ([0-9.]+)", out).groups()  # noqa: E731
+    n, gii = best(" ".join(r.stdout.split()))
+    assert int(n) >= 2 and (n, gii) == best(" ".join(d.stdout.split()))

@@ -566,7 +566,8 @@ STUDY = Study(
     auto_chunk=auto_chunk, n_tasks=n_tasks, warm_up=warm_up, compute_task=compute_task, summary=summary,
     feasible_mask=feasible_mask, figures=figures_in("rcm_grid"), estimate=estimate, search_plan=search_plan,
     evaluate=evaluate_designs, design_box=design_box, cull=lambda cfg: cull_search(cfg),
-    advice=lambda cfg: cfg.robot.tool_axis_advice() + reach_grid_advice(cfg) + seed_advice(cfg),
+    advice=lambda cfg: (cfg.robot.auto_lock_advice() + cfg.robot.tool_axis_advice() + reach_grid_advice(cfg)
+                        + seed_advice(cfg)),
     flags=(Flag("--cull", "Fast exact argmax with the Culling algorithm (Stocco & Salcudean) instead of "
                           "the full GII map; culled candidates carry an upper bound.",
                 config_update={"search": "cull"}),

@@ -133,6 +133,7 @@ class Robot(StrictModel):
     elbow: Literal["up", "down"] | None = None
     joint_limit_deg: JointLimitsDeg | None = None
     max_joint_speed_rad_s: JointSpeedsRadS | None = None
+    _auto_locked: dict = PrivateAttr(default_factory=dict)
 
     @model_validator(mode="after")
     def _resolve(self, info: ValidationInfo):
@@ -176,9 +177,13 @@ class Robot(StrictModel):
             if self.tool_length_m is None:
                 raise ValueError("tool_length_m is required for a URDF or DH arm (the tool tip along the tip "
                                  "link's z axis)")
+            if self.dh is not None and self.dh_convention is None:
+                object.__setattr__(self, "dh_convention", "standard")
+            unlocked = self.locked_joints_deg is None and not context.get("stored")
             self._fill({}, {}, self.tool_length_m)
-        if self.dh is not None and self.dh_convention is None:
-            object.__setattr__(self, "dh_convention", "standard")
+            if unlocked:
+                self._auto_locked = self.redundant_joints()
+                object.__setattr__(self, "locked_joints_deg", {n: 0.0 for n in self._auto_locked})
         if not context.get("stored"):
             self.check_chain()
         return self
@@ -338,9 +343,9 @@ class Robot(StrictModel):
                                            f"tool mount?): the standard metric's sixth column would be wrong")
         return joints[self.spin_joint].max_speed
 
-    def spin_geometry(self, joint: str) -> tuple[float, float]:
-        """How far ``joint`` is from spinning the tool about its own axis at the seed pose: (the angle between
-        its axis and the tool's, rad; the tool tip's distance from its axis, m). Both 0 for a true spin joint."""
+    def axis_lines(self) -> tuple[dict, tuple]:
+        """At the seed pose (locked joints at their values, the rest at seed_deg or 0), in the base frame: each
+        joint's axis line {name: (unit axis, a point on it)} and the tool's line (unit axis, tip)."""
         import numpy as np
 
         from surgopt.robots.chain import axis_motion
@@ -348,19 +353,54 @@ class Robot(StrictModel):
         spec = self.chain_spec()
         locked, seed = self.locked_joints_deg or {}, self.seed_deg or {}
         q = {j.name: math.radians(locked.get(j.name, seed.get(j.name, 0.0))) for j in spec.joints}
-        t = np.eye(4)
-        axis = origin = None
+        t, lines = np.eye(4), {}
         for j in spec.joints:
             t = t @ j.origin
-            if j.name == joint:
-                axis, origin = t[:3, :3] @ j.axis, t[:3, 3].copy()
+            axis = t[:3, :3] @ j.axis
+            lines[j.name] = (axis / np.linalg.norm(axis), t[:3, 3].copy())
             t = t @ axis_motion(j.axis, j.kind, q[j.name])
         tool = t @ spec.tail @ self.tool()
-        k, tip = tool[:3, 2], tool[:3, 3]
-        axis = axis / np.linalg.norm(axis)
-        d = tip - origin
-        angle = float(np.arctan2(np.linalg.norm(np.cross(axis, k)), abs(float(axis @ k))))
-        return angle, float(np.linalg.norm(d - (d @ axis) * axis))
+        return lines, (tool[:3, 2], tool[:3, 3])
+
+    def spin_geometry(self, joint: str) -> tuple[float, float]:
+        """How far ``joint`` is from spinning the tool about its own axis at the seed pose: (the angle between
+        its axis and the tool's, rad; the tool tip's distance from its axis, m). Both 0 for a true spin joint."""
+        lines, (k, tip) = self.axis_lines()
+        return _line_apart(lines[joint], (k, tip))
+
+    def redundant_joints(self) -> dict[str, str]:
+        """Joints to lock at 0 when a URDF or DH arm gives no locked_joints_deg and has more than five (#28:
+        a UR5/Panda/iiwa-class file runs with the tool length alone): {name: why}. First the last joint, when it
+        spins the tool about its own axis (its column of the RCM Jacobian is zero); then, while more than five
+        remain, the first joint whose axis line coincides with an earlier free joint's at the zero pose (the
+        upper-arm rotation of a 7-axis arm: the shipped Panda's joint3, the iiwa's A3). Revolute joints only."""
+        from surgopt.robots.chain import PRISMATIC
+
+        spec = self.chain_spec()
+        free = [j for j in spec.joints if j.kind != PRISMATIC]
+        if len(spec.joints) <= 5:
+            return {}
+        lines, tool = self.axis_lines()
+        out: dict[str, str] = {}
+        last = spec.joints[-1]
+        if last.kind != PRISMATIC and _coincide(_line_apart(lines[last.name], tool)):
+            out[last.name] = "it spins the tool about its own axis"
+        for j in free:
+            if len(spec.joints) - len(out) <= 5:
+                break
+            earlier = [e for e in spec.joints[:spec.joints.index(j)] if e.name not in out]
+            twin = next((e for e in earlier if _coincide(_line_apart(lines[j.name], lines[e.name]))), None)
+            if j.name not in out and twin is not None:
+                out[j.name] = f"its axis coincides with {twin.name}'s at the zero pose: a redundant rotation"
+        return out
+
+    def auto_lock_advice(self) -> list[str]:
+        """Says which joints were locked for the user, and why (``redundant_joints``)."""
+        locked = getattr(self, "_auto_locked", None) or {}
+        if not locked:
+            return []
+        return ["robot: no locked_joints_deg: " + "; ".join(f"{n} locked at 0 ({why})" for n, why in locked.items())
+                + " (give robot.locked_joints_deg to choose)"]
 
     def tool_axis_advice(self) -> list[str]:
         """A word when the arm's last joint is locked but does not turn about the tool's axis (#28 item 3): on
@@ -375,7 +415,7 @@ class Robot(StrictModel):
         if last.name not in (self.locked_joints_deg or {}) or last.kind == PRISMATIC:
             return []
         angle, offset = self.spin_geometry(last.name)
-        if angle <= math.radians(1.0) and offset <= 1e-3:
+        if _coincide((angle, offset)):
             return []
         return [f"robot: the last joint {last.name!r} is locked but the tool does not point along its axis (at "
                 f"{math.degrees(angle):.0f} deg, the tip {offset * 1000:.0f} mm off it): the tool may stick out "
@@ -392,6 +432,21 @@ class Robot(StrictModel):
         except ChainError as exc:
             where = f"urdf {self.urdf}: " if self.urdf is not None and not spec_ok else ""
             raise ValueError(f"{where}{exc}") from None
+
+
+def _line_apart(a: tuple, b: tuple) -> tuple[float, float]:
+    """(angle between two lines' directions, rad, either sense; distance of b's point from line a, m)."""
+    import numpy as np
+
+    (u, p), (v, q) = a, b
+    d = q - p
+    angle = float(np.arctan2(np.linalg.norm(np.cross(u, v)), abs(float(u @ v))))
+    return angle, float(np.linalg.norm(d - (d @ u) * u))
+
+
+def _coincide(apart: tuple[float, float]) -> bool:
+    """Two lines within 1 deg and 1 mm: one line (a joint spinning the tool, two joints turning about one axis)."""
+    return apart[0] <= math.radians(1.0) and apart[1] <= 1e-3
 
 
 class Workspace(StrictModel):
