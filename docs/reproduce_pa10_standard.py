@@ -39,7 +39,7 @@ for depth in (0.2, 0.1, 0.05, 0.02, 0.01, 0.005):
         df = surgopt.run("rcm-grid", overrides={"metric": m, "robot.kernel": "generic", "workspace.points_per_side": 1,
                                                 "workspace.depth_below_rcm_m": depth,
                                                 "candidates.list_m": [[0.535, -0.21]]}, store=store)
-        row += [df["sigma_min_m_per_s"][0], df["gii"][0]]
+        row += [df[{"alternative": "sigma_min_m_per_s", "standard": "sigma_min_task_scaled"}[m]][0], df["gii"][0]]
     print(f"| {depth * 1e3:.0f} | {row[0]:.4f} | {row[1]:.4f} | {row[2]:.4f} | {row[3]:.6f} |")
 
 import matplotlib  # noqa: E402

@@ -61,7 +61,7 @@ def load(run: str | Path | None = None, store: str | Path | None = None, study: 
 
     s = Store(store)
     st, r = resolve_run(s, None if run is None else str(run), study)
-    return require_complete(s, r, allow_partial).read_table(st.schema()).to_pandas()
+    return require_complete(s, r, allow_partial).read_table(st.schema_for(r.manifest["config"])).to_pandas()
 
 
 def runs(store: str | Path | None = None, study: str | None = None):
@@ -83,7 +83,7 @@ def summarize(run: str | Path | None = None, store: str | Path | None = None, st
     from surgopt.store import Store
 
     st, r = resolve_run(Store(store), None if run is None else str(run), study)
-    return summary_record(st, r, r.parts(st.schema()), top=top, sort=sort)
+    return summary_record(st, r, r.parts(st.schema_for(r.manifest["config"])), top=top, sort=sort)
 
 
 def plot(run: str | Path | None = None, store: str | Path | None = None, study: str | None = None,
@@ -100,7 +100,7 @@ def plot(run: str | Path | None = None, store: str | Path | None = None, study: 
     folder.mkdir(parents=True, exist_ok=True)
     set_format(fmt)
     cfg = config_of(st, r)
-    table = r.read_table(st.schema())
+    table = r.read_table(st.schema_for(r.manifest["config"]))
     plan = st.search_plan(cfg) if st.search_plan else None
     if plan is not None:
         from surgopt.studies.figures import search_figures

@@ -197,13 +197,13 @@ def summarize(
 
             from surgopt.report import summary_record
 
-            typer.echo(json.dumps(summary_record(st, r, r.parts(st.schema()), top=top, sort=sort), indent=1,
+            typer.echo(json.dumps(summary_record(st, r, r.parts(st.schema_for(r.manifest["config"])), top=top, sort=sort), indent=1,
                                   default=str))
             return
         if fmt == "csv":  # one table pandas.read_csv reads as it is: the top rows, every column, full precision
             from surgopt.report import top_table
 
-            table = top_table(st, r.parts(st.schema()), top=top, sort=sort)
+            table = top_table(st, r.parts(st.schema_for(r.manifest["config"])), top=top, sort=sort)
             if table is None:
                 fail(f"--format csv writes the top rows by a column: {st.name} ranks nothing by default, so give "
                       f"--sort COLUMN (or use --format json / markdown for its comparison tables)", 2)
@@ -212,7 +212,7 @@ def summarize(
             sys.stdout.write(table.to_pandas().to_csv(index=False, float_format=_shortest))
             return
         shown = [c.strip() for c in columns.split(",") if c.strip()] if columns else None
-        sections = summary_sections(st, r, r.parts(st.schema()), top=top, sort=sort, columns_shown=shown)
+        sections = summary_sections(st, r, r.parts(st.schema_for(r.manifest["config"])), top=top, sort=sort, columns_shown=shown)
     if fmt != "table":
         typer.echo(render(sections, fmt))
         return
@@ -249,7 +249,7 @@ def plot(
         from surgopt.store import Store
 
         st, r = resolve_run(Store(store), run, study)
-        table = r.read_table(st.schema())
+        table = r.read_table(st.schema_for(r.manifest["config"]))
         if table.num_rows == 0:
             fail(f"{r.key[:12]}: the run has no rows yet", 1)
         id_column = st.key_columns[0]
@@ -270,7 +270,7 @@ def plot(
             paths = st.figures(cfg, table, out, design)
         from surgopt.report import best_edges
 
-        notes = best_edges(st, r, r.parts(st.schema()))
+        notes = best_edges(st, r, r.parts(st.schema_for(r.manifest["config"])))
     for p in paths:
         typer.echo(str(p))
     for note in notes:  # what the figures show on an edge of the box (#27 item 2)
@@ -439,5 +439,5 @@ def _grid_best(store, study, cfg, plan):
         return None
     if run is None or not run.complete:
         return None
-    values = run.parts(study.schema()).column(col)
+    values = run.parts(study.schema_for(run.manifest["config"])).column(col)
     return (f"the grid's best ({len(values):,} designs)", float(values.max() if direction == "maximize" else values.min()))

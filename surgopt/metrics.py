@@ -1,5 +1,24 @@
-"""Kinematic performance measures shared by the studies (numpy, vectorised)."""
+"""Kinematic performance measures shared by the studies (numpy, vectorised), and the RCM studies' per-pose
+metrics in one registry (``POSE_METRICS``; numba-free, so a config can name them without loading a compiler).
+
+The per-pose metrics (#24): what a candidate's rows measure at each pose
+of its walk, reduced to the extremes over the workspace (sigma_min, sigma_max; the GII is their ratio, eq. 7).
+
+- ``alternative`` (Locke & Patel eqs. 5-8): the RCM-constrained, speed-scaled map, computed inside the walk by
+  the shared ``rcm_metric.constrained_extremes`` (its running bound can stop a candidate: culling). Singular
+  values in m/s.
+- ``standard`` (Sec. III-E): the standard Jacobian at the walk's IK solutions, task-scaled (rows divided by a
+  linear m/s and an angular rad/s scale), evaluated after the walk (``serial_chain.metric_over_solutions``).
+  Dimensionless.
+
+A new metric is one entry here (its code, unit and column names), one branch of
+``serial_chain.metric_over_solutions`` (the kernel that evaluates it over a walk's solutions) and its
+parameters in the config (``RcmGridConfig.metric_params``). Kernels take the metric as its integer code (numba
+branches on it); rows and schemas take the names from here, so every column says its unit.
+"""
 from __future__ import annotations
+
+from typing import NamedTuple
 
 import numpy as np
 
@@ -35,3 +54,36 @@ def raven_cost(zeta_cm, iso_sum, iso_min, alpha_rad, beta_rad):
     Example: zeta 2 cm, isotropy sum 100, Iso_min 0.5, alpha = beta = 1 rad -> 2 * 100 * 0.5 / 2 = 50.
     """
     return zeta_cm * iso_sum * iso_min / (np.asarray(alpha_rad) ** 3 + np.asarray(beta_rad) ** 3)
+
+
+#: Kernel codes (module-level ints: numba reads them as constants).
+METRIC_RCM = 0
+METRIC_STANDARD = 1
+
+
+class PoseMetric(NamedTuple):
+    """One per-pose metric: its config name, kernel code, whether the walk computes it (else it is evaluated
+    over the walk's solutions afterwards), the unit and column suffix of its singular values, and what they are."""
+
+    name: str
+    code: int
+    in_walk: bool
+    unit: str
+    suffix: str
+    meaning: str
+
+    @property
+    def sigma_columns(self) -> tuple[str, str]:
+        """The rows' (sigma_min, sigma_max) column names: unit-true."""
+        return f"sigma_min{self.suffix}", f"sigma_max{self.suffix}"
+
+
+POSE_METRICS = {
+    "alternative": PoseMetric(
+        "alternative", METRIC_RCM, True, "m/s", "_m_per_s",
+        "singular values of the RCM-constrained, speed-scaled forward map (1 / those of Q^-1 J_r; eqs. 5-8)"),
+    "standard": PoseMetric(
+        "standard", METRIC_STANDARD, False, "1", "_task_scaled",
+        "singular values of the standard Jacobian at the same IK poses, columns times the rated speeds, rows "
+        "divided by the task scaling (Sec. III-E): dimensionless"),
+}

@@ -141,7 +141,7 @@ def compare_records(store: Store, study) -> tuple[list[str], list[str], list[dic
     for r in store.runs(study.name):
         if not r.complete:
             continue
-        headline = study.summary(r.parts(study.schema())).headline if r.rows else {}
+        headline = study.summary(r.parts(study.schema_for(r.manifest["config"]))).headline if r.rows else {}
         records.append({"key": r.key, "name": r.manifest.get("name") or "", "plan": (r.manifest.get("plan") or {})
                         .get("name", "grid"), "config": flat_config(r.manifest["config"]), "headline": headline,
                         "created": r.manifest.get("created")})
@@ -253,7 +253,7 @@ def export_table(store: Store, refs: list[str], study_name: str | None = None, a
     varied = [k for k in flats[0] if len({repr(f.get(k)) for f in flats}) > 1] if len(flats) > 1 else []
     tables = []
     for (st, r), flat in zip(resolved, flats):
-        t = r.read_table(st.schema())
+        t = r.read_table(st.schema_for(r.manifest["config"]))
         extra = {"run_key": pa.array([r.key] * t.num_rows, pa.string())}
         for k in varied:
             v = flat.get(k)
@@ -273,8 +273,8 @@ def diff_runs(store: Store, ref_a: str, ref_b: str, study_name: str | None = Non
         raise UsageError(f"{ref_a} is a {sa.name} run and {ref_b} a {sb.name} run: diff compares runs of one study")
     fa, fb = flat_config(ra.manifest["config"]), flat_config(rb.manifest["config"])
     config = {k: (fa.get(k), fb.get(k)) for k in dict.fromkeys([*fa, *fb]) if fa.get(k) != fb.get(k)}
-    a = ra.read_table(sa.schema()).to_pandas()
-    b = rb.read_table(sb.schema()).to_pandas()
+    a = ra.read_table(sa.schema_for(ra.manifest["config"])).to_pandas()
+    b = rb.read_table(sb.schema_for(rb.manifest["config"])).to_pandas()
     keys = list(sa.key_columns)
     joined = a.merge(b, on=keys, how="outer", suffixes=("_a", "_b"), indicator=True)
     both = joined[joined["_merge"] == "both"]

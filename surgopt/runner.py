@@ -181,7 +181,7 @@ def run_study(study, cfg, *, config_name: str, store: Store, jobs: int = DEFAULT
     where.require()
     jobs = usable_jobs(jobs, backend, scheduler, say)
     t0 = time.perf_counter()
-    schema = study.schema()
+    schema = study.schema_for(cfg)
     plan = plan if plan is not None else plan_for(study, cfg)
     key = plan.key(study, cfg, study_key(study.name, cfg, study.kernel_version))
     if not force:

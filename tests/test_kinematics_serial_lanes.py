@@ -8,6 +8,7 @@ from surgopt.config import validate
 from surgopt.kinematics import chain_candidates as cc
 from surgopt.kinematics import serial_chain as sc
 from surgopt.kinematics import serial_lanes as SL
+from surgopt.metrics import POSE_METRICS
 from surgopt.studies import rcm_grid as S
 
 
@@ -98,9 +99,10 @@ def test_lane_walk_culls_and_keeps_the_standard_metric():
     lo2, hi2, _, _, n2 = cc.chain_candidates_extremes(rcm, walk, chain, seed, gii_to_beat=[2 * lo[0] / hi[0]],
                                                       lanes=True)
     assert n2[0] < n[0] and lo2[0] / hi2[0] >= lo[0] / hi[0]
-    scale = (1.0, 1.0, 1.0)
-    a = cc.chain_candidates_extremes(rcm, walk, chain, seed, standard_task_scale=scale, lanes=True)
-    b = cc.chain_candidates_extremes(rcm, walk, chain, seed, standard_task_scale=scale, lanes=False)
+    standard, scale = POSE_METRICS["standard"], (1.0, 1.0, 1.0)
+    a = cc.chain_candidates_extremes(rcm, walk, chain, seed, metric=standard, metric_params=scale, lanes=True)
+    b = cc.chain_candidates_extremes(rcm, walk, chain, seed, metric=standard, metric_params=scale, lanes=False)
+    assert not np.allclose(a[0], lo)  # the standard metric, not the RCM one
     np.testing.assert_allclose(a[0], b[0], rtol=1e-9)
     np.testing.assert_allclose(a[1], b[1], rtol=1e-9)
 

@@ -10,6 +10,7 @@ import numpy as np
 import pytest
 
 from surgopt.config import validate
+from surgopt.errors import ConfigError
 from surgopt.studies import rcm_grid as S
 
 from conftest import cli
@@ -262,8 +263,20 @@ def test_the_algorithmic_singularity_only_the_alternative_jacobian_sees():
             cfg = validate({"metric": metric, "robot": {"kernel": "generic"},
                             "workspace": {"points_per_side": 1, "depth_below_rcm_m": depth},
                             "candidates": {"list_m": [[0.535, -0.21]]}}, S.Config, "t")
-            out[metric, depth] = S.compute_task(cfg, 1, 0)["sigma_min_m_per_s"][0]
+            rows = S.compute_task(cfg, 1, 0)
+            name = {"alternative": "sigma_min_m_per_s", "standard": "sigma_min_task_scaled"}[metric]
+            assert {"sigma_min_m_per_s", "sigma_min_task_scaled"} & set(rows) == {name}  # unit-true names (#24)
+            assert S.STUDY.schema_for(cfg).names == list(rows)
+            assert S.STUDY.schema_for(cfg.model_dump(mode="json")).field(name).metadata[b"unit"] == \
+                {"alternative": b"m/s", "standard": b"1"}[metric]
+            out[metric, depth] = rows[name][0]
     assert 0.07 < out["alternative", 0.01] / out["alternative", 0.1] < 0.1
+    standard = {"metric": "standard", "robot": {"kernel": "generic"}}
+    validate({**standard, "search": {"method": "tpe", "trials": 10, "objectives": ["sigma_min_task_scaled"]}},
+             S.Config, "t")
+    with pytest.raises(ConfigError, match="'sigma_min_m_per_s' is not one of gii, sigma_min_task_scaled"):
+        validate({**standard, "search": {"method": "tpe", "trials": 10, "objectives": ["sigma_min_m_per_s"]}},
+                 S.Config, "t")
     assert abs(out["standard", 0.01] / out["standard", 0.1] - 1) < 0.03
 
 

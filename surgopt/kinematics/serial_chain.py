@@ -46,6 +46,7 @@ import numpy as np
 from numba import njit
 
 from surgopt.jit import CONTRACT
+from surgopt.metrics import METRIC_RCM, METRIC_STANDARD
 from surgopt.kinematics.rcm_metric import constrained_extremes, workspace_centre
 from surgopt.robots.chain import Chain  # noqa: F401 - the kernel's input, defined with the data that builds it
 
@@ -585,20 +586,6 @@ def chain_walk(chain_arrays, seed, restarts, c, offsets, start, probes, gii_to_b
 
 
 @njit(**CONTRACT)
-def candidates_scalar(chain_arrays, seed, restarts, rcms, offsets, start, probes, gii_to_beat):
-    m = rcms.shape[0]
-    out = np.empty((m, 2))
-    counts = np.empty((m, 4), np.int64)
-    q_out = np.empty((offsets.shape[0], N_ACTIVE))
-    for i in range(m):
-        lo, hi, n_unr, n_sing, n_eval, steps = chain_walk(chain_arrays, seed, restarts, rcms[i], offsets, start, probes,
-                                                     gii_to_beat[i], q_out)
-        out[i, 0], out[i, 1] = np.sqrt(lo), np.sqrt(hi)
-        counts[i, 0], counts[i, 1], counts[i, 2], counts[i, 3] = n_unr, n_sing, n_eval, steps
-    return out, counts
-
-
-@njit(**CONTRACT)
 def standard_over(chain_arrays, q_out, n, task_scale):
     """(min sigma_min^2, max sigma_max^2, singular count) of the standard Jacobian over the walk's first n
     solutions ``q_out`` (``standard_extremes``)."""
@@ -622,17 +609,32 @@ def standard_over(chain_arrays, q_out, n, task_scale):
 
 
 @njit(**CONTRACT)
-def candidates_standard(chain_arrays, seed, restarts, rcms, offsets, start, probes, task_scale):
-    """``candidates_scalar`` with the standard Jacobian's extremes (Sec. III-E) at the walk's solutions."""
+def metric_over_solutions(metric, chain_arrays, q_out, n, params):
+    """(min sigma_min^2, max sigma_max^2, singular count) of a metric evaluated over the walk's first n
+    solutions (``metrics.POSE_METRICS``: every metric the walk does not compute itself); the one place such a metric
+    is added."""
+    if metric == METRIC_STANDARD:
+        return standard_over(chain_arrays, q_out, n, params)
+    return np.nan, np.nan, 0  # not a metric of the solutions (the RCM metric is the walk's own)
+
+
+@njit(**CONTRACT)
+def candidates_scalar(chain_arrays, seed, restarts, rcms, offsets, start, probes, gii_to_beat, metric, params):
+    """Per candidate: the walk (``chain_walk``) and the extremes of the per-pose ``metric`` (a
+    ``metrics.POSE_METRICS`` code; ``params`` its parameters). The RCM metric is the walk's own and its running bound
+    may stop the walk at ``gii_to_beat``; any other is evaluated over the walk's solutions (the whole walk)."""
     m = rcms.shape[0]
     out = np.zeros((m, 2))
     counts = np.empty((m, 4), np.int64)
     q_out = np.empty((offsets.shape[0], N_ACTIVE))
+    in_walk = metric == METRIC_RCM
     for i in range(m):
+        g = gii_to_beat[i] if in_walk else 0.0
         lo, hi, n_unr, n_sing, n_eval, steps = chain_walk(chain_arrays, seed, restarts, rcms[i], offsets, start, probes,
-                                                     0.0, q_out)
-        if n_unr == 0:
-            lo, hi, n_sing = standard_over(chain_arrays, q_out, n_eval, task_scale)
+                                                          g, q_out)
+        if not in_walk and n_unr == 0:
+            lo, hi, n_sing = metric_over_solutions(metric, chain_arrays, q_out, n_eval, params)
+        if in_walk or n_unr == 0:
             out[i, 0], out[i, 1] = np.sqrt(lo), np.sqrt(hi)
         counts[i, 0], counts[i, 1], counts[i, 2], counts[i, 3] = n_unr, n_sing, n_eval, steps
     return out, counts

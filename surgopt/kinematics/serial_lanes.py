@@ -34,11 +34,12 @@ import numpy as np
 from numba import njit
 
 from surgopt.jit import CONTRACT
+from surgopt.metrics import METRIC_RCM
 from surgopt.kinematics.rcm_metric import constrained_extremes
 from surgopt.kinematics.serial_chain import (
     CONTINUATION_STEP_M, EXTRAPOLATION, IK_TOL_M, N_ACTIVE, NEWTON_ZONE_M2, TRIG_RESYNC, TRIG_STEP_RAD, WALK_ITER,
-    continue_walk, chain_walk, constraint_reference, increment_cos_sin, newton_rcm, scalar_buffers, seed_solve,
-    standard_over, within_limits,
+    continue_walk, chain_walk, constraint_reference, increment_cos_sin, metric_over_solutions, newton_rcm,
+    scalar_buffers, seed_solve, within_limits,
 )
 
 #: Segments walked side by side (one AVX-512 vector of doubles).
@@ -789,17 +790,17 @@ def _cut_at_line_starts(offsets, even):
 
 
 @njit(**CONTRACT)
-def candidates_lanes(chain_arrays, seed, restarts, rcms, offsets, start, probes, gii_to_beat, seg, task_scale):
-    """``serial_chain``'s per-candidate loop with each walk in lanes (``walk_lanes``; the scalar walk
-    where a segment's start is out of the continuation's reach). ``task_scale[0]`` > 0: the standard
-    Jacobian's extremes at the walk's solutions instead of the RCM metric (``standard_over``)."""
+def candidates_lanes(chain_arrays, seed, restarts, rcms, offsets, start, probes, gii_to_beat, seg, metric, params):
+    """``serial_chain.candidates_scalar`` with each walk in lanes (``walk_lanes``; the scalar walk where a
+    segment's start is out of the continuation's reach): the same metrics (``metrics.POSE_METRICS`` codes), the same
+    answers to within Newton's tolerance."""
     m = rcms.shape[0]
     out = np.zeros((m, 2))
     counts = np.empty((m, 4), np.int64)
     q_out = np.empty((offsets.shape[0], N))
-    standard = task_scale[0] > 0.0
+    in_walk = metric == METRIC_RCM
     for i in range(m):
-        g = 0.0 if standard else gii_to_beat[i]
+        g = gii_to_beat[i] if in_walk else 0.0
         lo, hi, n_unr, n_sing, n_eval, steps = walk_lanes(chain_arrays, seed, restarts, rcms[i], offsets, start,
                                                           probes, g, q_out, seg)
         if n_unr < 0 or (n_unr > 0 and n_eval > 0):
@@ -808,9 +809,9 @@ def candidates_lanes(chain_arrays, seed, restarts, rcms, offsets, start, probes,
             # near a singularity the two can differ; the scalar walk defines the seeded branch)
             lo, hi, n_unr, n_sing, n_eval, steps = chain_walk(chain_arrays, seed, restarts, rcms[i], offsets, start,
                                                               probes, g, q_out)
-        if standard and n_unr == 0:
-            lo, hi, n_sing = standard_over(chain_arrays, q_out, offsets.shape[0], task_scale)
-        if not standard or n_unr == 0:
+        if not in_walk and n_unr == 0:
+            lo, hi, n_sing = metric_over_solutions(metric, chain_arrays, q_out, offsets.shape[0], params)
+        if in_walk or n_unr == 0:
             out[i, 0], out[i, 1] = np.sqrt(lo), np.sqrt(hi)
         counts[i, 0], counts[i, 1], counts[i, 2], counts[i, 3] = n_unr, n_sing, n_eval, steps
     return out, counts

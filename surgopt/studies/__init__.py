@@ -142,6 +142,13 @@ class Study:
     extends: str | None = None
     config_section: str | None = None
 
+    def schema_for(self, config=None):
+        """The schema of a run's rows: ``schema(config)`` when the study's columns depend on its config (rcm-grid's
+        singular values are named for its metric), ``schema()`` otherwise. ``config``: validated, or as stored."""
+        import inspect
+
+        return self.schema(config) if inspect.signature(self.schema).parameters else self.schema()
+
 
 @dataclass(frozen=True)
 class Edge:

@@ -17,6 +17,7 @@ import math
 
 import numpy as np
 
+from surgopt.metrics import METRIC_RCM
 from surgopt.metrics import global_isotropy_index
 from surgopt.studies import Estimate, Flag, Study, Summary, figures_in, peak_bytes
 from surgopt.studies.rcm_grid_config import (  # noqa: F401 - the config models, re-exported
@@ -34,8 +35,9 @@ HELP = """Global Isotropy Index of candidate remote-centre-of-motion locations f
     walk for any other arm) and the alternative Jacobian under the RCM constraint give the reverse
     Jacobian J_r, scaled by the rated joint speeds. GII = min sigma_min / max sigma_max over the cube
     (eq. 7); a candidate with any unreachable point (or joint limit passed) is infeasible.
-    Rows: candidate_id, x_rcm_m, y_rcm_m, z_rcm_m, gii, feasible, sigma_min_m_per_s, sigma_max_m_per_s,
-    n_unreachable, n_singular, points_evaluated, gii_is_exact.
+    Rows: candidate_id, x_rcm_m, y_rcm_m, z_rcm_m, gii, feasible, sigma_min_m_per_s, sigma_max_m_per_s
+    (metric = "standard": sigma_min_task_scaled, sigma_max_task_scaled, dimensionless), n_unreachable,
+    n_singular, points_evaluated, gii_is_exact.
     """
 CONFIG_HELP = ("TOML or YAML config. Without it: the paper's setup (121 x 121 RCM candidates, "
                "17^3-point 50 mm cube, PA10-7C, 587 mm tool), or with --robot that arm's own default study.")
@@ -205,9 +207,8 @@ class ChainKernel:
 
     def __init__(self, cfg: RcmGridConfig):
         self.chain, self.names, self.seed = cfg.robot.chain()
-        ts = getattr(cfg, "standard_task_scale", None)
-        self.scale = ((ts.linear_m_per_s, ts.angular_rad_per_s, cfg.robot.spin_speed())
-                      if getattr(cfg, "metric", "") == "standard" else None)
+        self.metric = pose_metric(cfg)
+        self.params = cfg.metric_params() if hasattr(cfg, "metric_params") else ()
 
     def _walk(self, offsets, side):
         from surgopt.kinematics.serial_chain import serpentine_order
@@ -218,13 +219,13 @@ class ChainKernel:
         from surgopt.kinematics.chain_candidates import chain_candidates_extremes
 
         return chain_candidates_extremes(rcms, self._walk(offsets, side), self.chain, self.seed,
-                                         standard_task_scale=self.scale)
+                                         metric=self.metric, metric_params=self.params)
 
     def bounded(self, rcm, offsets, side, gii_to_beat):
         from surgopt.kinematics.chain_candidates import chain_candidates_extremes
 
         r = chain_candidates_extremes(rcm[None], self._walk(offsets, side), self.chain, self.seed,
-                                      gii_to_beat=[gii_to_beat], standard_task_scale=self.scale)
+                                      gii_to_beat=[gii_to_beat], metric=self.metric, metric_params=self.params)
         return tuple(v[0] for v in r)
 
     def warm_up(self):
@@ -242,9 +243,21 @@ def kernel_for(cfg: RcmGridConfig):
 # ---------------------------------------------------------------------------
 
 
-def schema():
+def pose_metric(config=None):
+    """The per-pose metric (``metrics.POSE_METRICS``) of a config: a validated one, or one as stored (a dict)."""
+    from surgopt.metrics import POSE_METRICS
+
+    name = config.get("metric") if isinstance(config, dict) else getattr(config, "metric", None)
+    return POSE_METRICS[name or "alternative"]
+
+
+def schema(config=None):
+    """The rows' schema; the singular values' columns are named for the config's metric with their unit
+    (``sigma_min_m_per_s`` for the RCM metric, ``sigma_min_task_scaled`` for the dimensionless standard one)."""
     import pyarrow as pa
 
+    metric = pose_metric(config)
+    lo, hi = metric.sigma_columns
     return pa.schema(
         [
             pa.field("candidate_id", pa.int64()),
@@ -253,11 +266,10 @@ def schema():
             pa.field("z_rcm_m", pa.float64(), metadata={"reference": "see config candidates.z_reference"}),
             pa.field("gii", pa.float64(), metadata={"eq": "7", "unit": "1"}),
             pa.field("feasible", pa.bool_()),
-            pa.field("sigma_min_m_per_s", pa.float64(),
-                     metadata={"meaning": "min over workspace of the smallest singular value of the constrained, "
-                                          "speed-scaled forward map (1 / sigma_max of Q^-1 J_r)"}),
-            pa.field("sigma_max_m_per_s", pa.float64(),
-                     metadata={"meaning": "max over workspace of the largest singular value (1 / sigma_min of Q^-1 J_r)"}),
+            pa.field(lo, pa.float64(), metadata={"unit": metric.unit, "meaning": "min over the workspace of the "
+                                                 f"smallest {metric.meaning}"}),
+            pa.field(hi, pa.float64(), metadata={"unit": metric.unit, "meaning": "max over the workspace of the "
+                                                 f"largest {metric.meaning}"}),
             pa.field("n_unreachable", pa.int64(),
                      metadata={"meaning": "closed-form kernel: unreachable points; generic kernel: 1 when the walk "
                                           "stopped at an unreachable point (the rest is not tried)"}),
@@ -280,8 +292,8 @@ def ns_per_pose(cfg: RcmGridConfig) -> float:
 
 def kernel_type(cfg) -> type:
     """Which kernel ``kernel_for`` would build, without building it."""
-    standard = getattr(cfg, "metric", "alternative") == "standard"
-    return ClosedFormKernel if cfg.robot.closed_form and not standard else ChainKernel
+    rcm_metric = pose_metric(cfg).code == METRIC_RCM  # the closed form computes the RCM metric only
+    return ClosedFormKernel if cfg.robot.closed_form and rcm_metric else ChainKernel
 
 
 def auto_chunk(cfg: RcmGridConfig) -> int:
@@ -318,9 +330,10 @@ def warm_up(cfg: RcmGridConfig) -> None:
     kernel_for(cfg).warm_up()
 
 
-def _rows(ids, xyz, lo, hi, n_unr, n_sing, n_eval, exact):
+def _rows(cfg, ids, xyz, lo, hi, n_unr, n_sing, n_eval, exact):
     feasible = n_unr == 0
     gii = global_isotropy_index(lo, hi, feasible)
+    lo_name, hi_name = pose_metric(cfg).sigma_columns
     return {
         "candidate_id": ids.astype(np.int64),
         "x_rcm_m": xyz[:, 0].copy(),
@@ -328,8 +341,8 @@ def _rows(ids, xyz, lo, hi, n_unr, n_sing, n_eval, exact):
         "z_rcm_m": xyz[:, 2].copy(),
         "gii": gii,
         "feasible": feasible,
-        "sigma_min_m_per_s": np.where(np.isfinite(lo), lo, 0.0),
-        "sigma_max_m_per_s": hi,
+        lo_name: np.where(np.isfinite(lo), lo, 0.0),
+        hi_name: hi,
         "n_unreachable": np.asarray(n_unr).astype(np.int64),
         "n_singular": np.asarray(n_sing).astype(np.int64),
         "points_evaluated": np.asarray(n_eval).astype(np.int64),
@@ -354,7 +367,7 @@ def candidate_rows(cfg: RcmGridConfig, ids: np.ndarray, xyz: np.ndarray) -> dict
     offsets = workspace_offsets(cfg.workspace)
     lo, hi, n_unr, n_sing, n_eval = kernel_for(cfg).extremes(candidate_rcms(cfg, xyz), offsets,
                                                              cfg.workspace.points_per_side)
-    return _rows(ids, xyz, lo, hi, n_unr, n_sing, n_eval, np.ones(ids.shape[0], bool))
+    return _rows(cfg, ids, xyz, lo, hi, n_unr, n_sing, n_eval, np.ones(ids.shape[0], bool))
 
 
 #: Points per culling block of the closed-form kernel: small enough to stop early, large enough to vectorise.
@@ -396,7 +409,7 @@ def cull_search(cfg: RcmGridConfig) -> dict:
             best = max(best, float(global_isotropy_index(lo[i], hi[i])))
         elif n_unr[i] > 0:
             exact[i] = True
-    return _rows(np.arange(xyz.shape[0]), xyz, lo, hi, n_unr, n_sing, n_eval, exact)
+    return _rows(cfg, np.arange(xyz.shape[0]), xyz, lo, hi, n_unr, n_sing, n_eval, exact)
 
 
 def summary(parts) -> Summary:

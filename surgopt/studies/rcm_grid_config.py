@@ -18,12 +18,18 @@ from typing import Annotated, Literal
 from pydantic import Field, PrivateAttr, ValidationInfo, model_validator
 
 from surgopt.config import NOT_IN_KEY, StrictModel
+from surgopt.metrics import POSE_METRICS
 from surgopt.robots import pa10_7c
 from surgopt.robots.models import MODELS, get_model
 from surgopt.studies.search import SearchSpec, check_objectives, search_field
 
-#: Row columns a [search] may optimise.
-SEARCH_OBJECTIVES = ("gii", "sigma_min_m_per_s", "sigma_max_m_per_s", "x_rcm_m", "y_rcm_m", "z_rcm_m")
+def search_objectives(metric: str) -> tuple[str, ...]:
+    """Row columns a [search] may optimise under this per-pose metric (its sigma columns carry its unit)."""
+    return ("gii", *POSE_METRICS[metric].sigma_columns, "x_rcm_m", "y_rcm_m", "z_rcm_m")
+
+
+#: Row columns a [search] may optimise (the RCM metric's).
+SEARCH_OBJECTIVES = search_objectives("alternative")
 #: PA10-only fields (the closed-form kernel's parameters).
 PA10_FIELDS = ("link_d1_m", "link_d3_m", "link_d5_m", "link_d7_m", "tool_length_from", "elbow", "joint_limit_deg",
                "max_joint_speed_rad_s")
@@ -636,7 +642,7 @@ class StandardTaskScale(StrictModel):
 class RcmGridConfig(RcmSetup):
     search: search_field("full", "cull") = Field(
         "full", description="'full' map, 'cull' (exact argmax), or a [search] table (an optimiser over x, z)")
-    metric: Literal["alternative", "standard"] = Field(
+    metric: Literal[tuple(POSE_METRICS)] = Field(
         "alternative", description="the GII of the alternative Jacobian under the RCM constraint (eq. 8), or of "
                                    "the standard Jacobian at the same poses (Sec. III-E; the generic kernel)")
     standard_task_scale: StandardTaskScale = StandardTaskScale()
@@ -656,5 +662,13 @@ class RcmGridConfig(RcmSetup):
                 raise ValueError(f"robot.{exc}") from None
         if isinstance(self.search, SearchSpec) and self.candidates.list_m is not None:
             raise ValueError("a [search] optimises over candidates.grid's ranges: give a grid, not list_m")
-        check_objectives(self.search, SEARCH_OBJECTIVES)
+        check_objectives(self.search, search_objectives(self.metric))
         return self
+
+    def metric_params(self) -> tuple[float, ...]:
+        """The per-pose metric's kernel parameters (``metrics.POSE_METRICS``): the standard metric's task
+        scaling (m/s, rad/s) and the tool-spin joint's rated speed; none for the RCM metric."""
+        if self.metric == "standard":
+            ts = self.standard_task_scale
+            return ts.linear_m_per_s, ts.angular_rad_per_s, self.robot.spin_speed()
+        return ()
