@@ -54,9 +54,11 @@ def _thread_pool(jobs: int):
 IN_FLIGHT_PER_WORKER = 2
 
 
-def _run_bounded(pool, study_name, cfg, chunk, missing, jobs, record):
+def _run_bounded(pool, study_name, cfg, chunk, missing, jobs, record, idle=None):
     """Submit chunks a few at a time and record each as it finishes, dropping it right after: memory
-    holds about ``jobs * IN_FLIGHT_PER_WORKER`` chunks' rows, whatever the number of chunks."""
+    holds about ``jobs * IN_FLIGHT_PER_WORKER`` chunks' rows, whatever the number of chunks. ``idle()`` runs
+    once the first chunks are submitted, while the workers compute them (the runner stores the last batch's
+    parts then)."""
     from concurrent.futures import FIRST_COMPLETED, wait
 
     todo = iter(missing)
@@ -65,6 +67,8 @@ def _run_bounded(pool, study_name, cfg, chunk, missing, jobs, record):
         running.add(pool.submit(compute, study_name, cfg, chunk, i))
         if len(running) >= jobs * IN_FLIGHT_PER_WORKER:
             break
+    if idle is not None:
+        idle()
     while running:
         done, running = wait(running, return_when=FIRST_COMPLETED)
         for f in done:
@@ -106,7 +110,7 @@ def _quiet_resource_trackers() -> None:
         sys.warnoptions.append(QUIET_TRACKER)
 
 
-def _map_loky(handle, study_name, cfg, chunk, missing, jobs, record):
+def _map_loky(handle, study_name, cfg, chunk, missing, jobs, record, idle=None):
     """Tasks on ``jobs`` loky worker processes that die with this process; rows recorded here.
 
     The executor is loky's reusable one, taken on each call: a worker that dies (killed, out of memory) breaks
@@ -116,13 +120,13 @@ def _map_loky(handle, study_name, cfg, chunk, missing, jobs, record):
     from joblib.externals.loky import get_reusable_executor
 
     if jobs == 1 or len(missing) == 1:
-        _serial(study_name, cfg, chunk, missing, record)
+        _serial(study_name, cfg, chunk, missing, record, idle)
         return
     _quiet_resource_trackers()
     pool = get_reusable_executor(max_workers=jobs, timeout=30, initializer=_die_with_parent,
                                  initargs=(os.getpid(),), env=WORKER_ENV)
     try:
-        _run_bounded(pool, study_name, cfg, chunk, missing, jobs, record)
+        _run_bounded(pool, study_name, cfg, chunk, missing, jobs, record, idle)
     except BaseException:
         pool.shutdown(wait=False, kill_workers=True)
         raise
@@ -198,22 +202,26 @@ def _prepare_dask_workers(client, study_name: str, cfg) -> None:
         client.run(_worker_setup, cache, study_name, cfg, workers=workers[1:])
 
 
-def _serial(study_name, cfg, chunk, tasks, record) -> None:
-    """One task, or one worker: computed in this thread (no hand-off)."""
+def _serial(study_name, cfg, chunk, tasks, record, idle=None) -> None:
+    """One task, or one worker: computed in this thread (no hand-off; ``idle()`` first)."""
+    if idle is not None:
+        idle()
     for t in tasks:
         record(*compute(study_name, cfg, chunk, t))
 
 
-def _map_threads(pool, study_name, cfg, chunk, tasks, jobs, record) -> None:
+def _map_threads(pool, study_name, cfg, chunk, tasks, jobs, record, idle=None) -> None:
     if jobs == 1 or len(tasks) == 1:
-        _serial(study_name, cfg, chunk, tasks, record)
+        _serial(study_name, cfg, chunk, tasks, record, idle)
         return
-    _run_bounded(pool, study_name, cfg, chunk, tasks, jobs, record)
+    _run_bounded(pool, study_name, cfg, chunk, tasks, jobs, record, idle)
 
 
-def _map_dask(client, study_name, cfg, chunk, tasks, jobs, record) -> None:
+def _map_dask(client, study_name, cfg, chunk, tasks, jobs, record, idle=None) -> None:
     from joblib import Parallel, delayed, parallel_config
 
+    if idle is not None:
+        idle()
     with parallel_config(backend="dask"):
         for task, cols in Parallel(return_as="generator_unordered")(
                 delayed(compute)(study_name, cfg, chunk, t) for t in tasks):
@@ -228,7 +236,7 @@ def _no_preparation(handle, study_name: str, cfg) -> None:
 class Backend:
     """One place to run tasks: ``open(jobs, scheduler)`` a context manager yielding its handle (pool, client),
     ``prepare(handle, study_name, cfg)`` compiles or loads the kernels where they run, ``map(handle, study_name,
-    cfg, chunk, tasks, jobs, record)`` runs the tasks. ``worker_bytes`` / ``helper_bytes``: memory of each
+    cfg, chunk, tasks, jobs, record, idle)`` runs the tasks, calling ``idle()`` once while they compute (or before). ``worker_bytes`` / ``helper_bytes``: memory of each
     worker process it starts on this machine and of its helper processes (the budget counts them)."""
 
     name: str

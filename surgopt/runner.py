@@ -7,6 +7,7 @@ hit, the lock, retries of dead workers, the compile notice, the swap of a --forc
 """
 from __future__ import annotations
 
+import contextlib
 import logging
 import math
 import os
@@ -244,36 +245,57 @@ def _execute(study, cfg, chunk, session, run, store, jobs, quiet, schema, where,
         bar = progress.add_task(study.name, total=session.total, completed=session.done, rate="",
                                 unit=session.unit)
 
-        def record(task, cols):
+        deferred: list = []  # the parts a batch's last task gave: stored while the next batch computes
+
+        def write(parts):
+            for index, part in parts:
+                store.write_part(run, index, pa.Table.from_pydict(part, schema=schema))
+                log.debug("stored part %d (%d rows)", index, len(next(iter(part.values()))))
+
+        def flush():
+            parts, deferred[:] = list(deferred), []
+            write(parts)
+
+        def record(task, cols, last=False):
             nonlocal computed
             raise_if_stopped()  # a stop signal whose exception a callback swallowed still stops the run
             computed += 1
-            for index, part in session.on_result(task, cols):
-                store.write_part(run, index, pa.Table.from_pydict(part, schema=schema))
-                log.debug("stored part %d (%d rows)", index, len(next(iter(part.values()))))
+            parts = session.on_result(task, cols)
+            if last:  # a sequential plan's next batch waits on this one's result, not on its storing
+                deferred.extend(parts)
+            else:
+                write(parts)
             dt = time.perf_counter() - t_start
             rate = (session.done - done_before) / dt if dt > 0 else 0
             progress.update(bar, completed=session.done, rate=f"{rate:,.1f} {session.unit}/s" if dt > 0 else "")
 
-        while True:
-            tasks = session.next_tasks()
-            if not tasks:
-                return computed
-            _with_retries(study, cfg, chunk, tasks, jobs, where, handle, record, say)
+        try:
+            while True:
+                tasks = session.next_tasks()
+                if not tasks:
+                    flush()
+                    return computed
+                _with_retries(study, cfg, chunk, tasks, jobs, where, handle, record, say, flush)
+        except BaseException:
+            with contextlib.suppress(Exception):  # what finished is stored (a failed write: computed again)
+                flush()
+            raise
 
 
-def _with_retries(study, cfg, chunk, tasks, jobs, where, handle, record, say) -> None:
-    """Compute ``tasks`` on the backend, recording each as it finishes; the tasks not recorded when a worker
-    process died are computed again on a fresh pool (WORKER_RETRIES times)."""
+def _with_retries(study, cfg, chunk, tasks, jobs, where, handle, record, say, idle=None) -> None:
+    """Compute ``tasks`` on the backend, recording each as it finishes (the last with ``last=True``); ``idle()``
+    runs once while they compute. The tasks not recorded when a worker process died are computed again on a
+    fresh pool (WORKER_RETRIES times)."""
     pending = {(t.index, t.sub): t for t in tasks}
 
     def record_once(task, cols):
         pending.pop((task.index, task.sub), None)
-        record(task, cols)
+        record(task, cols, last=not pending)
 
     for attempt in range(WORKER_RETRIES + 1):
         try:
-            where.map(handle, study.name, cfg, chunk, list(pending.values()), jobs, record_once)
+            where.map(handle, study.name, cfg, chunk, list(pending.values()), jobs, record_once, idle)
+            idle = None  # once: what it stores is stored
             return
         except Exception as exc:
             if not _worker_died(exc):

@@ -108,3 +108,35 @@ def test_a_search_on_a_study_without_a_design_space_is_refused(tmp_path):
 
     with pytest.raises(UsageError, match="no design space"):
         plan_for(st, Cfg())
+
+
+def test_a_sequential_plans_part_is_stored_while_its_next_batch_computes(toy, tmp_path):
+    """The parts a batch's last task gives are stored once the next batch is handed to the workers (the next
+    generation needs the batch's result, not its storing), and a stop during that next batch still leaves them
+    stored: the resumed search gives the uninterrupted rows."""
+    from surgopt import backends
+
+    cfg = _cfg(toy, "cmaes-none")
+    events = []
+    real_write, real_compute = Store.write_part, backends.compute
+
+    def write(self, run, i, table):
+        events.append(("write", i))
+        return real_write(self, run, i, table)
+
+    def compute(study_name, cfg, chunk, task):
+        events.append(("compute", task.index))
+        if sum(e == ("write", 1) for e in events) and task.index == 2:
+            raise KeyboardInterrupt  # a stop while part 2's batch computes
+        return real_compute(study_name, cfg, chunk, task)
+
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setattr(Store, "write_part", write)
+        mp.setattr(backends, "compute", compute)
+        with pytest.raises(KeyboardInterrupt):
+            _run(toy, cfg, tmp_path / "a", jobs=2)
+    first_write = events.index(("write", 0))
+    assert ("compute", 1) in events[:first_write]  # part 0 was stored after part 1's batch was handed out
+    assert sorted(single_run(tmp_path / "a").done_tasks()) == [0, 1]  # what finished is stored
+    resumed = _run(toy, cfg, tmp_path / "a").table
+    assert same_rows(resumed, _run(toy, cfg, tmp_path / "b").table)
