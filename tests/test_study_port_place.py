@@ -13,6 +13,8 @@ from surgopt.studies import port_place as S
 from conftest import cli
 from reference import ECM_CLASSIC_MDH, PSM_CLASSIC_MDH, brute_force_reach, finite_difference_jacobian, mdh_chain
 
+ANY_APPROACH = K.Approach(0.0, 0.0, -1.0, -2.0)  # no approach cone
+
 RNG = np.random.default_rng(29)
 SMALL = {"patient": {"port_region": {"site_spacing_mm": 36.0}}, "target": {"spacing_mm": 15.0}}
 
@@ -62,7 +64,7 @@ def test_reach_matches_joint_space_sampling():
     site, centre = np.array([0.0, 0.0, 0.0]), np.array([0.02, -0.03, -0.15])
     rot = K.docking_frames(site[None], centre, np.array([1.0, 0.0, 0.0]))
     pts = centre + RNG.uniform(-0.12, 0.12, size=(150, 3))
-    reach, _ = K.instrument_tables(site[None], rot, pts, lim, 0.1)
+    reach, _ = K.instrument_tables(site[None], rot, pts, lim, 0.1, ANY_APPROACH)
     base = np.array([K.to_base(rot[0], site, p) for p in pts])
     d, gap = brute_force_reach(base, PSM_CLASSIC_MDH, [(lim.yaw_lo, lim.yaw_hi), (lim.pitch_lo, lim.pitch_hi),
                                                         (lim.insertion_lo, lim.insertion_hi)])
@@ -288,3 +290,35 @@ def test_free_docking_turns_the_base_and_a_search_explores_ports_and_docking(tmp
     for c in S.DOCKING_COLUMNS:
         v = a[c].to_numpy()
         assert v.min() >= -60 and v.max() <= 60 and len(set(v.tolist())) > 10
+
+
+def test_an_approach_cone_keeps_the_points_whose_shaft_the_wrist_can_turn_into_it():
+    """[target] approach_direction / approach_half_angle_deg: a point is reached only where the angle between the
+    shaft (port to point) and the approach direction is at most the wrist's bend (80 deg, the LND's wrist rows)
+    less the cone's half-angle; computed here apart, with numpy arccos, on the default config's ports and
+    points. A cone wider than the wrist can give, a zero direction, or a half-angle alone is refused."""
+    from surgopt.config import validate
+    from surgopt.errors import ConfigError
+
+    base = {"target": {"spacing_mm": 15.0}, "patient": {"port_region": {"site_spacing_mm": 40.0}}}
+    cone = {**base, "target": {**base["target"], "approach_direction": [0.0, 0.3, -1.0],
+                               "approach_half_angle_deg": 30.0}}
+    free, coned = (validate(c, S.PortPlaceConfig, "t") for c in (base, cone))
+    sites = S.sites_mm(free) / 1000
+    rot = K.docking_frames(sites, np.asarray(free.target.centre_mm) / 1000, S.LATERAL)
+    _, reach_free, _ = S.port_tables(free, sites, rot)
+    _, reach_cone, dex_cone = S.port_tables(coned, sites, rot)
+    pts = S.target_points_mm(free.target) / 1000
+    v = pts[None, :, :] - sites[:, None, :]
+    d = np.array([0.0, 0.3, -1.0]) / np.linalg.norm([0.0, 0.3, -1.0])
+    angle = np.degrees(np.arccos(np.clip(v @ d / np.linalg.norm(v, axis=2), -1, 1)))
+    assert np.array_equal(reach_cone, reach_free & (angle <= 80.0 - 30.0 + 1e-9))
+    assert 0 < reach_cone.sum() < reach_free.sum()  # the premise: the cone removes some reached points, not all
+    assert np.all(dex_cone[~reach_cone] == 0)
+    with pytest.raises(ConfigError, match="more than the instrument's wrist can bend"):
+        validate({"target": {"approach_direction": [0, 0, -1], "approach_half_angle_deg": 85.0}},
+                 S.PortPlaceConfig, "t")
+    with pytest.raises(ConfigError, match="must be a direction"):
+        validate({"target": {"approach_direction": [0, 0, 0]}}, S.PortPlaceConfig, "t")
+    with pytest.raises(ConfigError, match="goes with approach_direction"):
+        validate({"target": {"approach_half_angle_deg": 10.0}}, S.PortPlaceConfig, "t")

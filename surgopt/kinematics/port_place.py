@@ -38,6 +38,17 @@ class ArmLimits(NamedTuple):
     along_shaft_m: float
 
 
+class Approach(NamedTuple):
+    """The directions the jaws must point along at the target (a unit direction in the patient frame) and the
+    least cosine between it and the shaft's direction (port to point) for the wrist to give them all:
+    cos(wrist bend - cone half-angle); below -1 when any direction will do."""
+
+    dx: float
+    dy: float
+    dz: float
+    cos_min: float
+
+
 class Camera(NamedTuple):
     """The endoscope: its arm, its field of view (full cone angle), how far before the target's centre its
     tip stops, and the depth range it images sharply (from the tip)."""
@@ -179,9 +190,10 @@ def to_base(rot, site, p):
 
 
 @njit(**EXACT)
-def instrument_tables(sites, rot, targets, arm, length_m):
+def instrument_tables(sites, rot, targets, arm, length_m, approach):
     """(reach[site, point], dexterity[site, point]): the RCM inverse kinematics of every target point at every
-    port within the joint limits, and the isotropy there (0 where unreachable). Scalar arithmetic in the
+    port within the joint limits and, when the target asks for one, with the shaft within the wrist's bend of
+    the approach cone (``Approach``), and the isotropy there (0 where unreachable). Scalar arithmetic in the
     loop (``rcm_inverse`` and ``isotropy`` written out: no array per point)."""
     n, m = sites.shape[0], targets.shape[0]
     reach = np.zeros((n, m), dtype=np.bool_)
@@ -194,7 +206,7 @@ def instrument_tables(sites, rot, targets, arm, length_m):
             py = r[0, 1] * dx + r[1, 1] * dy + r[2, 1] * dz
             pz = r[0, 2] * dx + r[1, 2] * dy + r[2, 2] * dz
             rho = math.sqrt(px * px + py * py + pz * pz)
-            if rho == 0.0:
+            if rho == 0.0 or (dx * approach.dx + dy * approach.dy + dz * approach.dz) < approach.cos_min * rho:
                 continue
             q2 = -math.asin(min(1.0, max(-1.0, py / rho)))
             q1 = math.atan2(px, -pz)

@@ -81,6 +81,10 @@ def _yaw_pitch_insertion(yaw: tuple[float, float], pitch: tuple[float, float], i
 LND_ROLL_LIMITS_RAD = (-4.53786, 4.53786)
 LND_WRIST_LIMITS_RAD = (-1.39626, 1.39626)
 LND_WRIST_LINK_M = 0.0091
+#: How far the Large Needle Driver's jaws can point away from its shaft: a cone of the wrist rows' +-80 deg
+#: (pitch and yaw each reach 80 deg; together they reach farther on the diagonals, so the cone is the
+#: conservative reading of the two limits).
+LND_WRIST_BEND_RAD = min(-LND_WRIST_LIMITS_RAD[0], LND_WRIST_LIMITS_RAD[1])
 
 PSM_CLASSIC = RcmArm(
     "dvrk_psm_classic",

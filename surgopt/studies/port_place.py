@@ -118,11 +118,27 @@ class Target(StrictModel):
     centre_mm: Vec3 = Field([0.0, -100.0, 40.0], min_length=3, max_length=3)
     radii_mm: Vec3 = Field([35.0, 45.0, 30.0], min_length=3, max_length=3)
     spacing_mm: float = Field(6.0, ge=0.5, le=100.0)
+    approach_direction: Vec3 | None = Field(
+        None, min_length=3, max_length=3, description="the direction the jaws must point along at every target "
+        "point (patient frame; e.g. [0, 0, -1]: straight down); none: any")
+    approach_half_angle_deg: float = Field(
+        0.0, ge=0.0, le=90.0, description="every direction within this angle of approach_direction must be "
+        "reachable (the wrist bends the jaws up to its limit away from the shaft)")
 
     @model_validator(mode="after")
     def _positive(self):
         if min(self.radii_mm) <= 0:
             raise ValueError("radii_mm: every radius must be > 0")
+        if self.approach_direction is not None:
+            if math.hypot(*self.approach_direction) < 1e-9:
+                raise ValueError("approach_direction: must be a direction, not [0, 0, 0]")
+            bend = math.degrees(dvrk.LND_WRIST_BEND_RAD)
+            if self.approach_half_angle_deg > bend:
+                raise ValueError(f"approach_half_angle_deg: {self.approach_half_angle_deg:g} deg is more than the "
+                                 f"instrument's wrist can bend the jaws from its shaft ({bend:.0f} deg): no port "
+                                 f"can give every direction of that cone")
+        elif self.approach_half_angle_deg:
+            raise ValueError("approach_half_angle_deg goes with approach_direction")
         return self
 
 
@@ -348,6 +364,19 @@ def arm_limits(arm: dvrk.RcmArm):
     return ArmLimits(*arm.yaw_limits_rad, *arm.pitch_limits_rad, *arm.insertion_limits_m, arm.along_shaft_m)
 
 
+def approach(target: Target):
+    """The target's approach cone for the kernel (``port_place.Approach``): a point is reached only where the
+    shaft's direction from the port lies within (wrist bend - half-angle) of the approach direction, so that the
+    wrist can point the jaws along every direction of the cone; any direction when none is given."""
+    from surgopt.kinematics.port_place import Approach
+
+    if target.approach_direction is None:
+        return Approach(0.0, 0.0, -1.0, -2.0)  # a cosine below -1: every shaft direction passes
+    d = np.asarray(target.approach_direction, float)
+    d = d / np.linalg.norm(d)
+    return Approach(*d, math.cos(dvrk.LND_WRIST_BEND_RAD - math.radians(target.approach_half_angle_deg)))
+
+
 def criteria(cfg: PortPlaceConfig):
     from surgopt.kinematics.port_place import Criteria
 
@@ -383,7 +412,7 @@ def port_tables(cfg: PortPlaceConfig, sites: np.ndarray, rot: np.ndarray, outsid
     centre = np.asarray(cfg.target.centre_mm, float) / 1000
     crit = criteria(cfg)
     reach, dex = K.instrument_tables(sites, rot, targets, arm_limits(dvrk.INSTRUMENT_ARMS[cfg.robot.instrument_arm]),
-                                     crit.dexterity_length_m)
+                                     crit.dexterity_length_m, approach(cfg.target))
     r = cfg.robot
     camera = K.Camera(arm_limits(dvrk.CAMERA_ARMS[r.camera_arm]), math.radians(r.camera_fov_deg) / 2,
                       r.camera_standoff_mm / 1000, r.camera_range_mm[0] / 1000, r.camera_range_mm[1] / 1000)
