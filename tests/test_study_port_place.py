@@ -322,3 +322,24 @@ def test_an_approach_cone_keeps_the_points_whose_shaft_the_wrist_can_turn_into_i
         validate({"target": {"approach_direction": [0, 0, 0]}}, S.PortPlaceConfig, "t")
     with pytest.raises(ConfigError, match="goes with approach_direction"):
         validate({"target": {"approach_half_angle_deg": 10.0}}, S.PortPlaceConfig, "t")
+
+
+def test_a_port_region_outline_keeps_the_sites_inside_it():
+    """[patient.port_region] polygon_mm (a top-view outline a surgeon marks): the sites are the default's inside
+    the outline (checked with matplotlib's Path, apart from the study's even-odd test), a concave outline keeps
+    its notch empty, and an outline enclosing nothing is refused; a layout is still found inside a plausible one."""
+    from matplotlib.path import Path as MplPath
+
+    from surgopt.config import validate
+    from surgopt.errors import ConfigError
+
+    outline = [[-100, -160], [100, -160], [100, 40], [20, 40], [20, -60], [-20, -60], [-20, 40], [-100, 40]]
+    free = S.sites_mm(S.PortPlaceConfig())
+    cfg = validate({"patient": {"port_region": {"polygon_mm": outline}}}, S.PortPlaceConfig, "t")
+    sites = S.sites_mm(cfg)
+    inside = MplPath(np.asarray(outline, float)).contains_points(free[:, :2])
+    assert 0 < len(sites) < len(free) and np.array_equal(sites, free[inside])
+    notch = (np.abs(sites[:, 0]) < 20) & (sites[:, 1] > -60)
+    assert not notch.any() and ((np.abs(free[:, 0]) < 20) & (free[:, 1] > -60) & (free[:, 1] < 40)).any()
+    with pytest.raises(ConfigError, match="polygon_mm: its vertices enclose no area"):
+        validate({"patient": {"port_region": {"polygon_mm": [[0, 0], [10, 10], [20, 20]]}}}, S.PortPlaceConfig, "t")

@@ -1,0 +1,370 @@
+"""Config models of the ``port-place`` study and the geometry they imply: the patient (a dome or a mesh), the port
+region and its candidate sites, the target and its points, the robot, the constraints and the objective.
+
+A config is resolved once, at validation (a mesh file read, checked and hashed; the sites counted against the
+constraints), so the validated config says everything that is hashed into the store key. One module of ~360
+lines: the sections and the geometry each one implies (sites from the patient, points from the target) are read
+together.
+"""
+from __future__ import annotations
+
+import math
+from functools import lru_cache
+from typing import Annotated, Literal
+
+import numpy as np
+from pydantic import Field, ValidationInfo, model_validator
+
+from surgopt.config import NOT_IN_KEY, StrictModel
+from surgopt.robots import dvrk
+from surgopt.studies.search import check_objectives, search_field
+
+Vec3 = list[float]
+#: What summarize and a search rank by (higher is better): -cost, less 100 per reason a design fails.
+OBJECTIVE = "score"
+#: Columns a [search] may optimise.
+SEARCH_OBJECTIVES = ("score", "cost", "common_reach", "dexterity_mean", "camera_coverage", "shaft_clearance_mm",
+                     "external_clearance_mm", "azimuth_imbalance_deg", "manipulation_angle_share_45_75")
+
+
+class PortRegion(StrictModel):
+    """Where on the wall ports may go: sites on a grid of ``site_spacing_mm`` in the top view, on the dome where
+    its height is at least ``min_height_fraction`` of the top (the flanks are too steep to dock), and, when
+    ``polygon_mm`` is given, inside that top-view outline (the region a surgeon marks on the abdomen: x lateral,
+    y cranial, mm; its vertices in order, not closed)."""
+
+    site_spacing_mm: float = Field(18.0, ge=5.0, le=200.0)
+    min_height_fraction: float = Field(0.45, ge=0.0, lt=1.0)
+    polygon_mm: list[Annotated[list[Annotated[float, Field(ge=-2000.0, le=2000.0)]],
+                               Field(min_length=2, max_length=2)]] | None = Field(
+        None, min_length=3, max_length=1000, description="[[x, y], ...] top-view outline ports must lie inside")
+
+    @model_validator(mode="after")
+    def _an_area(self):
+        if self.polygon_mm is not None and polygon_area_mm2(np.asarray(self.polygon_mm, float)) < 1.0:
+            raise ValueError("polygon_mm: its vertices enclose no area (fewer than three distinct, or all on a line)")
+        return self
+
+
+def polygon_area_mm2(poly: np.ndarray) -> float:
+    """|Shoelace area| of a polygon's vertices (N, 2), in order."""
+    x, y = poly[:, 0], poly[:, 1]
+    return abs(float(np.dot(x, np.roll(y, -1)) - np.dot(np.roll(x, -1), y))) / 2
+
+
+def inside_polygon(x: np.ndarray, y: np.ndarray, poly: np.ndarray) -> np.ndarray:
+    """Whether each point (x, y) is inside the polygon (even-odd rule: a ray towards +x crosses its edges an odd
+    number of times)."""
+    inside = np.zeros(x.shape, dtype=bool)
+    x0, y0 = poly[:, 0], poly[:, 1]
+    x1, y1 = np.roll(x0, -1), np.roll(y0, -1)
+    for ax, ay, bx, by in zip(x0, y0, x1, y1):
+        crosses = (ay > y) != (by > y)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            at = ax + (y - ay) * (bx - ax) / (by - ay)
+        inside ^= crosses & (x < at)
+    return inside
+
+
+class Patient(StrictModel):
+    """The insufflated abdomen: a half-ellipsoid dome over the plane z = 0 (x lateral, patient's left +x; y
+    toward the head; z anterior), semi-axes in mm. Default 170 x 210 x 140 mm: an assumption (an adult
+    abdomen ~34 cm wide and ~42 cm long; insufflation raises the wall ~6 cm, J Endourol 18(6):572, 2004)."""
+
+    shape: Literal["dome", "mesh"] = Field("dome", description="'dome' (semi_axes_mm) or 'mesh' (mesh_file)")
+    semi_axes_mm: Vec3 = Field([170.0, 210.0, 140.0], min_length=3, max_length=3)
+    mesh_file: str | None = Field(None, min_length=1, description="a closed triangle mesh of the insufflated body "
+                                  "(STL, OBJ or PLY, read by trimesh), relative to the config file (its content "
+                                  "hash, mesh_sha256, is in the store key, not its path)",
+                                  json_schema_extra=NOT_IN_KEY)
+    mesh_units: Literal["mm", "m"] = Field("mm", description="the mesh file's length unit")
+    mesh_offset_mm: Vec3 = Field([0.0, 0.0, 0.0], min_length=3, max_length=3,
+                                 description="added to the mesh (after units): its base on z = 0, x lateral, y "
+                                             "toward the head, z anterior, as for the dome")
+    mesh_sha256: str | None = Field(None, description="filled in: the mesh file's content hash (in the store key)")
+    port_region: PortRegion = PortRegion()
+
+    @model_validator(mode="after")
+    def _positive(self, info: ValidationInfo):
+        if min(self.semi_axes_mm) <= 0:
+            raise ValueError("semi_axes_mm: every semi-axis must be > 0")
+        if self.shape == "mesh":
+            self._resolve_mesh(info.context or {})
+        elif self.mesh_file is not None:
+            raise ValueError("mesh_file is given but shape is 'dome': set shape = 'mesh' to use it")
+        return self
+
+    def _resolve_mesh(self, context) -> None:
+        """The mesh file, relative to the config's folder, read (bounded), hashed and checked closed."""
+        import hashlib
+        from pathlib import Path
+
+        if self.mesh_file is None:
+            raise ValueError("shape = 'mesh' needs mesh_file (an STL, OBJ or PLY file)")
+        path = Path(self.mesh_file).expanduser()
+        if not path.is_absolute():
+            path = Path(context.get("config_dir") or Path.cwd()) / path
+        path = path.resolve()
+        object.__setattr__(self, "mesh_file", str(path))
+        if context.get("stored"):
+            return
+        data = _read_mesh_bytes(path)
+        sha = hashlib.sha256(data).hexdigest()
+        if self.mesh_sha256 is not None and self.mesh_sha256 != sha:
+            raise ValueError(f"mesh_file: {path} changed since this config was written (mesh_sha256 differs); drop "
+                             f"mesh_sha256 to use the file as it is now")
+        object.__setattr__(self, "mesh_sha256", sha)
+        body_mesh(str(path), sha, self.mesh_units, tuple(self.mesh_offset_mm))  # parsed and checked once here
+
+
+class Target(StrictModel):
+    """The anatomy every instrument must reach: a sphere, ellipsoid or box (``radii_mm``: semi-axes, or half
+    sides), sampled on a grid of ``spacing_mm``. Default: an ellipsoid of 35 x 45 x 30 mm semi-axes in the
+    pelvis, 100 mm caudal of the dome's top and 40 mm above its base (a prostate-bed-like target; an
+    assumption)."""
+
+    shape: Literal["sphere", "ellipsoid", "box"] = "ellipsoid"
+    centre_mm: Vec3 = Field([0.0, -100.0, 40.0], min_length=3, max_length=3)
+    radii_mm: Vec3 = Field([35.0, 45.0, 30.0], min_length=3, max_length=3)
+    spacing_mm: float = Field(6.0, ge=0.5, le=100.0)
+    approach_direction: Vec3 | None = Field(
+        None, min_length=3, max_length=3, description="the direction the jaws must point along at every target "
+        "point (patient frame; e.g. [0, 0, -1]: straight down); none: any")
+    approach_half_angle_deg: float = Field(
+        0.0, ge=0.0, le=90.0, description="every direction within this angle of approach_direction must be "
+        "reachable (the wrist bends the jaws up to its limit away from the shaft)")
+
+    @model_validator(mode="after")
+    def _positive(self):
+        if min(self.radii_mm) <= 0:
+            raise ValueError("radii_mm: every radius must be > 0")
+        if self.approach_direction is not None:
+            if math.hypot(*self.approach_direction) < 1e-9:
+                raise ValueError("approach_direction: must be a direction, not [0, 0, 0]")
+            bend = math.degrees(dvrk.LND_WRIST_BEND_RAD)
+            if self.approach_half_angle_deg > bend:
+                raise ValueError(f"approach_half_angle_deg: {self.approach_half_angle_deg:g} deg is more than the "
+                                 f"instrument's wrist can bend the jaws from its shaft ({bend:.0f} deg): no port "
+                                 f"can give every direction of that cone")
+        elif self.approach_half_angle_deg:
+            raise ValueError("approach_half_angle_deg goes with approach_direction")
+        return self
+
+
+class Robot(StrictModel):
+    instrument_arm: Literal[tuple(dvrk.INSTRUMENT_ARMS)] = "dvrk_psm_classic"
+    camera_arm: Literal[tuple(dvrk.CAMERA_ARMS)] = "dvrk_ecm_classic"
+    camera_fov_deg: float = Field(70.0, gt=0, lt=180, description="full view angle of a 0-deg scope (60-70 typical)")
+    camera_standoff_mm: float = Field(100.0, gt=0, description="the scope tip stops this far before the target centre")
+    camera_range_mm: list[float] = Field([10.0, 200.0], min_length=2, max_length=2,
+                                         description="sharp imaging range from the tip")
+    docking_range_deg: float = Field(0.0, ge=0.0, le=60.0,
+                                     description="a [search] may turn each PSM's base this far (yaw and pitch) off "
+                                                 "the target's centre (free docking); 0: docked toward the centre. "
+                                                 "The grid enumerates the default docking only")
+
+
+class Constraints(StrictModel):
+    min_port_spacing_mm: float = Field(80.0, ge=0, description="between any two ports (assumption: 8 cm)")
+    port_to_target_mm: list[float] = Field([80.0, 180.0], min_length=2, max_length=2,
+                                           description="candidate sites this far from the target centre "
+                                                       "(<= 18 cm: J Endourol 18(6):572, 2004)")
+    shaft_diameter_mm: float = Field(dvrk.INSTRUMENT_SHAFT_DIAMETER_MM, gt=0)
+    min_shaft_clearance_mm: float = Field(5.0, ge=0, description="between shaft surfaces inside the body")
+    tip_zone_mm: float = Field(30.0, ge=0, description="last stretch before the target centre left out of the "
+                                                        "shafts' clearance (the instruments meet there)")
+    min_external_clearance_mm: float = Field(60.0, ge=0, description="between arm axes outside the body, along "
+                                                                     "the 0.4318 m behind each port")
+    manipulation_angle_deg: list[float] = Field([45.0, 75.0], min_length=2, max_length=2)
+    dexterity_length_m: float = Field(0.1, gt=0, description="characteristic length L of the isotropy")
+
+
+class Objective(StrictModel):
+    """Weights of the cost (minimised): unreached share, |mean manipulation angle - 60 deg| (rad), azimuth
+    imbalance plus the optical axis's angle off the arc between the instruments (rad), unseen share,
+    1 - mean isotropy."""
+
+    reach: float = Field(10.0, ge=0)
+    angle: float = Field(1.0, ge=0)
+    azimuth: float = Field(1.0, ge=0)
+    camera: float = Field(5.0, ge=0)
+    dexterity: float = Field(1.0, ge=0)
+
+
+class PortPlaceConfig(StrictModel):
+    patient: Patient = Patient()
+    target: Target = Target()
+    robot: Robot = Robot()
+    constraints: Constraints = Constraints()
+    objective: Objective = Objective()
+    search: search_field("grid") = Field("grid", description="'grid' (every assignment, default docking) or a "
+                                                             "[search] table: an optimiser over the ports (and the "
+                                                             "docking, robot.docking_range_deg)")
+
+    @model_validator(mode="after")
+    def _search_objectives_are_columns(self):
+        check_objectives(self.search, SEARCH_OBJECTIVES)
+        return self
+
+    @model_validator(mode="after")
+    def _target_inside_and_ranges_ordered(self):
+        for name, (lo, hi) in (("robot.camera_range_mm", self.robot.camera_range_mm),
+                               ("constraints.port_to_target_mm", self.constraints.port_to_target_mm),
+                               ("constraints.manipulation_angle_deg", self.constraints.manipulation_angle_deg)):
+            if not 0 <= lo < hi:
+                raise ValueError(f"{name}: [{lo:g}, {hi:g}] must be 0 <= low < high")
+        pts = target_points_mm(self.target)
+        if len(pts) == 0:
+            raise ValueError("target: no sample point (a spacing larger than the target)")
+        if len(pts) > 20_000:
+            raise ValueError(f"target: {len(pts):,} sample points (at most 20,000: a larger spacing_mm)")
+        outside = ~inside_body(pts, self.patient)
+        if outside.any():
+            p = pts[np.argmax(outside)]
+            body = (f"the dome {self.patient.semi_axes_mm} mm over z = 0" if self.patient.shape == "dome"
+                    else f"the mesh {self.patient.mesh_file}")
+            raise ValueError(f"target: the point ({p[0]:.0f}, {p[1]:.0f}, {p[2]:.0f}) mm is outside the body "
+                             f"({body})")
+        n = len(sites_mm(self))
+        if n < 3:
+            raise ValueError(f"patient.port_region: {n} candidate site(s) within constraints.port_to_target_mm; "
+                             f"three ports need at least three")
+        return self
+
+
+Config = PortPlaceConfig
+
+
+# --- the geometry the config implies (numpy; mm) -------------------------------------------------------------
+
+def grid_1d(half: float, spacing: float) -> np.ndarray:
+    """Points -half .. half at ``spacing``, symmetric about 0 (0 included when they fit)."""
+    k = int(math.floor(half / spacing + 1e-9))
+    return np.arange(-k, k + 1) * spacing
+
+
+def target_points_mm(t: Target) -> np.ndarray:
+    """The target sampled on a grid of ``spacing_mm`` centred on it (points inside the shape)."""
+    gx, gy, gz = (grid_1d(r, t.spacing_mm) for r in t.radii_mm)
+    x, y, z = np.meshgrid(gx, gy, gz, indexing="ij")
+    pts = np.stack([x.ravel(), y.ravel(), z.ravel()], axis=1)
+    if t.shape != "box":
+        r = np.asarray(t.radii_mm, float)
+        pts = pts[((pts / r) ** 2).sum(axis=1) <= 1.0 + 1e-12]
+    return pts + np.asarray(t.centre_mm, float)
+
+
+def inside_dome(p: np.ndarray, semi_axes_mm) -> np.ndarray:
+    a = np.asarray(semi_axes_mm, float)
+    return (p[:, 2] >= 0) & (((p / a) ** 2).sum(axis=1) < 1.0)
+
+
+def dome_height_mm(x, y, semi_axes_mm):
+    a, b, c = semi_axes_mm
+    s = 1.0 - (np.asarray(x) / a) ** 2 - (np.asarray(y) / b) ** 2
+    return c * np.sqrt(np.clip(s, 0.0, None))
+
+
+#: The largest mesh file read (bytes) and the most triangles accepted.
+MAX_MESH_BYTES = 200 * 2 ** 20
+MAX_MESH_FACES = 2_000_000
+
+
+def _read_mesh_bytes(path) -> bytes:
+    from surgopt.files import FileProblem, read_bounded
+
+    try:
+        return read_bounded(path, MAX_MESH_BYTES)
+    except FileNotFoundError:
+        raise ValueError(f"mesh_file: file not found: {path}") from None
+    except FileProblem as exc:
+        raise ValueError(f"mesh_file: {exc}") from None
+    except OSError as exc:
+        raise ValueError(f"mesh_file: cannot read {path}: {exc.strerror or exc}") from None
+
+
+@lru_cache(maxsize=4)
+def body_mesh(path: str, sha256: str, units: str, offset_mm: tuple):
+    """The patient's mesh (trimesh) in mm, offset; a ValueError naming the problem if it cannot be read, is not
+    closed (inside and outside would be undefined) or is too large. Cached per file content."""
+    import io
+    from pathlib import Path
+
+    import trimesh
+
+    data = _read_mesh_bytes(path)
+    kind = Path(path).suffix.lower().lstrip(".")
+    if kind not in ("stl", "obj", "ply"):
+        raise ValueError(f"mesh_file: {path}: not an STL, OBJ or PLY file")
+    try:
+        mesh = trimesh.load(io.BytesIO(data), file_type=kind, force="mesh", process=True)
+    except Exception as exc:  # noqa: BLE001 - whatever trimesh raises on a malformed file
+        raise ValueError(f"mesh_file: {path}: cannot be read as {kind.upper()} ({type(exc).__name__}: "
+                         f"{str(exc)[:120]})") from None
+    if len(mesh.faces) == 0:
+        raise ValueError(f"mesh_file: {path}: no triangles")
+    if len(mesh.faces) > MAX_MESH_FACES:
+        raise ValueError(f"mesh_file: {path}: {len(mesh.faces):,} triangles (at most {MAX_MESH_FACES:,})")
+    if not np.all(np.isfinite(mesh.vertices)):
+        raise ValueError(f"mesh_file: {path}: a vertex is not finite")
+    if not mesh.is_watertight:
+        raise ValueError(f"mesh_file: {path}: the mesh is not closed (watertight), so inside and outside the body "
+                         f"are undefined; close it (e.g. cap the base plane)")
+    mesh.apply_scale(1000.0 if units == "m" else 1.0)
+    mesh.apply_translation(np.asarray(offset_mm, float))
+    if mesh.bounds[1][2] <= 0:
+        raise ValueError(f"mesh_file: {path}: the mesh lies below z = 0 (mesh_offset_mm puts its base on z = 0)")
+    return mesh
+
+
+def _mesh_of(patient: Patient):
+    return body_mesh(patient.mesh_file, patient.mesh_sha256, patient.mesh_units, tuple(patient.mesh_offset_mm))
+
+
+def inside_body(p: np.ndarray, patient: Patient) -> np.ndarray:
+    """Which points (mm) lie inside the body: the dome, or the closed mesh (trimesh's containment test)."""
+    if patient.shape == "dome":
+        return inside_dome(p, patient.semi_axes_mm)
+    return np.asarray(_mesh_of(patient).contains(p), bool) & (p[:, 2] >= 0)
+
+
+def wall_height_mm(x: np.ndarray, y: np.ndarray, patient: Patient) -> np.ndarray:
+    """Height (mm) of the body's upper wall over each top-view point: the dome's, or the highest crossing of a
+    vertical ray with the mesh (NaN where the ray misses it)."""
+    if patient.shape == "dome":
+        return dome_height_mm(x, y, patient.semi_axes_mm)
+    mesh = _mesh_of(patient)
+    top = mesh.bounds[1][2] + 10.0
+    origins = np.stack([x, y, np.full(len(x), top)], axis=1)
+    dirs = np.tile([0.0, 0.0, -1.0], (len(x), 1))
+    locations, index_ray, _ = mesh.ray.intersects_location(origins, dirs, multiple_hits=True)
+    z = np.full(len(x), np.nan)
+    np.fmax.at(z, index_ray, locations[:, 2])
+    return z
+
+
+def body_extent_mm(patient: Patient) -> tuple[float, float, float]:
+    """Half widths in x and y about 0 and the height of the body (the dome's semi-axes, the mesh's bounds)."""
+    if patient.shape == "dome":
+        return tuple(patient.semi_axes_mm)
+    lo, hi = _mesh_of(patient).bounds
+    return max(abs(lo[0]), abs(hi[0])), max(abs(lo[1]), abs(hi[1])), float(hi[2])
+
+
+def sites_mm(cfg: PortPlaceConfig) -> np.ndarray:
+    """Candidate ports: a top-view grid at ``site_spacing_mm`` (symmetric about x = 0) lifted onto the body's
+    upper wall (the dome, or the mesh by vertical rays), kept where the wall is at least
+    ``min_height_fraction`` of the body's height, inside ``polygon_mm`` when given, and where the target centre
+    is within ``port_to_target_mm``."""
+    a, b, c = body_extent_mm(cfg.patient)
+    s = cfg.patient.port_region.site_spacing_mm
+    gx, gy = np.meshgrid(grid_1d(a, s), grid_1d(b, s), indexing="ij")
+    x, y = gx.ravel(), gy.ravel()
+    z = wall_height_mm(x, y, cfg.patient)
+    keep = np.nan_to_num(z, nan=-1.0) >= cfg.patient.port_region.min_height_fraction * c
+    if cfg.patient.port_region.polygon_mm is not None:
+        keep &= inside_polygon(x, y, np.asarray(cfg.patient.port_region.polygon_mm, float))
+    pts = np.stack([x[keep], y[keep], z[keep]], axis=1)
+    dist = np.linalg.norm(pts - np.asarray(cfg.target.centre_mm), axis=1)
+    lo, hi = cfg.constraints.port_to_target_mm
+    return pts[(dist >= lo) & (dist <= hi)]
