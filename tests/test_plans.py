@@ -130,13 +130,23 @@ def test_a_sequential_plans_part_is_stored_while_its_next_batch_computes(toy, tm
             raise KeyboardInterrupt  # a stop while part 2's batch computes
         return real_compute(study_name, cfg, chunk, task)
 
+    from concurrent.futures import ThreadPoolExecutor
+
+    real_submit = ThreadPoolExecutor.submit
+
+    def submit(self, fn, *args, **kw):  # in the parent, like the store's writes: their order is deterministic
+        if args and hasattr(args[-1], "index"):
+            events.append(("submit", args[-1].index))
+        return real_submit(self, fn, *args, **kw)
+
     with pytest.MonkeyPatch.context() as mp:
         mp.setattr(Store, "write_part", write)
         mp.setattr(backends, "compute", compute)
+        mp.setattr(ThreadPoolExecutor, "submit", submit)
         with pytest.raises(KeyboardInterrupt):
             _run(toy, cfg, tmp_path / "a", jobs=2)
     first_write = events.index(("write", 0))
-    assert ("compute", 1) in events[:first_write]  # part 0 was stored after part 1's batch was handed out
+    assert ("submit", 1) in events[:first_write]  # part 0 was stored after part 1's batch was handed out
     assert sorted(single_run(tmp_path / "a").done_tasks()) == [0, 1]  # what finished is stored
     resumed = _run(toy, cfg, tmp_path / "a").table
     assert same_rows(resumed, _run(toy, cfg, tmp_path / "b").table)
