@@ -1,6 +1,7 @@
 """Regenerate the numbers of docs/reproduction.md, Raven section (Li et al., ICRA 2011).
 
-Run:  python docs/reproduce_raven.py   (about 90 s on 2 cores: nine full Table II sweeps)
+Run:  python docs/reproduce_raven.py   (about 15 s on 2 cores once the kernels are compiled: Fig. 4's two designs,
+      Fig. 7's three port spacings, ten full Table II sweeps, one per geometry below, and a refine)
 """
 from __future__ import annotations
 
@@ -11,6 +12,7 @@ from pathlib import Path
 import numpy as np
 
 from surgopt.config import load_config, load_embedded
+from surgopt.plans import follow_up_plan
 from surgopt.runner import run_study
 from surgopt.store import Store
 from surgopt.studies import raven_sweep as S
@@ -75,10 +77,9 @@ def main():
             best = ", ".join(f"{t[p][i].as_py():g}" for p in S.PARAMS)
             print(f"| {name} | {row['cost']:.1f} | {rank} | ({best}) | {t['cost'][i].as_py():.1f} |")
             if not ch:
-                default_table = t
-                res_cfg = cfg
-        refine = run_study(S.STUDY, S.refine_config(res_cfg, default_table), config_name="refine", store=Store(tmp),
-                           jobs=2, quiet=True, chunk=1)
+                default_table, default_res, res_cfg = t, res, cfg
+        refine = run_study(S.STUDY, res_cfg, plan=follow_up_plan("refine", S.STUDY, res_cfg, default_res),
+                           config_name="refine", store=Store(tmp), jobs=2, quiet=True)
         t = refine.table
         i = int(np.argmax(t["cost"].to_numpy()))
         print("\n--refine from the top 5:", ", ".join(f"{p} {t[p][i].as_py():.4g}" for p in S.PARAMS),
