@@ -9,7 +9,8 @@ from pathlib import Path
 import pytest
 
 DOCS = Path(__file__).resolve().parent.parent / "docs"
-SCRIPTS = sorted(DOCS.glob("*.py"))
+#: The scripts that use surgopt (a script on numpy alone, such as reproduce_raven_isotropy.py, has nothing to check).
+SCRIPTS = sorted(p for p in DOCS.glob("*.py") if "from surgopt" in p.read_text() or "import surgopt" in p.read_text())
 
 
 def surgopt_names(tree):
@@ -35,8 +36,7 @@ def surgopt_names(tree):
 def test_every_surgopt_name_a_docs_script_uses_exists(script):
     tree = ast.parse(script.read_text())
     aliases, names = surgopt_names(tree)
-    if not aliases and not names:
-        pytest.skip(f"{script.name} takes no name from surgopt")
+    assert aliases or names, "the premise: the script takes names from surgopt"
     for module, name, line in names:
         assert hasattr(importlib.import_module(module), name), f"{script.name}:{line}: {module}.{name}"
     for node in ast.walk(tree):
