@@ -520,3 +520,37 @@ def test_a_file_arm_runs_with_the_tool_length_alone(tmp_path):
     best = lambda out: re.search(r"best of the (\d+) runs by best_gii: ([0-9.]+)", out).groups()  # noqa: E731
     n, gii = best(" ".join(r.stdout.split()))
     assert int(n) >= 2 and (n, gii) == best(" ".join(d.stdout.split()))
+
+
+def test_every_row_of_a_branch_run_carries_its_branch_when_exported(tmp_path):
+    """#28 item 1 ("store the branch with every row"): each branch run stores its branch as its seed_deg (config
+    and key); the runs exported together give every row the seed of the branch it was computed on, one seed per
+    run, as many distinct seeds as branches."""
+    import pandas as pd
+
+    small = ["workspace.points_per_side=3", "candidates.grid.x_count=5", "candidates.grid.z_count=6"]
+    cli("rcm-grid", "--robot", "ur5e", *small, "--branches", "--store", tmp_path, "-q")
+    runs = json.loads(cli("runs", "--store", tmp_path, "--format", "json").stdout)
+    assert len(runs) >= 2
+    out = tmp_path / "all.csv"
+    cli("export", *[r["key"][:12] for r in runs], "--store", tmp_path, "--out", out)
+    df = pd.read_csv(out)
+    seed_cols = [c for c in df.columns if c.startswith("robot.seed_deg.")]
+    assert seed_cols and len(df) == 30 * len(runs)
+    per_run = df.groupby("run_key")[seed_cols].nunique()
+    assert (per_run == 1).all().all()  # one branch per run, on every one of its rows
+    assert len(df[seed_cols].drop_duplicates()) == len(runs)
+
+
+def test_a_tool_too_short_for_the_papers_cube_gets_the_cube_scaled_to_it():
+    """A DH arm with a 0.1 m tool and no workspace: the paper's cube (its far corner 0.130 m from the RCM) would be
+    refused, so it is scaled to reach 90% of the tool; a workspace the config gives is left as it is (and refused)."""
+    from surgopt.errors import ConfigError
+
+    robot = {"dh": UR5E_DH, "locked_joints_deg": {"wrist_3": 0.0}, "tool_length_m": 0.1}
+    ws = validate({"robot": robot}, S.Config, "x").workspace
+    far = math.sqrt((ws.depth_below_rcm_m + ws.cube_side_m / 2) ** 2 + 2 * (ws.cube_side_m / 2) ** 2)
+    assert ws.cube_side_m < 0.05 and far == pytest.approx(0.09, rel=1e-3)
+    assert ws.depth_below_rcm_m / ws.cube_side_m == pytest.approx(2.0, rel=1e-2)  # the paper's (rounded to 0.1 mm)
+    with pytest.raises(ConfigError, match="farthest point is 130 mm from the RCM"):
+        validate({"robot": robot, "workspace": {"cube_side_m": 0.05}}, S.Config, "x")

@@ -17,11 +17,15 @@ import math
 
 import numpy as np
 
-from surgopt.metrics import METRIC_RCM
-from surgopt.metrics import global_isotropy_index
+from surgopt.metrics import METRIC_RCM, POSE_METRICS, global_isotropy_index
 from surgopt.studies import Estimate, Flag, Study, Summary, figures_in, peak_bytes
 from surgopt.studies.rcm_grid_config import (  # noqa: F401 - the config models, re-exported
-    SEARCH_OBJECTIVES, Candidates, Grid, RcmGridConfig, Robot, Workspace,
+    SEARCH_OBJECTIVES,
+    Candidates,
+    Grid,
+    RcmGridConfig,
+    Robot,
+    Workspace,
 )
 from surgopt.studies.search import SearchPlan, objectives_of, optimiser_of
 
@@ -245,8 +249,6 @@ def kernel_for(cfg: RcmGridConfig):
 
 def pose_metric(config=None):
     """The per-pose metric (``metrics.POSE_METRICS``) of a config: a validated one, or one as stored (a dict)."""
-    from surgopt.metrics import POSE_METRICS
-
     name = config.get("metric") if isinstance(config, dict) else getattr(config, "metric", None)
     return POSE_METRICS[name or "alternative"]
 

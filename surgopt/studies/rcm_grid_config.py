@@ -23,6 +23,7 @@ from surgopt.robots import pa10_7c
 from surgopt.robots.models import MODELS, get_model
 from surgopt.studies.search import SearchSpec, check_objectives, search_field
 
+
 def search_objectives(metric: str) -> tuple[str, ...]:
     """Row columns a [search] may optimise under this per-pose metric (its sigma columns carry its unit)."""
     return ("gii", *POSE_METRICS[metric].sigma_columns, "x_rcm_m", "y_rcm_m", "z_rcm_m")
@@ -329,7 +330,6 @@ class Robot(StrictModel):
     def spin_speed(self) -> float:
         """The rated speed (rad/s) of ``spin_joint``, after checking that it is locked and that its axis is
         the tool's (a ``ChainError`` otherwise)."""
-        import numpy as np
 
         from surgopt.robots.chain import ChainError
 
@@ -382,30 +382,31 @@ class Robot(StrictModel):
         upper-arm rotation of a 7-axis arm: the shipped Panda's joint3, the iiwa's A3). Revolute joints only."""
         from surgopt.robots.chain import PRISMATIC
 
-        spec = self.chain_spec()
-        free = [j for j in spec.joints if j.kind != PRISMATIC]
-        if len(spec.joints) <= 5:
+        joints = self.chain_spec().joints
+        if len(joints) <= 5:
             return {}
         lines, tool = self.axis_lines()
         out: dict[str, str] = {}
-        last = spec.joints[-1]
+        last = joints[-1]
         if last.kind != PRISMATIC and _coincide(_line_apart(lines[last.name], tool)):
             out[last.name] = "it spins the tool about its own axis"
-        for j in free:
-            if len(spec.joints) - len(out) <= 5:
+        for i, j in enumerate(joints):
+            if len(joints) - len(out) <= 5:
                 break
-            earlier = [e for e in spec.joints[:spec.joints.index(j)] if e.name not in out]
-            twin = next((e for e in earlier if _coincide(_line_apart(lines[j.name], lines[e.name]))), None)
-            if j.name not in out and twin is not None:
+            if j.kind == PRISMATIC or j.name in out:
+                continue
+            twin = next((e for e in joints[:i] if e.name not in out
+                         and _coincide(_line_apart(lines[j.name], lines[e.name]))), None)
+            if twin is not None:
                 out[j.name] = f"its axis coincides with {twin.name}'s at the zero pose: a redundant rotation"
         return out
 
     def auto_lock_advice(self) -> list[str]:
         """Says which joints were locked for the user, and why (``redundant_joints``)."""
-        locked = getattr(self, "_auto_locked", None) or {}
-        if not locked:
+        if not self._auto_locked:
             return []
-        return ["robot: no locked_joints_deg: " + "; ".join(f"{n} locked at 0 ({why})" for n, why in locked.items())
+        return ["robot: no locked_joints_deg: " + "; ".join(f"{n} locked at 0 ({why})"
+                                                            for n, why in self._auto_locked.items())
                 + " (give robot.locked_joints_deg to choose)"]
 
     def tool_axis_advice(self) -> list[str]:
