@@ -142,7 +142,7 @@ def guard():
     """Every failure a command can meet ends in one line on stderr and an exit code: 2 bad input,
     1 a failed run or store, 130 / 143 / 129 interrupted by SIGINT / SIGTERM / SIGHUP."""
     from surgopt import interrupts
-    from surgopt.errors import SurgoptError
+    from surgopt.errors import SurgoptError, out_of_memory
 
     try:
         yield
@@ -153,19 +153,19 @@ def guard():
             # what failed while a stop unwound is the stop: a lock file mid-rename, a library that wraps the
             # KeyboardInterrupt raised inside it (pydantic-core building a validator: SchemaError)
             raise typer.Exit(interrupts.report(None, RESUME)) from None
-        if not isinstance(exc, (SurgoptError, MemoryError, OSError)):
+        if not isinstance(exc, (SurgoptError, MemoryError, OSError)) and not out_of_memory(exc):
             raise
         fail_on(exc)
 
 
 def fail_on(exc: BaseException) -> None:
     """One line and the exit code for a library error, out of memory, or an OS error."""
-    from surgopt.errors import SurgoptError
+    from surgopt.errors import SurgoptError, out_of_memory
     from surgopt.store import is_disk_full
 
     if isinstance(exc, SurgoptError):
         fail(exc, exc.exit_code)
-    if isinstance(exc, MemoryError):
+    if out_of_memory(exc):
         fail("out of memory; what finished before it is stored (`surgopt runs` says how much): run the same "
               "command again with more memory, a smaller config or --jobs 1", 1)
     where = f" writing {exc.filename}" if getattr(exc, "filename", None) else ""

@@ -11,6 +11,11 @@ def capped(text: str, limit: int = MAX_MESSAGE_CHARS) -> str:
     return text if len(text) <= limit else text[:limit] + f"... ({len(text):,} characters)"
 
 
+def out_of_memory(exc: BaseException) -> bool:
+    """A MemoryError, or an import that could not map its shared object (the address space ran out)."""
+    return isinstance(exc, MemoryError) or (isinstance(exc, ImportError) and "failed to map segment" in str(exc))
+
+
 class SurgoptError(Exception):
     """Base class: ``exit_code`` is what the CLI exits with; the message is capped at MAX_MESSAGE_CHARS."""
 

@@ -16,7 +16,7 @@ from dataclasses import dataclass, field
 
 from surgopt.backends import get_backend
 from surgopt.config import study_key
-from surgopt.errors import SurgoptError, UsageError
+from surgopt.errors import SurgoptError, UsageError, out_of_memory
 from surgopt.interrupts import raise_if_stopped
 from surgopt.jit import numba_cache_dir
 from surgopt.store import Run, Store
@@ -218,7 +218,9 @@ def run_study(study, cfg, *, config_name: str, store: Store, jobs: int = DEFAULT
             messages.append(f"resuming: {session.done:,} of {session.total:,} {session.unit} already stored")
         try:
             computed = _execute(study, cfg, chunk, session, run, store, jobs, quiet, schema, where, handle, say)
-        except MemoryError:
+        except (MemoryError, ImportError) as exc:
+            if not out_of_memory(exc):
+                raise
             raise OutOfMemory(f"out of memory with {len(run.done_tasks())} of {run.manifest['n_tasks']} parts "
                               f"stored; run the same command again to resume (with more memory, a smaller config "
                               f"or --jobs 1)") from None

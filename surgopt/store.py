@@ -438,6 +438,9 @@ class Store:
         (left by an older manifest or another chunk size) are deleted. ``fresh``: start a new manifest
         in place, whatever is there (the caller found no usable one).
         """
+        import pyarrow.parquet  # noqa: F401  the part writer's modules, loaded before any work: under a tight
+        # memory limit a lazy import halfway through a run fails as an ImportError, not as out of memory
+
         path = self.run_dir(study, key)
         if force or fresh:
             run = None

@@ -93,10 +93,16 @@ def test_a_loky_run_under_an_address_space_limit_ends_in_one_line(tmp_path, mega
     assert r.returncode == 0 and single_run(tmp_path / "store").complete
 
 
-def test_running_out_of_memory_while_storing_is_one_line_saying_what_is_stored(tmp_path, monkeypatch):
+MAP_FAILED = ImportError("The pyarrow installation is not built with support for the Parquet file format (.../_parquet"
+                         ".cpython-311-x86_64-linux-gnu.so: failed to map segment from shared object)")
+
+
+@pytest.mark.parametrize("fault", [MemoryError(), MAP_FAILED], ids=["MemoryError", "import-map-failed"])
+def test_running_out_of_memory_while_storing_is_one_line_saying_what_is_stored(tmp_path, monkeypatch, fault):
     """The out-of-memory report without an address-space limit: a MemoryError at the third part's write (where
-    the limit hits the parent: Arrow's first table) ends in OutOfMemory saying how many parts are stored, and the
-    same command resumes to the whole table."""
+    the limit hits the parent: Arrow's first table), or an import whose shared object cannot be mapped (what an
+    address-space limit did to a lazy ``pyarrow.parquet`` import in one run), ends in OutOfMemory saying how many
+    parts are stored, and the same command resumes to the whole table."""
     from conftest import RCM_SMALL
 
     from surgopt.config import load_config
@@ -111,7 +117,7 @@ def test_running_out_of_memory_while_storing_is_one_line_saying_what_is_stored(t
 
     def fail_third(self, run, index, table):
         if len(run.manifest["parts"]) == 2:
-            raise MemoryError
+            raise fault
         return real(self, run, index, table)
 
     monkeypatch.setattr(Store, "write_part", fail_third)
@@ -120,6 +126,13 @@ def test_running_out_of_memory_while_storing_is_one_line_saying_what_is_stored(t
     monkeypatch.undo()
     again = run_study(rcm, cfg, config_name="s", store=Store(tmp_path / "s"), jobs=1, quiet=True)
     assert again.run.complete and again.computed_tasks == again.run.manifest["n_tasks"] - 2
+
+
+def test_only_an_import_that_cannot_map_its_library_counts_as_out_of_memory():
+    from surgopt.errors import out_of_memory
+
+    assert out_of_memory(MemoryError()) and out_of_memory(MAP_FAILED)
+    assert not out_of_memory(ImportError("No module named 'pyarrow'")) and not out_of_memory(OSError("disk"))
 
 
 SEARCH = """
