@@ -23,9 +23,13 @@ import surgopt.kinematics  # noqa: E402,F401  (configures numba on import)
 
 @pytest.fixture(scope="session", autouse=True)
 def numba_cache(tmp_path_factory):
-    """One numba cache for the session, shared with CLI subprocesses."""
+    """One numba cache for the session, shared with CLI subprocesses and, under pytest-xdist, by every worker
+    (their base temporaries share a parent): a kernel is compiled once per session, not once per worker."""
     if "NUMBA_CACHE_DIR" not in os.environ:
-        os.environ["NUMBA_CACHE_DIR"] = str(tmp_path_factory.mktemp("numba-cache"))
+        root = tmp_path_factory.getbasetemp()
+        root = root.parent if os.environ.get("PYTEST_XDIST_WORKER") else root
+        (root / "numba-cache").mkdir(exist_ok=True)
+        os.environ["NUMBA_CACHE_DIR"] = str(root / "numba-cache")
     yield os.environ["NUMBA_CACHE_DIR"]
 
 
