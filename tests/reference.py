@@ -431,7 +431,7 @@ def raven_designs_brute_force(ports, axes, depth, step, d4_max, alphas, betas, i
 
     A node of the plane belongs to the common workspace when, for every arm, the angle psi between its
     shoulder axis and the direction to the node lies strictly inside the cone interval that theta2's
-    range narrowed by Iso_min allows (eq. 22), and the node is within d4_max. Isotropy of a node: the
+    range narrowed by Iso_min allows (eq. 22), and the node is within d4_max (closed: Table I's [0, 250] mm). Isotropy of a node: the
     minimum over the arms of the SVD isotropy. The boundary is the zero contour of the margin
     min((lo - c_lo) d_lo, (c_hi - hi) d_hi, min(d4_max - dist)), lo and hi the arms' lowest and
     highest cos psi and d_lo, d_hi those arms' distances. Rows (area mm^2, perimeter mm, points,
@@ -456,7 +456,7 @@ def raven_designs_brute_force(ports, axes, depth, step, d4_max, alphas, betas, i
                 psi = [np.arccos(np.clip(np.sin(a) * np.sin(b) * np.cos(t) - np.cos(a) * np.cos(b), -1, 1))
                        for t in span]
                 c_lo, c_hi = np.cos(psi[1]), np.cos(psi[0])
-                inside = np.all((cos_psi > c_lo) & (cos_psi < c_hi) & (dist < d4_max), axis=0)
+                inside = np.all((cos_psi > c_lo) & (cos_psi < c_hi) & (dist <= d4_max), axis=0)
                 margin = np.minimum(reach, np.minimum((lo - c_lo) * d_lo, (c_hi - hi) * d_hi))
                 length, area = zero_contour(margin.reshape(xs.size, ys.size), step) if inside.any() else (0.0, 0.0)
                 rows.append((area, length, int(inside.sum()), iso_node[inside].sum(), iso_node[inside].min(initial=1.0)))

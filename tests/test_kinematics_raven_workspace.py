@@ -37,6 +37,26 @@ def test_designs_of_a_geometry_equal_a_brute_force_evaluation(geometry):
     assert np.allclose(got[:, 1], ref[:, 1], rtol=1e-11, atol=1e-9)
 
 
+def test_a_node_at_exactly_the_insertion_limit_is_inside():
+    """Table I's insertion range is closed, [0, 250] mm: with ports 40 mm apart each way, 16 nodes of the 4 mm grid
+    are exactly 250 mm from their farthest port (a 150-200-250 triangle), and they count in n and the Iso sum.
+    Premise: some designs hold such nodes (their n is above the count with the limit a hair shorter)."""
+    al, be, iso = [25.0, 65.0, 85.0], [45.0, 85.0], [0.1, 0.5, 0.3, 0.9]
+    geometry = (0, 0, 0, 40, 40)
+    got = W.evaluate_many(_layout(), PLANE, THETA2, [geometry], al, be, iso)
+    ports, axes = R.raven_four_arm_frames(geometry[3], geometry[4], *geometry[:3])
+    xs, ys = R.raven_plane_nodes(ports, PLANE.depth_mm, PLANE.d4_max_mm, PLANE.step_mm)
+    assert (R.raven_cone_fields(xs, ys, PLANE.depth_mm, ports, axes)[1].max(axis=0) == PLANE.d4_max_mm).sum() == 16
+    args = (ports, axes, PLANE.depth_mm, PLANE.step_mm)
+    closed = R.raven_designs_brute_force(*args, PLANE.d4_max_mm, np.radians(al), np.radians(be), iso, THETA2)
+    open_ = R.raven_designs_brute_force(*args, math.nextafter(PLANE.d4_max_mm, 0.0), np.radians(al),
+                                        np.radians(be), iso, THETA2)
+    assert (closed[:, 2] > open_[:, 2]).sum() >= 3
+    assert np.array_equal(got[:, 2], closed[:, 2])
+    assert np.allclose(got[:, 3], closed[:, 3], rtol=1e-11, atol=1e-12)
+    assert np.allclose(got[:, 0], closed[:, 0], rtol=1e-11, atol=1e-9)  # the area does not jump at its edge
+
+
 def test_arm_frames_equal_the_written_out_layout():
     for g in [(0, 0, 0, 100, 50), (20, 10, -20, 100, 50), (-15, 35, 80, 60, 170)]:
         ports, axes = W.arms(_layout(), *g)

@@ -236,7 +236,7 @@ def _bounds_update(c_row, r_row, d4_max, lo, hi, d_lo, d_hi, reach):
 @njit(**VECTOR)
 def _member_lo(lo, reach, member):
     for j in range(lo.shape[0]):
-        member[j] = lo[j] if reach[j] > 0.0 else -2.0
+        member[j] = lo[j] if reach[j] >= 0.0 else -2.0  # Table I's insertion range is closed: d4 = d4_max is in
 
 
 @njit(**EXACT)
@@ -408,7 +408,7 @@ def evaluate_designs(bounds, nx, ny, step, designs, shoulder, shoulder_rng, out,
     ``bounds``: ``plane_node_bounds`` of the geometry's plane grid; ``designs``:
     a ``DesignGrid`` (the designs and the cone-angle interval of each). A node is in
     the common workspace when for every arm psi_lo < psi < psi_hi and
-    dist < d4_max, and, when ``shoulder_rng.limited``, theta1 inside its range
+    dist <= d4_max (Table I's closed insertion range), and, when ``shoulder_rng.limited``, theta1 inside its range
     (``surgopt.kinematics.raven_shoulder``; ``shoulder`` its ``ShoulderFields``);
     marching squares runs on the margin of ``_node_margin`` (zero on the boundary),
     the smaller of it and the theta1 margin when theta1 is limited. A node's isotropy is the minimum

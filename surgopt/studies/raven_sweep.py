@@ -43,7 +43,9 @@ HELP = """Raven IV port placement and link design (Li, Glozman, Milutinovic, Ros
     """
 CONFIG_HELP = ("TOML or YAML config. Without it: the paper's Table II sweep (250,000 designs: alpha, beta "
              "5-90 deg step 20; phi +-20 deg step 10; bx, by 50-200 mm step 50; Iso_min 0.1-0.9 step 0.2).")
-KERNEL_VERSION = "raven-4"  # raven-4: the half-plane evaluation of mirror-symmetric layouts (rows move <= 2e-14)
+#: raven-4: the half-plane evaluation of mirror-symmetric layouts (rows move <= 2e-14); raven-5: a node at
+#: exactly d4 = d4_max is inside (Table I's insertion range is closed), n and the Iso sums of some designs grow
+KERNEL_VERSION = "raven-5"
 DEFAULT_CONFIG = "raven_table2.toml"
 #: Cost model for choosing chunks: ~5 ns per plane node and design on one core (docs/performance.md).
 NS_PER_NODE_DESIGN = 5.0
