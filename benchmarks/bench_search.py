@@ -1,6 +1,7 @@
 """Searches against the evaluator alone and against the grid (issue #24's targets), same run, same machine.
 
-Run:  python benchmarks/bench_search.py [TRIALS] [--tpe]   (default 5000; raven-sweep Table II, 2 workers)
+Run:  python benchmarks/bench_search.py [TRIALS] [--tpe] [--batch=N]   (default 5000; raven-sweep Table II, 2 workers;
+      CMA-ES parts of N trials, default the plan's own, 256)
 
 1. The whole 250,000-design Table II grid through `run_study` (threads, 2 workers).
 2. CMA-ES (the `cmaes` plan, IPOP restarts) with TRIALS trials through `run_study`: optimiser, runner, store.
@@ -17,7 +18,7 @@ from concurrent.futures import ThreadPoolExecutor
 import numpy as np
 
 
-def main(trials: int, tpe: bool) -> None:
+def main(trials: int, tpe: bool, batch: int | None) -> None:
     import cmaes  # noqa: F401  (imports scipy.stats, ~0.75 s once a process: paid before timing, like compiling)
 
     from surgopt.kinematics.raven_workspace import clear_memo
@@ -41,7 +42,7 @@ def main(trials: int, tpe: bool) -> None:
     t_grid, grid = timed_run(grid_cfg)
     print(f"grid, {grid.num_rows:,} designs                      {t_grid:6.2f} s  "
           f"{grid.num_rows / t_grid:9,.0f} designs/s  best C {np.nanmax(grid['cost'].to_numpy()):,.0f}")
-    cma_cfg = grid_cfg.model_copy(update={"search": SearchSpec(method="cmaes", trials=trials, batch=64, seed=0)})
+    cma_cfg = grid_cfg.model_copy(update={"search": SearchSpec(method="cmaes", trials=trials, batch=batch, seed=0)})
     t_cma, cma = timed_run(cma_cfg)
     print(f"CMA-ES (cmaes plan), {trials:,} trials               {t_cma:6.2f} s  {trials / t_cma:9,.0f} trials/s  "
           f"best C {np.nanmax(cma['cost'].to_numpy()):,.0f}")
@@ -65,4 +66,5 @@ def main(trials: int, tpe: bool) -> None:
 
 if __name__ == "__main__":
     args = [a for a in sys.argv[1:] if not a.startswith("--")]
-    main(int(args[0]) if args else 5000, "--tpe" in sys.argv)
+    given = [a.split("=", 1)[1] for a in sys.argv[1:] if a.startswith("--batch=")]
+    main(int(args[0]) if args else 5000, "--tpe" in sys.argv, int(given[0]) if given else None)

@@ -49,7 +49,7 @@ def raven(trials: int) -> None:
     for method, n in (("cmaes", trials), ("tpe", 1000)):
         for seed in (0, 1, 2):
             df, wall = timed("raven-sweep", config=RAVEN,
-                             overrides={"search": {"method": method, "trials": n, "batch": 64, "seed": seed}})
+                             overrides={"search": {"method": method, "trials": n, "seed": seed}})
             c = np.nan_to_num(df.sort_values("design_id")["cost"].to_numpy(), nan=-np.inf)
             best = np.maximum.accumulate(c)
             restarts = Store(store).open("raven-sweep", df.attrs["key"]).manifest.get("search_restarts", "—")

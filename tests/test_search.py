@@ -77,6 +77,22 @@ def test_a_search_is_deterministic_bounded_and_same_on_one_or_two_workers(tmp_pa
     assert single_run(tmp_path / "a").complete
 
 
+def test_a_search_without_a_batch_stores_its_methods_default_part(tmp_path):
+    """``batch`` left out: CMA-ES stores parts of at least 256 trials (whole generations; its parts are only the
+    unit of durability), Optuna asks and stores 64 at a time; given, it is used as it is."""
+    from surgopt.studies.search import SearchSpec
+
+    assert SearchSpec(method="cmaes").trials_per_part == 256 and SearchSpec(method="tpe").trials_per_part == 64
+    assert SearchSpec(method="cmaes", batch=12).trials_per_part == 12
+    rcm = get_study("rcm-grid")
+    cfg = validate({"workspace": {"points_per_side": 3}, "search": {"method": "cmaes", "trials": 600, "seed": 1}},
+                   rcm.config_model, "x")
+    run_study(rcm, cfg, config_name="a", store=Store(tmp_path), jobs=1, quiet=True)
+    run = single_run(tmp_path)
+    sizes = [run.part_table(k).num_rows for k in range(run.manifest["n_tasks"])]
+    assert sum(sizes) == 600 and len(sizes) == 3 and all(256 <= n < 256 + 6 for n in sizes[:-1])  # 6 a generation
+
+
 @pytest.mark.parametrize("method", ["tpe", "random"])
 def test_an_optuna_search_parts_are_optunas_record(tmp_path, method):
     import optuna

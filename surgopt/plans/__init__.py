@@ -168,10 +168,10 @@ class OptimiserPlan:
         return with_overhead(study.estimate(cfg), self.seconds_per_trial)
 
     def chunk(self, study, cfg) -> int:
-        return self.spec.batch
+        return self.spec.trials_per_part
 
     def n_parts(self, study, cfg, chunk: int) -> int:
-        return math.ceil(self.spec.trials / self.spec.batch)
+        return math.ceil(self.spec.trials / self.spec.trials_per_part)
 
 
 def derived_key(base_key: str, plan_record: dict) -> str:

@@ -206,7 +206,8 @@ class CmaesSession:
         self._tell(tell, np.asarray(cols[self.objective], dtype=np.float64), whole)
         self.done = self.evaluated
         self.buffer.append(cols)
-        if sum(len(b[self.objective]) for b in self.buffer) < self.spec.batch and self.evaluated < self.total:
+        held = sum(len(b[self.objective]) for b in self.buffer)
+        if held < self.spec.trials_per_part and self.evaluated < self.total:
             return []
         part, self.part, rows, self.buffer = self.part, self.part + 1, concat_rows(self.buffer), []
         return [(part, rows)]

@@ -43,7 +43,7 @@ class OptunaSession:
 
         self.plan, self.spec, self.run, self.workers = plan, plan.spec, run, workers
         self.names = list(plan.space)
-        self.n_batches = math.ceil(self.spec.trials / self.spec.batch)
+        self.n_batches = math.ceil(self.spec.trials / self.spec.trials_per_part)
         self.repair = (f"delete the run (`surgopt runs rm {run.key[:12]}`) or rerun with --force to search again "
                        f"from the start")
         try:
@@ -65,7 +65,7 @@ class OptunaSession:
         self._batch = None
 
     def _size(self, k: int) -> int:
-        return min(self.spec.batch, self.spec.trials - k * self.spec.batch)
+        return min(self.spec.trials_per_part, self.spec.trials - k * self.spec.trials_per_part)
 
     @property
     def remaining(self) -> bool:
@@ -79,7 +79,7 @@ class OptunaSession:
             self.k += 1
         if self.k >= self.n_batches:
             return []
-        k, first, n = self.k, self.k * self.spec.batch, self._size(self.k)
+        k, first, n = self.k, self.k * self.spec.trials_per_part, self._size(self.k)
         if k < self.journal.batches:  # told and recorded before the interruption: evaluated again
             recorded = self.journal.trials[first:first + n]
             points, asked = [[float(t.params[name]) for name in self.names] for t in recorded], None
@@ -104,7 +104,7 @@ class OptunaSession:
             same_trials(self.run, k, cols, recorded, objectives, self.names)
         else:
             S.tell(self.mem, asked, [[float(cols[c][r]) for c, _ in objectives] for r in range(len(asked))])
-            first = k * self.spec.batch
+            first = k * self.spec.trials_per_part
             self.journal.append(self.mem.get_trials(deepcopy=False)[first:first + len(asked)])
         self.k += 1
         self.done += self._size(k)
