@@ -88,6 +88,54 @@ def main():
         r = S.paper_optimum_rank(default_table)[1]
         print("\npaper optimum under the default geometry:", {k: (round(v, 3) if isinstance(v, float) else v)
                                                               for k, v in r.items()})
+        d = default_table.to_pandas()
+        b = d.loc[d["cost"].idxmax()]
+        print(f"our best: zeta {b.zeta_cm:.2f} cm, area {b.area_cm2:.1f} cm2, C {b.cost:.1f}")
+        top = d[d["iso_min"] == 0.9].groupby(["alpha_deg", "beta_deg"])["zeta_cm"].max()
+        print("Iso_min 0.9, (alpha, beta) pairs with a common workspace, best zeta (cm):",
+              ", ".join(f"({a:g}, {b_:g}) {z:.2f}" for (a, b_), z in top[top > 0].sort_values(ascending=False).items()))
+    insertion_limit_effect(base)
+    fig6_intervals()
+
+
+def insertion_limit_effect(cfg):
+    """Table II with a node exactly d4 = 250 mm from its farthest port inside (Table I's closed range, the
+    default) against outside (the limit a hair shorter): which designs move, and by how much."""
+    import math
+
+    sw = cfg.sweep
+    al, be, iso = (S.values(v) for v in (sw.alpha_deg, sw.beta_deg, sw.iso_min))
+    geos = S.geometry_grid(cfg)
+    closed = S.evaluate(cfg, geos, al, be, iso)
+    shorter = cfg.geometry.model_copy(update={"d4_max_mm": math.nextafter(cfg.geometry.d4_max_mm, 0.0)})
+    opened = S.evaluate(cfg.model_copy(update={"geometry": shorter}), geos, al, be, iso)
+    n1, n0 = closed[:, 2], opened[:, 2]
+    moved = n1 != n0
+    rel = (n1 - n0)[moved] / n1[moved]
+    big = moved & (n1 >= 1000)
+    spacing = np.repeat(np.array(geos)[:, 3:5], len(al) * len(be) * len(iso), axis=0)[moved]
+    print(f"\nd4 = 250 mm closed: {moved.sum():,} of {len(n1):,} designs gain {int((n1 - n0)[moved].min())}-"
+          f"{int((n1 - n0).max())} nodes (n: median +{100 * np.median(rel):.2f}%, 99th percentile "
+          f"+{100 * np.percentile(rel, 99):.1f}%, max +{100 * rel.max():.1f}%; designs of >= 1,000 nodes: at most "
+          f"+{100 * ((n1 - n0)[big] / n1[big]).max():.1f}%); spacings (bx, by) of those moved: "
+          f"{sorted(set(map(tuple, spacing.tolist())))}; largest area / perimeter change "
+          f"{np.abs(closed[:, :2] - opened[:, :2]).max():.1e}")
+
+
+def fig6_intervals():
+    """Fig. 6 (alpha 55 deg, beta 40 deg): the theta2 interval each Iso_min keeps and Iso's maximum over theta2."""
+    from surgopt.kinematics import raven as K
+
+    a, b = np.radians(55.0), np.radians(40.0)
+    cells = []
+    for m in (0.1, 0.3, 0.5, 0.7, 0.9):
+        lo, hi, _ = K.theta2_interval(a, b, m, 0.0, np.pi)
+        cells.append(f"Iso >= {m}: [{np.degrees(lo):.1f}, {np.degrees(hi):.1f}]")
+    t2 = np.radians(np.arange(0.0, 180.0, 0.01))
+    iso = np.array([K.isotropy_at(t, a, b) for t in t2])
+    k = int(np.argmax(iso))
+    print("\nFig. 6 (alpha 55, beta 40), theta2 in deg: " + "; ".join(cells) +
+          f"; Iso max {iso[k]:.3f} at {np.degrees(t2[k]):.1f}")
 
 
 if __name__ == "__main__":

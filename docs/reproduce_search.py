@@ -17,6 +17,7 @@ import numpy as np
 
 import surgopt
 from surgopt.store import Store
+from surgopt.studies.raven_sweep import PARAMS
 
 REPO = Path(__file__).resolve().parents[1]
 store = sys.argv[1] if len(sys.argv) > 1 else str(REPO / "surgopt-store")
@@ -46,6 +47,7 @@ def raven(trials: int) -> None:
     print(f"| method | seed | best C, 2,500 trials | best C, all trials | trials to beat the refine "
           f"({refine_best:,.0f}) | trials to reach the grid's best ({grid_best:,.0f}) | restarts | wall time |")
     print("|---|---|---|---|---|---|---|---|")
+    bests = []
     for method, n in (("cmaes", trials), ("tpe", 1000)):
         for seed in (0, 1, 2):
             df, wall = timed("raven-sweep", config=RAVEN,
@@ -56,6 +58,11 @@ def raven(trials: int) -> None:
             print(f"| {method} | {seed} | {best[min(2500, len(best)) - 1]:,.0f}{'' if len(best) >= 2500 else ' (' + str(len(best)) + ')'} "
                   f"| {best[-1]:,.0f} | {first_at_least(best, refine_best + 0.5)} | {first_at_least(best, grid_best)} | "
                   f"{restarts} | {wall:.1f} s |", flush=True)
+            if method == "cmaes":
+                b = df.loc[df["cost"].idxmax()]
+                bests.append(f"seed {seed}: (" + ", ".join(f"{b[p]:.3g}" for p in PARAMS) +
+                             f"), C {b.cost:,.0f}, zeta {b.zeta_cm:.2f} cm, area {b.area_cm2:.0f} cm2")
+    print("\nCMA-ES's best designs (alpha, beta, phi_x, phi_y, phi_z, bx, by, Iso_min):\n" + "\n".join(bests))
 
 
 def pa10() -> None:

@@ -46,6 +46,31 @@ def main():
               f"| {s.loc['W2', 'q1_rad_range']:.2e} | {s.loc['W2', 'q2_rad_range']:.2e} "
               f"| {s.loc['W1', 'q4_rad_range']:.3f} | {s.loc['W2', 'q4_rad_range']:.3f} |")
 
+    assemblies(base)
+
+
+def assemblies(base):
+    """The five-bar's two assembly modes at the paper's start pose: P_U, whether the pentagon crosses itself,
+    the size of the closure's cross product |(B - D) x (C - D)| (mm^2), and W1's q1 and delta ranges on the
+    550 mm arm. The crossed one (left, the default until 2026-12-02) is refused by the config; it is built here
+    without validation (model_copy) to show what it gave."""
+    from surgopt.kinematics.throat import five_bar
+
+    q0 = S.start_q(base)
+    print("\nFive-bar assembly at the start pose (550 mm arm, spin, W1):\n")
+    print("| branch | P_U (mm) | pentagon | closure cross product (mm^2) | W1 q1 range (rad) | W1 delta range (rad) |")
+    print("|---|---|---|---|---|---|")
+    for branch in ("left", "right"):
+        robot = base.robot.model_copy(update={"five_bar": base.robot.five_bar.model_copy(update={"branch": branch})})
+        cfg = base.model_copy(update={"robot": robot, "arm_length_mm": [550.0], "weights": {"W1": [1.0] * 8}})
+        fb = robot.five_bar
+        _, D, C, B, _ = S.five_bar_pentagon(fb, q0[0], q0[1])
+        cross = abs((B[0] - D[0]) * (C[1] - D[1]) - (B[1] - D[1]) * (C[0] - D[0]))
+        p_u = five_bar(q0[0], q0[1], S.geometry(cfg, 550.0, cfg.fulcrum_to_tip_mm[0]))[0]
+        s = summary(cfg).iloc[0]
+        print(f"| {branch} | ({p_u[0]:.1f}, {p_u[1]:.1f}) | {S.five_bar_crossing(fb, q0[0], q0[1]) or 'simple'} "
+              f"| {cross:.0f} | {s.q1_rad_range:.3f} | {s.q6_rad_range:.2f} |")
+
 
 if __name__ == "__main__":
     main()
