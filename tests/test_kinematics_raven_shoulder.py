@@ -48,7 +48,7 @@ def test_zero_directions_are_frames_and_mirror_images():
 
 def _ik_membership(node, ports, axes, x0, left, alpha, beta, t2_interval, t1_range_deg, d4_max):
     """All arms reach ``node`` with theta1 inside its range (strictly), theta2 inside the Iso_min-narrowed
-    interval and d4 below d4_max, by each arm's analytic IK (eqs. 9-32) of a pose in its frame 0; the IK's
+    interval and d4 at most d4_max, by each arm's analytic IK (eqs. 9-32) of a pose in its frame 0; the IK's
     joints are checked against plain DH products (the tool axis passes through the node)."""
     lo1, hi1 = np.radians(t1_range_deg)
     for a in range(len(ports)):
@@ -67,7 +67,7 @@ def _ik_membership(node, ports, axes, x0, left, alpha, beta, t2_interval, t1_ran
         assert np.allclose(R.raven_tool_axis(q[0], q[1], alpha, beta, bool(left[a]))[0], z3, atol=1e-7)
         assert abs(q[3] - d4) < 1e-9
         t1 = (q[0] - lo1) % (2 * math.pi)
-        reach = np.sum((node - ports[a]) ** 2) < d4_max ** 2  # exact for grid nodes on the reach sphere
+        reach = np.sum((node - ports[a]) ** 2) <= d4_max ** 2  # closed (Table I); exact for nodes on the sphere
         if not (0 < t1 < hi1 - lo1 and t2_interval[0] < q[1] < t2_interval[1] and reach):
             return False
     return True
