@@ -166,6 +166,7 @@ def test_the_cli_runs_stores_and_reports_the_clinical_checks(tmp_path):
     assert best["min_port_spacing_mm"] >= 80 and best["common_reach"] == 1.0
     out = cli("plot", "--store", tmp_path / "s", "--out", tmp_path / "fig").stdout
     assert "port_place_layout_3d.png" in out and "port_place_sites_top.png" in out
+    assert "port_place_reach_top.png" in out and (tmp_path / "fig" / "port_place_reach_top.png").stat().st_size > 10_000
 
 
 # --- a patient given as a triangle mesh (trimesh) ------------------------------------------------------------

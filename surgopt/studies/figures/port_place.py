@@ -100,6 +100,8 @@ def figures(cfg, table, out, design_id=None):
     ax.legend(fontsize=7, loc="upper center", bbox_to_anchor=(0.5, -0.1), ncol=3)
     paths.append(save(fig, out / "port_place_sites_top.png"))
 
+    paths.append(reach_maps(plt, cfg, sites, S.tables(cfg)[1], dex, out))
+
     # why designs fail
     from surgopt.kinematics.port_place import REASONS
 
@@ -112,3 +114,37 @@ def figures(cfg, table, out, design_id=None):
     ax.set_title("why designs are infeasible (a design can fail several)", fontsize=9)
     paths.append(save(fig, out / "port_place_reasons.png"))
     return paths
+
+
+def reach_maps(plt, cfg, sites, t, dex, out):
+    """Per-arm maps, top view: the share of the target an instrument docked at each site reaches (within its joint
+    limits and any approach cone), its mean isotropy over the points it reaches, and the share of the target the
+    camera docked there sees. A map whose value is the same at every site says so in its title."""
+    from surgopt.studies.port_place import body_extent_mm
+
+    a, b, _ = body_extent_mm(cfg.patient)
+    reached = t.reach_count / t.n_points
+    iso = np.where(t.reach_count > 0, dex.sum(axis=1) / np.maximum(t.reach_count, 1), np.nan)
+    maps = ((reached, "instrument: share of the target reached", (0.0, 1.0)),
+            (iso, "instrument: mean isotropy there", (np.nanmin(iso), max(np.nanmax(iso), np.nanmin(iso) + 1e-3))),
+            (t.coverage, "camera: share of the target seen", (0.0, 1.0)))
+    fig, axes = plt.subplots(1, 3, figsize=(13.0, 4.6), sharey=True)
+    rx, ry = cfg.target.radii_mm[:2]
+    cx, cy = cfg.target.centre_mm[:2]
+    tt = np.linspace(0, 2 * np.pi, 200)
+    for ax, (v, title, (vmin, vmax)) in zip(axes, maps):
+        lo, hi = np.nanmin(v), np.nanmax(v)
+        sc = ax.scatter(sites[:, 0], sites[:, 1], c=v, cmap="viridis", vmin=vmin, vmax=vmax, s=30)
+        fig.colorbar(sc, ax=ax, shrink=0.75, pad=0.02)
+        ax.plot(cx + rx * np.cos(tt), cy + ry * np.sin(tt), color="C3", lw=1, label="target (top view)")
+        ax.set_xlim(-a, a)
+        ax.set_ylim(-b, b)
+        ax.set_aspect("equal")
+        ax.set_xlabel("x lateral (mm)")
+        ax.set_title(title + (f"\n(every site: {lo:.2f})" if np.isclose(lo, hi) else f"\n({lo:.2f} to {hi:.2f})"),
+                     fontsize=9)
+    axes[0].set_ylabel("y cranial (mm)")
+    axes[0].legend(fontsize=7, loc="lower left")
+    fig.suptitle(f"per-arm maps: {cfg.robot.instrument_arm} and {cfg.robot.camera_arm} docked at each candidate "
+                 f"site toward the target's centre", fontsize=9)
+    return save(fig, out / "port_place_reach_top.png")
