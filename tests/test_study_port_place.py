@@ -344,3 +344,60 @@ def test_a_port_region_outline_keeps_the_sites_inside_it():
     assert not notch.any() and ((np.abs(free[:, 0]) < 20) & (free[:, 1] > -60) & (free[:, 1] < 40)).any()
     with pytest.raises(ConfigError, match="polygon_mm: its vertices enclose no area"):
         validate({"patient": {"port_region": {"polygon_mm": [[0, 0], [10, 10], [20, 20]]}}}, S.PortPlaceConfig, "t")
+
+
+def _painted_dome(path, fmt="ply"):
+    """The default dome as a closed mesh with the faces whose centre lies caudal (y < -20 mm) and high (z > 30 mm)
+    painted red, the rest grey."""
+    import trimesh
+
+    mesh = trimesh.load(_dome_mesh(path.with_suffix(".stl")))
+    c = mesh.triangles_center
+    colours = np.tile([200, 200, 200, 255], (len(mesh.faces), 1)).astype(np.uint8)
+    painted = (c[:, 1] < -20.0) & (c[:, 2] > 30.0)
+    colours[painted] = [255, 0, 0, 255]
+    mesh.visual.face_colors = colours
+    mesh.export(path.with_suffix("." + fmt))
+    return mesh, painted
+
+
+def test_a_region_painted_on_the_mesh_keeps_the_sites_on_its_faces(tmp_path):
+    """patient.port_region.face_color_rgb: the sites of the painted mesh are those of the unpainted one whose wall
+    point lies on a painted face, the face found apart from the study's rays (trimesh's closest point on the
+    mesh as exported, and the painting rule applied to that face's centre); some sites are dropped and some
+    kept (the premise), and the painted run still finds feasible layouts."""
+    import trimesh
+
+    from surgopt.config import validate
+
+    mesh, painted = _painted_dome(tmp_path / "painted")
+    base = {"patient": {"shape": "mesh", "mesh_file": "painted.ply", "port_region": {"site_spacing_mm": 36.0}},
+            "target": {"spacing_mm": 20.0}}
+    plain = validate(base, S.Config, "plain", {"config_dir": str(tmp_path)})
+    region = {**base["patient"]["port_region"], "face_color_rgb": [255, 0, 0]}
+    cfg = validate({**base, "patient": {**base["patient"], "port_region": region}}, S.Config, "painted",
+                   {"config_dir": str(tmp_path)})
+    every, kept = S.sites_mm(plain), S.sites_mm(cfg)
+    _, _, tri = trimesh.proximity.closest_point(mesh, every)
+    centre = mesh.triangles_center[tri]
+    expect = (centre[:, 1] < -20.0) & (centre[:, 2] > 30.0)
+    assert 0 < expect.sum() < len(every)
+    assert np.array_equal(kept, every[expect])
+    rows = S.compute_task(cfg, 10 ** 6, 0)
+    assert rows["feasible"].any()
+
+
+@pytest.mark.parametrize("case", ["dome", "stl", "colour absent"])
+def test_a_painted_region_that_cannot_be_read_is_refused_with_the_field_named(tmp_path, case):
+    from surgopt.config import validate
+    from surgopt.errors import ConfigError
+
+    _painted_dome(tmp_path / "painted")
+    _painted_dome(tmp_path / "painted", fmt="stl")
+    region = {"face_color_rgb": [0, 0, 255] if case == "colour absent" else [255, 0, 0]}
+    patient = {"port_region": region} if case == "dome" else {
+        "shape": "mesh", "mesh_file": "painted.stl" if case == "stl" else "painted.ply", "port_region": region}
+    with pytest.raises(ConfigError, match="face_color_rgb") as e:
+        validate({"patient": patient}, S.Config, "bad.toml", {"config_dir": str(tmp_path)})
+    assert {"dome": "needs shape = 'mesh'", "stl": "no per-face colours",
+            "colour absent": "no face of"}[case] in str(e.value)

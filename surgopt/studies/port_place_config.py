@@ -2,7 +2,7 @@
 region and its candidate sites, the target and its points, the robot, the constraints and the objective.
 
 A config is resolved once, at validation (a mesh file read, checked and hashed; the sites counted against the
-constraints), so the validated config says everything that is hashed into the store key. One module of ~360
+constraints), so the validated config says everything that is hashed into the store key. One module of ~410
 lines: the sections and the geometry each one implies (sites from the patient, points from the target) are read
 together.
 """
@@ -31,13 +31,18 @@ class PortRegion(StrictModel):
     """Where on the wall ports may go: sites on a grid of ``site_spacing_mm`` in the top view, on the dome where
     its height is at least ``min_height_fraction`` of the top (the flanks are too steep to dock), and, when
     ``polygon_mm`` is given, inside that top-view outline (the region a surgeon marks on the abdomen: x lateral,
-    y cranial, mm; its vertices in order, not closed)."""
+    y cranial, mm; its vertices in order, not closed), and, for a mesh patient with ``face_color_rgb``, on the faces
+    painted that colour (a region painted on the body itself)."""
 
     site_spacing_mm: float = Field(18.0, ge=5.0, le=200.0)
     min_height_fraction: float = Field(0.45, ge=0.0, lt=1.0)
     polygon_mm: list[Annotated[list[Annotated[float, Field(ge=-2000.0, le=2000.0)]],
                                Field(min_length=2, max_length=2)]] | None = Field(
         None, min_length=3, max_length=1000, description="[[x, y], ...] top-view outline ports must lie inside")
+    face_color_rgb: list[Annotated[int, Field(ge=0, le=255)]] | None = Field(
+        None, min_length=3, max_length=3, description="a mesh patient: ports only on the faces painted this colour "
+                                                      "(a PLY file with per-face colours, as MeshLab or Blender "
+                                                      "export a region painted on the body)")
 
     @model_validator(mode="after")
     def _an_area(self):
@@ -333,14 +338,44 @@ def wall_height_mm(x: np.ndarray, y: np.ndarray, patient: Patient) -> np.ndarray
     vertical ray with the mesh (NaN where the ray misses it)."""
     if patient.shape == "dome":
         return dome_height_mm(x, y, patient.semi_axes_mm)
-    mesh = _mesh_of(patient)
+    return _mesh_wall(x, y, _mesh_of(patient))[0]
+
+
+def _mesh_wall(x: np.ndarray, y: np.ndarray, mesh) -> tuple[np.ndarray, np.ndarray]:
+    """(height mm, face) of the highest crossing of a vertical ray through each top-view point with the mesh
+    (NaN and -1 where the ray misses it)."""
     top = mesh.bounds[1][2] + 10.0
     origins = np.stack([x, y, np.full(len(x), top)], axis=1)
     dirs = np.tile([0.0, 0.0, -1.0], (len(x), 1))
-    locations, index_ray, _ = mesh.ray.intersects_location(origins, dirs, multiple_hits=True)
+    locations, index_ray, index_tri = mesh.ray.intersects_location(origins, dirs, multiple_hits=True)
     z = np.full(len(x), np.nan)
     np.fmax.at(z, index_ray, locations[:, 2])
-    return z
+    face = np.full(len(x), -1, np.int64)
+    highest = locations[:, 2] == z[index_ray]
+    face[index_ray[highest]] = index_tri[highest]
+    return z, face
+
+
+def painted_faces(patient: Patient) -> np.ndarray | None:
+    """Which faces of a mesh patient carry ``port_region.face_color_rgb`` (None when no colour is given); a
+    ValueError naming the field when the mesh has no per-face colours or none of that colour."""
+    rgb = patient.port_region.face_color_rgb
+    if rgb is None:
+        return None
+    if patient.shape != "mesh":
+        raise ValueError("patient.port_region.face_color_rgb: a painted region needs shape = 'mesh' (a PLY file "
+                         "with per-face colours); on the dome, mark the region with polygon_mm")
+    mesh = _mesh_of(patient)
+    if getattr(mesh.visual, "kind", None) != "face":
+        raise ValueError(f"patient.port_region.face_color_rgb: {patient.mesh_file} has no per-face colours (STL "
+                         f"has none, OBJ stores vertex colours): export the painted mesh as PLY with face colours")
+    colours = np.asarray(mesh.visual.face_colors)[:, :3]
+    painted = np.all(colours == np.asarray(rgb), axis=1)
+    if not painted.any():
+        present = ", ".join(str(list(c)) for c in np.unique(colours, axis=0)[:6])
+        raise ValueError(f"patient.port_region.face_color_rgb: no face of {patient.mesh_file} has the colour {rgb} "
+                         f"(its colours: {present})")
+    return painted
 
 
 def body_extent_mm(patient: Patient) -> tuple[float, float, float]:
@@ -354,13 +389,18 @@ def body_extent_mm(patient: Patient) -> tuple[float, float, float]:
 def sites_mm(cfg: PortPlaceConfig) -> np.ndarray:
     """Candidate ports: a top-view grid at ``site_spacing_mm`` (symmetric about x = 0) lifted onto the body's
     upper wall (the dome, or the mesh by vertical rays), kept where the wall is at least
-    ``min_height_fraction`` of the body's height, inside ``polygon_mm`` when given, and where the target centre
-    is within ``port_to_target_mm``."""
+    ``min_height_fraction`` of the body's height, inside ``polygon_mm`` when given, on a face painted
+    ``face_color_rgb`` when given, and where the target centre is within ``port_to_target_mm``."""
     a, b, c = body_extent_mm(cfg.patient)
     s = cfg.patient.port_region.site_spacing_mm
     gx, gy = np.meshgrid(grid_1d(a, s), grid_1d(b, s), indexing="ij")
     x, y = gx.ravel(), gy.ravel()
-    z = wall_height_mm(x, y, cfg.patient)
+    painted = painted_faces(cfg.patient)
+    if painted is None:
+        z = wall_height_mm(x, y, cfg.patient)
+    else:  # the face each site lies on must be painted
+        z, face = _mesh_wall(x, y, _mesh_of(cfg.patient))
+        z = np.where((face >= 0) & painted[np.maximum(face, 0)], z, np.nan)
     keep = np.nan_to_num(z, nan=-1.0) >= cfg.patient.port_region.min_height_fraction * c
     if cfg.patient.port_region.polygon_mm is not None:
         keep &= inside_polygon(x, y, np.asarray(cfg.patient.port_region.polygon_mm, float))
