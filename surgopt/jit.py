@@ -72,6 +72,10 @@ def wide_vector_features() -> str | None:
     return features + ",-prefer-256-bit"
 
 
+#: How long a wait on another process's compile lock goes unannounced (s).
+QUIET_WAIT_S = 2.0
+
+
 def compile_lock(timeout_s: float = 600.0, on_wait=None):
     """A lock across processes on the numba cache folder, held while a study compiles its kernels.
 
@@ -79,7 +83,8 @@ def compile_lock(timeout_s: float = 600.0, on_wait=None):
     together after an upgrade) race on the cache's index files; once a process was seen to abort
     (SIGABRT) loading a half-written entry. With the lock the second waits, then loads the first's
     result. Past ``timeout_s`` it compiles anyway (a stale holder must not block a run for ever).
-    ``on_wait()`` is called once before waiting on another process.
+    ``on_wait()`` is called once when another process has held it for QUIET_WAIT_S (one that only loads the
+    cached kernels holds it for a second or two: not worth a word).
     """
     import contextlib
 
@@ -93,11 +98,11 @@ def compile_lock(timeout_s: float = 600.0, on_wait=None):
     def held():
         try:
             try:
-                lock.acquire(timeout=0)
+                lock.acquire(timeout=min(QUIET_WAIT_S, timeout_s))  # another process loading: a moment
             except Timeout:
                 if on_wait is not None:
-                    on_wait()  # another process compiles into this cache now: say so before waiting
-                lock.acquire(timeout=timeout_s)
+                    on_wait()  # another process compiles into this cache now: say so before waiting on
+                lock.acquire(timeout=max(0.0, timeout_s - QUIET_WAIT_S))
         except Timeout:
             yield
             return

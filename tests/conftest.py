@@ -16,21 +16,21 @@ _hypothesis_settings.register_profile("ci", derandomize=True, print_blob=True)
 if os.environ.get("CI"):
     _hypothesis_settings.load_profile("ci")
 
-# the CLI's numba settings (8-wide vectors on AVX-512) before any test imports numba,
-# so that tests and CLI subprocesses compile the same kernels into one cache
+# the CLI's numba settings (8-wide vectors on AVX-512) before any test imports numba, so that tests and CLI
+# subprocesses compile the same kernels into one cache: NUMBA_CACHE_DIR, set here to $NUMBA_CACHE_DIR or
+# ~/.cache/surgopt/numba and shared by the pytest-xdist workers (a kernel is compiled once; a process that finds
+# another compiling waits on the cache's lock and says so: COMPILE_NOTES below)
 import surgopt.kinematics  # noqa: E402,F401  (configures numba on import)
 
 
-@pytest.fixture(scope="session", autouse=True)
-def numba_cache(tmp_path_factory):
-    """One numba cache for the session, shared with CLI subprocesses and, under pytest-xdist, by every worker
-    (their base temporaries share a parent): a kernel is compiled once per session, not once per worker."""
-    if "NUMBA_CACHE_DIR" not in os.environ:
-        root = tmp_path_factory.getbasetemp()
-        root = root.parent if os.environ.get("PYTEST_XDIST_WORKER") else root
-        (root / "numba-cache").mkdir(exist_ok=True)
-        os.environ["NUMBA_CACHE_DIR"] = str(root / "numba-cache")
-    yield os.environ["NUMBA_CACHE_DIR"]
+#: The notes a run prints while it compiles the kernels or waits for another process compiling them into the
+#: shared cache (surgopt.runner._warm_up): under two test workers they can come before a fault's one line.
+COMPILE_NOTES = ("waiting for another surgopt process compiling the kernels", "compiling the ", "kernels ready")
+
+
+def fault_lines(text: str) -> list[str]:
+    """The lines of a run's output but its compile notes (``COMPILE_NOTES``): what a fault must say in one."""
+    return [line for line in text.strip().splitlines() if not line.startswith(COMPILE_NOTES)]
 
 
 #: A small rcm-grid config (54 candidates, 5^3 points): the store and CLI tests' workhorse.

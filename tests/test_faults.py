@@ -18,7 +18,7 @@ from surgopt.runner import run_study
 from surgopt.store import Store
 from surgopt.studies import get_study
 
-from conftest import RCM_SLOW, cli, invoke, single_run, single_table, wait_for_parts
+from conftest import RCM_SLOW, cli, fault_lines, invoke, single_run, single_table, wait_for_parts
 
 RCM = get_study("rcm-grid")
 
@@ -153,7 +153,7 @@ def test_sigterm_and_sighup_stop_like_ctrl_c(tmp_path, sig, code):
     _, err = proc.communicate(timeout=60)
     assert proc.returncode == code, err
     assert f"stopped by {signal.Signals(sig).name}" in err and "resume" in err
-    assert len(err.strip().splitlines()) == 1
+    assert len(fault_lines(err)) == 1
     r = cli("rcm-grid", cfg, "--store", store, "--quiet")
     assert "resuming" in r.stdout
 
@@ -260,7 +260,7 @@ def test_disk_full_is_one_line_and_keeps_finished_chunks(stored, monkeypatch):
     monkeypatch.setattr(pq, "write_table", full_after_three)
     code, out = invoke("rcm-grid", cfg, "--store", store, "--quiet", "--force", "--jobs", "1", "--chunk-size", "4")
     assert code == 1 and "the disk is full" in out and "finished chunks are stored" in out, out
-    assert len(out.strip().splitlines()) == 1
+    assert len(fault_lines(out)) == 1
     staged = list((store / "study=rcm-grid" / ".staging").glob("*/part-*.parquet"))
     assert len(staged) == 3  # the chunks written before the disk filled are kept
 

@@ -12,7 +12,7 @@ from surgopt.errors import UsageError
 from surgopt.runner import check_budget, run_bytes, usable_jobs
 from surgopt.studies import get_study
 
-from conftest import RCM_SMALL, cli, single_run
+from conftest import RCM_SMALL, cli, fault_lines, single_run
 
 SWALLOWED_SIGTERM = """
 import gc, os, signal, sys
@@ -38,7 +38,7 @@ def test_a_sigterm_swallowed_by_a_callback_still_stops_the_run(tmp_path):
     r = subprocess.run([sys.executable, "-c", SWALLOWED_SIGTERM, str(cfg), str(tmp_path / "store")],
                        capture_output=True, text=True, timeout=300)
     assert r.returncode == 143, (r.returncode, r.stderr)
-    assert r.stderr.strip().splitlines() == ["surgopt: stopped by SIGTERM; finished chunks are stored, run the same "
+    assert fault_lines(r.stderr) == ["surgopt: stopped by SIGTERM; finished chunks are stored, run the same "
                                              "command again to resume"]
 
 
@@ -87,7 +87,7 @@ def test_a_loky_run_under_an_address_space_limit_ends_in_one_line(tmp_path, mega
     r = subprocess.run(args, capture_output=True, text=True, timeout=240, preexec_fn=_limit_address_space(megabytes))
     assert r.returncode in (0, 1), (r.returncode, r.stderr[-2000:])
     if r.returncode == 1:
-        lines = r.stderr.strip().splitlines()
+        lines = fault_lines(r.stderr)
         assert len(lines) == 1 and "out of memory" in lines[0] and "Traceback" not in r.stderr, r.stderr[-2000:]
     r = subprocess.run(args[:-2], capture_output=True, text=True, timeout=240)
     assert r.returncode == 0 and single_run(tmp_path / "store").complete
@@ -171,7 +171,7 @@ def test_sigint_at_random_instants_on_threads_is_one_line_and_resumes_identicall
         err = p.communicate(timeout=300)[1]
         assert p.returncode in (0, 130), (p.returncode, err)
         if p.returncode == 130:
-            assert err.strip().splitlines() == ["surgopt: interrupted; finished chunks are stored, run the same "
+            assert fault_lines(err) == ["surgopt: interrupted; finished chunks are stored, run the same "
                                                 "command again to resume"] or "nothing was run" in err, err
         subprocess.run(base + [str(store)], check=True, capture_output=True, timeout=300)
         assert single_table(store).equals(single_table(tmp_path / "ref"))

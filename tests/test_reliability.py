@@ -13,7 +13,7 @@ from surgopt.runner import run_study
 from surgopt.store import STAGING, Store
 from surgopt.studies import get_study
 
-from conftest import invoke, single_run
+from conftest import fault_lines, invoke, single_run
 
 RCM = get_study("rcm-grid")
 
@@ -36,7 +36,7 @@ def test_a_run_of_an_unknown_store_format_is_never_rewritten_read_or_collected(s
         with pytest.raises(StoreError, match="store format 2"):
             _run(cfg, store, force=force)
     code, out = invoke("rcm-grid", cfg, "--store", store, "--quiet")
-    assert code == 1 and "store format 2" in out and len(out.strip().splitlines()) == 1, out
+    assert code == 1 and "store format 2" in out and len(fault_lines(out)) == 1, out
     code, out = invoke("summarize", run.key[:12], "--store", store)
     assert code != 0 and "Traceback" not in out
     assert invoke("runs", "gc", "--store", store)[0] == 0

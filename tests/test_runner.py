@@ -137,3 +137,49 @@ def test_compile_lock_serialises_processes(tmp_path, monkeypatch):
     assert r.returncode == 0
     with compile_lock(timeout_s=0.1):  # and it is released again
         pass
+
+
+HOLD_UNTIL = """
+import os, sys, time
+from filelock import FileLock
+lock, release = FileLock(sys.argv[1]), sys.argv[2]
+with lock:
+    open(release + ".held", "w").close()
+    while not os.path.exists(release):
+        time.sleep(0.01)
+"""
+
+
+@pytest.mark.parametrize("quiet_s, announced", [(60.0, False), (0.05, True)])
+def test_a_wait_on_the_compile_lock_is_announced_only_when_it_lasts(tmp_path, monkeypatch, quiet_s, announced):
+    """Another process holds the lock (as one that only loads cached kernels does, for a moment): a wait shorter
+    than QUIET_WAIT_S is not announced, a longer one is, once. The holder lets go when told: at once for the
+    short wait (60 s to spare), only once the wait was announced for the long one (so it cannot pass unseen)."""
+    import threading
+    import time
+
+    from surgopt import jit
+
+    monkeypatch.setenv("NUMBA_CACHE_DIR", str(tmp_path / "nc"))
+    monkeypatch.setattr(jit, "QUIET_WAIT_S", quiet_s)
+    (tmp_path / "nc").mkdir()
+    release = tmp_path / "release"
+    holder = subprocess.Popen([sys.executable, "-c", HOLD_UNTIL, str(tmp_path / "nc" / ".surgopt-compile.lock"),
+                               str(release)])
+    try:
+        while not (tmp_path / "release.held").exists():
+            time.sleep(0.01)
+        said = []
+
+        def on_wait():
+            said.append(1)
+            release.touch()
+
+        if not announced:
+            threading.Timer(0.2, release.touch).start()
+        with jit.compile_lock(on_wait=on_wait):
+            pass
+        assert said == ([1] if announced else [])
+    finally:
+        release.touch()
+        holder.wait(timeout=60)
