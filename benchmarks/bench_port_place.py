@@ -3,9 +3,10 @@
 Run:  python benchmarks/bench_port_place.py
 Prints, for the default config (164 candidate sites, 915 target points, 2,165,292 designs):
 - per-port tables (RCM inverse kinematics + limits + isotropy at every site x target point): numba vs a
-  numpy version vectorised over the points (one site at a time);
+  numpy version vectorised over the points (one site at a time), and vs plain numpy point by point (a sample of
+  sites);
 - per-pair tables (common reach, smaller isotropy, manipulation angle statistics over the points both reach):
-  numba vs numpy vectorised over the points (one pair at a time);
+  numba vs numpy vectorised over the points (one pair at a time), and vs plain numpy point by point (a sample);
 - combining designs (design_columns) in designs/s;
 - `surgopt port-place` end to end, warm, and the estimate it printed beforehand.
 """
@@ -52,6 +53,41 @@ def numpy_pair_angles(sites, reach, dex, targets, lo, hi, pairs):
     return out
 
 
+def plain_instrument_tables(sites, rot, targets, arm, length):
+    """The same math point by point: numpy on 3-vectors, no vectorisation over the points (the kernel's loop
+    body in numpy, as in the other benchmarks' 'plain numpy' columns)."""
+    reach = np.zeros((len(sites), len(targets)), bool)
+    dex = np.zeros((len(sites), len(targets)))
+    for i in range(len(sites)):
+        for k in range(len(targets)):
+            p = rot[i].T @ (targets[k] - sites[i])
+            rho = np.linalg.norm(p)
+            q2 = -np.arcsin(np.clip(p[1] / rho, -1, 1))
+            q1 = np.arctan2(p[0], -p[2])
+            q3 = rho - arm.along_shaft_m
+            if (arm.yaw_lo <= q1 <= arm.yaw_hi and arm.pitch_lo <= q2 <= arm.pitch_hi
+                    and arm.insertion_lo <= q3 <= arm.insertion_hi):
+                sv = np.array([rho * np.cos(q2) / length, rho / length, 1.0])
+                reach[i, k] = True
+                dex[i, k] = sv.min() / sv.max()
+    return reach, dex
+
+
+def plain_pair_angles(sites, reach, dex, targets, lo, hi, pairs):
+    """The pair statistics point by point (numpy on 3-vectors)."""
+    out = []
+    for i, j in pairs:
+        n, iso, s, mn, mx, inside = 0, 0.0, 0.0, np.inf, -np.inf, 0
+        for k in range(len(targets)):
+            if reach[i, k] and reach[j, k]:
+                a, b = sites[i] - targets[k], sites[j] - targets[k]
+                ang = np.arctan2(np.linalg.norm(np.cross(a, b)), a @ b)
+                n, iso, s = n + 1, iso + min(dex[i, k], dex[j, k]), s + ang
+                mn, mx, inside = min(mn, ang), max(mx, ang), inside + (lo <= ang <= hi)
+        out.append((n, iso / n, s / n, mn, mx, inside / n) if n else (0, 0.0, 0.0, 0.0, 0.0, 0.0))
+    return out
+
+
 def best_of(f, repeat=3):
     times = []
     for _ in range(repeat):
@@ -77,6 +113,12 @@ def main() -> None:
     assert np.array_equal(reach, reach_np) and np.allclose(dex, dex_np, atol=1e-12)
     print(f"per-port tables: numba {n * m / tk / 1e6:.1f} M site-points/s, numpy {n * m / tn / 1e6:.2f} M/s, "
           f"ratio {tn / tk:.1f}x")
+    few = slice(0, n, 20)  # every 20th site, point by point
+    tp, (reach_p, dex_p) = best_of(lambda: plain_instrument_tables(sites[few], rot[few], targets, arm, 0.1), repeat=1)
+    assert np.array_equal(reach_p, reach[few]) and np.allclose(dex_p, dex[few], atol=1e-12)
+    n_few = len(range(0, n, 20))
+    print(f"per-port tables, plain numpy point by point ({n_few} sites): {n_few * m / tp / 1e6:.3f} M site-points/s, "
+          f"numba / plain {(tp / (n_few * m)) / (tk / (n * m)):.0f}x (one core each)")
     K.pair_tables(sites, reach, dex, targets, centre, crit)
     tk, pairs = best_of(lambda: K.pair_tables(sites, reach, dex, targets, centre, crit), repeat=2)
     some = [(i, j) for i in range(0, n, 7) for j in range(i + 1, n, 7)]  # a sample of pairs for numpy
@@ -87,6 +129,13 @@ def main() -> None:
     n_pairs = n * (n - 1) // 2
     print(f"per-pair tables: numba {n_pairs * m / tk / 1e6:.1f} M pair-points/s ({tk:.2f} s for {n_pairs:,} pairs), "
           f"numpy {len(some) * m / tn / 1e6:.2f} M/s, ratio {(tn / len(some)) / (tk / n_pairs):.1f}x")
+    fewer = some[::25]
+    tp, plain = best_of(lambda: plain_pair_angles(sites, reach, dex, targets, crit.angle_lo_rad, crit.angle_hi_rad,
+                                                  fewer), repeat=1)
+    for (i, j), r in zip(fewer, plain):
+        assert pairs[0][i, j] == r[0] and math.isclose(pairs[2][i, j], r[2], rel_tol=1e-12)
+    print(f"per-pair tables, plain numpy point by point ({len(fewer)} pairs): {len(fewer) * m / tp / 1e6:.3f} M "
+          f"pair-points/s, numba / plain {(tp / len(fewer)) / (tk / n_pairs):.0f}x (one core each)")
     _, t, crit, _, _ = S.tables(cfg)
     total = S.n_designs(n)
     tk, _ = best_of(lambda: K.design_columns(t, crit, 0, total), repeat=2)
