@@ -401,3 +401,70 @@ def test_a_painted_region_that_cannot_be_read_is_refused_with_the_field_named(tm
         validate({"patient": patient}, S.Config, "bad.toml", {"config_dir": str(tmp_path)})
     assert {"dome": "needs shape = 'mesh'", "stl": "no per-face colours",
             "colour absent": "no face of"}[case] in str(e.value)
+
+
+def _scope_tip_by_bisection(p, c, theta, r, down):
+    """An angled scope's tip found numerically, apart from the kernel's law of sines: the shaft turned by a in
+    the plane of the line of sight and the patient's front (+z); the view, the shaft turned by theta the other
+    way, is the line through the centre, and the tip is where it meets the shaft's line (least squares); then
+    the a where the centre is r from the tip, by bisection."""
+    u = (c - p) / np.linalg.norm(c - p)
+    w = np.array([0.0, 0.0, 1.0]) - u[2] * u
+    w /= np.linalg.norm(w)
+    sign = 1.0 if down else -1.0
+
+    def at(a):
+        s = np.cos(a) * u + sign * np.sin(a) * w
+        v = np.cos(theta - a) * u - sign * np.sin(theta - a) * w
+        (l, m), *_ = np.linalg.lstsq(np.column_stack([s, v]), c - p, rcond=None)  # p + l s = c - m v
+        return p + l * s, v, m
+
+    lo, hi = 0.0, theta  # the centre's distance from the tip grows from 0 (a = 0) to |c - p| (a = theta)
+    for _ in range(200):
+        mid = 0.5 * (lo + hi)
+        lo, hi = (mid, hi) if at(mid)[2] < r else (lo, mid)
+    return at(lo)[:2]
+
+
+@pytest.mark.parametrize("view", ["down", "up"])
+def test_an_angled_scope_looks_at_the_centre_from_the_standoff(view):
+    """camera_views for a 30 deg scope against the tip found by bisection on the constraints (the view through
+    the centre, the tip standoff_m from it), on every default site the ECM can use; the view is 30 deg off the
+    shaft; the coverage counts the points in the cone about that view; a straight scope is unchanged."""
+    from surgopt.kinematics import port_place as K
+
+    cfg = S.PortPlaceConfig.model_validate({"robot": {"camera_scope_angle_deg": 30.0, "camera_scope_view": view}})
+    sites, centre = S.sites_mm(cfg) / 1000, np.asarray(cfg.target.centre_mm) / 1000
+    cam = S.camera_of(cfg)
+    tips, axes, ok = K.camera_views(sites, centre, cam)
+    assert ok.sum() > len(sites) // 2
+    placed = ok & np.isclose(np.linalg.norm(centre - tips, axis=1), cam.standoff_m, rtol=0, atol=1e-12)
+    assert placed.sum() > ok.sum() // 2  # the rest: too close to insert so little (clamped, farther back)
+    for i in np.flatnonzero(placed)[::7]:
+        tip, v = _scope_tip_by_bisection(sites[i], centre, math.radians(30.0), cam.standoff_m, view == "down")
+        assert np.allclose(tips[i], tip, atol=1e-9) and np.allclose(axes[i], v, atol=1e-9)
+        shaft = (tips[i] - sites[i]) / np.linalg.norm(tips[i] - sites[i])
+        assert math.degrees(math.acos(np.clip(shaft @ axes[i], -1, 1))) == pytest.approx(30.0, abs=1e-9)
+        assert (shaft[2] > (centre - sites[i])[2] / np.linalg.norm(centre - sites[i])) == (view == "down")
+    targets = S.target_points_mm(cfg.target) / 1000
+    cover = K.camera_coverage(sites, K.docking_frames(sites, centre, S.LATERAL), targets, centre, cam)
+    for i in np.flatnonzero(ok)[::11]:
+        d = targets - tips[i]
+        r = np.linalg.norm(d, axis=1)
+        seen = (r >= cam.near_m) & (r <= cam.far_m) & (d @ axes[i] >= r * math.cos(cam.half_fov_rad))
+        assert cover[i] == seen.mean()
+    straight = S.camera_of(S.PortPlaceConfig())
+    assert np.array_equal(K.camera_views(sites, centre, straight)[1][ok],
+                          ((centre - sites[ok]).T / np.linalg.norm(centre - sites[ok], axis=1)).T)
+
+
+def test_an_angled_scope_keeps_a_symmetric_layout_balanced_and_moves_the_best():
+    """With a 30 deg scope the azimuths are taken about its view axis: the mirror-symmetric best layouts stay
+    balanced (imbalance 0); the study still finds feasible layouts, and the angle changes what the camera sees."""
+    small = {"patient": {"port_region": {"site_spacing_mm": 36.0}}, "target": {"spacing_mm": 20.0}}
+    straight = S.PortPlaceConfig.model_validate(small)
+    angled = S.PortPlaceConfig.model_validate({**small, "robot": {"camera_scope_angle_deg": 30.0}})
+    a, b = S.compute_task(straight, 10 ** 6, 0), S.compute_task(angled, 10 ** 6, 0)
+    assert b["feasible"].any() and not np.array_equal(a["camera_coverage"], b["camera_coverage"])
+    sym = (b["psm1_x_mm"] == -b["psm2_x_mm"]) & (b["psm1_y_mm"] == b["psm2_y_mm"]) & (b["ecm_x_mm"] == 0)
+    assert sym.sum() > 10 and np.abs(b["azimuth_imbalance_deg"][sym]).max() < 1e-9

@@ -51,13 +51,17 @@ class Approach(NamedTuple):
 
 class Camera(NamedTuple):
     """The endoscope: its arm, its field of view (full cone angle), how far before the target's centre its
-    tip stops, and the depth range it images sharply (from the tip)."""
+    tip stops, the depth range it images sharply (from the tip), and its scope angle: the view axis turned that
+    far off the shaft (0: a straight scope; 30 deg scopes are common), toward the patient's back when
+    ``scope_down`` (the shaft then passes above the target), toward the front otherwise."""
 
     arm: ArmLimits
     half_fov_rad: float
     standoff_m: float
     near_m: float
     far_m: float
+    scope_angle_rad: float = 0.0
+    scope_down: bool = True
 
 
 class Criteria(NamedTuple):
@@ -219,23 +223,84 @@ def instrument_tables(sites, rot, targets, arm, length_m, approach):
 
 
 @njit(**EXACT)
-def camera_coverage(sites, rot, targets, centre, camera):
-    """The share of target points each port's endoscope images: its shaft on the neutral axis toward the
-    centre, inserted to stop ``standoff_m`` before it (within the insertion range), a point counting when
-    it lies inside the view cone and between ``near_m`` and ``far_m`` from the tip. A port whose insertion
-    cannot be reached (too close, too far) covers nothing."""
-    n, m = sites.shape[0], targets.shape[0]
-    out = np.zeros(n)
+def scope_tilt_direction(u):
+    """The unit vector, orthogonal to the line of sight ``u`` (port to target centre), toward which an angled
+    scope's shaft is raised: the patient's front (+z) made orthogonal to ``u``, or, when ``u`` is vertical,
+    the cranial axis (+y)."""
+    w = np.array([0.0, 0.0, 1.0]) - u[2] * u
+    nw = math.sqrt(w[0] ** 2 + w[1] ** 2 + w[2] ** 2)
+    if nw < 1e-9:
+        w = np.array([0.0, 1.0, 0.0]) - u[1] * u
+        nw = math.sqrt(w[0] ** 2 + w[1] ** 2 + w[2] ** 2)
+    return w / nw
+
+
+@njit(**EXACT)
+def camera_views(sites, centre, camera):
+    """Per port: the endoscope's tip, the unit view axis and whether it can be placed. A straight scope: the
+    shaft on the line to the centre, inserted to stop ``standoff_m`` before it. A scope angled by theta whose
+    view is to pass through the centre at distance r from the tip, from a port at distance d: in the triangle
+    port, tip, centre the angle at the port is alpha, at the tip pi - theta, so sin(alpha) = r sin(theta) / d and
+    the shaft reaches l = d sin(theta - alpha) / sin(theta); the shaft is turned by alpha off the line of sight,
+    in the plane of ``scope_tilt_direction``, away from the side the view turns to. Insertion below its range is
+    clamped (the tip stops farther back, on the same shaft; the view then passes beside the centre); beyond its
+    range, or with r sin(theta) > d, or the shaft outside the arm's yaw and pitch, the port cannot be used."""
+    n = sites.shape[0]
+    tips = np.zeros((n, 3))
+    axes = np.zeros((n, 3))
+    ok = np.zeros(n, dtype=np.bool_)
     arm = camera.arm
+    theta = camera.scope_angle_rad
     for i in range(n):
         d = centre - sites[i]
         dist = math.sqrt(d[0] ** 2 + d[1] ** 2 + d[2] ** 2)
         u = d / dist
-        q3 = dist - camera.standoff_m - arm.along_shaft_m
-        q3 = max(q3, arm.insertion_lo)
+        if theta == 0.0:
+            shaft, view, reach = u, u, dist - camera.standoff_m
+        else:
+            sin_a = camera.standoff_m * math.sin(theta) / dist
+            if sin_a > 1.0:
+                continue
+            alpha = math.asin(sin_a)
+            w = scope_tilt_direction(u)
+            sign = 1.0 if camera.scope_down else -1.0
+            shaft = math.cos(alpha) * u + sign * math.sin(alpha) * w
+            view = math.cos(theta - alpha) * u - sign * math.sin(theta - alpha) * w
+            reach = dist * math.sin(theta - alpha) / math.sin(theta)
+            # the shaft's yaw and pitch in the docking frame (neutral: along u), as the instruments' IK
+            x = np.array([1.0, 0.0, 0.0]) - u[0] * u
+            if math.sqrt(x[0] ** 2 + x[1] ** 2 + x[2] ** 2) < 1e-9:
+                x = np.array([0.0, 1.0, 0.0]) - u[1] * u
+            x = x / math.sqrt(x[0] ** 2 + x[1] ** 2 + x[2] ** 2)
+            y = np.array([-u[1] * x[2] + u[2] * x[1], -u[2] * x[0] + u[0] * x[2], -u[0] * x[1] + u[1] * x[0]])
+            px = shaft[0] * x[0] + shaft[1] * x[1] + shaft[2] * x[2]
+            py = shaft[0] * y[0] + shaft[1] * y[1] + shaft[2] * y[2]
+            pz = -(shaft[0] * u[0] + shaft[1] * u[1] + shaft[2] * u[2])
+            q1 = math.atan2(px, -pz)
+            q2 = -math.asin(min(1.0, max(-1.0, py)))
+            if not (arm.yaw_lo <= q1 <= arm.yaw_hi and arm.pitch_lo <= q2 <= arm.pitch_hi):
+                continue
+        q3 = max(reach - arm.along_shaft_m, arm.insertion_lo)
         if q3 > arm.insertion_hi:
             continue
-        tip = sites[i] + (q3 + arm.along_shaft_m) * u
+        tips[i] = sites[i] + (q3 + arm.along_shaft_m) * shaft
+        axes[i] = view
+        ok[i] = True
+    return tips, axes, ok
+
+
+@njit(**EXACT)
+def camera_coverage(sites, rot, targets, centre, camera):
+    """The share of target points each port's endoscope images (``camera_views``: its tip and view axis), a
+    point counting when it lies inside the view cone and between ``near_m`` and ``far_m`` from the tip. A port
+    whose scope cannot be placed (too close, too far, beyond the arm's joints) covers nothing."""
+    n, m = sites.shape[0], targets.shape[0]
+    out = np.zeros(n)
+    tips, axes, ok = camera_views(sites, centre, camera)
+    for i in range(n):
+        if not ok[i]:
+            continue
+        tip, u = tips[i], axes[i]
         seen = 0
         for k in range(m):
             v = targets[k] - tip
@@ -338,20 +403,26 @@ def pair_tables(sites, reach, dex, targets, centre, crit):
 
 
 @njit(**EXACT)
-def camera_pair_tables(sites, centre, lateral):
+def camera_pair_tables(sites, centre, lateral, view_axes=None):
     """Per (instrument port i, camera port k): the azimuth (the angle at the centre between the shaft and the
     optical axis) and the instrument's side of the optical axis (its offset from the camera port along the
-    patient's lateral axis made orthogonal to the optical axis, in m)."""
+    patient's lateral axis made orthogonal to the optical axis, in m). The optical axis runs from the camera
+    port to the centre, or, for an angled scope, along ``view_axes[k]`` (``camera_views``) through the centre."""
     n = sites.shape[0]
     azimuth = np.zeros((n, n))
     side = np.zeros((n, n))
     for k in range(n):
-        axis = centre - sites[k]
-        axis = axis / math.sqrt(axis[0] ** 2 + axis[1] ** 2 + axis[2] ** 2)
+        if view_axes is None:
+            axis = centre - sites[k]
+            axis = axis / math.sqrt(axis[0] ** 2 + axis[1] ** 2 + axis[2] ** 2)
+            behind = sites[k] - centre  # from the centre back along the optical axis
+        else:
+            axis = view_axes[k] / math.sqrt(view_axes[k, 0] ** 2 + view_axes[k, 1] ** 2 + view_axes[k, 2] ** 2)
+            behind = -axis
         lat = lateral - (lateral[0] * axis[0] + lateral[1] * axis[1] + lateral[2] * axis[2]) * axis
         lat = lat / math.sqrt(lat[0] ** 2 + lat[1] ** 2 + lat[2] ** 2)
         for i in range(n):
-            azimuth[i, k] = angle_between(sites[i] - centre, sites[k] - centre)
+            azimuth[i, k] = angle_between(sites[i] - centre, behind)
             d = sites[i] - sites[k]
             side[i, k] = d[0] * lat[0] + d[1] * lat[1] + d[2] * lat[2]
     return azimuth, side

@@ -85,6 +85,16 @@ def approach(target: Target):
     return Approach(*d, math.cos(dvrk.LND_WRIST_BEND_RAD - math.radians(target.approach_half_angle_deg)))
 
 
+def camera_of(cfg: PortPlaceConfig):
+    """The endoscope for the kernels (``port_place.Camera``)."""
+    from surgopt.kinematics.port_place import Camera
+
+    r = cfg.robot
+    return Camera(arm_limits(dvrk.CAMERA_ARMS[r.camera_arm]), math.radians(r.camera_fov_deg) / 2,
+                  r.camera_standoff_mm / 1000, r.camera_range_mm[0] / 1000, r.camera_range_mm[1] / 1000,
+                  math.radians(r.camera_scope_angle_deg), r.camera_scope_view == "down")
+
+
 def criteria(cfg: PortPlaceConfig):
     from surgopt.kinematics.port_place import Criteria
 
@@ -122,13 +132,15 @@ def port_tables(cfg: PortPlaceConfig, sites: np.ndarray, rot: np.ndarray, outsid
     reach, dex = K.instrument_tables(sites, rot, targets, arm_limits(dvrk.INSTRUMENT_ARMS[cfg.robot.instrument_arm]),
                                      crit.dexterity_length_m, approach(cfg.target))
     r = cfg.robot
-    camera = K.Camera(arm_limits(dvrk.CAMERA_ARMS[r.camera_arm]), math.radians(r.camera_fov_deg) / 2,
-                      r.camera_standoff_mm / 1000, r.camera_range_mm[0] / 1000, r.camera_range_mm[1] / 1000)
+    camera = camera_of(cfg)
     coverage = K.camera_coverage(sites, rot, targets, centre, camera)
     pairs = list(K.pair_tables(sites, reach, dex, targets, centre, crit))
     if outside is not None:
         pairs[-1] = outside
-    azimuth, side = K.camera_pair_tables(sites, centre, LATERAL)
+    if camera.scope_angle_rad == 0.0:  # the optical axis: port to centre
+        azimuth, side = K.camera_pair_tables(sites, centre, LATERAL)
+    else:  # along the angled scope's view, through the centre
+        azimuth, side = K.camera_pair_tables(sites, centre, LATERAL, K.camera_views(sites, centre, camera)[1])
     spacing = np.linalg.norm(sites[:, None, :] - sites[None, :, :], axis=2)
     tables = K.PortTables(reach.sum(axis=1).astype(np.int64), coverage, *pairs, spacing, azimuth, side,
                           len(targets))

@@ -163,6 +163,12 @@ class Robot(StrictModel):
     camera_standoff_mm: float = Field(100.0, gt=0, description="the scope tip stops this far before the target centre")
     camera_range_mm: list[float] = Field([10.0, 200.0], min_length=2, max_length=2,
                                          description="sharp imaging range from the tip")
+    camera_scope_angle_deg: float = Field(0.0, ge=0.0, le=60.0,
+                                          description="the endoscope's view axis off its shaft (0: straight; "
+                                                      "30: the common angled scope, dvrk-kinematics.md)")
+    camera_scope_view: Literal["down", "up"] = Field("down", description="an angled scope looks toward the "
+                                                     "patient's back (down: its shaft passes above the target) "
+                                                     "or front (up)")
     docking_range_deg: float = Field(0.0, ge=0.0, le=60.0,
                                      description="a [search] may turn each PSM's base this far (yaw and pitch) off "
                                                  "the target's centre (free docking); 0: docked toward the centre. "
