@@ -12,7 +12,7 @@ ports (``pair_tables``: common reach, manipulation angle, shaft clearance inside
 and a design (two instrument ports and a camera port) combines them (``design_columns``) at a few
 operations per design, so every assignment of >= 10^6 designs is affordable.
 
-One module of ~420 lines: the per-port, per-pair and per-design kernels share the frames, the
+One module of ~530 lines: the per-port, per-pair and per-design kernels share the frames, the
 named tuples and the bit mask of reasons, and are tested together.
 """
 from __future__ import annotations

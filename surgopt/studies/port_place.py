@@ -12,7 +12,7 @@ the same arm) and a distinct camera port is evaluated; docs/port_placement.md ha
 and assumptions.
 
 The config models and the geometry they imply (patient, sites, target) are in ``port_place_config``. One module
-of ~390 lines: the memoised tables, the rows, the search space, the estimate and the summary are one
+of ~410 lines: the memoised tables, the rows, the search space, the estimate and the summary are one
 declaration, read together.
 """
 from __future__ import annotations
