@@ -153,7 +153,7 @@ def guard():
             # what failed while a stop unwound is the stop: a lock file mid-rename, a library that wraps the
             # KeyboardInterrupt raised inside it (pydantic-core building a validator: SchemaError)
             raise typer.Exit(interrupts.report(None, RESUME)) from None
-        if not isinstance(exc, (SurgoptError, MemoryError, OSError)) and not out_of_memory(exc):
+        if not isinstance(exc, (SurgoptError, OSError)) and not out_of_memory(exc):
             raise
         fail_on(exc)
 

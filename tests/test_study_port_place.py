@@ -436,7 +436,8 @@ def test_an_angled_scope_looks_at_the_centre_from_the_standoff(view):
     cfg = S.PortPlaceConfig.model_validate({"robot": {"camera_scope_angle_deg": 30.0, "camera_scope_view": view}})
     sites, centre = S.sites_mm(cfg) / 1000, np.asarray(cfg.target.centre_mm) / 1000
     cam = S.camera_of(cfg)
-    tips, axes, ok = K.camera_views(sites, centre, cam)
+    rot = K.docking_frames(sites, centre, S.LATERAL)
+    tips, axes, ok = K.camera_views(sites, rot, centre, cam)
     assert ok.sum() > len(sites) // 2
     placed = ok & np.isclose(np.linalg.norm(centre - tips, axis=1), cam.standoff_m, rtol=0, atol=1e-12)
     assert placed.sum() > ok.sum() // 2  # the rest: too close to insert so little (clamped, farther back)
@@ -447,14 +448,14 @@ def test_an_angled_scope_looks_at_the_centre_from_the_standoff(view):
         assert math.degrees(math.acos(np.clip(shaft @ axes[i], -1, 1))) == pytest.approx(30.0, abs=1e-9)
         assert (shaft[2] > (centre - sites[i])[2] / np.linalg.norm(centre - sites[i])) == (view == "down")
     targets = S.target_points_mm(cfg.target) / 1000
-    cover = K.camera_coverage(sites, K.docking_frames(sites, centre, S.LATERAL), targets, centre, cam)
+    cover = K.camera_coverage(sites, rot, targets, centre, cam)
     for i in np.flatnonzero(ok)[::11]:
         d = targets - tips[i]
         r = np.linalg.norm(d, axis=1)
         seen = (r >= cam.near_m) & (r <= cam.far_m) & (d @ axes[i] >= r * math.cos(cam.half_fov_rad))
         assert cover[i] == seen.mean()
     straight = S.camera_of(S.PortPlaceConfig())
-    assert np.array_equal(K.camera_views(sites, centre, straight)[1][ok],
+    assert np.array_equal(K.camera_views(sites, rot, centre, straight)[1][ok],
                           ((centre - sites[ok]).T / np.linalg.norm(centre - sites[ok], axis=1)).T)
 
 

@@ -236,7 +236,7 @@ def scope_tilt_direction(u):
 
 
 @njit(**EXACT)
-def camera_views(sites, centre, camera):
+def camera_views(sites, rot, centre, camera):
     """Per port: the endoscope's tip, the unit view axis and whether it can be placed. A straight scope: the
     shaft on the line to the centre, inserted to stop ``standoff_m`` before it. A scope angled by theta whose
     view is to pass through the centre at distance r from the tip, from a port at distance d: in the triangle
@@ -244,7 +244,8 @@ def camera_views(sites, centre, camera):
     the shaft reaches l = d sin(theta - alpha) / sin(theta); the shaft is turned by alpha off the line of sight,
     in the plane of ``scope_tilt_direction``, away from the side the view turns to. Insertion below its range is
     clamped (the tip stops farther back, on the same shaft; the view then passes beside the centre); beyond its
-    range, or with r sin(theta) > d, or the shaft outside the arm's yaw and pitch, the port cannot be used."""
+    range, or with r sin(theta) > d, or the shaft outside the arm's yaw and pitch in its docking frame ``rot``
+    (``rcm_inverse``), the port cannot be used."""
     n = sites.shape[0]
     tips = np.zeros((n, 3))
     axes = np.zeros((n, 3))
@@ -267,17 +268,7 @@ def camera_views(sites, centre, camera):
             shaft = math.cos(alpha) * u + sign * math.sin(alpha) * w
             view = math.cos(theta - alpha) * u - sign * math.sin(theta - alpha) * w
             reach = dist * math.sin(theta - alpha) / math.sin(theta)
-            # the shaft's yaw and pitch in the docking frame (neutral: along u), as the instruments' IK
-            x = np.array([1.0, 0.0, 0.0]) - u[0] * u
-            if math.sqrt(x[0] ** 2 + x[1] ** 2 + x[2] ** 2) < 1e-9:
-                x = np.array([0.0, 1.0, 0.0]) - u[1] * u
-            x = x / math.sqrt(x[0] ** 2 + x[1] ** 2 + x[2] ** 2)
-            y = np.array([-u[1] * x[2] + u[2] * x[1], -u[2] * x[0] + u[0] * x[2], -u[0] * x[1] + u[1] * x[0]])
-            px = shaft[0] * x[0] + shaft[1] * x[1] + shaft[2] * x[2]
-            py = shaft[0] * y[0] + shaft[1] * y[1] + shaft[2] * y[2]
-            pz = -(shaft[0] * u[0] + shaft[1] * u[1] + shaft[2] * u[2])
-            q1 = math.atan2(px, -pz)
-            q2 = -math.asin(min(1.0, max(-1.0, py)))
+            q1, q2, _ = rcm_inverse(rot[i].T @ shaft, 0.0)  # the shaft's yaw and pitch in the docking frame
             if not (arm.yaw_lo <= q1 <= arm.yaw_hi and arm.pitch_lo <= q2 <= arm.pitch_hi):
                 continue
         q3 = max(reach - arm.along_shaft_m, arm.insertion_lo)
@@ -296,7 +287,7 @@ def camera_coverage(sites, rot, targets, centre, camera):
     whose scope cannot be placed (too close, too far, beyond the arm's joints) covers nothing."""
     n, m = sites.shape[0], targets.shape[0]
     out = np.zeros(n)
-    tips, axes, ok = camera_views(sites, centre, camera)
+    tips, axes, ok = camera_views(sites, rot, centre, camera)
     for i in range(n):
         if not ok[i]:
             continue
@@ -407,7 +398,8 @@ def camera_pair_tables(sites, centre, lateral, view_axes=None):
     """Per (instrument port i, camera port k): the azimuth (the angle at the centre between the shaft and the
     optical axis) and the instrument's side of the optical axis (its offset from the camera port along the
     patient's lateral axis made orthogonal to the optical axis, in m). The optical axis runs from the camera
-    port to the centre, or, for an angled scope, along ``view_axes[k]`` (``camera_views``) through the centre."""
+    port to the centre, or, for an angled scope, along the unit ``view_axes[k]`` (``camera_views``) through the
+    centre."""
     n = sites.shape[0]
     azimuth = np.zeros((n, n))
     side = np.zeros((n, n))
@@ -417,7 +409,7 @@ def camera_pair_tables(sites, centre, lateral, view_axes=None):
             axis = axis / math.sqrt(axis[0] ** 2 + axis[1] ** 2 + axis[2] ** 2)
             behind = sites[k] - centre  # from the centre back along the optical axis
         else:
-            axis = view_axes[k] / math.sqrt(view_axes[k, 0] ** 2 + view_axes[k, 1] ** 2 + view_axes[k, 2] ** 2)
+            axis = view_axes[k]
             behind = -axis
         lat = lateral - (lateral[0] * axis[0] + lateral[1] * axis[1] + lateral[2] * axis[2]) * axis
         lat = lat / math.sqrt(lat[0] ** 2 + lat[1] ** 2 + lat[2] ** 2)

@@ -140,7 +140,7 @@ def port_tables(cfg: PortPlaceConfig, sites: np.ndarray, rot: np.ndarray, outsid
     if camera.scope_angle_rad == 0.0:  # the optical axis: port to centre
         azimuth, side = K.camera_pair_tables(sites, centre, LATERAL)
     else:  # along the angled scope's view, through the centre
-        azimuth, side = K.camera_pair_tables(sites, centre, LATERAL, K.camera_views(sites, centre, camera)[1])
+        azimuth, side = K.camera_pair_tables(sites, centre, LATERAL, K.camera_views(sites, rot, centre, camera)[1])
     spacing = np.linalg.norm(sites[:, None, :] - sites[None, :, :], axis=2)
     tables = K.PortTables(reach.sum(axis=1).astype(np.int64), coverage, *pairs, spacing, azimuth, side,
                           len(targets))

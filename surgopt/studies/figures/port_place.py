@@ -33,7 +33,7 @@ def figures(cfg, table, out, design_id=None):
 
     plt = pyplot()
     c = columns(table)
-    sites_m, _, _, reach, dex = S.tables(cfg)
+    sites_m, port_tables, _, reach, dex = S.tables(cfg)
     sites = sites_m * 1000
     targets = S.target_points_mm(cfg.target)
     per_site = best_per_site(c, len(sites))
@@ -100,7 +100,7 @@ def figures(cfg, table, out, design_id=None):
     ax.legend(fontsize=7, loc="upper center", bbox_to_anchor=(0.5, -0.1), ncol=3)
     paths.append(save(fig, out / "port_place_sites_top.png"))
 
-    paths.append(reach_maps(plt, cfg, sites, S.tables(cfg)[1], dex, out))
+    paths.append(reach_maps(plt, cfg, sites, port_tables, dex, out))
 
     # why designs fail
     from surgopt.kinematics.port_place import REASONS
