@@ -7,8 +7,9 @@ Prints, for the default config (164 candidate sites, 915 target points, 2,165,29
   sites);
 - per-pair tables (common reach, smaller isotropy, manipulation angle statistics over the points both reach):
   numba vs numpy vectorised over the points (one pair at a time), and vs plain numpy point by point (a sample);
-- combining designs (design_columns) in designs/s;
-- `surgopt port-place` end to end, warm, and the estimate it printed beforehand.
+- combining designs (design_columns) in designs/s, with two PSMs and with three (a slice of the 348,612,012);
+- `surgopt port-place` end to end, warm, and the estimate it printed beforehand: the default, and the full 3-PSM
+  enumeration with only its feasible rows stored.
 """
 from __future__ import annotations
 
@@ -20,6 +21,7 @@ import time
 
 import numpy as np
 
+from surgopt.kinematics import port_designs as D
 from surgopt.kinematics import port_place as K
 from surgopt.robots import dvrk
 from surgopt.studies import port_place as S
@@ -138,16 +140,29 @@ def main() -> None:
           f"pair-points/s, numba / plain {(tp / len(fewer)) / (tk / n_pairs):.0f}x (one core each)")
     _, t, crit, _, _ = S.tables(cfg)
     total = S.n_designs(n)
-    tk, _ = best_of(lambda: K.design_columns(t, crit, 0, total), repeat=2)
-    print(f"design_columns: {total / tk / 1e6:.1f} M designs/s ({tk:.2f} s for all)")
-    with tempfile.TemporaryDirectory() as tmp:
-        est = subprocess.run([sys.executable, "-m", "surgopt", "port-place", "--dry-run"], capture_output=True, text=True)
-        line = [x for x in est.stdout.splitlines() if "port designs" in x]
-        t0 = time.perf_counter()
-        subprocess.run([sys.executable, "-m", "surgopt", "port-place", "--store", tmp, "-q"], check=True,
-                       capture_output=True)
-        print(f"surgopt port-place end to end (warm, 2 threads): {time.perf_counter() - t0:.1f} s; "
-              f"dry-run said: {' '.join(line[0].split()) if line else '?'}")
+
+    def chunked(instruments, start, stop, feasible_only=False):  # task by task, as the runner calls it
+        for c in range(start, stop, S.CHUNK):
+            D.design_columns(t, crit, c, min(stop, c + S.CHUNK), instruments, feasible_only)
+
+    tk2, _ = best_of(lambda: chunked(2, 0, total), repeat=2)
+    print(f"design_columns, 2 PSMs: {total / tk2 / 1e6:.1f} M designs/s (all {total:,}, {S.CHUNK:,} a call)")
+    start, some3 = S.n_designs(n, 3) // 2, 10 * S.CHUNK  # a slice of the 3-PSM enumeration, from its middle
+    for feasible_only in (False, True):
+        tk3, _ = best_of(lambda: chunked(3, start, start + some3, feasible_only), repeat=2)
+        print(f"design_columns, 3 PSMs{', feasible rows only' if feasible_only else ''}: {some3 / tk3 / 1e6:.1f} M "
+              f"designs/s ({some3:,} of {S.n_designs(n, 3):,}); per design / 2 PSMs' {(tk3 / some3) / (tk2 / total):.2f}x")
+    for label, args in (("2 PSMs", []), ("3 PSMs, feasible rows stored", ["robot.instrument_count=3",
+                                                                         "rows_stored=feasible"])):
+        with tempfile.TemporaryDirectory() as tmp:
+            est = subprocess.run([sys.executable, "-m", "surgopt", "port-place", *args, "--dry-run"],
+                                 capture_output=True, text=True)
+            line = [x for x in est.stdout.splitlines() if "port designs" in x]
+            t0 = time.perf_counter()
+            subprocess.run([sys.executable, "-m", "surgopt", "port-place", *args, "--store", tmp, "-q"], check=True,
+                           capture_output=True)
+            print(f"surgopt port-place, {label}, end to end (warm, 2 threads): {time.perf_counter() - t0:.1f} s; "
+                  f"dry-run said: {' '.join(line[0].split()) if line else '?'}")
 
 
 if __name__ == "__main__":

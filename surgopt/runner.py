@@ -143,7 +143,7 @@ def check_budget(study, cfg, jobs: int, max_hours: float | None, max_memory_byte
     if max_hours is not None and wall > max_hours * 3600:
         raise UsageError(f"this config is {est.items:,} {est.what}, about {duration_text(wall)} on {jobs} core(s) "
                          f"(estimate), past the {max_hours:g} h budget; pass --max-hours "
-                         f"{math.ceil(wall / 3600 * 1.2)} to run it anyway, or make it smaller")
+                         f"{math.ceil(wall / 3600 * 1.2)} to run it anyway, or {est.smaller}")
     if max_memory_bytes is None:
         ram = physical_memory_bytes()
         max_memory_bytes = int(ram * DEFAULT_MEMORY_SHARE) if ram else None
@@ -154,7 +154,7 @@ def check_budget(study, cfg, jobs: int, max_hours: float | None, max_memory_byte
         raise UsageError(f"this config is {est.items:,} {est.what} ({est.rows:,} rows), about "
                          f"{need / 2 ** 30:,.1f} GiB of memory{with_workers} (estimate), past the "
                          f"{max_memory_bytes / 2 ** 30:,.1f} GiB budget; pass --max-memory-gb "
-                         f"{math.ceil(need / 2 ** 30 * 1.2)} to run it anyway, or make it smaller")
+                         f"{math.ceil(need / 2 ** 30 * 1.2)} to run it anyway, or {est.smaller}")
 
 
 def run_study(study, cfg, *, config_name: str, store: Store, jobs: int = DEFAULT_JOBS,

@@ -49,6 +49,28 @@ def test_dask_local_cluster_equals_threads(tmp_path, name, dask_cluster):
     assert threads.equals(dask)
 
 
+def test_three_psm_port_placement_on_dask_equals_threads_and_its_feasible_rows(tmp_path, dask_cluster):
+    """port-place's 3-PSM + ECM enumeration (issue #29) at reduced size (18 sites: 36,720 designs) on a local
+    Dask cluster, chunk by chunk, gives the threads' rows; storing only the feasible rows stores exactly those
+    of the full table (the premise: some are feasible, most are not)."""
+    study = get_study("port-place")
+    small = {"patient": {"port_region": {"site_spacing_mm": 50.0}}, "target": {"spacing_mm": 15.0},
+             "robot": {"instrument_count": 3}}
+    cfg = study.config_model.model_validate(small)
+
+    def run(tag, cfg, **kw):
+        return run_study(study, cfg, config_name=tag, store=Store(tmp_path / tag), quiet=True, **kw).table
+
+    threads = run("threads", cfg, jobs=2)
+    dask = run("dask", cfg, jobs=2, backend="dask", scheduler=dask_cluster.scheduler_address, chunk=4_000)
+    assert threads.num_rows == 36_720 and threads.equals(dask)
+    feasible = run("feasible", study.config_model.model_validate({**small, "rows_stored": "feasible"}), jobs=2,
+                   chunk=4_000)
+    expected = threads.filter(threads["feasible"])
+    assert 0 < expected.num_rows < threads.num_rows // 2
+    assert feasible.select(expected.column_names).equals(expected)
+
+
 def test_cli_dask_backend_with_its_own_local_cluster(tmp_path):
     pytest.importorskip("distributed", reason="dask[distributed] not installed")
     r = subprocess.run([sys.executable, "-m", "surgopt", "suture-sim", str(BASE / "suture_small.toml"), "--store",

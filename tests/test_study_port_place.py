@@ -1,11 +1,13 @@
 """port-place (surgopt/studies/port_place.py, surgopt/kinematics/port_place.py): the dVRK arms' RCM kinematics
 against the modified-DH tables multiplied out in tests/reference.py, reach against joint-space sampling,
 angles and clearances against closed forms, a mirror-symmetric patient's optimum, bad input, the CLI."""
+import itertools
 import math
 
 import numpy as np
 import pytest
 
+from surgopt.kinematics import port_designs as D
 from surgopt.kinematics import port_place as K
 from surgopt.robots import dvrk
 from surgopt.studies import port_place as S
@@ -104,17 +106,77 @@ def test_manipulation_angle_and_shaft_distance_closed_forms():
         assert brute - 1e-2 <= K.segment_distance(p0, p1, q0, q1) <= brute + 1e-12
 
 
-def test_design_enumeration_covers_every_assignment_once():
+def _tables(n, m, rng):
+    """Random per-port and per-pair tables of n sites over m target points (pair entries filled i < j), with
+    some sites reaching every point and some only part of them."""
+    reach = rng.random((n, m)) < 0.9
+    reach[: n // 2] = True
+    dex = rng.random((n, m)) * reach
+    upper = np.triu(np.ones((n, n), bool), 1)
+    pair = [np.where(upper, rng.random((n, n)), 0.0) for _ in range(8)]
+    count = np.where(upper, (reach[:, None, :] & reach[None, :, :]).sum(axis=2), 0)
+    spacing = rng.random((n, n)) * 0.2
+    spacing = spacing + spacing.T
+    return D.PortTables(reach.sum(axis=1), rng.random(n), count, *pair, spacing, rng.random((n, n)),
+                        rng.random((n, n)) - 0.5, m, D.reach_bits(reach), D.site_dexterity(reach, dex)), reach, dex
+
+
+@pytest.mark.parametrize("instruments", [2, 3])
+def test_design_enumeration_covers_every_assignment_once(instruments):
     n = 7
-    t = K.PortTables(np.ones(n, np.int64), np.ones(n), *(np.zeros((n, n)) for _ in range(9)), np.ones((n, n)),
-                     np.zeros((n, n)), np.zeros((n, n)), 1)
-    t = t._replace(count=np.ones((n, n), np.int64))
+    t, _, _ = _tables(n, 5, np.random.default_rng(1))
     crit = S.criteria(S.PortPlaceConfig())
-    total = S.n_designs(n)
-    ids = np.concatenate([K.design_columns(t, crit, s, min(total, s + 13))[0] for s in range(0, total, 13)])
-    triples = {(i, j, k) for i, j, k in ids.tolist()}
-    assert len(ids) == len(triples) == total == n * (n - 1) // 2 * (n - 2)
-    assert all(i < j and k not in (i, j) for i, j, k in triples)
+    total = S.n_designs(n, instruments)
+    ids = np.concatenate([D.design_columns(t, crit, s, min(total, s + 13), instruments)[0]
+                          for s in range(0, total, 13)])
+    designs = {tuple(r) for r in ids.tolist()}
+    assert len(ids) == len(designs) == total
+    assert total == n * (n - 1) // 2 * (n - 2) * ((n - 3) if instruments == 3 else 1)
+    assert all(r[0] < r[1] and len(set(r)) == len(r) for r in designs)
+
+
+def test_three_instruments_combine_as_a_brute_force_over_the_reach_sets():
+    """Every 3-PSM design's columns against numpy over the reach matrix and the pair tables, written
+    per design: the common reach of all three (the premise: some designs need the bit count, neither the
+    pair nor the third reaching every point), the least clearances over the pairs, the spacing over the
+    four ports, the third's isotropy in the cost; the pair's columns are the 2-PSM design's."""
+    from surgopt.kinematics.port_place import REACH, SHAFTS, SPACING
+
+    n, m = 8, 131  # 131 points: three words, the last one partial
+    t, reach, dex = _tables(n, m, np.random.default_rng(2))
+    crit = S.criteria(S.PortPlaceConfig())._replace(min_shaft_gap_m=0.3, min_spacing_m=0.02)
+    ids, f, bad, cost, design = D.design_columns(t, crit, 0, S.n_designs(n, 3), 3)
+    ids2, f2, bad2, cost2, _ = D.design_columns(t, crit, 0, S.n_designs(n, 2), 2)
+    assert np.array_equal(design, np.arange(S.n_designs(n, 3)))
+    loose = crit._replace(min_shaft_gap_m=0.0, min_external_m=0.0, angle_lo_rad=0.0, angle_hi_rad=math.pi)
+    seen = t._replace(coverage=np.ones(n))  # the camera sees everything: feasibility is the reach and spacing
+    every = D.design_columns(seen, loose, 0, S.n_designs(n, 3), 3)
+    kept = D.design_columns(seen, loose, 0, S.n_designs(n, 3), 3, True)  # only the feasible rows, written alone
+    ok = every[2] == 0
+    assert 0 < ok.sum() < len(ok)
+    for got, full in zip(kept, every):
+        assert np.array_equal(got, full[ok])
+    two = {tuple(r): q for q, r in enumerate(ids2.tolist())}
+    pair = lambda a, x, y: a[min(x, y), max(x, y)]  # noqa: E731
+    bit_counted = 0
+    for r, (i, j, l, k) in enumerate(ids.tolist()):
+        common = np.count_nonzero(reach[i] & reach[j] & reach[l])
+        if not reach[l].all() and not (reach[i] & reach[j]).all():
+            bit_counted += 1
+        assert f[r, 2] == common / m
+        assert f[r, 14] == reach[l].sum() / m and f[r, 15] == pytest.approx(dex[l][reach[l]].mean(), abs=1e-12)
+        assert f[r, 11] == min(t.inside[i, j], pair(t.inside, i, l), pair(t.inside, j, l))
+        assert f[r, 12] == min(pair(t.outside, x, y) for x, y in itertools.combinations((i, j, l, k), 2))
+        spacing = min(t.spacing[x, y] for x, y in itertools.combinations((i, j, l, k), 2))
+        assert bool(bad[r] & SPACING) == (spacing < crit.min_spacing_m)
+        assert bool(bad[r] & REACH) == (common < m)
+        assert bool(bad[r] & SHAFTS) == (f[r, 11] < crit.min_shaft_gap_m)
+        q = two[(i, j, k)]
+        for c in (0, 1, 3, 4, 5, 6, 7, 8, 9, 10, 13):
+            assert f[r, c] == f2[q, c]
+        expected = cost2[q] + crit.w_reach * (f2[q, 2] - f[r, 2]) + crit.w_dexterity * (1 - dex[l][reach[l]].mean())
+        assert cost[r] == pytest.approx(expected, abs=1e-12)
+    assert bit_counted > 0  # the premise: the popcount branch was taken
 
 
 def test_a_mirror_symmetric_patient_gives_a_mirror_symmetric_optimum():
@@ -131,6 +193,53 @@ def test_a_mirror_symmetric_patient_gives_a_mirror_symmetric_optimum():
     twin = np.flatnonzero((cols["psm1_site"] == mi) & (cols["psm2_site"] == mj) & (cols["ecm_site"] == mk))[0]
     assert cols["feasible"][twin]
     assert cols["cost"][twin] == pytest.approx(cols["cost"][best], rel=1e-9, abs=1e-12)
+
+
+THREE = {"patient": {"port_region": {"site_spacing_mm": 50.0}}, "target": {"spacing_mm": 15.0},
+         "robot": {"instrument_count": 3}}
+
+
+def test_three_psms_on_a_mirror_symmetric_patient_give_every_design_its_mirror_twin():
+    """3 PSMs + ECM, every design of a reduced case (18 sites): the mirror image of each design (each port
+    mirrored about x = 0, the working pair reordered) has the same cost and feasibility; so the optimum is
+    mirror-symmetric or comes with its twin. The common reach of all three against the reach matrix."""
+    cfg = S.PortPlaceConfig.model_validate(THREE)
+    sites = S.sites_mm(cfg)
+    mirror = np.array([int(np.flatnonzero(np.all(np.isclose(sites, sites[i] * [-1, 1, 1]), axis=1))[0])
+                       for i in range(len(sites))])
+    cols = S.compute_task(cfg, S.n_total(cfg), 0)
+    arms = [cols[c] for c in ("psm1_site", "psm2_site", "psm3_site", "ecm_site")]
+    index = {d: r for r, d in enumerate(zip(*(a.tolist() for a in arms)))}
+    assert len(index) == len(cols["cost"]) == S.n_total(cfg) == 18 * 17 // 2 * 16 * 15
+    i, j, l, k = (mirror[a] for a in arms)
+    twin = np.array([index[(min(a, b), max(a, b), c, d)] for a, b, c, d in zip(i, j, l, k)])
+    np.testing.assert_allclose(cols["cost"][twin], cols["cost"], rtol=1e-9, atol=1e-12)
+    assert np.array_equal(cols["infeasible"][twin], cols["infeasible"])
+    assert 0 < cols["feasible"].sum() < len(twin)
+    _, _, _, reach, _ = S.tables(cfg)
+    common = (reach[arms[0]] & reach[arms[1]] & reach[arms[2]]).mean(axis=1)
+    np.testing.assert_array_equal(cols["common_reach"], common)
+
+
+def test_three_psms_from_the_cli_store_only_feasible_rows_and_say_so(tmp_path):
+    """rows_stored=feasible: the summary counts every design enumerated and says the infeasible rows were not
+    kept, read back from the store too; PSM3 is in the layout; the full 3-PSM default is refused for memory
+    with the way out named (an estimate, nothing run)."""
+    import json
+
+    overrides = ["patient.port_region.site_spacing_mm=50", "target.spacing_mm=15", "robot.instrument_count=3",
+                 "rows_stored=feasible"]
+    r = cli("port-place", *overrides, "--store", tmp_path / "s")
+    assert "feasible only" in r.stdout and "psm3" in r.stdout and "all three instruments" in r.stdout
+    rec = json.loads(cli("summarize", "--store", tmp_path / "s", "--format", "json").stdout)
+    assert rec["headline"]["designs"] == 36_720 and rec["rows"] == rec["headline"]["feasible"] > 0
+    assert rec["top"][0]["psm3_reach"] == 1.0 and rec["top"][0]["common_reach"] == 1.0
+    out = cli("plot", "--store", tmp_path / "s", "--out", tmp_path / "fig").stdout
+    assert "port_place_layout_3d.png" in out and "port_place_reasons.png" not in out
+    big = cli("port-place", "robot.instrument_count=3", "--store", tmp_path / "t", "--max-memory-gb", "4",
+              check=False)
+    assert big.returncode == 2 and "348,612,012 port designs" in big.stderr and "rows_stored=feasible" in big.stderr
+    assert not (tmp_path / "t").exists() or not any((tmp_path / "t").rglob("*.parquet"))
 
 
 BAD = {
@@ -244,14 +353,18 @@ def test_a_bad_mesh_is_refused_with_the_field_named(tmp_path, case):
 COARSE = {"patient": {"port_region": {"site_spacing_mm": 72.0}}, "target": {"spacing_mm": 20.0}}
 
 
-def test_a_design_evaluated_alone_equals_its_row_of_the_enumeration():
-    """The search's evaluator (each design from the tables of its own three ports) against the enumeration's
-    combined tables: every column equal (floats to 1e-9) for every design of the small config."""
+@pytest.mark.parametrize("instruments", [2, 3])
+def test_a_design_evaluated_alone_equals_its_row_of_the_enumeration(instruments):
+    """The search's evaluator (each design from the tables of its own ports) against the enumeration's
+    combined tables: every column equal (floats to 1e-9) for every design of the small config (with three
+    instruments, every 50th design)."""
     from surgopt.config import validate
 
-    cfg = validate(COARSE, S.Config, "x")
+    cfg = validate({**COARSE, "robot": {"instrument_count": instruments}}, S.Config, "x")
     grid = S.compute_task(cfg, 10 ** 6, 0)
-    x = np.column_stack([grid["psm1_site"], grid["psm2_site"], grid["ecm_site"]]).astype(float)
+    if instruments == 3:
+        grid = {c: v[::50] for c, v in grid.items()}
+    x = np.column_stack([grid[f"{arm}_site"] for arm in S.arms_of(cfg)]).astype(float)
     alone = S.evaluate_designs(cfg, x, grid["design_id"], "grid")
     assert set(alone) == set(grid)
     for c, v in grid.items():

@@ -9,11 +9,11 @@ modified-DH rows and tests/reference.py multiplies them out independently).
 The design space factors: what one arm does at one port depends on the port alone (``port_tables``: reach
 and dexterity at every target point, the camera's coverage), what two arms do together on the pair of
 ports (``pair_tables``: common reach, manipulation angle, shaft clearance inside, arm clearance outside),
-and a design (two instrument ports and a camera port) combines them (``design_columns``) at a few
+and a design (two or three instrument ports and a camera port) combines them (``port_designs``) at a few
 operations per design, so every assignment of >= 10^6 designs is affordable.
 
-One module of ~530 lines: the per-port, per-pair and per-design kernels share the frames, the
-named tuples and the bit mask of reasons, and are tested together.
+One module of ~430 lines: the per-port and per-pair kernels share the frames, the named tuples and the
+bit mask of reasons, and are tested together.
 """
 from __future__ import annotations
 
@@ -418,107 +418,3 @@ def camera_pair_tables(sites, centre, lateral, view_axes=None):
             d = sites[i] - sites[k]
             side[i, k] = d[0] * lat[0] + d[1] * lat[1] + d[2] * lat[2]
     return azimuth, side
-
-
-class PortTables(NamedTuple):
-    """What ``design_columns`` combines (from ``instrument_tables``, ``camera_coverage``, ``pair_tables``,
-    ``camera_pair_tables``, plus port distances and the target's distance from each port)."""
-
-    reach_count: np.ndarray  # per site: target points the instrument reaches
-    coverage: np.ndarray  # per site: share of target points the camera sees
-    count: np.ndarray  # per pair i < j
-    dex_mean: np.ndarray
-    ang_mean: np.ndarray
-    ang_min: np.ndarray
-    ang_max: np.ndarray
-    ang_share: np.ndarray
-    ang_centre: np.ndarray
-    inside: np.ndarray
-    outside: np.ndarray
-    spacing: np.ndarray  # port-to-port distance, every pair
-    azimuth: np.ndarray  # [instrument port, camera port]
-    side: np.ndarray
-    n_points: int
-
-
-@njit(**EXACT)
-def pair_of(index, n):
-    """The (i, j), i < j, of the ``index``-th pair in the order (0,1), (0,2) ... (0,n-1), (1,2) ..."""
-    i = 0
-    left = index
-    while left >= n - 1 - i:
-        left -= n - 1 - i
-        i += 1
-    return i, i + 1 + left
-
-
-@njit(**EXACT)
-def design_columns(t, crit, start, stop):
-    """Designs ``start`` .. ``stop`` - 1: design d is instrument pair p = d // (n - 2) (``pair_of``) and camera
-    port the (d mod (n - 2))-th site that is neither. Returns the columns (see the study's schema)."""
-    n = t.reach_count.shape[0]
-    size = stop - start
-    ids = np.zeros((size, 3), dtype=np.int64)
-    f = np.zeros((size, 14))
-    bad = np.zeros(size, dtype=np.int64)
-    cost = np.zeros(size)
-    per_pair = n - 2
-    i, j = pair_of(start // per_pair, n)
-    kk = start % per_pair
-    for r in range(size):
-        k = kk  # the kk-th site that is neither i nor j (i < j)
-        if k >= i:
-            k += 1
-        if k >= j:
-            k += 1
-        ids[r, 0], ids[r, 1], ids[r, 2] = i, j, k
-        common = t.count[i, j] / t.n_points
-        reach_1 = t.reach_count[i] / t.n_points
-        reach_2 = t.reach_count[j] / t.n_points
-        imbalance = abs(t.azimuth[i, k] - t.azimuth[j, k])
-        spacing = min(t.spacing[i, j], min(t.spacing[i, k], t.spacing[j, k]))
-        outside = min(t.outside[i, j], min(t.outside[min(i, k), max(i, k)], t.outside[min(j, k), max(j, k)]))
-        f[r, 0] = reach_1
-        f[r, 1] = reach_2
-        f[r, 2] = common
-        f[r, 3] = t.dex_mean[i, j]
-        f[r, 4] = t.ang_mean[i, j]
-        f[r, 5] = t.ang_min[i, j]
-        f[r, 6] = t.ang_max[i, j]
-        f[r, 7] = t.ang_share[i, j]
-        f[r, 8] = t.ang_centre[i, j]
-        f[r, 9] = imbalance
-        f[r, 10] = t.coverage[k]
-        f[r, 11] = t.inside[i, j]
-        f[r, 12] = outside
-        # how far the optical axis is off the arc between the instruments (0 when it lies between them, in
-        # their plane; spherical triangle inequality: azimuth_i + azimuth_j >= their angle)
-        off_arc = max(0.0, t.azimuth[i, k] + t.azimuth[j, k] - t.ang_centre[i, j])
-        f[r, 13] = off_arc
-        b = 0
-        if t.count[i, j] < t.n_points:
-            b |= REACH
-        if t.coverage[k] < 1.0:
-            b |= CAMERA
-        if spacing < crit.min_spacing_m:
-            b |= SPACING
-        if t.inside[i, j] < crit.min_shaft_gap_m:
-            b |= SHAFTS
-        if outside < crit.min_external_m:
-            b |= OUTSIDE
-        if not (crit.angle_lo_rad <= t.ang_centre[i, j] <= crit.angle_hi_rad):
-            b |= ANGLE
-        if t.side[i, k] * t.side[j, k] >= 0.0:
-            b |= CAMERA_SIDE
-        bad[r] = b
-        cost[r] = (crit.w_reach * (1.0 - common) + crit.w_angle * abs(t.ang_mean[i, j] - crit.angle_best_rad)
-                   + crit.w_azimuth * (imbalance + off_arc) + crit.w_camera * (1.0 - t.coverage[k])
-                   + crit.w_dexterity * (1.0 - t.dex_mean[i, j]))
-        kk += 1
-        if kk == per_pair:
-            kk = 0
-            j += 1
-            if j == n:
-                i += 1
-                j = i + 1
-    return ids, f, bad, cost

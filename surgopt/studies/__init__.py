@@ -38,13 +38,15 @@ class Summary:
 @dataclass(frozen=True)
 class Estimate:
     """What a config implies before it runs: ``items`` (designs, candidates or time steps, named by
-    ``what``), rows stored, single-core seconds and the parent's peak memory in bytes."""
+    ``what``), rows stored, single-core seconds and the parent's peak memory in bytes; ``smaller``: what a
+    refusal suggests besides lifting the budget."""
 
     items: int
     what: str
     rows: int
     seconds_one_core: float
     peak_bytes: int
+    smaller: str = "make it smaller"  # how to make the config cheaper, said when a budget refuses it
 
 
 #: Resident memory of a study process before any work: Python, numpy, numba, pyarrow (measured: 270 MB).

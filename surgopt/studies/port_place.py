@@ -1,19 +1,20 @@
-"""Study ``port-place``: where the ports go for a multi-arm RCM robot on a patient (dVRK: two PSMs + the ECM).
+"""Study ``port-place``: where the ports go for a multi-arm RCM robot on a patient (dVRK: two or three PSMs +
+the ECM).
 
 Beyond the three papers (issue #29; ../shared/robots/dvrk-kinematics.md). A design is one port for each
-instrument arm and one for the camera arm, each chosen from candidate sites sampled on the insufflated
-abdominal wall; each arm is docked with its neutral shaft through the target's centre. Per design: each
-instrument's reach of the target (RCM inverse kinematics within the joint limits), the common reach, the
-instruments' dexterity (isotropy with a stated characteristic length), the manipulation angle between
-them (Hanna et al. 1997: 45-75 deg, 60 best), the azimuth imbalance about the optical axis, the camera's
-coverage of the target, the port spacing and the shafts' clearance inside and the arms' outside, a cost
-and the reasons a design is infeasible. Every assignment of two instrument ports (unordered: the PSMs are
-the same arm) and a distinct camera port is evaluated; docs/port_placement.md has the model, its sources
-and assumptions.
+instrument arm (two, or three: the working pair and a third arm) and one for the camera arm, each chosen from
+candidate sites sampled on the insufflated abdominal wall; each arm is docked with its neutral shaft through
+the target's centre. Per design: each instrument's reach of the target (RCM inverse kinematics within the
+joint limits), the common reach, the instruments' dexterity (isotropy with a stated characteristic length),
+the working pair's manipulation angle (Hanna et al. 1997: 45-75 deg, 60 best), their azimuth imbalance about
+the optical axis, the camera's coverage of the target, the port spacing and the shafts' clearance inside and
+the arms' outside, a cost and the reasons a design is infeasible. Every assignment of the working pair's
+ports (unordered: the PSMs are the same arm), the third's when there is one, and a distinct camera port is
+evaluated; docs/port_placement.md has the model, its sources and assumptions.
 
-The config models and the geometry they imply (patient, sites, target) are in ``port_place_config``. One module
-of ~410 lines: the memoised tables, the rows, the search space, the estimate and the summary are one
-declaration, read together.
+The config models and the geometry they imply (patient, sites, target) are in ``port_place_config``, the
+design kernels in ``kinematics.port_designs``. One module of ~490 lines: the memoised tables, the rows, the
+search space, the estimate and the summary are one declaration, read together.
 """
 from __future__ import annotations
 
@@ -56,14 +57,16 @@ from surgopt.studies.port_place_config import (  # noqa: F401 - the config model
 NAME = "port-place"
 KERNEL_VERSION = "port-place-1"
 DEFAULT_CONFIG = "port_place_dvrk.toml"
-HELP = """Port placement for the da Vinci Research Kit on a patient: two PSMs and the ECM (issue #29).
+HELP = """Port placement for the da Vinci Research Kit on a patient: two or three PSMs and the ECM (issue #29).
 
     Candidate ports on an insufflated abdomen (a half-ellipsoid dome), a target inside it (sphere, ellipsoid
-    or box sampled at a spacing). Every assignment of the two instrument ports and the camera port is one
-    design: reach of each instrument (closed-form RCM inverse kinematics within the joint limits), common
+    or box sampled at a spacing). Every assignment of the instrument ports (robot.instrument_count = 2 or 3)
+    and the camera port is one design: reach of each instrument (closed-form RCM inverse kinematics within the joint limits), common
     reach, dexterity, manipulation angle (45-75 deg, Hanna 1997), azimuth imbalance, camera coverage, port
     spacing, shaft and arm clearances, cost, and why a design is infeasible (a bit mask). Rows: one per
-    design. The summary ranks feasible designs by cost and checks the best against the clinical numbers."""
+    design. The summary ranks feasible designs by cost and checks the best against the clinical numbers.
+    A 3-PSM enumeration runs to 10^8 designs and more: rows_stored=feasible keeps only the feasible designs'
+    rows."""
 CONFIG_HELP = "TOML or YAML config ([patient], [target], [robot], [constraints], [objective]); default: the dVRK example."
 
 def arm_limits(arm: dvrk.RcmArm):
@@ -124,6 +127,7 @@ def _tables(cfg_json: str):
 def port_tables(cfg: PortPlaceConfig, sites: np.ndarray, rot: np.ndarray, outside=None):
     """(``PortTables``, reach, isotropy) of ports ``sites`` (m) docked in frames ``rot``; ``outside``: the arms'
     external clearances when the docking is not the default (``external_clearances``)."""
+    from surgopt.kinematics import port_designs as D
     from surgopt.kinematics import port_place as K
 
     targets = target_points_mm(cfg.target) / 1000
@@ -142,8 +146,8 @@ def port_tables(cfg: PortPlaceConfig, sites: np.ndarray, rot: np.ndarray, outsid
     else:  # along the angled scope's view, through the centre
         azimuth, side = K.camera_pair_tables(sites, centre, LATERAL, K.camera_views(sites, rot, centre, camera)[1])
     spacing = np.linalg.norm(sites[:, None, :] - sites[None, :, :], axis=2)
-    tables = K.PortTables(reach.sum(axis=1).astype(np.int64), coverage, *pairs, spacing, azimuth, side,
-                          len(targets))
+    tables = D.PortTables(reach.sum(axis=1).astype(np.int64), coverage, *pairs, spacing, azimuth, side,
+                          len(targets), D.reach_bits(reach), D.site_dexterity(reach, dex))
     return tables, reach, dex
 
 
@@ -159,23 +163,42 @@ def tables(cfg: PortPlaceConfig):
     return _tables(cfg.model_dump_json())
 
 
-def n_designs(n_sites: int) -> int:
-    """Unordered instrument pairs times the camera ports left: C(n, 2) (n - 2)."""
-    return n_sites * (n_sites - 1) // 2 * max(0, n_sites - 2)
+def n_designs(n_sites: int, instruments: int = 2) -> int:
+    """Designs of ``n_sites`` candidates (``port_designs.design_columns``'s enumeration): an unordered working
+    pair of instruments, then (three instruments) the third's port, then the camera's, all distinct:
+    C(n, 2) (n - 2), times (n - 3) with a third instrument."""
+    d = n_sites * (n_sites - 1) // 2 * max(0, n_sites - 2)
+    return d * max(0, n_sites - 3) if instruments == 3 else d
 
 
 def n_total(cfg: PortPlaceConfig) -> int:
-    return n_designs(len(sites_mm(cfg)))
+    return n_designs(len(sites_mm(cfg)), cfg.robot.instrument_count)
 
 
-#: Designs per task: ~1 s of combining and a few MB of rows.
+def instruments_of(config=None) -> int:
+    """The instrument arms of a config: validated, as stored (a dict), or none (2)."""
+    if isinstance(config, dict):
+        return int(config.get("robot", {}).get("instrument_count", 2))
+    return 2 if config is None else config.robot.instrument_count
+
+
+def arms_of(config=None) -> tuple[str, ...]:
+    """The arms' column prefixes, instruments first, the camera last: psm1, psm2, (psm3,) ecm."""
+    return tuple(f"psm{a + 1}" for a in range(instruments_of(config))) + ("ecm",)
+
+
+#: Designs per task: ~1 s of combining and a few MB of rows; with only the feasible rows stored, a task's
+#: memory is its feasible rows' and it can be ten times larger (fewer parts for the parent to write).
 CHUNK = 200_000
+CHUNK_FEASIBLE = 2_000_000
 
 
 def auto_chunk(cfg) -> int:
     from surgopt.studies import chunk_for_seconds
 
-    return min(CHUNK, chunk_for_seconds(n_total(cfg), NS_PER_DESIGN * 1e-9))
+    most = CHUNK_FEASIBLE if cfg.rows_stored == "feasible" else CHUNK
+    per_design = NS_PER_DESIGN if cfg.robot.instrument_count == 2 else NS_PER_DESIGN_3
+    return min(most, chunk_for_seconds(n_total(cfg), per_design * 1e-9))
 
 
 def n_tasks(cfg, chunk: int) -> int:
@@ -187,24 +210,46 @@ FLOAT_COLUMNS = ("psm1_reach", "psm2_reach", "common_reach", "dexterity_mean", "
                  "manipulation_angle_centre_deg", "azimuth_imbalance_deg", "camera_coverage",
                  "shaft_clearance_mm", "external_clearance_mm", "camera_off_arc_deg")
 ANGLE_COLUMNS = {4, 5, 6, 8, 9, 13}
+#: With a third instrument, after FLOAT_COLUMNS (``port_designs.THIRD_COLUMNS``).
+THIRD_COLUMNS = ("psm3_reach", "psm3_dexterity_mean")
 
 
-def schema():
+def float_columns(config=None) -> tuple[str, ...]:
+    return FLOAT_COLUMNS + (THIRD_COLUMNS if instruments_of(config) == 3 else ())
+
+
+def schema(config=None):
+    """The rows' schema: with three instruments, PSM3's site, position, reach and isotropy too; the common
+    reach is then all three's, the shaft clearance the least of the three pairs', and the angles stay the
+    working pair's (PSM1, PSM2)."""
     import pyarrow as pa
 
-    fields = [pa.field("design_id", pa.int64()), pa.field("psm1_site", pa.int64()), pa.field("psm2_site", pa.int64()),
-              pa.field("ecm_site", pa.int64())]
-    fields += [pa.field(f"{arm}_{c}_mm", pa.float64()) for arm in ("psm1", "psm2", "ecm") for c in "xyz"]
-    fields += [pa.field(c, pa.float64()) for c in FLOAT_COLUMNS]
+    arms = arms_of(config)
+    fields = [pa.field("design_id", pa.int64()), *[pa.field(f"{arm}_site", pa.int64()) for arm in arms]]
+    fields += [pa.field(f"{arm}_{c}_mm", pa.float64()) for arm in arms for c in "xyz"]
+    fields += [pa.field(c, pa.float64()) for c in float_columns(config)]
     fields += [pa.field("min_port_spacing_mm", pa.float64()), pa.field("psm_to_target_mm", pa.float64()),
-               *[pa.field(c, pa.float64()) for c in DOCKING_COLUMNS],
+               *[pa.field(c, pa.float64()) for c in docking_columns(config)],
                pa.field("cost", pa.float64()),
                pa.field("score", pa.float64(), metadata={"meaning": "what summarize ranks by (higher is better): "
                                                                      "-cost, less 100 per reason a design fails"}),
                pa.field("feasible", pa.bool_()),
                pa.field("infeasible", pa.int64(), metadata={"meaning": "bit mask: " + "; ".join(
                    f"{bit} {why}" for bit, why in _reasons().items())})]
-    return pa.schema(fields)
+    return pa.schema(fields, metadata=_stored_metadata(config))
+
+
+def _stored_metadata(config) -> dict | None:
+    """With only feasible rows stored: how many designs were enumerated (what the summary counts the
+    infeasible from), when the config can be read again (a stored mesh config whose file moved cannot)."""
+    stored = config.get("rows_stored") if isinstance(config, dict) else getattr(config, "rows_stored", "all")
+    if stored != "feasible":
+        return None
+    try:
+        cfg = config if isinstance(config, PortPlaceConfig) else PortPlaceConfig.model_validate(config)
+        return {"rows_stored": "feasible", "designs_enumerated": str(n_total(cfg))}
+    except (ValueError, OSError):
+        return {"rows_stored": "feasible"}
 
 
 def _reasons():
@@ -218,34 +263,41 @@ INFEASIBLE_PENALTY = 100.0
 
 
 def compute_task(cfg, chunk: int, index: int) -> dict:
-    """Designs [index*chunk, (index+1)*chunk) of the enumeration, every port docked toward the target's centre."""
-    from surgopt.kinematics.port_place import design_columns
+    """Designs [index*chunk, (index+1)*chunk) of the enumeration, every port docked toward the target's centre
+    (only the feasible ones' rows when ``rows_stored`` is 'feasible')."""
+    from surgopt.kinematics.port_designs import design_columns
 
     sites, t, crit, _, _ = tables(cfg)
     start = index * chunk
     stop = min(n_total(cfg), start + chunk)
-    ids, f, bad, cost = design_columns(t, crit, start, stop)
-    return design_rows(cfg, sites, t, ids, ids, f, bad, cost, np.arange(start, stop, dtype=np.int64),
-                       np.zeros((stop - start, 4)))
+    ids, f, bad, cost, design_ids = design_columns(t, crit, start, stop, cfg.robot.instrument_count,
+                                                   cfg.rows_stored == "feasible")
+    return design_rows(cfg, sites, t, ids, ids, f, bad, cost, design_ids,
+                       np.zeros((len(design_ids), len(docking_columns(cfg)))))
 
 
 def design_rows(cfg, sites, t, ids, site_ids, f, bad, cost, design_ids, docking_deg) -> dict:
-    """The rows of designs: ``ids`` index ``sites`` and ``t`` (the tables they were combined from), ``site_ids``
-    are the candidate sites' numbers reported; ``docking_deg`` (yaw, pitch of PSM1, of PSM2) per design."""
-    cols = {"design_id": design_ids, "psm1_site": site_ids[:, 0], "psm2_site": site_ids[:, 1],
-            "ecm_site": site_ids[:, 2]}
-    for a, arm in enumerate(("psm1", "psm2", "ecm")):
+    """The rows of designs: ``ids`` (a column per arm, ``arms_of``) index ``sites`` and ``t`` (the tables they
+    were combined from), ``site_ids`` are the candidate sites' numbers reported; ``docking_deg`` (yaw, pitch of
+    each instrument) per design."""
+    arms = arms_of(cfg)
+    cols = {"design_id": design_ids}
+    cols.update({f"{arm}_site": site_ids[:, a] for a, arm in enumerate(arms)})
+    for a, arm in enumerate(arms):
         for c, axis in enumerate("xyz"):
             cols[f"{arm}_{axis}_mm"] = sites[ids[:, a], c] * 1000
-    for c, name in enumerate(FLOAT_COLUMNS):
+    for c, name in enumerate(float_columns(cfg)):
         v = f[:, c]
         cols[name] = np.degrees(v) if c in ANGLE_COLUMNS else (v * 1000 if name.endswith("_mm") else v)
     centre = np.asarray(cfg.target.centre_mm) / 1000
     d = np.linalg.norm(sites - centre, axis=1) * 1000
-    cols["min_port_spacing_mm"] = np.minimum(np.minimum(t.spacing[ids[:, 0], ids[:, 1]], t.spacing[ids[:, 0], ids[:, 2]]),
-                                             t.spacing[ids[:, 1], ids[:, 2]]) * 1000
-    cols["psm_to_target_mm"] = np.maximum(d[ids[:, 0]], d[ids[:, 1]])
-    for c, name in enumerate(DOCKING_COLUMNS):
+    spacing = np.full(len(ids), np.inf)
+    for a in range(len(arms)):
+        for b in range(a + 1, len(arms)):
+            spacing = np.minimum(spacing, t.spacing[ids[:, a], ids[:, b]])
+    cols["min_port_spacing_mm"] = spacing * 1000
+    cols["psm_to_target_mm"] = d[ids[:, :-1]].max(axis=1) if len(ids) else np.zeros(0)
+    for c, name in enumerate(docking_columns(cfg)):
         cols[name] = np.asarray(docking_deg[:, c], dtype=np.float64)
     cols["cost"] = cost
     failed = sum((bad >> bit) & 1 for bit in range(len(_reasons())))
@@ -255,48 +307,56 @@ def design_rows(cfg, sites, t, ids, site_ids, f, bad, cost, design_ids, docking_
     return cols
 
 
-#: Free docking (a search's dimensions): each PSM's base turned off the target's centre (0: the default docking).
-DOCKING_COLUMNS = ("psm1_docking_yaw_deg", "psm1_docking_pitch_deg", "psm2_docking_yaw_deg", "psm2_docking_pitch_deg")
-SITE_COLUMNS = ("psm1_site", "psm2_site", "ecm_site")
+def docking_columns(config=None) -> tuple[str, ...]:
+    """Free docking (a search's dimensions): each instrument's base turned off the target's centre, yaw and
+    pitch (0: the default docking)."""
+    return tuple(f"{arm}_docking_{angle}_deg" for arm in arms_of(config)[:-1] for angle in ("yaw", "pitch"))
+
+
+#: The two-instrument study's docking and site columns.
+DOCKING_COLUMNS = docking_columns()
+SITE_COLUMNS = tuple(f"{arm}_site" for arm in arms_of())
 
 
 def search_plan(cfg):
-    """A search's space: the three ports (categorical: any candidate site) and, when
-    ``robot.docking_range_deg`` > 0, each PSM's docking yaw and pitch within +- that range."""
+    """A search's space: every arm's port (categorical: any candidate site) and, when
+    ``robot.docking_range_deg`` > 0, each instrument's docking yaw and pitch within +- that range."""
     from surgopt.studies.search import SearchPlan, objectives_of, optimiser_of
 
     spec = optimiser_of(cfg)
     if spec is None:
         return None
     n = len(sites_mm(cfg))
-    space = {c: list(range(n)) for c in SITE_COLUMNS}
+    space = {f"{arm}_site": list(range(n)) for arm in arms_of(cfg)}
     r = cfg.robot.docking_range_deg
     if r > 0:
-        space.update({c: (-r, r) for c in DOCKING_COLUMNS})
+        space.update({c: (-r, r) for c in docking_columns(cfg)})
     return SearchPlan(spec, space, objectives_of(spec, OBJECTIVE))
 
 
 def evaluate_designs(cfg, x: np.ndarray, ids: np.ndarray, source: str) -> dict:
-    """Rows of any designs (rows of ``x``: PSM1, PSM2 and ECM site numbers, then the PSMs' docking yaw and
-    pitch in deg when free), each from its own three ports docked as given: the per-port and per-pair tables
-    of those three (``port_tables``), combined as the enumeration combines them. A design whose ports
-    coincide is infeasible (zero spacing and clearance)."""
+    """Rows of any designs (rows of ``x``: every arm's site number, ``arms_of``, then each instrument's docking
+    yaw and pitch in deg when free), each from its own ports docked as given: the per-port and per-pair tables
+    of those ports (``port_tables``), combined as the enumeration combines them (its design 0 is the ports in
+    this order). A design whose ports coincide is infeasible (zero spacing and clearance)."""
     from surgopt.kinematics import port_place as K
+    from surgopt.kinematics.port_designs import design_columns
 
+    ports = len(arms_of(cfg))
     x = np.asarray(x, dtype=np.float64).reshape(len(ids), -1)
     all_sites = _sites_m(cfg.model_dump_json())  # not tables(cfg): a worker needs the sites, not every pair
     crit = criteria(cfg)
     centre = np.asarray(cfg.target.centre_mm, float) / 1000
     out = []
     for r in range(x.shape[0]):
-        site_ids = x[r, :3].astype(np.int64)
-        docking = np.zeros(4) if x.shape[1] == 3 else x[r, 3:7]
+        site_ids = x[r, :ports].astype(np.int64)
+        docking = np.zeros(2 * (ports - 1)) if x.shape[1] == ports else x[r, ports:]
         sites = all_sites[site_ids]
-        rot = K.tilted_frames(K.docking_frames(sites, centre, LATERAL), np.radians([docking[0], docking[2], 0.0]),
-                              np.radians([docking[1], docking[3], 0.0]))
+        rot = K.tilted_frames(K.docking_frames(sites, centre, LATERAL), np.radians([*docking[0::2], 0.0]),
+                              np.radians([*docking[1::2], 0.0]))
         outside = K.external_clearances(sites, np.ascontiguousarray(rot[:, :, 2]), dvrk.OUTSIDE_LENGTH_M)
         t, _, _ = port_tables(cfg, sites, rot, outside)
-        local, f, bad, cost = K.design_columns(t, crit, 0, 1)
+        local, f, bad, cost, _ = design_columns(t, crit, 0, 1, ports - 1)
         out.append(design_rows(cfg, sites, t, local, site_ids[None, :], f, bad, cost,
                                np.asarray(ids[r:r + 1], dtype=np.int64), docking[None, :]))
     from surgopt.plans import concat_rows
@@ -308,9 +368,13 @@ def warm_up(cfg) -> None:
     tables(cfg)
 
 
-#: Cost model: ~60 ns to combine one design and turn it into columns on one core, plus the tables
-#: (~3 us per site x target point, ~0.3 us per instrument pair x target point); a row is ~190 bytes.
+#: Cost model: ~60 ns to combine one design and turn it into columns on one core (~70 ns with a third
+#: instrument), plus the tables (~3 us per site x target point, ~0.3 us per instrument pair x target point);
+#: a row is ~190 bytes (~230 with a third instrument).
 NS_PER_DESIGN = 60.0
+NS_PER_DESIGN_3 = 70.0
+ROW_BYTES, ROW_BYTES_3 = 190, 230
+IN_FLIGHT_TASKS = 4
 NS_PER_SITE_POINT = 3000.0
 NS_PER_PAIR_POINT = 300.0
 
@@ -328,9 +392,18 @@ def estimate(cfg) -> Estimate:
     if spec is not None:
         return Estimate(spec.trials, f"{spec.method} trials", spec.trials,
                         spec.trials * m * NS_PER_SEARCHED_DESIGN_POINT * 1e-9, peak_bytes(spec.trials, 220))
-    d = n_designs(n)
-    seconds = (d * NS_PER_DESIGN + n * m * NS_PER_SITE_POINT * 1e-3 + n * n / 2 * m * NS_PER_PAIR_POINT) * 1e-9
-    return Estimate(d, "port designs", d, seconds, peak_bytes(d, 190, working_bytes=n * n * 8 * 12 + n * m * 9))
+    arms = cfg.robot.instrument_count
+    d = n_designs(n, arms)
+    per_design = NS_PER_DESIGN if arms == 2 else NS_PER_DESIGN_3
+    seconds = (d * per_design + n * m * NS_PER_SITE_POINT * 1e-3 + n * n / 2 * m * NS_PER_PAIR_POINT) * 1e-9
+    row = ROW_BYTES if arms == 2 else ROW_BYTES_3
+    working = n * n * 8 * 12 + n * m * 9
+    if cfg.rows_stored == "feasible":  # at most every design feasible: 8 bytes of each stored row in the parent
+        # and, in flight, tasks of feasible rows only (2 per worker, ~4 on this scale of machine)
+        return Estimate(d, "port designs (feasible rows stored)", d, seconds,
+                        peak_bytes(d, 0, working_bytes=working + IN_FLIGHT_TASKS * auto_chunk(cfg) * row))
+    return Estimate(d, "port designs", d, seconds, peak_bytes(d, row, working_bytes=working),
+                    smaller="store only the feasible designs' rows (rows_stored=feasible), or make it smaller")
 
 
 def feasible_mask(table):
@@ -349,9 +422,17 @@ def summary(parts) -> Summary:
         feasible += int(np.count_nonzero(bad == 0))
         for bit in by_bit:
             by_bit[bit] += int(np.count_nonzero(bad & bit))
-    counts = {"feasible": feasible, "infeasible": n - feasible}
-    counts.update({f"infeasible: {why}": by_bit[bit] for bit, why in REASONS.items()})
-    headline = {"designs": n, "feasible": feasible}
+    meta = {k.decode(): v.decode() for k, v in (parts.schema.metadata or {}).items()}
+    if meta.get("rows_stored") == "feasible":  # the infeasible designs were counted out, their reasons not kept
+        headline = {"designs": int(meta["designs_enumerated"]) if "designs_enumerated" in meta else "not known",
+                    "rows_stored": "feasible only", "feasible": feasible}
+        counts = {"feasible": feasible}
+        if "designs_enumerated" in meta:
+            counts["infeasible (rows not stored)"] = int(meta["designs_enumerated"]) - feasible
+    else:
+        counts = {"feasible": feasible, "infeasible": n - feasible}
+        counts.update({f"infeasible: {why}": by_bit[bit] for bit, why in REASONS.items()})
+        headline = {"designs": n, "feasible": feasible}
     best = _best(parts, 5)
     tables = []
     if best.num_rows:
@@ -366,12 +447,13 @@ def summary(parts) -> Summary:
              f"{b['manipulation_angle_max_deg']:.1f}", "45-75"],
             ["azimuth imbalance (deg)", f"{b['azimuth_imbalance_deg']:.1f}", "0: equal azimuths (Hanna 1997)"],
             ["optical axis off the instruments' arc (deg)", f"{b['camera_off_arc_deg']:.1f}", "0: camera between them"],
-            ["common reach", f"{b['common_reach']:.3f}", "1"],
+            ["common reach" + (" (all three instruments)" if "psm3_reach" in b else ""), f"{b['common_reach']:.3f}",
+             "1"],
             ["camera coverage", f"{b['camera_coverage']:.3f}", "1"],
         ]
         tables.append(("best layout: clinical checks", ["quantity", "value", "clinical number"], checks))
         ports = [[arm, str(b[f"{arm}_site"]), f"{b[f'{arm}_x_mm']:.0f}", f"{b[f'{arm}_y_mm']:.0f}",
-                  f"{b[f'{arm}_z_mm']:.0f}"] for arm in ("psm1", "psm2", "ecm")]
+                  f"{b[f'{arm}_z_mm']:.0f}"] for arm in ("psm1", "psm2", "psm3", "ecm") if f"{arm}_site" in b]
         tables.append(("best layout: ports (x lateral, y cranial, z anterior)", ["arm", "site", "x_mm", "y_mm", "z_mm"],
                        ports))
         cols = ["design_id", "cost", "common_reach", "dexterity_mean", "manipulation_angle_mean_deg",

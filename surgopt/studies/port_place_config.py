@@ -158,6 +158,9 @@ class Target(StrictModel):
 
 class Robot(StrictModel):
     instrument_arm: Literal[tuple(dvrk.INSTRUMENT_ARMS)] = "dvrk_psm_classic"
+    instrument_count: Literal[2, 3] = Field(2, description="instrument arms: 2 (PSM1, PSM2: the surgeon's hands) or "
+                                                            "3 (and PSM3, the third arm: it must reach the target and "
+                                                            "clear the others; the angles are the working pair's)")
     camera_arm: Literal[tuple(dvrk.CAMERA_ARMS)] = "dvrk_ecm_classic"
     camera_fov_deg: float = Field(70.0, gt=0, lt=180, description="full view angle of a 0-deg scope (60-70 typical)")
     camera_standoff_mm: float = Field(100.0, gt=0, description="the scope tip stops this far before the target centre")
@@ -208,6 +211,10 @@ class PortPlaceConfig(StrictModel):
     robot: Robot = Robot()
     constraints: Constraints = Constraints()
     objective: Objective = Objective()
+    rows_stored: Literal["all", "feasible"] = Field("all", description="'feasible': store only the feasible "
+                                                    "designs' rows (a 3-PSM enumeration of 10^8 designs or more "
+                                                    "would fill ~40 GB); the summary counts the rest without "
+                                                    "their reasons")
     search: search_field("grid") = Field("grid", description="'grid' (every assignment, default docking) or a "
                                                              "[search] table: an optimiser over the ports (and the "
                                                              "docking, robot.docking_range_deg)")
@@ -236,10 +243,10 @@ class PortPlaceConfig(StrictModel):
                     else f"the mesh {self.patient.mesh_file}")
             raise ValueError(f"target: the point ({p[0]:.0f}, {p[1]:.0f}, {p[2]:.0f}) mm is outside the body "
                              f"({body})")
-        n = len(sites_mm(self))
-        if n < 3:
+        n, ports = len(sites_mm(self)), self.robot.instrument_count + 1
+        if n < ports:
             raise ValueError(f"patient.port_region: {n} candidate site(s) within constraints.port_to_target_mm; "
-                             f"three ports need at least three")
+                             f"{ports} ports need at least {ports}")
         return self
 
 

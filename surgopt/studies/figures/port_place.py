@@ -6,14 +6,19 @@ import numpy as np
 
 from surgopt.studies.figures import columns, pyplot, save
 
-ARMS = (("psm1", "C3", "PSM1"), ("psm2", "C1", "PSM2"), ("ecm", "C0", "ECM"))
+COLOURS = {"psm1": "C3", "psm2": "C1", "psm3": "C2", "ecm": "C0"}
+
+
+def arms(c: dict) -> list[tuple[str, str, str]]:
+    """(column prefix, colour, label) of each arm in the rows: PSM1, PSM2, PSM3 when there is one, the ECM."""
+    return [(arm, colour, arm.upper()) for arm, colour in COLOURS.items() if f"{arm}_site" in c]
 
 
 def best_per_site(c: dict, n_sites: int) -> np.ndarray:
     """The least cost of a feasible design that puts any arm at each site (NaN where none does)."""
     out = np.full(n_sites, np.inf)
     ok = c["feasible"]
-    for arm in ("psm1", "psm2", "ecm"):
+    for arm, _, _ in arms(c):
         np.minimum.at(out, c[f"{arm}_site"][ok], c["cost"][ok])
     out[~np.isfinite(out)] = np.nan
     return out
@@ -56,11 +61,10 @@ def figures(cfg, table, out, design_id=None):
     sc = ax.scatter(*sites.T, c=per_site, cmap="viridis_r", s=14, depthshade=False)
     fig.colorbar(sc, ax=ax, shrink=0.6, pad=0.1, label="least cost of a feasible design using the site")
     if row is not None:
-        i, j = c["psm1_site"][row], c["psm2_site"][row]
-        iso = np.minimum(dex[i], dex[j])
+        iso = np.min([dex[c[f"{arm}_site"][row]] for arm, _, _ in arms(c)[:-1]], axis=0)  # the instruments
         ax.scatter(*targets.T, c=iso, cmap="magma", s=3, depthshade=False)
         centre = np.asarray(cfg.target.centre_mm)
-        for arm, colour, label in ARMS:
+        for arm, colour, label in arms(c):
             p = sites[c[f"{arm}_site"][row]]
             ax.plot(*np.stack([p, centre]).T, color=colour, lw=2)
             ax.scatter(*p, color=colour, s=60, label=f"{label} site {c[f'{arm}_site'][row]}")
@@ -90,14 +94,14 @@ def figures(cfg, table, out, design_id=None):
                label="no feasible design uses it")
     fig.colorbar(sc, ax=ax, shrink=0.8, label="least cost of a feasible design using the site")
     if row is not None:
-        for arm, colour, label in ARMS:
+        for arm, colour, label in arms(c):
             p = sites[c[f"{arm}_site"][row]]
             ax.plot(p[0], p[1], "*", color=colour, ms=16, mec="k", label=label)
     ax.set_aspect("equal")
     ax.set_xlabel("x lateral (mm)")
     ax.set_ylabel("y cranial (mm)")
     ax.set_title("candidate ports (top view) and the best layout", fontsize=9)
-    ax.legend(fontsize=7, loc="upper center", bbox_to_anchor=(0.5, -0.1), ncol=3)
+    ax.legend(fontsize=7, loc="upper center", bbox_to_anchor=(0.5, -0.1), ncol=4)
     paths.append(save(fig, out / "port_place_sites_top.png"))
 
     paths.append(reach_maps(plt, cfg, sites, port_tables, dex, out))
@@ -105,6 +109,8 @@ def figures(cfg, table, out, design_id=None):
     # why designs fail
     from surgopt.kinematics.port_place import REASONS
 
+    if cfg.rows_stored == "feasible":  # the infeasible designs' rows, and so their reasons, were not kept
+        return paths
     fig, ax = plt.subplots(figsize=(7.0, 3.4))
     counts = [int(np.count_nonzero(c["infeasible"] & bit)) for bit in REASONS]
     ax.barh(range(len(REASONS)), counts, color="C7")

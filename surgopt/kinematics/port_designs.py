@@ -1,0 +1,230 @@
+"""Port placement's designs: the per-port and per-pair tables (``port_place``) combined into one row per
+design of two or three instrument ports and a camera port, every port distinct, at a few operations per
+design (issue #29). Numba kernels and the numpy helpers that pack their tables."""
+from __future__ import annotations
+
+from typing import NamedTuple
+
+import numpy as np
+from numba import njit
+
+from surgopt.jit import EXACT
+from surgopt.kinematics.port_place import ANGLE, CAMERA, CAMERA_SIDE, OUTSIDE, REACH, SHAFTS, SPACING
+
+
+class PortTables(NamedTuple):
+    """What ``design_columns`` combines (from ``instrument_tables``, ``camera_coverage``, ``pair_tables``,
+    ``camera_pair_tables``, plus port distances, each site's reach as bits and its mean isotropy)."""
+
+    reach_count: np.ndarray  # per site: target points the instrument reaches
+    coverage: np.ndarray  # per site: share of target points the camera sees
+    count: np.ndarray  # per pair i < j
+    dex_mean: np.ndarray
+    ang_mean: np.ndarray
+    ang_min: np.ndarray
+    ang_max: np.ndarray
+    ang_share: np.ndarray
+    ang_centre: np.ndarray
+    inside: np.ndarray
+    outside: np.ndarray
+    spacing: np.ndarray  # port-to-port distance, every pair
+    azimuth: np.ndarray  # [instrument port, camera port]
+    side: np.ndarray
+    n_points: int
+    reach_bits: np.ndarray  # per site: the reached target points, 64 to a uint64 word (``reach_bits``)
+    dex_site: np.ndarray  # per site: the mean isotropy over the points it reaches (0 where it reaches none)
+
+
+def reach_bits(reach: np.ndarray) -> np.ndarray:
+    """reach[site, point] (bool) packed 64 points to a uint64 word, point k in bit k % 64 of word k // 64."""
+    n, m = reach.shape
+    padded = np.zeros((n, -(-m // 64) * 64), dtype=np.bool_)
+    padded[:, :m] = reach
+    return np.packbits(padded, axis=1, bitorder="little").view("<u8").astype(np.uint64)
+
+
+def site_dexterity(reach: np.ndarray, dex: np.ndarray) -> np.ndarray:
+    """Each site's mean isotropy over the target points it reaches (0 where it reaches none)."""
+    count = reach.sum(axis=1)
+    return np.where(count > 0, (dex * reach).sum(axis=1) / np.maximum(count, 1), 0.0)
+
+
+_M1, _M2, _M4, _H01 = (np.uint64(0x5555555555555555), np.uint64(0x3333333333333333), np.uint64(0x0F0F0F0F0F0F0F0F),
+                       np.uint64(0x0101010101010101))
+_S1, _S2, _S4, _S56 = np.uint64(1), np.uint64(2), np.uint64(4), np.uint64(56)
+
+
+@njit(**EXACT)
+def popcount64(x):
+    """The set bits of a uint64 word (the SWAR count: Warren, Hacker's Delight, 2nd ed., Fig. 5-2)."""
+    x = x - ((x >> _S1) & _M1)
+    x = (x & _M2) + ((x >> _S2) & _M2)
+    x = (x + (x >> _S4)) & _M4
+    return (x * _H01) >> _S56
+
+
+@njit(**EXACT)
+def pair_of(index, n):
+    """The (i, j), i < j, of the ``index``-th pair in the order (0,1), (0,2) ... (0,n-1), (1,2) ..."""
+    i = 0
+    left = index
+    while left >= n - 1 - i:
+        left -= n - 1 - i
+        i += 1
+    return i, i + 1 + left
+
+
+@njit(**EXACT)
+def nth_other(rank, a, b, c):
+    """The ``rank``-th site (from 0, ascending) that is none of a, b and c (c < 0: none of a and b)."""
+    lo, hi = min(a, b), max(a, b)
+    x = rank
+    if c < 0:
+        if x >= lo:
+            x += 1
+        if x >= hi:
+            x += 1
+        return x
+    s0, s2 = min(lo, c), max(hi, c)
+    s1 = a + b + c - s0 - s2
+    if x >= s0:
+        x += 1
+    if x >= s1:
+        x += 1
+    if x >= s2:
+        x += 1
+    return x
+
+
+@njit(**EXACT)
+def at(a, i, j):
+    """A pair table's entry for sites i and j in either order (the tables fill i < j)."""
+    return a[min(i, j), max(i, j)]
+
+
+#: The design columns after the pair's 14: the third instrument's reach and mean isotropy.
+THIRD_COLUMNS = 2
+
+
+@njit(**EXACT)
+def design_columns(t, crit, start, stop, instruments=2, feasible_only=False):
+    """Designs ``start`` .. ``stop`` - 1 of ``instruments`` (2 or 3) instrument arms and the camera. Design d is
+    working pair p = d // per_pair (``pair_of``: PSM1 and PSM2, the surgeon's two hands, unordered), then with
+    three instruments the third's port (the r-th site that is neither, r = (d mod per_pair) // (n - 3)), then
+    the camera's port (the next rank among the sites left, ``nth_other``); per_pair = (n - 2) or
+    (n - 2)(n - 3). Decoded once at ``start``, then stepped (``next_other``).
+
+    The pair's quantities (manipulation angle, azimuths, the camera between them, dexterity) are the working
+    pair's; with a third instrument the common reach is all three's, the shafts' clearance inside is the least
+    of the three pairs', the arms' outside and the ports' spacing the least of every pair's, and the cost adds
+    the third's isotropy shortfall. Returns (ids [PSM1, PSM2, (PSM3,) ECM], columns, reason bits, cost, design
+    numbers) of every design, or of the feasible ones only (``feasible_only``: the rows of the others are
+    never written, so a chunk's memory is its feasible rows')."""
+    n = t.reach_count.shape[0]
+    three = instruments == 3
+    size = stop - start
+    ids = np.empty((size, 4 if three else 3), dtype=np.int64)
+    f = np.empty((size, 14 + (THIRD_COLUMNS if three else 0)))
+    bad = np.empty(size, dtype=np.int64)
+    cost = np.empty(size)
+    design = np.empty(size, dtype=np.int64)
+    others = n - 3 if three else n - 2
+    per_pair = (n - 2) * others if three else others
+    i, j = pair_of(start // per_pair, n)
+    rest = start % per_pair
+    if three:
+        l = nth_other(rest // others, i, j, -1)
+        k = nth_other(rest % others, i, j, l)
+    else:
+        l = -1
+        k = nth_other(rest, i, j, -1)
+    out = 0
+    for r in range(size):
+        imbalance = abs(t.azimuth[i, k] - t.azimuth[j, k])
+        spacing = min(t.spacing[i, j], min(t.spacing[i, k], t.spacing[j, k]))
+        outside = min(t.outside[i, j], min(at(t.outside, i, k), at(t.outside, j, k)))
+        inside = t.inside[i, j]
+        if three:
+            # the points all three reach: the pair's count when the third reaches every point, the third's
+            # when the pair does, else the set bits of the three sites' reach_bits ANDed (written out here:
+            # a call taking the tables' arrays pays a reference count for each, ~60 ns a design)
+            if t.reach_count[l] == t.n_points:
+                c3 = t.count[i, j]
+            elif t.count[i, j] == t.n_points:
+                c3 = t.reach_count[l]
+            else:
+                c3 = 0
+                for w in range(t.reach_bits.shape[1]):
+                    c3 += np.int64(popcount64(t.reach_bits[i, w] & t.reach_bits[j, w] & t.reach_bits[l, w]))
+            common = c3 / t.n_points
+            spacing = min(spacing, min(t.spacing[i, l], min(t.spacing[j, l], t.spacing[l, k])))
+            outside = min(outside, min(at(t.outside, i, l), min(at(t.outside, j, l), at(t.outside, l, k))))
+            inside = min(inside, min(at(t.inside, i, l), at(t.inside, j, l)))
+        else:
+            common = t.count[i, j] / t.n_points
+        # how far the optical axis is off the arc between the instruments (0 when it lies between them, in
+        # their plane; spherical triangle inequality: azimuth_i + azimuth_j >= their angle)
+        off_arc = max(0.0, t.azimuth[i, k] + t.azimuth[j, k] - t.ang_centre[i, j])
+        b = 0
+        if common < 1.0:
+            b |= REACH
+        if t.coverage[k] < 1.0:
+            b |= CAMERA
+        if spacing < crit.min_spacing_m:
+            b |= SPACING
+        if inside < crit.min_shaft_gap_m:
+            b |= SHAFTS
+        if outside < crit.min_external_m:
+            b |= OUTSIDE
+        if not (crit.angle_lo_rad <= t.ang_centre[i, j] <= crit.angle_hi_rad):
+            b |= ANGLE
+        if t.side[i, k] * t.side[j, k] >= 0.0:
+            b |= CAMERA_SIDE
+        if b == 0 or not feasible_only:
+            ids[out, 0], ids[out, 1], ids[out, ids.shape[1] - 1] = i, j, k
+            f[out, 0] = t.reach_count[i] / t.n_points
+            f[out, 1] = t.reach_count[j] / t.n_points
+            f[out, 2] = common
+            f[out, 3] = t.dex_mean[i, j]
+            f[out, 4] = t.ang_mean[i, j]
+            f[out, 5] = t.ang_min[i, j]
+            f[out, 6] = t.ang_max[i, j]
+            f[out, 7] = t.ang_share[i, j]
+            f[out, 8] = t.ang_centre[i, j]
+            f[out, 9] = imbalance
+            f[out, 10] = t.coverage[k]
+            f[out, 11] = inside
+            f[out, 12] = outside
+            f[out, 13] = off_arc
+            bad[out] = b
+            cost[out] = (crit.w_reach * (1.0 - common) + crit.w_angle * abs(t.ang_mean[i, j] - crit.angle_best_rad)
+                         + crit.w_azimuth * (imbalance + off_arc) + crit.w_camera * (1.0 - t.coverage[k])
+                         + crit.w_dexterity * (1.0 - t.dex_mean[i, j]))
+            if three:
+                ids[out, 2] = l
+                f[out, 14] = t.reach_count[l] / t.n_points
+                f[out, 15] = t.dex_site[l]
+                cost[out] += crit.w_dexterity * (1.0 - t.dex_site[l])
+            design[out] = start + r
+            out += 1
+        k = next_other(k, i, j, l)  # the next camera port; then the next third port; then the next pair
+        if k == n:
+            if three:
+                l = next_other(l, i, j, -1)
+            if l == n or not three:
+                j += 1
+                if j == n:
+                    i += 1
+                    j = i + 1
+                l = next_other(-1, i, j, -1) if three else -1
+            k = next_other(-1, i, j, l)
+    return ids[:out], f[:out], bad[:out], cost[:out], design[:out]
+
+
+@njit(**EXACT)
+def next_other(x, a, b, c):
+    """The first site after ``x`` that is none of a, b and c (n when there is none left: the caller checks)."""
+    x += 1
+    while x == a or x == b or x == c:
+        x += 1
+    return x
