@@ -109,8 +109,8 @@ def main() -> None:
     rot = K.docking_frames(sites, centre, S.LATERAL)
     n, m = len(sites), len(targets)
     print(f"default config: {n} sites, {m} target points, {S.n_designs(n):,} designs")
-    K.instrument_tables(sites, rot, targets, arm, 0.1, S.approach(cfg.target))  # compiled or loaded
-    tk, (reach, dex) = best_of(lambda: K.instrument_tables(sites, rot, targets, arm, 0.1, S.approach(cfg.target)))
+    K.instrument_tables(sites, rot, targets, arm, 0.1, S.approach(cfg.target, dvrk.LND_WRIST_BEND_RAD))  # compiled or loaded
+    tk, (reach, dex) = best_of(lambda: K.instrument_tables(sites, rot, targets, arm, 0.1, S.approach(cfg.target, dvrk.LND_WRIST_BEND_RAD)))
     tn, (reach_np, dex_np) = best_of(lambda: numpy_instrument_tables(sites, rot, targets, arm, 0.1))
     assert np.array_equal(reach, reach_np) and np.allclose(dex, dex_np, atol=1e-12)
     print(f"per-port tables: numba {n * m / tk / 1e6:.1f} M site-points/s, numpy {n * m / tn / 1e6:.2f} M/s, "

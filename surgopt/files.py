@@ -42,3 +42,37 @@ def read_bounded(path: Path, limit: int, expected: int | None = None) -> bytes:
         return b"".join(chunks)
     finally:
         os.close(fd)
+
+
+def config_file_path(value: str, context: dict) -> Path:
+    """A file a config names, as an absolute path: relative paths are taken from the config file's folder
+    (``context["config_dir"]``), or the working directory for overrides and embedded configs."""
+    path = Path(value).expanduser()
+    if not path.is_absolute():
+        path = Path(context.get("config_dir") or Path.cwd()) / path
+    return path.resolve()
+
+
+def read_config_file(field: str, path: Path, limit: int) -> bytes:
+    """The bytes of a file a config names (``read_bounded``); every failure a ValueError naming ``field``."""
+    try:
+        return read_bounded(path, limit)
+    except FileNotFoundError:
+        raise ValueError(f"{field}: file not found: {path}") from None
+    except FileProblem as exc:
+        raise ValueError(f"{field}: {exc}") from None
+    except OSError as exc:
+        raise ValueError(f"{field}: cannot read {path}: {exc.strerror or exc}") from None
+
+
+def hashed_config_file(field: str, path: Path, sha256: str | None, limit: int, sha_field: str) -> tuple[bytes, str]:
+    """(bytes, sha256) of a file a config names, held to the ``sha256`` the config already carries (a stored or
+    printed config): a file changed since is a ValueError naming ``field`` and how to accept the change."""
+    import hashlib
+
+    data = read_config_file(field, path, limit)
+    sha = hashlib.sha256(data).hexdigest()
+    if sha256 is not None and sha256 != sha:
+        raise ValueError(f"{field}: {path} changed since this config was written ({sha_field} differs); drop "
+                         f"{sha_field} to use the file as it is now")
+    return data, sha

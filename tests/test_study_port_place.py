@@ -582,3 +582,97 @@ def test_an_angled_scope_keeps_a_symmetric_layout_balanced_and_moves_the_best():
     assert b["feasible"].any() and not np.array_equal(a["camera_coverage"], b["camera_coverage"])
     sym = (b["psm1_x_mm"] == -b["psm2_x_mm"]) & (b["psm1_y_mm"] == b["psm2_y_mm"]) & (b["ecm_x_mm"] == 0)
     assert sym.sum() > 10 and np.abs(b["azimuth_imbalance_deg"][sym]).max() < 1e-9
+
+
+# --- any RCM arm from a DH table or a URDF file (robots/rcm_arm.py) ----------------------------------------------
+
+PSM_DH = [  # the Classic PSM with the Large Needle Driver's roll and wrist, modified DH (dvrk-kinematics.md)
+    {"alpha_deg": 90, "a_m": 0, "d_m": 0, "theta_offset_deg": 90, "lower_deg": math.degrees(-1.588),
+     "upper_deg": math.degrees(1.588)},
+    {"alpha_deg": -90, "a_m": 0, "d_m": 0, "theta_offset_deg": -90, "lower_deg": math.degrees(-0.925025),
+     "upper_deg": math.degrees(0.925025)},
+    {"joint": "prismatic", "alpha_deg": 90, "a_m": 0, "d_m": -0.4318, "lower_m": 0.0, "upper_m": 0.24},
+    {"alpha_deg": 0, "a_m": 0, "d_m": 0.4162, "lower_deg": -260, "upper_deg": 260},
+    {"alpha_deg": -90, "a_m": 0, "d_m": 0, "theta_offset_deg": -90, "lower_deg": -80, "upper_deg": 80},
+    {"alpha_deg": -90, "a_m": 0.0091, "d_m": 0, "theta_offset_deg": -90, "lower_deg": -80, "upper_deg": 80},
+]
+
+
+def ecm_urdf(rpy=(0.3, -0.7, 1.1), rcm=(0.12, -0.05, 0.4), pitch_gap_m=0.0, pitch_rpy="0 0 0"):
+    """The Classic ECM written as a URDF by its geometry, not from DH rows: the mechanism turned by ``rpy`` and its
+    RCM at ``rcm`` in the base link; yaw about the joint frame's -y, pitch about +x (so the closed form's pitch is
+    minus the joint's, its limits negated), insertion along -z, a roll about the shaft, the scope's tip 0.7 mm
+    past the RCM at zero insertion. ``pitch_gap_m`` moves the pitch axis off the yaw axis, ``pitch_rpy`` turns
+    the pitch joint's frame."""
+    (lo, hi), (plo, phi), (ilo, ihi) = (dvrk.ECM_CLASSIC.yaw_limits_rad, dvrk.ECM_CLASSIC.pitch_limits_rad,
+                                        dvrk.ECM_CLASSIC.insertion_limits_m)
+    joints = [("yaw", "revolute", f"{rcm[0]} {rcm[1]} {rcm[2]}", " ".join(map(str, rpy)), "0 -1 0", lo, hi),
+              ("pitch", "revolute", f"0 0 {pitch_gap_m}", pitch_rpy, "1 0 0", -phi, -plo),
+              ("insertion", "prismatic", "0 0 0", "0 0 0", "0 0 -1", ilo, ihi),
+              ("roll", "revolute", "0 0 -0.3", "0 0 0", "0 0 1", -1.5, 1.5)]
+    out, parent = ['<?xml version="1.0"?>', '<robot name="ecm_geometry">', '  <link name="base"/>'], "base"
+    for i, (name, kind, xyz, rpy_, axis, a, b) in enumerate(joints):
+        out += [f'  <joint name="{name}" type="{kind}"><parent link="{parent}"/><child link="l{i}"/><origin '
+                f'xyz="{xyz}" rpy="{rpy_}"/><axis xyz="{axis}"/><limit lower="{a}" upper="{b}" velocity="1" '
+                f'effort="1"/></joint>', f'  <link name="l{i}"/>']
+        parent = f"l{i}"
+    out += [f'  <joint name="tip" type="fixed"><parent link="{parent}"/><child link="scope_tip"/>'
+            f'<origin xyz="0 0 {0.3 - 0.0007}" rpy="0 0 0"/></joint>', '  <link name="scope_tip"/>', '</robot>']
+    return "\n".join(out)
+
+
+def test_an_rcm_arm_from_a_dh_table_or_a_urdf_gives_the_shipped_arms_rows(tmp_path):
+    """The Classic PSM as a modified-DH table (instrument_file) and the Classic ECM as a URDF turned and moved off
+    the base with its pitch joint reversed (camera_file): the mechanism is recognised (ranges, shaft offset,
+    the wrist's bend), and every row of the small study equals the shipped arms' (floats to 1e-9)."""
+    from surgopt.config import validate
+
+    (tmp_path / "ecm.urdf").write_text(ecm_urdf())
+    shipped = validate(COARSE, S.Config, "x")
+    files = validate({**COARSE, "robot": {"instrument_file": {"dh": PSM_DH},
+                                          "camera_file": {"urdf": str(tmp_path / "ecm.urdf")}}}, S.Config, "x")
+    psm, ecm = S.instrument_of(files), S.camera_arm_of(files)
+    for got, ref in ((psm, dvrk.PSM_CLASSIC), (ecm, dvrk.ECM_CLASSIC)):
+        for f in ("yaw_limits_rad", "pitch_limits_rad", "insertion_limits_m"):
+            assert getattr(got, f) == pytest.approx(getattr(ref, f), abs=1e-12), f
+        assert got.along_shaft_m == pytest.approx(ref.along_shaft_m, abs=1e-12)
+    assert psm.wrist_bend_rad == pytest.approx(dvrk.LND_WRIST_BEND_RAD, abs=1e-5) and ecm.wrist_bend_rad == 0.0
+    a, b = S.compute_task(shipped, 10 ** 6, 0), S.compute_task(files, 10 ** 6, 0)
+    assert b["feasible"].any()
+    for c, v in a.items():
+        if np.asarray(v).dtype.kind == "f":
+            np.testing.assert_allclose(b[c], v, rtol=0, atol=1e-9, err_msg=c)
+        else:
+            assert np.array_equal(b[c], v), c
+
+
+RCM_FILE_ERRORS = {
+    "axes apart": ("gap", "do not meet: 5.000 mm apart"),
+    "axes not orthogonal": ("tilt", "the yaw and pitch axes are at 78.541 deg, not 90"),
+    "not an RCM arm": ("ur5e", "the closed form needs revolute (yaw), revolute (pitch), prismatic (insertion)"),
+    "no source": ("none", "give urdf or dh"),
+}
+
+
+@pytest.mark.parametrize("case", sorted(RCM_FILE_ERRORS))
+def test_a_file_arm_that_is_not_an_rcm_mechanism_is_refused_naming_the_field(tmp_path, case):
+    from surgopt.robots.models import get_model
+
+    kind, message = RCM_FILE_ERRORS[case]
+    if kind == "gap":
+        (tmp_path / "ecm.urdf").write_text(ecm_urdf(pitch_gap_m=0.005))
+        arm = '[robot.camera_file]\nurdf = "ecm.urdf"\n'
+    elif kind == "tilt":
+        (tmp_path / "ecm.urdf").write_text(ecm_urdf(pitch_rpy="0 0 0.2"))
+        arm = '[robot.camera_file]\nurdf = "ecm.urdf"\n'
+    elif kind == "ur5e":
+        arm = '[robot.instrument_file]\ndh_convention = "standard"\n' + "".join(
+            f"[[robot.instrument_file.dh]]\na_m = {r.a_m}\nalpha_deg = {r.alpha_deg}\nd_m = {r.d_m}\n"
+            for r in get_model("ur5e").dh)
+    else:
+        arm = "[robot.instrument_file]\n"
+    (tmp_path / "p.toml").write_text(arm)
+    r = cli("port-place", "p.toml", "--store", tmp_path / "s", check=False, cwd=tmp_path)
+    assert r.returncode == 2 and message in r.stderr, r.stderr
+    assert "robot." in r.stderr and len(r.stderr.strip().splitlines()) == 1
+    assert not (tmp_path / "s").exists()

@@ -50,6 +50,8 @@ class RcmArm:
     name: str
     rows: tuple[DhRowMdh, ...]
     source: str
+    #: how far the instrument's wrist turns the jaws off the shaft (0: a scope, no wrist)
+    wrist_bend_rad: float = 0.0
 
     @property
     def yaw_limits_rad(self) -> tuple[float, float]:
@@ -90,12 +92,12 @@ PSM_CLASSIC = RcmArm(
     "dvrk_psm_classic",
     _yaw_pitch_insertion((-1.588, 1.588), (-0.925025, 0.925025), (0.0, 0.240), -0.4318)
     + (DhRowMdh(0.0, 0.0, 0.4162, False, 0.0, *LND_ROLL_LIMITS_RAD),),
-    "PSM.json + LARGE_NEEDLE_DRIVER_400006.json")
+    "PSM.json + LARGE_NEEDLE_DRIVER_400006.json", LND_WRIST_BEND_RAD)
 PSM_SI = RcmArm(
     "dvrk_psm_si",
     _yaw_pitch_insertion((-2.964, 2.964), (-1.265, 1.301), (0.0, 0.290), -0.4826)
     + (DhRowMdh(0.0, 0.0, 0.4670, False, 0.0, *LND_ROLL_LIMITS_RAD),),
-    "PSM_Si.json + LARGE_NEEDLE_DRIVER_420006.json")
+    "PSM_Si.json + LARGE_NEEDLE_DRIVER_420006.json", LND_WRIST_BEND_RAD)
 ECM_CLASSIC = RcmArm(
     "dvrk_ecm_classic",
     _yaw_pitch_insertion((-1.5708, 1.5708), (-0.76794, 1.1344), (0.0, 0.255), -0.3822)

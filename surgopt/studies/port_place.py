@@ -41,6 +41,7 @@ from surgopt.studies.port_place_config import (  # noqa: F401 - the config model
     Vec3,
     _mesh_of,
     _read_mesh_bytes,
+    camera_arm_of,
     body_extent_mm,
     body_mesh,
     dome_height_mm,
@@ -48,6 +49,7 @@ from surgopt.studies.port_place_config import (  # noqa: F401 - the config model
     inside_body,
     inside_dome,
     inside_polygon,
+    instrument_of,
     polygon_area_mm2,
     sites_mm,
     target_points_mm,
@@ -69,13 +71,13 @@ HELP = """Port placement for the da Vinci Research Kit on a patient: two or thre
     rows."""
 CONFIG_HELP = "TOML or YAML config ([patient], [target], [robot], [constraints], [objective]); default: the dVRK example."
 
-def arm_limits(arm: dvrk.RcmArm):
+def arm_limits(arm):
     from surgopt.kinematics.port_place import ArmLimits
 
     return ArmLimits(*arm.yaw_limits_rad, *arm.pitch_limits_rad, *arm.insertion_limits_m, arm.along_shaft_m)
 
 
-def approach(target: Target):
+def approach(target: Target, wrist_bend_rad: float):
     """The target's approach cone for the kernel (``port_place.Approach``): a point is reached only where the
     shaft's direction from the port lies within (wrist bend - half-angle) of the approach direction, so that the
     wrist can point the jaws along every direction of the cone; any direction when none is given."""
@@ -85,7 +87,7 @@ def approach(target: Target):
         return Approach(0.0, 0.0, -1.0, -2.0)  # a cosine below -1: every shaft direction passes
     d = np.asarray(target.approach_direction, float)
     d = d / np.linalg.norm(d)
-    return Approach(*d, math.cos(dvrk.LND_WRIST_BEND_RAD - math.radians(target.approach_half_angle_deg)))
+    return Approach(*d, math.cos(wrist_bend_rad - math.radians(target.approach_half_angle_deg)))
 
 
 def camera_of(cfg: PortPlaceConfig):
@@ -93,7 +95,7 @@ def camera_of(cfg: PortPlaceConfig):
     from surgopt.kinematics.port_place import Camera
 
     r = cfg.robot
-    return Camera(arm_limits(dvrk.CAMERA_ARMS[r.camera_arm]), math.radians(r.camera_fov_deg) / 2,
+    return Camera(arm_limits(camera_arm_of(cfg)), math.radians(r.camera_fov_deg) / 2,
                   r.camera_standoff_mm / 1000, r.camera_range_mm[0] / 1000, r.camera_range_mm[1] / 1000,
                   math.radians(r.camera_scope_angle_deg), r.camera_scope_view == "down")
 
@@ -133,8 +135,9 @@ def port_tables(cfg: PortPlaceConfig, sites: np.ndarray, rot: np.ndarray, outsid
     targets = target_points_mm(cfg.target) / 1000
     centre = np.asarray(cfg.target.centre_mm, float) / 1000
     crit = criteria(cfg)
-    reach, dex = K.instrument_tables(sites, rot, targets, arm_limits(dvrk.INSTRUMENT_ARMS[cfg.robot.instrument_arm]),
-                                     crit.dexterity_length_m, approach(cfg.target))
+    arm = instrument_of(cfg)
+    reach, dex = K.instrument_tables(sites, rot, targets, arm_limits(arm), crit.dexterity_length_m,
+                                     approach(cfg.target, arm.wrist_bend_rad))
     r = cfg.robot
     camera = camera_of(cfg)
     coverage = K.camera_coverage(sites, rot, targets, centre, camera)

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import math
 from functools import lru_cache
+from pathlib import Path
 from typing import Annotated, Literal
 
 import numpy as np
@@ -101,23 +102,15 @@ class Patient(StrictModel):
 
     def _resolve_mesh(self, context) -> None:
         """The mesh file, relative to the config's folder, read (bounded), hashed and checked closed."""
-        import hashlib
-        from pathlib import Path
+        from surgopt.files import config_file_path, hashed_config_file
 
         if self.mesh_file is None:
             raise ValueError("shape = 'mesh' needs mesh_file (an STL, OBJ or PLY file)")
-        path = Path(self.mesh_file).expanduser()
-        if not path.is_absolute():
-            path = Path(context.get("config_dir") or Path.cwd()) / path
-        path = path.resolve()
+        path = config_file_path(self.mesh_file, context)
         object.__setattr__(self, "mesh_file", str(path))
         if context.get("stored"):
             return
-        data = _read_mesh_bytes(path)
-        sha = hashlib.sha256(data).hexdigest()
-        if self.mesh_sha256 is not None and self.mesh_sha256 != sha:
-            raise ValueError(f"mesh_file: {path} changed since this config was written (mesh_sha256 differs); drop "
-                             f"mesh_sha256 to use the file as it is now")
+        _, sha = hashed_config_file("mesh_file", path, self.mesh_sha256, MAX_MESH_BYTES, "mesh_sha256")
         object.__setattr__(self, "mesh_sha256", sha)
         body_mesh(str(path), sha, self.mesh_units, tuple(self.mesh_offset_mm))  # parsed and checked once here
 
@@ -146,18 +139,107 @@ class Target(StrictModel):
         if self.approach_direction is not None:
             if math.hypot(*self.approach_direction) < 1e-9:
                 raise ValueError("approach_direction: must be a direction, not [0, 0, 0]")
-            bend = math.degrees(dvrk.LND_WRIST_BEND_RAD)
-            if self.approach_half_angle_deg > bend:
-                raise ValueError(f"approach_half_angle_deg: {self.approach_half_angle_deg:g} deg is more than the "
-                                 f"instrument's wrist can bend the jaws from its shaft ({bend:.0f} deg): no port "
-                                 f"can give every direction of that cone")
         elif self.approach_half_angle_deg:
             raise ValueError("approach_half_angle_deg goes with approach_direction")
         return self
 
 
+class RcmDhRow(StrictModel):
+    """One joint of an RCM arm's inline DH table: lengths in m, angles in deg; a revolute row's range
+    ``lower_deg``/``upper_deg`` (both left out: one turn), a prismatic row's ``lower_m``/``upper_m`` (it slides
+    along d, which is then its offset)."""
+
+    name: str | None = Field(None, min_length=1, max_length=64)
+    joint: Literal["revolute", "prismatic"] = "revolute"
+    a_m: Annotated[float, Field(ge=-10, le=10)]
+    alpha_deg: Annotated[float, Field(ge=-360, le=360)]
+    d_m: Annotated[float, Field(ge=-10, le=10)]
+    theta_offset_deg: Annotated[float, Field(ge=-360, le=360)] = 0.0
+    lower_deg: Annotated[float, Field(ge=-720, le=720)] | None = None
+    upper_deg: Annotated[float, Field(ge=-720, le=720)] | None = None
+    lower_m: Annotated[float, Field(ge=-10, le=10)] | None = None
+    upper_m: Annotated[float, Field(ge=-10, le=10)] | None = None
+
+    @model_validator(mode="after")
+    def _limits_of_its_kind(self):
+        rev = self.joint == "revolute"
+        lo, hi = ("lower_deg", "upper_deg") if rev else ("lower_m", "upper_m")
+        wrong = [f for f in (("lower_m", "upper_m") if rev else ("lower_deg", "upper_deg")) if getattr(self, f) is not None]
+        if wrong:
+            raise ValueError(f"a {self.joint} row takes {lo} and {hi}, not {', '.join(wrong)}")
+        if not rev and (self.lower_m is None or self.upper_m is None):
+            raise ValueError("a prismatic row needs lower_m and upper_m (the insertion range)")
+        if (getattr(self, lo) is None) != (getattr(self, hi) is None):
+            raise ValueError(f"give both {lo} and {hi}, or neither")
+        if getattr(self, lo) is not None and not getattr(self, lo) < getattr(self, hi):
+            raise ValueError(f"{lo} must be < {hi}")
+        return self
+
+    def row(self, index: int):
+        from surgopt.robots.chain import DhRow
+
+        rev = self.joint == "revolute"
+        return DhRow(self.a_m, self.alpha_deg, self.d_m, self.theta_offset_deg,
+                     self.lower_deg if rev else self.lower_m, self.upper_deg if rev else self.upper_m, 1.0,
+                     self.name or f"j{index + 1}", not rev)
+
+
+class RcmArmFile(StrictModel):
+    """An RCM arm from a URDF file or an inline DH table (``[robot.instrument_file]``, ``[robot.camera_file]``):
+    its first joints must be yaw, pitch and insertion about a remote centre of motion (``robots.rcm_arm``); the
+    reaching point is where the wrist's first axis crosses the shaft, or the tip link's origin."""
+
+    urdf: str | None = Field(None, min_length=1, description="URDF file, relative to the config file (its content "
+                             "hash, urdf_sha256, is in the store key, not its path)", json_schema_extra=NOT_IN_KEY)
+    urdf_sha256: str | None = Field(None, description="filled in: the URDF's content hash (part of the store key)")
+    base_link: str | None = Field(None, min_length=1, description="the link at the RCM's mechanism base")
+    tip_link: str | None = Field(None, min_length=1)
+    dh: list[RcmDhRow] | None = Field(None, min_length=3, max_length=16)
+    dh_convention: Literal["standard", "modified"] = "modified"
+
+    @model_validator(mode="after")
+    def _one_source(self, info: ValidationInfo):
+        if (self.urdf is None) == (self.dh is None):
+            raise ValueError("give urdf or dh (one of them)")
+        if self.urdf is None and (self.base_link or self.tip_link):
+            raise ValueError("base_link and tip_link go with urdf")
+        context = info.context or {}
+        if self.urdf is not None:
+            from surgopt.files import config_file_path, hashed_config_file
+            from surgopt.robots.chain import MAX_URDF_BYTES
+
+            path = config_file_path(self.urdf, context)
+            object.__setattr__(self, "urdf", str(path))
+            if not context.get("stored"):
+                _, sha = hashed_config_file("urdf", path, self.urdf_sha256, MAX_URDF_BYTES, "urdf_sha256")
+                object.__setattr__(self, "urdf_sha256", sha)
+        if not context.get("stored"):
+            file_arm(self.model_dump_json())  # read and checked once here
+        return self
+
+
+@lru_cache(maxsize=8)
+def file_arm(arm_json: str):
+    """The ``robots.rcm_arm.RcmLimits`` of an ``RcmArmFile`` (its JSON), read once per process."""
+    from surgopt.robots import chain
+    from surgopt.robots.rcm_arm import rcm_mechanism
+
+    a = RcmArmFile.model_validate_json(arm_json, context={"stored": True})
+    if a.urdf is not None:
+        spec = chain.from_urdf(a.urdf, a.base_link, a.tip_link, {})
+        name, source = Path(a.urdf).stem, f"{a.urdf} (sha256 {a.urdf_sha256[:12] if a.urdf_sha256 else '?'})"
+    else:
+        spec = chain.from_dh([r.row(i) for i, r in enumerate(a.dh)], a.dh_convention)
+        name, source = "dh", f"inline {a.dh_convention} DH table"
+    return rcm_mechanism(spec, name, source, "urdf" if a.urdf is not None else "dh")
+
+
 class Robot(StrictModel):
     instrument_arm: Literal[tuple(dvrk.INSTRUMENT_ARMS)] = "dvrk_psm_classic"
+    instrument_file: RcmArmFile | None = Field(None, description="any RCM instrument arm from a URDF or DH table, "
+                                               "in place of instrument_arm")
+    camera_file: RcmArmFile | None = Field(None, description="any RCM endoscope arm from a URDF or DH table, in "
+                                           "place of camera_arm")
     instrument_count: Literal[2, 3] = Field(2, description="instrument arms: 2 (PSM1, PSM2: the surgeon's hands) or "
                                                             "3 (and PSM3, the third arm: it must reach the target and "
                                                             "clear the others; the angles are the working pair's)")
@@ -225,6 +307,16 @@ class PortPlaceConfig(StrictModel):
         return self
 
     @model_validator(mode="after")
+    def _the_wrist_gives_the_approach_cone(self):
+        if self.target.approach_direction is not None:
+            bend = math.degrees(instrument_of(self).wrist_bend_rad)
+            if self.target.approach_half_angle_deg > bend:
+                raise ValueError(f"target.approach_half_angle_deg: {self.target.approach_half_angle_deg:g} deg is "
+                                 f"more than the instrument's wrist can bend the jaws from its shaft ({bend:.0f} "
+                                 f"deg): no port can give every direction of that cone")
+        return self
+
+    @model_validator(mode="after")
     def _target_inside_and_ranges_ordered(self):
         for name, (lo, hi) in (("robot.camera_range_mm", self.robot.camera_range_mm),
                                ("constraints.port_to_target_mm", self.constraints.port_to_target_mm),
@@ -251,6 +343,18 @@ class PortPlaceConfig(StrictModel):
 
 
 Config = PortPlaceConfig
+
+
+def instrument_of(cfg: PortPlaceConfig):
+    """The instrument arm: from its file (``robot.instrument_file``), or the shipped dVRK arm named."""
+    r = cfg.robot
+    return file_arm(r.instrument_file.model_dump_json()) if r.instrument_file else dvrk.INSTRUMENT_ARMS[r.instrument_arm]
+
+
+def camera_arm_of(cfg: PortPlaceConfig):
+    """The endoscope arm: from its file (``robot.camera_file``), or the shipped dVRK arm named."""
+    r = cfg.robot
+    return file_arm(r.camera_file.model_dump_json()) if r.camera_file else dvrk.CAMERA_ARMS[r.camera_arm]
 
 
 # --- the geometry the config implies (numpy; mm) -------------------------------------------------------------
@@ -289,16 +393,9 @@ MAX_MESH_FACES = 2_000_000
 
 
 def _read_mesh_bytes(path) -> bytes:
-    from surgopt.files import FileProblem, read_bounded
+    from surgopt.files import read_config_file
 
-    try:
-        return read_bounded(path, MAX_MESH_BYTES)
-    except FileNotFoundError:
-        raise ValueError(f"mesh_file: file not found: {path}") from None
-    except FileProblem as exc:
-        raise ValueError(f"mesh_file: {exc}") from None
-    except OSError as exc:
-        raise ValueError(f"mesh_file: cannot read {path}: {exc.strerror or exc}") from None
+    return read_config_file("mesh_file", path, MAX_MESH_BYTES)
 
 
 @lru_cache(maxsize=4)

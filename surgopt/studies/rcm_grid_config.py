@@ -10,9 +10,7 @@ the robot section's resolution (sources, defaults, the chain checks) is most of 
 """
 from __future__ import annotations
 
-import hashlib
 import math
-from pathlib import Path
 from typing import Annotated, Literal
 
 from pydantic import Field, PrivateAttr, ValidationInfo, model_validator
@@ -220,28 +218,14 @@ class Robot(StrictModel):
         self._fill(pa10_7c.MODEL.locked_joints_deg, seed, pa10_7c.TOOL_LENGTH_M)
 
     def _resolve_urdf(self, context):
-        path = Path(self.urdf).expanduser()
-        if not path.is_absolute():
-            path = Path(context.get("config_dir") or Path.cwd()) / path
-        path = path.resolve()
+        from surgopt.files import config_file_path, hashed_config_file
+        from surgopt.robots.chain import MAX_URDF_BYTES
+
+        path = config_file_path(self.urdf, context)
         object.__setattr__(self, "urdf", str(path))
         if context.get("stored"):
             return
-        from surgopt.files import FileProblem, read_bounded
-        from surgopt.robots.chain import MAX_URDF_BYTES
-
-        try:
-            data = read_bounded(path, MAX_URDF_BYTES)
-        except FileNotFoundError:
-            raise ValueError(f"urdf: file not found: {path}") from None
-        except FileProblem as exc:
-            raise ValueError(f"urdf: {exc}") from None
-        except OSError as exc:
-            raise ValueError(f"urdf: cannot read {path}: {exc.strerror or exc}") from None
-        sha = hashlib.sha256(data).hexdigest()
-        if self.urdf_sha256 is not None and self.urdf_sha256 != sha:
-            raise ValueError(f"urdf: {path} changed since this config was written (urdf_sha256 differs); "
-                             f"drop urdf_sha256 to use the file as it is now")
+        _, sha = hashed_config_file("urdf", path, self.urdf_sha256, MAX_URDF_BYTES, "urdf_sha256")
         object.__setattr__(self, "urdf_sha256", sha)
 
     # ---- the chain ---------------------------------------------------------------------------------------

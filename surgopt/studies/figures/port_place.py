@@ -151,6 +151,8 @@ def reach_maps(plt, cfg, sites, t, dex, out):
                      fontsize=9)
     axes[0].set_ylabel("y cranial (mm)")
     axes[0].legend(fontsize=7, loc="lower left")
-    fig.suptitle(f"per-arm maps: {cfg.robot.instrument_arm} and {cfg.robot.camera_arm} docked at each candidate "
+    from surgopt.studies.port_place import camera_arm_of, instrument_of
+
+    fig.suptitle(f"per-arm maps: {instrument_of(cfg).name} and {camera_arm_of(cfg).name} docked at each candidate "
                  f"site toward the target's centre", fontsize=9)
     return save(fig, out / "port_place_reach_top.png")
