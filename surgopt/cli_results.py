@@ -249,7 +249,10 @@ def plot(
         from surgopt.store import Store
 
         st, r = resolve_run(Store(store), run, study)
-        table = r.read_table(st.schema_for(r.manifest["config"]))
+        cfg = config_of(st, r)
+        plan = st.search_plan(cfg) if st.search_plan else None
+        only = st.figure_columns(r.manifest["config"]) if st.figure_columns and plan is None else None
+        table = r.read_table(st.schema_for(r.manifest["config"]), only)
         if table.num_rows == 0:
             fail(f"{r.key[:12]}: the run has no rows yet", 1)
         id_column = st.key_columns[0]
@@ -260,8 +263,6 @@ def plot(
         from surgopt.studies.figures import set_format
 
         set_format(fmt.value)
-        cfg = config_of(st, r)
-        plan = st.search_plan(cfg) if st.search_plan else None
         if plan is not None:
             from surgopt.studies.figures import search_figures
 

@@ -238,8 +238,9 @@ class Run:
                 out.append((self.manifest["parts"][i]["file"], problem))
         return out
 
-    def read_table(self, schema=None):
-        """All parts in task order as one Arrow table, each verified against the manifest.
+    def read_table(self, schema=None, columns=None):
+        """All parts in task order as one Arrow table (only ``columns``, if given), each verified against the
+        manifest.
 
         A part that fails its check raises StoreError naming it and the command that repairs it.
         If the run was replaced while being read (a ``--force`` rerun), the manifest is read again.
@@ -248,7 +249,7 @@ class Run:
 
         for attempt in range(READ_RETRIES + 1):
             try:
-                tables = list(self._iter_tables(schema))
+                tables = list(self._iter_tables(schema, columns))
                 break
             except RunReplaced:
                 if attempt == READ_RETRIES:
@@ -256,7 +257,8 @@ class Run:
         if not tables:
             if schema is None:
                 raise StoreError(f"{self.path}: no parts written yet")
-            return schema.empty_table()
+            empty = schema.empty_table()
+            return empty if columns is None else empty.select(columns)
         return pa.concat_tables(tables)
 
     def parts(self, schema=None):

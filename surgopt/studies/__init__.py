@@ -124,6 +124,9 @@ class Study:
     feasible_mask: Callable[[Any], Any]
     figures: Callable[[Any, Any, Path, int | None], list[Path]]
     flags: tuple[Flag, ...] = ()
+    #: ``figure_columns(config as stored)``: the only columns the grid's figures read (None: every column); a run
+    #: of millions of rows then plots in the memory of a few columns
+    figure_columns: Callable[[Any], list[str]] | None = None
     chunked: bool = True  # False: one task per run, no --chunk-size
     estimate: Callable[[Any], Estimate] | None = None  # work and memory, checked before a run starts
     search_plan: Callable[[Any], Any] | None = None  # a SearchPlan when the config asks for an optimiser

@@ -409,6 +409,11 @@ def estimate(cfg) -> Estimate:
                     smaller="store only the feasible designs' rows (rows_stored=feasible), or make it smaller")
 
 
+def figure_columns(config) -> list[str]:
+    """What the grid's figures read: the ports, the cost and the feasibility (not the ~40 other columns)."""
+    return ["design_id", *(f"{arm}_site" for arm in arms_of(config)), "cost", "feasible", "infeasible"]
+
+
 def feasible_mask(table):
     return table["feasible"].to_numpy(zero_copy_only=False)
 
@@ -490,4 +495,4 @@ STUDY = Study(
     help=HELP, config_help=CONFIG_HELP, schema=schema, key_columns=("design_id",), objective=OBJECTIVE,
     auto_chunk=auto_chunk, n_tasks=n_tasks, warm_up=warm_up, compute_task=compute_task, summary=summary,
     feasible_mask=feasible_mask, figures=figures_in("port_place"), estimate=estimate, search_plan=search_plan,
-    evaluate=evaluate_designs)
+    evaluate=evaluate_designs, figure_columns=figure_columns)
