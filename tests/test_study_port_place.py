@@ -648,8 +648,9 @@ def test_an_rcm_arm_from_a_dh_table_or_a_urdf_gives_the_shipped_arms_rows(tmp_pa
 
 RCM_FILE_ERRORS = {
     "axes apart": ("gap", "do not meet: 5.000 mm apart"),
-    "axes not orthogonal": ("tilt", "the yaw and pitch axes are at 78.541 deg, not 90"),
-    "not an RCM arm": ("ur5e", "the closed form needs revolute (yaw), revolute (pitch), prismatic (insertion)"),
+    "axes parallel": ("tilt", "the yaw and pitch axes are parallel"),
+    "not an RCM arm": ("ur5e", "an RCM arm needs revolute (yaw), revolute (pitch), any rolls about the shaft, "
+                               "then prismatic (insertion)"),
     "no source": ("none", "give urdf or dh"),
 }
 
@@ -663,7 +664,7 @@ def test_a_file_arm_that_is_not_an_rcm_mechanism_is_refused_naming_the_field(tmp
         (tmp_path / "ecm.urdf").write_text(ecm_urdf(pitch_gap_m=0.005))
         arm = '[robot.camera_file]\nurdf = "ecm.urdf"\n'
     elif kind == "tilt":
-        (tmp_path / "ecm.urdf").write_text(ecm_urdf(pitch_rpy="0 0 0.2"))
+        (tmp_path / "ecm.urdf").write_text(ecm_urdf(pitch_rpy=f"0 0 {math.pi / 2}"))
         arm = '[robot.camera_file]\nurdf = "ecm.urdf"\n'
     elif kind == "ur5e":
         arm = '[robot.instrument_file]\ndh_convention = "standard"\n' + "".join(
@@ -676,3 +677,87 @@ def test_a_file_arm_that_is_not_an_rcm_mechanism_is_refused_naming_the_field(tmp
     assert r.returncode == 2 and message in r.stderr, r.stderr
     assert "robot." in r.stderr and len(r.stderr.strip().splitlines()) == 1
     assert not (tmp_path / "s").exists()
+
+
+RAVEN_DH = [  # the Raven IV right arm (Li et al. 2011, Table I, standard DH), the paper's optimum alpha 85, beta 65 deg;
+    # its joint variables as the table's theta = q + offset: q1 = -theta1, q5 = -theta5
+    {"alpha_deg": 95, "a_m": 0, "d_m": 0, "theta_offset_deg": 180},
+    {"alpha_deg": -65, "a_m": 0, "d_m": 0, "lower_deg": 20, "upper_deg": 140},
+    {"alpha_deg": 0, "a_m": 0, "d_m": 0, "theta_offset_deg": 270, "lower_deg": -86, "upper_deg": 86},
+    {"joint": "prismatic", "alpha_deg": -90, "a_m": 0, "d_m": 0, "lower_m": 0.0, "upper_m": 0.25},
+    {"alpha_deg": 90, "a_m": 0.013, "d_m": 0, "theta_offset_deg": 90, "lower_deg": -86, "upper_deg": 86},
+    {"alpha_deg": -90, "a_m": 0, "d_m": 0, "theta_offset_deg": 90, "lower_deg": -86, "upper_deg": 86},
+]
+
+
+def _raven():
+    """(config, its RcmLimits, the kernel's ArmLimits, the chain's wrist point at joint values (q1, q2, roll, d4)
+    in the closed form's base frame B)."""
+    from surgopt.robots import chain
+    from surgopt.robots.rcm_arm import frames_at
+
+    cfg = S.PortPlaceConfig.model_validate({**COARSE, "robot": {"instrument_file": {"dh": RAVEN_DH,
+                                                                                    "dh_convention": "standard"}}})
+    arm = S.instrument_of(cfg)
+    spec = chain.from_dh([r.row(i) for i, r in enumerate(cfg.robot.instrument_file.dh)], "standard")
+    base, rcm = np.array(arm.base_rotation), np.array(arm.rcm_m)
+
+    def wrist(q):  # joint 5's frame origin: the wrist's first axis on the shaft
+        return base.T @ (frames_at(spec, q)[4][:3, 3] - rcm)
+
+    return cfg, arm, S.arm_limits(arm), wrist
+
+
+def test_a_spherical_rcm_arm_the_raven_is_solved_in_closed_form():
+    """The Raven IV right arm from its own standard-DH table (a spherical RCM: axes at 85 and 65 deg, a tool roll
+    before the insertion, its pitch range 20-140 deg excluding 0, so docked at the middle, 80 deg): the link
+    angles come back from the file; the kernel's inverse (Paden-Kahan subproblem 2) of the chain's wrist point
+    at random joint values gives joint values within the ranges whose chain forward kinematics is that point
+    (1e-10 m), and its isotropy is sigma_min / sigma_max of the chain's finite-difference Jacobian (1e-6)."""
+    _, arm, lim, wrist = _raven()
+    w1, w2 = np.array(arm.yaw_axis), np.array(arm.pitch_axis)
+    assert math.degrees(math.acos(abs(w1 @ w2))) == pytest.approx(85.0, abs=1e-9)
+    assert math.degrees(math.acos(abs(w2[2]))) == pytest.approx(65.0, abs=1e-9)
+    assert arm.neutral_rad == pytest.approx((0.0, math.radians(80.0))) and arm.along_shaft_m == pytest.approx(0.0)
+    assert lim.spherical and arm.wrist_bend_rad == pytest.approx(math.radians(86.0))
+    home = np.array([*arm.neutral_rad, 0.0, 0.0])
+    for _ in range(60):
+        q = np.array([RNG.uniform(-3.0, 3.0), math.radians(RNG.uniform(21, 139)), RNG.uniform(-1.4, 1.4),
+                      RNG.uniform(0.02, 0.24)])
+        p = wrist(q)
+        rho = np.linalg.norm(p)
+        q1, q2, found = K.spherical_inverse(p / rho, lim)
+        assert found and lim.yaw_lo <= q1 <= lim.yaw_hi and lim.pitch_lo <= q2 <= lim.pitch_hi
+        back = wrist(home + [q1, q2, 0.0, rho - arm.along_shaft_m])
+        assert np.linalg.norm(back - p) < 1e-10
+        J = finite_difference_jacobian(lambda v: wrist([v[0], v[1], q[2], v[2]]), np.array([q[0], q[1], q[3]]),
+                                       h=1e-6)
+        J[:, :2] /= 0.1
+        s = np.linalg.svd(J, compute_uv=False)
+        u = p / rho
+        assert K.spherical_isotropy(q[0] - home[0], u, rho, lim, 0.1) == pytest.approx(s[-1] / s[0], rel=1e-6)
+    # along the yaw axis the shaft cannot point (85 deg to the pitch axis, the shaft 65 deg from it): not found
+    assert not K.spherical_inverse(w1, lim)[2]
+
+
+def test_the_raven_as_a_port_place_instrument_reaches_what_joint_sampling_reaches():
+    """Reach of the spherical Raven arm at one port against the nearest of ~30,000 joint-space samples through
+    the chain (no closed form), on points clear of the boundary; then the small study runs with it: feasible
+    layouts, every row's instrument columns from the Raven."""
+    cfg, arm, lim, wrist = _raven()
+    site, centre = np.zeros(3), np.array([0.0, 0.0, -0.15])
+    rot = K.docking_frames(site[None], centre, np.array([1.0, 0.0, 0.0]))
+    pts = centre + RNG.uniform(-0.2, 0.2, size=(200, 3))  # some beyond the 250 mm insertion, some off the cones
+    reach, _ = K.instrument_tables(site[None], rot, pts, lim, 0.1, ANY_APPROACH)
+    base = np.array([K.to_base(rot[0], site, p) for p in pts])
+    home = arm.neutral_rad
+    g1, g2, g3 = (np.linspace(lo, hi, k) for lo, hi, k in ((lim.yaw_lo, lim.yaw_hi, 61), (lim.pitch_lo, lim.pitch_hi, 31),
+                                                          (lim.insertion_lo, lim.insertion_hi, 16)))
+    samples = np.array([wrist([a + home[0], b + home[1], 0.0, c]) for a in g1 for b in g2 for c in g3])
+    d = np.array([np.min(np.linalg.norm(samples - p, axis=1)) for p in base])
+    gap = 0.25 * max(g1[1] - g1[0], g2[1] - g2[0]) + (g3[1] - g3[0])
+    far, near = d > gap, d < 0.2 * gap
+    assert far.sum() > 10 and near.sum() > 10  # the premise: both kinds of point are in the sample
+    assert not reach[0][far].any() and reach[0][near].mean() > 0.9
+    cols = S.compute_task(cfg, S.n_total(cfg), 0)
+    assert cols["feasible"].any() and cols["psm1_reach"].max() == 1.0

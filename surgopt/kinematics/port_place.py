@@ -27,7 +27,10 @@ from surgopt.jit import EXACT
 
 
 class ArmLimits(NamedTuple):
-    """An RCM arm's joint ranges and the reaching point's shaft offset (``dvrk.RcmArm``)."""
+    """An RCM arm's joint ranges and the reaching point's shaft offset (``dvrk.RcmArm``). ``spherical``: the
+    yaw axis (fixed) and the pitch axis (at q1 = 0), unit, in the base frame, are not the orthogonal -y and -x
+    of ``shaft_direction`` but any two axes through the RCM (a spherical mechanism, the Raven's kind; the shaft
+    at q = 0 is still -z): ``spherical_inverse`` and ``spherical_isotropy`` solve it."""
 
     yaw_lo: float
     yaw_hi: float
@@ -36,6 +39,13 @@ class ArmLimits(NamedTuple):
     insertion_lo: float
     insertion_hi: float
     along_shaft_m: float
+    spherical: bool = False
+    yaw_x: float = 0.0
+    yaw_y: float = -1.0
+    yaw_z: float = 0.0
+    pitch_x: float = -1.0
+    pitch_y: float = 0.0
+    pitch_z: float = 0.0
 
 
 class Approach(NamedTuple):
@@ -129,6 +139,75 @@ def isotropy(q2, rho, length_m):
 
 
 @njit(**EXACT)
+def turn_angle(w, a, b):
+    """The angle about the unit axis w that turns a onto b (both taken orthogonal to w): atan2 of w . (a' x b')
+    and a' . b'."""
+    wa = w[0] * a[0] + w[1] * a[1] + w[2] * a[2]
+    wb = w[0] * b[0] + w[1] * b[1] + w[2] * b[2]
+    ax, ay, az = a[0] - wa * w[0], a[1] - wa * w[1], a[2] - wa * w[2]
+    bx, by, bz = b[0] - wb * w[0], b[1] - wb * w[1], b[2] - wb * w[2]
+    cx, cy, cz = ay * bz - az * by, az * bx - ax * bz, ax * by - ay * bx
+    return math.atan2(w[0] * cx + w[1] * cy + w[2] * cz, ax * bx + ay * by + az * bz)
+
+
+@njit(**EXACT)
+def rotate(w, angle, v):
+    """v turned by ``angle`` about the unit axis w (Rodrigues)."""
+    c, s = math.cos(angle), math.sin(angle)
+    wv = w[0] * v[0] + w[1] * v[1] + w[2] * v[2]
+    cx, cy, cz = w[1] * v[2] - w[2] * v[1], w[2] * v[0] - w[0] * v[2], w[0] * v[1] - w[1] * v[0]
+    return np.array([v[0] * c + cx * s + w[0] * wv * (1 - c), v[1] * c + cy * s + w[1] * wv * (1 - c),
+                     v[2] * c + cz * s + w[2] * wv * (1 - c)])
+
+
+@njit(**EXACT)
+def spherical_inverse(d, arm):
+    """(q1, q2, found) with R(w1, q1) R(w2, q2) s = d for a unit direction d, the shaft s = -z at q = 0, the yaw
+    axis w1 and the pitch axis w2 (at q1 = 0) of a spherical ``arm`` (Paden-Kahan subproblem 2: c = R(w2, q2) s
+    = R(w1, -q1) d lies on both cones, c = alpha w1 + beta w2 + gamma w1 x w2); of the two solutions the first
+    within the yaw and pitch ranges, ``found`` False when neither is (or d is off both cones)."""
+    w1 = np.array([arm.yaw_x, arm.yaw_y, arm.yaw_z])
+    w2 = np.array([arm.pitch_x, arm.pitch_y, arm.pitch_z])
+    s = np.array([0.0, 0.0, -1.0])
+    w12 = w1[0] * w2[0] + w1[1] * w2[1] + w1[2] * w2[2]
+    e1 = w1[0] * d[0] + w1[1] * d[1] + w1[2] * d[2]
+    e2 = -w2[2]  # w2 . s
+    det = w12 * w12 - 1.0
+    alpha = (w12 * e2 - e1) / det
+    beta = (w12 * e1 - e2) / det
+    x = np.array([w1[1] * w2[2] - w1[2] * w2[1], w1[2] * w2[0] - w1[0] * w2[2], w1[0] * w2[1] - w1[1] * w2[0]])
+    g2 = (1.0 - alpha * alpha - beta * beta - 2.0 * alpha * beta * w12) / (x[0] ** 2 + x[1] ** 2 + x[2] ** 2)
+    if g2 < 0.0:
+        return 0.0, 0.0, False
+    for sign in (1.0, -1.0):
+        c = alpha * w1 + beta * w2 + sign * math.sqrt(g2) * x
+        q2 = turn_angle(w2, s, c)
+        q1 = turn_angle(w1, c, d)
+        if arm.yaw_lo <= q1 <= arm.yaw_hi and arm.pitch_lo <= q2 <= arm.pitch_hi:
+            return q1, q2, True
+    return 0.0, 0.0, False
+
+
+@njit(**EXACT)
+def spherical_isotropy(q1, u, rho, arm, length_m):
+    """sigma_min / sigma_max of the position Jacobian [rho w1 x u, rho w2(q1) x u, u] of a spherical ``arm``, its
+    angular columns divided by L: u is orthogonal to both angular columns, so the Gram matrix is a 2 x 2 block
+    [[A, C], [C, B]] and 1, whose eigenvalues are (A + B) / 2 +- sqrt(((A - B) / 2)^2 + C^2)."""
+    w1 = np.array([arm.yaw_x, arm.yaw_y, arm.yaw_z])
+    w2 = rotate(w1, q1, np.array([arm.pitch_x, arm.pitch_y, arm.pitch_z]))
+    k = rho / length_m
+    a = k * np.array([w1[1] * u[2] - w1[2] * u[1], w1[2] * u[0] - w1[0] * u[2], w1[0] * u[1] - w1[1] * u[0]])
+    b = k * np.array([w2[1] * u[2] - w2[2] * u[1], w2[2] * u[0] - w2[0] * u[2], w2[0] * u[1] - w2[1] * u[0]])
+    aa = a[0] * a[0] + a[1] * a[1] + a[2] * a[2]
+    bb = b[0] * b[0] + b[1] * b[1] + b[2] * b[2]
+    ab = a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
+    mid, half = 0.5 * (aa + bb), math.sqrt(0.25 * (aa - bb) ** 2 + ab * ab)
+    lo = math.sqrt(max(0.0, mid - half))
+    hi = math.sqrt(mid + half)
+    return min(lo, 1.0) / max(hi, 1.0)
+
+
+@njit(**EXACT)
 def within(q1, q2, q3, arm):
     return (arm.yaw_lo <= q1 <= arm.yaw_hi and arm.pitch_lo <= q2 <= arm.pitch_hi
             and arm.insertion_lo <= q3 <= arm.insertion_hi)
@@ -212,11 +291,19 @@ def instrument_tables(sites, rot, targets, arm, length_m, approach):
             rho = math.sqrt(px * px + py * py + pz * pz)
             if rho == 0.0 or (dx * approach.dx + dy * approach.dy + dz * approach.dz) < approach.cos_min * rho:
                 continue
+            q3 = rho - arm.along_shaft_m
+            if not arm.insertion_lo <= q3 <= arm.insertion_hi:
+                continue
+            if arm.spherical:
+                u = np.array([px / rho, py / rho, pz / rho])
+                q1, q2, found = spherical_inverse(u, arm)
+                if found:
+                    reach[i, k] = True
+                    dex[i, k] = spherical_isotropy(q1, u, rho, arm, length_m)
+                continue
             q2 = -math.asin(min(1.0, max(-1.0, py / rho)))
             q1 = math.atan2(px, -pz)
-            q3 = rho - arm.along_shaft_m
-            if (arm.yaw_lo <= q1 <= arm.yaw_hi and arm.pitch_lo <= q2 <= arm.pitch_hi
-                    and arm.insertion_lo <= q3 <= arm.insertion_hi):
+            if arm.yaw_lo <= q1 <= arm.yaw_hi and arm.pitch_lo <= q2 <= arm.pitch_hi:
                 reach[i, k] = True
                 dex[i, k] = isotropy(q2, rho, length_m)
     return reach, dex
@@ -268,9 +355,14 @@ def camera_views(sites, rot, centre, camera):
             shaft = math.cos(alpha) * u + sign * math.sin(alpha) * w
             view = math.cos(theta - alpha) * u - sign * math.sin(theta - alpha) * w
             reach = dist * math.sin(theta - alpha) / math.sin(theta)
-            q1, q2, _ = rcm_inverse(rot[i].T @ shaft, 0.0)  # the shaft's yaw and pitch in the docking frame
-            if not (arm.yaw_lo <= q1 <= arm.yaw_hi and arm.pitch_lo <= q2 <= arm.pitch_hi):
-                continue
+            local = rot[i].T @ shaft  # the shaft in the docking frame: within the arm's yaw and pitch?
+            if arm.spherical:
+                if not spherical_inverse(local, arm)[2]:
+                    continue
+            else:
+                q1, q2, _ = rcm_inverse(local, 0.0)
+                if not (arm.yaw_lo <= q1 <= arm.yaw_hi and arm.pitch_lo <= q2 <= arm.pitch_hi):
+                    continue
         q3 = max(reach - arm.along_shaft_m, arm.insertion_lo)
         if q3 > arm.insertion_hi:
             continue

@@ -1,27 +1,33 @@
-"""An RCM arm read from a DH table or a URDF file, checked to be a yaw / pitch / insertion mechanism and reduced to
-what the port-placement study's closed form needs (issue #29: "any RCM arm from a DH table / URDF").
+"""An RCM arm read from a DH table or a URDF file, checked to be a yaw / pitch / insertion mechanism about a remote
+centre of motion and reduced to what the port-placement study's closed forms need (issue #29: "any RCM arm from
+a DH table / URDF").
 
-The closed form (``surgopt.kinematics.port_place``) puts the reaching point (an instrument's wrist, a scope's
-tip) at p = (q3 + c) u(q1, q2), u = (sin q1 cos q2, -sin q2, -cos q1 cos q2), in a base frame at the RCM: yaw q1
-turns the shaft about the base's -y axis, pitch q2 about the turned -x axis, insertion q3 slides the shaft along
--z at q = 0. An arm described as a serial chain is that mechanism when, at its zero pose,
+The closed forms (``surgopt.kinematics.port_place``) put the reaching point (an instrument's wrist, a scope's
+tip) at p = (q3 + c) u(q1, q2), u = R(w1, q1) R(w2, q2) s, in a base frame B at the RCM with the shaft s = -z at
+q = 0: yaw q1 turns the shaft about the fixed axis w1, pitch q2 about the axis w2 that the yaw carries, and
+insertion q3 slides it. An arm described as a serial chain is that mechanism when, at its neutral pose (yaw and
+pitch 0, or the middle of a range that excludes 0: the pose it is docked in, shaft toward the target's centre),
 
 - its first two joints are revolute and their axis lines meet (the meeting point is the RCM),
-- its third joint is prismatic and slides along a line through the RCM (the shaft),
-- yaw axis, pitch axis and shaft are mutually orthogonal,
+- then, after any rolls about the shaft (the Raven's tool roll), a prismatic joint slides along a line
+  through the RCM (the shaft),
+- no two of yaw axis, pitch axis and shaft are parallel,
 - the reaching point lies on the shaft: where the first later joint axis that is not along the shaft (the
   wrist's first axis; a roll about the shaft is passed over) crosses it, or the tip link's origin.
 
-Then the arm's base frame B has z = -shaft, y = -yaw axis, x = y x z, and the arm's joints map to the closed
-form's as q1 = q1_arm, q2 = s q2_arm (s = +1 when the pitch axis is -x, -1 when +x), q3 = q3_arm, c the
-reaching point's signed distance from the RCM along the shaft at q3 = 0. ``rcm_mechanism`` checks every
-condition (each failure names what is wrong, in mm or degrees) and then holds the closed form to the chain's
-own forward kinematics at 64 joint values spread over the limits, to 1e-9 m.
+B has z = -shaft, y = -(the yaw axis made orthogonal to the shaft), x = y x z. When the three directions are
+mutually orthogonal (the dVRK's arms) w1 = -y and w2 = +-x and the arm is the orthogonal closed form
+(u = (sin q1 cos q2, -sin q2, -cos q1 cos q2)) with q2 = s q2_arm (s = +1 when the pitch axis is -x); otherwise
+(a spherical mechanism such as the Raven's, links at 75 and 52 deg) it keeps its axes and the kernels solve it
+by Paden-Kahan's subproblem 2. Angles are taken from the neutral pose. c is the reaching point's signed
+distance from the RCM along the shaft at q3 = 0. ``rcm_mechanism`` checks every condition (each failure names what is wrong, in mm or degrees) and then
+holds the closed form to the chain's own forward kinematics at 64 joint values spread over the limits, to
+1e-9 m.
 """
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -47,14 +53,25 @@ class RcmLimits:
     insertion_limits_m: tuple[float, float]
     along_shaft_m: float
     wrist_bend_rad: float
+    #: a spherical mechanism's yaw axis and pitch axis (at q1 = 0) in B; None: the orthogonal closed form
+    yaw_axis: tuple[float, float, float] | None = None
+    pitch_axis: tuple[float, float, float] | None = None
+    #: the arm's own yaw and pitch at the neutral pose (the closed form's 0): 0, or a range's middle
+    neutral_rad: tuple[float, float] = (0.0, 0.0)
+    #: where the file puts the RCM (m) and the closed form's base frame B (its columns x, y, z), in the file's
+    #: base frame
+    rcm_m: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    base_rotation: tuple[tuple[float, float, float], ...] = ((1.0, 0.0, 0.0), (0.0, 1.0, 0.0), (0.0, 0.0, 1.0))
 
 
-def _frames_at_zero(spec: ChainSpec) -> list[np.ndarray]:
-    """Each joint's frame (before its own motion) in the base frame at q = 0."""
+def frames_at(spec: ChainSpec, q) -> list[np.ndarray]:
+    """Each joint's frame (before its own motion) in the base frame at joint values ``q`` (missing ones 0)."""
     out, t = [], np.eye(4)
-    for j in spec.joints:
+    q = list(q) + [0.0] * (len(spec.joints) - len(q))
+    for j, v in zip(spec.joints, q):
         t = t @ j.origin
         out.append(t.copy())
+        t = t @ axis_motion(j.axis, j.kind, v)
     return out
 
 
@@ -82,58 +99,76 @@ def _limits(joint, where: str) -> tuple[float, float]:
     return lo, hi
 
 
+def neutral(lo: float, hi: float) -> float:
+    """A joint's neutral value: 0 when its range holds it, else the middle of the range."""
+    return 0.0 if lo <= 0.0 <= hi else 0.5 * (lo + hi)
+
+
 def rcm_mechanism(spec: ChainSpec, name: str, source: str, where: str) -> RcmLimits:
     """The closed form's ranges and offsets of a chain that is a yaw / pitch / insertion RCM mechanism, or a
-    ``ChainError`` at ``where`` (the config field) saying which condition fails and by how much."""
+    ``ChainError`` at ``where`` (the config field) saying which condition fails and by how much. The mechanism is
+    read at its neutral pose (yaw and pitch 0, or the middle of a range that excludes 0): the pose in which it is
+    docked with the shaft toward the target's centre; the closed form's angles are taken from there."""
     joints = spec.joints
-    if len(joints) < 3:
-        raise ChainError(where, f"{len(joints)} joint(s); an RCM arm needs yaw, pitch and insertion")
-    kinds = [j.kind for j in joints[:3]]
-    if kinds[0] == PRISMATIC or kinds[1] == PRISMATIC or kinds[2] != PRISMATIC:
-        raise ChainError(where, f"its first three joints are {', '.join(kinds)}; the closed form needs revolute "
-                                f"(yaw), revolute (pitch), prismatic (insertion): other mechanisms would need "
-                                f"the generic serial solver, which port-place does not run")
-    frames = _frames_at_zero(spec)
+    kinds = [j.kind for j in joints]
+    insertion = next((k for k in range(2, len(joints)) if kinds[k] == PRISMATIC), None)
+    if len(joints) < 3 or PRISMATIC in kinds[:2] or insertion is None:
+        raise ChainError(where, f"its joints are {', '.join(kinds) or 'none'}; an RCM arm needs revolute (yaw), "
+                                f"revolute (pitch), any rolls about the shaft, then prismatic (insertion): other "
+                                f"mechanisms would need the generic serial solver, which port-place does not run")
+    yaw, pitch = _limits(joints[0], where), _limits(joints[1], where)
+    home = (neutral(*yaw), neutral(*pitch))
+    frames = frames_at(spec, home)
     axes = [f[:3, :3] @ j.axis for f, j in zip(frames, joints)]
     points = [f[:3, 3] for f in frames]
-    _, _, gap = closest_points(points[0], axes[0], points[1], axes[1])
-    x, y, _ = closest_points(points[0], axes[0], points[1], axes[1])
+    x, y, gap = closest_points(points[0], axes[0], points[1], axes[1])
     if gap > MEET_M:
         raise ChainError(where, f"the yaw and pitch axes ({joints[0].name}, {joints[1].name}) do not meet: "
-                                f"{gap * 1000:.3f} mm apart at the zero pose, so there is no remote centre of motion")
+                                f"{gap * 1000:.3f} mm apart, so there is no remote centre of motion")
     rcm = (x + y) / 2
-    shaft = axes[2]
-    off = np.linalg.norm(np.cross(rcm - points[2], shaft))
-    if off > MEET_M:
-        raise ChainError(where, f"the insertion ({joints[2].name}) slides along a line {off * 1000:.3f} mm from the "
-                                f"RCM: the shaft does not pass through it")
-    for (a, b), what in (((0, 1), "yaw and pitch axes"), ((1, 2), "pitch axis and shaft"),
-                         ((0, 2), "yaw axis and shaft")):
-        c = abs(float(axes[a] @ axes[b]))
-        if c > ORTHOGONAL_COS:
-            raise ChainError(where, f"the {what} are at {math.degrees(math.acos(min(1.0, c))):.3f} deg, not 90: the "
-                                    f"closed form needs them orthogonal at the zero pose (other RCM geometries "
-                                    f"would need the generic serial solver, which port-place does not run)")
-    reach, wrist = _reaching_point(spec, frames, axes, points, rcm, shaft, where)
+    shaft = axes[insertion]
+    for k in range(2, insertion + 1):  # the rolls before the insertion and the insertion: on the shaft's line
+        off = np.linalg.norm(np.cross(rcm - points[k], shaft))
+        parallel = np.linalg.norm(np.cross(axes[k], shaft))
+        if off > MEET_M or parallel > ORTHOGONAL_COS:
+            what = "the insertion slides" if k == insertion else "a joint between pitch and insertion turns"
+            raise ChainError(where, f"{what} ({joints[k].name}) along a line {off * 1000:.3f} mm from the RCM and "
+                                    f"{math.degrees(math.asin(min(1.0, parallel))):.3f} deg off the shaft: the "
+                                    f"shaft does not pass through the RCM")
+    cosines = {}
+    for (a, b), what in (((0, 1), "yaw and pitch axes"), ((1, insertion), "pitch axis and shaft"),
+                         ((0, insertion), "yaw axis and shaft")):
+        cosines[what] = c = abs(float(axes[a] @ axes[b]))
+        if c > 1.0 - 1e-9:
+            raise ChainError(where, f"the {what} are parallel: the two revolute joints cannot point the shaft")
+    reach, wrist = _reaching_point(spec, frames, axes, points, rcm, shaft, insertion, where)
     along = float((reach - rcm) @ shaft)
     z = -shaft
-    yb = -axes[0]
+    yb = -(axes[0] - (axes[0] @ shaft) * shaft)
+    yb = yb / np.linalg.norm(yb)
     xb = np.cross(yb, z)
-    sign = -float(np.sign(axes[1] @ xb))  # +1 when the pitch axis is -x
     base = np.column_stack([xb, yb, z])
-    yaw = _limits(joints[0], where)
-    pitch = tuple(sorted(sign * v for v in _limits(joints[1], where)))
-    insertion = _limits(joints[2], where)
-    arm = RcmLimits(name, source, yaw, pitch, insertion, along, wrist)
-    _hold_to_fk(spec, arm, base, rcm, reach, sign, where)
+    yaw = (yaw[0] - home[0], yaw[1] - home[0])
+    pitch = (pitch[0] - home[1], pitch[1] - home[1])
+    depth = _limits(joints[insertion], where)
+    if max(cosines.values()) <= ORTHOGONAL_COS:  # the orthogonal closed form
+        sign = -float(np.sign(axes[1] @ xb))  # +1 when the pitch axis is -x
+        arm = RcmLimits(name, source, yaw, tuple(sorted(sign * v for v in pitch)), depth, along, wrist)
+    else:  # a spherical mechanism: its own axes, in B
+        sign = 1.0
+        arm = RcmLimits(name, source, yaw, pitch, depth, along, wrist,
+                        tuple(float(v) for v in base.T @ axes[0]), tuple(float(v) for v in base.T @ axes[1]))
+    arm = replace(arm, neutral_rad=home, rcm_m=tuple(float(v) for v in rcm),
+                  base_rotation=tuple(tuple(float(v) for v in row) for row in base))
+    _hold_to_fk(spec, arm, base, rcm, reach, sign, insertion, where)
     return arm
 
 
-def _reaching_point(spec, frames, axes, points, rcm, shaft, where):
+def _reaching_point(spec, frames, axes, points, rcm, shaft, insertion, where):
     """(the reaching point at q = 0, the wrist's bend): where the first joint axis after the insertion that is
     not along the shaft crosses it (the wrist's first axis), else the tip link's origin; the bend is the least
     half-range of the first two wrist joints (0 with fewer than two)."""
-    later = [k for k in range(3, len(spec.joints)) if spec.joints[k].kind != PRISMATIC
+    later = [k for k in range(insertion + 1, len(spec.joints)) if spec.joints[k].kind != PRISMATIC
              and np.linalg.norm(np.cross(axes[k], shaft)) > ORTHOGONAL_COS]
     if later:
         k = later[0]
@@ -154,26 +189,34 @@ def _reaching_point(spec, frames, axes, points, rcm, shaft, where):
     return reach, max(0.0, bend)
 
 
-def _hold_to_fk(spec, arm, base, rcm, reach, sign, where) -> None:
-    """The closed form p = rcm + base (q3 + c) u(q1, s q2) against the chain's forward kinematics of the reaching
-    point (carried by the insertion's frame) at 64 joint values spread over the limits."""
-    third = np.eye(4)
-    for j in spec.joints[:3]:
-        third = third @ j.origin
-    local = np.linalg.solve(third, np.append(reach, 1.0))  # the point in the insertion's frame at q = 0
+def _hold_to_fk(spec, arm, base, rcm, reach, sign, insertion, where) -> None:
+    """The closed form p = rcm + base (q3 + c) u(q1, s q2) (a spherical arm: u = R(w1, q1) R(w2, q2) (0, 0, -1)),
+    its angles from the neutral pose, against the chain's forward kinematics of the reaching point (carried by
+    the insertion's frame; rolls at 0) at 64 joint values spread over the limits."""
+    home = arm.neutral_rad
+    frames = frames_at(spec, home)
+    moved = frames[insertion] @ axis_motion(spec.joints[insertion].axis, PRISMATIC, 0.0)
+    local = np.linalg.solve(moved, np.append(reach, 1.0))  # the point in the insertion's moved frame
     rng = np.random.default_rng(0)
-    lo = np.array([arm.yaw_limits_rad[0], spec.joints[1].lower, arm.insertion_limits_m[0]])
-    hi = np.array([arm.yaw_limits_rad[1], spec.joints[1].upper, arm.insertion_limits_m[1]])
+    lo = np.array([arm.yaw_limits_rad[0], spec.joints[1].lower - home[1], arm.insertion_limits_m[0]])
+    hi = np.array([arm.yaw_limits_rad[1], spec.joints[1].upper - home[1], arm.insertion_limits_m[1]])
     lo[1], hi[1] = max(lo[1], -math.pi), min(hi[1], math.pi)
     for q in lo + rng.random((64, 3)) * (hi - lo):
+        values = [0.0] * (insertion + 1)
+        values[0], values[1], values[insertion] = q[0] + home[0], q[1] + home[1], q[2]
         t = np.eye(4)
-        for j, v in zip(spec.joints[:3], q):
+        for j, v in zip(spec.joints[:insertion + 1], values):
             t = t @ j.origin @ axis_motion(j.axis, j.kind, v)
         fk = (t @ local)[:3]
         q1, q2, q3 = q[0], sign * q[1], q[2]
-        u = np.array([math.sin(q1) * math.cos(q2), -math.sin(q2), -math.cos(q1) * math.cos(q2)])
+        if arm.yaw_axis is None:
+            u = np.array([math.sin(q1) * math.cos(q2), -math.sin(q2), -math.cos(q1) * math.cos(q2)])
+        else:
+            u = (axis_motion(arm.yaw_axis, REVOLUTE, q1)[:3, :3] @ axis_motion(arm.pitch_axis, REVOLUTE, q2)[:3, :3]
+                 @ np.array([0.0, 0.0, -1.0]))
         closed = rcm + base @ ((q3 + arm.along_shaft_m) * u)
         miss = float(np.linalg.norm(fk - closed))
         if miss > FK_TOLERANCE_M:
-            raise ChainError(where, f"not a yaw / pitch / insertion RCM mechanism: at q = ({q[0]:.3f}, {q[1]:.3f}, "
-                                    f"{q[2]:.4f}) the reaching point is {miss * 1000:.4f} mm from the closed form")
+            raise ChainError(where, f"not a yaw / pitch / insertion RCM mechanism: at q = ({values[0]:.3f}, "
+                                    f"{values[1]:.3f}, {q[2]:.4f}) the reaching point is {miss * 1000:.4f} mm from "
+                                    f"the closed form")

@@ -72,9 +72,14 @@ HELP = """Port placement for the da Vinci Research Kit on a patient: two or thre
 CONFIG_HELP = "TOML or YAML config ([patient], [target], [robot], [constraints], [objective]); default: the dVRK example."
 
 def arm_limits(arm):
+    """The kernel's ``ArmLimits`` of an arm (``dvrk.RcmArm`` or ``rcm_arm.RcmLimits``; a spherical mechanism with
+    its axes)."""
     from surgopt.kinematics.port_place import ArmLimits
 
-    return ArmLimits(*arm.yaw_limits_rad, *arm.pitch_limits_rad, *arm.insertion_limits_m, arm.along_shaft_m)
+    axes = getattr(arm, "yaw_axis", None)
+    spherical = (True, *arm.yaw_axis, *arm.pitch_axis) if axes is not None else ()
+    return ArmLimits(*arm.yaw_limits_rad, *arm.pitch_limits_rad, *arm.insertion_limits_m, arm.along_shaft_m,
+                     *spherical)
 
 
 def approach(target: Target, wrist_bend_rad: float):
