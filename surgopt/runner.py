@@ -16,7 +16,7 @@ from dataclasses import dataclass, field
 
 from surgopt.backends import get_backend
 from surgopt.config import study_key
-from surgopt.errors import SurgoptError, UsageError, out_of_memory
+from surgopt.errors import ConfigError, SurgoptError, UsageError, out_of_memory
 from surgopt.interrupts import raise_if_stopped
 from surgopt.jit import numba_cache_dir
 from surgopt.store import Run, Store
@@ -196,6 +196,12 @@ def run_study(study, cfg, *, config_name: str, store: Store, jobs: int = DEFAULT
                     run = store.finish(run, **label)
             return RunResult(run, run.parts(schema), True, 0, time.perf_counter() - t0)
     check_budget(study, cfg, jobs, max_hours, max_memory_bytes, backend=backend, scheduler=scheduler, plan=plan)
+    if study.preflight is not None:  # a config the kernels refuse: before the store is touched
+        _warm_up(study, cfg, say)
+        try:
+            study.preflight(cfg)
+        except ValueError as exc:
+            raise ConfigError(config_name, str(exc)) from None
 
     lock = store.lock(study.name, key, on_wait=lambda who: say(f"waiting for {who} to finish this study ..."))
     with where.open(jobs, scheduler) as handle, lock:  # connect to a cluster before anything is written

@@ -124,6 +124,9 @@ class Study:
     feasible_mask: Callable[[Any], Any]
     figures: Callable[[Any, Any, Path, int | None], list[Path]]
     flags: tuple[Flag, ...] = ()
+    #: ``preflight(cfg)``: a check that needs the kernels (port-place: a target no candidate port reaches), run in
+    #: the parent after the kernels load and before anything is written; a ValueError "field: why" refuses the config
+    preflight: Callable[[Any], None] | None = None
     #: ``figure_columns(config as stored)``: the only columns the grid's figures read (None: every column); a run
     #: of millions of rows then plots in the memory of a few columns
     figure_columns: Callable[[Any], list[str]] | None = None

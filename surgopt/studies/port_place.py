@@ -376,6 +376,22 @@ def warm_up(cfg) -> None:
     tables(cfg)
 
 
+def preflight(cfg) -> None:
+    """Refuse (a ValueError naming the field) a target that no candidate port's instrument reaches whole, docked
+    toward its centre: every layout of the grid would fail on reach. (A search docks as it explores: not checked.)"""
+    from surgopt.studies.search import optimiser_of
+
+    if optimiser_of(cfg) is not None:
+        return
+    _, t, _, _, _ = tables(cfg)
+    best = int(t.reach_count.max())
+    if best < t.n_points:
+        raise ValueError(f"target: no candidate port's instrument ({instrument_of(cfg).name}, docked toward the "
+                         f"target's centre) reaches the whole target: {best:,} of its {t.n_points:,} points at best, "
+                         f"so every layout would fail on reach; move or shrink the target, ease its approach cone, "
+                         f"or widen patient.port_region / constraints.port_to_target_mm")
+
+
 #: Cost model: ~60 ns to combine one design and turn it into columns on one core (~70 ns with a third
 #: instrument), plus the tables (~3 us per site x target point, ~0.3 us per instrument pair x target point);
 #: a row is ~190 bytes (~230 with a third instrument).
@@ -500,4 +516,4 @@ STUDY = Study(
     help=HELP, config_help=CONFIG_HELP, schema=schema, key_columns=("design_id",), objective=OBJECTIVE,
     auto_chunk=auto_chunk, n_tasks=n_tasks, warm_up=warm_up, compute_task=compute_task, summary=summary,
     feasible_mask=feasible_mask, figures=figures_in("port_place"), estimate=estimate, search_plan=search_plan,
-    evaluate=evaluate_designs, figure_columns=figure_columns)
+    evaluate=evaluate_designs, figure_columns=figure_columns, preflight=preflight)
