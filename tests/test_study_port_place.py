@@ -265,6 +265,19 @@ def test_bad_input_is_one_line_naming_the_field(tmp_path, case):
     assert not (tmp_path / "store").exists()
 
 
+def test_the_elevation_is_each_shafts_angle_above_the_horizontal():
+    """Hanna et al.'s elevation angle of each instrument against atan2 of the rise over the horizontal run
+    from its port to the target centre, from the rows' own port positions (three instruments, every row)."""
+    cfg = S.PortPlaceConfig.model_validate(THREE)
+    cols = S.compute_task(cfg, S.n_total(cfg), 0)
+    cx, cy, cz = cfg.target.centre_mm
+    for arm in ("psm1", "psm2", "psm3"):
+        run = np.hypot(cols[f"{arm}_x_mm"] - cx, cols[f"{arm}_y_mm"] - cy)
+        np.testing.assert_allclose(cols[f"{arm}_elevation_deg"], np.degrees(np.arctan2(cols[f"{arm}_z_mm"] - cz, run)),
+                                   rtol=0, atol=1e-9)
+    assert np.ptp(cols["psm1_elevation_deg"]) > 10  # the premise: the elevation varies over the sites
+
+
 def test_the_cli_runs_stores_and_reports_the_clinical_checks(tmp_path):
     import json
 

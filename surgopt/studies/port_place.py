@@ -237,6 +237,9 @@ def schema(config=None):
     fields += [pa.field(f"{arm}_{c}_mm", pa.float64()) for arm in arms for c in "xyz"]
     fields += [pa.field(c, pa.float64()) for c in float_columns(config)]
     fields += [pa.field("min_port_spacing_mm", pa.float64()), pa.field("psm_to_target_mm", pa.float64()),
+               *[pa.field(f"{arm}_elevation_deg", pa.float64(), metadata={
+                   "meaning": "the instrument's shaft (port to target centre) above the horizontal: Hanna et al. "
+                              "1997's elevation angle"}) for arm in arms[:-1]],
                *[pa.field(c, pa.float64()) for c in docking_columns(config)],
                pa.field("cost", pa.float64()),
                pa.field("score", pa.float64(), metadata={"meaning": "what summarize ranks by (higher is better): "
@@ -305,6 +308,9 @@ def design_rows(cfg, sites, t, ids, site_ids, f, bad, cost, design_ids, docking_
             spacing = np.minimum(spacing, t.spacing[ids[:, a], ids[:, b]])
     cols["min_port_spacing_mm"] = spacing * 1000
     cols["psm_to_target_mm"] = d[ids[:, :-1]].max(axis=1) if len(ids) else np.zeros(0)
+    rise = np.degrees(np.arcsin((sites[:, 2] - centre[2]) * 1000 / d))  # each site's elevation over the centre
+    for a, arm in enumerate(arms[:-1]):
+        cols[f"{arm}_elevation_deg"] = rise[ids[:, a]]
     for c, name in enumerate(docking_columns(cfg)):
         cols[name] = np.asarray(docking_deg[:, c], dtype=np.float64)
     cols["cost"] = cost
@@ -475,6 +481,8 @@ def summary(parts) -> Summary:
             ["manipulation angle over the target (deg)", f"{b['manipulation_angle_min_deg']:.1f} - "
              f"{b['manipulation_angle_max_deg']:.1f}", "45-75"],
             ["azimuth imbalance (deg)", f"{b['azimuth_imbalance_deg']:.1f}", "0: equal azimuths (Hanna 1997)"],
+            ["instrument elevation at the centre (deg)", f"{b['psm1_elevation_deg']:.1f} / "
+             f"{b['psm2_elevation_deg']:.1f}", "60 with a 60-deg manipulation angle (Hanna 1997)"],
             ["optical axis off the instruments' arc (deg)", f"{b['camera_off_arc_deg']:.1f}", "0: camera between them"],
             ["common reach" + (" (all three instruments)" if "psm3_reach" in b else ""), f"{b['common_reach']:.3f}",
              "1"],
