@@ -242,6 +242,48 @@ def test_three_psms_from_the_cli_store_only_feasible_rows_and_say_so(tmp_path):
     assert not (tmp_path / "t").exists() or not any((tmp_path / "t").rglob("*.parquet"))
 
 
+def test_a_target_from_a_points_file_gives_the_rows_of_the_same_points_sampled(tmp_path):
+    """target.shape = 'points': the small config's own ellipsoid points written to a CSV (with a header comment)
+    and to a .npy file (in m) give every row of the sampled target; without centre_mm the centre is the points'
+    centroid."""
+    from surgopt.config import validate
+
+    cfg = validate(SMALL, S.Config, "x")
+    pts = S.target_points_mm(cfg.target)
+    np.savetxt(tmp_path / "t.csv", pts, delimiter=",", header="x_mm, y_mm, z_mm")
+    np.save(tmp_path / "t.npy", pts / 1000)
+    grid = S.compute_task(cfg, 10 ** 7, 0)
+    for target in ({"points_file": str(tmp_path / "t.csv")}, {"points_file": str(tmp_path / "t.npy"), "points_units": "m"}):
+        f = validate({**SMALL, "target": {"shape": "points", "centre_mm": cfg.target.centre_mm, **target}}, S.Config, "x")
+        assert len(S.target_points_mm(f.target)) == len(pts) == 59
+        rows = S.compute_task(f, 10 ** 7, 0)
+        for c, v in grid.items():
+            np.testing.assert_allclose(rows[c], v, rtol=0, atol=1e-9, err_msg=c)
+    auto = validate({"target": {"shape": "points", "points_file": str(tmp_path / "t.csv")}}, S.Config, "x")
+    np.testing.assert_allclose(auto.target.centre_mm, pts.mean(axis=0), atol=1e-6)
+    assert len(auto.target.points_sha256) == 64
+
+
+POINT_FILE_ERRORS = {
+    "not finite": ("1 2 3\n4 nan 6\n", "row 2 is not finite"),
+    "two columns": ("1 2\n3 4\n", "not rows of x y z"),
+    "words": ("x y z\n1 2 3\n", "not x y z rows of numbers"),
+    "outside the body": ("0 -100 40\n0 -100 400\n", "is outside the body"),
+}
+
+
+@pytest.mark.parametrize("case", sorted(POINT_FILE_ERRORS))
+def test_a_bad_points_file_is_one_line_naming_the_field(tmp_path, case):
+    text, what = POINT_FILE_ERRORS[case]
+    (tmp_path / "t.txt").write_text(text)
+    (tmp_path / "p.toml").write_text('[target]\nshape = "points"\npoints_file = "t.txt"\n')
+    r = cli("port-place", "p.toml", "--store", tmp_path / "s", check=False, cwd=tmp_path)
+    lines = fault_lines(r.stderr)
+    assert r.returncode == 2 and len(lines) == 1 and "p.toml" in lines[0] and "target" in lines[0], r.stderr
+    assert what in lines[0], lines[0]
+    assert not (tmp_path / "s").exists()
+
+
 BAD = {
     "target outside the body": ("[target]\ncentre_mm = [0.0, -100.0, 130.0]\n", "target", "outside the body"),
     "reversed range": ("[constraints]\nport_to_target_mm = [180.0, 80.0]\n", "port_to_target_mm", "low < high"),

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import math
 from functools import lru_cache
+from pathlib import Path
 from typing import Annotated, Literal
 
 import numpy as np
@@ -117,11 +118,17 @@ class Patient(StrictModel):
 
 class Target(StrictModel):
     """The anatomy every instrument must reach: a sphere, ellipsoid or box (``radii_mm``: semi-axes, or half
-    sides), sampled on a grid of ``spacing_mm``. Default: an ellipsoid of 35 x 45 x 30 mm semi-axes in the
-    pelvis, 100 mm caudal of the dome's top and 40 mm above its base (a prostate-bed-like target; an
-    assumption)."""
+    sides), sampled on a grid of ``spacing_mm``, or the points of a file (``shape = "points"``). Default: an
+    ellipsoid of 35 x 45 x 30 mm semi-axes in the pelvis, 100 mm caudal of the dome's top and 40 mm above its
+    base (a prostate-bed-like target; an assumption)."""
 
-    shape: Literal["sphere", "ellipsoid", "box"] = "ellipsoid"
+    shape: Literal["sphere", "ellipsoid", "box", "points"] = "ellipsoid"
+    points_file: str | None = Field(None, min_length=1, description="shape = 'points': a text file of x y z rows "
+                                    "(commas or spaces; '#' comments) or a .npy array, in the patient frame, "
+                                    "relative to the config file; its sha256 is in the store key",
+                                    json_schema_extra=NOT_IN_KEY)
+    points_sha256: str | None = Field(None, description="filled in: the points file's content hash")
+    points_units: Literal["mm", "m"] = "mm"
     centre_mm: Vec3 = Field([0.0, -100.0, 40.0], min_length=3, max_length=3)
     radii_mm: Vec3 = Field([35.0, 45.0, 30.0], min_length=3, max_length=3)
     spacing_mm: float = Field(6.0, ge=0.5, le=100.0)
@@ -131,6 +138,33 @@ class Target(StrictModel):
     approach_half_angle_deg: float = Field(
         0.0, ge=0.0, le=90.0, description="every direction within this angle of approach_direction must be "
         "reachable (the wrist bends the jaws up to its limit away from the shaft)")
+
+    @model_validator(mode="after")
+    def _points_from_the_file(self, info: ValidationInfo):
+        """shape = 'points': the file resolved, read (bounded), hashed and checked; centre_mm, when not given,
+        the points' centroid and radii_mm their half extents (what the figures outline)."""
+        if self.shape != "points":
+            if self.points_file is not None:
+                raise ValueError("points_file is given but shape is not 'points': set shape = 'points' to use it")
+            return self
+        from surgopt.files import config_file_path, hashed_config_file
+
+        context = info.context or {}
+        if self.points_file is None:
+            raise ValueError("shape = 'points' needs points_file (x y z rows, or a .npy array)")
+        path = config_file_path(self.points_file, context)
+        object.__setattr__(self, "points_file", str(path))
+        if context.get("stored"):
+            return self
+        _, sha = hashed_config_file("points_file", path, self.points_sha256, MAX_POINTS_BYTES, "points_sha256")
+        object.__setattr__(self, "points_sha256", sha)
+        pts = file_points_mm(str(path), sha, self.points_units)
+        if "centre_mm" not in self.model_fields_set:
+            object.__setattr__(self, "centre_mm", [round(float(v), 6) for v in pts.mean(axis=0)])
+        if "radii_mm" not in self.model_fields_set:
+            half = np.maximum(np.abs(pts - np.asarray(self.centre_mm)).max(axis=0), 1.0)
+            object.__setattr__(self, "radii_mm", [round(float(v), 6) for v in half])
+        return self
 
     @model_validator(mode="after")
     def _positive(self):
@@ -275,8 +309,41 @@ def grid_1d(half: float, spacing: float) -> np.ndarray:
     return np.arange(-k, k + 1) * spacing
 
 
+#: The largest target points file read (bytes): 20,000 points of text with room to spare.
+MAX_POINTS_BYTES = 20 * 2 ** 20
+
+
+@lru_cache(maxsize=4)
+def file_points_mm(path: str, sha256: str, units: str) -> np.ndarray:
+    """The target points of a file (mm): x y z rows of text (commas or spaces, '#' comments) or a .npy array;
+    a ValueError naming points_file when it is not n x 3 finite numbers. Cached per file content."""
+    import io
+
+    from surgopt.files import read_config_file
+
+    data = read_config_file("points_file", Path(path), MAX_POINTS_BYTES)
+    try:
+        if path.lower().endswith(".npy"):
+            pts = np.load(io.BytesIO(data), allow_pickle=False)
+        else:
+            text = data.decode("utf-8").replace(",", " ")
+            pts = np.loadtxt(io.StringIO(text), comments="#", ndmin=2)
+    except (ValueError, UnicodeDecodeError, OSError) as exc:
+        raise ValueError(f"points_file: {path}: not x y z rows of numbers ({str(exc).splitlines()[0][:100]})") from None
+    pts = np.asarray(pts, dtype=float)
+    if pts.ndim != 2 or pts.shape[1] != 3 or len(pts) == 0:
+        raise ValueError(f"points_file: {path}: {pts.shape} values, not rows of x y z")
+    bad = ~np.isfinite(pts).all(axis=1)
+    if bad.any():
+        raise ValueError(f"points_file: {path}: row {int(np.argmax(bad)) + 1} is not finite")
+    return pts * (1000.0 if units == "m" else 1.0)
+
+
 def target_points_mm(t: Target) -> np.ndarray:
-    """The target sampled on a grid of ``spacing_mm`` centred on it (points inside the shape)."""
+    """The target's points (mm): the file's, or the shape sampled on a grid of ``spacing_mm`` centred on it
+    (points inside the shape)."""
+    if t.shape == "points":
+        return file_points_mm(t.points_file, t.points_sha256, t.points_units)
     gx, gy, gz = (grid_1d(r, t.spacing_mm) for r in t.radii_mm)
     x, y, z = np.meshgrid(gx, gy, gz, indexing="ij")
     pts = np.stack([x.ravel(), y.ravel(), z.ravel()], axis=1)
@@ -313,7 +380,6 @@ def body_mesh(path: str, sha256: str, units: str, offset_mm: tuple):
     """The patient's mesh (trimesh) in mm, offset; a ValueError naming the problem if it cannot be read, is not
     closed (inside and outside would be undefined) or is too large. Cached per file content."""
     import io
-    from pathlib import Path
 
     import trimesh
 

@@ -14,6 +14,20 @@ def arms(c: dict) -> list[tuple[str, str, str]]:
     return [(arm, colour, arm.upper()) for arm, colour in COLOURS.items() if f"{arm}_site" in c]
 
 
+def target_top_view(ax, cfg, targets: np.ndarray, colour: str) -> None:
+    """The target from above: its outline (sphere, ellipsoid, box), or its points when it came from a file."""
+    if cfg.target.shape == "points":
+        ax.scatter(targets[:, 0], targets[:, 1], s=4, color=colour, alpha=0.5, label="target points (top view)")
+        return
+    t = np.linspace(0, 2 * np.pi, 200)
+    (rx, ry), (cx, cy) = cfg.target.radii_mm[:2], cfg.target.centre_mm[:2]
+    if cfg.target.shape == "box":
+        ax.fill(cx + rx * np.array([-1, 1, 1, -1]), cy + ry * np.array([-1, -1, 1, 1]), color=colour, alpha=0.25,
+                label="target (top view)")
+    else:
+        ax.fill(cx + rx * np.cos(t), cy + ry * np.sin(t), color=colour, alpha=0.25, label="target (top view)")
+
+
 def best_per_site(c: dict, n_sites: int) -> np.ndarray:
     """The least cost of a feasible design that puts any arm at each site (NaN where none does)."""
     out = np.full(n_sites, np.inf)
@@ -85,9 +99,7 @@ def figures(cfg, table, out, design_id=None):
         ax.plot(a * np.cos(t), b * np.sin(t), color="0.6", lw=1, label="dome base")
     else:
         ax.plot([-a, a, a, -a, -a], [-b, -b, b, b, -b], color="0.6", lw=1, label="mesh extent")
-    rx, ry = cfg.target.radii_mm[:2]
-    cx, cy = cfg.target.centre_mm[:2]
-    ax.fill(cx + rx * np.cos(t), cy + ry * np.sin(t), color="C4", alpha=0.25, label="target (top view)")
+    target_top_view(ax, cfg, targets, "C4")
     sc = ax.scatter(sites[:, 0], sites[:, 1], c=per_site, cmap="viridis_r", s=40)
     none = np.isnan(per_site)
     ax.scatter(sites[none, 0], sites[none, 1], facecolors="none", edgecolors="0.5", s=40,
@@ -126,6 +138,7 @@ def reach_maps(plt, cfg, sites, t, dex, out):
     """Per-arm maps, top view: the share of the target an instrument docked at each site reaches (within its joint
     limits and any approach cone), its mean isotropy over the points it reaches, and the share of the target the
     camera docked there sees. A map whose value is the same at every site says so in its title."""
+    from surgopt.studies import port_place as S
     from surgopt.studies.port_place import body_extent_mm
 
     a, b, _ = body_extent_mm(cfg.patient)
@@ -135,14 +148,12 @@ def reach_maps(plt, cfg, sites, t, dex, out):
             (iso, "instrument: mean isotropy there", (np.nanmin(iso), max(np.nanmax(iso), np.nanmin(iso) + 1e-3))),
             (t.coverage, "camera: share of the target seen", (0.0, 1.0)))
     fig, axes = plt.subplots(1, 3, figsize=(13.0, 4.6), sharey=True)
-    rx, ry = cfg.target.radii_mm[:2]
-    cx, cy = cfg.target.centre_mm[:2]
-    tt = np.linspace(0, 2 * np.pi, 200)
+    targets = S.target_points_mm(cfg.target)
     for ax, (v, title, (vmin, vmax)) in zip(axes, maps):
         lo, hi = np.nanmin(v), np.nanmax(v)
         sc = ax.scatter(sites[:, 0], sites[:, 1], c=v, cmap="viridis", vmin=vmin, vmax=vmax, s=30)
         fig.colorbar(sc, ax=ax, shrink=0.75, pad=0.02)
-        ax.plot(cx + rx * np.cos(tt), cy + ry * np.sin(tt), color="C3", lw=1, label="target (top view)")
+        target_top_view(ax, cfg, targets, "C3")
         ax.set_xlim(-a, a)
         ax.set_ylim(-b, b)
         ax.set_aspect("equal")
