@@ -497,6 +497,32 @@ def test_an_approach_cone_keeps_the_points_whose_shaft_the_wrist_can_turn_into_i
         validate({"target": {"approach_half_angle_deg": 10.0}}, S.PortPlaceConfig, "t")
 
 
+def test_the_wrist_margin_is_what_the_cone_leaves_of_the_bend_at_the_worst_point():
+    """psmN_wrist_margin_deg: the wrist's bend less the cone's half-angle less the worst point's angle between
+    shaft and approach direction, against a per-point loop with atan2 (not the study's arccos); >= 0 exactly at
+    the ports whose instrument keeps every point the joints allow; the whole bend (80 deg) without a cone."""
+    from surgopt.config import validate
+
+    base = {"target": {"spacing_mm": 15.0}, "patient": {"port_region": {"site_spacing_mm": 40.0}}}
+    coned = validate({**base, "target": {**base["target"], "approach_direction": [0.0, 0.3, -1.0],
+                                         "approach_half_angle_deg": 10.0}}, S.PortPlaceConfig, "t")
+    sites = S.sites_mm(coned) / 1000
+    margin = S.wrist_margin_deg(coned, sites)
+    d = np.array([0.0, 0.3, -1.0]) / np.linalg.norm([0.0, 0.3, -1.0])
+    for i, site in enumerate(sites):
+        worst = max(math.degrees(math.atan2(np.linalg.norm(np.cross(p - site, d)), (p - site) @ d))
+                    for p in S.target_points_mm(coned.target) / 1000)
+        assert margin[i] == pytest.approx(math.degrees(dvrk.LND_WRIST_BEND_RAD) - 10.0 - worst, abs=1e-9)
+    rot = K.docking_frames(sites, np.asarray(coned.target.centre_mm) / 1000, S.LATERAL)
+    _, reach_cone, _ = S.port_tables(coned, sites, rot)
+    free = validate(base, S.PortPlaceConfig, "t")
+    _, reach_free, _ = S.port_tables(free, sites, rot)
+    keeps = (reach_cone == reach_free).all(axis=1)
+    assert 0 < (margin >= 0).sum() < len(sites)  # the premise: the cone binds at some ports, not all
+    assert np.array_equal(margin >= -1e-9, keeps)
+    assert np.all(S.wrist_margin_deg(free, sites) == math.degrees(dvrk.LND_WRIST_BEND_RAD))
+
+
 def test_a_port_region_outline_keeps_the_sites_inside_it():
     """[patient.port_region] polygon_mm (a top-view outline a surgeon marks): the sites are the default's inside
     the outline (checked with matplotlib's Path, apart from the study's even-odd test), a concave outline keeps
@@ -652,8 +678,10 @@ PSM_DH = [  # the Classic PSM with the Large Needle Driver's roll and wrist, mod
      "upper_deg": math.degrees(0.925025)},
     {"joint": "prismatic", "alpha_deg": 90, "a_m": 0, "d_m": -0.4318, "lower_m": 0.0, "upper_m": 0.24},
     {"alpha_deg": 0, "a_m": 0, "d_m": 0.4162, "lower_deg": -260, "upper_deg": 260},
-    {"alpha_deg": -90, "a_m": 0, "d_m": 0, "theta_offset_deg": -90, "lower_deg": -80, "upper_deg": 80},
-    {"alpha_deg": -90, "a_m": 0.0091, "d_m": 0, "theta_offset_deg": -90, "lower_deg": -80, "upper_deg": 80},
+    {"alpha_deg": -90, "a_m": 0, "d_m": 0, "theta_offset_deg": -90, "lower_deg": math.degrees(-1.39626),
+     "upper_deg": math.degrees(1.39626)},
+    {"alpha_deg": -90, "a_m": 0.0091, "d_m": 0, "theta_offset_deg": -90, "lower_deg": math.degrees(-1.39626),
+     "upper_deg": math.degrees(1.39626)},
 ]
 
 
@@ -695,7 +723,7 @@ def test_an_rcm_arm_from_a_dh_table_or_a_urdf_gives_the_shipped_arms_rows(tmp_pa
         for f in ("yaw_limits_rad", "pitch_limits_rad", "insertion_limits_m"):
             assert getattr(got, f) == pytest.approx(getattr(ref, f), abs=1e-12), f
         assert got.along_shaft_m == pytest.approx(ref.along_shaft_m, abs=1e-12)
-    assert psm.wrist_bend_rad == pytest.approx(dvrk.LND_WRIST_BEND_RAD, abs=1e-5) and ecm.wrist_bend_rad == 0.0
+    assert psm.wrist_bend_rad == pytest.approx(dvrk.LND_WRIST_BEND_RAD, abs=1e-12) and ecm.wrist_bend_rad == 0.0
     a, b = S.compute_task(shipped, 10 ** 6, 0), S.compute_task(files, 10 ** 6, 0)
     assert b["feasible"].any()
     for c, v in a.items():

@@ -240,6 +240,9 @@ def schema(config=None):
                *[pa.field(f"{arm}_elevation_deg", pa.float64(), metadata={
                    "meaning": "the instrument's shaft (port to target centre) above the horizontal: Hanna et al. "
                               "1997's elevation angle"}) for arm in arms[:-1]],
+               *[pa.field(f"{arm}_wrist_margin_deg", pa.float64(), metadata={
+                   "meaning": "the wrist's bend left at the worst target point for the approach cone (its whole "
+                              "bend when no approach is asked; negative: short by that much)"}) for arm in arms[:-1]],
                *[pa.field(c, pa.float64()) for c in docking_columns(config)],
                pa.field("cost", pa.float64()),
                pa.field("score", pa.float64(), metadata={"meaning": "what summarize ranks by (higher is better): "
@@ -287,6 +290,21 @@ def compute_task(cfg, chunk: int, index: int) -> dict:
                        np.zeros((len(design_ids), len(docking_columns(cfg)))))
 
 
+def wrist_margin_deg(cfg, sites: np.ndarray) -> np.ndarray:
+    """Per port (``sites``, m): how far the instrument's wrist could still turn the jaws at the worst target point,
+    wrist bend - cone half-angle - the angle between the shaft (port to point) and the approach direction, least
+    over the target's points (deg; negative: the cone is out of the wrist's reach there by that much). Without an
+    approach direction no point asks anything of the wrist: the margin is its whole bend."""
+    bend = math.degrees(instrument_of(cfg).wrist_bend_rad)
+    t = cfg.target
+    if t.approach_direction is None:
+        return np.full(len(sites), bend)
+    a = np.asarray(t.approach_direction, float) / np.linalg.norm(t.approach_direction)
+    shafts = target_points_mm(t)[None, :, :] / 1000 - sites[:, None, :]
+    cos = np.clip(shafts @ a / np.linalg.norm(shafts, axis=2), -1.0, 1.0)
+    return bend - t.approach_half_angle_deg - np.degrees(np.arccos(cos)).max(axis=1)
+
+
 def design_rows(cfg, sites, t, ids, site_ids, f, bad, cost, design_ids, docking_deg) -> dict:
     """The rows of designs: ``ids`` (a column per arm, ``arms_of``) index ``sites`` and ``t`` (the tables they
     were combined from), ``site_ids`` are the candidate sites' numbers reported; ``docking_deg`` (yaw, pitch of
@@ -309,8 +327,10 @@ def design_rows(cfg, sites, t, ids, site_ids, f, bad, cost, design_ids, docking_
     cols["min_port_spacing_mm"] = spacing * 1000
     cols["psm_to_target_mm"] = d[ids[:, :-1]].max(axis=1) if len(ids) else np.zeros(0)
     rise = np.degrees(np.arcsin((sites[:, 2] - centre[2]) * 1000 / d))  # each site's elevation over the centre
+    margin = wrist_margin_deg(cfg, sites)
     for a, arm in enumerate(arms[:-1]):
         cols[f"{arm}_elevation_deg"] = rise[ids[:, a]]
+        cols[f"{arm}_wrist_margin_deg"] = margin[ids[:, a]]
     for c, name in enumerate(docking_columns(cfg)):
         cols[name] = np.asarray(docking_deg[:, c], dtype=np.float64)
     cols["cost"] = cost
