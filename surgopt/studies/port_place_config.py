@@ -21,7 +21,8 @@ from surgopt.robots import dvrk
 from surgopt.studies.rcm_arm_config import RcmArmFile, file_arm
 from surgopt.studies.search import check_objectives, search_field
 
-Vec3 = list[float]
+#: A 3-vector of a patient-sized quantity: finite and within 10 m (mm) of the patient frame's origin.
+Vec3 = list[Annotated[float, Field(ge=-10_000.0, le=10_000.0, allow_inf_nan=False)]]
 #: What summarize and a search rank by (higher is better): -cost, less 100 per reason a design fails.
 OBJECTIVE = "score"
 #: Columns a [search] may optimise.
@@ -93,8 +94,8 @@ class Patient(StrictModel):
 
     @model_validator(mode="after")
     def _positive(self, info: ValidationInfo):
-        if min(self.semi_axes_mm) <= 0:
-            raise ValueError("semi_axes_mm: every semi-axis must be > 0")
+        if not all(20.0 <= v <= 1000.0 for v in self.semi_axes_mm):
+            raise ValueError(f"semi_axes_mm: {self.semi_axes_mm}: every semi-axis of an abdomen is 20 to 1,000 mm")
         if self.shape == "mesh":
             self._resolve_mesh(info.context or {})
         elif self.mesh_file is not None:
