@@ -848,3 +848,37 @@ def test_the_raven_as_a_port_place_instrument_reaches_what_joint_sampling_reache
     assert not reach[0][far].any() and reach[0][near].mean() > 0.9
     cols = S.compute_task(cfg, S.n_total(cfg), 0)
     assert cols["feasible"].any() and cols["psm1_reach"].max() == 1.0
+
+
+def test_an_angled_scope_on_a_spherical_arm_is_held_to_that_arms_pointing():
+    """The Raven's spherical mechanism as the endoscope arm with a 30 deg scope, its pitch narrowed to 60-100 deg:
+    every site camera_views accepts has a shaft the arm can point, checked through the chain (the joints
+    spherical_inverse gives put the chain's shaft on it, 1e-9); the sites the full 20-140 deg range accepts and
+    the narrow one refuses have shafts the narrow arm cannot point (the premise: there are some)."""
+    cfg, arm, lim, wrist = _raven()
+
+    def views(pitch_deg):
+        rows = [dict(r) for r in RAVEN_DH]
+        rows[1].update(lower_deg=pitch_deg[0], upper_deg=pitch_deg[1])
+        scope = S.PortPlaceConfig.model_validate({**COARSE, "robot": {
+            "camera_file": {"dh": rows, "dh_convention": "standard"}, "camera_scope_angle_deg": 30.0}})
+        cam = S.camera_of(scope)
+        sites, centre = S.sites_mm(scope) / 1000, np.asarray(scope.target.centre_mm) / 1000
+        rot = K.docking_frames(sites, centre, S.LATERAL)
+        return cam, sites, rot, *K.camera_views(sites, rot, centre, cam)
+
+    cam, sites, rot, tips, _, ok = views((60.0, 100.0))
+    _, _, _, tips_wide, _, ok_wide = views((20.0, 140.0))
+    assert cam.arm.spherical and ok.any()
+    home = np.array([*arm.neutral_rad, 0.0])
+    for i in range(len(sites)):
+        t = tips[i] if ok[i] else tips_wide[i]
+        if np.linalg.norm(t - sites[i]) < 1e-6 or not ok_wide[i]:
+            continue  # a tip at the port (insertion clamped to 0) shows no shaft direction
+        shaft = rot[i].T @ (t - sites[i]) / np.linalg.norm(t - sites[i])
+        q1, q2, found = K.spherical_inverse(shaft, cam.arm)
+        assert found == bool(ok[i])
+        if found:
+            p = wrist([home[0] + q1, home[1] + q2, 0.0, 0.1])
+            np.testing.assert_allclose(p / np.linalg.norm(p), shaft, atol=1e-9)
+    assert (ok_wide & ~ok).any()  # the premise: the narrow pitch refuses sites the full range accepts
