@@ -71,6 +71,7 @@ def summary_sections(study, run, parts, top: int = 10, sort: str | None = None,
         best = parts.top(objective, top, ascending=ascending)
         cols = columns(best)
         names = [c for c in names_all if cols[c].dtype != object or c in study.key_columns]
+        more = ""
         if columns_shown:
             unknown = [c for c in columns_shown if c not in names_all]
             if unknown:
@@ -78,7 +79,12 @@ def summary_sections(study, run, parts, top: int = 10, sort: str | None = None,
 
                 raise UsageError(f"--columns: no column {unknown[0][:80]!r}; columns: {', '.join(names_all)}")
             names = list(columns_shown)
-        sections.append((f"top {best.num_rows} by {objective}{' (smallest first)' if ascending else ''}", names,
+        elif study.top_columns is not None:
+            chosen = [c for c in study.top_columns(run.manifest["config"]) if c in names]
+            if len(chosen) < len(names):
+                names, more = chosen, f"; {len(names) - len(chosen)} more columns: --columns or --format json"
+        sections.append((f"top {best.num_rows} by {objective}{' (smallest first)' if ascending else ''}"
+                         f"{more if not columns_shown and study.top_columns is not None and more else ''}", names,
                          [[_fmt(cols[c][i]) for c in names] for i in range(best.num_rows)]))
         rows = []
         for label, v in (("all", parts.column(objective).astype(float)),

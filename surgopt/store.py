@@ -296,8 +296,16 @@ class Run:
 
         i = str(index)
         try:
-            return pq.read_table(pa.BufferReader(arrow_owned(self._verified(i))), schema=schema, columns=columns,
-                                 use_threads=False)
+            data = arrow_owned(self._verified(i))
+            if schema is not None:  # a column the stored part lacks would read as nulls: say so instead
+                have = set(pq.read_schema(pa.BufferReader(data)).names)
+                missing = [c for c in (columns if columns is not None else schema.names) if c not in have]
+                if missing:
+                    more = f" and {len(missing) - 1} more" if len(missing) > 1 else ""
+                    raise StoreError(f"{self.path / self.manifest['parts'][i]['file']}: written by an earlier "
+                                     f"surgopt, without the column {missing[0]!r}{more}; run the study again to "
+                                     f"recompute it")
+            return pq.read_table(pa.BufferReader(data), schema=schema, columns=columns, use_threads=False)
         except (pa.ArrowException, ValueError) as exc:
             raise StoreError(f"{self.path / self.manifest['parts'][i]['file']}: passes its checksum but "
                              f"does not match the study's schema ({exc})") from None

@@ -148,3 +148,23 @@ def test_the_key_knows_the_code_that_computes_rows(tmp_path, monkeypatch):
     monkeypatch.setattr(C, "code_sha256", lambda: hashes["metrics.py"])
     again = run_study(rcm, cfg, config_name="s", store=store, jobs=1, quiet=True)
     assert not again.cache_hit and again.run.key != key
+
+
+def test_a_part_written_without_a_column_the_study_now_has_is_said_not_read_as_nulls(tmp_path, small_cfg):
+    """A run stored by an earlier surgopt, before a column was added: read with the study's schema of today the
+    column would be nulls (pyarrow fills missing fields); the store says which column is missing instead."""
+    import pyarrow as pa
+    import pytest
+
+    from surgopt.errors import StoreError
+    from surgopt.studies import get_study
+
+    store = tmp_path / "store"
+    cli("rcm-grid", small_cfg, "--store", store, "--quiet")
+    run = single_run(store)
+    schema = get_study("rcm-grid").schema_for(run.manifest["config"])
+    run.part_table(0, schema)  # the schema it was written with reads
+    newer = schema.append(pa.field("added_later_m", pa.float64()))
+    with pytest.raises(StoreError, match="without the column 'added_later_m'; run the study again"):
+        run.part_table(0, newer)
+    assert run.part_table(0, newer, ["gii"]).num_rows > 0  # columns it has still read

@@ -3,6 +3,7 @@ against the modified-DH tables multiplied out in tests/reference.py, reach again
 angles and clearances against closed forms, a mirror-symmetric patient's optimum, bad input, the CLI."""
 import itertools
 import math
+import os
 
 import numpy as np
 import pytest
@@ -335,6 +336,12 @@ def test_the_cli_runs_stores_and_reports_the_clinical_checks(tmp_path):
     out = cli("plot", "--store", tmp_path / "s", "--out", tmp_path / "fig").stdout
     assert "port_place_layout_3d.png" in out and "port_place_sites_top.png" in out
     assert "port_place_reach_top.png" in out and (tmp_path / "fig" / "port_place_reach_top.png").stat().st_size > 10_000
+    wide = {**os.environ, "COLUMNS": "400"}
+    text = cli("summarize", "--store", tmp_path / "s", env=wide).stdout  # the top table: the study's selection
+    assert "more columns: --columns or --format json" in text and "manipulation_angle_centre_deg" in text
+    assert "psm1_x_mm" not in text
+    chosen = cli("summarize", "--store", tmp_path / "s", "--columns", "design_id,psm1_x_mm", env=wide).stdout
+    assert "psm1_x_mm" in chosen and "more columns" not in chosen
 
 
 # --- a patient given as a triangle mesh (trimesh) ------------------------------------------------------------

@@ -127,6 +127,9 @@ class Study:
     #: ``preflight(cfg)``: a check that needs the kernels (port-place: a target no candidate port reaches), run in
     #: the parent after the kernels load and before anything is written; a ValueError "field: why" refuses the config
     preflight: Callable[[Any], None] | None = None
+    #: ``top_columns(config as stored)``: the columns ``summarize``'s top table shows when --columns is not given
+    #: (None: every column); a study of dozens of columns names the few a reader compares layouts by
+    top_columns: Callable[[Any], list[str]] | None = None
     #: ``figure_columns(config as stored)``: the only columns the grid's figures read (None: every column); a run
     #: of millions of rows then plots in the memory of a few columns
     figure_columns: Callable[[Any], list[str]] | None = None

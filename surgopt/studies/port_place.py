@@ -456,6 +456,13 @@ def estimate(cfg) -> Estimate:
                     smaller="store only the feasible designs' rows (rows_stored=feasible), or make it smaller")
 
 
+def top_columns(config) -> list[str]:
+    """What summarize's top table shows: the ports, the cost, and the numbers a surgeon compares layouts by."""
+    return ["design_id", *(f"{arm}_site" for arm in arms_of(config)), "cost", "feasible", "common_reach",
+            "dexterity_mean", "manipulation_angle_centre_deg", "azimuth_imbalance_deg", "camera_coverage",
+            "min_port_spacing_mm", "shaft_clearance_mm", "external_clearance_mm"]
+
+
 def figure_columns(config) -> list[str]:
     """What the grid's figures read: the ports, the cost and the feasibility (not the ~40 other columns)."""
     return ["design_id", *(f"{arm}_site" for arm in arms_of(config)), "cost", "feasible", "infeasible"]
@@ -544,4 +551,4 @@ STUDY = Study(
     help=HELP, config_help=CONFIG_HELP, schema=schema, key_columns=("design_id",), objective=OBJECTIVE,
     auto_chunk=auto_chunk, n_tasks=n_tasks, warm_up=warm_up, compute_task=compute_task, summary=summary,
     feasible_mask=feasible_mask, figures=figures_in("port_place"), estimate=estimate, search_plan=search_plan,
-    evaluate=evaluate_designs, figure_columns=figure_columns, preflight=preflight)
+    evaluate=evaluate_designs, figure_columns=figure_columns, preflight=preflight, top_columns=top_columns)
