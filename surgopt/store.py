@@ -17,7 +17,7 @@ part and the command that repairs it. ``--force`` builds the new run in ``STORE/
 and swaps it in when complete, so a reader of the old run is never left with half of each; a reader
 that loses the race re-reads the manifest. Clean-up (``gc``, ``remove``) leaves locked runs alone.
 
-One module of ~650 lines: the layout, the manifest's shape, what makes a part count as done, its
+One module of ~670 lines: the layout, the manifest's shape, what makes a part count as done, its
 verification on read, the lock, who may delete what, and the recovery of an interrupted swap are one
 contract, changed together.
 """

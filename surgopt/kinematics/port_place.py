@@ -12,7 +12,8 @@ ports (``pair_tables``: common reach, manipulation angle, shaft clearance inside
 and a design (two or three instrument ports and a camera port) combines them (``port_designs``) at a few
 operations per design, so every assignment of >= 10^6 designs is affordable.
 
-One module of ~430 lines: the per-port and per-pair kernels share the frames, the named tuples and the
+One module of ~510 lines: the per-port and per-pair kernels (with the orthogonal and the spherical RCM closed
+forms) share the frames, the named tuples and the
 bit mask of reasons, and are tested together.
 """
 from __future__ import annotations

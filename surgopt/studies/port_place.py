@@ -13,7 +13,7 @@ ports (unordered: the PSMs are the same arm), the third's when there is one, and
 evaluated; docs/port_placement.md has the model, its sources and assumptions.
 
 The config models and the geometry they imply (patient, sites, target) are in ``port_place_config``, the
-design kernels in ``kinematics.port_designs``. One module of ~490 lines: the memoised tables, the rows, the
+design kernels in ``kinematics.port_designs``. One module of ~550 lines: the memoised tables, the rows, the
 search space, the estimate and the summary are one declaration, read together.
 """
 from __future__ import annotations

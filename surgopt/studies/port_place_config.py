@@ -2,7 +2,7 @@
 region and its candidate sites, the target and its points, the robot, the constraints and the objective.
 
 A config is resolved once, at validation (a mesh file read, checked and hashed; the sites counted against the
-constraints), so the validated config says everything that is hashed into the store key. One module of ~430
+constraints), so the validated config says everything that is hashed into the store key. One module of ~500
 lines: the sections and the geometry each one implies (sites from the patient, points from the target) are read
 together.
 """
