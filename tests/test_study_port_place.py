@@ -119,7 +119,8 @@ def _tables(n, m, rng):
     spacing = rng.random((n, n)) * 0.2
     spacing = spacing + spacing.T
     return D.PortTables(reach.sum(axis=1), rng.random(n), count, *pair, spacing, rng.random((n, n)),
-                        rng.random((n, n)) - 0.5, m, D.reach_bits(reach), D.site_dexterity(reach, dex)), reach, dex
+                        rng.random((n, n)) - 0.5, m, D.reach_bits(reach), D.site_dexterity(reach, dex),
+                        np.zeros(n)), reach, dex
 
 
 @pytest.mark.parametrize("instruments", [2, 3])
@@ -788,7 +789,7 @@ def _raven():
     """(config, its RcmLimits, the kernel's ArmLimits, the chain's wrist point at joint values (q1, q2, roll, d4)
     in the closed form's base frame B)."""
     from surgopt.robots import chain
-    from surgopt.robots.rcm_arm import frames_at
+    from surgopt.robots.chain import frames_at
 
     cfg = S.PortPlaceConfig.model_validate({**COARSE, "robot": {"instrument_file": {"dh": RAVEN_DH,
                                                                                     "dh_convention": "standard"}}})

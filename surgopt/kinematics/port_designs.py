@@ -33,6 +33,7 @@ class PortTables(NamedTuple):
     n_points: int
     reach_bits: np.ndarray  # per site: the reached target points, 64 to a uint64 word (``reach_bits``)
     dex_site: np.ndarray  # per site: the mean isotropy over the points it reaches (0 where it reaches none)
+    wrist_margin_deg: np.ndarray  # per site: the wrist's bend left at the worst point (the study's, for its rows)
 
 
 def reach_bits(reach: np.ndarray) -> np.ndarray:

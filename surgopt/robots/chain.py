@@ -327,6 +327,17 @@ def _first_line(exc: Exception) -> str:
     return text.splitlines()[0] if text else type(exc).__name__
 
 
+def frames_at(spec: ChainSpec, q) -> list[np.ndarray]:
+    """Each joint's frame (before its own motion) in the base frame at joint values ``q`` (missing ones 0)."""
+    out, t = [], np.eye(4)
+    q = list(q) + [0.0] * (len(spec.joints) - len(q))
+    for j, v in zip(spec.joints, q):
+        t = t @ j.origin
+        out.append(t.copy())
+        t = t @ axis_motion(j.axis, j.kind, v)
+    return out
+
+
 def chain_transform(spec: ChainSpec, q) -> np.ndarray:
     """Base -> tip-link transform at joint values q (every joint, in order): the plain product."""
     t = np.eye(4)

@@ -31,7 +31,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from surgopt.robots.chain import PRISMATIC, REVOLUTE, ChainError, ChainSpec, axis_motion
+from surgopt.robots.chain import PRISMATIC, REVOLUTE, ChainError, ChainSpec, axis_motion, chain_transform, frames_at
 
 #: Lines meet, a point lies on a line: within this distance (m); axes are orthogonal within this cosine.
 MEET_M = 1e-6
@@ -62,17 +62,6 @@ class RcmLimits:
     #: base frame
     rcm_m: tuple[float, float, float] = (0.0, 0.0, 0.0)
     base_rotation: tuple[tuple[float, float, float], ...] = ((1.0, 0.0, 0.0), (0.0, 1.0, 0.0), (0.0, 0.0, 1.0))
-
-
-def frames_at(spec: ChainSpec, q) -> list[np.ndarray]:
-    """Each joint's frame (before its own motion) in the base frame at joint values ``q`` (missing ones 0)."""
-    out, t = [], np.eye(4)
-    q = list(q) + [0.0] * (len(spec.joints) - len(q))
-    for j, v in zip(spec.joints, q):
-        t = t @ j.origin
-        out.append(t.copy())
-        t = t @ axis_motion(j.axis, j.kind, v)
-    return out
 
 
 def closest_points(p, a, q, b):
@@ -141,7 +130,7 @@ def rcm_mechanism(spec: ChainSpec, name: str, source: str, where: str) -> RcmLim
         cosines[what] = c = abs(float(axes[a] @ axes[b]))
         if c > 1.0 - 1e-9:
             raise ChainError(where, f"the {what} are parallel: the two revolute joints cannot point the shaft")
-    reach, wrist = _reaching_point(spec, frames, axes, points, rcm, shaft, insertion, where)
+    reach, wrist = _reaching_point(spec, home, axes, points, rcm, shaft, insertion, where)
     along = float((reach - rcm) @ shaft)
     z = -shaft
     yb = -(axes[0] - (axes[0] @ shaft) * shaft)
@@ -164,7 +153,7 @@ def rcm_mechanism(spec: ChainSpec, name: str, source: str, where: str) -> RcmLim
     return arm
 
 
-def _reaching_point(spec, frames, axes, points, rcm, shaft, insertion, where):
+def _reaching_point(spec, home, axes, points, rcm, shaft, insertion, where):
     """(the reaching point at q = 0, the wrist's bend): where the first joint axis after the insertion that is
     not along the shaft crosses it (the wrist's first axis), else the tip link's origin; the bend is the least
     half-range of the first two wrist joints (0 with fewer than two)."""
@@ -178,7 +167,7 @@ def _reaching_point(spec, frames, axes, points, rcm, shaft, insertion, where):
                                     f"the shaft: the reaching point is not on it")
         reach = x
     else:
-        tip = (frames[-1] @ axis_motion(spec.joints[-1].axis, spec.joints[-1].kind, 0.0) @ spec.tail)[:3, 3]
+        tip = chain_transform(spec, list(home) + [0.0] * (len(spec.joints) - 2))[:3, 3]
         off = np.linalg.norm(np.cross(tip - rcm, shaft))
         if off > MEET_M:
             raise ChainError(where, f"the tip link's origin is {off * 1000:.3f} mm off the shaft: the reaching point "
@@ -194,9 +183,7 @@ def _hold_to_fk(spec, arm, base, rcm, reach, sign, insertion, where) -> None:
     its angles from the neutral pose, against the chain's forward kinematics of the reaching point (carried by
     the insertion's frame; rolls at 0) at 64 joint values spread over the limits."""
     home = arm.neutral_rad
-    frames = frames_at(spec, home)
-    moved = frames[insertion] @ axis_motion(spec.joints[insertion].axis, PRISMATIC, 0.0)
-    local = np.linalg.solve(moved, np.append(reach, 1.0))  # the point in the insertion's moved frame
+    local = np.linalg.solve(frames_at(spec, home)[insertion], np.append(reach, 1.0))  # in the insertion's frame
     rng = np.random.default_rng(0)
     lo = np.array([arm.yaw_limits_rad[0], spec.joints[1].lower - home[1], arm.insertion_limits_m[0]])
     hi = np.array([arm.yaw_limits_rad[1], spec.joints[1].upper - home[1], arm.insertion_limits_m[1]])
@@ -204,10 +191,8 @@ def _hold_to_fk(spec, arm, base, rcm, reach, sign, insertion, where) -> None:
     for q in lo + rng.random((64, 3)) * (hi - lo):
         values = [0.0] * (insertion + 1)
         values[0], values[1], values[insertion] = q[0] + home[0], q[1] + home[1], q[2]
-        t = np.eye(4)
-        for j, v in zip(spec.joints[:insertion + 1], values):
-            t = t @ j.origin @ axis_motion(j.axis, j.kind, v)
-        fk = (t @ local)[:3]
+        slide = axis_motion(spec.joints[insertion].axis, PRISMATIC, q[2])
+        fk = (frames_at(spec, values)[insertion] @ slide @ local)[:3]
         q1, q2, q3 = q[0], sign * q[1], q[2]
         if arm.yaw_axis is None:
             u = np.array([math.sin(q1) * math.cos(q2), -math.sin(q2), -math.cos(q1) * math.cos(q2)])

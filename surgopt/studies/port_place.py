@@ -155,7 +155,7 @@ def port_tables(cfg: PortPlaceConfig, sites: np.ndarray, rot: np.ndarray, outsid
         azimuth, side = K.camera_pair_tables(sites, centre, LATERAL, K.camera_views(sites, rot, centre, camera)[1])
     spacing = np.linalg.norm(sites[:, None, :] - sites[None, :, :], axis=2)
     tables = D.PortTables(reach.sum(axis=1).astype(np.int64), coverage, *pairs, spacing, azimuth, side,
-                          len(targets), D.reach_bits(reach), D.site_dexterity(reach, dex))
+                          len(targets), D.reach_bits(reach), D.site_dexterity(reach, dex), wrist_margin_deg(cfg, sites))
     return tables, reach, dex
 
 
@@ -260,7 +260,8 @@ def _stored_metadata(config) -> dict | None:
     if stored != "feasible":
         return None
     try:
-        cfg = config if isinstance(config, PortPlaceConfig) else PortPlaceConfig.model_validate(config)
+        cfg = (config if isinstance(config, PortPlaceConfig)  # as stored: its files not read and hashed again
+               else PortPlaceConfig.model_validate(config, context={"stored": True}))
         return {"rows_stored": "feasible", "designs_enumerated": str(n_total(cfg))}
     except (ValueError, OSError):
         return {"rows_stored": "feasible"}
@@ -327,10 +328,9 @@ def design_rows(cfg, sites, t, ids, site_ids, f, bad, cost, design_ids, docking_
     cols["min_port_spacing_mm"] = spacing * 1000
     cols["psm_to_target_mm"] = d[ids[:, :-1]].max(axis=1) if len(ids) else np.zeros(0)
     rise = np.degrees(np.arcsin((sites[:, 2] - centre[2]) * 1000 / d))  # each site's elevation over the centre
-    margin = wrist_margin_deg(cfg, sites)
     for a, arm in enumerate(arms[:-1]):
         cols[f"{arm}_elevation_deg"] = rise[ids[:, a]]
-        cols[f"{arm}_wrist_margin_deg"] = margin[ids[:, a]]
+        cols[f"{arm}_wrist_margin_deg"] = t.wrist_margin_deg[ids[:, a]]
     for c, name in enumerate(docking_columns(cfg)):
         cols[name] = np.asarray(docking_deg[:, c], dtype=np.float64)
     cols["cost"] = cost

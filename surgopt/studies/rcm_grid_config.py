@@ -338,18 +338,16 @@ class Robot(StrictModel):
         joint's axis line {name: (unit axis, a point on it)} and the tool's line (unit axis, tip)."""
         import numpy as np
 
-        from surgopt.robots.chain import axis_motion
+        from surgopt.robots.chain import chain_transform, frames_at
 
         spec = self.chain_spec()
         locked, seed = self.locked_joints_deg or {}, self.seed_deg or {}
-        q = {j.name: math.radians(locked.get(j.name, seed.get(j.name, 0.0))) for j in spec.joints}
-        t, lines = np.eye(4), {}
-        for j in spec.joints:
-            t = t @ j.origin
-            axis = t[:3, :3] @ j.axis
-            lines[j.name] = (axis / np.linalg.norm(axis), t[:3, 3].copy())
-            t = t @ axis_motion(j.axis, j.kind, q[j.name])
-        tool = t @ spec.tail @ self.tool()
+        q = [math.radians(locked.get(j.name, seed.get(j.name, 0.0))) for j in spec.joints]
+        lines = {}
+        for j, f in zip(spec.joints, frames_at(spec, q)):
+            axis = f[:3, :3] @ j.axis
+            lines[j.name] = (axis / np.linalg.norm(axis), f[:3, 3].copy())
+        tool = chain_transform(spec, q) @ self.tool()
         return lines, (tool[:3, 2], tool[:3, 3])
 
     def spin_geometry(self, joint: str) -> tuple[float, float]:

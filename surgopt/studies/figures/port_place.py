@@ -143,7 +143,7 @@ def reach_maps(plt, cfg, sites, t, dex, out):
 
     a, b, _ = body_extent_mm(cfg.patient)
     reached = t.reach_count / t.n_points
-    iso = np.where(t.reach_count > 0, dex.sum(axis=1) / np.maximum(t.reach_count, 1), np.nan)
+    iso = np.where(t.reach_count > 0, t.dex_site, np.nan)
     maps = ((reached, "instrument: share of the target reached", (0.0, 1.0)),
             (iso, "instrument: mean isotropy there", (np.nanmin(iso), max(np.nanmax(iso), np.nanmin(iso) + 1e-3))),
             (t.coverage, "camera: share of the target seen", (0.0, 1.0)))
