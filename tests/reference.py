@@ -590,3 +590,37 @@ def brute_force_reach(points, rows, limits, n=(46, 31, 31)):
     steps = [g[1] - g[0] for g in grids]
     rho_max = limits[2][1] + abs(rows[2][4] + rows[3][2])
     return d, max(rho_max * steps[0], rho_max * steps[1], steps[2])
+
+
+# ---------------------------------------------------------------------------
+# A serial arm keeping an RCM in software (port-place's instrument_serial)
+# ---------------------------------------------------------------------------
+
+
+def rcm_constrained_isotropy(tool, q, rcm, qdot_max, h=1e-6):
+    """sigma_min / sigma_max of B = J_tip Q N, N an orthonormal basis of the null space of the RCM constraint's
+    rows (J_c Q): the tip's velocities per normalised joint speed that keep the tool line through ``rcm``
+    (Locke & Patel 2007 eqs. 5-8 in the form of a constrained map). ``tool(q)`` -> (tip, unit tool axis); both
+    Jacobians by central differences; the constraint is the offset of the tool line's point nearest ``rcm``."""
+    rcm = np.asarray(rcm, float)
+
+    def f(qq):
+        tip, k = tool(qq)
+        nearest = tip + ((rcm - tip) @ k) * k
+        return np.concatenate([tip, nearest - rcm])
+
+    jac = finite_difference_jacobian(f, q, h) * np.asarray(qdot_max)[None, :]
+    _, s, vt = np.linalg.svd(jac[3:])  # rank 2: the offset moves only normal to the tool
+    assert s[1] > 1e3 * s[2], s
+    null = vt[2:].T
+    sv = np.linalg.svd(jac[:3] @ null, compute_uv=False)
+    return sv[-1] / sv[0]
+
+
+def segment_distance_sampled(p0, p1, q0, q1, n=401):
+    """The least distance between two segments by sampling each at n points (an upper bound within the
+    sampling step of the true distance)."""
+    s = np.linspace(0.0, 1.0, n)[:, None]
+    a = p0 + s * (p1 - p0)
+    b = q0 + s * (q1 - q0)
+    return float(np.min(np.linalg.norm(a[:, None, :] - b[None, :, :], axis=2)))

@@ -120,7 +120,7 @@ def _tables(n, m, rng):
     spacing = spacing + spacing.T
     return D.PortTables(reach.sum(axis=1), rng.random(n), count, *pair, spacing, rng.random((n, n)),
                         rng.random((n, n)) - 0.5, m, D.reach_bits(reach), D.site_dexterity(reach, dex),
-                        np.zeros(n)), reach, dex
+                        np.zeros(n), rng.random((n, n))), reach, dex
 
 
 @pytest.mark.parametrize("instruments", [2, 3])
@@ -168,7 +168,9 @@ def test_three_instruments_combine_as_a_brute_force_over_the_reach_sets():
         assert f[r, 2] == common / m
         assert f[r, 14] == reach[l].sum() / m and f[r, 15] == pytest.approx(dex[l][reach[l]].mean(), abs=1e-12)
         assert f[r, 11] == min(t.inside[i, j], pair(t.inside, i, l), pair(t.inside, j, l))
-        assert f[r, 12] == min(pair(t.outside, x, y) for x, y in itertools.combinations((i, j, l, k), 2))
+        # the instruments' pairs from their table, each instrument and the camera from theirs ([instrument, camera])
+        assert f[r, 12] == min(*(pair(t.outside, x, y) for x, y in itertools.combinations((i, j, l), 2)),
+                               *(t.outside_camera[x, k] for x in (i, j, l)))
         spacing = min(t.spacing[x, y] for x, y in itertools.combinations((i, j, l, k), 2))
         assert bool(bad[r] & SPACING) == (spacing < crit.min_spacing_m)
         assert bool(bad[r] & REACH) == (common < m)

@@ -26,7 +26,7 @@ class PortTables(NamedTuple):
     ang_share: np.ndarray
     ang_centre: np.ndarray
     inside: np.ndarray
-    outside: np.ndarray
+    outside: np.ndarray  # instrument arms, per pair i < j
     spacing: np.ndarray  # port-to-port distance, every pair
     azimuth: np.ndarray  # [instrument port, camera port]
     side: np.ndarray
@@ -34,6 +34,7 @@ class PortTables(NamedTuple):
     reach_bits: np.ndarray  # per site: the reached target points, 64 to a uint64 word (``reach_bits``)
     dex_site: np.ndarray  # per site: the mean isotropy over the points it reaches (0 where it reaches none)
     wrist_margin_deg: np.ndarray  # per site: the wrist's bend left at the worst point (the study's, for its rows)
+    outside_camera: np.ndarray  # [instrument port, camera port]: the two arms' clearance outside the body
 
 
 def reach_bits(reach: np.ndarray) -> np.ndarray:
@@ -143,7 +144,7 @@ def design_columns(t, crit, start, stop, instruments=2, feasible_only=False):
     for r in range(size):
         imbalance = abs(t.azimuth[i, k] - t.azimuth[j, k])
         spacing = min(t.spacing[i, j], min(t.spacing[i, k], t.spacing[j, k]))
-        outside = min(t.outside[i, j], min(at(t.outside, i, k), at(t.outside, j, k)))
+        outside = min(t.outside[i, j], min(t.outside_camera[i, k], t.outside_camera[j, k]))
         inside = t.inside[i, j]
         if three:
             # the points all three reach: the pair's count when the third reaches every point, the third's
@@ -159,7 +160,7 @@ def design_columns(t, crit, start, stop, instruments=2, feasible_only=False):
                     c3 += np.int64(popcount64(t.reach_bits[i, w] & t.reach_bits[j, w] & t.reach_bits[l, w]))
             common = c3 / t.n_points
             spacing = min(spacing, min(t.spacing[i, l], min(t.spacing[j, l], t.spacing[l, k])))
-            outside = min(outside, min(at(t.outside, i, l), min(at(t.outside, j, l), at(t.outside, l, k))))
+            outside = min(outside, min(at(t.outside, i, l), min(at(t.outside, j, l), t.outside_camera[l, k])))
             inside = min(inside, min(at(t.inside, i, l), at(t.inside, j, l)))
         else:
             common = t.count[i, j] / t.n_points

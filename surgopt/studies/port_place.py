@@ -13,7 +13,8 @@ ports (unordered: the PSMs are the same arm), the third's when there is one, and
 evaluated; docs/port_placement.md has the model, its sources and assumptions.
 
 The config models and the geometry they imply (patient, sites, target) are in ``port_place_config``, the
-design kernels in ``kinematics.port_designs``. One module of ~550 lines: the memoised tables, the rows, the
+design kernels in ``kinematics.port_designs``, a serial instrument arm's tables in ``port_place_serial``. One
+module of ~590 lines: the memoised tables, the rows, the
 search space, the estimate and the summary are one declaration, read together.
 """
 from __future__ import annotations
@@ -95,6 +96,13 @@ def approach(target: Target, wrist_bend_rad: float):
     return Approach(*d, math.cos(wrist_bend_rad - math.radians(target.approach_half_angle_deg)))
 
 
+def approach_mask(sites: np.ndarray, targets: np.ndarray, cone) -> np.ndarray:
+    """[site, point]: whether the shaft from the port to the point lies within the approach cone's reach of the
+    wrist (``instrument_tables``' test, for arms whose reach is computed elsewhere)."""
+    d = targets[None, :, :] - sites[:, None, :]
+    return d @ np.array([cone.dx, cone.dy, cone.dz]) >= cone.cos_min * np.linalg.norm(d, axis=2)
+
+
 def camera_of(cfg: PortPlaceConfig):
     """The endoscope for the kernels (``port_place.Camera``)."""
     from surgopt.kinematics.port_place import Camera
@@ -141,21 +149,34 @@ def port_tables(cfg: PortPlaceConfig, sites: np.ndarray, rot: np.ndarray, outsid
     centre = np.asarray(cfg.target.centre_mm, float) / 1000
     crit = criteria(cfg)
     arm = instrument_of(cfg)
-    reach, dex = K.instrument_tables(sites, rot, targets, arm_limits(arm), crit.dexterity_length_m,
-                                     approach(cfg.target, arm.wrist_bend_rad))
-    r = cfg.robot
+    cone = approach(cfg.target, arm.wrist_bend_rad)
+    if cfg.robot.instrument_serial is not None:  # a serial arm: its own IK, and its links' clearance outside
+        from surgopt.kinematics import port_serial as S
+        from surgopt.studies.port_place_serial import serial_tables
+
+        serial = serial_tables(cfg, sites)
+        reach, dex = serial.reach & approach_mask(sites, targets, cone), serial.dexterity
+        dex = np.where(reach, dex, 0.0)
+        outside = serial.outside_m
+        outside_camera = S.link_camera_clearances(serial.links, sites, np.ascontiguousarray(rot[:, :, 2]),
+                                                  dvrk.OUTSIDE_LENGTH_M)
+    else:
+        reach, dex = K.instrument_tables(sites, rot, targets, arm_limits(arm), crit.dexterity_length_m, cone)
     camera = camera_of(cfg)
     coverage = K.camera_coverage(sites, rot, targets, centre, camera)
     pairs = list(K.pair_tables(sites, reach, dex, targets, centre, crit))
     if outside is not None:
         pairs[-1] = outside
+    if cfg.robot.instrument_serial is None:  # every arm's outside is its shaft line behind the port
+        outside_camera = pairs[-1] + pairs[-1].T
     if camera.scope_angle_rad == 0.0:  # the optical axis: port to centre
         azimuth, side = K.camera_pair_tables(sites, centre, LATERAL)
     else:  # along the angled scope's view, through the centre
         azimuth, side = K.camera_pair_tables(sites, centre, LATERAL, K.camera_views(sites, rot, centre, camera)[1])
     spacing = np.linalg.norm(sites[:, None, :] - sites[None, :, :], axis=2)
     tables = D.PortTables(reach.sum(axis=1).astype(np.int64), coverage, *pairs, spacing, azimuth, side,
-                          len(targets), D.reach_bits(reach), D.site_dexterity(reach, dex), wrist_margin_deg(cfg, sites))
+                          len(targets), D.reach_bits(reach), D.site_dexterity(reach, dex), wrist_margin_deg(cfg, sites),
+                          outside_camera)
     return tables, reach, dex
 
 
@@ -412,20 +433,30 @@ def preflight(cfg) -> None:
     _, t, _, _, _ = tables(cfg)
     best = int(t.reach_count.max())
     if best < t.n_points:
+        from surgopt.studies.port_place_serial import refused_ports_note
+
+        arm = ("" if cfg.robot.instrument_serial is None else
+               f"; stand the arm elsewhere (robot.instrument_serial.rcm_in_base_m, base_yaw_deg: rcm-grid finds where "
+               f"an arm keeps an RCM best){refused_ports_note(cfg, tables(cfg)[0])}")
         raise ValueError(f"target: no candidate port's instrument ({instrument_of(cfg).name}, docked toward the "
                          f"target's centre) reaches the whole target: {best:,} of its {t.n_points:,} points at best, "
                          f"so every layout would fail on reach; move or shrink the target, ease its approach cone, "
-                         f"or widen patient.port_region / constraints.port_to_target_mm")
+                         f"or widen patient.port_region / constraints.port_to_target_mm{arm}")
+
 
 
 #: Cost model: ~60 ns to combine one design and turn it into columns on one core (~70 ns with a third
-#: instrument), plus the tables (~3 us per site x target point, ~0.3 us per instrument pair x target point);
+#: instrument), plus the tables (~60 ns per site x target point by the closed forms, ~0.3 us per instrument
+#: pair x target point);
 #: a row is ~190 bytes (~230 with a third instrument).
 NS_PER_DESIGN = 60.0
 NS_PER_DESIGN_3 = 70.0
 ROW_BYTES, ROW_BYTES_3 = 190, 230
 IN_FLIGHT_TASKS = 4
-NS_PER_SITE_POINT = 3000.0
+NS_PER_SITE_POINT = 60.0
+#: A serial instrument arm's per-port tables: ~3.4 us per site x target point (generic Newton IK by continuation,
+#: benchmarks/bench_port_place.py: 0.55 s for 164 x 915 at 91 % reached).
+NS_PER_SITE_POINT_SERIAL = 4000.0
 NS_PER_PAIR_POINT = 300.0
 
 
@@ -445,7 +476,8 @@ def estimate(cfg) -> Estimate:
     arms = cfg.robot.instrument_count
     d = n_designs(n, arms)
     per_design = NS_PER_DESIGN if arms == 2 else NS_PER_DESIGN_3
-    seconds = (d * per_design + n * m * NS_PER_SITE_POINT * 1e-3 + n * n / 2 * m * NS_PER_PAIR_POINT) * 1e-9
+    per_site_point = NS_PER_SITE_POINT if cfg.robot.instrument_serial is None else NS_PER_SITE_POINT_SERIAL
+    seconds = (d * per_design + n * m * per_site_point + n * n / 2 * m * NS_PER_PAIR_POINT) * 1e-9
     row = ROW_BYTES if arms == 2 else ROW_BYTES_3
     working = n * n * 8 * 12 + n * m * 9
     if cfg.rows_stored == "feasible":  # at most every design feasible: 8 bytes of each stored row in the parent

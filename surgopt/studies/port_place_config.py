@@ -18,7 +18,7 @@ from pydantic import Field, ValidationInfo, model_validator
 
 from surgopt.config import NOT_IN_KEY, StrictModel
 from surgopt.robots import dvrk
-from surgopt.studies.rcm_arm_config import RcmArmFile, file_arm
+from surgopt.studies.rcm_arm_config import RcmArmFile, SerialInstrumentArm, file_arm
 from surgopt.studies.search import check_objectives, search_field
 
 #: A 3-vector of a patient-sized quantity: finite and within 10 m (mm) of the patient frame's origin.
@@ -183,6 +183,9 @@ class Robot(StrictModel):
     instrument_arm: Literal[tuple(dvrk.INSTRUMENT_ARMS)] = "dvrk_psm_classic"
     instrument_file: RcmArmFile | None = Field(None, description="any RCM instrument arm from a URDF or DH table, "
                                                "in place of instrument_arm")
+    instrument_serial: SerialInstrumentArm | None = Field(
+        None, description="a serial arm (a shipped model, URDF or DH table, as rcm-grid takes arms) holding the "
+                          "instrument and keeping the RCM at the port in software, in place of instrument_arm")
     camera_file: RcmArmFile | None = Field(None, description="any RCM endoscope arm from a URDF or DH table, in "
                                            "place of camera_arm")
     instrument_count: Literal[2, 3] = Field(2, description="instrument arms: 2 (PSM1, PSM2: the surgeon's hands) or "
@@ -203,6 +206,19 @@ class Robot(StrictModel):
                                      description="a [search] may turn each PSM's base this far (yaw and pitch) off "
                                                  "the target's centre (free docking); 0: docked toward the centre. "
                                                  "The grid enumerates the default docking only")
+
+    @model_validator(mode="after")
+    def _one_instrument_arm(self):
+        if self.instrument_serial is None:
+            return self
+        if self.instrument_file is not None:
+            raise ValueError("give instrument_serial (a serial arm) or instrument_file (an RCM mechanism), not both")
+        if self.instrument_arm != type(self).model_fields["instrument_arm"].default:
+            raise ValueError("give instrument_serial (a serial arm) or instrument_arm (a shipped dVRK arm), not both")
+        if self.docking_range_deg > 0:
+            raise ValueError("docking_range_deg turns an RCM mechanism's base at its port; a serial arm's base turns "
+                             "with instrument_serial.base_yaw_deg (set docking_range_deg = 0)")
+        return self
 
 
 class Constraints(StrictModel):
@@ -291,8 +307,11 @@ Config = PortPlaceConfig
 
 
 def instrument_of(cfg: PortPlaceConfig):
-    """The instrument arm: from its file (``robot.instrument_file``), or the shipped dVRK arm named."""
+    """The instrument arm: a serial arm's ``SerialHolder`` (``robot.instrument_serial``), an RCM arm from its file
+    (``robot.instrument_file``), or the shipped dVRK arm named."""
     r = cfg.robot
+    if r.instrument_serial is not None:
+        return r.instrument_serial.holder()
     return file_arm(r.instrument_file.model_dump_json()) if r.instrument_file else dvrk.INSTRUMENT_ARMS[r.instrument_arm]
 
 

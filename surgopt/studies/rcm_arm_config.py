@@ -1,8 +1,11 @@
-"""Config of an RCM arm given as a URDF file or an inline DH table (port-place's ``[robot.instrument_file]`` and
-``[robot.camera_file]``): resolved and checked at validation (``robots.rcm_arm.rcm_mechanism``), read once per
-process."""
+"""Config of port-place's arms beyond the shipped dVRK ones: an RCM mechanism given as a URDF file or an inline DH
+table (``[robot.instrument_file]`` and ``[robot.camera_file]``: resolved and checked at validation,
+``robots.rcm_arm.rcm_mechanism``, read once per process), and a serial arm that keeps the RCM in software
+(``[robot.instrument_serial]``: rcm-grid's arm section, and where its base stands)."""
 from __future__ import annotations
 
+import math
+from dataclasses import dataclass
 from functools import lru_cache
 from pathlib import Path
 from typing import Annotated, Literal
@@ -10,6 +13,7 @@ from typing import Annotated, Literal
 from pydantic import Field, ValidationInfo, model_validator
 
 from surgopt.config import NOT_IN_KEY, StrictModel
+from surgopt.studies.rcm_grid_config import Finite, Robot
 
 
 class RcmDhRow(StrictModel):
@@ -100,3 +104,45 @@ def file_arm(arm_json: str):
         spec = chain.from_dh([r.row(i) for i, r in enumerate(a.dh)], a.dh_convention)
         name, source = "dh", f"inline {a.dh_convention} DH table"
     return rcm_mechanism(spec, name, source, "urdf" if a.urdf is not None else "dh")
+
+
+@dataclass(frozen=True)
+class SerialHolder:
+    """What port-place reads of a serial instrument arm beside its chain (the names ``dvrk.RcmArm`` has)."""
+
+    name: str
+    source: str
+    wrist_bend_rad: float
+
+
+class SerialInstrumentArm(Robot):
+    """A serial arm holding the instrument and keeping its remote centre of motion at the port in software (the
+    PA10-7C of Locke & Patel, a UR5e, a Panda, an LBR iiwa, any DH table or URDF: rcm-grid's ``[robot]`` fields,
+    docs/robots.md), in place of an RCM mechanism. Its base stands so that ``rcm_in_base_m`` (where it keeps the
+    RCM, in its base frame: an rcm-grid optimum) is the port, its z axis up, turned about the vertical so that
+    the RCM lies radially inward of the base (the arm beside the patient, reaching in), then by
+    ``base_yaw_deg``."""
+
+    rcm_in_base_m: list[Finite] = Field(..., min_length=3, max_length=3,
+                                        description="the RCM in the arm's base frame (m): where rcm-grid puts it")
+    base_yaw_deg: float = Field(0.0, ge=-180.0, le=180.0, description="the base turned about the port's vertical "
+                                                                      "off the radial stance (deg)")
+    wrist_bend_deg: float = Field(0.0, ge=0.0, le=90.0, description="how far the held instrument's wrist bends the "
+                                                                   "jaws off its shaft (deg; 0: a straight tool)")
+
+    @model_validator(mode="after")
+    def _rcm_beside_the_base(self):
+        r = self.rcm_in_base_m
+        if math.hypot(r[0], r[1]) < 0.05 or math.hypot(*r) > 3.0:
+            raise ValueError(f"rcm_in_base_m: {list(r)} m; the RCM must lie 0.05 m or more from the base's vertical "
+                             f"axis (the base stands beside the port) and within 3 m of it")
+        return self
+
+    def holder(self) -> SerialHolder:
+        if self.urdf is not None:
+            name, source = Path(self.urdf).stem, f"{self.urdf} (sha256 {(self.urdf_sha256 or '?')[:12]})"
+        elif self.dh is not None:
+            name, source = "dh", f"inline {self.dh_convention} DH table"
+        else:
+            name, source = self.model, f"shipped model {self.model}"
+        return SerialHolder(f"{name} (software RCM)", source, math.radians(self.wrist_bend_deg))

@@ -47,6 +47,19 @@ def chosen(c: dict, design_id: int | None) -> int | None:
     return int(ok[np.argmin(c["cost"][ok])]) if len(ok) else None
 
 
+def serial_arms(ax, cfg, sites_m: np.ndarray, ports: list) -> None:
+    """Each serial instrument arm's centre line (base, joints, flange, port) at its docked pose, at the (site,
+    colour) ``ports``."""
+    from surgopt.studies.port_place_serial import serial_tables
+
+    chosen_sites = np.array([site for site, _ in ports])
+    lines = serial_tables(cfg, sites_m[chosen_sites]).links * 1000
+    for line, (_, colour) in zip(lines, ports):
+        ax.plot(*line.T, color=colour, lw=3, marker="o", ms=3, alpha=0.8)
+    ax.plot([], [], color="0.3", lw=3, marker="o", ms=3, label=f"{cfg.robot.instrument_serial.holder().name}: "
+                                                               "base, joints, flange, port")
+
+
 def figures(cfg, table, out, design_id=None):
     from surgopt.studies import port_place as S
 
@@ -84,12 +97,15 @@ def figures(cfg, table, out, design_id=None):
             ax.scatter(*p, color=colour, s=60, label=f"{label} site {c[f'{arm}_site'][row]}")
         ax.set_title(f"port-place: design {c['design_id'][row]} (cost {c['cost'][row]:.3f}); target points "
                      f"by the smaller isotropy", fontsize=9)
+        if cfg.robot.instrument_serial is not None:  # the serial arms themselves, at their docked poses
+            serial_arms(ax, cfg, sites_m, [(c[f"{arm}_site"][row], colour) for arm, colour, _ in arms(c)[:-1]])
         ax.legend(fontsize=8, loc="upper left")
     ax.set_xlabel("x lateral (mm)")
     ax.set_ylabel("y cranial (mm)")
     ax.set_zlabel("z anterior (mm)")
-    ax.set_box_aspect((a, b, h))
-    ax.view_init(elev=28, azim=-120)
+    lims = [ax.get_xlim3d(), ax.get_ylim3d(), ax.get_zlim3d()]
+    ax.set_box_aspect([hi - lo for lo, hi in lims] if cfg.robot.instrument_serial is not None else (a, b, h))
+    ax.view_init(elev=28, azim=-120 if cfg.robot.instrument_serial is None else -100)  # serial arms: from the feet
     paths.append(save(fig, out / "port_place_layout_3d.png"))
 
     # 2-D: the port region from above

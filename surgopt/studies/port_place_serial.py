@@ -1,0 +1,111 @@
+"""port-place's instruments on serial arms that keep the RCM in software (``[robot.instrument_serial]``): each
+candidate port's reach and dexterity, and the arms' clearance outside the body, from ``kinematics.port_serial``.
+
+A port is refused for the arm (it reaches nothing there) when the arm's base would stand inside the patient's
+body, or when its links, at the docked pose, pass through the body (the centre lines sampled at
+``LINK_SAMPLES`` points a segment)."""
+from __future__ import annotations
+
+from functools import lru_cache
+from typing import NamedTuple
+
+import numpy as np
+
+from surgopt.studies.port_place_config import PortPlaceConfig, inside_body, target_points_mm
+from surgopt.studies.rcm_arm_config import SerialInstrumentArm
+
+#: Points sampled along each link segment for the inside-the-body check.
+LINK_SAMPLES = 9
+
+
+class SerialTables(NamedTuple):
+    """reach[site, point], dexterity[site, point] (sigma_min / sigma_max of the RCM metric), the arms' least
+    centre-line distance outside the body per pair of sites (m), the joints at each (site, point) (NaN where
+    unreached), each site's base frame and link centre lines at the docked pose, and why a site was refused
+    (0: usable; 1: base inside the body; 2: links through the body at the docked pose)."""
+
+    reach: np.ndarray
+    dexterity: np.ndarray
+    outside_m: np.ndarray
+    joints: np.ndarray
+    base_rot: np.ndarray
+    base_pos: np.ndarray
+    links: np.ndarray
+    refused: np.ndarray
+
+
+BASE_INSIDE, LINKS_INSIDE = 1, 2
+
+
+@lru_cache(maxsize=4)
+def arm_kernel(arm_json: str):
+    """(chain arrays, seed, restarts, rcm (m), tool length past the flange (m)) of a serial instrument arm, once
+    per process."""
+    from surgopt.kinematics.serial_chain import default_restarts, kernel_arrays
+
+    arm = SerialInstrumentArm.model_validate_json(arm_json, context={"stored": True})
+    chain, _, seed = arm.chain()
+    seed = np.asarray(seed, np.float64)
+    return (kernel_arrays(chain), seed, default_restarts(seed), np.asarray(arm.rcm_in_base_m, np.float64),
+            float(arm.tool_past_flange_m))
+
+
+@lru_cache(maxsize=4)
+def walk_order(target_json: str, centre: tuple):
+    """Prim's order over the target points from the one nearest the centre (``port_serial.prim_order``), once per
+    target."""
+    from surgopt.kinematics.port_serial import prim_order
+    from surgopt.studies.port_place_config import Target
+
+    pts = target_points_mm(Target.model_validate_json(target_json)) / 1000
+    root = int(np.argmin(np.linalg.norm(pts - np.asarray(centre), axis=1)))
+    return prim_order(pts, root)
+
+
+def serial_tables(cfg: PortPlaceConfig, sites: np.ndarray) -> SerialTables:
+    """The serial instrument arm's tables at ports ``sites`` (m)."""
+    from surgopt.kinematics import port_serial as S
+
+    arm = cfg.robot.instrument_serial
+    chain, seed, restarts, rcm, tool_m = arm_kernel(arm.model_dump_json())
+    targets = target_points_mm(cfg.target) / 1000
+    centre = np.asarray(cfg.target.centre_mm, float) / 1000
+    order, parent = walk_order(cfg.target.model_dump_json(), tuple(centre))
+    rot, pos = S.serial_base_frames(sites, centre, rcm, np.radians(arm.base_yaw_deg))
+    refused = np.where(inside_body(pos * 1000, cfg.patient), BASE_INSIDE, 0)
+    joints = np.empty((len(sites), len(targets), 5))
+    reach, dex = S.serial_instrument_tables(chain, seed, restarts, rcm, tool_m, rot, pos, targets, order, parent,
+                                            refused == 0, joints)
+    near = np.where(reach, np.linalg.norm(targets - centre, axis=1)[None, :], np.inf).argmin(axis=1)
+    docked = joints[np.arange(len(sites)), near]  # NaN where a site reaches nothing
+    links = S.link_polylines(chain, np.ascontiguousarray(docked), tool_m, rcm, rot, pos)
+    through = _links_inside(links, cfg)
+    refused[through & (refused == 0)] = LINKS_INSIDE
+    reach[through] = False
+    dex[through] = 0.0
+    links[through] = np.nan
+    return SerialTables(reach, dex, S.link_clearances(links), joints, rot, pos, links, refused)
+
+
+def _links_inside(links: np.ndarray, cfg: PortPlaceConfig) -> np.ndarray:
+    """Per site: whether any sampled point of its arm's link centre lines, base to flange, lies inside the body
+    (the last segment, flange to port, is the tool entering the body)."""
+    s = np.linspace(0.0, 1.0, LINK_SAMPLES)[None, None, :, None]
+    links = links[:, :-1]
+    samples = links[:, :-1, None, :] * (1 - s) + links[:, 1:, None, :] * s  # (n, segments, samples, 3)
+    flat = samples.reshape(-1, 3)
+    ok = np.isfinite(flat[:, 0])
+    inside = np.zeros(len(flat), bool)
+    inside[ok] = inside_body(flat[ok] * 1000, cfg.patient)
+    return inside.reshape(len(links), -1).any(axis=1)
+
+
+def refused_ports_note(cfg: PortPlaceConfig, sites: np.ndarray) -> str:
+    """How many of the ports ``sites`` (m) the arm cannot stand at (its base inside the body, its links through
+    the wall), as a clause for a message; empty when none."""
+    refused = serial_tables(cfg, sites).refused
+    base, links = int((refused == BASE_INSIDE).sum()), int((refused == LINKS_INSIDE).sum())
+    if not base + links:
+        return ""
+    return (f" ({base} of the {len(refused)} ports put the arm's base inside the body, {links} its links through the "
+            f"wall)")
