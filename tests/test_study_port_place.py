@@ -417,6 +417,71 @@ def test_a_bad_mesh_is_refused_with_the_field_named(tmp_path, case):
         validate({"patient": {"mesh_file": "open.stl"}}, S.Config, "c.toml", {"config_dir": str(tmp_path)})
 
 
+def _target_mesh(path, subdivisions=4, open_base=False):
+    """The default target (an ellipsoid of 35 x 45 x 30 mm semi-axes at (0, -100, 40) mm) as a closed mesh in
+    metres (or with a hole), written to ``path``."""
+    import trimesh
+
+    mesh = trimesh.creation.icosphere(subdivisions=subdivisions)
+    mesh.apply_scale([0.035, 0.045, 0.030])
+    mesh.apply_translation([0.0, -0.100, 0.040])
+    if open_base:
+        mesh.update_faces(np.arange(len(mesh.faces)) > 0)
+    mesh.export(path)
+    return path
+
+
+def test_a_target_mesh_of_the_ellipsoid_gives_the_ellipsoids_points_and_rows(tmp_path):
+    """A target given as a closed mesh (the default ellipsoid tessellated, in metres) is sampled on the same grid
+    as the ellipsoid: every mesh point is an ellipsoid point, every ellipsoid point deeper than the faceting
+    (ellipsoid value <= 0.99) is a mesh point (here every one: the sets are equal), and the layouts' rows are the
+    ellipsoid's to 1e-6 (the STL's float32 vertices move the grid by ~2e-6 mm)."""
+    from surgopt.config import validate
+
+    _target_mesh(tmp_path / "target.stl")
+    small = {"patient": {"port_region": {"site_spacing_mm": 36.0}}}
+    ell = validate({**small, "target": {"spacing_mm": 10.0}}, S.Config, "ellipsoid")
+    mesh = validate({**small, "target": {"shape": "mesh", "mesh_file": "target.stl", "mesh_units": "m",
+                                         "spacing_mm": 10.0}}, S.Config, "mesh", {"config_dir": str(tmp_path)})
+    a, b = S.target_points_mm(ell.target), S.target_points_mm(mesh.target)
+    assert len(mesh.target.mesh_sha256) == 64 and np.allclose(mesh.target.centre_mm, [0.0, -100.0, 40.0], atol=1e-6)
+    key = lambda p: {tuple(np.round(x, 3)) for x in p}  # noqa: E731 - to the um (an STL stores float32)
+    assert key(b) <= key(a)
+    value = (((a - [0.0, -100.0, 40.0]) / [35.0, 45.0, 30.0]) ** 2).sum(axis=1)
+    assert key(a[value <= 0.99]) <= key(b) and len(b) > 20
+    assert key(a) == key(b)  # at this spacing no grid point lies between the facets and the ellipsoid
+    rows_e, rows_m = S.compute_task(ell, 10 ** 6, 0), S.compute_task(mesh, 10 ** 6, 0)
+    assert rows_e["feasible"].any()
+    for name in ("feasible", "cost", "common_reach"):
+        np.testing.assert_allclose(rows_m[name], rows_e[name], rtol=0, atol=1e-6)
+
+
+TARGET_MESH_ERRORS = {
+    "not closed": ({"mesh_file": "open.stl"}, "is not closed (watertight)"),
+    "no file": ({}, "shape = 'mesh' needs mesh_file"),
+    "between its parts": ({"mesh_file": "pair.stl", "spacing_mm": 100.0}, "no point of a 100 mm grid"),
+    "not a mesh target": ({"shape": "ellipsoid", "mesh_file": "target.stl"}, "set shape = 'mesh'"),
+}
+
+
+@pytest.mark.parametrize("case", sorted(TARGET_MESH_ERRORS))
+def test_a_bad_target_mesh_is_refused_with_the_field_named(tmp_path, case):
+    import trimesh
+
+    from surgopt.config import validate
+    from surgopt.errors import ConfigError
+
+    _target_mesh(tmp_path / "target.stl")
+    _target_mesh(tmp_path / "open.stl", open_base=True)
+    pair = trimesh.util.concatenate([trimesh.creation.icosphere(radius=10.0).apply_translation(c)
+                                     for c in ([-30.0, -100.0, 40.0], [30.0, -100.0, 40.0])])
+    pair.export(tmp_path / "pair.stl")  # two closed balls: the grid's one point, between them, is in neither
+    fields, words = TARGET_MESH_ERRORS[case]
+    with pytest.raises(ConfigError, match="target") as e:
+        validate({"target": {"shape": "mesh", **fields}}, S.Config, "c.toml", {"config_dir": str(tmp_path)})
+    assert words in str(e.value), str(e.value)
+
+
 # --- searches over the ports and the docking (plans) ----------------------------------------------------------
 
 COARSE = {"patient": {"port_region": {"site_spacing_mm": 72.0}}, "target": {"spacing_mm": 20.0}}

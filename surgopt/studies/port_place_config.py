@@ -119,11 +119,19 @@ class Patient(StrictModel):
 
 class Target(StrictModel):
     """The anatomy every instrument must reach: a sphere, ellipsoid or box (``radii_mm``: semi-axes, or half
-    sides), sampled on a grid of ``spacing_mm``, or the points of a file (``shape = "points"``). Default: an
-    ellipsoid of 35 x 45 x 30 mm semi-axes in the pelvis, 100 mm caudal of the dome's top and 40 mm above its
-    base (a prostate-bed-like target; an assumption)."""
+    sides), sampled on a grid of ``spacing_mm``, the points of a file (``shape = "points"``), or a closed mesh
+    of the organ or region (``shape = "mesh"``: the grid points inside it). Default: an ellipsoid of 35 x 45 x 30
+    mm semi-axes in the pelvis, 100 mm caudal of the dome's top and 40 mm above its base (a prostate-bed-like
+    target; an assumption)."""
 
-    shape: Literal["sphere", "ellipsoid", "box", "points"] = "ellipsoid"
+    shape: Literal["sphere", "ellipsoid", "box", "points", "mesh"] = "ellipsoid"
+    mesh_file: str | None = Field(None, min_length=1, description="shape = 'mesh': a closed triangle mesh of the "
+                                  "region to reach (STL, OBJ or PLY), relative to the config file; sampled on the "
+                                  "grid of spacing_mm; its sha256 is in the store key", json_schema_extra=NOT_IN_KEY)
+    mesh_sha256: str | None = Field(None, description="filled in: the target mesh's content hash")
+    mesh_units: Literal["mm", "m"] = "mm"
+    mesh_offset_mm: Vec3 = Field([0.0, 0.0, 0.0], min_length=3, max_length=3,
+                                 description="added to the target mesh (after units), into the patient frame")
     points_file: str | None = Field(None, min_length=1, description="shape = 'points': a text file of x y z rows "
                                     "(commas or spaces; '#' comments) or a .npy array, in the patient frame, "
                                     "relative to the config file; its sha256 is in the store key",
@@ -144,6 +152,10 @@ class Target(StrictModel):
     def _points_from_the_file(self, info: ValidationInfo):
         """shape = 'points': the file resolved, read (bounded), hashed and checked; centre_mm, when not given,
         the points' centroid and radii_mm their half extents (what the figures outline)."""
+        if self.shape != "mesh" and self.mesh_file is not None:
+            raise ValueError("mesh_file is given but shape is not 'mesh': set shape = 'mesh' to use it")
+        if self.shape == "mesh":
+            return self._resolve_mesh(info.context or {})
         if self.shape != "points":
             if self.points_file is not None:
                 raise ValueError("points_file is given but shape is not 'points': set shape = 'points' to use it")
@@ -159,7 +171,29 @@ class Target(StrictModel):
             return self
         _, sha = hashed_config_file("points_file", path, self.points_sha256, MAX_POINTS_BYTES, "points_sha256")
         object.__setattr__(self, "points_sha256", sha)
-        pts = file_points_mm(str(path), sha, self.points_units)
+        return self._centre_and_extent(file_points_mm(str(path), sha, self.points_units))
+
+    def _resolve_mesh(self, context):
+        """shape = 'mesh': the file resolved, read (bounded, closed), hashed, sampled; centre and extent from its
+        points as for a points file."""
+        from surgopt.files import config_file_path, hashed_config_file
+
+        if self.mesh_file is None:
+            raise ValueError("shape = 'mesh' needs mesh_file (a closed STL, OBJ or PLY mesh of the region)")
+        if self.points_file is not None:
+            raise ValueError("points_file goes with shape = 'points', not 'mesh'")
+        path = config_file_path(self.mesh_file, context)
+        object.__setattr__(self, "mesh_file", str(path))
+        if context.get("stored"):
+            return self
+        _, sha = hashed_config_file("mesh_file", path, self.mesh_sha256, MAX_MESH_BYTES, "mesh_sha256")
+        object.__setattr__(self, "mesh_sha256", sha)
+        return self._centre_and_extent(mesh_points_mm(str(path), sha, self.mesh_units, tuple(self.mesh_offset_mm),
+                                                      self.spacing_mm))
+
+    def _centre_and_extent(self, pts: np.ndarray):
+        """centre_mm, when not given, the points' centroid, and radii_mm their half extents (what the figures
+        outline)."""
         if "centre_mm" not in self.model_fields_set:
             object.__setattr__(self, "centre_mm", [round(float(v), 6) for v in pts.mean(axis=0)])
         if "radii_mm" not in self.model_fields_set:
@@ -359,11 +393,34 @@ def file_points_mm(path: str, sha256: str, units: str) -> np.ndarray:
     return pts * (1000.0 if units == "m" else 1.0)
 
 
+@lru_cache(maxsize=4)
+def mesh_points_mm(path: str, sha256: str, units: str, offset_mm: tuple, spacing_mm: float) -> np.ndarray:
+    """The grid points of ``spacing_mm`` inside a closed target mesh (mm; trimesh's containment test), the grid
+    centred on the mesh's bounding box as the shapes' grids are on their centres. A ValueError naming mesh_file
+    when no point falls inside (a spacing larger than the region)."""
+    mesh = body_mesh(path, sha256, units, offset_mm)
+    lo, hi = mesh.bounds
+    centre, half = (lo + hi) / 2, (hi - lo) / 2
+    if np.prod(2 * half / spacing_mm + 1) > 2_000_000:
+        raise ValueError(f"mesh_file: {path}: a {spacing_mm:g} mm grid over its {2 * half.round(0)} mm bounds is "
+                         f"more than 2,000,000 points to test (a larger spacing_mm)")
+    gx, gy, gz = (grid_1d(h, spacing_mm) + c for h, c in zip(half, centre))
+    x, y, z = np.meshgrid(gx, gy, gz, indexing="ij")
+    pts = np.stack([x.ravel(), y.ravel(), z.ravel()], axis=1)
+    pts = pts[np.asarray(mesh.contains(pts), bool)]
+    if len(pts) == 0:
+        raise ValueError(f"mesh_file: {path}: no point of a {spacing_mm:g} mm grid lies inside the mesh (a smaller "
+                         f"spacing_mm)")
+    return pts
+
+
 def target_points_mm(t: Target) -> np.ndarray:
-    """The target's points (mm): the file's, or the shape sampled on a grid of ``spacing_mm`` centred on it
-    (points inside the shape)."""
+    """The target's points (mm): the file's, the grid points inside its mesh, or the shape sampled on a grid of
+    ``spacing_mm`` centred on it (points inside the shape)."""
     if t.shape == "points":
         return file_points_mm(t.points_file, t.points_sha256, t.points_units)
+    if t.shape == "mesh":
+        return mesh_points_mm(t.mesh_file, t.mesh_sha256, t.mesh_units, tuple(t.mesh_offset_mm), t.spacing_mm)
     gx, gy, gz = (grid_1d(r, t.spacing_mm) for r in t.radii_mm)
     x, y, z = np.meshgrid(gx, gy, gz, indexing="ij")
     pts = np.stack([x.ravel(), y.ravel(), z.ravel()], axis=1)

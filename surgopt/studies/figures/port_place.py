@@ -15,8 +15,9 @@ def arms(c: dict) -> list[tuple[str, str, str]]:
 
 
 def target_top_view(ax, cfg, targets: np.ndarray, colour: str) -> None:
-    """The target from above: its outline (sphere, ellipsoid, box), or its points when it came from a file."""
-    if cfg.target.shape == "points":
+    """The target from above: its outline (sphere, ellipsoid, box), or its points when it came from a file or a
+    mesh."""
+    if cfg.target.shape in ("points", "mesh"):
         ax.scatter(targets[:, 0], targets[:, 1], s=4, color=colour, alpha=0.5, label="target points (top view)")
         return
     t = np.linspace(0, 2 * np.pi, 200)
