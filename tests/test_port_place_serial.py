@@ -209,6 +209,28 @@ def test_the_search_evaluator_gives_the_enumerations_rows():
         np.testing.assert_allclose(got[name], full[name][pick], rtol=0, atol=1e-12)
 
 
+def test_a_search_turns_each_serial_base_about_its_port():
+    """With robot.docking_range_deg a search's space has each instrument's base yaw (no pitch), and a design
+    evaluated with both bases turned 20 deg is the grid's row of the config whose base_yaw_deg is 20 (the
+    stance set in the config: another path to the same base frames)."""
+    cfg = _config("pa10_7c", [0.65, 0.0, 0.5])
+    searched = S.PortPlaceConfig.model_validate({**cfg.model_dump(), "robot": {
+        **cfg.robot.model_dump(), "docking_range_deg": 30.0}, "search": {"method": "random", "trials": 8}})
+    plan = S.search_plan(searched)
+    assert list(plan.space)[3:] == ["psm1_docking_yaw_deg", "psm2_docking_yaw_deg"]
+    turned = _config("pa10_7c", [0.65, 0.0, 0.5], base_yaw_deg=20.0)
+    full = S.compute_task(turned, S.n_total(turned), 0)
+    ok = np.nonzero(full["feasible"])[0]
+    pick = np.concatenate([ok[:2], np.nonzero(~full["feasible"])[0][:2]])
+    assert len(ok) >= 2  # the premise: feasible layouts with the turned bases
+    x = np.stack([*(full[f"{a}_site"][pick] for a in S.arms_of(cfg)), np.full(len(pick), 20.0),
+                  np.full(len(pick), 20.0)], axis=1)
+    got = S.evaluate_designs(searched, x, full["design_id"][pick], "test")
+    for name in ("common_reach", "dexterity_mean", "external_clearance_mm", "cost", "infeasible"):
+        np.testing.assert_allclose(got[name], full[name][pick], rtol=0, atol=1e-12)
+    assert (got["psm1_docking_yaw_deg"] == 20.0).all() and (got["psm2_docking_pitch_deg"] == 0.0).all()
+
+
 def test_the_cli_runs_a_pa10_layout_and_draws_the_arms(tmp_path):
     import json
 
@@ -227,8 +249,6 @@ def test_the_cli_runs_a_pa10_layout_and_draws_the_arms(tmp_path):
 BAD = {
     "two instrument arms": ('[robot]\ninstrument_arm = "dvrk_psm_si"\n[robot.instrument_serial]\nmodel = "ur5e"\n'
                             "rcm_in_base_m = [0.5, 0.0, 0.1]\n", "robot", "not both"),
-    "free docking": ("[robot]\ndocking_range_deg = 20.0\n[robot.instrument_serial]\nmodel = \"ur5e\"\n"
-                     "rcm_in_base_m = [0.5, 0.0, 0.1]\n", "robot", "base_yaw_deg"),
     "rcm under the base": ('[robot.instrument_serial]\nmodel = "ur5e"\nrcm_in_base_m = [0.01, 0.0, 0.1]\n',
                            "rcm_in_base_m", "0.05 m"),
     "no rcm": ('[robot.instrument_serial]\nmodel = "ur5e"\n', "rcm_in_base_m", "Field required"),

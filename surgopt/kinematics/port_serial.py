@@ -45,7 +45,7 @@ from surgopt.kinematics.serial_chain import (
 def serial_base_frames(sites, centre, rcm, yaw_offset_rad):
     """(rotations (n, 3, 3), origins (n, 3)) of each arm's base, its z up: turned about the vertical so that the
     RCM's horizontal direction from the base points from the port toward the target's vertical axis (the arm
-    stands outside the port, radially), then by ``yaw_offset_rad``; placed so that the RCM ``rcm`` (base frame)
+    stands outside the port, radially), then by ``yaw_offset_rad`` (one angle, or one per site); placed so that the RCM ``rcm`` (base frame)
     is the port. A port within 1 mm of the target's axis is reached along +x (the arm on the patient's right)."""
     sites = np.asarray(sites, float)
     inward = np.asarray(centre, float)[None, :2] - sites[:, :2]

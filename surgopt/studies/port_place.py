@@ -139,9 +139,10 @@ def _tables(cfg_json: str):
     return sites, t, criteria(cfg), reach, dex
 
 
-def port_tables(cfg: PortPlaceConfig, sites: np.ndarray, rot: np.ndarray, outside=None):
+def port_tables(cfg: PortPlaceConfig, sites: np.ndarray, rot: np.ndarray, outside=None, base_yaw_rad=None):
     """(``PortTables``, reach, isotropy) of ports ``sites`` (m) docked in frames ``rot``; ``outside``: the arms'
-    external clearances when the docking is not the default (``external_clearances``)."""
+    external clearances when the docking is not the default (``external_clearances``); ``base_yaw_rad``: a serial
+    instrument arm's base turned further at each port (a search's free docking)."""
     from surgopt.kinematics import port_designs as D
     from surgopt.kinematics import port_place as K
 
@@ -154,7 +155,7 @@ def port_tables(cfg: PortPlaceConfig, sites: np.ndarray, rot: np.ndarray, outsid
         from surgopt.kinematics import port_serial as S
         from surgopt.studies.port_place_serial import serial_tables
 
-        serial = serial_tables(cfg, sites)
+        serial = serial_tables(cfg, sites, base_yaw_rad)
         reach, dex = serial.reach & approach_mask(sites, targets, cone), serial.dexterity
         dex = np.where(reach, dex, 0.0)
         outside = serial.outside_m
@@ -364,7 +365,8 @@ def design_rows(cfg, sites, t, ids, site_ids, f, bad, cost, design_ids, docking_
 
 def docking_columns(config=None) -> tuple[str, ...]:
     """Free docking (a search's dimensions): each instrument's base turned off the target's centre, yaw and
-    pitch (0: the default docking)."""
+    pitch (0: the default docking); for a serial arm the yaw is its base's turn about the port, added to
+    ``base_yaw_deg``, and the pitch stays 0."""
     return tuple(f"{arm}_docking_{angle}_deg" for arm in arms_of(config)[:-1] for angle in ("yaw", "pitch"))
 
 
@@ -384,8 +386,9 @@ def search_plan(cfg):
     n = len(sites_mm(cfg))
     space = {f"{arm}_site": list(range(n)) for arm in arms_of(cfg)}
     r = cfg.robot.docking_range_deg
-    if r > 0:
-        space.update({c: (-r, r) for c in docking_columns(cfg)})
+    if r > 0:  # a serial arm turns its base about the port (yaw) only
+        free = docking_columns(cfg)[::2] if cfg.robot.instrument_serial is not None else docking_columns(cfg)
+        space.update({c: (-r, r) for c in free})
     return SearchPlan(spec, space, objectives_of(spec, OBJECTIVE))
 
 
@@ -402,15 +405,24 @@ def evaluate_designs(cfg, x: np.ndarray, ids: np.ndarray, source: str) -> dict:
     all_sites = _sites_m(cfg.model_dump_json())  # not tables(cfg): a worker needs the sites, not every pair
     crit = criteria(cfg)
     centre = np.asarray(cfg.target.centre_mm, float) / 1000
+    serial = cfg.robot.instrument_serial is not None
     out = []
     for r in range(x.shape[0]):
         site_ids = x[r, :ports].astype(np.int64)
-        docking = np.zeros(2 * (ports - 1)) if x.shape[1] == ports else x[r, ports:]
+        docking = np.zeros(2 * (ports - 1))
+        if x.shape[1] > ports and serial:  # the bases' yaws only
+            docking[0::2] = x[r, ports:]
+        elif x.shape[1] > ports:
+            docking = x[r, ports:]
         sites = all_sites[site_ids]
-        rot = K.tilted_frames(K.docking_frames(sites, centre, LATERAL), np.radians([*docking[0::2], 0.0]),
-                              np.radians([*docking[1::2], 0.0]))
-        outside = K.external_clearances(sites, np.ascontiguousarray(rot[:, :, 2]), dvrk.OUTSIDE_LENGTH_M)
-        t, _, _ = port_tables(cfg, sites, rot, outside)
+        if serial:  # the RCM mechanism (the camera) docked as in the grid, each serial base turned by its yaw
+            t, _, _ = port_tables(cfg, sites, K.docking_frames(sites, centre, LATERAL),
+                                  base_yaw_rad=np.radians([*docking[0::2], 0.0]))
+        else:
+            rot = K.tilted_frames(K.docking_frames(sites, centre, LATERAL), np.radians([*docking[0::2], 0.0]),
+                                  np.radians([*docking[1::2], 0.0]))
+            outside = K.external_clearances(sites, np.ascontiguousarray(rot[:, :, 2]), dvrk.OUTSIDE_LENGTH_M)
+            t, _, _ = port_tables(cfg, sites, rot, outside)
         local, f, bad, cost, _ = design_columns(t, crit, 0, 1, ports - 1)
         out.append(design_rows(cfg, sites, t, local, site_ids[None, :], f, bad, cost,
                                np.asarray(ids[r:r + 1], dtype=np.int64), docking[None, :]))

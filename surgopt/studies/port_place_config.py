@@ -238,8 +238,9 @@ class Robot(StrictModel):
                                                      "or front (up)")
     docking_range_deg: float = Field(0.0, ge=0.0, le=60.0,
                                      description="a [search] may turn each PSM's base this far (yaw and pitch) off "
-                                                 "the target's centre (free docking); 0: docked toward the centre. "
-                                                 "The grid enumerates the default docking only")
+                                                 "the target's centre (free docking), a serial arm's base this far "
+                                                 "about its port (yaw); 0: docked toward the centre. The grid "
+                                                 "enumerates the default docking only")
 
     @model_validator(mode="after")
     def _one_instrument_arm(self):
@@ -249,9 +250,6 @@ class Robot(StrictModel):
             raise ValueError("give instrument_serial (a serial arm) or instrument_file (an RCM mechanism), not both")
         if self.instrument_arm != type(self).model_fields["instrument_arm"].default:
             raise ValueError("give instrument_serial (a serial arm) or instrument_arm (a shipped dVRK arm), not both")
-        if self.docking_range_deg > 0:
-            raise ValueError("docking_range_deg turns an RCM mechanism's base at its port; a serial arm's base turns "
-                             "with instrument_serial.base_yaw_deg (set docking_range_deg = 0)")
         return self
 
 

@@ -62,8 +62,9 @@ def walk_order(target_json: str, centre: tuple):
     return prim_order(pts, root)
 
 
-def serial_tables(cfg: PortPlaceConfig, sites: np.ndarray) -> SerialTables:
-    """The serial instrument arm's tables at ports ``sites`` (m)."""
+def serial_tables(cfg: PortPlaceConfig, sites: np.ndarray, extra_yaw_rad=None) -> SerialTables:
+    """The serial instrument arm's tables at ports ``sites`` (m), each base turned by ``base_yaw_deg`` and, when
+    given, by ``extra_yaw_rad`` at each site (a search's free docking)."""
     from surgopt.kinematics import port_serial as S
 
     arm = cfg.robot.instrument_serial
@@ -71,7 +72,8 @@ def serial_tables(cfg: PortPlaceConfig, sites: np.ndarray) -> SerialTables:
     targets = target_points_mm(cfg.target) / 1000
     centre = np.asarray(cfg.target.centre_mm, float) / 1000
     order, parent = walk_order(cfg.target.model_dump_json(), tuple(centre))
-    rot, pos = S.serial_base_frames(sites, centre, rcm, np.radians(arm.base_yaw_deg))
+    yaw = np.radians(arm.base_yaw_deg) + (0.0 if extra_yaw_rad is None else np.asarray(extra_yaw_rad, float))
+    rot, pos = S.serial_base_frames(sites, centre, rcm, yaw)
     refused = np.where(inside_body(pos * 1000, cfg.patient), BASE_INSIDE, 0)
     joints = np.empty((len(sites), len(targets), 5))
     reach, dex = S.serial_instrument_tables(chain, seed, restarts, rcm, tool_m, rot, pos, targets, order, parent,
