@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import hashlib
 import json
+import re
 import tomllib
 from importlib import resources
 from pathlib import Path
@@ -209,7 +210,10 @@ def validate(data: Any, model: type[M], source: str, context: dict | None = None
             msg += "; also " + "; ".join(others)
         if len(errors) > MAX_ERRORS_LISTED:
             msg += f" (and {len(errors) - MAX_ERRORS_LISTED} more)"
-        raise ConfigError(source, msg, _field_path(_loc(first))) from None
+        field = _field_path(_loc(first))
+        if not _loc(first) and re.match(r"[A-Za-z_][\w.\[\]]*: ", msg):  # a whole-config check naming its field
+            field = None
+        raise ConfigError(source, msg, field) from None
 
 
 def read_config_data(path: str | Path) -> Any:

@@ -293,6 +293,8 @@ BAD = {
     "reversed range": ("[constraints]\nport_to_target_mm = [180.0, 80.0]\n", "port_to_target_mm", "low < high"),
     "no sites": ("[constraints]\nport_to_target_mm = [5.0, 10.0]\n", "port_region", "candidate site"),
     "unknown arm": ('[robot]\ninstrument_arm = "kuka"\n', "robot.instrument_arm", "dvrk_psm_classic"),
+    "ports closer than the spacing": ("[constraints]\nmin_port_spacing_mm = 900.0\n", "min_port_spacing_mm",
+                                      "no two candidate sites are that far apart"),
     "unreachable target": ("[target]\napproach_direction = [0.0, 0.0, 1.0]\n", "target",  # jaws up: past the wrist
                            "reaches the whole target: 0 of its"),
 }
@@ -398,17 +400,21 @@ MESH_ERRORS = {
     "no file": ({}, "shape = 'mesh' needs mesh_file"),
     "not a mesh format": ({"mesh_file": "dome.txt"}, "not an STL, OBJ or PLY file"),
     "garbage": ({"mesh_file": "garbage.stl"}, "garbage.stl: no triangles"),
+    "in metres read as mm": ({"mesh_file": "dome_m.stl"}, "not an abdomen's (20 to 1000 mm); read as m it would fit"),
 }
 
 
 @pytest.mark.parametrize("case", sorted(MESH_ERRORS))
 def test_a_bad_mesh_is_refused_with_the_field_named(tmp_path, case):
+    import trimesh
+
     from surgopt.config import validate
     from surgopt.errors import ConfigError
 
     _dome_mesh(tmp_path / "open.stl", subdivisions=2, open_base=True)
     (tmp_path / "dome.txt").write_text("solid x")
     (tmp_path / "garbage.stl").write_bytes(b"\x00\x01 not a mesh" * 7)
+    trimesh.load(_dome_mesh(tmp_path / "dome.stl", subdivisions=2)).apply_scale(0.001).export(tmp_path / "dome_m.stl")
     fields, words = MESH_ERRORS[case]
     with pytest.raises(ConfigError, match="patient") as e:
         validate({"patient": {"shape": "mesh", **fields}}, S.Config, "c.toml", {"config_dir": str(tmp_path)})
@@ -459,6 +465,7 @@ def test_a_target_mesh_of_the_ellipsoid_gives_the_ellipsoids_points_and_rows(tmp
 TARGET_MESH_ERRORS = {
     "not closed": ({"mesh_file": "open.stl"}, "is not closed (watertight)"),
     "no file": ({}, "shape = 'mesh' needs mesh_file"),
+    "in metres read as mm": ({"mesh_file": "target.stl"}, "not a target region's (1 to 300 mm); read as m it would fit"),
     "between its parts": ({"mesh_file": "pair.stl", "spacing_mm": 100.0}, "no point of a 100 mm grid"),
     "not a mesh target": ({"shape": "ellipsoid", "mesh_file": "target.stl"}, "set shape = 'mesh'"),
 }

@@ -114,7 +114,8 @@ class Patient(StrictModel):
             return
         _, sha = hashed_config_file("mesh_file", path, self.mesh_sha256, MAX_MESH_BYTES, "mesh_sha256")
         object.__setattr__(self, "mesh_sha256", sha)
-        body_mesh(str(path), sha, self.mesh_units, tuple(self.mesh_offset_mm))  # parsed and checked once here
+        mesh = body_mesh(str(path), sha, self.mesh_units, tuple(self.mesh_offset_mm))  # parsed and checked once here
+        check_mesh_scale(mesh, str(path), self.mesh_units, 20.0, 1000.0, "an abdomen's")
 
 
 class Target(StrictModel):
@@ -188,6 +189,8 @@ class Target(StrictModel):
             return self
         _, sha = hashed_config_file("mesh_file", path, self.mesh_sha256, MAX_MESH_BYTES, "mesh_sha256")
         object.__setattr__(self, "mesh_sha256", sha)
+        check_mesh_scale(body_mesh(str(path), sha, self.mesh_units, tuple(self.mesh_offset_mm)), str(path),
+                         self.mesh_units, 1.0, 300.0, "a target region's")
         return self._centre_and_extent(mesh_points_mm(str(path), sha, self.mesh_units, tuple(self.mesh_offset_mm),
                                                       self.spacing_mm))
 
@@ -328,10 +331,16 @@ class PortPlaceConfig(StrictModel):
                     else f"the mesh {self.patient.mesh_file}")
             raise ValueError(f"target: the point ({p[0]:.0f}, {p[1]:.0f}, {p[2]:.0f}) mm is outside the body "
                              f"({body})")
-        n, ports = len(sites_mm(self)), self.robot.instrument_count + 1
+        sites = sites_mm(self)
+        n, ports = len(sites), self.robot.instrument_count + 1
         if n < ports:
             raise ValueError(f"patient.port_region: {n} candidate site(s) within constraints.port_to_target_mm; "
                              f"{ports} ports need at least {ports}")
+        farthest = float(np.max(np.linalg.norm(sites[:, None, :] - sites[None, :, :], axis=2)))
+        if farthest < self.constraints.min_port_spacing_mm:
+            raise ValueError(f"constraints.min_port_spacing_mm: {self.constraints.min_port_spacing_mm:g} mm, but no two "
+                             f"candidate sites are that far apart (the farthest: {farthest:.0f} mm), so every "
+                             f"layout would put ports too close")
         return self
 
 
@@ -481,6 +490,20 @@ def body_mesh(path: str, sha256: str, units: str, offset_mm: tuple):
     if mesh.bounds[1][2] <= 0:
         raise ValueError(f"mesh_file: {path}: the mesh lies below z = 0 (mesh_offset_mm puts its base on z = 0)")
     return mesh
+
+
+def check_mesh_scale(mesh, path: str, units: str, lo_mm: float, hi_mm: float, what: str) -> None:
+    """Refuse a mesh whose half extents are not all within [lo_mm, hi_mm] (a wrongly scaled file: metres read as
+    mm make an abdomen 0.2 mm across), naming the units that would fit."""
+    half = (mesh.bounds[1] - mesh.bounds[0]) / 2
+    if np.all((half >= lo_mm) & (half <= hi_mm)):
+        return
+    hint = ""
+    for other, factor in (("m", 1000.0), ("mm", 0.001)):
+        if other != units and np.all((half * factor >= lo_mm) & (half * factor <= hi_mm)):
+            hint = f"; read as {other} it would fit: mesh_units = '{other}'?"
+    raise ValueError(f"mesh_file: {path}: its half extents are {', '.join(f'{v:.4g}' for v in half)} mm with "
+                     f"mesh_units = '{units}', not {what} ({lo_mm:g} to {hi_mm:g} mm){hint}")
 
 
 def _mesh_of(patient: Patient):
