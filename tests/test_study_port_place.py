@@ -394,6 +394,38 @@ def test_a_mesh_of_the_dome_gives_the_domes_sites_and_best_layout(tmp_path):
     assert cost_m.min() == pytest.approx(cost_d.min(), rel=1e-3)
 
 
+def test_a_superquadric_dome_lifts_the_sites_onto_its_own_surface_and_agrees_with_its_mesh(tmp_path):
+    """patient.dome_exponent = 4: every candidate site lies on |x/a|^4 + |y/b|^4 + |z/c|^4 = 1 (to 1e-9), the
+    containment test is that inequality, the flatter top gives more sites above the height fraction than the
+    half-ellipsoid, and a closed mesh of the same surface (the convex hull of its points, through trimesh's
+    rays) gives the same sites within its faceting."""
+    import trimesh
+
+    from surgopt.config import validate
+    from surgopt.studies.port_place_config import dome_surface_mm
+
+    small = {"patient": {"port_region": {"site_spacing_mm": 36.0}, "dome_exponent": 4.0}}
+    quad = validate(small, S.Config, "quad")
+    sites = S.sites_mm(quad)
+    a, b, c = quad.patient.semi_axes_mm
+    np.testing.assert_allclose((np.abs(sites / [a, b, c]) ** 4).sum(axis=1), 1.0, rtol=0, atol=1e-9)
+    pts = RNG.uniform([-a, -b, -10.0], [a, b, c], (2000, 3))
+    want = (pts[:, 2] >= 0) & ((np.abs(pts / [a, b, c]) ** 4).sum(axis=1) < 1)
+    assert np.array_equal(S.inside_body(pts, quad.patient), want) and 0 < want.sum() < len(want)
+    assert len(sites) > len(S.sites_mm(validate({"patient": {"port_region": {"site_spacing_mm": 36.0}}}, S.Config,
+                                                 "ellipsoid")))
+    u, v = np.meshgrid(np.linspace(0, 2 * np.pi, 360, endpoint=False), np.linspace(0, np.pi / 2, 90, endpoint=False))
+    surface = np.vstack([np.stack([w.ravel() for w in dome_surface_mm((a, b, c), 4.0, u, v)], axis=1), [[0, 0, c]]])
+    trimesh.convex.convex_hull(surface).export(tmp_path / "quad.stl")  # closed: the surface and its base
+    as_mesh = validate({"patient": {"port_region": {"site_spacing_mm": 36.0}, "shape": "mesh",
+                                    "mesh_file": "quad.stl"}}, S.Config, "mesh", {"config_dir": str(tmp_path)})
+    m = S.sites_mm(as_mesh)
+    assert m.shape == sites.shape and np.abs(m[:, :2] - sites[:, :2]).max() < 1e-6
+    assert np.abs(m[:, 2] - sites[:, 2]).max() < 1.0  # mm: the hull's faceting
+    cols = S.compute_task(quad, 10 ** 6, 0)
+    assert cols["feasible"].any()
+
+
 MESH_ERRORS = {
     "not closed": ({"mesh_file": "open.stl"}, "is not closed (watertight)"),
     "missing": ({"mesh_file": "nosuch.stl"}, "mesh_file: file not found"),

@@ -81,6 +81,9 @@ class Patient(StrictModel):
 
     shape: Literal["dome", "mesh"] = Field("dome", description="'dome' (semi_axes_mm) or 'mesh' (mesh_file)")
     semi_axes_mm: Vec3 = Field([170.0, 210.0, 140.0], min_length=3, max_length=3)
+    dome_exponent: float = Field(2.0, ge=2.0, le=10.0, description="the dome |x/a|^n + |y/b|^n + |z/c|^n <= 1: 2, a "
+                                 "half-ellipsoid; above 2, a superquadric, its top flatter and its flanks steeper "
+                                 "(an assumption either way: no source gives an insufflated shape)")
     mesh_file: str | None = Field(None, min_length=1, description="a closed triangle mesh of the insufflated body "
                                   "(STL, OBJ or PLY, read by trimesh), relative to the config file (its content "
                                   "hash, mesh_sha256, is in the store key, not its path)",
@@ -97,6 +100,8 @@ class Patient(StrictModel):
         if not all(20.0 <= v <= 1000.0 for v in self.semi_axes_mm):
             raise ValueError(f"semi_axes_mm: {self.semi_axes_mm}: every semi-axis of an abdomen is 20 to 1,000 mm")
         if self.shape == "mesh":
+            if self.dome_exponent != 2.0:
+                raise ValueError("dome_exponent shapes the parametric dome; it goes with shape = 'dome', not a mesh")
             self._resolve_mesh(info.context or {})
         elif self.mesh_file is not None:
             raise ValueError("mesh_file is given but shape is 'dome': set shape = 'mesh' to use it")
@@ -327,7 +332,9 @@ class PortPlaceConfig(StrictModel):
         outside = ~inside_body(pts, self.patient)
         if outside.any():
             p = pts[np.argmax(outside)]
-            body = (f"the dome {self.patient.semi_axes_mm} mm over z = 0" if self.patient.shape == "dome"
+            n = self.patient.dome_exponent
+            body = (f"the dome {self.patient.semi_axes_mm} mm over z = 0" + (f", exponent {n:g}" if n != 2 else "")
+                    if self.patient.shape == "dome"
                     else f"the mesh {self.patient.mesh_file}")
             raise ValueError(f"target: the point ({p[0]:.0f}, {p[1]:.0f}, {p[2]:.0f}) mm is outside the body "
                              f"({body})")
@@ -437,15 +444,30 @@ def target_points_mm(t: Target) -> np.ndarray:
     return pts + np.asarray(t.centre_mm, float)
 
 
-def inside_dome(p: np.ndarray, semi_axes_mm) -> np.ndarray:
+def inside_dome(p: np.ndarray, semi_axes_mm, exponent: float = 2.0) -> np.ndarray:
+    """Which points (mm) lie inside the dome |x/a|^n + |y/b|^n + |z/c|^n < 1, z >= 0 (n = 2: the half-ellipsoid)."""
     a = np.asarray(semi_axes_mm, float)
-    return (p[:, 2] >= 0) & (((p / a) ** 2).sum(axis=1) < 1.0)
+    if exponent == 2.0:
+        return (p[:, 2] >= 0) & (((p / a) ** 2).sum(axis=1) < 1.0)
+    return (p[:, 2] >= 0) & ((np.abs(p / a) ** exponent).sum(axis=1) < 1.0)
 
 
-def dome_height_mm(x, y, semi_axes_mm):
+def dome_height_mm(x, y, semi_axes_mm, exponent: float = 2.0):
+    """The dome's height (mm) over top-view points: c (1 - |x/a|^n - |y/b|^n)^(1/n), 0 outside its base."""
     a, b, c = semi_axes_mm
-    s = 1.0 - (np.asarray(x) / a) ** 2 - (np.asarray(y) / b) ** 2
-    return c * np.sqrt(np.clip(s, 0.0, None))
+    if exponent == 2.0:
+        s = 1.0 - (np.asarray(x) / a) ** 2 - (np.asarray(y) / b) ** 2
+        return c * np.sqrt(np.clip(s, 0.0, None))
+    s = 1.0 - np.abs(np.asarray(x) / a) ** exponent - np.abs(np.asarray(y) / b) ** exponent
+    return c * np.clip(s, 0.0, None) ** (1.0 / exponent)
+
+
+def dome_surface_mm(semi_axes_mm, exponent: float, u: np.ndarray, v: np.ndarray):
+    """(x, y, z) of the dome's surface at longitude u and latitude v in [0, pi/2] (rad): the superquadric's
+    signed-power parametrisation, a ellipsoid's cos/sin when n = 2."""
+    a, b, c = semi_axes_mm
+    f = lambda w: np.sign(w) * np.abs(w) ** (2.0 / exponent)  # noqa: E731
+    return a * f(np.cos(u)) * f(np.cos(v)), b * f(np.sin(u)) * f(np.cos(v)), c * f(np.sin(v))
 
 
 #: The largest mesh file read (bytes) and the most triangles accepted.
@@ -513,7 +535,7 @@ def _mesh_of(patient: Patient):
 def inside_body(p: np.ndarray, patient: Patient) -> np.ndarray:
     """Which points (mm) lie inside the body: the dome, or the closed mesh (trimesh's containment test)."""
     if patient.shape == "dome":
-        return inside_dome(p, patient.semi_axes_mm)
+        return inside_dome(p, patient.semi_axes_mm, patient.dome_exponent)
     return np.asarray(_mesh_of(patient).contains(p), bool) & (p[:, 2] >= 0)
 
 
@@ -521,7 +543,7 @@ def wall_height_mm(x: np.ndarray, y: np.ndarray, patient: Patient) -> np.ndarray
     """Height (mm) of the body's upper wall over each top-view point: the dome's, or the highest crossing of a
     vertical ray with the mesh (NaN where the ray misses it)."""
     if patient.shape == "dome":
-        return dome_height_mm(x, y, patient.semi_axes_mm)
+        return dome_height_mm(x, y, patient.semi_axes_mm, patient.dome_exponent)
     return _mesh_wall(x, y, _mesh_of(patient))[0]
 
 

@@ -80,8 +80,10 @@ def figures(cfg, table, out, design_id=None):
 
     a, b, h = body_extent_mm(cfg.patient)
     if cfg.patient.shape == "dome":
+        from surgopt.studies.port_place_config import dome_surface_mm
+
         u, v = np.meshgrid(np.linspace(0, 2 * np.pi, 49), np.linspace(0, np.pi / 2, 13))
-        ax.plot_wireframe(a * np.cos(u) * np.cos(v), b * np.sin(u) * np.cos(v), h * np.sin(v), color="0.8", lw=0.4)
+        ax.plot_wireframe(*dome_surface_mm((a, b, h), cfg.patient.dome_exponent, u, v), color="0.8", lw=0.4)
     else:  # the mesh's triangles, thinned to at most ~4,000 for a readable figure
         mesh = _mesh_of(cfg.patient)
         faces = mesh.faces[:: max(1, len(mesh.faces) // 4000)]
