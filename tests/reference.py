@@ -624,3 +624,19 @@ def segment_distance_sampled(p0, p1, q0, q1, n=401):
     a = p0 + s * (p1 - p0)
     b = q0 + s * (q1 - q0)
     return float(np.min(np.linalg.norm(a[:, None, :] - b[None, :, :], axis=2)))
+
+
+def ellipsoid_distance(p, semi_axes):
+    """Distance from a point outside an ellipsoid (centred, axis-aligned) to it (Eberly, "Distance from a point
+    to an ellipse, an ellipsoid, or a hyperellipsoid"): the root t > 0 of sum (a_i p_i / (t + a_i^2))^2 = 1 by
+    bisection, the nearest point q_i = a_i^2 p_i / (t + a_i^2)."""
+    a = np.asarray(semi_axes, float)
+    p = np.asarray(p, float)
+    f = lambda t: np.sum((a * p / (t + a * a)) ** 2) - 1.0  # noqa: E731
+    lo, hi = 0.0, float(np.linalg.norm(a * p)) + 1.0
+    assert f(lo) > 0 > f(hi)
+    for _ in range(200):
+        mid = (lo + hi) / 2
+        lo, hi = (mid, hi) if f(mid) > 0 else (lo, mid)
+    q = a * a * p / (lo + a * a)
+    return float(np.linalg.norm(p - q))

@@ -178,22 +178,59 @@ def test_a_base_inside_the_body_refuses_the_port():
     assert not st.reach[under].any() and np.isnan(st.links[under]).all()
 
 
-def test_links_through_the_wall_are_found_and_the_tool_entering_is_not():
+def test_links_through_or_near_the_wall_are_found_and_the_tool_entering_is_not():
     """_links_inside on hand-built centre lines over the default dome (170 x 210 x 140 mm): a link crossing the
     dome between two outside joints is found (its ends are outside: only the samples between them are in); a
-    line whose only part inside is its last segment, the tool from the flange into the port, is not; no line
-    (NaN) is not."""
+    line whose only part inside is its last segment, the tool from the flange into the port, is not, as long
+    as its flange, 40 mm above the dome's top, is farther from the wall than the links' radius (refused at 60
+    mm, kept at 30 mm and at 0); no line (NaN) is not."""
     from surgopt.studies.port_place_serial import _links_inside
 
-    cfg = S.PortPlaceConfig()
     outside = np.array([0.5, 0.0, 0.3])
     crossing = np.array([outside, outside, [0.3, 0.0, 0.05], [-0.3, 0.0, 0.05], [-0.3, 0.0, 0.4], [-0.2, 0.0, 0.4],
                          [-0.1, 0.0, 0.4], [0.0, 0.0, 0.14]])
     entering = np.array([outside, outside, [0.4, 0.0, 0.4], [0.3, 0.0, 0.45], [0.2, 0.0, 0.45], [0.1, 0.0, 0.45],
-                         [0.0, 0.0, 0.45], [0.0, 0.0, 0.10]])  # the flange above the top, the port 40 mm inside
-    assert not S.inside_body(crossing[:-1] * 1000, cfg.patient).any()  # the premise: every joint is outside
+                         [0.0, 0.0, 0.18], [0.0, 0.0, 0.10]])  # the flange 40 mm above the top, the port inside
     lines = np.stack([crossing, entering, np.full_like(crossing, np.nan)])
-    assert list(_links_inside(lines, cfg)) == [True, False, False]
+    for radius, want in ((60.0, [True, True, False]), (30.0, [True, False, False]), (0.0, [True, False, False])):
+        cfg = _config("ur5e", [0.5, 0.0, 0.1], link_radius_mm=radius)
+        assert not S.inside_body(crossing[:-1] * 1000, cfg.patient).any()  # the premise: every joint is outside
+        assert list(_links_inside(lines, cfg)) == want, radius
+
+
+@pytest.mark.parametrize("exponent", [2.0, 4.0])
+def test_the_distance_to_the_dome_is_a_lower_bound_within_its_sampling_gap(exponent):
+    """body_distance_mm on the dome: for points outside it (z >= 0), at most the true distance and within the
+    samples' gap (< 3 mm) of it. The true distance: Eberly's root for the half-ellipsoid (reference), and for the
+    superquadric the least distance to 2 million points of its surface ~0.2 mm apart (an upper bound within
+    that)."""
+    from reference import ellipsoid_distance
+
+    from surgopt.studies.port_place_config import body_distance_mm, dome_samples_mm
+
+    cfg = _config("ur5e", [0.5, 0.0, 0.1])
+    cfg = S.PortPlaceConfig.model_validate({**cfg.model_dump(), "patient": {**cfg.patient.model_dump(),
+                                                                            "dome_exponent": exponent}})
+    axes = cfg.patient.semi_axes_mm
+    rng = np.random.default_rng(4)
+    p = rng.uniform([-300.0, -350.0, 0.0], [300.0, 350.0, 260.0], (300, 3))
+    p = p[~S.inside_body(p, cfg.patient)][:150 if exponent == 2.0 else 40]
+    got = body_distance_mm(p, cfg.patient, 1000.0)
+    _, gap = dome_samples_mm(tuple(axes), exponent)
+    assert gap < 3.0
+    if exponent == 2.0:
+        want = np.array([ellipsoid_distance(x, axes) for x in p])
+        assert np.all(got <= want + 1e-9) and np.all(got >= want - gap - 1e-9)
+    else:
+        dense = []
+        for lon in np.linspace(0, 2 * np.pi, 2880, endpoint=False):  # 2880 x 720 directions, 0.14 mm apart
+            lat = np.linspace(0, np.pi / 2, 721)
+            d = np.stack([np.cos(lat) * np.cos(lon), np.cos(lat) * np.sin(lon), np.sin(lat)], axis=1)
+            dense.append(d / ((np.abs(d / axes) ** 4).sum(axis=1) ** 0.25)[:, None])  # out to the surface
+        dense = np.concatenate(dense)
+        upper = np.array([np.sqrt(((dense - x) ** 2).sum(axis=1).min()) for x in p])
+        assert np.all(got <= upper + 1e-9) and np.all(got >= upper - gap - 0.3)
+    assert got.min() < 20.0 < got.max()  # the premise: near and far points
 
 
 def test_the_search_evaluator_gives_the_enumerations_rows():
@@ -283,3 +320,22 @@ def test_the_shipped_pa10_config_loads_and_both_best_ports_reach_the_whole_targe
     sites = S.sites_mm(cfg)[[28, 144]] / 1000
     assert np.linalg.norm(sites[0] - sites[1]) == pytest.approx(0.180, abs=1e-9)
     assert serial_tables(cfg, sites).reach.all()
+
+
+def test_the_distance_to_a_mesh_patient_is_trimeshs_closest_point(tmp_path):
+    """body_distance_mm on a mesh patient (the default dome tessellated, 10,494 triangles): within the faceting
+    (1 mm) of the exact distance to the half-ellipsoid (Eberly's root, reference), and the cap beyond reach."""
+    from reference import ellipsoid_distance
+    from test_study_port_place import _dome_mesh
+
+    from surgopt.config import validate
+    from surgopt.studies.port_place_config import body_distance_mm
+
+    _dome_mesh(tmp_path / "dome.stl", subdivisions=5)
+    cfg = validate({"patient": {"shape": "mesh", "mesh_file": "dome.stl"}}, S.Config, "m", {"config_dir": str(tmp_path)})
+    rng = np.random.default_rng(5)
+    p = rng.uniform([-300.0, -350.0, 5.0], [300.0, 350.0, 260.0], (200, 3))
+    p = p[~S.inside_body(p, cfg.patient)][:60]
+    got = body_distance_mm(p, cfg.patient, 80.0)
+    want = np.minimum([ellipsoid_distance(x, cfg.patient.semi_axes_mm) for x in p], 80.0)
+    assert np.abs(got - want).max() < 1.0 and (want < 80.0).any() and (want == 80.0).any()

@@ -269,3 +269,27 @@ def link_camera_clearances(lines, sites, axes, length_m):
                     best = min(best, segment_distance(lines[i, a], lines[i, a + 1], far, sites[k]))
             out[i, k] = best
     return out
+
+
+@njit(**EXACT)
+def nearest_distances(points, surface, cap):
+    """Per point (n, 3): the distance to the nearest of the ``surface`` samples (m, 3), or ``cap`` when the
+    point lies farther than ``cap`` outside the samples' bounding box (no sample can be nearer than that).
+    Brute force over the samples for the rest."""
+    lo = np.empty(3)
+    hi = np.empty(3)
+    for a in range(3):
+        lo[a] = surface[:, a].min() - cap
+        hi[a] = surface[:, a].max() + cap
+    out = np.full(points.shape[0], cap)
+    for i in range(points.shape[0]):
+        x, y, z = points[i, 0], points[i, 1], points[i, 2]
+        if not (lo[0] <= x <= hi[0] and lo[1] <= y <= hi[1] and lo[2] <= z <= hi[2]):
+            continue
+        best = cap * cap
+        for k in range(surface.shape[0]):
+            d = (surface[k, 0] - x) ** 2 + (surface[k, 1] - y) ** 2 + (surface[k, 2] - z) ** 2
+            if d < best:
+                best = d
+        out[i] = math.sqrt(best)
+    return out

@@ -462,6 +462,43 @@ def dome_height_mm(x, y, semi_axes_mm, exponent: float = 2.0):
     return c * np.clip(s, 0.0, None) ** (1.0 / exponent)
 
 
+@lru_cache(maxsize=4)
+def dome_samples_mm(semi_axes_mm: tuple, exponent: float) -> tuple[np.ndarray, float]:
+    """(points (32,401, 3), gap) on the dome's surface, its base rim included: the directions of a 360 x 90 grid
+    of longitude and latitude, each scaled out to the surface (radial projection: cells of nearly even size on a
+    superquadric too), and the apex. Every point of the surface lies within ``gap`` (mm: half the longest
+    diagonal of a grid cell) of a sample, so a nearest-sample distance over-reads the distance to the surface by
+    at most ``gap`` (2.6 mm on the default dome, 3.9 mm at exponent 10)."""
+    a = np.asarray(semi_axes_mm, float)
+    u, v = np.meshgrid(np.linspace(0.0, 2 * np.pi, 361), np.linspace(0.0, np.pi / 2, 91))
+    d = np.stack([np.cos(v) * np.cos(u), np.cos(v) * np.sin(u), np.sin(v)], axis=2)
+    grid = d * ((np.abs(d / a) ** exponent).sum(axis=2) ** (-1.0 / exponent))[..., None]
+    diagonal = np.maximum(np.linalg.norm(grid[1:, 1:] - grid[:-1, :-1], axis=2),
+                          np.linalg.norm(grid[1:, :-1] - grid[:-1, 1:], axis=2))
+    points = np.vstack([grid[:-1, :-1].reshape(-1, 3), grid[-1:, 0]])
+    return points, float(diagonal.max()) / 2
+
+
+def body_distance_mm(p: np.ndarray, patient: Patient, cap_mm: float) -> np.ndarray:
+    """Per point (mm) outside the body: its distance to the body wall, capped at ``cap_mm`` (the mesh's by
+    trimesh's closest point, exact; the dome's to the nearest of ``dome_samples_mm``, less their gap: a lower
+    bound within that gap of the true distance)."""
+    if patient.shape == "dome":
+        from surgopt.kinematics.port_serial import nearest_distances
+
+        samples, gap = dome_samples_mm(tuple(patient.semi_axes_mm), patient.dome_exponent)
+        return np.clip(nearest_distances(np.ascontiguousarray(p, float), samples, cap_mm + gap) - gap, 0.0, cap_mm)
+    import trimesh
+
+    mesh = _mesh_of(patient)
+    out = np.full(len(p), cap_mm)
+    lo, hi = mesh.bounds
+    near = np.all((p >= lo - cap_mm) & (p <= hi + cap_mm), axis=1)
+    if near.any():
+        out[near] = np.minimum(trimesh.proximity.closest_point(mesh, p[near])[1], cap_mm)
+    return out
+
+
 def dome_surface_mm(semi_axes_mm, exponent: float, u: np.ndarray, v: np.ndarray):
     """(x, y, z) of the dome's surface at longitude u and latitude v in [0, pi/2] (rad): the superquadric's
     signed-power parametrisation, a ellipsoid's cos/sin when n = 2."""

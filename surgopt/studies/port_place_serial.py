@@ -2,8 +2,8 @@
 candidate port's reach and dexterity, and the arms' clearance outside the body, from ``kinematics.port_serial``.
 
 A port is refused for the arm (it reaches nothing there) when the arm's base would stand inside the patient's
-body, or when its links, at the docked pose, pass through the body (the centre lines sampled at
-``LINK_SAMPLES`` points a segment)."""
+body, or when its links, at the docked pose, pass through the body or nearer its wall than their radius
+(``link_radius_mm``; the centre lines sampled at ``LINK_SAMPLES`` points a segment)."""
 from __future__ import annotations
 
 from functools import lru_cache
@@ -11,7 +11,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from surgopt.studies.port_place_config import PortPlaceConfig, inside_body, target_points_mm
+from surgopt.studies.port_place_config import PortPlaceConfig, body_distance_mm, inside_body, target_points_mm
 from surgopt.studies.rcm_arm_config import SerialInstrumentArm
 
 #: Points sampled along each link segment for the inside-the-body check.
@@ -22,7 +22,8 @@ class SerialTables(NamedTuple):
     """reach[site, point], dexterity[site, point] (sigma_min / sigma_max of the RCM metric), the arms' least
     centre-line distance outside the body per pair of sites (m), the joints at each (site, point) (NaN where
     unreached), each site's base frame and link centre lines at the docked pose, and why a site was refused
-    (0: usable; 1: base inside the body; 2: links through the body at the docked pose)."""
+    (0: usable; 1: base inside the body; 2: links through the body, or nearer it than their radius, at the
+    docked pose)."""
 
     reach: np.ndarray
     dexterity: np.ndarray
@@ -91,15 +92,20 @@ def serial_tables(cfg: PortPlaceConfig, sites: np.ndarray, extra_yaw_rad=None) -
 
 def _links_inside(links: np.ndarray, cfg: PortPlaceConfig) -> np.ndarray:
     """Per site: whether any sampled point of its arm's link centre lines, base to flange, lies inside the body
-    (the last segment, flange to port, is the tool entering the body)."""
+    or nearer its wall than ``link_radius_mm`` (the last segment, flange to port, is the tool entering the
+    body)."""
+    radius = cfg.robot.instrument_serial.link_radius_mm
     s = np.linspace(0.0, 1.0, LINK_SAMPLES)[None, None, :, None]
     links = links[:, :-1]
     samples = links[:, :-1, None, :] * (1 - s) + links[:, 1:, None, :] * s  # (n, segments, samples, 3)
-    flat = samples.reshape(-1, 3)
+    flat = samples.reshape(-1, 3) * 1000
     ok = np.isfinite(flat[:, 0])
-    inside = np.zeros(len(flat), bool)
-    inside[ok] = inside_body(flat[ok] * 1000, cfg.patient)
-    return inside.reshape(len(links), -1).any(axis=1)
+    hit = np.zeros(len(flat), bool)
+    hit[ok] = inside_body(flat[ok], cfg.patient)
+    if radius > 0:
+        out = ok & ~hit
+        hit[out] = body_distance_mm(flat[out], cfg.patient, radius) < radius
+    return hit.reshape(len(links), -1).any(axis=1)
 
 
 def refused_ports_note(cfg: PortPlaceConfig, sites: np.ndarray) -> str:
@@ -109,5 +115,5 @@ def refused_ports_note(cfg: PortPlaceConfig, sites: np.ndarray) -> str:
     base, links = int((refused == BASE_INSIDE).sum()), int((refused == LINKS_INSIDE).sum())
     if not base + links:
         return ""
-    return (f" ({base} of the {len(refused)} ports put the arm's base inside the body, {links} its links through the "
-            f"wall)")
+    return (f" ({base} of the {len(refused)} ports put the arm's base inside the body, {links} its links through or "
+            f"within link_radius_mm of the wall)")

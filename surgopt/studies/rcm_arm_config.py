@@ -129,6 +129,9 @@ class SerialInstrumentArm(Robot):
                                                                       "off the radial stance (deg)")
     wrist_bend_deg: float = Field(0.0, ge=0.0, le=90.0, description="how far the held instrument's wrist bends the "
                                                                    "jaws off its shaft (deg; 0: a straight tool)")
+    link_radius_mm: float = Field(60.0, ge=0.0, le=300.0, description="the links as capsules of this radius about "
+                                  "their centre lines (base to flange): a port is refused when, docked there, they "
+                                  "come nearer the body than this (assumption: 60 mm, a PA10/UR5e-sized link)")
 
     @model_validator(mode="after")
     def _rcm_beside_the_base(self):
