@@ -140,6 +140,38 @@ def test_the_cmaes_plan_is_the_cmaes_package_asked_and_told(tmp_path):
     assert single_run(tmp_path).manifest["n_tasks"] == 4
 
 
+@pytest.mark.parametrize("limit", [3, 100])
+def test_a_generation_asked_at_once_is_cmaes_asked_point_by_point(limit):
+    """ask_generation against ``cmaes.CMA.ask`` on a twin optimiser (same seed, told the same values): bit for
+    bit the same points over 40 generations of a search pressed against its bounds, and the random state left
+    where the asks leave it; the premises: draws rejected, and with a resampling limit of 3 points clipped onto
+    the bounds. CMAwM is not batched (None)."""
+    import cmaes
+    import numpy as np
+
+    from surgopt.plans.cmaes_plan import ask_generation
+
+    def make(cls=cmaes.CMA, **kw):
+        return cls(mean=np.full(8, 0.9), sigma=0.3, bounds=np.tile([0.0, 1.0], (8, 1)), seed=7, population_size=10,
+                   **kw)
+
+    opt, twin = make(n_max_resampling=limit), make(n_max_resampling=limit)
+    sample, draws = twin._sample_solution, []
+    twin._sample_solution = lambda: (draws.append(1), sample())[1]  # counts the twin's draws
+    clipped = 0
+    for _ in range(40):
+        one_by_one = np.array([twin.ask() for _ in range(10)])
+        batch = ask_generation(opt, 10)
+        assert np.array_equal(batch, one_by_one)
+        clipped += int(np.any((batch == 0.0) | (batch == 1.0)))
+        values = ((batch - 0.97) ** 2).sum(axis=1)
+        opt.tell(list(zip(batch, values)))
+        twin.tell(list(zip(one_by_one, values)))
+    assert np.array_equal(opt._rng.randn(5), twin._rng.randn(5))
+    assert len(draws) > 400 and (clipped > 0) == (limit == 3)  # draws rejected; points clipped
+    assert ask_generation(make(cmaes.CMAwM, steps=np.zeros(8)), 10) is None
+
+
 def test_a_killed_search_resumes_to_the_same_trials(tmp_path):
     ref = _search(tmp_path, "ref", trials=240, batch=20)
     cli_args = [sys.executable, "-m", "surgopt", "rcm-grid"]

@@ -68,6 +68,48 @@ class Space:
         return out
 
 
+#: What ``ask_generation`` reads of a ``cmaes.CMA`` (its sampling state, version 0.10 to 0.13).
+CMA_SAMPLING_STATE = ("_rng", "_mean", "_sigma", "_bounds", "_n_dim", "_n_max_resampling", "_eigen_decomposition")
+
+
+def ask_generation(opt, n: int) -> np.ndarray | None:
+    """n asks of a ``cmaes.CMA`` at once, bit for bit the points its ``ask`` would return one by one, leaving its
+    random state where they would (tests/test_plans.py holds the two equal); None for any other optimiser
+    (``CMAwM``'s margin, or a ``cmaes`` whose sampling state has other names), which is then asked point by point.
+
+    ``CMA.ask`` draws z ~ N(0, I) (``RandomState.randn``), maps it to x = m + sigma B D z and keeps it when it lies
+    in the bounds, up to ``n_max_resampling`` draws a point, then clips one more. Here the normals come in blocks
+    of as many rows as points are still wanted (the same stream: ``randn(k, d)`` is k calls of ``randn(d)``, and
+    no block draws a row the one-by-one asks would not), each row mapped by the same ``B D`` product, and the
+    bounds are checked on the whole block: a per-point Python cost of ~5 us against ``ask``'s ~20 us a draw
+    (~3 draws a trial on Table II, whose optimum lies on three bounds)."""
+    import cmaes
+
+    if type(opt) is not cmaes.CMA or not all(hasattr(opt, a) for a in CMA_SAMPLING_STATE):
+        return None
+    b, d = opt._eigen_decomposition()
+    bd = b.dot(np.diag(d))
+    mean, sigma, bounds, limit = opt._mean, opt._sigma, opt._bounds, opt._n_max_resampling
+    out = np.empty((n, opt._n_dim))
+    got, tries = 0, 0
+    while got < n:
+        z = opt._rng.randn(n - got, opt._n_dim)
+        x = np.array([mean + sigma * bd.dot(row) for row in z])
+        inside = np.ones(len(x), bool) if bounds is None else np.all((x >= bounds[:, 0]) & (x <= bounds[:, 1]),
+                                                                     axis=1)
+        for r in range(len(x)):
+            if tries == limit:  # the draw after n_max_resampling misses: clipped into the bounds
+                out[got] = np.where(x[r] > bounds[:, 1], bounds[:, 1], np.where(x[r] < bounds[:, 0], bounds[:, 0],
+                                                                               x[r]))
+            elif inside[r]:
+                out[got] = x[r]
+            else:
+                tries += 1
+                continue
+            got, tries = got + 1, 0
+    return out
+
+
 class CmaesSession:
     unit = "trials"
 
@@ -136,6 +178,9 @@ class CmaesSession:
     def _ask(self):
         """The next generation: (search coordinates to tell, designs to evaluate, whether it is whole)."""
         n = min(self.opt.population_size, self.total - self.evaluated)
+        batch = ask_generation(self.opt, n)
+        if batch is not None:  # cmaes.CMA: its n asks at once
+            return list(batch), self.space.decode(batch), n == self.opt.population_size
         tell, ev = [], []
         for _ in range(n):
             x = self.opt.ask()
