@@ -579,6 +579,42 @@ def test_free_docking_turns_the_base_and_a_search_explores_ports_and_docking(tmp
         assert v.min() >= -60 and v.max() <= 60 and len(set(v.tolist())) > 10
 
 
+def test_a_surface_search_places_each_port_at_the_site_nearest_its_point(tmp_path):
+    """search_ports = "surface": the space is each port's top-view point within the sites' box; a design whose
+    points are the sites themselves is the enumeration's row (every column, the aims added); random points go
+    to the nearest site (brute force over every site); a CMA-ES search is deterministic on one worker or two,
+    its aims within the box and its sites the nearest to them."""
+    from surgopt.config import validate
+    from surgopt.runner import run_study
+    from surgopt.store import Store
+
+    cfg = validate({**COARSE, "search_ports": "surface", "search": {"method": "cmaes", "trials": 60, "seed": 2}},
+                   S.Config, "x")
+    sites = S.sites_mm(cfg)
+    plan = S.search_plan(cfg)
+    assert list(plan.space) == list(S.aim_columns(cfg)) == ["psm1_aim_x_mm", "psm1_aim_y_mm", "psm2_aim_x_mm",
+                                                           "psm2_aim_y_mm", "ecm_aim_x_mm", "ecm_aim_y_mm"]
+    assert plan.space["psm1_aim_x_mm"] == (sites[:, 0].min(), sites[:, 0].max())
+    grid = S.compute_task(cfg, 10 ** 6, 0)
+    pick = np.arange(0, len(grid["design_id"]), 97)
+    ids = np.column_stack([grid[f"{a}_site"][pick] for a in S.arms_of(cfg)])
+    x = sites[ids][:, :, :2].reshape(len(pick), -1)
+    alone = S.evaluate_designs(cfg, x, grid["design_id"][pick], "t")
+    for c, v in grid.items():
+        np.testing.assert_allclose(np.asarray(alone[c], float), np.asarray(v, float)[pick], rtol=0, atol=1e-9,
+                                   err_msg=c)
+    aims = RNG.uniform(sites[:, :2].min(axis=0), sites[:, :2].max(axis=0), (200, 2))
+    d = np.linalg.norm(aims[:, None, :] - sites[None, :, :2], axis=2)
+    assert np.array_equal(d[np.arange(200), S.nearest_sites(sites[:, :2], aims)], d.min(axis=1))
+    a = run_study(S.STUDY, cfg, config_name="a", store=Store(tmp_path / "a"), jobs=2, quiet=True).table
+    b = run_study(S.STUDY, cfg, config_name="b", store=Store(tmp_path / "b"), jobs=1, quiet=True).table
+    assert a.equals(b) and a.num_rows == 60
+    for arm in S.arms_of(cfg):
+        aim = np.column_stack([a[f"{arm}_aim_x_mm"].to_numpy(), a[f"{arm}_aim_y_mm"].to_numpy()])
+        assert np.all(aim >= sites[:, :2].min(axis=0)) and np.all(aim <= sites[:, :2].max(axis=0))
+        assert np.array_equal(a[f"{arm}_site"].to_numpy(), S.nearest_sites(sites[:, :2], aim))
+
+
 def test_an_approach_cone_keeps_the_points_whose_shaft_the_wrist_can_turn_into_it():
     """[target] approach_direction / approach_half_angle_deg: a point is reached only where the angle between the
     shaft (port to point) and the approach direction is at most the wrist's bend (80 deg, the LND's wrist rows)

@@ -266,6 +266,9 @@ def schema(config=None):
                    "meaning": "the wrist's bend left at the worst target point for the approach cone (its whole "
                               "bend when no approach is asked; negative: short by that much)"}) for arm in arms[:-1]],
                *[pa.field(c, pa.float64()) for c in docking_columns(config)],
+               *[pa.field(c, pa.float64(), metadata={"meaning": "the top-view point a surface search placed the "
+                                                                 "port at, taken to the nearest candidate site"})
+                 for c in aim_columns(config)],
                pa.field("cost", pa.float64()),
                pa.field("score", pa.float64(), metadata={"meaning": "what summarize ranks by (higher is better): "
                                                                      "-cost, less 100 per reason a design fails"}),
@@ -328,7 +331,7 @@ def wrist_margin_deg(cfg, sites: np.ndarray) -> np.ndarray:
     return bend - t.approach_half_angle_deg - np.degrees(np.arccos(cos)).max(axis=1)
 
 
-def design_rows(cfg, sites, t, ids, site_ids, f, bad, cost, design_ids, docking_deg) -> dict:
+def design_rows(cfg, sites, t, ids, site_ids, f, bad, cost, design_ids, docking_deg, aim_mm=None) -> dict:
     """The rows of designs: ``ids`` (a column per arm, ``arms_of``) index ``sites`` and ``t`` (the tables they
     were combined from), ``site_ids`` are the candidate sites' numbers reported; ``docking_deg`` (yaw, pitch of
     each instrument) per design."""
@@ -355,6 +358,8 @@ def design_rows(cfg, sites, t, ids, site_ids, f, bad, cost, design_ids, docking_
         cols[f"{arm}_wrist_margin_deg"] = t.wrist_margin_deg[ids[:, a]]
     for c, name in enumerate(docking_columns(cfg)):
         cols[name] = np.asarray(docking_deg[:, c], dtype=np.float64)
+    for c, name in enumerate(aim_columns(cfg)):  # the sites themselves, unless a surface search aimed elsewhere
+        cols[name] = sites[ids[:, c // 2], c % 2] * 1000 if aim_mm is None else np.asarray(aim_mm[:, c], float)
     cols["cost"] = cost
     failed = sum((bad >> bit) & 1 for bit in range(len(_reasons())))
     cols["score"] = -cost - INFEASIBLE_PENALTY * failed
@@ -370,21 +375,40 @@ def docking_columns(config=None) -> tuple[str, ...]:
     return tuple(f"{arm}_docking_{angle}_deg" for arm in arms_of(config)[:-1] for angle in ("yaw", "pitch"))
 
 
+def aim_columns(config=None) -> tuple[str, ...]:
+    """A surface search's dimensions (``search_ports = "surface"``): each port's top-view point, x and y (mm)."""
+    ports = (config.get("search_ports", "sites") if isinstance(config, dict)
+             else "sites" if config is None else config.search_ports)
+    return tuple(f"{arm}_aim_{c}_mm" for arm in arms_of(config) for c in "xy") if ports == "surface" else ()
+
+
+def nearest_sites(sites_xy_mm: np.ndarray, aims_mm: np.ndarray) -> np.ndarray:
+    """The candidate site nearest each top-view point (rows of ``aims_mm``, (x, y) mm): its index."""
+    d = ((aims_mm[:, None, :] - sites_xy_mm[None, :, :]) ** 2).sum(axis=2)
+    return d.argmin(axis=1)
+
+
 #: The two-instrument study's docking and site columns.
 DOCKING_COLUMNS = docking_columns()
 SITE_COLUMNS = tuple(f"{arm}_site" for arm in arms_of())
 
 
 def search_plan(cfg):
-    """A search's space: every arm's port (categorical: any candidate site) and, when
-    ``robot.docking_range_deg`` > 0, each instrument's docking yaw and pitch within +- that range."""
+    """A search's space: every arm's port (categorical: any candidate site; or, with ``search_ports = "surface"``,
+    a top-view point within the candidate sites' box, continuous) and, when ``robot.docking_range_deg`` > 0, each
+    instrument's docking yaw and pitch within +- that range."""
     from surgopt.studies.search import SearchPlan, objectives_of, optimiser_of
 
     spec = optimiser_of(cfg)
     if spec is None:
         return None
-    n = len(sites_mm(cfg))
-    space = {f"{arm}_site": list(range(n)) for arm in arms_of(cfg)}
+    sites = sites_mm(cfg)
+    n = len(sites)
+    if cfg.search_ports == "surface":  # a box around the candidate sites, top view
+        lo, hi = sites[:, :2].min(axis=0), sites[:, :2].max(axis=0)
+        space = {c: (float(lo[i % 2]), float(hi[i % 2])) for i, c in enumerate(aim_columns(cfg))}
+    else:
+        space = {f"{arm}_site": list(range(n)) for arm in arms_of(cfg)}
     r = cfg.robot.docking_range_deg
     if r > 0:  # a serial arm turns its base about the port (yaw) only
         free = docking_columns(cfg)[::2] if cfg.robot.instrument_serial is not None else docking_columns(cfg)
@@ -393,8 +417,9 @@ def search_plan(cfg):
 
 
 def evaluate_designs(cfg, x: np.ndarray, ids: np.ndarray, source: str) -> dict:
-    """Rows of any designs (rows of ``x``: every arm's site number, ``arms_of``, then each instrument's docking
-    yaw and pitch in deg when free), each from its own ports docked as given: the per-port and per-pair tables
+    """Rows of any designs (rows of ``x``: every arm's site number, ``arms_of``, or with ``search_ports =
+    "surface"`` every arm's top-view point (x, y mm, taken to the nearest candidate site), then each instrument's
+    docking yaw and pitch in deg when free), each from its own ports docked as given: the per-port and per-pair tables
     of those ports (``port_tables``), combined as the enumeration combines them (its design 0 is the ports in
     this order). A design whose ports coincide is infeasible (zero spacing and clearance)."""
     from surgopt.kinematics import port_place as K
@@ -407,13 +432,16 @@ def evaluate_designs(cfg, x: np.ndarray, ids: np.ndarray, source: str) -> dict:
     centre = np.asarray(cfg.target.centre_mm, float) / 1000
     serial = cfg.robot.instrument_serial is not None
     out = []
+    surface = cfg.search_ports == "surface" and x.shape[1] >= 2 * ports
+    lead = 2 * ports if surface else ports  # the ports' columns: top-view points, or site numbers
     for r in range(x.shape[0]):
-        site_ids = x[r, :ports].astype(np.int64)
+        site_ids = (nearest_sites(all_sites[:, :2] * 1000, x[r, :lead].reshape(ports, 2)) if surface
+                    else x[r, :ports].astype(np.int64))
         docking = np.zeros(2 * (ports - 1))
-        if x.shape[1] > ports and serial:  # the bases' yaws only
-            docking[0::2] = x[r, ports:]
-        elif x.shape[1] > ports:
-            docking = x[r, ports:]
+        if x.shape[1] > lead and serial:  # the bases' yaws only
+            docking[0::2] = x[r, lead:]
+        elif x.shape[1] > lead:
+            docking = x[r, lead:]
         sites = all_sites[site_ids]
         if serial:  # the RCM mechanism (the camera) docked as in the grid, each serial base turned by its yaw
             t, _, _ = port_tables(cfg, sites, K.docking_frames(sites, centre, LATERAL),
@@ -425,7 +453,8 @@ def evaluate_designs(cfg, x: np.ndarray, ids: np.ndarray, source: str) -> dict:
             t, _, _ = port_tables(cfg, sites, rot, outside)
         local, f, bad, cost, _ = design_columns(t, crit, 0, 1, ports - 1)
         out.append(design_rows(cfg, sites, t, local, site_ids[None, :], f, bad, cost,
-                               np.asarray(ids[r:r + 1], dtype=np.int64), docking[None, :]))
+                               np.asarray(ids[r:r + 1], dtype=np.int64), docking[None, :],
+                               x[r:r + 1, :lead] if surface else None))
     from surgopt.plans import concat_rows
 
     return concat_rows(out)

@@ -301,6 +301,10 @@ class PortPlaceConfig(StrictModel):
     search: search_field("grid") = Field("grid", description="'grid' (every assignment, default docking) or a "
                                                              "[search] table: an optimiser over the ports (and the "
                                                              "docking, robot.docking_range_deg)")
+    search_ports: Literal["sites", "surface"] = Field(
+        "sites", description="how a [search] places a port: 'sites', a categorical choice of candidate site, or "
+                             "'surface', a top-view point (x, y mm) taken to the nearest candidate site, so that "
+                             "the optimiser sees neighbouring ports as neighbours")
 
     @model_validator(mode="after")
     def _search_objectives_are_columns(self):
