@@ -1,16 +1,13 @@
-"""Config models of the ``port-place`` study and the geometry they imply: the patient (a dome or a mesh), the port
+"""Config models of the ``port-place`` study: the patient (a dome or a mesh), the port
 region and its candidate sites, the target and its points, the robot, the constraints and the objective.
 
 A config is resolved once, at validation (a mesh file read, checked and hashed; the sites counted against the
-constraints), so the validated config says everything that is hashed into the store key. One module of ~500
-lines: the sections and the geometry each one implies (sites from the patient, points from the target) are read
-together.
+constraints), so the validated config says everything that is hashed into the store key. The geometry itself is
+in ``port_place_geometry`` (re-exported here).
 """
 from __future__ import annotations
 
 import math
-from functools import lru_cache
-from pathlib import Path
 from typing import Annotated, Literal
 
 import numpy as np
@@ -18,6 +15,32 @@ from pydantic import Field, ValidationInfo, model_validator
 
 from surgopt.config import NOT_IN_KEY, StrictModel
 from surgopt.robots import dvrk
+from surgopt.studies.port_place_geometry import (  # noqa: F401 - the geometry, re-exported
+    MAX_MESH_BYTES,
+    MAX_MESH_FACES,
+    MAX_POINTS_BYTES,
+    body_distance_mm,
+    body_extent_mm,
+    body_mesh,
+    check_mesh_scale,
+    dome_height_mm,
+    dome_samples_mm,
+    dome_surface_mm,
+    file_points_mm,
+    grid_1d,
+    inside_body,
+    inside_dome,
+    inside_polygon,
+    _mesh_of,
+    mesh_points_mm,
+    _mesh_wall,
+    painted_faces,
+    polygon_area_mm2,
+    _read_mesh_bytes,
+    sites_mm,
+    target_points_mm,
+    wall_height_mm,
+)
 from surgopt.studies.rcm_arm_config import RcmArmFile, SerialInstrumentArm, file_arm
 from surgopt.studies.search import check_objectives, search_field
 
@@ -52,26 +75,6 @@ class PortRegion(StrictModel):
         if self.polygon_mm is not None and polygon_area_mm2(np.asarray(self.polygon_mm, float)) < 1.0:
             raise ValueError("polygon_mm: its vertices enclose no area (fewer than three distinct, or all on a line)")
         return self
-
-
-def polygon_area_mm2(poly: np.ndarray) -> float:
-    """|Shoelace area| of a polygon's vertices (N, 2), in order."""
-    x, y = poly[:, 0], poly[:, 1]
-    return abs(float(np.dot(x, np.roll(y, -1)) - np.dot(np.roll(x, -1), y))) / 2
-
-
-def inside_polygon(x: np.ndarray, y: np.ndarray, poly: np.ndarray) -> np.ndarray:
-    """Whether each point (x, y) is inside the polygon (even-odd rule: a ray towards +x crosses its edges an odd
-    number of times)."""
-    inside = np.zeros(x.shape, dtype=bool)
-    x0, y0 = poly[:, 0], poly[:, 1]
-    x1, y1 = np.roll(x0, -1), np.roll(y0, -1)
-    for ax, ay, bx, by in zip(x0, y0, x1, y1):
-        crosses = (ay > y) != (by > y)
-        with np.errstate(divide="ignore", invalid="ignore"):
-            at = ax + (y - ay) * (bx - ax) / (by - ay)
-        inside ^= crosses & (x < at)
-    return inside
 
 
 class Patient(StrictModel):
@@ -372,286 +375,3 @@ def camera_arm_of(cfg: PortPlaceConfig):
     r = cfg.robot
     return file_arm(r.camera_file.model_dump_json()) if r.camera_file else dvrk.CAMERA_ARMS[r.camera_arm]
 
-
-# --- the geometry the config implies (numpy; mm) -------------------------------------------------------------
-
-def grid_1d(half: float, spacing: float) -> np.ndarray:
-    """Points -half .. half at ``spacing``, symmetric about 0 (0 included when they fit)."""
-    k = int(math.floor(half / spacing + 1e-9))
-    return np.arange(-k, k + 1) * spacing
-
-
-#: The largest target points file read (bytes): 20,000 points of text with room to spare.
-MAX_POINTS_BYTES = 20 * 2 ** 20
-
-
-@lru_cache(maxsize=4)
-def file_points_mm(path: str, sha256: str, units: str) -> np.ndarray:
-    """The target points of a file (mm): x y z rows of text (commas or spaces, '#' comments) or a .npy array;
-    a ValueError naming points_file when it is not n x 3 finite numbers. Cached per file content."""
-    import io
-
-    from surgopt.files import read_config_file
-
-    data = read_config_file("points_file", Path(path), MAX_POINTS_BYTES)
-    try:
-        if path.lower().endswith(".npy"):
-            pts = np.load(io.BytesIO(data), allow_pickle=False)
-        else:
-            text = data.decode("utf-8").replace(",", " ")
-            pts = np.loadtxt(io.StringIO(text), comments="#", ndmin=2)
-    except (ValueError, UnicodeDecodeError, OSError) as exc:
-        raise ValueError(f"points_file: {path}: not x y z rows of numbers ({str(exc).splitlines()[0][:100]})") from None
-    pts = np.asarray(pts, dtype=float)
-    if pts.ndim != 2 or pts.shape[1] != 3 or len(pts) == 0:
-        raise ValueError(f"points_file: {path}: {pts.shape} values, not rows of x y z")
-    bad = ~np.isfinite(pts).all(axis=1)
-    if bad.any():
-        raise ValueError(f"points_file: {path}: row {int(np.argmax(bad)) + 1} is not finite")
-    return pts * (1000.0 if units == "m" else 1.0)
-
-
-@lru_cache(maxsize=4)
-def mesh_points_mm(path: str, sha256: str, units: str, offset_mm: tuple, spacing_mm: float) -> np.ndarray:
-    """The grid points of ``spacing_mm`` inside a closed target mesh (mm; trimesh's containment test), the grid
-    centred on the mesh's bounding box as the shapes' grids are on their centres. A ValueError naming mesh_file
-    when no point falls inside (a spacing larger than the region)."""
-    mesh = body_mesh(path, sha256, units, offset_mm)
-    lo, hi = mesh.bounds
-    centre, half = (lo + hi) / 2, (hi - lo) / 2
-    if np.prod(2 * half / spacing_mm + 1) > 2_000_000:
-        raise ValueError(f"mesh_file: {path}: a {spacing_mm:g} mm grid over its {2 * half.round(0)} mm bounds is "
-                         f"more than 2,000,000 points to test (a larger spacing_mm)")
-    gx, gy, gz = (grid_1d(h, spacing_mm) + c for h, c in zip(half, centre))
-    x, y, z = np.meshgrid(gx, gy, gz, indexing="ij")
-    pts = np.stack([x.ravel(), y.ravel(), z.ravel()], axis=1)
-    pts = pts[np.asarray(mesh.contains(pts), bool)]
-    if len(pts) == 0:
-        raise ValueError(f"mesh_file: {path}: no point of a {spacing_mm:g} mm grid lies inside the mesh (a smaller "
-                         f"spacing_mm)")
-    return pts
-
-
-def target_points_mm(t: Target) -> np.ndarray:
-    """The target's points (mm): the file's, the grid points inside its mesh, or the shape sampled on a grid of
-    ``spacing_mm`` centred on it (points inside the shape)."""
-    if t.shape == "points":
-        return file_points_mm(t.points_file, t.points_sha256, t.points_units)
-    if t.shape == "mesh":
-        return mesh_points_mm(t.mesh_file, t.mesh_sha256, t.mesh_units, tuple(t.mesh_offset_mm), t.spacing_mm)
-    gx, gy, gz = (grid_1d(r, t.spacing_mm) for r in t.radii_mm)
-    x, y, z = np.meshgrid(gx, gy, gz, indexing="ij")
-    pts = np.stack([x.ravel(), y.ravel(), z.ravel()], axis=1)
-    if t.shape != "box":
-        r = np.asarray(t.radii_mm, float)
-        pts = pts[((pts / r) ** 2).sum(axis=1) <= 1.0 + 1e-12]
-    return pts + np.asarray(t.centre_mm, float)
-
-
-def inside_dome(p: np.ndarray, semi_axes_mm, exponent: float = 2.0) -> np.ndarray:
-    """Which points (mm) lie inside the dome |x/a|^n + |y/b|^n + |z/c|^n < 1, z >= 0 (n = 2: the half-ellipsoid)."""
-    a = np.asarray(semi_axes_mm, float)
-    if exponent == 2.0:
-        return (p[:, 2] >= 0) & (((p / a) ** 2).sum(axis=1) < 1.0)
-    return (p[:, 2] >= 0) & ((np.abs(p / a) ** exponent).sum(axis=1) < 1.0)
-
-
-def dome_height_mm(x, y, semi_axes_mm, exponent: float = 2.0):
-    """The dome's height (mm) over top-view points: c (1 - |x/a|^n - |y/b|^n)^(1/n), 0 outside its base."""
-    a, b, c = semi_axes_mm
-    if exponent == 2.0:
-        s = 1.0 - (np.asarray(x) / a) ** 2 - (np.asarray(y) / b) ** 2
-        return c * np.sqrt(np.clip(s, 0.0, None))
-    s = 1.0 - np.abs(np.asarray(x) / a) ** exponent - np.abs(np.asarray(y) / b) ** exponent
-    return c * np.clip(s, 0.0, None) ** (1.0 / exponent)
-
-
-@lru_cache(maxsize=4)
-def dome_samples_mm(semi_axes_mm: tuple, exponent: float) -> tuple[np.ndarray, float]:
-    """(points (32,401, 3), gap) on the dome's surface, its base rim included: the directions of a 360 x 90 grid
-    of longitude and latitude, each scaled out to the surface (radial projection: cells of nearly even size on a
-    superquadric too), and the apex. Every point of the surface lies within ``gap`` (mm: half the longest
-    diagonal of a grid cell) of a sample, so a nearest-sample distance over-reads the distance to the surface by
-    at most ``gap`` (2.6 mm on the default dome, 3.9 mm at exponent 10)."""
-    a = np.asarray(semi_axes_mm, float)
-    u, v = np.meshgrid(np.linspace(0.0, 2 * np.pi, 361), np.linspace(0.0, np.pi / 2, 91))
-    d = np.stack([np.cos(v) * np.cos(u), np.cos(v) * np.sin(u), np.sin(v)], axis=2)
-    grid = d * ((np.abs(d / a) ** exponent).sum(axis=2) ** (-1.0 / exponent))[..., None]
-    diagonal = np.maximum(np.linalg.norm(grid[1:, 1:] - grid[:-1, :-1], axis=2),
-                          np.linalg.norm(grid[1:, :-1] - grid[:-1, 1:], axis=2))
-    points = np.vstack([grid[:-1, :-1].reshape(-1, 3), grid[-1:, 0]])
-    return points, float(diagonal.max()) / 2
-
-
-def body_distance_mm(p: np.ndarray, patient: Patient, cap_mm: float) -> np.ndarray:
-    """Per point (mm) outside the body: its distance to the body wall, capped at ``cap_mm`` (the mesh's by
-    trimesh's closest point, exact; the dome's to the nearest of ``dome_samples_mm``, less their gap: a lower
-    bound within that gap of the true distance)."""
-    if patient.shape == "dome":
-        from surgopt.kinematics.port_serial import nearest_distances
-
-        samples, gap = dome_samples_mm(tuple(patient.semi_axes_mm), patient.dome_exponent)
-        return np.clip(nearest_distances(np.ascontiguousarray(p, float), samples, cap_mm + gap) - gap, 0.0, cap_mm)
-    import trimesh
-
-    mesh = _mesh_of(patient)
-    out = np.full(len(p), cap_mm)
-    lo, hi = mesh.bounds
-    near = np.all((p >= lo - cap_mm) & (p <= hi + cap_mm), axis=1)
-    if near.any():
-        out[near] = np.minimum(trimesh.proximity.closest_point(mesh, p[near])[1], cap_mm)
-    return out
-
-
-def dome_surface_mm(semi_axes_mm, exponent: float, u: np.ndarray, v: np.ndarray):
-    """(x, y, z) of the dome's surface at longitude u and latitude v in [0, pi/2] (rad): the superquadric's
-    signed-power parametrisation, a ellipsoid's cos/sin when n = 2."""
-    a, b, c = semi_axes_mm
-    f = lambda w: np.sign(w) * np.abs(w) ** (2.0 / exponent)  # noqa: E731
-    return a * f(np.cos(u)) * f(np.cos(v)), b * f(np.sin(u)) * f(np.cos(v)), c * f(np.sin(v))
-
-
-#: The largest mesh file read (bytes) and the most triangles accepted.
-MAX_MESH_BYTES = 200 * 2 ** 20
-MAX_MESH_FACES = 2_000_000
-
-
-def _read_mesh_bytes(path) -> bytes:
-    from surgopt.files import read_config_file
-
-    return read_config_file("mesh_file", path, MAX_MESH_BYTES)
-
-
-@lru_cache(maxsize=4)
-def body_mesh(path: str, sha256: str, units: str, offset_mm: tuple):
-    """The patient's mesh (trimesh) in mm, offset; a ValueError naming the problem if it cannot be read, is not
-    closed (inside and outside would be undefined) or is too large. Cached per file content."""
-    import io
-
-    import trimesh
-
-    data = _read_mesh_bytes(path)
-    kind = Path(path).suffix.lower().lstrip(".")
-    if kind not in ("stl", "obj", "ply"):
-        raise ValueError(f"mesh_file: {path}: not an STL, OBJ or PLY file")
-    try:
-        mesh = trimesh.load(io.BytesIO(data), file_type=kind, force="mesh", process=True)
-    except Exception as exc:  # noqa: BLE001 - whatever trimesh raises on a malformed file
-        raise ValueError(f"mesh_file: {path}: cannot be read as {kind.upper()} ({type(exc).__name__}: "
-                         f"{str(exc)[:120]})") from None
-    if len(mesh.faces) == 0:
-        raise ValueError(f"mesh_file: {path}: no triangles")
-    if len(mesh.faces) > MAX_MESH_FACES:
-        raise ValueError(f"mesh_file: {path}: {len(mesh.faces):,} triangles (at most {MAX_MESH_FACES:,})")
-    if not np.all(np.isfinite(mesh.vertices)):
-        raise ValueError(f"mesh_file: {path}: a vertex is not finite")
-    if not mesh.is_watertight:
-        raise ValueError(f"mesh_file: {path}: the mesh is not closed (watertight), so inside and outside the body "
-                         f"are undefined; close it (e.g. cap the base plane)")
-    mesh.apply_scale(1000.0 if units == "m" else 1.0)
-    mesh.apply_translation(np.asarray(offset_mm, float))
-    if mesh.bounds[1][2] <= 0:
-        raise ValueError(f"mesh_file: {path}: the mesh lies below z = 0 (mesh_offset_mm puts its base on z = 0)")
-    return mesh
-
-
-def check_mesh_scale(mesh, path: str, units: str, lo_mm: float, hi_mm: float, what: str) -> None:
-    """Refuse a mesh whose half extents are not all within [lo_mm, hi_mm] (a wrongly scaled file: metres read as
-    mm make an abdomen 0.2 mm across), naming the units that would fit."""
-    half = (mesh.bounds[1] - mesh.bounds[0]) / 2
-    if np.all((half >= lo_mm) & (half <= hi_mm)):
-        return
-    hint = ""
-    for other, factor in (("m", 1000.0), ("mm", 0.001)):
-        if other != units and np.all((half * factor >= lo_mm) & (half * factor <= hi_mm)):
-            hint = f"; read as {other} it would fit: mesh_units = '{other}'?"
-    raise ValueError(f"mesh_file: {path}: its half extents are {', '.join(f'{v:.4g}' for v in half)} mm with "
-                     f"mesh_units = '{units}', not {what} ({lo_mm:g} to {hi_mm:g} mm){hint}")
-
-
-def _mesh_of(patient: Patient):
-    return body_mesh(patient.mesh_file, patient.mesh_sha256, patient.mesh_units, tuple(patient.mesh_offset_mm))
-
-
-def inside_body(p: np.ndarray, patient: Patient) -> np.ndarray:
-    """Which points (mm) lie inside the body: the dome, or the closed mesh (trimesh's containment test)."""
-    if patient.shape == "dome":
-        return inside_dome(p, patient.semi_axes_mm, patient.dome_exponent)
-    return np.asarray(_mesh_of(patient).contains(p), bool) & (p[:, 2] >= 0)
-
-
-def wall_height_mm(x: np.ndarray, y: np.ndarray, patient: Patient) -> np.ndarray:
-    """Height (mm) of the body's upper wall over each top-view point: the dome's, or the highest crossing of a
-    vertical ray with the mesh (NaN where the ray misses it)."""
-    if patient.shape == "dome":
-        return dome_height_mm(x, y, patient.semi_axes_mm, patient.dome_exponent)
-    return _mesh_wall(x, y, _mesh_of(patient))[0]
-
-
-def _mesh_wall(x: np.ndarray, y: np.ndarray, mesh) -> tuple[np.ndarray, np.ndarray]:
-    """(height mm, face) of the highest crossing of a vertical ray through each top-view point with the mesh
-    (NaN and -1 where the ray misses it)."""
-    top = mesh.bounds[1][2] + 10.0
-    origins = np.stack([x, y, np.full(len(x), top)], axis=1)
-    dirs = np.tile([0.0, 0.0, -1.0], (len(x), 1))
-    locations, index_ray, index_tri = mesh.ray.intersects_location(origins, dirs, multiple_hits=True)
-    z = np.full(len(x), np.nan)
-    np.fmax.at(z, index_ray, locations[:, 2])
-    face = np.full(len(x), -1, np.int64)
-    highest = locations[:, 2] == z[index_ray]
-    face[index_ray[highest]] = index_tri[highest]
-    return z, face
-
-
-def painted_faces(patient: Patient) -> np.ndarray | None:
-    """Which faces of a mesh patient carry ``port_region.face_color_rgb`` (None when no colour is given); a
-    ValueError naming the field when the mesh has no per-face colours or none of that colour."""
-    rgb = patient.port_region.face_color_rgb
-    if rgb is None:
-        return None
-    if patient.shape != "mesh":
-        raise ValueError("patient.port_region.face_color_rgb: a painted region needs shape = 'mesh' (a PLY file "
-                         "with per-face colours); on the dome, mark the region with polygon_mm")
-    mesh = _mesh_of(patient)
-    if getattr(mesh.visual, "kind", None) != "face":
-        raise ValueError(f"patient.port_region.face_color_rgb: {patient.mesh_file} has no per-face colours (STL "
-                         f"has none, OBJ stores vertex colours): export the painted mesh as PLY with face colours")
-    colours = np.asarray(mesh.visual.face_colors)[:, :3]
-    painted = np.all(colours == np.asarray(rgb), axis=1)
-    if not painted.any():
-        present = ", ".join(str(list(c)) for c in np.unique(colours, axis=0)[:6])
-        raise ValueError(f"patient.port_region.face_color_rgb: no face of {patient.mesh_file} has the colour {rgb} "
-                         f"(its colours: {present})")
-    return painted
-
-
-def body_extent_mm(patient: Patient) -> tuple[float, float, float]:
-    """Half widths in x and y about 0 and the height of the body (the dome's semi-axes, the mesh's bounds)."""
-    if patient.shape == "dome":
-        return tuple(patient.semi_axes_mm)
-    lo, hi = _mesh_of(patient).bounds
-    return max(abs(lo[0]), abs(hi[0])), max(abs(lo[1]), abs(hi[1])), float(hi[2])
-
-
-def sites_mm(cfg: PortPlaceConfig) -> np.ndarray:
-    """Candidate ports: a top-view grid at ``site_spacing_mm`` (symmetric about x = 0) lifted onto the body's
-    upper wall (the dome, or the mesh by vertical rays), kept where the wall is at least
-    ``min_height_fraction`` of the body's height, inside ``polygon_mm`` when given, on a face painted
-    ``face_color_rgb`` when given, and where the target centre is within ``port_to_target_mm``."""
-    a, b, c = body_extent_mm(cfg.patient)
-    s = cfg.patient.port_region.site_spacing_mm
-    gx, gy = np.meshgrid(grid_1d(a, s), grid_1d(b, s), indexing="ij")
-    x, y = gx.ravel(), gy.ravel()
-    painted = painted_faces(cfg.patient)
-    if painted is None:
-        z = wall_height_mm(x, y, cfg.patient)
-    else:  # the face each site lies on must be painted
-        z, face = _mesh_wall(x, y, _mesh_of(cfg.patient))
-        z = np.where((face >= 0) & painted[np.maximum(face, 0)], z, np.nan)
-    keep = np.nan_to_num(z, nan=-1.0) >= cfg.patient.port_region.min_height_fraction * c
-    if cfg.patient.port_region.polygon_mm is not None:
-        keep &= inside_polygon(x, y, np.asarray(cfg.patient.port_region.polygon_mm, float))
-    pts = np.stack([x[keep], y[keep], z[keep]], axis=1)
-    dist = np.linalg.norm(pts - np.asarray(cfg.target.centre_mm), axis=1)
-    lo, hi = cfg.constraints.port_to_target_mm
-    return pts[(dist >= lo) & (dist <= hi)]
