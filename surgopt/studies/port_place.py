@@ -14,7 +14,7 @@ evaluated; docs/port_placement.md has the model, its sources and assumptions.
 
 The config models and the geometry they imply (patient, sites, target) are in ``port_place_config``, the
 design kernels in ``kinematics.port_designs``, a serial instrument arm's tables in ``port_place_serial``. One
-module of ~590 lines: the memoised tables, the rows, the
+module of ~630 lines: the memoised tables, the rows, the
 search space, the estimate and the summary are one declaration, read together.
 """
 from __future__ import annotations
