@@ -12,7 +12,7 @@ from surgopt.robots.models import get_model
 from surgopt.studies import port_place as S
 from surgopt.studies.port_place_serial import BASE_INSIDE, arm_kernel, serial_tables, walk_order
 
-from conftest import cli, fault_lines
+from conftest import cli
 from reference import (dh_chain_transform, pa10_frames, pa10_ik, rcm_constrained_isotropy, scaled_singular_values,
                        segment_distance_sampled)
 
@@ -298,14 +298,9 @@ BAD = {
 
 @pytest.mark.parametrize("case", sorted(BAD))
 def test_bad_serial_arm_input_is_one_line_naming_the_field(tmp_path, case):
-    text, where, what = BAD[case]
-    (tmp_path / "p.toml").write_text(text)
-    r = cli("port-place", tmp_path / "p.toml", "--store", tmp_path / "store", check=False)
-    lines = fault_lines(r.stderr)
-    named = "p.toml" in lines[0] or lines[0].startswith("surgopt: error: p: ")  # the file, or the run it names
-    assert r.returncode == 2 and len(lines) == 1 and named, r.stderr
-    assert where in lines[0] and what in lines[0], lines[0]
-    assert not (tmp_path / "store").exists()
+    from test_study_port_place import refused_in_one_line
+
+    refused_in_one_line(tmp_path, *BAD[case])
 
 
 def test_the_shipped_pa10_config_loads_and_both_best_ports_reach_the_whole_target():

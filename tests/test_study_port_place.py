@@ -300,9 +300,9 @@ BAD = {
 }
 
 
-@pytest.mark.parametrize("case", sorted(BAD))
-def test_bad_input_is_one_line_naming_the_field(tmp_path, case):
-    text, where, what = BAD[case]
+def refused_in_one_line(tmp_path, text: str, where: str, what: str) -> None:
+    """`surgopt port-place` on a config of ``text`` exits 2 with one line naming the file (or the run) and
+    ``where``, saying ``what``, and writes nothing."""
     (tmp_path / "p.toml").write_text(text)
     r = cli("port-place", tmp_path / "p.toml", "--store", tmp_path / "store", check=False)
     assert r.returncode == 2, r.stderr
@@ -311,6 +311,11 @@ def test_bad_input_is_one_line_naming_the_field(tmp_path, case):
     named = "p.toml" in line or line.startswith("surgopt: error: p: ")  # the file, or the run it names
     assert len(lines) == 1 and named and where in line and what in line, line
     assert not (tmp_path / "store").exists()
+
+
+@pytest.mark.parametrize("case", sorted(BAD))
+def test_bad_input_is_one_line_naming_the_field(tmp_path, case):
+    refused_in_one_line(tmp_path, *BAD[case])
 
 
 def test_the_elevation_is_each_shafts_angle_above_the_horizontal():

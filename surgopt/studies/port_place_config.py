@@ -169,34 +169,36 @@ class Target(StrictModel):
             if self.points_file is not None:
                 raise ValueError("points_file is given but shape is not 'points': set shape = 'points' to use it")
             return self
-        from surgopt.files import config_file_path, hashed_config_file
-
-        context = info.context or {}
         if self.points_file is None:
             raise ValueError("shape = 'points' needs points_file (x y z rows, or a .npy array)")
-        path = config_file_path(self.points_file, context)
-        object.__setattr__(self, "points_file", str(path))
-        if context.get("stored"):
+        path, sha = self._resolved("points_file", "points_sha256", MAX_POINTS_BYTES, info.context or {})
+        if sha is None:
             return self
-        _, sha = hashed_config_file("points_file", path, self.points_sha256, MAX_POINTS_BYTES, "points_sha256")
-        object.__setattr__(self, "points_sha256", sha)
         return self._centre_and_extent(file_points_mm(str(path), sha, self.points_units))
+
+    def _resolved(self, field: str, sha_field: str, max_bytes: int, context: dict):
+        """The file of ``field`` resolved against the config's folder (set back as a path), and, unless the config
+        is read as stored, read (bounded) and hashed into ``sha_field``: (path, sha256 or None when stored)."""
+        from surgopt.files import config_file_path, hashed_config_file
+
+        path = config_file_path(getattr(self, field), context)
+        object.__setattr__(self, field, str(path))
+        if context.get("stored"):
+            return path, None
+        _, sha = hashed_config_file(field, path, getattr(self, sha_field), max_bytes, sha_field)
+        object.__setattr__(self, sha_field, sha)
+        return path, sha
 
     def _resolve_mesh(self, context):
         """shape = 'mesh': the file resolved, read (bounded, closed), hashed, sampled; centre and extent from its
         points as for a points file."""
-        from surgopt.files import config_file_path, hashed_config_file
-
         if self.mesh_file is None:
             raise ValueError("shape = 'mesh' needs mesh_file (a closed STL, OBJ or PLY mesh of the region)")
         if self.points_file is not None:
             raise ValueError("points_file goes with shape = 'points', not 'mesh'")
-        path = config_file_path(self.mesh_file, context)
-        object.__setattr__(self, "mesh_file", str(path))
-        if context.get("stored"):
+        path, sha = self._resolved("mesh_file", "mesh_sha256", MAX_MESH_BYTES, context)
+        if sha is None:
             return self
-        _, sha = hashed_config_file("mesh_file", path, self.mesh_sha256, MAX_MESH_BYTES, "mesh_sha256")
-        object.__setattr__(self, "mesh_sha256", sha)
         check_mesh_scale(body_mesh(str(path), sha, self.mesh_units, tuple(self.mesh_offset_mm)), str(path),
                          self.mesh_units, 1.0, 300.0, "a target region's")
         return self._centre_and_extent(mesh_points_mm(str(path), sha, self.mesh_units, tuple(self.mesh_offset_mm),
