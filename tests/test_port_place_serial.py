@@ -192,10 +192,10 @@ def test_links_through_or_near_the_wall_are_found_and_the_tool_entering_is_not()
     entering = np.array([outside, outside, [0.4, 0.0, 0.4], [0.3, 0.0, 0.45], [0.2, 0.0, 0.45], [0.1, 0.0, 0.45],
                          [0.0, 0.0, 0.18], [0.0, 0.0, 0.10]])  # the flange 40 mm above the top, the port inside
     lines = np.stack([crossing, entering, np.full_like(crossing, np.nan)])
+    cfg = _config("ur5e", [0.5, 0.0, 0.1])
     for radius, want in ((60.0, [True, True, False]), (30.0, [True, False, False]), (0.0, [True, False, False])):
-        cfg = _config("ur5e", [0.5, 0.0, 0.1], link_radius_mm=radius)
         assert not S.inside_body(crossing[:-1] * 1000, cfg.patient).any()  # the premise: every joint is outside
-        assert list(_links_inside(lines, cfg)) == want, radius
+        assert list(_links_inside(lines, cfg, radius)) == want, radius
 
 
 @pytest.mark.parametrize("exponent", [2.0, 4.0])
@@ -293,6 +293,8 @@ BAD = {
                                "stand the arm elsewhere (robot.instrument_serial.rcm_in_base_m"),
     "unknown model": ('[robot.instrument_serial]\nmodel = "ur5"\nrcm_in_base_m = [0.5, 0.0, 0.1]\n', "model",
                       "ur5e"),
+    "two camera arms": ('[robot]\ncamera_arm = "dvrk_ecm_si"\n[robot.camera_serial]\nmodel = "ur5e"\n'
+                        'rcm_in_base_m = [0.5, 0.0, 0.1]\n', "robot", "camera_serial (a serial arm) or camera_arm"),
 }
 
 
@@ -334,3 +336,75 @@ def test_the_distance_to_a_mesh_patient_is_trimeshs_closest_point(tmp_path):
     got = body_distance_mm(p, cfg.patient, 80.0)
     want = np.minimum([ellipsoid_distance(x, cfg.patient.semi_axes_mm) for x in p], 80.0)
     assert np.abs(got - want).max() < 1.0 and (want < 80.0).any() and (want == 80.0).any()
+
+
+def _camera_config(rcm, **extra):
+    d = {**SMALL, "target": {"spacing_mm": 15.0},
+         "robot": {"camera_serial": {"model": "ur5e", "rcm_in_base_m": rcm, **extra}}}
+    return S.PortPlaceConfig.model_validate(d)
+
+
+def test_a_serial_arm_holds_the_endoscope_where_the_scope_must_be():
+    """robot.camera_serial (a UR5e holding the scope): at every port it is said to hold it, the shipped model's DH
+    product (reference) puts the tip where camera_views puts the scope's tip and the port on the tool, between
+    tip and flange, to 1e-9 m; the camera's coverage is the mechanism-free coverage there and 0 at the other
+    ports (premise: both kinds); the instruments' outside clearance to it is the least distance from their
+    shaft lines to its centre line (sampled segments)."""
+    from surgopt.kinematics import port_place as K
+    from surgopt.robots import dvrk
+    from surgopt.studies.port_place_serial import serial_camera_tables
+
+    cfg = _camera_config([0.45, 0.0, 0.3])
+    arm, model = cfg.robot.camera_serial, get_model("ur5e")
+    sites = S.sites_mm(cfg) / 1000
+    centre = np.asarray(cfg.target.centre_mm) / 1000
+    rot = K.docking_frames(sites, centre, S.LATERAL)
+    tips, _, ok = K.camera_views(sites, rot, centre, S.camera_of(cfg))
+    held = serial_camera_tables(cfg, sites, tips, ok)
+    assert 0 < held.placed.sum() < len(sites)
+    for i in np.flatnonzero(held.placed):
+        flange = dh_chain_transform(model, [*held.joints[i], 0.0])
+        tip = held.base_rot[i] @ (flange[:3, 3] + arm.tool_length_m * flange[:3, 2]) + held.base_pos[i]
+        axis = held.base_rot[i] @ flange[:3, 2]
+        assert np.linalg.norm(tip - tips[i]) < 1e-9
+        along = (tip - sites[i]) @ axis
+        assert np.linalg.norm(tip - sites[i] - along * axis) < 1e-9 and 0 < along <= arm.tool_length_m
+    t, _, _ = S.port_tables(cfg, sites, rot)
+    free = K.camera_coverage(sites, rot, S.target_points_mm(cfg.target) / 1000, centre, S.camera_of(cfg))
+    np.testing.assert_array_equal(t.coverage, np.where(held.placed, free, 0.0))
+    i = 0
+    for k in np.flatnonzero(held.placed)[:4]:
+        if k == i:
+            continue
+        shaft = (sites[i] + dvrk.OUTSIDE_LENGTH_M * rot[i, :, 2], sites[i])
+        want = min(segment_distance_sampled(*shaft, held.links[k, s], held.links[k, s + 1])
+                   for s in range(P.LINE_POINTS - 1))
+        assert want - 2e-3 <= t.outside_camera[i, k] <= want + 1e-12
+
+
+def test_polyline_clearances_are_the_least_distance_between_two_arms_lines():
+    rng = np.random.default_rng(8)
+    a, b = rng.normal(0.0, 0.2, (3, P.LINE_POINTS, 3)), rng.normal(0.0, 0.2, (3, P.LINE_POINTS, 3))
+    b[2] = np.nan
+    got = P.polyline_clearances(a, b)
+    for i in range(3):
+        for k in range(2):
+            if i != k:
+                want = min(segment_distance_sampled(a[i, s], a[i, s + 1], b[k, t], b[k, t + 1])
+                           for s in range(P.LINE_POINTS - 1) for t in range(P.LINE_POINTS - 1))
+                assert want - 2e-3 <= got[i, k] <= want + 1e-12
+    assert not got[:, 2].any() and not np.diag(got).any()
+
+
+def test_a_layout_of_serial_arms_only_runs_and_a_camera_arm_that_holds_the_scope_nowhere_is_refused(tmp_path):
+    """Two PA10s and a UR5e camera: the study runs with feasible layouts. A camera arm standing where it holds
+    the scope at no port is one line naming robot.camera_serial, exit 2, nothing written."""
+    from test_study_port_place import refused_in_one_line
+
+    cfg = S.PortPlaceConfig.model_validate({**SMALL, "robot": {
+        "instrument_serial": {"model": "pa10_7c", "rcm_in_base_m": [0.65, 0.0, 0.5]},
+        "camera_serial": {"model": "ur5e", "rcm_in_base_m": [0.55, 0.0, 0.1]}}})
+    rows = S.compute_task(cfg, S.n_total(cfg), 0)
+    assert rows["feasible"].any()
+    refused_in_one_line(tmp_path, '[robot.camera_serial]\nmodel = "ur5e"\nrcm_in_base_m = [2.5, 0.0, 0.1]\n',
+                        "robot.camera_serial", "holds the endoscope where it must be at no candidate port")

@@ -249,6 +249,28 @@ def link_clearances(lines):
 
 
 @njit(**EXACT)
+def polyline_clearances(a, b):
+    """[i, k]: least distance between arm centre line ``a[i]`` and ``b[k]`` (two sets of ``link_polylines``, e.g.
+    the instrument arms' and the camera arm's), i != k; 0 where either has no docked pose or i == k."""
+    n = a.shape[0]
+    out = np.zeros((n, n))
+    real_a, real_b = _real_segments(a), _real_segments(b)
+    for i in range(n):
+        if not np.isfinite(a[i, 0, 0]):
+            continue
+        for k in range(n):
+            if k == i or not np.isfinite(b[k, 0, 0]):
+                continue
+            best = np.inf
+            for s in range(a.shape[1] - 1):
+                for t in range(b.shape[1] - 1):
+                    if real_a[i, s] and real_b[k, t]:
+                        best = min(best, segment_distance(a[i, s], a[i, s + 1], b[k, t], b[k, t + 1]))
+            out[i, k] = best
+    return out
+
+
+@njit(**EXACT)
 def link_camera_clearances(lines, sites, axes, length_m):
     """[instrument site, camera site]: least distance between the serial arm's centre line at the first and the
     camera arm's shaft line continued ``length_m`` behind its port along ``axes`` (unit, outward) at the second

@@ -104,11 +104,14 @@ def approach_mask(sites: np.ndarray, targets: np.ndarray, cone) -> np.ndarray:
 
 
 def camera_of(cfg: PortPlaceConfig):
-    """The endoscope for the kernels (``port_place.Camera``)."""
-    from surgopt.kinematics.port_place import Camera
+    """The endoscope for the kernels (``port_place.Camera``); held by a serial arm, its mechanism's ranges are left
+    open (the arm's own IK decides, ``port_place_serial.serial_camera_tables``)."""
+    from surgopt.kinematics.port_place import ArmLimits, Camera
 
     r = cfg.robot
-    return Camera(arm_limits(camera_arm_of(cfg)), math.radians(r.camera_fov_deg) / 2,
+    limits = (arm_limits(camera_arm_of(cfg)) if r.camera_serial is None else
+              ArmLimits(-math.pi, math.pi, -math.pi / 2, math.pi / 2, 0.0, 10.0, 0.0))
+    return Camera(limits, math.radians(r.camera_fov_deg) / 2,
                   r.camera_standoff_mm / 1000, r.camera_range_mm[0] / 1000, r.camera_range_mm[1] / 1000,
                   math.radians(r.camera_scope_angle_deg), r.camera_scope_view == "down")
 
@@ -170,6 +173,16 @@ def port_tables(cfg: PortPlaceConfig, sites: np.ndarray, rot: np.ndarray, outsid
         pairs[-1] = outside
     if cfg.robot.instrument_serial is None:  # every arm's outside is its shaft line behind the port
         outside_camera = pairs[-1] + pairs[-1].T
+    if cfg.robot.camera_serial is not None:  # the endoscope held by a serial arm: placed by its IK, its links
+        from surgopt.kinematics import port_serial as S
+        from surgopt.studies.port_place_serial import serial_camera_tables
+
+        tips, _, ok = K.camera_views(sites, rot, centre, camera)
+        held = serial_camera_tables(cfg, sites, tips, ok)
+        coverage = np.where(held.placed, coverage, 0.0)
+        outside_camera = (S.polyline_clearances(serial.links, held.links) if cfg.robot.instrument_serial is not None
+                          else S.link_camera_clearances(held.links, sites, np.ascontiguousarray(rot[:, :, 2]),
+                                                        dvrk.OUTSIDE_LENGTH_M).T)
     if camera.scope_angle_rad == 0.0:  # the optical axis: port to centre
         azimuth, side = K.camera_pair_tables(sites, centre, LATERAL)
     else:  # along the angled scope's view, through the centre
@@ -483,6 +496,10 @@ def preflight(cfg) -> None:
                          f"target's centre) reaches the whole target: {best:,} of its {t.n_points:,} points at best, "
                          f"so every layout would fail on reach; move or shrink the target, ease its approach cone, "
                          f"or widen patient.port_region / constraints.port_to_target_mm{arm}")
+    if cfg.robot.camera_serial is not None and not t.coverage.any():
+        raise ValueError(f"robot.camera_serial: the arm ({camera_arm_of(cfg).name}) holds the endoscope where it "
+                         f"must be at no candidate port, so no layout has a camera; stand it elsewhere "
+                         f"(rcm_in_base_m, base_yaw_deg) or give it a longer tool")
 
 
 

@@ -235,6 +235,9 @@ class Robot(StrictModel):
                           "instrument and keeping the RCM at the port in software, in place of instrument_arm")
     camera_file: RcmArmFile | None = Field(None, description="any RCM endoscope arm from a URDF or DH table, in "
                                            "place of camera_arm")
+    camera_serial: SerialInstrumentArm | None = Field(
+        None, description="a serial arm holding the endoscope and keeping its RCM at the port in software (as "
+                          "instrument_serial), in place of camera_arm")
     instrument_count: Literal[2, 3] = Field(2, description="instrument arms: 2 (PSM1, PSM2: the surgeon's hands) or "
                                                             "3 (and PSM3, the third arm: it must reach the target and "
                                                             "clear the others; the angles are the working pair's)")
@@ -256,13 +259,14 @@ class Robot(StrictModel):
                                                  "enumerates the default docking only")
 
     @model_validator(mode="after")
-    def _one_instrument_arm(self):
-        if self.instrument_serial is None:
-            return self
-        if self.instrument_file is not None:
-            raise ValueError("give instrument_serial (a serial arm) or instrument_file (an RCM mechanism), not both")
-        if self.instrument_arm != type(self).model_fields["instrument_arm"].default:
-            raise ValueError("give instrument_serial (a serial arm) or instrument_arm (a shipped dVRK arm), not both")
+    def _one_arm_each(self):
+        for role in ("instrument", "camera"):
+            if getattr(self, f"{role}_serial") is None:
+                continue
+            if getattr(self, f"{role}_file") is not None:
+                raise ValueError(f"give {role}_serial (a serial arm) or {role}_file (an RCM mechanism), not both")
+            if getattr(self, f"{role}_arm") != type(self).model_fields[f"{role}_arm"].default:
+                raise ValueError(f"give {role}_serial (a serial arm) or {role}_arm (a shipped dVRK arm), not both")
         return self
 
 
@@ -373,7 +377,10 @@ def instrument_of(cfg: PortPlaceConfig):
 
 
 def camera_arm_of(cfg: PortPlaceConfig):
-    """The endoscope arm: from its file (``robot.camera_file``), or the shipped dVRK arm named."""
+    """The endoscope arm: a serial arm's ``SerialHolder`` (``robot.camera_serial``), an RCM arm from its file
+    (``robot.camera_file``), or the shipped dVRK arm named."""
     r = cfg.robot
+    if r.camera_serial is not None:
+        return r.camera_serial.holder()
     return file_arm(r.camera_file.model_dump_json()) if r.camera_file else dvrk.CAMERA_ARMS[r.camera_arm]
 

@@ -82,7 +82,7 @@ def serial_tables(cfg: PortPlaceConfig, sites: np.ndarray, extra_yaw_rad=None) -
     near = np.where(reach, np.linalg.norm(targets - centre, axis=1)[None, :], np.inf).argmin(axis=1)
     docked = joints[np.arange(len(sites)), near]  # NaN where a site reaches nothing
     links = S.link_polylines(chain, np.ascontiguousarray(docked), tool_m, rcm, rot, pos)
-    through = _links_inside(links, cfg)
+    through = _links_inside(links, cfg, arm.link_radius_mm)
     refused[through & (refused == 0)] = LINKS_INSIDE
     reach[through] = False
     dex[through] = 0.0
@@ -90,11 +90,10 @@ def serial_tables(cfg: PortPlaceConfig, sites: np.ndarray, extra_yaw_rad=None) -
     return SerialTables(reach, dex, S.link_clearances(links), joints, rot, pos, links, refused)
 
 
-def _links_inside(links: np.ndarray, cfg: PortPlaceConfig) -> np.ndarray:
+def _links_inside(links: np.ndarray, cfg: PortPlaceConfig, radius: float) -> np.ndarray:
     """Per site: whether any sampled point of its arm's link centre lines, base to flange, lies inside the body
-    or nearer its wall than ``link_radius_mm`` (the last segment, flange to port, is the tool entering the
-    body)."""
-    radius = cfg.robot.instrument_serial.link_radius_mm
+    or nearer its wall than ``radius`` (mm: the arm's ``link_radius_mm``; the last segment, flange to port, is the
+    tool entering the body)."""
     s = np.linspace(0.0, 1.0, LINK_SAMPLES)[None, None, :, None]
     links = links[:, :-1]
     samples = links[:, :-1, None, :] * (1 - s) + links[:, 1:, None, :] * s  # (n, segments, samples, 3)
@@ -106,6 +105,57 @@ def _links_inside(links: np.ndarray, cfg: PortPlaceConfig) -> np.ndarray:
         out = ok & ~hit
         hit[out] = body_distance_mm(flat[out], cfg.patient, radius) < radius
     return hit.reshape(len(links), -1).any(axis=1)
+
+
+class SerialCamera(NamedTuple):
+    """Per port: whether the serial arm holds the endoscope's tip where the scope must be (``camera_views``' tip,
+    its shaft through the port), its joints there, its base frame and centre line, and why a port was refused
+    (as ``SerialTables.refused``)."""
+
+    placed: np.ndarray
+    joints: np.ndarray
+    base_rot: np.ndarray
+    base_pos: np.ndarray
+    links: np.ndarray
+    refused: np.ndarray
+
+
+def serial_camera_tables(cfg: PortPlaceConfig, sites: np.ndarray, tips: np.ndarray, ok: np.ndarray) -> SerialCamera:
+    """The serial endoscope arm at ports ``sites`` (m): at each port whose scope can be placed (``ok``), the arm's
+    IK with the tip at ``tips`` and the tool line through the port, on the seeded branch (one target point a
+    port: the anchor is the point itself), within the limits and with the RCM on the tool; refused where its
+    base would stand inside the body or its links, there, come nearer the wall than ``link_radius_mm``."""
+    from surgopt.kinematics import port_serial as S
+
+    arm = cfg.robot.camera_serial
+    chain, seed, restarts, rcm, tool_m = arm_kernel(arm.model_dump_json())
+    centre = np.asarray(cfg.target.centre_mm, float) / 1000
+    rot, pos = S.serial_base_frames(sites, centre, rcm, np.radians(arm.base_yaw_deg))
+    refused = np.where(inside_body(pos * 1000, cfg.patient), BASE_INSIDE, 0)
+    joints = np.full((len(sites), 5), np.nan)
+    one = np.zeros(1, np.int64)
+    for i in np.flatnonzero(ok & (refused == 0)):
+        q = np.empty((1, 1, 5))
+        S.serial_instrument_tables(chain, seed, restarts, rcm, tool_m, rot[i:i + 1], pos[i:i + 1],
+                                   np.ascontiguousarray(tips[i:i + 1]), one, one - 1, np.ones(1, bool), q)
+        joints[i] = q[0, 0]
+    links = S.link_polylines(chain, joints, tool_m, rcm, rot, pos)
+    through = _links_inside(links, cfg, arm.link_radius_mm)
+    refused[through & (refused == 0)] = LINKS_INSIDE
+    links[through] = np.nan
+    placed = np.isfinite(joints[:, 0]) & ~through
+    return SerialCamera(placed, joints, rot, pos, links, refused)
+
+
+def camera_lines(cfg: PortPlaceConfig, sites: np.ndarray) -> np.ndarray:
+    """The serial endoscope arm's centre lines (m) at ports ``sites`` docked as the grid docks them (NaN where it
+    cannot hold the scope): what the figures draw."""
+    from surgopt.kinematics import port_place as K
+    from surgopt.studies.port_place import LATERAL, camera_of
+
+    centre = np.asarray(cfg.target.centre_mm, float) / 1000
+    tips, _, ok = K.camera_views(sites, K.docking_frames(sites, centre, LATERAL), centre, camera_of(cfg))
+    return serial_camera_tables(cfg, sites, tips, ok).links
 
 
 def refused_ports_note(cfg: PortPlaceConfig, sites: np.ndarray) -> str:

@@ -102,13 +102,20 @@ def figures(cfg, table, out, design_id=None):
                      f"by the smaller isotropy", fontsize=9)
         if cfg.robot.instrument_serial is not None:  # the serial arms themselves, at their docked poses
             serial_arms(ax, cfg, sites_m, [(c[f"{arm}_site"][row], colour) for arm, colour, _ in arms(c)[:-1]])
+        if cfg.robot.camera_serial is not None:
+            from surgopt.studies.port_place_serial import camera_lines
+
+            line = camera_lines(cfg, sites_m[[c["ecm_site"][row]]])[0] * 1000
+            ax.plot(*line.T, color=COLOURS["ecm"], lw=3, marker="o", ms=3, alpha=0.8,
+                    label=f"{cfg.robot.camera_serial.holder().name} holding the endoscope")
         ax.legend(fontsize=8, loc="upper left")
     ax.set_xlabel("x lateral (mm)")
     ax.set_ylabel("y cranial (mm)")
     ax.set_zlabel("z anterior (mm)")
+    serial = cfg.robot.instrument_serial is not None or cfg.robot.camera_serial is not None
     lims = [ax.get_xlim3d(), ax.get_ylim3d(), ax.get_zlim3d()]
-    ax.set_box_aspect([hi - lo for lo, hi in lims] if cfg.robot.instrument_serial is not None else (a, b, h))
-    ax.view_init(elev=28, azim=-120 if cfg.robot.instrument_serial is None else -100)  # serial arms: from the feet
+    ax.set_box_aspect([hi - lo for lo, hi in lims] if serial else (a, b, h))
+    ax.view_init(elev=28, azim=-100 if serial else -120)  # serial arms: from the feet
     paths.append(save(fig, out / "port_place_layout_3d.png"))
 
     # 2-D: the port region from above
