@@ -105,7 +105,9 @@ def plot(run: str | Path | None = None, store: str | Path | None = None, study: 
     if plan is not None:
         from surgopt.studies.figures import search_figures
 
-        return search_figures(cfg, table, folder, plan)
+        from surgopt.report import feasible_rows
+
+        return search_figures(cfg, table, folder, plan, feasible=feasible_rows(st, table))
     return st.figures(cfg, table, folder, None)
 
 

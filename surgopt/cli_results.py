@@ -266,7 +266,10 @@ def plot(
         if plan is not None:
             from surgopt.studies.figures import search_figures
 
-            paths = search_figures(cfg, table, out, plan, reference=_grid_best(Store(store), st, cfg, plan))
+            from surgopt.report import feasible_rows
+
+            paths = search_figures(cfg, table, out, plan, reference=_grid_best(Store(store), st, cfg, plan),
+                                   feasible=feasible_rows(st, table))
         else:
             paths = st.figures(cfg, table, out, design)
         from surgopt.report import best_edges

@@ -113,11 +113,22 @@ def search_front(study, run, parts):
     table = parts.table()
     cols = [c for c, _ in plan.objectives]
     values = np.column_stack([table[c].to_numpy(zero_copy_only=False) for c in cols])
-    idx = pareto_front(values, [d for _, d in plan.objectives])
+    feasible = feasible_rows(study, table)
+    kept = np.flatnonzero(feasible)
+    idx = kept[pareto_front(values[kept], [d for _, d in plan.objectives])]
     names = list(study.key_columns[:1]) + list(plan.space) + [c for c in cols if c not in plan.space]
     rows = sorted(([_fmt(table[c][int(i)].as_py()) for c in names] for i in idx), key=lambda r: r[-1])
-    title = "Pareto front of " + " vs ".join(f"{c} ({d[:3]})" for c, d in plan.objectives) + f": {len(idx)} designs"
+    title = ("Pareto front of " + " vs ".join(f"{c} ({d[:3]})" for c, d in plan.objectives) + f": {len(idx)} designs"
+             + ("" if feasible.all() else f" (of the {len(kept):,} feasible of {len(feasible):,} trials)"))
     return (title, names, rows)
+
+
+def feasible_rows(study, table) -> np.ndarray:
+    """Which rows the study counts feasible (every row when it declares no test): a Pareto front is of these, so
+    that no design it could not build is on it."""
+    if study.feasible_mask is None:
+        return np.ones(table.num_rows, bool)
+    return np.asarray(study.feasible_mask(table), bool)
 
 
 #: A best design within this share of a dimension's range of a bound is on that edge of the box.

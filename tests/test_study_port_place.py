@@ -620,6 +620,31 @@ def test_a_surface_search_places_each_port_at_the_site_nearest_its_point(tmp_pat
         assert np.array_equal(a[f"{arm}_site"].to_numpy(), S.nearest_sites(sites[:, :2], aim))
 
 
+def test_a_pareto_front_is_of_the_feasible_layouts_only(tmp_path):
+    """An NSGA-II search on (cost, common reach): the summary's front is the non-dominated set of the feasible
+    trials alone (brute-force dominance here), and it says how many were feasible; an infeasible layout of lower
+    cost (the premise) is not on it."""
+    from surgopt.config import validate
+    from surgopt.report import search_front
+    from surgopt.runner import run_study
+    from surgopt.store import Store
+
+    cfg = validate({**COARSE, "search": {"method": "nsga2", "trials": 80, "seed": 1,
+                                         "objectives": ["-cost", "common_reach"]}}, S.Config, "x")
+    res = run_study(S.STUDY, cfg, config_name="n", store=Store(tmp_path), jobs=1, quiet=True)
+    t = res.table
+    cost, reach, ok = (t[c].to_numpy() for c in ("cost", "common_reach", "feasible"))
+    assert 0 < ok.sum() < len(ok) and cost[~ok].min() < cost[ok].min()
+    want = {int(t["design_id"][i].as_py()) for i in np.flatnonzero(ok)
+            if not any(cost[j] <= cost[i] and reach[j] >= reach[i] and (cost[j] < cost[i] or reach[j] > reach[i])
+                       for j in np.flatnonzero(ok))}
+    from conftest import single_run
+
+    run = single_run(tmp_path)
+    title, names, rows = search_front(S.STUDY, run, run.parts(S.schema(cfg)))
+    assert {int(r[0]) for r in rows} == want and f"of the {ok.sum()} feasible of {len(ok)} trials" in title
+
+
 def test_an_approach_cone_keeps_the_points_whose_shaft_the_wrist_can_turn_into_it():
     """[target] approach_direction / approach_half_angle_deg: a point is reached only where the angle between the
     shaft (port to point) and the approach direction is at most the wrist's bend (80 deg, the LND's wrist rows)

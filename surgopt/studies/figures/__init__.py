@@ -48,9 +48,10 @@ def save(fig, path: Path) -> Path:
     return path
 
 
-def search_figures(cfg, table, out: Path, plan, reference=None) -> list[Path]:
+def search_figures(cfg, table, out: Path, plan, reference=None, feasible=None) -> list[Path]:
     """An optimiser's run: best objective against trials (one objective; ``reference`` = (label, value)
-    draws e.g. the grid's best as a line), or the Pareto front over all trials (several), trials in grey."""
+    draws e.g. the grid's best as a line), or the Pareto front of the feasible trials (several; ``feasible``, a
+    mask of the rows, default all), trials in grey, infeasible ones as crosses."""
     from surgopt.studies.search import best_so_far, pareto_front
 
     plt = pyplot()
@@ -70,9 +71,13 @@ def search_figures(cfg, table, out: Path, plan, reference=None) -> list[Path]:
         ax.legend(fontsize=8)
         return [save(fig, out / "search_convergence.png")]
     (cx, dx), (cy, dy) = plan.objectives[:2]
-    idx = pareto_front(np.column_stack([c[cx], c[cy]]), [dx, dy])
+    ok = np.ones(len(c[cx]), bool) if feasible is None else np.asarray(feasible, bool)
+    kept = np.flatnonzero(ok)
+    idx = kept[pareto_front(np.column_stack([c[cx][kept], c[cy][kept]]), [dx, dy])]
     fig, ax = plt.subplots(figsize=(5.6, 4.2))
-    ax.plot(c[cx], c[cy], ".", color="0.75", ms=3, label="trials")
+    ax.plot(c[cx][ok], c[cy][ok], ".", color="0.75", ms=3, label="trials")
+    if not ok.all():
+        ax.plot(c[cx][~ok], c[cy][~ok], "x", color="0.85", ms=3, label="infeasible trials")
     f = idx[np.argsort(c[cx][idx])]
     ax.plot(c[cx][f], c[cy][f], "o-", ms=4, label=f"Pareto front ({len(idx)})")
     ax.set_xlabel(f"{cx} ({dx})")
