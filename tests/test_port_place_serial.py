@@ -268,6 +268,38 @@ def test_a_search_turns_each_serial_base_about_its_port():
     assert (got["psm1_docking_yaw_deg"] == 20.0).all() and (got["psm2_docking_pitch_deg"] == 0.0).all()
 
 
+def test_a_search_moves_the_serial_arms_stance_with_the_ports():
+    """instrument_serial.stance_range_m: a search's space has the RCM's move out from the base and up within the
+    range, and a design moved (+0.1, -0.1) m is the grid's row of the config whose rcm_in_base_m is moved so
+    (0.65, 0, 0.5) -> (0.75, 0, 0.4): the same base frames by another path. A CMA-ES search over ports and
+    stance runs, its stances within the range and varied."""
+    import tempfile
+
+    from surgopt.runner import run_study
+    from surgopt.store import Store
+
+    cfg = _config("pa10_7c", [0.65, 0.0, 0.5], stance_range_m=0.2)
+    searched = S.PortPlaceConfig.model_validate({**cfg.model_dump(), "search": {"method": "cmaes", "trials": 24,
+                                                                                "seed": 1}})
+    plan = S.search_plan(searched)
+    assert plan.space["instrument_stance_out_m"] == (-0.2, 0.2) and list(plan.space)[-1] == "instrument_stance_up_m"
+    moved = _config("pa10_7c", [0.75, 0.0, 0.4], stance_range_m=0.2)
+    full = S.compute_task(moved, S.n_total(moved), 0)
+    ok = np.nonzero(full["feasible"])[0]
+    assert len(ok) >= 2  # the premise: feasible layouts at the moved stance
+    pick = np.concatenate([ok[:2], np.nonzero(~full["feasible"])[0][:2]])
+    x = np.stack([*(full[f"{a}_site"][pick] for a in S.arms_of(cfg)), np.full(len(pick), 0.1),
+                  np.full(len(pick), -0.1)], axis=1)
+    got = S.evaluate_designs(searched, x, full["design_id"][pick], "test")
+    for name in ("common_reach", "dexterity_mean", "external_clearance_mm", "cost", "infeasible"):
+        np.testing.assert_allclose(got[name], full[name][pick], rtol=0, atol=1e-12)
+    assert (got["instrument_stance_out_m"] == 0.1).all() and (full["instrument_stance_out_m"] == 0.0).all()
+    with tempfile.TemporaryDirectory() as tmp:
+        t = run_study(S.STUDY, searched, config_name="s", store=Store(tmp), jobs=2, quiet=True).table
+    out = t["instrument_stance_out_m"].to_numpy()
+    assert t.num_rows == 24 and np.abs(out).max() <= 0.2 and len(set(out.tolist())) > 10
+
+
 def test_the_cli_runs_a_pa10_layout_and_draws_the_arms(tmp_path):
     import json
 

@@ -284,6 +284,9 @@ def schema(config=None):
                *[pa.field(c, pa.float64(), metadata={"meaning": "the top-view point a surface search placed the "
                                                                  "port at, taken to the nearest candidate site"})
                  for c in aim_columns(config)],
+               *[pa.field(c, pa.float64(), metadata={"meaning": "a search's move of the serial arm's RCM off "
+                                                                 "rcm_in_base_m: out from its base, or up (m)"})
+                 for c in stance_columns(config)],
                pa.field("cost", pa.float64()),
                pa.field("score", pa.float64(), metadata={"meaning": "what summarize ranks by (higher is better): "
                                                                      "-cost, less 100 per reason a design fails"}),
@@ -346,7 +349,8 @@ def wrist_margin_deg(cfg, sites: np.ndarray) -> np.ndarray:
     return bend - t.approach_half_angle_deg - np.degrees(np.arccos(cos)).max(axis=1)
 
 
-def design_rows(cfg, sites, t, ids, site_ids, f, bad, cost, design_ids, docking_deg, aim_mm=None) -> dict:
+def design_rows(cfg, sites, t, ids, site_ids, f, bad, cost, design_ids, docking_deg, aim_mm=None,
+                stance_m=None) -> dict:
     """The rows of designs: ``ids`` (a column per arm, ``arms_of``) index ``sites`` and ``t`` (the tables they
     were combined from), ``site_ids`` are the candidate sites' numbers reported; ``docking_deg`` (yaw, pitch of
     each instrument) per design."""
@@ -375,6 +379,8 @@ def design_rows(cfg, sites, t, ids, site_ids, f, bad, cost, design_ids, docking_
         cols[name] = np.asarray(docking_deg[:, c], dtype=np.float64)
     for c, name in enumerate(aim_columns(cfg)):  # the sites themselves, unless a surface search aimed elsewhere
         cols[name] = sites[ids[:, c // 2], c % 2] * 1000 if aim_mm is None else np.asarray(aim_mm[:, c], float)
+    for c, name in enumerate(stance_columns(cfg)):  # 0 on the grid: the configured stance
+        cols[name] = np.zeros(len(ids)) if stance_m is None else np.asarray(stance_m[:, c], float)
     cols["cost"] = cost
     failed = sum((bad >> bit) & 1 for bit in range(len(_reasons())))
     cols["score"] = -cost - INFEASIBLE_PENALTY * failed
@@ -397,6 +403,51 @@ def aim_columns(config=None) -> tuple[str, ...]:
     return tuple(f"{arm}_aim_{c}_mm" for arm in arms_of(config) for c in "xy") if ports == "surface" else ()
 
 
+SERIAL_ROLES = ("instrument", "camera")
+
+
+def stance_columns(config=None) -> tuple[str, ...]:
+    """A search's serial-arm stances: for each serial arm (the instruments' one, the camera's) whose
+    ``stance_range_m`` > 0, its RCM moved out from its base and up, off ``rcm_in_base_m`` (m)."""
+    robot = (config.get("robot", {}) if isinstance(config, dict)
+             else {} if config is None else config.robot.model_dump())
+    return tuple(f"{role}_stance_{d}_m" for role in SERIAL_ROLES
+                 if (robot.get(f"{role}_serial") or {}).get("stance_range_m", 0.0) > 0 for d in ("out", "up"))
+
+
+def with_stance(cfg: PortPlaceConfig, moves: dict) -> PortPlaceConfig:
+    """``cfg`` with each serial arm's RCM moved (``moves``: {role: (out, up) m}): out along its horizontal
+    direction from the base (kept 0.05 m or more from the base's axis), up along z."""
+    update = {}
+    for role, (out, up) in moves.items():
+        arm = getattr(cfg.robot, f"{role}_serial")
+        x, y, z = arm.rcm_in_base_m
+        h = math.hypot(x, y)
+        scale = max(h + out, 0.05) / h
+        update[f"{role}_serial"] = arm.model_copy(update={"rcm_in_base_m": [x * scale, y * scale, z + up]})
+    return cfg.model_copy(update={"robot": cfg.robot.model_copy(update=update)})
+
+
+def design_dims(cfg: PortPlaceConfig) -> dict:
+    """The dimensions a design of this config has, in order, with their domains: every arm's port (a site, or a
+    top-view point with ``search_ports = "surface"``), each instrument's docking when ``robot.docking_range_deg``
+    > 0 (a serial arm's yaw only), each serial arm's stance when its ``stance_range_m`` > 0."""
+    sites = sites_mm(cfg)
+    if cfg.search_ports == "surface":  # a box around the candidate sites, top view
+        lo, hi = sites[:, :2].min(axis=0), sites[:, :2].max(axis=0)
+        dims = {c: (float(lo[i % 2]), float(hi[i % 2])) for i, c in enumerate(aim_columns(cfg))}
+    else:
+        dims = {f"{arm}_site": list(range(len(sites))) for arm in arms_of(cfg)}
+    r = cfg.robot.docking_range_deg
+    if r > 0:  # a serial arm turns its base about the port (yaw) only
+        free = docking_columns(cfg)[::2] if cfg.robot.instrument_serial is not None else docking_columns(cfg)
+        dims.update({c: (-r, r) for c in free})
+    for c in stance_columns(cfg):
+        reach = getattr(cfg.robot, f"{c.split('_')[0]}_serial").stance_range_m
+        dims[c] = (-reach, reach)
+    return dims
+
+
 def nearest_sites(sites_xy_mm: np.ndarray, aims_mm: np.ndarray) -> np.ndarray:
     """The candidate site nearest each top-view point (rows of ``aims_mm``, (x, y) mm): its index."""
     d = ((aims_mm[:, None, :] - sites_xy_mm[None, :, :]) ** 2).sum(axis=2)
@@ -417,18 +468,7 @@ def search_plan(cfg):
     spec = optimiser_of(cfg)
     if spec is None:
         return None
-    sites = sites_mm(cfg)
-    n = len(sites)
-    if cfg.search_ports == "surface":  # a box around the candidate sites, top view
-        lo, hi = sites[:, :2].min(axis=0), sites[:, :2].max(axis=0)
-        space = {c: (float(lo[i % 2]), float(hi[i % 2])) for i, c in enumerate(aim_columns(cfg))}
-    else:
-        space = {f"{arm}_site": list(range(n)) for arm in arms_of(cfg)}
-    r = cfg.robot.docking_range_deg
-    if r > 0:  # a serial arm turns its base about the port (yaw) only
-        free = docking_columns(cfg)[::2] if cfg.robot.instrument_serial is not None else docking_columns(cfg)
-        space.update({c: (-r, r) for c in free})
-    return SearchPlan(spec, space, objectives_of(spec, OBJECTIVE))
+    return SearchPlan(spec, design_dims(cfg), objectives_of(spec, OBJECTIVE))
 
 
 def evaluate_designs(cfg, x: np.ndarray, ids: np.ndarray, source: str) -> dict:
@@ -446,30 +486,37 @@ def evaluate_designs(cfg, x: np.ndarray, ids: np.ndarray, source: str) -> dict:
     crit = criteria(cfg)
     centre = np.asarray(cfg.target.centre_mm, float) / 1000
     serial = cfg.robot.instrument_serial is not None
+    names = list(design_dims(cfg))
+    if x.shape[1] == ports:  # site numbers alone: the configured docking and stance
+        names = [f"{arm}_site" for arm in arms_of(cfg)]
+    elif x.shape[1] != len(names):
+        raise ValueError(f"a design of this config has {len(names)} values ({', '.join(names)}), not {x.shape[1]}")
+    col = {n: j for j, n in enumerate(names)}
+    surface = f"{arms_of(cfg)[0]}_aim_x_mm" in col
+    stances = [c for c in stance_columns(cfg) if c in col]
     out = []
-    surface = cfg.search_ports == "surface" and x.shape[1] >= 2 * ports
-    lead = 2 * ports if surface else ports  # the ports' columns: top-view points, or site numbers
     for r in range(x.shape[0]):
-        site_ids = (nearest_sites(all_sites[:, :2] * 1000, x[r, :lead].reshape(ports, 2)) if surface
-                    else x[r, :ports].astype(np.int64))
-        docking = np.zeros(2 * (ports - 1))
-        if x.shape[1] > lead and serial:  # the bases' yaws only
-            docking[0::2] = x[r, lead:]
-        elif x.shape[1] > lead:
-            docking = x[r, lead:]
+        v = x[r]
+        site_ids = (nearest_sites(all_sites[:, :2] * 1000, v[[col[c] for c in aim_columns(cfg)]].reshape(ports, 2))
+                    if surface else v[[col[f"{arm}_site"] for arm in arms_of(cfg)]].astype(np.int64))
+        docking = np.array([v[col[c]] if c in col else 0.0 for c in docking_columns(cfg)])
+        stance = np.array([v[col[c]] for c in stances])
+        cfg_r = with_stance(cfg, {c.split("_")[0]: (stance[k], stance[k + 1]) for k, c in enumerate(stances)
+                                  if c.endswith("_out_m")}) if stances else cfg
         sites = all_sites[site_ids]
         if serial:  # the RCM mechanism (the camera) docked as in the grid, each serial base turned by its yaw
-            t, _, _ = port_tables(cfg, sites, K.docking_frames(sites, centre, LATERAL),
+            t, _, _ = port_tables(cfg_r, sites, K.docking_frames(sites, centre, LATERAL),
                                   base_yaw_rad=np.radians([*docking[0::2], 0.0]))
         else:
             rot = K.tilted_frames(K.docking_frames(sites, centre, LATERAL), np.radians([*docking[0::2], 0.0]),
                                   np.radians([*docking[1::2], 0.0]))
             outside = K.external_clearances(sites, np.ascontiguousarray(rot[:, :, 2]), dvrk.OUTSIDE_LENGTH_M)
-            t, _, _ = port_tables(cfg, sites, rot, outside)
+            t, _, _ = port_tables(cfg_r, sites, rot, outside)
         local, f, bad, cost, _ = design_columns(t, crit, 0, 1, ports - 1)
         out.append(design_rows(cfg, sites, t, local, site_ids[None, :], f, bad, cost,
                                np.asarray(ids[r:r + 1], dtype=np.int64), docking[None, :],
-                               x[r:r + 1, :lead] if surface else None))
+                               v[None, [col[c] for c in aim_columns(cfg)]] if surface else None,
+                               stance[None, :] if stances else None))
     from surgopt.plans import concat_rows
 
     return concat_rows(out)

@@ -129,6 +129,9 @@ class SerialInstrumentArm(Robot):
                                                                       "off the radial stance (deg)")
     wrist_bend_deg: float = Field(0.0, ge=0.0, le=90.0, description="how far the held instrument's wrist bends the "
                                                                    "jaws off its shaft (deg; 0: a straight tool)")
+    stance_range_m: float = Field(0.0, ge=0.0, le=0.5, description="a [search] may move the RCM this far (m) "
+                                  "out from the base and up or down, off rcm_in_base_m: where the arm stands is "
+                                  "then searched with the ports; 0: fixed")
     link_radius_mm: float = Field(60.0, ge=0.0, le=300.0, description="the links as capsules of this radius about "
                                   "their centre lines (base to flange): a port is refused when, docked there, they "
                                   "come nearer the body than this (assumption: 60 mm, a PA10/UR5e-sized link)")
