@@ -12,10 +12,12 @@ the arms' outside, a cost and the reasons a design is infeasible. Every assignme
 ports (unordered: the PSMs are the same arm), the third's when there is one, and a distinct camera port is
 evaluated; docs/port_placement.md has the model, its sources and assumptions.
 
-The config models and the geometry they imply (patient, sites, target) are in ``port_place_config``, the
-design kernels in ``kinematics.port_designs``, a serial instrument arm's tables in ``port_place_serial``. One
-module of ~630 lines: the memoised tables, the rows, the
-search space, the estimate and the summary are one declaration, read together.
+The config models are in ``port_place_config``, the geometry they imply (patient, sites, target) in
+``port_place_geometry``, the design kernels in ``kinematics.port_designs``, a serial arm's tables in
+``port_place_serial``. One module of ~690 lines: the memoised tables, the rows and their columns, the design's
+dimensions (ports, docking, stance) that both the rows and the search read, the evaluator, the estimate and the
+summary are one declaration, read together; split, the study's declaration and its search would import each
+other.
 """
 from __future__ import annotations
 
