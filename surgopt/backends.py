@@ -42,16 +42,23 @@ def _thread_pool(jobs: int):
     """
     from concurrent.futures import ThreadPoolExecutor
 
+    from surgopt.interrupts import deferred
+
     pool = ThreadPoolExecutor(max_workers=jobs, thread_name_prefix="surgopt")
     try:
         yield pool
     finally:
-        pool.shutdown(wait=True, cancel_futures=True)
+        with deferred(raising=False):  # a second signal here must not leave the pool's locks held either
+            pool.shutdown(wait=True, cancel_futures=True)
 
 
 #: Chunks submitted ahead per worker: enough to keep workers busy, few enough that finished rows
 #: waiting to be written never pile up in memory.
 IN_FLIGHT_PER_WORKER = 2
+
+
+#: The longest a stop waits to be raised while the threads compute (s).
+WAIT_S = 0.25
 
 
 def _run_bounded(pool, study_name, cfg, chunk, missing, jobs, record, idle=None):
@@ -61,22 +68,27 @@ def _run_bounded(pool, study_name, cfg, chunk, missing, jobs, record, idle=None)
     parts then)."""
     from concurrent.futures import FIRST_COMPLETED, wait
 
+    from surgopt.interrupts import deferred
+
     todo = iter(missing)
     running = set()
-    for i in todo:
-        running.add(pool.submit(compute, study_name, cfg, chunk, i))
-        if len(running) >= jobs * IN_FLIGHT_PER_WORKER:
-            break
+
+    def submit_more():
+        with deferred():  # the pool's locks are never left held by a stop
+            for i in todo:
+                running.add(pool.submit(compute, study_name, cfg, chunk, i))
+                if len(running) >= jobs * IN_FLIGHT_PER_WORKER:
+                    break
+
+    submit_more()
     if idle is not None:
         idle()
     while running:
-        done, running = wait(running, return_when=FIRST_COMPLETED)
+        with deferred():  # nor the futures' (a stop is raised within WAIT_S, outside them)
+            done, running = wait(running, timeout=WAIT_S, return_when=FIRST_COMPLETED)
         for f in done:
             record(*f.result())
-        for i in todo:
-            running.add(pool.submit(compute, study_name, cfg, chunk, i))
-            if len(running) >= jobs * IN_FLIGHT_PER_WORKER:
-                break
+        submit_more()
         del done
 
 

@@ -9,6 +9,7 @@ garbage-collection callback of dask's ``distributed``, a ``__del__``), so the ru
 from __future__ import annotations
 
 import signal
+from contextlib import contextmanager
 
 #: The signals that stop a command, and the exit code each ends with (128 + the signal's number).
 STOP_SIGNALS = (signal.SIGINT, signal.SIGTERM, signal.SIGHUP)
@@ -25,13 +26,35 @@ class Stopped(KeyboardInterrupt):
         self.signum = signum
 
 
+#: How deep the main thread is in ``deferred()`` regions (where a stop is recorded, not raised).
+_deferring = [0]
+
+
 def _on_signal(signum, _frame):
     _received.append(signum)
     try:
         _quiet()
     except Exception:  # noqa: BLE001 - the stop itself must be what is raised, whatever the handler lands in
         pass
+    if _deferring[0]:
+        return  # raised where the region ends (``deferred``)
     raise Stopped(signum)
+
+
+@contextmanager
+def deferred(raising: bool = True):
+    """A region where a stop signal is recorded and raised only when the region ends: around library calls that
+    hold locks across Python code, so that the exception cannot leave one held. ``concurrent.futures.wait``
+    takes each future's lock in turn: a ``Stopped`` raised between two of them left one held, the worker
+    finishing that future then waited on it forever, and so did the pool's shutdown (a SIGTERM that hung a
+    run in CI). ``raising=False``: a region on the way out of a stop already raised (the pool's shutdown)."""
+    _deferring[0] += 1
+    try:
+        yield
+    finally:
+        _deferring[0] -= 1
+    if raising:
+        raise_if_stopped()
 
 
 def _quiet() -> None:

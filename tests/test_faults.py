@@ -158,6 +158,42 @@ def test_sigterm_and_sighup_stop_like_ctrl_c(tmp_path, sig, code):
     assert "resuming" in r.stdout
 
 
+def test_a_stop_inside_a_deferred_region_is_raised_where_the_region_ends():
+    """interrupts.deferred: a SIGTERM that lands inside the region (around concurrent.futures' waits and submits,
+    whose locks a stop raised mid-way left held: a run hung in CI) is recorded, the region runs to its end, and
+    Stopped is raised there; with raising=False (the pool's shutdown on the way out) it is only recorded. Outside
+    a region the handler raises at once, as before."""
+    import sys
+    import time
+
+    from surgopt import interrupts
+
+    saved = {s: signal.getsignal(s) for s in interrupts.STOP_SIGNALS}
+    hook = sys.unraisablehook
+    try:
+        interrupts.install()
+        reached = []
+        with pytest.raises(interrupts.Stopped) as e:
+            with interrupts.deferred():
+                signal.raise_signal(signal.SIGTERM)  # to this thread (os.kill may land on another one)
+                time.sleep(0.05)
+                reached.append(interrupts.received())
+        assert reached == [signal.SIGTERM] and e.value.signum == signal.SIGTERM
+        interrupts.install()
+        with interrupts.deferred(raising=False):
+            signal.raise_signal(signal.SIGHUP)
+            time.sleep(0.05)
+        assert interrupts.received() == signal.SIGHUP
+        interrupts.install()
+        with pytest.raises(interrupts.Stopped):
+            signal.raise_signal(signal.SIGTERM)
+            time.sleep(1.0)  # interrupted by the handler's exception long before this ends
+    finally:
+        for s, h in saved.items():
+            signal.signal(s, h)
+        sys.unraisablehook = hook
+
+
 @pytest.mark.parametrize("backend", ["threads", "loky", "dask"])
 def test_kill_9_resumes_to_the_same_table_on_every_backend(tmp_path, backend):
     if backend == "dask":
