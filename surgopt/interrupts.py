@@ -47,7 +47,7 @@ def deferred(raising: bool = True):
     hold locks across Python code, so that the exception cannot leave one held. ``concurrent.futures.wait``
     takes each future's lock in turn: a ``Stopped`` raised between two of them left one held, the worker
     finishing that future then waited on it forever, and so did the pool's shutdown (a SIGTERM that hung a
-    run in CI). ``raising=False``: a region on the way out of a stop already raised (the pool's shutdown)."""
+    run in one CI run, most likely so). ``raising=False``: a region on the way out of a stop already raised (the pool's shutdown)."""
     _deferring[0] += 1
     try:
         yield
