@@ -45,9 +45,10 @@ def _on_signal(signum, _frame):
 def deferred(raising: bool = True):
     """A region where a stop signal is recorded and raised only when the region ends: around library calls that
     hold locks across Python code, so that the exception cannot leave one held. ``concurrent.futures.wait``
-    takes each future's lock in turn: a ``Stopped`` raised between two of them left one held, the worker
-    finishing that future then waited on it forever, and so did the pool's shutdown (a SIGTERM that hung a
-    run in one CI run, most likely so). ``raising=False``: a region on the way out of a stop already raised (the pool's shutdown)."""
+    takes each future's lock in turn: a ``Stopped`` raised between two of them leaves one held, the worker
+    finishing that future then waits on it forever, and so does the pool's shutdown (the likely cause of a
+    SIGTERM that hung a run in one CI run). ``raising=False``: a region on the way out of a stop already
+    raised (the pool's shutdown)."""
     _deferring[0] += 1
     try:
         yield
