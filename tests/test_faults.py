@@ -188,10 +188,12 @@ def test_a_stop_inside_a_deferred_region_is_raised_where_the_region_ends():
         with pytest.raises(interrupts.Stopped):
             signal.raise_signal(signal.SIGTERM)
             time.sleep(1.0)  # interrupted by the handler's exception long before this ends
-    finally:
+    finally:  # this process goes on running tests: no handler of ours, no stop remembered
         for s, h in saved.items():
             signal.signal(s, h)
         sys.unraisablehook = hook
+        interrupts._received.clear()
+        interrupts._reported.clear()
 
 
 @pytest.mark.parametrize("backend", ["threads", "loky", "dask"])
