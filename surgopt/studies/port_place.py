@@ -14,7 +14,7 @@ evaluated; docs/port_placement.md has the model, its sources and assumptions.
 
 The config models are in ``port_place_config``, the geometry they imply (patient, sites, target) in
 ``port_place_geometry``, the design kernels in ``kinematics.port_designs``, a serial arm's tables in
-``port_place_serial``. One module of ~690 lines: the memoised tables, the rows and their columns, the design's
+``port_place_serial``. One module of ~710 lines: the memoised tables, the rows and their columns, the design's
 dimensions (ports, docking, stance) that both the rows and the search read, the evaluator, the estimate and the
 summary are one declaration, read together; split, the study's declaration and its search would import each
 other.
@@ -67,8 +67,9 @@ HELP = """Port placement for the da Vinci Research Kit on a patient: two or thre
     Candidate ports on an insufflated abdomen (a half-ellipsoid or superquadric dome, or a closed mesh), a
     target inside it (sphere, ellipsoid or box sampled at a spacing, a points file, or a closed mesh). Every
     assignment of the instrument ports (robot.instrument_count = 2 or 3) and the camera port is one design:
-    reach of each instrument (RCM inverse kinematics within the joint limits), common reach, dexterity, manipulation angle (45-75 deg, Hanna 1997), azimuth imbalance, camera coverage, port
-    spacing, shaft and arm clearances, cost, and why a design is infeasible (a bit mask). Rows: one per
+    reach of each instrument (RCM inverse kinematics within the joint limits), common reach, dexterity,
+    manipulation angle (45-75 deg, Hanna 1997), azimuth imbalance, camera coverage, port spacing, shaft and arm
+    clearances, cost, and why a design is infeasible (a bit mask). Rows: one per
     design. The summary ranks feasible designs by cost and checks the best against the clinical numbers.
     A 3-PSM enumeration runs to 10^8 designs and more: rows_stored=feasible keeps only the feasible designs'
     rows. Any RCM arm from a DH table or URDF ([robot.instrument_file], [robot.camera_file]), or a serial arm
@@ -158,44 +159,54 @@ def port_tables(cfg: PortPlaceConfig, sites: np.ndarray, rot: np.ndarray, outsid
     crit = criteria(cfg)
     arm = instrument_of(cfg)
     cone = approach(cfg.target, arm.wrist_bend_rad)
-    if cfg.robot.instrument_serial is not None:  # a serial arm: its own IK, and its links' clearance outside
-        from surgopt.kinematics import port_serial as S
+    r = cfg.robot
+    serial = held = None
+    if r.instrument_serial is not None:  # a serial arm: its own IK, and its links' clearance outside
         from surgopt.studies.port_place_serial import serial_tables
 
         serial = serial_tables(cfg, sites, base_yaw_rad)
-        reach, dex = serial.reach & approach_mask(sites, targets, cone), serial.dexterity
-        dex = np.where(reach, dex, 0.0)
+        reach = serial.reach & approach_mask(sites, targets, cone)
+        dex = np.where(reach, serial.dexterity, 0.0)
         outside = serial.outside_m
-        outside_camera = S.link_camera_clearances(serial.links, sites, np.ascontiguousarray(rot[:, :, 2]),
-                                                  dvrk.OUTSIDE_LENGTH_M)
     else:
         reach, dex = K.instrument_tables(sites, rot, targets, arm_limits(arm), crit.dexterity_length_m, cone)
     camera = camera_of(cfg)
     coverage = K.camera_coverage(sites, rot, targets, centre, camera)
+    views = K.camera_views(sites, rot, centre, camera) if (r.camera_serial or camera.scope_angle_rad) else None
+    if r.camera_serial is not None:  # the endoscope held by a serial arm: placed by its IK
+        from surgopt.studies.port_place_serial import serial_camera_tables
+
+        held = serial_camera_tables(cfg, sites, views[0], views[2])
+        coverage = np.where(held.placed, coverage, 0.0)
     pairs = list(K.pair_tables(sites, reach, dex, targets, centre, crit))
     if outside is not None:
         pairs[-1] = outside
-    if cfg.robot.instrument_serial is None:  # every arm's outside is its shaft line behind the port
-        outside_camera = pairs[-1] + pairs[-1].T
-    if cfg.robot.camera_serial is not None:  # the endoscope held by a serial arm: placed by its IK, its links
-        from surgopt.kinematics import port_serial as S
-        from surgopt.studies.port_place_serial import serial_camera_tables
-
-        tips, _, ok = K.camera_views(sites, rot, centre, camera)
-        held = serial_camera_tables(cfg, sites, tips, ok)
-        coverage = np.where(held.placed, coverage, 0.0)
-        outside_camera = (S.polyline_clearances(serial.links, held.links) if cfg.robot.instrument_serial is not None
-                          else S.link_camera_clearances(held.links, sites, np.ascontiguousarray(rot[:, :, 2]),
-                                                        dvrk.OUTSIDE_LENGTH_M).T)
+    outside_camera = camera_clearances(sites, rot, pairs[-1], serial, held)
     if camera.scope_angle_rad == 0.0:  # the optical axis: port to centre
         azimuth, side = K.camera_pair_tables(sites, centre, LATERAL)
     else:  # along the angled scope's view, through the centre
-        azimuth, side = K.camera_pair_tables(sites, centre, LATERAL, K.camera_views(sites, rot, centre, camera)[1])
+        azimuth, side = K.camera_pair_tables(sites, centre, LATERAL, views[1])
     spacing = np.linalg.norm(sites[:, None, :] - sites[None, :, :], axis=2)
     tables = D.PortTables(reach.sum(axis=1).astype(np.int64), coverage, *pairs, spacing, azimuth, side,
                           len(targets), D.reach_bits(reach), D.site_dexterity(reach, dex), wrist_margin_deg(cfg, sites),
                           outside_camera)
     return tables, reach, dex
+
+
+def camera_clearances(sites: np.ndarray, rot: np.ndarray, outside: np.ndarray, serial=None, held=None):
+    """[instrument port, camera port]: the two arms' clearance outside the body, each arm its shaft line behind
+    its port (``outside``, the instruments' pair table, i < j), or a serial arm's centre line (``serial``: the
+    instruments' ``SerialTables``, ``held``: the camera's ``SerialCamera``)."""
+    from surgopt.kinematics import port_serial as S
+
+    if serial is None and held is None:
+        return outside + outside.T
+    if serial is not None and held is not None:
+        return S.polyline_clearances(serial.links, held.links)
+    axes = np.ascontiguousarray(rot[:, :, 2])
+    if held is None:
+        return S.link_camera_clearances(serial.links, sites, axes, dvrk.OUTSIDE_LENGTH_M)
+    return S.link_camera_clearances(held.links, sites, axes, dvrk.OUTSIDE_LENGTH_M).T
 
 
 @lru_cache(maxsize=4)
@@ -496,12 +507,14 @@ def evaluate_designs(cfg, x: np.ndarray, ids: np.ndarray, source: str) -> dict:
     col = {n: j for j, n in enumerate(names)}
     surface = f"{arms_of(cfg)[0]}_aim_x_mm" in col
     stances = [c for c in stance_columns(cfg) if c in col]
+    port_cols = [col[c] for c in (aim_columns(cfg) if surface else [f"{arm}_site" for arm in arms_of(cfg)])]
+    docking_cols = [col.get(c) for c in docking_columns(cfg)]  # None: not free, 0
     out = []
     for r in range(x.shape[0]):
         v = x[r]
-        site_ids = (nearest_sites(all_sites[:, :2] * 1000, v[[col[c] for c in aim_columns(cfg)]].reshape(ports, 2))
-                    if surface else v[[col[f"{arm}_site"] for arm in arms_of(cfg)]].astype(np.int64))
-        docking = np.array([v[col[c]] if c in col else 0.0 for c in docking_columns(cfg)])
+        site_ids = (nearest_sites(all_sites[:, :2] * 1000, v[port_cols].reshape(ports, 2)) if surface
+                    else v[port_cols].astype(np.int64))
+        docking = np.array([0.0 if j is None else v[j] for j in docking_cols])
         stance = np.array([v[col[c]] for c in stances])
         cfg_r = with_stance(cfg, {c.split("_")[0]: (stance[k], stance[k + 1]) for k, c in enumerate(stances)
                                   if c.endswith("_out_m")}) if stances else cfg
@@ -517,7 +530,7 @@ def evaluate_designs(cfg, x: np.ndarray, ids: np.ndarray, source: str) -> dict:
         local, f, bad, cost, _ = design_columns(t, crit, 0, 1, ports - 1)
         out.append(design_rows(cfg, sites, t, local, site_ids[None, :], f, bad, cost,
                                np.asarray(ids[r:r + 1], dtype=np.int64), docking[None, :],
-                               v[None, [col[c] for c in aim_columns(cfg)]] if surface else None,
+                               v[None, port_cols] if surface else None,
                                stance[None, :] if stances else None))
     from surgopt.plans import concat_rows
 
@@ -551,7 +564,6 @@ def preflight(cfg) -> None:
         raise ValueError(f"robot.camera_serial: the arm ({camera_arm_of(cfg).name}) holds the endoscope where it "
                          f"must be at no candidate port, so no layout has a camera; stand it elsewhere "
                          f"(rcm_in_base_m, base_yaw_deg) or give it a longer tool")
-
 
 
 #: Cost model: ~60 ns to combine one design and turn it into columns on one core (~70 ns with a third

@@ -367,20 +367,22 @@ class PortPlaceConfig(StrictModel):
 Config = PortPlaceConfig
 
 
-def instrument_of(cfg: PortPlaceConfig):
-    """The instrument arm: a serial arm's ``SerialHolder`` (``robot.instrument_serial``), an RCM arm from its file
-    (``robot.instrument_file``), or the shipped dVRK arm named."""
+def _arm_of(cfg: PortPlaceConfig, role: str, shipped: dict):
+    """The ``role`` ("instrument", "camera") arm: a serial arm's ``SerialHolder`` (``robot.<role>_serial``), an
+    RCM arm from its file (``robot.<role>_file``), or the shipped dVRK arm named (``robot.<role>_arm``)."""
     r = cfg.robot
-    if r.instrument_serial is not None:
-        return r.instrument_serial.holder()
-    return file_arm(r.instrument_file.model_dump_json()) if r.instrument_file else dvrk.INSTRUMENT_ARMS[r.instrument_arm]
+    serial, file = getattr(r, f"{role}_serial"), getattr(r, f"{role}_file")
+    if serial is not None:
+        return serial.holder()
+    return file_arm(file.model_dump_json()) if file else shipped[getattr(r, f"{role}_arm")]
+
+
+def instrument_of(cfg: PortPlaceConfig):
+    """The instrument arm (``_arm_of``)."""
+    return _arm_of(cfg, "instrument", dvrk.INSTRUMENT_ARMS)
 
 
 def camera_arm_of(cfg: PortPlaceConfig):
-    """The endoscope arm: a serial arm's ``SerialHolder`` (``robot.camera_serial``), an RCM arm from its file
-    (``robot.camera_file``), or the shipped dVRK arm named."""
-    r = cfg.robot
-    if r.camera_serial is not None:
-        return r.camera_serial.holder()
-    return file_arm(r.camera_file.model_dump_json()) if r.camera_file else dvrk.CAMERA_ARMS[r.camera_arm]
+    """The endoscope arm (``_arm_of``)."""
+    return _arm_of(cfg, "camera", dvrk.CAMERA_ARMS)
 

@@ -63,30 +63,51 @@ def walk_order(target_json: str, centre: tuple):
     return prim_order(pts, root)
 
 
+def _stand(cfg: PortPlaceConfig, arm, sites: np.ndarray, extra_yaw_rad=None):
+    """(the arm's kernel inputs (``arm_kernel``), base rotations, base origins, refused) of a serial ``arm`` standing
+    at ports ``sites`` (m), turned by ``base_yaw_deg`` and ``extra_yaw_rad``: BASE_INSIDE where its base would
+    stand inside the body."""
+    from surgopt.kinematics import port_serial as S
+
+    kernel = arm_kernel(arm.model_dump_json())
+    centre = np.asarray(cfg.target.centre_mm, float) / 1000
+    yaw = np.radians(arm.base_yaw_deg) + (0.0 if extra_yaw_rad is None else np.asarray(extra_yaw_rad, float))
+    rot, pos = S.serial_base_frames(sites, centre, kernel[3], yaw)
+    return kernel, rot, pos, np.where(inside_body(pos * 1000, cfg.patient), BASE_INSIDE, 0)
+
+
+def _docked(cfg: PortPlaceConfig, arm, kernel, joints: np.ndarray, rot, pos, refused: np.ndarray):
+    """(centre lines, through) of the arm at its docked ``joints`` (n, 5; NaN: none): where its links come through
+    or near the wall (``_links_inside``) the port is refused (``refused`` set to LINKS_INSIDE) and its line NaN."""
+    from surgopt.kinematics import port_serial as S
+
+    chain, _, _, rcm, tool_m = kernel
+    links = S.link_polylines(chain, np.ascontiguousarray(joints), tool_m, rcm, rot, pos)
+    through = _links_inside(links, cfg, arm.link_radius_mm)
+    refused[through & (refused == 0)] = LINKS_INSIDE
+    links[through] = np.nan
+    return links, through
+
+
 def serial_tables(cfg: PortPlaceConfig, sites: np.ndarray, extra_yaw_rad=None) -> SerialTables:
     """The serial instrument arm's tables at ports ``sites`` (m), each base turned by ``base_yaw_deg`` and, when
     given, by ``extra_yaw_rad`` at each site (a search's free docking)."""
     from surgopt.kinematics import port_serial as S
 
     arm = cfg.robot.instrument_serial
-    chain, seed, restarts, rcm, tool_m = arm_kernel(arm.model_dump_json())
+    kernel, rot, pos, refused = _stand(cfg, arm, sites, extra_yaw_rad)
+    chain, seed, restarts, rcm, tool_m = kernel
     targets = target_points_mm(cfg.target) / 1000
     centre = np.asarray(cfg.target.centre_mm, float) / 1000
     order, parent = walk_order(cfg.target.model_dump_json(), tuple(centre))
-    yaw = np.radians(arm.base_yaw_deg) + (0.0 if extra_yaw_rad is None else np.asarray(extra_yaw_rad, float))
-    rot, pos = S.serial_base_frames(sites, centre, rcm, yaw)
-    refused = np.where(inside_body(pos * 1000, cfg.patient), BASE_INSIDE, 0)
     joints = np.empty((len(sites), len(targets), 5))
     reach, dex = S.serial_instrument_tables(chain, seed, restarts, rcm, tool_m, rot, pos, targets, order, parent,
                                             refused == 0, joints)
     near = np.where(reach, np.linalg.norm(targets - centre, axis=1)[None, :], np.inf).argmin(axis=1)
     docked = joints[np.arange(len(sites)), near]  # NaN where a site reaches nothing
-    links = S.link_polylines(chain, np.ascontiguousarray(docked), tool_m, rcm, rot, pos)
-    through = _links_inside(links, cfg, arm.link_radius_mm)
-    refused[through & (refused == 0)] = LINKS_INSIDE
+    links, through = _docked(cfg, arm, kernel, docked, rot, pos, refused)
     reach[through] = False
     dex[through] = 0.0
-    links[through] = np.nan
     return SerialTables(reach, dex, S.link_clearances(links), joints, rot, pos, links, refused)
 
 
@@ -128,10 +149,8 @@ def serial_camera_tables(cfg: PortPlaceConfig, sites: np.ndarray, tips: np.ndarr
     from surgopt.kinematics import port_serial as S
 
     arm = cfg.robot.camera_serial
-    chain, seed, restarts, rcm, tool_m = arm_kernel(arm.model_dump_json())
-    centre = np.asarray(cfg.target.centre_mm, float) / 1000
-    rot, pos = S.serial_base_frames(sites, centre, rcm, np.radians(arm.base_yaw_deg))
-    refused = np.where(inside_body(pos * 1000, cfg.patient), BASE_INSIDE, 0)
+    kernel, rot, pos, refused = _stand(cfg, arm, sites)
+    chain, seed, restarts, rcm, tool_m = kernel
     joints = np.full((len(sites), 5), np.nan)
     one = np.zeros(1, np.int64)
     for i in np.flatnonzero(ok & (refused == 0)):
@@ -139,10 +158,7 @@ def serial_camera_tables(cfg: PortPlaceConfig, sites: np.ndarray, tips: np.ndarr
         S.serial_instrument_tables(chain, seed, restarts, rcm, tool_m, rot[i:i + 1], pos[i:i + 1],
                                    np.ascontiguousarray(tips[i:i + 1]), one, one - 1, np.ones(1, bool), q)
         joints[i] = q[0, 0]
-    links = S.link_polylines(chain, joints, tool_m, rcm, rot, pos)
-    through = _links_inside(links, cfg, arm.link_radius_mm)
-    refused[through & (refused == 0)] = LINKS_INSIDE
-    links[through] = np.nan
+    links, through = _docked(cfg, arm, kernel, joints, rot, pos, refused)
     placed = np.isfinite(joints[:, 0]) & ~through
     return SerialCamera(placed, joints, rot, pos, links, refused)
 
