@@ -35,7 +35,8 @@ def numba_cache_dir() -> Path:
 
 
 def configure_numba() -> Path:
-    """Set numba's environment before numba is imported (worker processes inherit it).
+    """Set numba's environment before numba is imported (worker processes inherit it), and its cache folder
+    also when numba is already imported.
 
     NUMBA_CACHE_DIR: compiled kernels persist across runs. NUMBA_CPU_FEATURES:
     on an AVX-512 machine, let LLVM use 8-wide vectors (it prefers 4-wide by
@@ -47,7 +48,20 @@ def configure_numba() -> Path:
     path = numba_cache_dir()
     os.environ["NUMBA_CACHE_DIR"] = str(path)
     use_wide_vectors()
+    _set_loaded_numba_cache_dir(path)
     return path
+
+
+def _set_loaded_numba_cache_dir(path: Path) -> None:
+    """numba reads NUMBA_CACHE_DIR once, when it is imported; without it a kernel's cache goes beside its source
+    (``__pycache__`` inside the installed package: files pip does not know of, which survive an uninstall and
+    turn ``site-packages/surgopt`` into a namespace package that shadows a later editable install). Where
+    something imported numba first, its configuration is told here; a kernel is never cached in the package."""
+    import sys
+
+    config = getattr(sys.modules.get("numba.core.config"), "__dict__", None)
+    if config is not None:
+        config["CACHE_DIR"] = str(path)
 
 
 def use_wide_vectors() -> None:

@@ -18,7 +18,7 @@ from surgopt.backends import get_backend
 from surgopt.config import study_key
 from surgopt.errors import ConfigError, SurgoptError, UsageError, out_of_memory
 from surgopt.interrupts import raise_if_stopped
-from surgopt.jit import numba_cache_dir
+from surgopt.jit import QUIET_WAIT_S, numba_cache_dir
 from surgopt.store import Run, Store
 
 DEFAULT_JOBS = 2
@@ -318,14 +318,14 @@ def provenance(backend: str, jobs: int) -> dict:
     """What made a run, for its manifest: versions, backend, jobs, host."""
     import platform
     import socket
-
-    import numba
-    import numpy
+    from importlib.metadata import version
 
     from surgopt._version import __version__
     from surgopt.code_identity import code_sha256, git_commit
 
-    return {"versions": {"surgopt": __version__, "numba": numba.__version__, "numpy": numpy.__version__,
+    # numba's version from its metadata: importing numba here, before a kernel configured it, would fix its
+    # cache folder to the package's own __pycache__ (surgopt.jit)
+    return {"versions": {"surgopt": __version__, "numba": version("numba"), "numpy": version("numpy"),
                          "python": platform.python_version()},
             "code_sha256": code_sha256(), "git_commit": git_commit(),
             "backend": backend, "jobs": jobs, "host": socket.gethostname()}
@@ -376,33 +376,65 @@ def _open_or_discard(store: Store, study_name: str, key: str, say):
         return None
 
 
-#: How long loading the kernels may take before the user is told they are being compiled (s).
+#: How long loading the kernels may take before the user is told what is happening (s).
 COMPILE_NOTICE_S = 2.0
 
 
-def _warm_up(study, cfg, say=None) -> None:
-    """``study.warm_up`` under the numba cache's compile lock (``surgopt.jit.compile_lock``). With ``say``: a word
-    when the lock is held by another process, and when loading takes over COMPILE_NOTICE_S (a first run compiles
-    the kernels: up to a minute or two on a loaded 2-core machine), with the time it took."""
+def warm_up(study, cfg, say=None) -> tuple[float, bool]:
+    """Compile or load ``cfg``'s kernels now (``surgopt warm``): see ``_warm_up``."""
+    return _warm_up(study, cfg, say)
+
+
+def _warm_up(study, cfg, say=None) -> tuple[float, bool]:
+    """``study.warm_up`` under the numba cache's compile lock (``surgopt.jit.compile_lock``): the seconds it took
+    and whether numba compiled anything (else it loaded every kernel from the cache).
+
+    With ``say``: a word when the lock is held by another process (and how long it was waited for), and, when
+    the kernels take over COMPILE_NOTICE_S, whether they are being compiled (a first run after an install or an
+    update: numba's compile events say so) or loaded from the cache, with the time it took."""
     import threading
+
+    import surgopt.kinematics  # noqa: F401 - numba configured before it is imported
+    from numba.core import event
 
     from surgopt.jit import compile_lock
 
-    on_wait = None if say is None else (lambda: say(f"waiting for another surgopt process compiling the kernels "
-                                                   f"into {numba_cache_dir()} ..."))
+    waited = []
+    on_wait = None if say is None else (lambda: (waited.append(time.perf_counter()), say(
+        f"waiting for another surgopt process compiling kernels into {numba_cache_dir()} ...")))
+    compiling = threading.Event()
+
+    class Compiles(event.Listener):
+        def on_start(self, ev):
+            compiling.set()
+
+        def on_end(self, ev):
+            pass
+
     with compile_lock(on_wait=on_wait):
         t0 = time.perf_counter()
+        if waited and say is not None:
+            say(f"waited {t0 - waited[0] + QUIET_WAIT_S:.0f} s for the other process")
+        told = []
+
+        def notice():
+            told.append(compiling.is_set())
+            say(f"compiling the {study.name} kernels (the first run after an install or an update; later runs load "
+                f"them from {numba_cache_dir()}) ..." if told[0] else
+                f"loading the {study.name} kernels from {numba_cache_dir()} ...")
+
         timer = None
         if say is not None:
-            timer = threading.Timer(COMPILE_NOTICE_S, lambda: say(
-                f"compiling the {study.name} kernels (the first run after an install or an update; later runs load "
-                f"them from {numba_cache_dir()}) ..."))
+            timer = threading.Timer(COMPILE_NOTICE_S, notice)
             timer.daemon = True
             timer.start()
         try:
-            study.warm_up(cfg)
+            with event.install_listener("numba:compile", Compiles()):
+                study.warm_up(cfg)
         finally:
             if timer is not None:
                 timer.cancel()
-                if timer.finished.is_set() and time.perf_counter() - t0 > COMPILE_NOTICE_S:
-                    say(f"kernels ready after {time.perf_counter() - t0:.0f} s")
+        took = time.perf_counter() - t0
+        if told and say is not None:
+            say(f"kernels {'compiled' if compiling.is_set() else 'loaded'} in {took:.0f} s")
+        return took, compiling.is_set()
