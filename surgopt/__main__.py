@@ -15,7 +15,7 @@ def main() -> None:
         if interrupts.received() is None and not isinstance(exc, KeyboardInterrupt):
             raise  # a real import error
         interrupts.ignore()  # (a library may have wrapped the stop: pydantic-core's SchemaError)
-        sys.exit(interrupts.report(exc if isinstance(exc, KeyboardInterrupt) else None, "nothing was run"))
+        interrupts.exit_now(interrupts.report(exc if isinstance(exc, KeyboardInterrupt) else None, "nothing was run"))
     run()
 
 

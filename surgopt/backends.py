@@ -36,20 +36,26 @@ def compute(study_name: str, cfg, chunk: int, task):
 def _thread_pool(jobs: int):
     """The threads backend's pool, one for the whole run (a search dispatches a batch at a time).
 
-    On an interrupt (Ctrl-C) the tasks not started are cancelled and the running ones are waited
-    for before the exception goes on: a thread still inside a compiled kernel when the interpreter
-    shuts down would abort the process (SIGABRT) instead of letting it exit with code 130.
+    On a stop (Ctrl-C, SIGTERM) the tasks not started are cancelled and the running ones are not waited for:
+    a chunk inside a compiled kernel cannot be interrupted and may take minutes. The CLI then ends the process
+    without an interpreter shutdown (``interrupts.exit_now``), which would join those threads (or abort under
+    one); in a Python session they finish in the background and their rows are dropped. On any other error
+    the running chunks are waited for.
     """
     from concurrent.futures import ThreadPoolExecutor
 
     from surgopt.interrupts import deferred
 
     pool = ThreadPoolExecutor(max_workers=jobs, thread_name_prefix="surgopt")
+    stopping = False
     try:
         yield pool
+    except KeyboardInterrupt:
+        stopping = True
+        raise
     finally:
         with deferred(raising=False):  # a second signal here must not leave the pool's locks held either
-            pool.shutdown(wait=True, cancel_futures=True)
+            pool.shutdown(wait=not stopping, cancel_futures=True)
 
 
 #: Chunks submitted ahead per worker: enough to keep workers busy, few enough that finished rows

@@ -12,6 +12,8 @@ from typing import Annotated, Optional
 
 import typer
 
+from surgopt.interrupts import RESUME  # the line of a stopped command (light: imports nothing)
+
 app = typer.Typer(
     name="surgopt",
     help="Kinematic design studies of surgical robots, batch-run with a cached Parquet result store.\n\n"
@@ -134,7 +136,6 @@ def fail(exc: BaseException, code: int) -> None:
     raise typer.Exit(code)
 
 
-RESUME = "finished chunks are stored, run the same command again to resume"
 
 
 @contextlib.contextmanager

@@ -5,10 +5,21 @@ The handlers raise ``Stopped`` (a ``KeyboardInterrupt``) in the main thread and 
 handler's exception can be swallowed when the signal lands inside a callback that ignores exceptions (a
 garbage-collection callback of dask's ``distributed``, a ``__del__``), so the runner asks
 ``raise_if_stopped()`` between chunks and the CLI once more at the end. Nothing here runs on import.
+
+A Python handler runs only when the main thread is between two bytecodes; a thread that is inside a compiled
+kernel (a chunk that takes minutes) cannot be interrupted at all. So a stop never waits for one: the orderly
+path stores what finished, prints its line and ends the process at once (``exit_now``: no join of the worker
+threads), and a watchdog thread, woken by the C-level signal handler through ``signal.set_wakeup_fd`` even
+while the main thread is inside a compile or a kernel, ends it ``STOP_GRACE_S`` after the signal if the
+orderly path has not (one line, the child processes killed). Every part a store holds is written by an
+atomic rename, so an end at any instant loses only the chunks that were computing.
 """
 from __future__ import annotations
 
+import os
 import signal
+import sys
+import threading
 from contextlib import contextmanager
 
 #: The signals that stop a command, and the exit code each ends with (128 + the signal's number).
@@ -24,6 +35,15 @@ class Stopped(KeyboardInterrupt):
     def __init__(self, signum: int):
         super().__init__(signum)
         self.signum = signum
+
+
+#: How long the orderly stop (store what finished, one line) may take after the signal before the watchdog ends
+#: the process anyway (s). A job scheduler sends SIGKILL after a grace period of its own (SLURM: 30 s).
+STOP_GRACE_S = 3.0
+
+#: What a stopped command's line says a resume will find.
+RESUME = "finished chunks are stored, run the same command again to resume"
+_report_lock = threading.Lock()
 
 
 #: How deep the main thread is in ``deferred()`` regions (where a stop is recorded, not raised).
@@ -73,14 +93,16 @@ def _quiet() -> None:
         logging.disable(logging.CRITICAL)
 
 
-def install() -> None:
-    """Handle every STOP_SIGNALS in this (main) thread: raise ``Stopped``, and remember it."""
-    import sys
-
+def install(watchdog: bool = True) -> None:
+    """Handle every STOP_SIGNALS in this (main) thread: raise ``Stopped``, and remember it; with ``watchdog``
+    (a command's process, not a host such as a test runner), start the watchdog that ends the process
+    ``STOP_GRACE_S`` after a stop signal whatever the main thread is doing."""
     _received.clear()
     _reported.clear()
     for sig in STOP_SIGNALS:
         signal.signal(sig, _on_signal)
+    if watchdog:
+        _start_watchdog()
     previous = sys.unraisablehook
 
     def quiet_about_stops(unraisable):
@@ -91,6 +113,77 @@ def install() -> None:
         previous(unraisable)
 
     sys.unraisablehook = quiet_about_stops
+
+
+def _start_watchdog() -> None:
+    """A daemon thread blocked on the read end of the signal module's wakeup pipe: the C-level handler writes
+    each signal's number there at once, even while the main thread is inside a compile or a kernel."""
+    if any(t.name == "surgopt-stop-watchdog" for t in threading.enumerate()):
+        return
+    read_fd, write_fd = os.pipe()
+    os.set_blocking(write_fd, False)
+    try:
+        signal.set_wakeup_fd(write_fd, warn_on_full_buffer=False)
+    except ValueError:  # not the main thread: the handlers alone
+        os.close(read_fd)
+        os.close(write_fd)
+        return
+    threading.Thread(target=_watch, args=(read_fd,), name="surgopt-stop-watchdog", daemon=True).start()
+
+
+def _watch(read_fd: int) -> None:
+    stops = {int(s) for s in STOP_SIGNALS}
+    while True:
+        try:
+            data = os.read(read_fd, 64)
+        except OSError:
+            return
+        if not data:
+            return
+        signums = [b for b in data if b in stops]
+        if signums:
+            break
+    threading.Event().wait(STOP_GRACE_S)  # the orderly path ends the process first, as a rule
+    exit_now(report(None, RESUME, signum=signums[0]))
+
+
+def exit_now(code: int) -> None:
+    """End the process now with ``code``: output flushed, child processes (workers) killed, no wait for threads
+    still inside a kernel (their chunks are lost, the stored ones kept), no interpreter shutdown (which would
+    join them, or abort the process under a kernel)."""
+    for stream in (sys.stdout, sys.stderr):
+        try:
+            stream.flush()
+        except Exception:  # noqa: BLE001 - a closed pipe: nothing more to say
+            pass
+    kill_children()
+    os._exit(code)
+
+
+def kill_children() -> None:
+    """SIGKILL every descendant process of this one (loky and dask workers, their helpers); Linux's /proc only."""
+    try:
+        entries = os.listdir("/proc")
+    except OSError:
+        return
+    parent_of = {}
+    for entry in entries:
+        if entry.isdigit():
+            try:
+                with open(f"/proc/{entry}/stat", "rb") as f:
+                    stat = f.read()
+                parent_of[int(entry)] = int(stat[stat.rindex(b")") + 2:].split()[1])
+            except (OSError, ValueError, IndexError):
+                continue
+    mine, frontier = set(), {os.getpid()}
+    while frontier:
+        frontier = {pid for pid, ppid in parent_of.items() if ppid in frontier} - mine
+        mine |= frontier
+    for pid in mine:
+        try:
+            os.kill(pid, signal.SIGKILL)
+        except OSError:
+            pass
 
 
 def received() -> int | None:
@@ -104,18 +197,17 @@ def raise_if_stopped() -> None:
         raise Stopped(_received[0])
 
 
-def report(exc: BaseException | None, resume: str, once: bool = False) -> int:
-    """Say on stderr that the command was stopped (and that ``resume`` holds; with ``once``, only if nothing
-    said it yet); the exit code."""
-    import sys
-
-    signum = exc.signum if isinstance(exc, Stopped) else (received() or signal.SIGINT)
-    if not (once and _reported):
-        _quiet()
-        _reported.append(True)
-        what = f"stopped by {signal.Signals(signum).name}" if signum != signal.SIGINT else "interrupted"
-        sys.stderr.write(f"surgopt: {what}; {resume}\n")
-        sys.stderr.flush()
+def report(exc: BaseException | None, resume: str, signum: int | None = None) -> int:
+    """Say on stderr that the command was stopped (and that ``resume`` holds), once whoever says it (the
+    command's guard, the CLI's last word, the watchdog); the exit code."""
+    signum = signum or (exc.signum if isinstance(exc, Stopped) else (received() or signal.SIGINT))
+    with _report_lock:  # the main thread and the watchdog: one line
+        if not _reported:
+            _quiet()
+            _reported.append(True)
+            what = f"stopped by {signal.Signals(signum).name}" if signum != signal.SIGINT else "interrupted"
+            sys.stderr.write(f"surgopt: {what}; {resume}\n")
+            sys.stderr.flush()
     return 128 + signum
 
 

@@ -10,6 +10,7 @@ import subprocess
 import sys
 import threading
 import time
+from pathlib import Path
 
 import pytest
 
@@ -171,7 +172,7 @@ def test_a_stop_inside_a_deferred_region_is_raised_where_the_region_ends():
     saved = {s: signal.getsignal(s) for s in interrupts.STOP_SIGNALS}
     hook = sys.unraisablehook
     try:
-        interrupts.install()
+        interrupts.install(watchdog=False)
         reached = []
         with pytest.raises(interrupts.Stopped) as e:
             with interrupts.deferred():
@@ -179,12 +180,12 @@ def test_a_stop_inside_a_deferred_region_is_raised_where_the_region_ends():
                 time.sleep(0.05)
                 reached.append(interrupts.received())
         assert reached == [signal.SIGTERM] and e.value.signum == signal.SIGTERM
-        interrupts.install()
+        interrupts.install(watchdog=False)
         with interrupts.deferred(raising=False):
             signal.raise_signal(signal.SIGHUP)
             time.sleep(0.05)
         assert interrupts.received() == signal.SIGHUP
-        interrupts.install()
+        interrupts.install(watchdog=False)
         with pytest.raises(interrupts.Stopped):
             signal.raise_signal(signal.SIGTERM)
             time.sleep(1.0)  # interrupted by the handler's exception long before this ends
@@ -331,3 +332,49 @@ def test_bad_command_line_uses_are_one_line_exit_2(stored, tmp_path, case):
     assert code == 2, out
     assert words in out and "Traceback" not in out, out
     assert not (tmp_path / "new").exists()  # nothing half-written
+
+
+#: A chunk or a compile that lasts this long (s) in tests/slow_cli.py: a stop must not wait for it.
+SLOW_PHASE_S = 30
+#: How long such a stop may take here (s): the watchdog's grace, the process's exit, a loaded machine's delays;
+#: far below SLOW_PHASE_S, so a stop that waited for the slow phase fails.
+STOP_WITHIN_S = 15
+
+
+@pytest.mark.parametrize("phase, jobs, sig", [("chunk", 2, signal.SIGTERM), ("chunk", 1, signal.SIGINT),
+                                              ("warm", 2, signal.SIGHUP)],
+                         ids=["chunk-in-a-worker-thread", "chunk-in-the-main-thread", "compile"])
+def test_a_stop_never_waits_for_a_long_chunk_or_compile(tmp_path, phase, jobs, sig):
+    """Issue 38: a SIGTERM waited minutes for chunks inside a kernel (which no signal interrupts) and for a compile.
+    A kernel slowed to SLOW_PHASE_S (tests/slow_cli.py, a nogil numba loop: no Python handler runs in it) is not
+    waited for: the finished chunks are stored, one line, the signal's exit code, and the run resumes to the
+    table of an uninterrupted run."""
+    cfg = tmp_path / "slow.toml"
+    cfg.write_text(RCM_SLOW)
+    store = tmp_path / "store"
+    args = ["rcm-grid", str(cfg), "--store", str(store), "--quiet", "--chunk-size", "40", "--jobs", str(jobs)]
+    proc = subprocess.Popen([sys.executable, str(Path(__file__).parent / "slow_cli.py"), str(SLOW_PHASE_S), phase,
+                             *args], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    lines = []
+    while not lines or lines[-1].strip() != "spinning":  # the slow phase has begun
+        line = proc.stderr.readline()
+        assert line, f"ended before its slow phase: {proc.wait()} {''.join(lines)}"
+        lines.append(line)
+    if phase == "chunk":
+        wait_for_parts(store, "rcm-grid", 2, proc)  # the first two chunks are stored, the third spins
+    time.sleep(0.5)
+    proc.send_signal(sig)
+    try:
+        _, err = proc.communicate(timeout=STOP_WITHIN_S)
+    except subprocess.TimeoutExpired:
+        proc.kill()
+        raise AssertionError(f"{signal.Signals(sig).name} did not stop the run within {STOP_WITHIN_S} s") from None
+    assert proc.returncode == 128 + sig, err
+    assert len(fault_lines(err.replace("spinning\n", ""))) == 1 and "resume" in err, err
+    if phase == "chunk":
+        assert len(single_run(store).manifest["parts"]) >= 2  # the chunks before the slow one are stored
+    r = cli(*args)
+    assert "resuming" in r.stdout or phase == "warm"
+    ref = tmp_path / "ref"
+    cli("rcm-grid", cfg, "--store", ref, "--quiet", "--chunk-size", "40")
+    assert single_table(store).equals(single_table(ref))
