@@ -300,6 +300,45 @@ def _report(study, result, brief: bool = False):
     return summary
 
 
+@app.command("warm")
+def warm(
+    studies: Annotated[Optional[list[str]], typer.Argument(
+        help="Studies whose kernels to compile (default: every study).", show_default=False,
+        metavar="[STUDY]...")] = None,
+    verbose: VerboseOpt = 0,
+) -> None:
+    """Compile every kernel a study's runs use once, now (its embedded default and the variants whose kernels
+    differ: another metric, a generic arm, a serial arm), into the numba cache ($NUMBA_CACHE_DIR or
+    ~/.cache/surgopt/numba), so that no later run compiles. Worth it after an install or an update, or before
+    starting several runs at once. The kernels are compiled one after the other: numba compiles one function at a
+    time in a process, and processes compiling into one cache take turns (its lock)."""
+    import time
+
+    from surgopt.compose import variants
+    from surgopt.errors import UsageError
+    from surgopt.runner import warm_up
+    from surgopt.studies import STUDIES, get_study
+
+    set_verbosity(verbose)
+    with guard():
+        names = studies or list(STUDIES)
+        unknown = [n for n in names if n not in STUDIES]
+        if unknown:
+            raise UsageError(f"warm: {unknown[0]!r} is not a study (one of: {', '.join(STUDIES)})")
+        console = wide_console()
+        rows, t0 = [], time.perf_counter()
+        for name in names:
+            study = get_study(name)
+            for overrides in ((), *study.warm_variants):
+                (v,) = variants(study, None, list(overrides))
+                label = " ".join(overrides) or "embedded default"
+                console.print(f"{name}: {label} ...", highlight=False)
+                took, compiled = warm_up(study, v.config, say=lambda m: console.print(f"  {m}", highlight=False))
+                rows.append([name, label, "compiled" if compiled else "loaded", f"{took:.1f}"])
+        print_table(console, f"kernels ready in {time.perf_counter() - t0:.0f} s", ["study", "config", "kernels", "s"],
+                    rows)
+
+
 # the commands that read the store (imported last: they register on ``app``)
 from surgopt import cli_results  # noqa: E402,F401
 
@@ -326,7 +365,8 @@ def run() -> None:
         interrupts.ignore()
         code = exc.code if isinstance(exc, SystemExit) else None
         if interrupts.received() is not None:  # also a stop whose exception a callback swallowed or wrapped
-            code = interrupts.report(None, RESUME, once=True)
+            # now: no wait for worker threads still inside a kernel (their chunks are computed again on resume)
+            interrupts.exit_now(interrupts.report(None, RESUME))
         sys.exit(code)
 
 

@@ -25,7 +25,8 @@ import surgopt.kinematics  # noqa: E402,F401  (configures numba on import)
 
 #: The notes a run prints while it compiles the kernels or waits for another process compiling them into the
 #: shared cache (surgopt.runner._warm_up): under two test workers they can come before a fault's one line.
-COMPILE_NOTES = ("waiting for another surgopt process compiling the kernels", "compiling the ", "kernels ready")
+COMPILE_NOTES = ("waiting for another surgopt process compiling", "waited ", "compiling the ", "loading the ",
+                 "kernels compiled in", "kernels loaded in")
 
 
 def fault_lines(text: str) -> list[str]:

@@ -135,6 +135,9 @@ class Study:
     figure_columns: Callable[[Any], list[str]] | None = None
     chunked: bool = True  # False: one task per run, no --chunk-size
     estimate: Callable[[Any], Estimate] | None = None  # work and memory, checked before a run starts
+    #: Override sets (KEY=VALUE strings) whose kernels the embedded default does not compile: ``surgopt warm``
+    #: compiles them too (another metric, a generic arm, a serial arm in port-place)
+    warm_variants: tuple[tuple[str, ...], ...] = ()
     search_plan: Callable[[Any], Any] | None = None  # a SearchPlan when the config asks for an optimiser
     #: ``evaluate(cfg, x, ids, source)``: rows of any designs (rows of x in ``search_plan``'s dimension order),
     #: what the optimiser and refine plans evaluate; None: the study is explored by its grid alone

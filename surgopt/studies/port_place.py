@@ -538,7 +538,16 @@ def evaluate_designs(cfg, x: np.ndarray, ids: np.ndarray, source: str) -> dict:
 
 
 def warm_up(cfg) -> None:
-    tables(cfg)
+    """The per-port tables (their kernels), then the design kernel as the config's tasks call it: the grid's
+    chunks (``compute_task``), or a search's one design at a time (``evaluate_designs``)."""
+    from surgopt.kinematics.port_designs import design_columns
+    from surgopt.studies.search import optimiser_of
+
+    _, t, crit, _, _ = tables(cfg)
+    if optimiser_of(cfg) is None:
+        design_columns(t, crit, 0, 1, cfg.robot.instrument_count, cfg.rows_stored == "feasible")
+    else:
+        design_columns(t, crit, 0, 1, cfg.robot.instrument_count)
 
 
 def preflight(cfg) -> None:
@@ -704,4 +713,6 @@ STUDY = Study(
     help=HELP, config_help=CONFIG_HELP, schema=schema, key_columns=("design_id",), objective=OBJECTIVE,
     auto_chunk=auto_chunk, n_tasks=n_tasks, warm_up=warm_up, compute_task=compute_task, summary=summary,
     feasible_mask=feasible_mask, figures=figures_in("port_place"), estimate=estimate, search_plan=search_plan,
+    warm_variants=(('robot.instrument_serial={model = "pa10_7c", rcm_in_base_m = [0.65, 0.0, 0.5]}',
+                    "constraints.min_external_clearance_mm=150.0"),),
     evaluate=evaluate_designs, figure_columns=figure_columns, preflight=preflight, top_columns=top_columns)

@@ -197,7 +197,7 @@ class ClosedFormKernel:
         order = np.argsort(-radius, kind="stable")
         return rcm_candidate_bounded(rcm, np.ascontiguousarray(offsets[order]), self.arm, gii_to_beat, CULL_BLOCK)
 
-    def warm_up(self):
+    def warm_up(self, offsets, side):
         from surgopt.kinematics import pa10_rcm as k
 
         rcm, off = np.array([[0.5, 0.0, 0.1]]), np.array([[0.0, 0.0, -0.1]])
@@ -232,8 +232,10 @@ class ChainKernel:
                                       gii_to_beat=[gii_to_beat], metric=self.metric, metric_params=self.params)
         return tuple(v[0] for v in r)
 
-    def warm_up(self):
-        self.extremes(np.array([[0.5, 0.0, 0.1]]), np.array([[0.0, 0.0, -0.1]]), 1)
+    def warm_up(self, offsets, side):
+        """One candidate over the config's own cube: the walk its chunks take (in SIMD lanes from
+        ``serial_lanes.MIN_POINTS_PER_LANE`` points a lane, scalar below), so no chunk compiles."""
+        self.extremes(np.array([[0.5, 0.0, 0.1]]), offsets, side)
 
 
 def kernel_for(cfg: RcmGridConfig):
@@ -328,8 +330,8 @@ def n_tasks(cfg: RcmGridConfig, chunk: int) -> int:
 
 
 def warm_up(cfg: RcmGridConfig) -> None:
-    """Compile (or load from the on-disk cache) the kernels in the parent."""
-    kernel_for(cfg).warm_up()
+    """Compile (or load from the on-disk cache) the kernels the config's chunks call, in the parent."""
+    kernel_for(cfg).warm_up(workspace_offsets(cfg.workspace), cfg.workspace.points_per_side)
 
 
 def _rows(cfg, ids, xyz, lo, hi, n_unr, n_sing, n_eval, exact):
@@ -580,6 +582,7 @@ STUDY = Study(
     help=HELP, config_help=CONFIG_HELP, schema=schema, key_columns=KEY_COLUMNS, objective=OBJECTIVE,
     auto_chunk=auto_chunk, n_tasks=n_tasks, warm_up=warm_up, compute_task=compute_task, summary=summary,
     feasible_mask=feasible_mask, figures=figures_in("rcm_grid"), estimate=estimate, search_plan=search_plan,
+    warm_variants=(("metric=standard",), ("robot.model=ur5e",)),
     evaluate=evaluate_designs, design_box=design_box, cull=lambda cfg: cull_search(cfg),
     advice=lambda cfg: (cfg.robot.auto_lock_advice() + cfg.robot.tool_axis_advice() + reach_grid_advice(cfg)
                         + seed_advice(cfg)),

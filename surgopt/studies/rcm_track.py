@@ -166,7 +166,7 @@ def estimate(cfg: RcmTrackConfig) -> Estimate:
 
 def warm_up(cfg: RcmTrackConfig) -> None:
     small = cfg.model_copy(update={"track": cfg.track.model_copy(update={"duration_s": 0.01, "keep": []})})
-    grid.kernel_for(cfg).warm_up()
+    grid.kernel_for(cfg).warm_up(grid.workspace_offsets(cfg.workspace), cfg.workspace.points_per_side)
     chain, _, seed = cfg.robot.chain()
     path = _path(small)
     ref = _reference(small, chain, seed, grid.candidate_rcms(cfg, grid.candidate_xyz(cfg)[:1])[0], path)
