@@ -7,6 +7,7 @@ commands so that ``surgopt --help`` stays fast.
 """
 from __future__ import annotations
 
+import contextlib
 import sys
 from typing import Annotated, Optional
 
@@ -269,13 +270,18 @@ def _report(study, result, brief: bool = False):
     """The closing report of one run (``brief``: headline only, for each run of a --multirun)."""
     from rich.table import Table
 
+    from surgopt.report import best_edges, search_front
+
     console = wide_console()
     for m in result.messages:
         console.print(m)
     run = result.run
     if result.cache_hit:
         console.print(f"cache hit: {study.name} {run.key[:12]} already in {run.path}")
-    summary = study.summary(result.parts)
+    with _reading_rows(result.parts, quiet=not sys.stderr.isatty()) as parts:
+        summary = study.summary(parts)
+        edges = best_edges(study, run, parts)
+        front = None if brief else search_front(study, run, parts)  # several objectives: the Pareto front
     t = Table(title=f"{study.name} ({run.manifest['config_name']})", show_header=False)
     for k, v in summary.headline.items():
         t.add_row(k, f"{v:.6g}" if isinstance(v, float) else str(v))
@@ -285,19 +291,34 @@ def _report(study, result, brief: bool = False):
     console.print(t)
     from rich.markup import escape
 
-    from surgopt.report import best_edges
-
-    for note in best_edges(study, run, result.parts):
+    for note in edges:
         console.print(f"note: {escape(note)}")
     if not brief:
         for title, header, rows in summary.tables:
             print_table(console, title, header, rows)
-        from surgopt.report import search_front
-
-        front = search_front(study, run, result.parts)  # a multi-objective search: its Pareto front, not one rank
         if front is not None:
             print_table(console, *front)
     return summary
+
+
+#: Rows past which reading a run back for its report shows a progress line (a 2.2 M-row run takes seconds).
+REPORT_PROGRESS_ROWS = 200_000
+
+
+@contextlib.contextmanager
+def _reading_rows(parts, quiet: bool):
+    """``parts`` that advance a transient progress line on stderr as the report reads them back (every pass:
+    rows read, elapsed), for runs of REPORT_PROGRESS_ROWS or more on a terminal."""
+    if quiet or parts.num_rows < REPORT_PROGRESS_ROWS:
+        yield parts
+        return
+    from rich.console import Console
+    from rich.progress import Progress, SpinnerColumn, TextColumn, TimeElapsedColumn
+
+    with Progress(SpinnerColumn(), TextColumn("reading {task.completed:,.0f} rows back for the report"),
+                  TimeElapsedColumn(), console=Console(stderr=True), transient=True) as progress:
+        bar = progress.add_task("report", total=None)
+        yield parts.watched(lambda n: progress.advance(bar, n))
 
 
 @app.command("warm")

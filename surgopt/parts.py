@@ -26,6 +26,15 @@ class Parts:
         return cls(lambda columns=None: [table if columns is None else table.select(columns)], table.num_rows,
                    table.schema)
 
+    def watched(self, on_rows: Callable[[int], None]) -> "Parts":
+        """The same parts, calling ``on_rows(n)`` as each part of n rows is read (a progress display)."""
+        def tables(columns=None):
+            for t in self._tables(columns):
+                on_rows(t.num_rows)
+                yield t
+
+        return Parts(tables, self.num_rows, self.schema)
+
     def __iter__(self) -> Iterator:
         return iter(self._tables())
 
