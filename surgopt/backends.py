@@ -100,7 +100,9 @@ def _run_bounded(pool, study_name, cfg, chunk, missing, jobs, record, idle=None)
 
 def _die_with_parent(parent_pid: int) -> None:
     """loky worker initializer: end this worker when the parent dies, even by kill -9 (Linux
-    PR_SET_PDEATHSIG; elsewhere loky's own idle timeout ends it)."""
+    PR_SET_PDEATHSIG; elsewhere loky's own idle timeout ends it); a Ctrl-C sent to the process group is the
+    parent's to handle (``_ignore_stop_signals``)."""
+    _ignore_stop_signals()
     try:
         import ctypes
 
@@ -188,11 +190,27 @@ def _dask_client(scheduler: str | None, jobs: int):
     logging.getLogger("distributed").setLevel(logging.ERROR)
     cluster = LocalCluster(n_workers=jobs, threads_per_worker=1, processes=True, dashboard_address=None)
     client = Client(cluster)
+    _quiet_on_stop_signals(client)
     try:
         yield client
     finally:
         client.close()
         cluster.close()
+
+
+def _ignore_stop_signals() -> None:
+    """In a worker process (or its nanny): a Ctrl-C at the terminal reaches the whole process group; the workers
+    leave the stop to surgopt's process, which stores what finished and ends them (they printed 60-odd lines of
+    KeyboardInterrupt tracebacks, issue 43)."""
+    for sig in (signal.SIGINT, signal.SIGHUP):
+        signal.signal(sig, signal.SIG_IGN)
+
+
+def _quiet_on_stop_signals(client) -> None:
+    """A LocalCluster's workers and nannies ignore the stop signals a terminal sends the process group."""
+    with contextlib.suppress(Exception):  # a worker that cannot be reached is ended with the cluster anyway
+        client.run(_ignore_stop_signals)
+        client.run(_ignore_stop_signals, nanny=True)
 
 
 def _worker_setup(cache_dir: str, study_name: str, cfg) -> str:

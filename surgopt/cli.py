@@ -84,8 +84,11 @@ def _reflow(text: str) -> str:
 
 def _split_args(args: list[str] | None) -> tuple[Optional[str], list[str]]:
     """[CONFIG] [KEY=VALUE ...]: the first argument is the config when it is not an override."""
+    from pathlib import Path
+
     args = list(args or [])
-    config = args.pop(0) if args and "=" not in args[0] else None
+    first_is_file = bool(args) and Path(args[0]).suffix.lower() in (".toml", ".yaml", ".yml") and Path(args[0]).is_file()
+    config = args.pop(0) if args and ("=" not in args[0] or first_is_file) else None  # my=cfg.toml is a file
     bad = [a for a in args if "=" not in a]
     if bad:
         from surgopt.errors import UsageError

@@ -83,11 +83,20 @@ BackendOpt = Annotated[Backend, typer.Option(
 SchedulerOpt = Annotated[Optional[str], typer.Option(
     "--scheduler", help="With --backend dask: the scheduler address (tcp://host:8786). Without it, a "
                         "LocalCluster of --jobs single-threaded workers.", show_default=False)]
+def _positive_finite(value: float | None) -> float | None:
+    """A budget: a positive, finite number (0, -0.0, inf, nan and 1e400 are not budgets)."""
+    import math
+
+    if value is not None and not (math.isfinite(value) and value > 0):
+        raise typer.BadParameter(f"{value!r} is not a budget: give a positive, finite number")
+    return value
+
+
 MaxHoursOpt = Annotated[float, typer.Option(
-    "--max-hours", min=0.0, help="Refuse a config whose estimated work exceeds this many hours on --jobs cores "
+    "--max-hours", callback=_positive_finite, help="Refuse a config whose estimated work exceeds this many hours on --jobs cores "
                                  "(the estimate is printed; raise this to run it anyway).")]
 MaxMemoryOpt = Annotated[Optional[float], typer.Option(
-    "--max-memory-gb", min=0.0, help="Refuse a config whose estimated peak memory exceeds this "
+    "--max-memory-gb", callback=_positive_finite, help="Refuse a config whose estimated peak memory exceeds this "
                                      "[default: half of this machine's memory].", show_default=False)]
 ChunkOpt = Annotated[Optional[int], typer.Option(
     "--chunk-size", min=1, help="Design points per task (a resumed run keeps the size it started with).",

@@ -108,6 +108,11 @@ def _yaml_loader():
         seen = set()
         for key_node, _ in node.value:
             key = loader.construct_object(key_node, deep=deep)
+            try:
+                hash(key)
+            except TypeError:  # a list or a mapping as a key ("? [a, b]"): no config field is named so
+                raise yaml.constructor.ConstructorError(
+                    None, None, f"a key must be a name, not a {type(key).__name__}", key_node.start_mark)
             if key in seen:
                 raise yaml.constructor.ConstructorError(
                     None, None, f"duplicate key {key!r}", key_node.start_mark)
@@ -286,8 +291,18 @@ def parse_overrides(items: list[str]) -> list[tuple[str, list[Any]]]:
         if not sep or not key or any(not part.isidentifier() for part in key.split(".")):
             raise ConfigError("<command line>", f"{item!r} is not KEY=VALUE with a dotted key "
                                                 f"(e.g. robot.tool_length_m=0.55)")
-        out.append((key, [parse_value(v.strip()) for v in _split_top_level(raw)]))
+        values = [parse_value(v.strip()) for v in _split_top_level(raw)]
+        earlier = next((v for k, v in out if k == key), None)
+        if earlier is not None:  # the last would silently win
+            raise ConfigError("<command line>", f"{key} is given twice ({_quote_values(earlier)} and "
+                                                f"{_quote_values(values)}); give it once (several values: "
+                                                f"{key}=a,b with --multirun)")
+        out.append((key, values))
     return out
+
+
+def _quote_values(values: list[Any]) -> str:
+    return ",".join(_quote(v) for v in values)
 
 
 def with_override(data: dict, key: str, value: Any) -> dict:

@@ -12,8 +12,14 @@ def capped(text: str, limit: int = MAX_MESSAGE_CHARS) -> str:
 
 
 def out_of_memory(exc: BaseException) -> bool:
-    """A MemoryError, or an import that could not map its shared object (the address space ran out)."""
-    return isinstance(exc, MemoryError) or (isinstance(exc, ImportError) and "failed to map segment" in str(exc))
+    """A MemoryError, an import that could not map its shared object, a thread that could not be started, or an
+    OS call refused for want of memory (ENOMEM): the address space ran out (``ulimit -v``)."""
+    import errno
+
+    return (isinstance(exc, MemoryError)
+            or (isinstance(exc, ImportError) and "failed to map segment" in str(exc))
+            or (isinstance(exc, RuntimeError) and "can't start new thread" in str(exc))
+            or (isinstance(exc, OSError) and exc.errno == errno.ENOMEM))
 
 
 class SurgoptError(Exception):

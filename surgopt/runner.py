@@ -129,6 +129,24 @@ def usable_jobs(jobs: int, backend: str, scheduler: str | None = None, say=print
     return jobs
 
 
+#: Virtual memory a study process reserves beyond what it keeps resident (LLVM, thread stacks, OpenBLAS's and
+#: numba's threads, allocator arenas): under ``ulimit -v`` a run needs its resident peak plus this. Measured:
+#: rcm-grid (275 MB resident) fails below 900 MB, port-place (450 MB) below 1,200 MB, each in a different way
+#: (a thread not started, OpenBLAS raising SIGINT, LLVM spinning): so the run is refused before it starts.
+ADDRESS_SPACE_OVERHEAD_BYTES = 700 * 2 ** 20
+
+
+def address_space_limit_bytes() -> int | None:
+    """This process's address-space limit (RLIMIT_AS, ``ulimit -v``), or None when unlimited."""
+    try:
+        import resource
+
+        soft, _ = resource.getrlimit(resource.RLIMIT_AS)
+    except (ImportError, OSError, ValueError):
+        return None
+    return None if soft == resource.RLIM_INFINITY or soft <= 0 else soft
+
+
 def check_budget(study, cfg, jobs: int, max_hours: float | None, max_memory_bytes: int | None, est=None,
                  backend: str = "threads", scheduler: str | None = None, plan=None) -> None:
     """Refuse, before anything runs or is written, a config whose estimated work or memory is past the
@@ -148,6 +166,13 @@ def check_budget(study, cfg, jobs: int, max_hours: float | None, max_memory_byte
         ram = physical_memory_bytes()
         max_memory_bytes = int(ram * DEFAULT_MEMORY_SHARE) if ram else None
     need = run_bytes(est, backend, jobs, scheduler)
+    limit = address_space_limit_bytes()
+    if limit is not None and est.peak_bytes + ADDRESS_SPACE_OVERHEAD_BYTES > limit:
+        raise OutOfMemory(f"the address-space limit (ulimit -v) is {limit / 2 ** 20:,.0f} MB, below the "
+                          f"{(est.peak_bytes + ADDRESS_SPACE_OVERHEAD_BYTES) / 2 ** 20:,.0f} MB of virtual memory this "
+                          f"run needs (its estimated {est.peak_bytes / 2 ** 20:,.0f} MB resident and "
+                          f"{ADDRESS_SPACE_OVERHEAD_BYTES / 2 ** 20:,.0f} MB that numba's compiler and the numerical "
+                          f"libraries' threads reserve); nothing was run: raise the limit, or {est.smaller}")
     if max_memory_bytes is not None and need > max_memory_bytes:
         workers = local_workers(backend, jobs, scheduler)
         with_workers = f" with {workers} {backend} worker process(es)" if workers else ""
@@ -186,7 +211,7 @@ def run_study(study, cfg, *, config_name: str, store: Store, jobs: int = DEFAULT
     plan = plan if plan is not None else plan_for(study, cfg)
     key = plan.key(study, cfg, study_key(study.name, cfg, study.kernel_version))
     if not force:
-        run = _stored_run(store, study, key, say)
+        run = _stored_run(store, study, key, say, cfg, plan)
         if run is not None:  # nothing to compute: no budget to hold it to
             log.info("cache hit: %s %s in %s", study.name, key[:12], run.path)
             label = {**({"name": name} if name is not None else {}),
@@ -207,6 +232,8 @@ def run_study(study, cfg, *, config_name: str, store: Store, jobs: int = DEFAULT
     with where.open(jobs, scheduler) as handle, lock:  # connect to a cluster before anything is written
         chunk = chunk or plan.chunk(study, cfg)
         existing = None if force else _open_or_discard(store, study.name, key, say)
+        if existing is not None and _task_count_problem(study, cfg, plan, existing):
+            existing = None  # its parts cannot be trusted to be the tasks they claim: the run starts anew
         if existing is not None:
             chunk = existing.manifest["chunk"]  # parts already cut this way
         run = store.begin(study.name, key, config=cfg.model_dump(mode="json"),
@@ -224,12 +251,15 @@ def run_study(study, cfg, *, config_name: str, store: Store, jobs: int = DEFAULT
             messages.append(f"resuming: {session.done:,} of {session.total:,} {session.unit} already stored")
         try:
             computed = _execute(study, cfg, chunk, session, run, store, jobs, quiet, schema, where, handle, say)
-        except (MemoryError, ImportError) as exc:
+        except (MemoryError, ImportError, RuntimeError, OSError) as exc:
             if not out_of_memory(exc):
                 raise
-            raise OutOfMemory(f"out of memory with {len(run.done_tasks())} of {run.manifest['n_tasks']} parts "
-                              f"stored; run the same command again to resume (with more memory, a smaller config "
-                              f"or --jobs 1)") from None
+            stored, total = len(run.done_tasks()), run.manifest["n_tasks"]
+            if stored == total:
+                raise OutOfMemory(f"out of memory after all {total} parts were stored: the run is complete "
+                                  f"(`surgopt summarize {key[:12]}` reports it, with more memory)") from None
+            raise OutOfMemory(f"out of memory with {stored} of {total} parts stored; run the same command "
+                              f"again to resume (with more memory, a smaller config or --jobs 1)") from None
         run = store.finish(run, wall_time_s=round(time.perf_counter() - t0, 3), last_backend=backend,
                            last_jobs=jobs, **session.final_meta())
     return RunResult(run, run.parts(schema), False, computed, time.perf_counter() - t0, messages)
@@ -287,6 +317,8 @@ def _execute(study, cfg, chunk, session, run, store, jobs, quiet, schema, where,
         except BaseException:
             with contextlib.suppress(Exception):  # what finished is stored (a failed write: computed again)
                 flush()
+            with contextlib.suppress(Exception):  # and listed: a resume keeps it
+                store.sync_manifest(run)
             raise
 
 
@@ -341,8 +373,21 @@ def _worker_died(exc: BaseException) -> bool:
     return bool(names & {"TerminatedWorkerError", "BrokenProcessPool", "BrokenExecutor"})
 
 
-def _stored_run(store: Store, study, key: str, say):
-    """The run if the store holds it complete and every part checks out (size, sha256), else None."""
+def _task_count_problem(study, cfg, plan, run) -> str | None:
+    """What is wrong with a stored run's task count, for a plan whose part count follows from the config and the
+    chunk size (a grid): an edited ``n_tasks`` would serve a partial run as complete."""
+    if not getattr(plan, "parts_known_up_front", False):
+        return None
+    expected = plan.n_parts(study, cfg, run.manifest["chunk"])
+    if run.manifest.get("n_tasks") != expected:
+        return (f"its manifest lists {run.manifest.get('n_tasks')} tasks where the config and its chunk size "
+                f"({run.manifest['chunk']}) give {expected}")
+    return None
+
+
+def _stored_run(store: Store, study, key: str, say, cfg=None, plan=None):
+    """The run if the store holds it complete, its task count is the config's and every part checks out (size,
+    sha256, row count), else None."""
     from surgopt.errors import StoreError
     from surgopt.store import UnknownFormat
 
@@ -352,7 +397,13 @@ def _stored_run(store: Store, study, key: str, say):
         raise  # never rebuilt over: a later surgopt's run
     except StoreError:
         return None  # an unusable manifest: the locked path says so and starts anew
-    if run is None or not run.complete:
+    if run is None:
+        return None
+    wrong = None if plan is None else _task_count_problem(study, cfg, plan, run)
+    if wrong:
+        say(f"{study.name} run {key[:12]} is damaged: {wrong}; computing it anew")
+        return None
+    if not run.complete:
         return None
     damaged = run.damaged()
     if damaged:

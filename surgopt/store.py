@@ -29,9 +29,10 @@ import errno
 import hashlib
 import json
 import os
+import time
 import re
 import shutil
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 
 from surgopt._version import __version__
@@ -40,6 +41,11 @@ from surgopt.errors import StoreError, UsageError
 
 DEFAULT_STORE = "surgopt-store"
 MANIFEST = "manifest.json"
+#: The longest a stored part goes unlisted in the manifest (s): rewriting the manifest for every part made a run of
+#: 3,000 one-candidate parts quadratic (10.7 ms a part against 4.4 ms for 300). A part written but not yet listed
+#: when the process dies is removed on resume and computed again (``begin``), so a crash costs at most this much
+#: work; a stop, an error and the end of a run write the manifest at once (``sync_manifest``, ``finish``).
+MANIFEST_EVERY_S = 1.0
 LOCKS = ".locks"
 STAGING = ".staging"
 FORMAT_VERSION = 1
@@ -84,6 +90,17 @@ def load_manifest(mpath: Path) -> dict:
     """A run's manifest, read within its size bound and checked (``check_manifest``). OSError for a file that
     cannot be opened, ValueError for one that is not JSON, StoreError otherwise."""
     return check_manifest(json.loads(read_bounded(mpath, MAX_MANIFEST_BYTES)), mpath)
+
+
+def _footer_rows(data: bytes) -> int | None:
+    """The row count a Parquet file's footer records (None if it has none readable)."""
+    import pyarrow as pa
+    import pyarrow.parquet as pq
+
+    try:
+        return pq.read_metadata(pa.BufferReader(data)).num_rows
+    except (pa.ArrowException, OSError, ValueError):
+        return None
 
 
 def _sha256_bytes(data: bytes) -> str:
@@ -180,6 +197,9 @@ class Run:
 
     path: Path
     manifest: dict
+    #: when this process last wrote the manifest (``Store.write_part`` writes it at most every MANIFEST_EVERY_S)
+    manifest_written_s: float = field(default=0.0, compare=False, repr=False)
+    manifest_dirty: bool = field(default=False, compare=False, repr=False)
 
     @property
     def study(self) -> str:
@@ -227,6 +247,10 @@ class Run:
             return str(exc).split(": ", 1)[-1], None
         if _sha256_bytes(data) != meta["sha256"]:
             return "fails its sha256 check (damaged or replaced)", None
+        rows = _footer_rows(data)
+        if rows != meta.get("rows"):  # the manifest's own number against the part's Parquet footer
+            return f"holds {rows if rows is not None else 'an unreadable number of'} rows where the manifest says " \
+                   f"{meta.get('rows')} (the manifest was edited)", None
         return None, data
 
     def damaged(self) -> list[tuple[str, str]]:
@@ -492,7 +516,7 @@ class Store:
     def finish(self, run: Run, **meta) -> Run:
         """Record ``meta`` (e.g. wall time) in the manifest, and move a run built in the staging area
         (``--force``) into place, replacing the stored one; call under ``lock``."""
-        if meta:
+        if meta or run.manifest_dirty:
             run.manifest.update(meta)
             if run.complete and "completed" not in run.manifest:  # a search that set its part count at its end
                 run.manifest["completed"] = _now()
@@ -535,13 +559,21 @@ class Store:
             raise StoreError(f"{final}: wrote {table.num_rows} rows, read back {rows}")
         run.manifest["parts"][str(index)] = {"file": name, "rows": rows, "bytes": len(data),
                                              "sha256": _sha256_bytes(data)}
+        run.manifest_dirty = True
         if run.complete:
             run.manifest["completed"] = _now()
-        self._write_manifest(run)
+        if run.complete or time.monotonic() - run.manifest_written_s >= MANIFEST_EVERY_S:
+            self._write_manifest(run)
+
+    def sync_manifest(self, run: Run) -> None:
+        """Write the manifest if parts were stored since it was last written (a run that stops, or ends)."""
+        if run.manifest_dirty:
+            self._write_manifest(run)
 
     def _write_manifest(self, run: Run) -> None:
         data = json.dumps(run.manifest, indent=1, sort_keys=True).encode()
         atomic_write(run.path / MANIFEST, lambda tmp: tmp.write_bytes(data))
+        run.manifest_written_s, run.manifest_dirty = time.monotonic(), False
 
     def recover_swaps(self, study: str | None = None, key: str | None = None) -> list[Path]:
         """Put back the runs a ``--force`` swap left in the staging area when it was killed between its two

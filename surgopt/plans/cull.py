@@ -12,6 +12,7 @@ class Cull:
 
 class CullPlan:
     name = "cull"
+    parts_known_up_front = True  # one part
 
     def key(self, study, cfg, base_key: str) -> str:
         return base_key

@@ -8,6 +8,8 @@ class GridPlan:
     """Every chunk of the study's grid once; resuming computes the chunks not stored."""
 
     name = "grid"
+    #: its part count follows from the config and the chunk size alone (a manifest that says otherwise was edited)
+    parts_known_up_front = True
 
     def key(self, study, cfg, base_key: str) -> str:
         return base_key  # the config's own plan: the config's key (unchanged from before plans)

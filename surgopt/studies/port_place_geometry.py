@@ -26,6 +26,19 @@ def polygon_area_mm2(poly: np.ndarray) -> float:
     return abs(float(np.dot(x, np.roll(y, -1)) - np.dot(np.roll(x, -1), y))) / 2
 
 
+def even_odd_area_mm2(poly: np.ndarray, samples: int = 128) -> float:
+    """Area (mm^2) inside the polygon under the even-odd rule (what ``inside_polygon`` tests), from the centres of
+    samples x samples cells of its bounding box: each lobe of a self-intersecting outline counts (the shoelace
+    formula cancels a figure eight's two lobes to 0). Exact to a cell along the outline."""
+    lo, hi = poly.min(axis=0), poly.max(axis=0)
+    size = hi - lo
+    if size[0] <= 0 or size[1] <= 0:
+        return 0.0
+    u = (np.arange(samples) + 0.5) / samples
+    x, y = np.meshgrid(lo[0] + u * size[0], lo[1] + u * size[1])
+    return float(inside_polygon(x.ravel(), y.ravel(), poly).mean() * size[0] * size[1])
+
+
 def inside_polygon(x: np.ndarray, y: np.ndarray, poly: np.ndarray) -> np.ndarray:
     """Whether each point (x, y) is inside the polygon (even-odd rule: a ray towards +x crosses its edges an odd
     number of times)."""
@@ -187,6 +200,10 @@ def _read_mesh_bytes(path) -> bytes:
     return read_config_file("mesh_file", path, MAX_MESH_BYTES)
 
 
+#: The largest |coordinate| a body mesh may have, in its own units (a body is metres across, not kilometres).
+MAX_MESH_COORDINATE = 1e6
+
+
 @lru_cache(maxsize=4)
 def body_mesh(path: str, sha256: str, units: str, offset_mm: tuple):
     """The patient's mesh (trimesh) in mm, offset; a ValueError naming the problem if it cannot be read, is not
@@ -199,8 +216,8 @@ def body_mesh(path: str, sha256: str, units: str, offset_mm: tuple):
     kind = Path(path).suffix.lower().lstrip(".")
     if kind not in ("stl", "obj", "ply"):
         raise ValueError(f"mesh_file: {path}: not an STL, OBJ or PLY file")
-    try:
-        mesh = trimesh.load(io.BytesIO(data), file_type=kind, force="mesh", process=True)
+    try:  # as written (processing merges vertices and drops NaN and degenerate triangles: checked first, below)
+        mesh = trimesh.load(io.BytesIO(data), file_type=kind, force="mesh", process=False)
     except Exception as exc:  # noqa: BLE001 - whatever trimesh raises on a malformed file
         raise ValueError(f"mesh_file: {path}: cannot be read as {kind.upper()} ({type(exc).__name__}: "
                          f"{str(exc)[:120]})") from None
@@ -208,8 +225,21 @@ def body_mesh(path: str, sha256: str, units: str, offset_mm: tuple):
         raise ValueError(f"mesh_file: {path}: no triangles")
     if len(mesh.faces) > MAX_MESH_FACES:
         raise ValueError(f"mesh_file: {path}: {len(mesh.faces):,} triangles (at most {MAX_MESH_FACES:,})")
-    if not np.all(np.isfinite(mesh.vertices)):
-        raise ValueError(f"mesh_file: {path}: a vertex is not finite")
+    vertices = np.asarray(mesh.vertices)
+    if not np.all(np.isfinite(vertices)):
+        bad = int(np.count_nonzero(~np.isfinite(vertices).all(axis=1)))
+        raise ValueError(f"mesh_file: {path}: {bad:,} vertex(es) not finite (NaN or infinite coordinates)")
+    far = float(np.abs(vertices).max())
+    if far > MAX_MESH_COORDINATE:  # before any arithmetic on them (1e300 squared overflows, with a warning)
+        raise ValueError(f"mesh_file: {path}: a vertex lies {far:.3g} {units} from the origin (at most "
+                         f"{MAX_MESH_COORDINATE:g}): not a patient's body")
+    with np.errstate(all="ignore"):
+        degenerate = int(np.count_nonzero(~(np.asarray(mesh.area_faces) > 0)))
+    if degenerate:
+        raise ValueError(f"mesh_file: {path}: {degenerate:,} triangle(s) have zero area (degenerate: repeated or "
+                         f"collinear corners); remove them, e.g. with trimesh's or MeshLab's repair, and keep the "
+                         f"body closed")
+    mesh.process()
     if not mesh.is_watertight:
         raise ValueError(f"mesh_file: {path}: the mesh is not closed (watertight), so inside and outside the body "
                          f"are undefined; close it (e.g. cap the base plane)")
