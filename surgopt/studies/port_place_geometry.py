@@ -209,6 +209,7 @@ def body_mesh(path: str, sha256: str, units: str, offset_mm: tuple):
     """The patient's mesh (trimesh) in mm, offset; a ValueError naming the problem if it cannot be read, is not
     closed (inside and outside would be undefined) or is too large. Cached per file content."""
     import io
+    import warnings
 
     import trimesh
 
@@ -216,8 +217,11 @@ def body_mesh(path: str, sha256: str, units: str, offset_mm: tuple):
     kind = Path(path).suffix.lower().lstrip(".")
     if kind not in ("stl", "obj", "ply"):
         raise ValueError(f"mesh_file: {path}: not an STL, OBJ or PLY file")
-    try:  # as written (processing merges vertices and drops NaN and degenerate triangles: checked first, below)
-        mesh = trimesh.load(io.BytesIO(data), file_type=kind, force="mesh", process=False)
+    try:  # as written (processing merges vertices and drops NaN and degenerate triangles: checked first, below);
+        # quietly: a loader's arithmetic on a vertex at 1e300 warns before the checks below can name it
+        with warnings.catch_warnings(), np.errstate(all="ignore"):
+            warnings.simplefilter("ignore")
+            mesh = trimesh.load(io.BytesIO(data), file_type=kind, force="mesh", process=False)
     except Exception as exc:  # noqa: BLE001 - whatever trimesh raises on a malformed file
         raise ValueError(f"mesh_file: {path}: cannot be read as {kind.upper()} ({type(exc).__name__}: "
                          f"{str(exc)[:120]})") from None
