@@ -71,6 +71,9 @@ class PoseMetric(NamedTuple):
     unit: str
     suffix: str
     meaning: str
+    #: time per pose of a walk with this metric against one with the RCM metric (the estimate's and the chunk
+    #: size's cost models scale by it). Measured on the PA10's default map (benchmarks/bench_readme_estimates.py)
+    relative_cost: float = 1.0
 
     @property
     def sigma_columns(self) -> tuple[str, str]:
@@ -85,5 +88,6 @@ POSE_METRICS = {
     "standard": PoseMetric(
         "standard", METRIC_STANDARD, False, "1", "_task_scaled",
         "singular values of the standard Jacobian at the same IK poses, columns times the rated speeds, rows "
-        "divided by the task scaling (Sec. III-E): dimensionless"),
+        "divided by the task scaling (Sec. III-E): dimensionless",
+        relative_cost=2.5),  # a 6 x 6 Gram matrix's Jacobi eigenvalues at each pose, after the walk
 }

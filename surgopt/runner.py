@@ -168,7 +168,8 @@ def check_budget(study, cfg, jobs: int, max_hours: float | None, max_memory_byte
     need = run_bytes(est, backend, jobs, scheduler)
     limit = address_space_limit_bytes()
     if limit is not None and est.peak_bytes + ADDRESS_SPACE_OVERHEAD_BYTES > limit:
-        raise OutOfMemory(f"the address-space limit (ulimit -v) is {limit / 2 ** 20:,.0f} MB, below the "
+        raise OutOfMemory(f"this run would run out of memory: the address-space limit (ulimit -v) is "
+                          f"{limit / 2 ** 20:,.0f} MB, below the "
                           f"{(est.peak_bytes + ADDRESS_SPACE_OVERHEAD_BYTES) / 2 ** 20:,.0f} MB of virtual memory this "
                           f"run needs (its estimated {est.peak_bytes / 2 ** 20:,.0f} MB resident and "
                           f"{ADDRESS_SPACE_OVERHEAD_BYTES / 2 ** 20:,.0f} MB that numba's compiler and the numerical "

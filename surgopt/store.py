@@ -41,11 +41,11 @@ from surgopt.errors import StoreError, UsageError
 
 DEFAULT_STORE = "surgopt-store"
 MANIFEST = "manifest.json"
-#: The longest a stored part goes unlisted in the manifest (s): rewriting the manifest for every part made a run of
+#: The longest a stored part goes unlisted in the manifest (s), about: rewriting the manifest for every part made a run of
 #: 3,000 one-candidate parts quadratic (10.7 ms a part against 4.4 ms for 300). A part written but not yet listed
 #: when the process dies is removed on resume and computed again (``begin``), so a crash costs at most this much
 #: work; a stop, an error and the end of a run write the manifest at once (``sync_manifest``, ``finish``).
-MANIFEST_EVERY_S = 1.0
+MANIFEST_EVERY_S = 0.25
 LOCKS = ".locks"
 STAGING = ".staging"
 FORMAT_VERSION = 1

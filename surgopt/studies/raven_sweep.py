@@ -159,7 +159,7 @@ def schema():
 
 
 def auto_chunk(cfg: RavenSweepConfig) -> int:
-    """Geometries per task: about two seconds of single-core work, and at least 32 tasks."""
+    """Geometries per task: about TARGET_TASK_S (1 s) of single-core work, and at least 32 tasks."""
     from surgopt.studies import chunk_for_seconds
 
     sw = cfg.sweep

@@ -291,7 +291,7 @@ NS_PER_POSE_CHAIN = 800.0
 
 
 def ns_per_pose(cfg: RcmGridConfig) -> float:
-    return NS_PER_POSE if kernel_type(cfg) is ClosedFormKernel else NS_PER_POSE_CHAIN
+    return NS_PER_POSE if kernel_type(cfg) is ClosedFormKernel else NS_PER_POSE_CHAIN * pose_metric(cfg).relative_cost
 
 
 def kernel_type(cfg) -> type:
@@ -301,7 +301,7 @@ def kernel_type(cfg) -> type:
 
 
 def auto_chunk(cfg: RcmGridConfig) -> int:
-    """Candidates per task: about two seconds of single-core work, and at least 32 tasks."""
+    """Candidates per task: about TARGET_TASK_S (1 s) of single-core work, and at least 32 tasks."""
     from surgopt.studies import chunk_for_seconds
 
     return chunk_for_seconds(candidate_count(cfg), cfg.workspace.points_per_side ** 3 * ns_per_pose(cfg) * 1e-9)
@@ -318,7 +318,8 @@ def estimate(cfg: RcmGridConfig) -> Estimate:
     """Candidates x cube points at NS_PER_POSE_EST (--cull: about a tenth of that); a row is ~83 bytes."""
     m = candidate_count(cfg)
     p = cfg.workspace.points_per_side ** 3
-    ns = NS_PER_POSE_EST if kernel_type(cfg) is ClosedFormKernel else NS_PER_POSE_CHAIN_EST
+    ns = (NS_PER_POSE_EST if kernel_type(cfg) is ClosedFormKernel
+          else NS_PER_POSE_CHAIN_EST * pose_metric(cfg).relative_cost)
     seconds = m * p * ns * 1e-9 * (0.1 if cfg.search == "cull" else 1.0)
     return Estimate(items=m, what="RCM candidates", rows=m, seconds_one_core=seconds,
                     peak_bytes=peak_bytes(m, 83, working_bytes=m * 72 + p * 200))
