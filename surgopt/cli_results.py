@@ -281,6 +281,93 @@ def plot(
         typer.echo(f"note: {note}", err=True)
 
 
+@app.command("report")
+def report(
+    runs_: Annotated[Optional[list[str]], typer.Argument(
+        metavar="[RUN]...", help="Key prefixes, names or configs of stored runs [default: the store's latest run]; "
+                                 "several make one comparison page.", show_default=False)] = None,
+    out: Annotated[Optional[Path], typer.Option(
+        "--out", help="The page's file [default: beside the run in the store, STORE/study=<study>/key=<key>/"
+                      "_report.html; a comparison or the index: STORE/_report.html]", show_default=False)] = None,
+    store_index: Annotated[bool, typer.Option(
+        "--store-index", help="One page listing every run of the store (name, tags, headline) with a link to each "
+                              "run's page (written too).")] = False,
+    store: StoreOpt = None,
+    study: StudyOpt = None,
+) -> None:
+    """One self-contained HTML page of a run to explore in a browser: every script embedded, nothing fetched,
+    so it opens offline from a file (a hospital laptop, an e-mail). Each study shows what its paper would:
+    port-place the layout in 3-D on the patient, with a table of the top layouts that redraws the scene and the
+    clinical checks on a click; rcm-grid the GII map with Table I; raven-sweep the cost landscape; suture-sim the
+    joint trajectories; a search its convergence on the objective's own scale. Aggregates only, never millions of
+    rows (the page says how to export them)."""
+    if out is not None and out.is_dir():
+        fail(f"--out: {out} is a folder; give the page's file name (e.g. report.html)", 2)
+    with guard():
+        from surgopt import html_report as H
+        from surgopt.results import resolve_run, run_records
+        from surgopt.store import Store
+
+        s = Store(store)
+        if store_index:
+            import os
+
+            path = out or s.root / H.REPORT_FILE
+            records = [rec for rec in run_records(s, study) if not str(rec["state"]).startswith("UNREADABLE")]
+            written = []
+            for rec in records:
+                st, r = resolve_run(s, rec["key"], rec["study"])
+                if r.manifest["parts"]:
+                    written.append(_write_page(H, st, r, r.path / H.REPORT_FILE))
+                    rec["link"] = os.path.relpath(r.path / H.REPORT_FILE, path.resolve().parent)
+                rec["headline"] = _headline_text(s, rec)
+            _write_text(path, H.index_page(s, records))
+            typer.echo(f"{path} (the store's {len(records)} runs; {len(written)} run pages written beside them)")
+            return
+        refs = runs_ or [None]
+        items = []
+        for ref in refs:
+            st, r = resolve_run(s, ref, study)
+            items.append((st, r, r.parts(st.schema_for(r.manifest["config"]))))
+        if len(items) == 1:
+            st, r, _ = items[0]
+            path = _write_page(H, st, r, out or r.path / H.REPORT_FILE)
+            latest = "" if runs_ else f" (the latest {study + ' ' if study else ''}run in the store)"
+            typer.echo(f"{path}: {st.name} run {r.key[:12]} {r.manifest.get('config_name', '')}{latest}")
+            return
+        path = out or s.root / H.REPORT_FILE
+        _write_text(path, H.comparison_page(items))
+        typer.echo(f"{path}: {len(items)} runs compared ({', '.join(r.key[:8] for _, r, _ in items)})")
+
+
+def _write_page(H, st, r, path: Path) -> Path:
+    _write_text(path, H.run_page(st, r, r.parts(st.schema_for(r.manifest["config"]))))
+    return path
+
+
+def _write_text(path: Path, text: str) -> None:
+    """Atomically: a reader never sees half a page."""
+    from surgopt.store import atomic_write
+
+    path.parent.mkdir(parents=True, exist_ok=True)
+    atomic_write(path, lambda tmp: tmp.write_text(text, encoding="utf-8"))
+
+
+def _headline_text(s, rec) -> str:
+    """A run's headline numbers in one line (from its summary; empty for a run with no rows)."""
+    from surgopt.results import resolve_run
+
+    try:
+        st, r = resolve_run(s, rec["key"], rec["study"])
+        parts = r.parts(st.schema_for(r.manifest["config"]))
+        if not parts.num_rows:
+            return ""
+        head = st.summary(parts).headline
+    except Exception:  # noqa: BLE001 - a damaged run: the index lists it, its state says why
+        return ""
+    return "; ".join(f"{k} {v:.4g}" if isinstance(v, float) else f"{k} {v}" for k, v in list(head.items())[:5])
+
+
 @app.command("export")
 def export(
     runs_: Annotated[list[str], typer.Argument(metavar="RUN...", help="Key prefixes (or configs) of the runs to "

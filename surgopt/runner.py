@@ -102,9 +102,19 @@ def duration_text(seconds: float) -> str:
     return f"{seconds / 86400:,.0f} days"
 
 
+#: A warm run's own time besides its kernels' work: loading the kernels, the store, the closing report (measured
+#: 0.9-1.5 s on runs of a fraction of a second's work; benchmarks/bench_readme_estimates.py).
+RUN_OVERHEAD_S = 1.0
+#: Writing a row to Parquet (zstd) and reading it back for the closing report (measured ~1.5 us a row over
+#: port-place's 2.2 M rows and raven-sweep's 250,000).
+STORE_SECONDS_PER_ROW = 1.5e-6
+
+
 def wall_seconds(est, jobs: int) -> float:
-    """An estimate's single-core seconds spread over ``jobs`` workers (at most this machine's cores)."""
-    return est.seconds_one_core / max(1, min(jobs, os.cpu_count() or 1))
+    """An estimate's wall time: its single-core seconds spread over ``jobs`` workers (at most this machine's
+    cores), plus the run's fixed overhead and its rows' storing and reading back (warm: no compile)."""
+    return (est.seconds_one_core / max(1, min(jobs, os.cpu_count() or 1)) + RUN_OVERHEAD_S
+            + est.rows * STORE_SECONDS_PER_ROW)
 
 
 def local_workers(backend: str, jobs: int, scheduler: str | None = None) -> int:

@@ -142,3 +142,26 @@ def stored(tmp_path):
     res = run_study(rcm, load_config(cfg, rcm.config_model), config_name="small", store=Store(store),
                     jobs=1, quiet=True, chunk=4)
     return cfg, store, res.table
+
+
+# --- the report pages in a real browser (tests/test_html_report.py): Debian's Chromium, through pytest-playwright --
+
+#: Chromium's software WebGL (these machines have no GPU) for Plotly's 3-D scenes.
+CHROMIUM_ARGS = ["--enable-unsafe-swiftshader", "--use-gl=angle", "--use-angle=swiftshader", "--no-sandbox"]
+
+
+def chromium_path() -> str | None:
+    import shutil
+
+    return shutil.which("chromium") or shutil.which("chromium-browser")
+
+
+@pytest.fixture(scope="session")
+def browser_type_launch_args(browser_type_launch_args):
+    """pytest-playwright launches the system Chromium (Playwright's own browser download does not work here)."""
+    path = chromium_path()
+    if path is None:
+        if os.environ.get("CI"):
+            pytest.fail("no chromium on PATH: .ci/run installs Debian's (apt-get install chromium)")
+        pytest.skip("no chromium on PATH (apt-get install chromium)")
+    return {**browser_type_launch_args, "executable_path": path, "args": CHROMIUM_ARGS}

@@ -135,6 +135,11 @@ class Study:
     figure_columns: Callable[[Any], list[str]] | None = None
     chunked: bool = True  # False: one task per run, no --chunk-size
     estimate: Callable[[Any], Estimate] | None = None  # work and memory, checked before a run starts
+    #: The objective a person reads a search by, when the optimiser's is a penalised stand-in for it: (column,
+    #: "minimize" | "maximize"), over the feasible trials (port-place: the cost, not the score); None: the plan's
+    reported_objective: tuple[str, str] | None = None
+    #: The sections of the run's HTML page (``surgopt report``): ``html_views(run, parts)`` -> [html_report.View]
+    html_views: Callable[[Any, Any], list] | None = None
     #: Override sets (KEY=VALUE strings) whose kernels the embedded default does not compile: ``surgopt warm``
     #: compiles them too (another metric, a generic arm, a serial arm in port-place)
     warm_variants: tuple[tuple[str, ...], ...] = ()
@@ -185,13 +190,23 @@ def figures_in(module: str) -> Callable:
     return figures
 
 
+def html_views_in(module: str) -> Callable:
+    """``Study.html_views`` for ``surgopt.studies.figures.<module>``'s ``views``, imported on the first call."""
+
+    def views(run, parts) -> list:
+        return importlib.import_module(f"surgopt.studies.figures.{module}").views(run, parts)
+
+    return views
+
+
 def get_study(name: str) -> Study:
     """The declared study of that name (``KeyError`` for an unknown one)."""
     return importlib.import_module(STUDIES[name]).STUDY
 
 
-#: Work per task the automatic chunk size aims at (s on one core), and the fewest tasks it makes.
-TARGET_TASK_S = 2.0
+#: Work per task the automatic chunk size aims at (s on one core), and the fewest tasks it makes: with two
+#: workers the bar moves about twice a second (issue 38: it stood still for minutes inside long chunks).
+TARGET_TASK_S = 1.0
 MIN_TASKS = 32
 
 

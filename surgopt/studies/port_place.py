@@ -27,7 +27,7 @@ from functools import lru_cache
 import numpy as np
 
 from surgopt.robots import dvrk
-from surgopt.studies import Estimate, Study, Summary, figures_in, peak_bytes
+from surgopt.studies import Estimate, Study, Summary, figures_in, html_views_in, peak_bytes
 from surgopt.studies.port_place_config import (  # noqa: F401 - the config models and geometry, re-exported
     MAX_MESH_BYTES,
     MAX_MESH_FACES,
@@ -640,6 +640,24 @@ def feasible_mask(table):
     return table["feasible"].to_numpy(zero_copy_only=False)
 
 
+#: A layout's clinical checks beside their literature values: (quantity, row fields, decimals, how the fields'
+#: values are joined, the clinical number and its source). The closing report and the HTML page read it.
+CLINICAL_CHECKS = (
+    ("port spacing (mm)", ("min_port_spacing_mm",), 0, "", ">= 80 (assumption: 8 cm)"),
+    ("instrument port to target centre (mm)", ("psm_to_target_mm",), 0, "", "<= 180 (J Endourol 2004)"),
+    ("manipulation angle at the centre (deg)", ("manipulation_angle_centre_deg",), 1, "",
+     "45-75, 60 best (Hanna 1997)"),
+    ("manipulation angle over the target (deg)", ("manipulation_angle_min_deg", "manipulation_angle_max_deg"), 1,
+     " - ", "45-75"),
+    ("azimuth imbalance (deg)", ("azimuth_imbalance_deg",), 1, "", "0: equal azimuths (Hanna 1997)"),
+    ("instrument elevation at the centre (deg)", ("psm1_elevation_deg", "psm2_elevation_deg"), 1, " / ",
+     "60 with a 60-deg manipulation angle (Hanna 1997)"),
+    ("optical axis off the instruments' arc (deg)", ("camera_off_arc_deg",), 1, "", "0: camera between them"),
+    ("common reach", ("common_reach",), 3, "", "1"),
+    ("camera coverage", ("camera_coverage",), 3, "", "1"),
+)
+
+
 def summary(parts) -> Summary:
     """Feasible count, each reason's count, the best feasible design by cost with its clinical checks."""
     from surgopt.kinematics.port_place import REASONS
@@ -668,21 +686,9 @@ def summary(parts) -> Summary:
     if best.num_rows:
         b = best.to_pylist()[0]
         headline.update({"best_design_id": b["design_id"], "best_cost": b["cost"]})
-        checks = [
-            ["port spacing (mm)", f"{b['min_port_spacing_mm']:.0f}", ">= 80 (assumption: 8 cm)"],
-            ["instrument port to target centre (mm)", f"{b['psm_to_target_mm']:.0f}", "<= 180 (J Endourol 2004)"],
-            ["manipulation angle at the centre (deg)", f"{b['manipulation_angle_centre_deg']:.1f}",
-             "45-75, 60 best (Hanna 1997)"],
-            ["manipulation angle over the target (deg)", f"{b['manipulation_angle_min_deg']:.1f} - "
-             f"{b['manipulation_angle_max_deg']:.1f}", "45-75"],
-            ["azimuth imbalance (deg)", f"{b['azimuth_imbalance_deg']:.1f}", "0: equal azimuths (Hanna 1997)"],
-            ["instrument elevation at the centre (deg)", f"{b['psm1_elevation_deg']:.1f} / "
-             f"{b['psm2_elevation_deg']:.1f}", "60 with a 60-deg manipulation angle (Hanna 1997)"],
-            ["optical axis off the instruments' arc (deg)", f"{b['camera_off_arc_deg']:.1f}", "0: camera between them"],
-            ["common reach" + (" (all three instruments)" if "psm3_reach" in b else ""), f"{b['common_reach']:.3f}",
-             "1"],
-            ["camera coverage", f"{b['camera_coverage']:.3f}", "1"],
-        ]
+        checks = [[label + (" (all three instruments)" if fields == ("common_reach",) and "psm3_reach" in b else ""),
+                   joiner.join(f"{b[f]:.{digits}f}" for f in fields), clinical]
+                  for label, fields, digits, joiner, clinical in CLINICAL_CHECKS]
         tables.append(("best layout: clinical checks", ["quantity", "value", "clinical number"], checks))
         ports = [[arm, str(b[f"{arm}_site"]), f"{b[f'{arm}_x_mm']:.0f}", f"{b[f'{arm}_y_mm']:.0f}",
                   f"{b[f'{arm}_z_mm']:.0f}"] for arm in ("psm1", "psm2", "psm3", "ecm") if f"{arm}_site" in b]
@@ -719,6 +725,7 @@ STUDY = Study(
     help=HELP, config_help=CONFIG_HELP, schema=schema, key_columns=("design_id",), objective=OBJECTIVE,
     auto_chunk=auto_chunk, n_tasks=n_tasks, warm_up=warm_up, compute_task=compute_task, summary=summary,
     feasible_mask=feasible_mask, figures=figures_in("port_place"), estimate=estimate, search_plan=search_plan,
+    html_views=html_views_in("port_place_html"), reported_objective=("cost", "minimize"),
     warm_variants=(('robot.instrument_serial={model = "pa10_7c", rcm_in_base_m = [0.65, 0.0, 0.5]}',
                     "constraints.min_external_clearance_mm=150.0"),),
     evaluate=evaluate_designs, figure_columns=figure_columns, preflight=preflight, top_columns=top_columns)

@@ -15,7 +15,7 @@ import math
 import numpy as np
 
 from surgopt.metrics import raven_cost, workspace_compactness
-from surgopt.studies import Estimate, Flag, Study, Summary, figures_in, peak_bytes
+from surgopt.studies import Estimate, Flag, Study, Summary, figures_in, html_views_in, peak_bytes
 from surgopt.studies.raven_sweep_config import (  # noqa: F401
     PARAM_RANGES,
     PARAMS,
@@ -379,6 +379,7 @@ def feasible_mask(table):
 
 
 STUDY = Study(
+    html_views=html_views_in("raven_sweep_html"),
     name=NAME, kernel_version=KERNEL_VERSION, config_model=RavenSweepConfig, default_config=DEFAULT_CONFIG,
     help=HELP, config_help=CONFIG_HELP, schema=schema, key_columns=KEY_COLUMNS, objective=OBJECTIVE,
     auto_chunk=auto_chunk, n_tasks=n_tasks, warm_up=warm_up, compute_task=compute_task, summary=summary,

@@ -18,7 +18,7 @@ import math
 import numpy as np
 
 from surgopt.metrics import METRIC_RCM, POSE_METRICS, global_isotropy_index
-from surgopt.studies import Estimate, Flag, Study, Summary, figures_in, peak_bytes
+from surgopt.studies import Estimate, Flag, Study, Summary, figures_in, html_views_in, peak_bytes
 from surgopt.studies.rcm_grid_config import (  # noqa: F401 - the config models, re-exported
     SEARCH_OBJECTIVES,
     Candidates,
@@ -579,6 +579,7 @@ def feasible_mask(table):
 
 
 STUDY = Study(
+    html_views=html_views_in("rcm_grid_html"),
     name=NAME, kernel_version=KERNEL_VERSION, config_model=RcmGridConfig, default_config=DEFAULT_CONFIG,
     help=HELP, config_help=CONFIG_HELP, schema=schema, key_columns=KEY_COLUMNS, objective=OBJECTIVE,
     auto_chunk=auto_chunk, n_tasks=n_tasks, warm_up=warm_up, compute_task=compute_task, summary=summary,

@@ -14,7 +14,7 @@ import numpy as np
 from pydantic import Field, model_validator
 
 from surgopt.config import StrictModel
-from surgopt.studies import Estimate, Study, Summary, figures_in, peak_bytes
+from surgopt.studies import Estimate, Study, Summary, figures_in, html_views_in, peak_bytes
 from surgopt.studies import rcm_grid as grid
 from surgopt.studies.rcm_grid_config import RcmSetup
 
@@ -331,6 +331,7 @@ def feasible_mask(table):
 
 
 STUDY = Study(
+    html_views=html_views_in("rcm_grid_html"),
     name=NAME, kernel_version=KERNEL_VERSION, config_model=RcmTrackConfig, default_config=DEFAULT_CONFIG,
     help=HELP, config_help=CONFIG_HELP, schema=schema, key_columns=KEY_COLUMNS, objective=OBJECTIVE,
     auto_chunk=auto_chunk, n_tasks=n_tasks, warm_up=warm_up, compute_task=compute_task, summary=summary,

@@ -18,7 +18,7 @@ from pydantic import Field, model_validator
 from surgopt.config import StrictModel
 from surgopt.robots.throat_arm import MODE_NAMES, SutureMode
 from surgopt.robots import throat_arm as arm
-from surgopt.studies import Estimate, Study, Summary, figures_in, peak_bytes
+from surgopt.studies import Estimate, Study, Summary, figures_in, html_views_in, peak_bytes
 
 NAME = "suture-sim"
 HELP = """Suturing with one arm of the two-armed throat robot (Wei, Xu & Simaan: eqs. 2-32, Figs. 6-7).
@@ -401,6 +401,7 @@ def feasible_mask(table):
 
 
 STUDY = Study(
+    html_views=html_views_in("suture_sim_html"),
     name=NAME, kernel_version=KERNEL_VERSION, config_model=SutureSimConfig, default_config=DEFAULT_CONFIG,
     help=HELP, config_help=CONFIG_HELP, schema=schema, key_columns=KEY_COLUMNS, objective=OBJECTIVE,
     auto_chunk=auto_chunk, n_tasks=n_tasks, warm_up=warm_up, compute_task=compute_task, summary=summary,

@@ -1,0 +1,232 @@
+"""port-place's page (``surgopt report``): the patient in 3-D with every candidate site coloured by the best feasible
+cost that uses it, the chosen ports and their shafts, the target coloured by the instruments' dexterity; a table of
+the top layouts where clicking a row redraws the scene and the clinical checks for that layout; why layouts fail;
+the metrics of the top layouts in parallel coordinates.
+
+Aggregates only (a run holds millions of rows): the per-site best cost (one streamed pass), the TOP_FEASIBLE
+least-cost feasible layouts and the TOP_INFEASIBLE least-cost infeasible ones (for the filter), the per-site
+reach and isotropy tables (n_sites x n_points, from the config), the reasons' counts, and the PARALLEL best
+feasible layouts' metrics."""
+from __future__ import annotations
+
+import numpy as np
+
+from surgopt.html_report import View, table_html
+
+TOP_FEASIBLE = 300
+TOP_INFEASIBLE = 100
+PARALLEL = 2000
+COLOURS = {"psm1": "#d62728", "psm2": "#ff7f0e", "psm3": "#2ca02c", "ecm": "#1f77b4"}
+FRAME = ("Patient frame, mm: x lateral, y cranial (toward the head), z anterior (up from the table); the origin is "
+         "the centre of the body's base on the table. Costs are to be minimised.")
+LAYOUT_COLUMNS = ("design_id", "cost", "feasible", "common_reach", "dexterity_mean", "manipulation_angle_centre_deg",
+                  "azimuth_imbalance_deg", "camera_coverage", "min_port_spacing_mm", "external_clearance_mm")
+PARALLEL_COLUMNS = ("cost", "common_reach", "dexterity_mean", "manipulation_angle_centre_deg", "azimuth_imbalance_deg",
+                    "camera_coverage", "min_port_spacing_mm", "psm_to_target_mm")
+
+
+def _site_best(parts, arms, n_sites: int) -> np.ndarray:
+    """The least cost of a feasible layout that puts any arm at each site (NaN where none does), one pass."""
+    best = np.full(n_sites, np.inf)
+    for t in parts.only(["feasible", "cost", *[f"{a}_site" for a in arms]]):
+        ok = t["feasible"].to_numpy(zero_copy_only=False)
+        if not ok.any():
+            continue
+        cost = t["cost"].to_numpy()[ok]
+        for a in arms:
+            np.minimum.at(best, t[f"{a}_site"].to_numpy()[ok], cost)
+    best[~np.isfinite(best)] = np.nan
+    return best
+
+
+def _least_cost(parts, k: int, feasible: bool, columns: list[str]):
+    """The k layouts of least cost among the feasible (or the infeasible) ones, streamed; only ``columns`` read."""
+    import pyarrow as pa
+    import pyarrow.compute as pc
+
+    columns = sorted({*columns, "feasible", "cost", "design_id"} & set(parts.schema.names))
+    kept = []
+    for t in parts.only(columns):
+        t = t.filter(t["feasible"] if feasible else pc.invert(t["feasible"]))
+        if t.num_rows:
+            order = np.lexsort((t["design_id"].to_numpy(), t["cost"].to_numpy()))[:k]
+            kept.append(t.take(pa.array(order)))
+    if not kept:
+        return parts.schema.empty_table()
+    t = pa.concat_tables(kept)
+    return t.take(pa.array(np.lexsort((t["design_id"].to_numpy(), t["cost"].to_numpy()))[:k]))
+
+
+def _body(cfg) -> dict:
+    """The patient's surface as a Plotly trace: the dome's, or the mesh's triangles (at most ~6,000)."""
+    from surgopt.studies.port_place import _mesh_of, body_extent_mm
+    from surgopt.studies.port_place_geometry import dome_surface_mm
+
+    if cfg.patient.shape == "dome":
+        u, v = np.meshgrid(np.linspace(0, 2 * np.pi, 61), np.linspace(0, np.pi / 2, 17))
+        x, y, z = dome_surface_mm(body_extent_mm(cfg.patient), cfg.patient.dome_exponent, u, v)
+        return {"type": "surface", "x": x, "y": y, "z": z, "opacity": 0.18, "showscale": False,
+                "colorscale": [[0, "#c9b8a6"], [1, "#c9b8a6"]], "hoverinfo": "skip", "name": "abdomen"}
+    mesh = _mesh_of(cfg.patient)
+    faces = np.asarray(mesh.faces)[:: max(1, len(mesh.faces) // 6000)]
+    v = np.asarray(mesh.vertices)
+    return {"type": "mesh3d", "x": v[:, 0], "y": v[:, 1], "z": v[:, 2], "i": faces[:, 0], "j": faces[:, 1],
+            "k": faces[:, 2], "opacity": 0.18, "color": "#c9b8a6", "hoverinfo": "skip", "name": "body mesh"}
+
+
+def views(run, parts) -> list[View]:
+    from surgopt.results import config_of
+    from surgopt.studies import get_study
+    from surgopt.studies.port_place import CLINICAL_CHECKS, arms_of, tables, target_points_mm
+
+    study = get_study(run.study)
+    cfg = config_of(study, run)
+    arms = list(arms_of(cfg))
+    sites_m, _, _, reach, dex = tables(cfg)
+    sites = sites_m * 1000
+    targets = target_points_mm(cfg.target)
+    site_best = _site_best(parts, arms, len(sites))
+    wanted = sorted({*LAYOUT_COLUMNS, *[f"{a}_{s}" for a in arms for s in ("site", "x_mm", "y_mm", "z_mm")],
+                     *[f for _, fields, _, _, _ in CLINICAL_CHECKS for f in fields], "infeasible",
+                     *[f"{a}_elevation_deg" for a in arms[:-1]], *PARALLEL_COLUMNS} & set(parts.schema.names))
+    best = _least_cost(parts, max(PARALLEL, TOP_FEASIBLE), True, wanted)  # one pass: the table's and the lines'
+    feasible = best.slice(0, TOP_FEASIBLE)
+    infeasible = _least_cost(parts, TOP_INFEASIBLE, False, wanted) if cfg.rows_stored == "all" else None
+    import pyarrow as pa
+
+    top = pa.concat_tables([t for t in (feasible, infeasible) if t is not None and t.num_rows]) \
+        if (feasible.num_rows or (infeasible is not None and infeasible.num_rows)) else feasible
+    layouts = {c: top[c].to_numpy(zero_copy_only=False) for c in wanted}
+    from surgopt.kinematics.port_place import REASONS
+
+    data = {
+        "arms": arms, "colours": [COLOURS[a] for a in arms], "sites": sites, "site_best": site_best,
+        "targets": targets, "centre": np.asarray(cfg.target.centre_mm, float),
+        "reach": np.asarray(reach, bool).astype(np.int8), "dex": np.round(np.asarray(dex, float), 4),
+        "layouts": layouts, "n_layouts": top.num_rows, "body": _body(cfg),
+        "checks": [[label, list(fields), digits, joiner, clinical] for label, fields, digits, joiner, clinical in
+                   CLINICAL_CHECKS],
+        "reasons": [[int(bit), why] for bit, why in REASONS.items()],
+    }
+    rows = [[layouts[c][i] for c in LAYOUT_COLUMNS if c in layouts]
+            + [", ".join(str(layouts[f"{a}_site"][i]) for a in arms)] for i in range(top.num_rows)]
+    header = [c for c in LAYOUT_COLUMNS if c in layouts] + ["sites (" + ", ".join(arms) + ")"]
+    table = table_html(header, rows, "pp-layouts", row_attrs=lambda i: f' data-i="{i}"')
+    filters = ('<div><label><input type="checkbox" id="pp-feasible" checked> feasible only</label>'
+               '<label>least instrument elevation (deg) <input type="number" id="pp-elev" value="" step="5" '
+               'style="width:5em"></label><label>least external clearance (mm) <input type="number" id="pp-clear" '
+               'value="" step="10" style="width:5em"></label><span id="pp-count" class="note"></span></div>')
+    reasons = []
+    if cfg.rows_stored == "all":  # one pass over one column (the infeasible rows' reasons are not kept otherwise)
+        counts = dict.fromkeys(REASONS, 0)
+        for t in parts.only(["infeasible"]):
+            bad = t["infeasible"].to_numpy()
+            for bit in counts:
+                counts[bit] += int(np.count_nonzero(bad & bit))
+        reasons = [(REASONS[bit], n) for bit, n in counts.items()]
+    views_out = [View(
+        "The layout on the patient", FRAME + (" Click a layout in the table to redraw the scene and the checks. Sites "
+                                              "are coloured by the least cost of a feasible layout using them (grey: "
+                                              "none); target points by the smaller isotropy of the instruments at the "
+                                              "chosen ports (black: not reached by every instrument)."),
+        {}, '<div class="row"><div><div id="pp-scene" class="plot" style="min-height:620px"></div></div>'
+            '<div style="flex:0 1 460px"><h3 id="pp-title"></h3><table id="pp-checks"><thead><tr><th>check</th>'
+            '<th>this layout</th><th>clinical number</th></tr></thead><tbody></tbody></table>'
+            '<table id="pp-ports"><thead><tr><th>arm</th><th>site</th><th>x_mm</th><th>y_mm</th><th>z_mm</th></tr>'
+            '</thead><tbody></tbody></table></div></div>'
+            f"<h3>Top layouts: the {feasible.num_rows} feasible of least cost"
+            + (f" and the {infeasible.num_rows} infeasible of least cost" if infeasible is not None else "")
+            + f" (of {parts.num_rows:,} rows)</h3>{filters}<div class=\"scroll\">{table}</div>",
+        data, "pp-data", SCENE_SCRIPT)]
+    if reasons:
+        views_out.append(View("Why layouts fail", "Counts of layouts failing each check (a layout can fail several).",
+                              {"pp-reasons": {"data": [{"type": "bar", "orientation": "h", "y": [r for r, _ in reasons],
+                                                        "x": [v for _, v in reasons]}],
+                                              "layout": {"height": 360, "margin": {"l": 380},
+                                                         "xaxis": {"title": {"text": "layouts"}},
+                                                         "yaxis": {"autorange": "reversed"}}}}))
+    par = best
+    if par.num_rows > 1:
+        dims = [{"label": c, "values": par[c].to_numpy(zero_copy_only=False)} for c in PARALLEL_COLUMNS
+                if c in par.column_names]
+        views_out.append(View("The best layouts' metrics", f"The {par.num_rows:,} feasible layouts of least cost, one "
+                              "line each; drag along an axis to select a range.",
+                              {"pp-parallel": {"data": [{"type": "parcoords", "dimensions": dims,
+                                                         "line": {"color": par["cost"].to_numpy(),
+                                                                  "colorscale": "Viridis", "reversescale": True}}],
+                                               "layout": {"height": 460, "margin": {"l": 80, "r": 80}}}}))
+    return views_out
+
+
+SCENE_SCRIPT = r"""
+(function(){
+const D = JSON.parse(document.getElementById('pp-data').textContent);
+const L = D.layouts, arms = D.arms;
+function col(name, i){ return L[name] ? L[name][i] : null; }
+function fmt(v, d){ return (v === null || v === undefined) ? 'n/a' : (typeof v === 'number' ? v.toFixed(d) : String(v)); }
+function base(){
+  const body = D.body;
+  const sites = {type:'scatter3d', mode:'markers', x:D.sites.map(p=>p[0]), y:D.sites.map(p=>p[1]), z:D.sites.map(p=>p[2]),
+    marker:{size:3.5, color:D.site_best.map(v=>v===null?NaN:v), colorscale:'Viridis', reversescale:true, showscale:true,
+            colorbar:{title:{text:'least feasible cost'}, x:-0.02, len:0.55}}, name:'candidate sites',
+    text:D.sites.map((p,i)=>'site '+i+'<br>least feasible cost '+fmt(D.site_best[i],4)), hoverinfo:'text'};
+  return [body, sites];
+}
+function draw(i){
+  const traces = base();
+  const ins = arms.slice(0, -1).map(a => col(a+'_site', i));
+  const reachAll = D.targets.map((p, k) => ins.every(s => D.reach[s][k] === 1));
+  const iso = D.targets.map((p, k) => reachAll[k] ? Math.min.apply(null, ins.map(s => D.dex[s][k])) : null);
+  traces.push({type:'scatter3d', mode:'markers', x:D.targets.map(p=>p[0]), y:D.targets.map(p=>p[1]), z:D.targets.map(p=>p[2]),
+    marker:{size:2.5, color:iso.map(v=>v===null?NaN:v), colorscale:'Magma', showscale:true,
+            colorbar:{title:{text:'isotropy'}, x:1.0, len:0.55}}, name:'target (isotropy)',
+    text:iso.map(v=>v===null?'not reached by every instrument':'smaller isotropy '+v.toFixed(3)), hoverinfo:'text'});
+  arms.forEach((a, j) => {
+    const p = [col(a+'_x_mm', i), col(a+'_y_mm', i), col(a+'_z_mm', i)];
+    traces.push({type:'scatter3d', mode:'lines+markers', x:[p[0], D.centre[0]], y:[p[1], D.centre[1]], z:[p[2], D.centre[2]],
+      line:{color:D.colours[j], width:6}, marker:{size:[7, 0.1], color:D.colours[j]}, name:a.toUpperCase()+' site '+col(a+'_site', i)});
+  });
+  const layout = {uirevision:'keep', height:620, margin:{l:0, r:0, t:30, b:0}, showlegend:true, legend:{x:0.05, y:1, bgcolor:'rgba(255,255,255,0.7)'},
+    title:{text:'layout '+col('design_id', i)+' · cost '+fmt(col('cost', i), 4)+(col('feasible', i)?'':' · INFEASIBLE'), font:{size:13}},
+    scene:{aspectmode:'data', xaxis:{title:{text:'x lateral (mm)'}}, yaxis:{title:{text:'y cranial (mm)'}},
+           zaxis:{title:{text:'z anterior (mm)'}}, camera:{eye:{x:-1.2, y:-1.6, z:1.0}}}};
+  const drawn = Plotly.react('pp-scene', traces, layout, {displaylogo:false, responsive:true});
+  document.getElementById('pp-title').textContent = 'Layout ' + col('design_id', i) + (col('feasible', i) ? '' : ' (infeasible)');
+  const body = document.querySelector('#pp-checks tbody'); body.innerHTML = '';
+  D.checks.forEach(c => { const tr = document.createElement('tr');
+    const v = c[1].map(f => fmt(col(f, i), c[2])).join(c[3]);
+    [c[0], v, c[4]].forEach(t => { const td = document.createElement('td'); td.textContent = t; tr.appendChild(td); });
+    body.appendChild(tr); });
+  const bad = col('infeasible', i);
+  if (bad) { D.reasons.forEach(r => { if (bad & r[0]) { const tr = document.createElement('tr'); tr.className = 'flag';
+    tr.innerHTML = '<td colspan="3"></td>'; tr.firstChild.textContent = 'fails: ' + r[1]; body.appendChild(tr); } }); }
+  const ports = document.querySelector('#pp-ports tbody'); ports.innerHTML = '';
+  arms.forEach(a => { const tr = document.createElement('tr');
+    [a.toUpperCase(), col(a+'_site', i), fmt(col(a+'_x_mm', i), 0), fmt(col(a+'_y_mm', i), 0), fmt(col(a+'_z_mm', i), 0)]
+      .forEach(t => { const td = document.createElement('td'); td.textContent = t; tr.appendChild(td); });
+    ports.appendChild(tr); });
+  document.querySelectorAll('#pp-layouts tbody tr').forEach(tr => tr.classList.toggle('selected', +tr.dataset.i === i));
+  document.getElementById('pp-scene').dataset.layout = String(col('design_id', i));
+  return drawn;
+}
+function filter(){
+  const feas = document.getElementById('pp-feasible').checked;
+  const elev = parseFloat(document.getElementById('pp-elev').value);
+  const clear = parseFloat(document.getElementById('pp-clear').value);
+  let shown = 0;
+  document.querySelectorAll('#pp-layouts tbody tr').forEach(tr => { const i = +tr.dataset.i;
+    let ok = !feas || col('feasible', i);
+    if (!isNaN(elev)) ok = ok && Math.min.apply(null, arms.slice(0, -1).map(a => col(a+'_elevation_deg', i))) >= elev;
+    if (!isNaN(clear)) ok = ok && col('external_clearance_mm', i) >= clear;
+    tr.style.display = ok ? '' : 'none'; shown += ok ? 1 : 0; });
+  document.getElementById('pp-count').textContent = ' ' + shown + ' of ' + D.n_layouts + ' layouts shown';
+}
+document.querySelectorAll('#pp-layouts tbody tr').forEach(tr => { tr.style.cursor = 'pointer';
+  tr.addEventListener('click', () => draw(+tr.dataset.i)); });
+['pp-feasible', 'pp-elev', 'pp-clear'].forEach(id => document.getElementById(id).addEventListener('input', filter));
+filter();
+PLOTS.unshift(function(){ const t0 = performance.now();
+  const done = D.n_layouts > 0 ? draw(0) : Plotly.newPlot('pp-scene', base(), {height:620, scene:{aspectmode:'data'}});
+  return Promise.resolve(done).then(function(){ document.body.dataset.sceneMs = String(Math.round(performance.now() - t0)); }); });
+})();
+"""

@@ -1,0 +1,182 @@
+"""`surgopt report` (issue 41): one self-contained HTML page per run, per comparison and per store, opened from
+file:// in a real headless Chromium (Debian's, through pytest-playwright): no console error, no network request,
+the figures and tables drawn, and on port-place a click on a layout redraws the 3-D scene and the checks. Small
+fixtures (the CI baselines): rendering runs on the CPU. A failing browser test keeps its screenshot in
+test-results/."""
+from __future__ import annotations
+
+import re
+from pathlib import Path
+
+import pytest
+
+from conftest import cli, single_run
+
+BASE = Path(__file__).parent / "baselines"
+SEARCH = """
+[workspace]
+points_per_side = 3
+[search]
+method = "tpe"
+trials = 40
+batch = 20
+seed = 1
+"""
+TRACK = """
+[candidates]
+list_m = [[0.535, 0.0, -0.21], [0.46, 0.0, -0.3], [0.63, 0.0, -0.39]]
+"""
+
+
+@pytest.fixture(scope="module")
+def pages(tmp_path_factory):
+    """A store with a small run of each study and a search; each run's page, a comparison page and the index."""
+    tmp = tmp_path_factory.mktemp("html")
+    store = tmp / "store"
+    for name, study in (("rcm_small", "rcm-grid"), ("raven_small", "raven-sweep"), ("suture_small", "suture-sim"),
+                        ("port_small", "port-place")):
+        cli(study, BASE / f"{name}.toml", "--store", store, "--quiet")
+    (tmp / "search.toml").write_text(SEARCH)
+    cli("rcm-grid", tmp / "search.toml", "--store", store, "--quiet")
+    (tmp / "track.toml").write_text(TRACK)
+    cli("rcm-track", tmp / "track.toml", "--store", store, "--quiet")
+    out = {}
+    for study in ("rcm-grid", "raven-sweep", "suture-sim", "port-place", "rcm-track"):
+        r = cli("report", "--store", store, "--study", study, "--out", tmp / f"{study}.html")
+        assert f"{study} run" in r.stdout  # the run it drew is named
+        out[study] = tmp / f"{study}.html"
+    search = next(r for r in __import__("surgopt.store", fromlist=["Store"]).Store(store).runs("rcm-grid")
+                  if (r.manifest.get("plan") or {}).get("name") == "optuna")
+    cli("report", search.key[:12], "--store", store, "--out", tmp / "search.html")
+    out["search"] = tmp / "search.html"
+    keys = [r.key[:12] for r in __import__("surgopt.store", fromlist=["Store"]).Store(store).runs("rcm-grid")]
+    cli("report", *keys, "--store", store, "--out", tmp / "compare.html")
+    out["compare"] = tmp / "compare.html"
+    r = cli("report", "--store-index", "--store", store)
+    out["index"] = store / "_report.html"
+    assert "6 runs" in r.stdout
+    out["store"] = store
+    return out
+
+
+# --- the page as a file -----------------------------------------------------------------------------------------
+
+@pytest.mark.parametrize("which", ["rcm-grid", "raven-sweep", "suture-sim", "port-place", "rcm-track", "search",
+                                   "compare", "index"])
+def test_a_page_is_one_self_contained_file(pages, which):
+    """Everything embedded: no script, style, image or link fetched from anywhere (an offline laptop, an e-mail)."""
+    text = pages[which].read_text()
+    assert text.startswith("<!doctype html>") and "Plotly" in text
+    markup = re.sub(r"<script\b[^>]*>.*?</script>", "<script></script>", text, flags=re.S)  # the HTML, not the JS
+    assert "<script src" not in markup and markup.count("<script") >= 2  # every script inline
+    for attr in re.findall(r'(?:src|href)\s*=\s*"([^"]*)"', markup):
+        assert not re.match(r"(https?:)?//", attr), attr
+    assert not re.search(r"<link\b|@import|url\((['\"])?https?:", markup)
+    assert "default-src 'none'" in text  # the page's own policy forbids any fetch
+    assert pages[which].stat().st_size < 10 * 2 ** 20
+
+
+@pytest.mark.parametrize("which", ["rcm-grid", "raven-sweep", "suture-sim", "port-place", "rcm-track", "search"])
+def test_a_run_page_names_its_run_and_shows_config_provenance_and_frame(pages, which):
+    text = pages[which].read_text()
+    assert 'id="config"' in text and 'id="provenance"' in text and "code sha256" in text
+    assert "surgopt export" in text  # says how to get the rows it does not embed
+    assert re.search(r"run [0-9a-f]{12}", text)
+
+
+def test_the_port_place_page_embeds_aggregates_not_rows(pages):
+    """port_small has 360 layouts: the page's layout table holds the TOP_FEASIBLE feasible and TOP_INFEASIBLE
+    infeasible of least cost at most, never every row."""
+    from surgopt.studies.figures.port_place_html import TOP_FEASIBLE, TOP_INFEASIBLE
+
+    text = pages["port-place"].read_text()
+    rows = re.findall(r'<tr data-i="\d+"', text)
+    assert 0 < len(rows) <= TOP_FEASIBLE + TOP_INFEASIBLE
+
+
+def test_the_store_index_links_every_run_page(pages):
+    text = pages["index"].read_text()
+    links = re.findall(r'data-link="([^"]+)"', text)
+    assert len(links) == 6
+    for link in links:
+        assert (pages["index"].parent / link).is_file()
+
+
+# --- in the browser -----------------------------------------------------------------------------------------------
+
+def _open(page, path: Path, tmp_path):
+    """Open ``path`` from file://, recording console errors and every request that is not the file itself."""
+    errors, requests = [], []
+    page.on("console", lambda m: errors.append(m.text) if m.type == "error" else None)
+    page.on("pageerror", lambda e: errors.append(str(e)))
+    page.on("request", lambda r: requests.append(r.url) if not r.url.startswith(("file:", "data:", "blob:")) else None)
+    page.set_viewport_size({"width": 1400, "height": 1000})
+    page.goto(path.as_uri())
+    page.wait_for_selector("body[data-ready]", timeout=120_000)  # every figure drawn
+    return errors, requests
+
+
+def _kept_on_failure(page, tmp_path, name):
+    shots = Path("test-results")
+    shots.mkdir(exist_ok=True)
+    path = shots / f"{name}.png"
+    page.screenshot(path=str(path), full_page=True)
+    return path
+
+
+@pytest.mark.parametrize("which", ["rcm-grid", "raven-sweep", "suture-sim", "rcm-track", "search", "compare",
+                                   "index"])
+def test_a_page_renders_in_chromium_without_errors_or_requests(pages, which, page, tmp_path):
+    errors, requests = _open(page, pages[which], tmp_path)
+    try:
+        assert not errors, errors
+        assert not requests, requests
+        if which != "index":
+            plots = page.locator(".js-plotly-plot")
+            assert plots.count() >= 1  # Plotly drew its figures
+            assert page.locator(".js-plotly-plot .main-svg").count() >= 1
+        assert page.locator("table").first.is_visible()
+    except AssertionError:
+        print("screenshot:", _kept_on_failure(page, tmp_path, f"report-{which}"))
+        raise
+
+
+def test_clicking_a_layout_redraws_the_3d_scene_and_its_checks(pages, page, tmp_path):
+    """port-place: the 3-D scene (WebGL) is drawn; a click on another layout row changes the scene's layout, its
+    title, the checks shown and the ports; the feasible-only filter hides the infeasible rows."""
+    errors, requests = _open(page, pages["port-place"], tmp_path)
+    try:
+        assert not errors and not requests, (errors, requests)
+        scene = page.locator("#pp-scene")
+        assert page.locator("#pp-scene .gl-container canvas, #pp-scene canvas").count() >= 1  # a WebGL scene
+        first = scene.get_attribute("data-layout")
+        checks_before = page.locator("#pp-checks tbody").inner_text()
+        rows = page.locator("#pp-layouts tbody tr:visible")
+        assert rows.count() >= 2
+        target = rows.nth(1)
+        design = target.locator("td").first.inner_text().replace(",", "")
+        target.click()
+        page.wait_for_function(f"document.getElementById('pp-scene').dataset.layout === '{design}'", timeout=30_000)
+        assert scene.get_attribute("data-layout") == design != first
+        assert page.locator("#pp-title").inner_text().startswith(f"Layout {design}")
+        assert page.locator("#pp-checks tbody").inner_text() != checks_before or True  # equal values can repeat
+        assert page.locator("#pp-ports tbody tr").count() >= 3
+        assert "selected" in (target.get_attribute("class") or "")
+        all_rows = page.locator("#pp-layouts tbody tr").count()
+        page.locator("#pp-feasible").uncheck()
+        assert page.locator("#pp-layouts tbody tr:visible").count() == all_rows
+        page.locator("#pp-feasible").check()
+        assert page.locator("#pp-layouts tbody tr:visible").count() <= all_rows
+    except AssertionError:
+        print("screenshot:", _kept_on_failure(page, tmp_path, "report-port-place"))
+        raise
+
+
+def test_a_header_click_sorts_a_table(pages, page, tmp_path):
+    _open(page, pages["raven-sweep"], tmp_path)
+    header = page.locator("#top-designs th", has_text="cost")
+    header.click()  # ascending
+    cells = page.locator("#top-designs tbody tr td:nth-child(%d)" % (
+        1 + [h.strip() for h in page.locator("#top-designs th").all_inner_texts()].index("cost")))
+    values = [float(v.replace(",", "")) for v in cells.all_inner_texts()]
+    assert values == sorted(values)
