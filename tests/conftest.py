@@ -147,7 +147,7 @@ def stored(tmp_path):
 # --- the report pages in a real browser (tests/test_html_report.py): Debian's Chromium, through pytest-playwright --
 
 #: Chromium's software WebGL (these machines have no GPU) for Plotly's 3-D scenes.
-CHROMIUM_ARGS = ["--enable-unsafe-swiftshader", "--use-gl=angle", "--use-angle=swiftshader", "--no-sandbox"]
+CHROMIUM_ARGS = ["--enable-unsafe-swiftshader", "--no-sandbox"]
 
 
 def chromium_path() -> str | None:
