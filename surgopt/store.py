@@ -32,6 +32,7 @@ import os
 import time
 import re
 import shutil
+import threading
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -41,7 +42,7 @@ from surgopt.errors import StoreError, UsageError
 
 DEFAULT_STORE = "surgopt-store"
 MANIFEST = "manifest.json"
-#: The longest a stored part goes unlisted in the manifest (s), about: rewriting the manifest for every part made a run of
+#: The longest a stored part goes unlisted in the manifest (s): rewriting the manifest for every part made a run of
 #: 3,000 one-candidate parts quadratic (10.7 ms a part against 4.4 ms for 300). A part written but not yet listed
 #: when the process dies is removed on resume and computed again (``begin``), so a crash costs at most this much
 #: work; a stop, an error and the end of a run write the manifest at once (``sync_manifest``, ``finish``).
@@ -197,9 +198,13 @@ class Run:
 
     path: Path
     manifest: dict
-    #: when this process last wrote the manifest (``Store.write_part`` writes it at most every MANIFEST_EVERY_S)
+    #: when this process last wrote the manifest (``Store.write_part`` writes it at most every MANIFEST_EVERY_S;
+    #: a timer writes what is left MANIFEST_EVERY_S later, so a part never goes unlisted longer, however long the
+    #: next chunk takes), and the lock the writer and the timer share
     manifest_written_s: float = field(default=0.0, compare=False, repr=False)
     manifest_dirty: bool = field(default=False, compare=False, repr=False)
+    manifest_lock: object = field(default_factory=threading.Lock, compare=False, repr=False)
+    manifest_timer: object = field(default=None, compare=False, repr=False)
 
     @property
     def study(self) -> str:
@@ -516,11 +521,14 @@ class Store:
     def finish(self, run: Run, **meta) -> Run:
         """Record ``meta`` (e.g. wall time) in the manifest, and move a run built in the staging area
         (``--force``) into place, replacing the stored one; call under ``lock``."""
-        if meta or run.manifest_dirty:
-            run.manifest.update(meta)
-            if run.complete and "completed" not in run.manifest:  # a search that set its part count at its end
-                run.manifest["completed"] = _now()
-            self._write_manifest(run)
+        with run.manifest_lock:
+            if run.manifest_timer is not None:
+                run.manifest_timer.cancel()
+            if meta or run.manifest_dirty:
+                run.manifest.update(meta)
+                if run.complete and "completed" not in run.manifest:  # a search that set its part count at its end
+                    run.manifest["completed"] = _now()
+                self._write_manifest(run)
         if run.path.parent.name != STAGING:
             return run
         final = self.study_dir(run.study) / f"key={run.key}"
@@ -557,18 +565,33 @@ class Store:
         rows = pq.read_metadata(final).num_rows  # readable?
         if rows != table.num_rows:
             raise StoreError(f"{final}: wrote {table.num_rows} rows, read back {rows}")
-        run.manifest["parts"][str(index)] = {"file": name, "rows": rows, "bytes": len(data),
-                                             "sha256": _sha256_bytes(data)}
-        run.manifest_dirty = True
-        if run.complete:
-            run.manifest["completed"] = _now()
-        if run.complete or time.monotonic() - run.manifest_written_s >= MANIFEST_EVERY_S:
-            self._write_manifest(run)
+        with run.manifest_lock:
+            run.manifest["parts"][str(index)] = {"file": name, "rows": rows, "bytes": len(data),
+                                                 "sha256": _sha256_bytes(data)}
+            run.manifest_dirty = True
+            if run.complete:
+                run.manifest["completed"] = _now()
+            if run.complete or time.monotonic() - run.manifest_written_s >= MANIFEST_EVERY_S:
+                self._write_manifest(run)
+            elif run.manifest_timer is None or not run.manifest_timer.is_alive():
+                run.manifest_timer = threading.Timer(MANIFEST_EVERY_S, self._flush_manifest, args=(run,))
+                run.manifest_timer.daemon = True
+                run.manifest_timer.start()
+
+    def _flush_manifest(self, run: Run) -> None:
+        """The timer's write: the parts stored since the last write, listed (a failure is the next write's)."""
+        with run.manifest_lock:
+            if run.manifest_dirty:
+                with contextlib.suppress(OSError):
+                    self._write_manifest(run)
 
     def sync_manifest(self, run: Run) -> None:
         """Write the manifest if parts were stored since it was last written (a run that stops, or ends)."""
-        if run.manifest_dirty:
-            self._write_manifest(run)
+        with run.manifest_lock:
+            if run.manifest_timer is not None:
+                run.manifest_timer.cancel()
+            if run.manifest_dirty:
+                self._write_manifest(run)
 
     def _write_manifest(self, run: Run) -> None:
         data = json.dumps(run.manifest, indent=1, sort_keys=True).encode()

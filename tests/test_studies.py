@@ -7,7 +7,7 @@ from surgopt.report import summary_sections
 from surgopt.results import resolve_run
 from surgopt.runner import run_study
 from surgopt.store import Store
-from surgopt.studies import STUDIES, Flag, chunk_for_seconds, get_study
+from surgopt.studies import STUDIES, TARGET_TASK_S, Flag, chunk_for_seconds, get_study
 
 
 @pytest.fixture
@@ -36,7 +36,7 @@ def test_flags_and_chunking_helpers():
     f = Flag("--dry-spell", "x")
     assert f.dest == "dry_spell"
     assert chunk_for_seconds(1000, 0.001) == 32  # at least 32 tasks
-    assert chunk_for_seconds(10_000, 1.0) == 2  # ~2 s each
+    assert chunk_for_seconds(10_000, 1.0) == max(1, int(TARGET_TASK_S))  # ~TARGET_TASK_S each
 
 
 #: (study, a small config, the same config with exactly twice the work: twice the candidates, the
