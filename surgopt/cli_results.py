@@ -158,7 +158,8 @@ def runs_gc(store: StoreOpt = None) -> None:
 
 
 RunRef = Annotated[Optional[str], typer.Argument(
-    help="A key prefix from `surgopt runs`, or the config that produced the run. Default: the latest run.",
+    help="A key prefix from `surgopt runs`, a run's --name, `latest`, or the config that produced the run. Default: "
+         "the latest run.",
     show_default=False)]
 StudyOpt = Annotated[Optional[str], typer.Option("--study", help="Study name, when a config fits several.")]
 
@@ -275,6 +276,9 @@ def plot(
         from surgopt.report import best_edges
 
         notes = best_edges(st, r, r.parts(st.schema_for(r.manifest["config"])))
+    which = "" if run is not None else f", the latest{' ' + study if study else ''} run in the store"
+    typer.echo(f"drew {st.name} run {r.key[:12]} ({r.manifest.get('name') or r.manifest.get('config_name', '')}"
+               f"{which}):", err=True)  # which run: the latest may be another study's, finished a second later
     for p in paths:
         typer.echo(str(p))
     for note in notes:  # what the figures show on an edge of the box (#27 item 2)

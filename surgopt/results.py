@@ -44,8 +44,10 @@ def study_of_config(path: Path, study_name: str | None):
 
 
 def resolve_run(store: Store, ref: str | None, study_name: str | None = None):
-    """(study, run) for a key prefix, a config file, or (ref None) the latest run. ``study_name`` must be a
-    registered study (it never reaches a path otherwise)."""
+    """(study, run) for a key prefix, a run's ``--name``, a config file, or (ref None or "latest") the latest run.
+    ``study_name`` must be a registered study (it never reaches a path otherwise)."""
+    if ref == "latest":
+        ref = None
     if study_name is not None and study_name not in STUDIES:
         raise UsageError(f"--study: unknown study {study_name[:80]!r} (one of {', '.join(STUDIES)})")
     if ref is not None and Path(ref).is_file():
@@ -57,7 +59,8 @@ def resolve_run(store: Store, ref: str | None, study_name: str | None = None):
         return study, run
     runs = store.runs(study_name)
     if ref is not None:
-        runs = [r for r in runs if r.key.startswith(ref)]
+        named = [r for r in runs if r.manifest.get("name") == ref]
+        runs = named[-1:] if named else [r for r in runs if r.key.startswith(ref)]  # a name: its latest run
         if not runs:
             from surgopt.errors import StoreError
             from surgopt.store import folder_study_key
@@ -65,7 +68,7 @@ def resolve_run(store: Store, ref: str | None, study_name: str | None = None):
             for path, why in store.unreadable(study_name):
                 if folder_study_key(path)[1].startswith(ref):
                     raise StoreError(f"{path}: {why}; `surgopt runs rm {ref}` deletes it")
-            raise UsageError(f"{ref}: neither a config file nor the key prefix of a run in {store.root}")
+            raise UsageError(f"{ref}: neither a config file, a run's name nor the key prefix of a run in {store.root}")
         if len(runs) > 1:
             raise UsageError(f"{ref}: matches {len(runs)} runs; give more of the key")
     if not runs:

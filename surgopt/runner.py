@@ -114,7 +114,7 @@ def wall_seconds(est, jobs: int) -> float:
     """An estimate's wall time: its single-core seconds spread over ``jobs`` workers (at most this machine's
     cores), plus the run's fixed overhead and its rows' storing and reading back (warm: no compile)."""
     return (est.seconds_one_core / max(1, min(jobs, os.cpu_count() or 1)) + RUN_OVERHEAD_S
-            + est.rows * STORE_SECONDS_PER_ROW)
+            + (est.rows if est.stored_rows is None else est.stored_rows) * STORE_SECONDS_PER_ROW)
 
 
 def local_workers(backend: str, jobs: int, scheduler: str | None = None) -> int:

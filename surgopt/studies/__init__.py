@@ -47,6 +47,8 @@ class Estimate:
     seconds_one_core: float
     peak_bytes: int
     smaller: str = "make it smaller"  # how to make the config cheaper, said when a budget refuses it
+    #: rows the store will likely hold, when fewer than ``rows`` (an upper bound): port-place's feasible rows only
+    stored_rows: int | None = None
 
 
 #: Resident memory of a study process before any work: Python, numpy, numba, pyarrow (measured: 270 MB).

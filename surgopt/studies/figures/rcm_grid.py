@@ -81,8 +81,8 @@ def figures(cfg, table, out, design_id=None):
         ax.plot(lim, lim, "k--", lw=0.8, label="equal")
         ax.set_xlabel("paper's GII (Table I)")
         ax.set_ylabel("surgopt GII")
-        r = np.corrcoef(p, o)[0, 1]
-        ax.set_title(f"Table I: {len(p)} RCM locations, Pearson r = {r:.4f}")
+        r = f", Pearson r = {np.corrcoef(p, o)[0, 1]:.4f}" if len(p) > 1 and np.ptp(p) > 0 and np.ptp(o) > 0 else ""
+        ax.set_title(f"Table I: {len(p)} RCM location(s){r}")  # one point (or a flat set) has no correlation
         ax.legend()
         paths.append(save(fig, out / "rcm_table1_scatter.png"))
     return paths

@@ -62,7 +62,7 @@ def views(run, parts) -> list[View]:
                                                                                               "width": 1}},
                        "name": f"argmax: GII {c['gii'][best]:.5f}",
                        "hovertemplate": "argmax<br>x %{x:.3f} m<br>z %{y:.3f} m<extra></extra>"})
-    paper = cfg.robot.model in (None, "pa10_7c") and cfg.robot.urdf is None and not cfg.robot.dh
+    paper = cfg.robot.is_pa10
     rows = []
     if paper:
         px, pz, pg = (np.array(v) for v in zip(*PAPER_TABLE_I))
