@@ -2,12 +2,13 @@
 each backend by a random signal, resumed, and compared with an uninterrupted run.
 
 Run:  python docs/interrupt_trials.py [N] [KIND ...]   (N trials per backend and kind, default 20; ~20 min for 20
-      of the first two kinds; KIND: study, search, standard, branches, port-serial; default all)
+      of the first two kinds; KIND: study, search, standard, branches, port-serial, group, ulimit; default all)
 
 Each trial starts a command (the study: `surgopt rcm-grid` on tests/conftest.py's RCM_SLOW, 4,961 candidates in
 124 chunks; the search: a 400-trial TPE search in batches of 20; standard: `metric=standard`, whose chunks are
 long; branches: `--robot ur5e --branches`, one run per IK branch; port-serial: `surgopt port-place
-configs/port_place_pa10.toml`, serial arms keeping the RCM in software), waits a random time drawn uniformly from 0 to the
+configs/port_place_pa10.toml`, serial arms keeping the RCM in software; group: the signal sent to the whole process
+group, as a terminal's Ctrl-C is; ulimit: under `ulimit -v` ULIMIT_MB), waits a random time drawn uniformly from 0 to the
 uninterrupted run's own duration (so any instant: start-up, compiling, computing, storing, the closing
 report), sends SIGKILL, SIGINT or SIGTERM (drawn at random; seeded), then resumes with the same command and
 compares the tables with the uninterrupted ones. An interrupted command must end with its signal's exit code
@@ -17,6 +18,7 @@ longest time from a signal to the end of the process.
 """
 from __future__ import annotations
 
+import os
 import random
 import signal
 import subprocess
@@ -70,7 +72,23 @@ KINDS = {
     "standard": ("rcm-grid", STANDARD, [], ("threads", "loky")),
     "branches": ("rcm-grid", BRANCHES, ["--robot", "ur5e", "--branches"], ("threads",)),
     "port-serial": ("port-place", REPO / "configs" / "port_place_pa10.toml", [], ("threads",)),
+    # the signal to the whole process group, as a terminal's Ctrl-C sends it: the workers must stay quiet
+    "group": ("rcm-grid", RCM_SLOW, [], ("loky", "dask")),
+    # under an address-space limit (ulimit -v) the run fits in
+    "ulimit": ("rcm-grid", RCM_SLOW, [], ("threads", "loky")),
 }
+#: The address-space limit of the "ulimit" kind (MB): above the run's need (282 + 700 MB).
+ULIMIT_MB = 1200
+
+
+def _limit():
+    import resource
+
+    resource.setrlimit(resource.RLIMIT_AS, (ULIMIT_MB * 2 ** 20, ULIMIT_MB * 2 ** 20))
+
+
+def popen_kw(kind) -> dict:
+    return {"start_new_session": kind == "group", "preexec_fn": _limit if kind == "ulimit" else None}
 
 
 def table(store):
@@ -89,7 +107,8 @@ def command(kind, cfg, store, backend):
 
 def series(cfg, tmp: Path, kind: str, backend: str, n: int, rng: random.Random) -> dict:
     t0 = time.perf_counter()
-    subprocess.run(command(kind, cfg, tmp / f"ref-{kind}-{backend}", backend), check=True, capture_output=True)
+    subprocess.run(command(kind, cfg, tmp / f"ref-{kind}-{backend}", backend), check=True, capture_output=True,
+                   **popen_kw(kind))
     duration = time.perf_counter() - t0
     ref = table(tmp / f"ref-{kind}-{backend}")
     out = {"trials": n, "interrupted": 0, "finished first": 0, "clean stop": 0, "identical": 0, "bad": [],
@@ -99,12 +118,15 @@ def series(cfg, tmp: Path, kind: str, backend: str, n: int, rng: random.Random) 
         sig = rng.choice(list(EXIT))
         delay = rng.uniform(0, duration)
         p = subprocess.Popen(command(kind, cfg, store, backend), stdout=subprocess.DEVNULL, stderr=subprocess.PIPE,
-                             text=True)
+                             text=True, **popen_kw(kind))
         time.sleep(delay)
         finished = p.poll() is not None
         t_signal = time.perf_counter()
         if not finished:
-            p.send_signal(sig)
+            if kind == "group":
+                os.killpg(p.pid, sig)
+            else:
+                p.send_signal(sig)
         err = p.communicate()[1]
         took = time.perf_counter() - t_signal
         if not finished and p.returncode != 0:
@@ -113,7 +135,7 @@ def series(cfg, tmp: Path, kind: str, backend: str, n: int, rng: random.Random) 
             out["finished first"] += 1
         else:
             out["interrupted"] += 1
-            lines = err.strip().splitlines()
+            lines = [ln for ln in err.strip().splitlines() if not ln.startswith("OpenBLAS")]
             # SIGKILL: nothing of ours can speak; a helper (the resource tracker) may note leaked semaphores
             if p.returncode == EXIT[sig] and took <= STOP_WITHIN_S and (
                     sig == signal.SIGKILL or (len(lines) <= 1 and "Traceback" not in err)):

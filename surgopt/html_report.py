@@ -77,15 +77,19 @@ def to_json(obj) -> str:
             return bool(o)
         raise TypeError(type(o).__name__)
 
-    text = json.dumps(_finite(obj), default=default, separators=(",", ":"))
+    text = json.dumps(_finite(obj), default=default, separators=(",", ":"), allow_nan=False)  # JSON has no NaN
     return text.replace("</", "<\\/")
 
 
 def _finite(obj):
     if isinstance(obj, float):
         return obj if np.isfinite(obj) else None
-    if isinstance(obj, np.ndarray) and obj.dtype.kind == "f":
-        return np.where(np.isfinite(obj), np.round(obj, 6), np.nan).astype(object).tolist() if obj.size else []
+    if isinstance(obj, np.ndarray) and obj.dtype.kind == "f":  # NaN and inf as null, the rest to 6 decimals
+        out = np.round(obj, 6).astype(object)
+        out[~np.isfinite(obj)] = None
+        return out.tolist()
+    if isinstance(obj, np.floating):
+        return float(obj) if np.isfinite(obj) else None
     if isinstance(obj, dict):
         return {k: _finite(v) for k, v in obj.items()}
     if isinstance(obj, (list, tuple)):
@@ -124,7 +128,8 @@ nav a{color:#fff;margin-right:14px;font-size:13px}#pp-checks td,#pp-checks th{wh
 #: for it).
 PLOTS_SCRIPT = """
 function drawPlots(){let i=0;function next(){if(i>=PLOTS.length){document.body.dataset.ready='1';return;}
-  const f=PLOTS[i++];Promise.resolve(f()).then(function(){setTimeout(next,0);},function(){setTimeout(next,0);});}next();}
+  const f=PLOTS[i++];let r;try{r=f();}catch(e){console.error(e);}
+  Promise.resolve(r).then(function(){setTimeout(next,0);},function(e){console.error(e);setTimeout(next,0);});}next();}
 if(document.readyState==='complete'){drawPlots();}else{window.addEventListener('load',drawPlots);}
 """
 
@@ -148,7 +153,13 @@ def page(title: str, subtitle: str, sections: list[str], scripts: list[str], dat
             "'unsafe-eval'; style-src 'unsafe-inline'; img-src data: blob:; font-src data:; worker-src blob:\">"
             f"<title>{esc(title)}</title><style>{STYLE}</style><script>{plotly_js()}</script></head><body>"
             f"<header><h1>{esc(title)}</h1><p>{esc(subtitle)}</p></header><main>{''.join(sections)}</main>"
-            f"{blocks}<script>const PLOTS=[];{TABLE_SCRIPT}{''.join(scripts)}{PLOTS_SCRIPT}</script></body></html>")
+            f"{blocks}<script>const PLOTS=[];{TABLE_SCRIPT}{''.join(map(_guarded, scripts))}{PLOTS_SCRIPT}</script>"
+            "</body></html>")
+
+
+def _guarded(script: str) -> str:
+    """One view's script, so that an error in it is reported and the other views still draw."""
+    return f"try{{{script}}}catch(e){{console.error(e);}}"
 
 
 def figure_div(fig_id: str, figure: dict, css: str = "plot") -> tuple[str, str]:

@@ -180,3 +180,17 @@ def test_a_header_click_sorts_a_table(pages, page, tmp_path):
         1 + [h.strip() for h in page.locator("#top-designs th").all_inner_texts()].index("cost")))
     values = [float(v.replace(",", "")) for v in cells.all_inner_texts()]
     assert values == sorted(values)
+
+
+def test_embedded_data_is_json_with_null_for_nan_and_infinity():
+    """A site no feasible layout uses has no least cost (NaN): the page's data must stay valid JSON (JSON has no
+    NaN; the PA10 example's page failed to parse and drew nothing)."""
+    import json
+
+    import numpy as np
+
+    from surgopt.html_report import to_json
+
+    text = to_json({"a": np.array([1.0, np.nan, np.inf]), "b": [np.float64("nan"), 2.5], "c": np.float32("inf"),
+                    "d": np.array([[np.nan, 1.0]])})
+    assert json.loads(text) == {"a": [1.0, None, None], "b": [None, 2.5], "c": None, "d": [[None, 1.0]]}
