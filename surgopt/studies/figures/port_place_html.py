@@ -98,8 +98,19 @@ def views(run, parts) -> list[View]:
         if (feasible.num_rows or (infeasible is not None and infeasible.num_rows)) else feasible
     layouts = {c: top[c].to_numpy(zero_copy_only=False) for c in wanted}
     from surgopt.kinematics.port_place import REASONS
+    from surgopt.robots import dvrk
 
+    arm_lines = cam_lines = None
+    if cfg.robot.instrument_serial is not None:  # the serial arms' centre lines at their docked pose, every site
+        from surgopt.studies.port_place_serial import serial_tables
+
+        arm_lines = serial_tables(cfg, sites_m).links * 1000
+    if cfg.robot.camera_serial is not None:
+        from surgopt.studies.port_place_serial import camera_lines
+
+        cam_lines = camera_lines(cfg, sites_m) * 1000
     data = {
+        "arm_lines": arm_lines, "cam_lines": cam_lines, "outside_mm": dvrk.OUTSIDE_LENGTH_M * 1000,
         "arms": arms, "colours": [COLOURS[a] for a in arms], "sites": sites, "site_best": site_best,
         "targets": targets, "centre": np.asarray(cfg.target.centre_mm, float),
         "reach": np.asarray(reach, bool).astype(np.int8), "dex": np.round(np.asarray(dex, float), 4),
@@ -166,11 +177,17 @@ function col(name, i){ return L[name] ? L[name][i] : null; }
 function fmt(v, d){ return (v === null || v === undefined) ? 'n/a' : (typeof v === 'number' ? v.toFixed(d) : String(v)); }
 function base(){
   const body = D.body;
-  const sites = {type:'scatter3d', mode:'markers', x:D.sites.map(p=>p[0]), y:D.sites.map(p=>p[1]), z:D.sites.map(p=>p[2]),
-    marker:{size:3.5, color:D.site_best.map(v=>v===null?NaN:v), colorscale:'Viridis', reversescale:true, showscale:true,
+  const used = D.sites.map((p, i) => i).filter(i => D.site_best[i] !== null);
+  const unused = D.sites.map((p, i) => i).filter(i => D.site_best[i] === null);
+  const pick = (idx, k) => idx.map(i => D.sites[i][k]);
+  const sites = {type:'scatter3d', mode:'markers', x:pick(used, 0), y:pick(used, 1), z:pick(used, 2),
+    marker:{size:3.5, color:used.map(i => D.site_best[i]), colorscale:'Viridis', reversescale:true, showscale:true,
             colorbar:{title:{text:'least feasible cost'}, x:-0.02, len:0.55}}, name:'candidate sites',
-    text:D.sites.map((p,i)=>'site '+i+'<br>least feasible cost '+fmt(D.site_best[i],4)), hoverinfo:'text'};
-  return [body, sites];
+    text:used.map(i => 'site '+i+'<br>least feasible cost '+fmt(D.site_best[i],4)), hoverinfo:'text'};
+  const none = {type:'scatter3d', mode:'markers', x:pick(unused, 0), y:pick(unused, 1), z:pick(unused, 2),
+    marker:{size:2.5, color:'#9aa5b1'}, name:'sites no feasible layout uses',
+    text:unused.map(i => 'site '+i+': no feasible layout uses it'), hoverinfo:'text'};
+  return [body, sites, none];
 }
 function draw(i){
   const traces = base();
@@ -185,8 +202,22 @@ function draw(i){
     const p = [col(a+'_x_mm', i), col(a+'_y_mm', i), col(a+'_z_mm', i)];
     traces.push({type:'scatter3d', mode:'lines+markers', x:[p[0], D.centre[0]], y:[p[1], D.centre[1]], z:[p[2], D.centre[2]],
       line:{color:D.colours[j], width:6}, marker:{size:[7, 0.1], color:D.colours[j]}, name:a.toUpperCase()+' site '+col(a+'_site', i)});
+    const serial = (j < arms.length - 1) ? D.arm_lines : D.cam_lines;
+    const site = col(a+'_site', i);
+    if (serial && serial[site]) {  // a serial arm's centre line at its docked pose: base, joints, flange, port
+      const l = serial[site].filter(q => q[0] !== null);
+      traces.push({type:'scatter3d', mode:'lines+markers', x:l.map(q=>q[0]), y:l.map(q=>q[1]), z:l.map(q=>q[2]),
+        line:{color:D.colours[j], width:9}, marker:{size:3, color:'#333'}, opacity:0.8, name:a.toUpperCase()+' arm',
+        hoverinfo:'name'});
+    } else if (!serial) {  // an RCM arm: its instrument's shaft outside the body, behind the port
+      const d = [p[0]-D.centre[0], p[1]-D.centre[1], p[2]-D.centre[2]]; const n = Math.hypot(d[0], d[1], d[2]) || 1;
+      const q = [0, 1, 2].map(k => p[k] + d[k] / n * D.outside_mm);
+      traces.push({type:'scatter3d', mode:'lines', x:[p[0], q[0]], y:[p[1], q[1]], z:[p[2], q[2]], showlegend:j === 0,
+        line:{color:D.colours[j], width:3, dash:'dash'}, name:'shafts outside (' + D.outside_mm.toFixed(0) + ' mm)',
+        hoverinfo:'name'});
+    }
   });
-  const layout = {uirevision:'keep', height:620, margin:{l:0, r:0, t:30, b:0}, showlegend:true, legend:{x:0.05, y:1, bgcolor:'rgba(255,255,255,0.7)'},
+  const layout = {uirevision:'keep', height:620, margin:{l:0, r:0, t:30, b:0}, showlegend:true, legend:{orientation:'h', x:0, y:0, bgcolor:'rgba(255,255,255,0.7)'},
     title:{text:'layout '+col('design_id', i)+' · cost '+fmt(col('cost', i), 4)+(col('feasible', i)?'':' · INFEASIBLE'), font:{size:13}},
     scene:{aspectmode:'data', xaxis:{title:{text:'x lateral (mm)'}}, yaxis:{title:{text:'y cranial (mm)'}},
            zaxis:{title:{text:'z anterior (mm)'}}, camera:{eye:{x:-1.2, y:-1.6, z:1.0}}}};
