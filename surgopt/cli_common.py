@@ -185,17 +185,50 @@ def fail_on(exc: BaseException) -> None:
 
 
 def wide_console(min_width: int = 150):
+    """A console at the terminal's width; piped, wide enough for the tables (``print_table`` sizes each one)."""
     from rich.console import Console
 
-    return Console(width=max(Console().width, min_width))  # wide tables stay readable when piped
+    c = Console()
+    return c if c.is_terminal else Console(width=max(c.width, min_width))
+
+
+#: The narrowest a table's first column (its labels) is folded to when the table must fit a terminal.
+LABEL_MIN = 24
 
 
 def print_table(console, title, header, rows) -> None:
+    """A table that never cuts a number or stacks a header letter by letter: to a pipe or a file at its own width;
+    on a terminal too narrow for it, a one- or two-row table turned on its side, else the first column and as
+    many others as fit, with a line naming the columns left out (issue 42: 14 columns squeezed into 80)."""
+    from rich.console import Console
     from rich.table import Table
 
+    header = [str(h) for h in header]
+    rows = [[str(v) for v in row] for row in rows]
+    widths = [max([len(header[i])] + [len(r[i]) for r in rows if i < len(r)]) for i in range(len(header))]
+    need = sum(w + 3 for w in widths) + 1
+    if not console.is_terminal:
+        console = Console(width=max(need, len(title or "") + 4, 80), file=console.file, force_terminal=False)
+    omitted = []
+    if need > console.width and 1 <= len(rows) <= 2 and len(header) > 2:
+        header, rows = ["field", *(["value"] if len(rows) == 1 else ["row 1", "row 2"])], \
+            [[h, *[r[i] for r in rows]] for i, h in enumerate(header)]
+    elif need > console.width:  # the first column (a label) may wrap down to LABEL_MIN; numbers never wrap
+        keep, used = [0], min(widths[0], LABEL_MIN) + 4
+        for i in range(1, len(header)):
+            if used + widths[i] + 3 <= console.width:
+                keep.append(i)
+                used += widths[i] + 3
+            else:
+                omitted.append(header[i])
+        header, rows = [header[i] for i in keep], [[r[i] for i in keep] for r in rows]
     t = Table(title=title)
-    for h in header:
-        t.add_column(str(h), justify="left" if h == header[0] else "right", overflow="fold")
+    for i, h in enumerate(header):
+        t.add_column(h, justify="left" if i == 0 else "right", no_wrap=i > 0, overflow="fold",
+                     min_width=min(widths[0], LABEL_MIN) if i == 0 and len(widths) else None)
     for row in rows:
-        t.add_row(*[str(v) for v in row])
+        t.add_row(*row)
     console.print(t)
+    if omitted:
+        console.print(f"({len(omitted)} more column(s) not shown at {console.width} columns: {', '.join(omitted)}; "
+                      f"widen the terminal, or use --format csv / json)", highlight=False)
