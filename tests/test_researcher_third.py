@@ -47,3 +47,31 @@ def test_plot_names_the_run_it_drew_and_runs_are_found_by_name_and_latest(tmp_pa
     key = single_run(store).key[:12]
     assert key in cli("summarize", "baseline-map", "--store", store).stdout
     assert key in cli("summarize", "latest", "--store", store).stdout
+
+
+def _urdf_with_leaves(tmp_path, leaves) -> str:
+    """tests/data/pa10_7c.urdf with extra fixed leaf links on the flange (as ROS-Industrial URDFs have)."""
+    from conftest import HERE
+
+    text = (HERE / "data" / "pa10_7c.urdf").read_text()
+    extra = "".join(f'<link name="{n}"/><joint name="{n}_joint" type="fixed"><parent link="flange"/>'
+                    f'<child link="{n}"/><origin xyz="0 0 0" rpy="0 0 0"/></joint>' for n in leaves)
+    path = tmp_path / "arm.urdf"
+    path.write_text(text.replace("</robot>", extra + "</robot>"))
+    return str(path)
+
+
+def test_a_urdf_of_several_leaves_ends_at_tool0_and_says_so(tmp_path):
+    """example-robot-data's ur5_robot.urdf (leaves base, ee_link, tool0) was refused with 'name one': tool0, the
+    ROS-Industrial tool frame, is taken and the run says so; without a tool0 the refusal stands."""
+    from conftest import invoke
+
+    path = _urdf_with_leaves(tmp_path, ["ee_link", "tool0"])
+    code, out = invoke("rcm-grid", "--robot", path, "robot.tool_length_m=0.3", "--dry-run", "--store",
+                       str(tmp_path / "s"))
+    assert code == 0, out
+    assert "robot.tip_link: tool0 (the ROS-Industrial tool frame)" in out and "ee_link" in out
+    path = _urdf_with_leaves(tmp_path, ["ee_link", "camera"])
+    code, out = invoke("rcm-grid", "--robot", path, "robot.tool_length_m=0.3", "--dry-run", "--store",
+                       str(tmp_path / "s"))
+    assert code == 2 and "leaf links" in out and "name one" in out, out

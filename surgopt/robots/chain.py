@@ -60,6 +60,7 @@ class Joint:
 class ChainSpec:
     joints: tuple[Joint, ...]
     tail: np.ndarray = field(default_factory=lambda: np.eye(4))  # last joint's moved frame -> tip link
+    note: str = ""  # a choice made for the user (a URDF's tip link among several leaves), said with the run
 
     @property
     def names(self) -> tuple[str, ...]:
@@ -148,11 +149,17 @@ def from_dh(rows, convention: str = "standard") -> ChainSpec:
     return ChainSpec(tuple(joints), before)
 
 
+#: The tip link a URDF's chain ends at when it has several leaves and none is named (ROS-Industrial's convention:
+#: example-robot-data's ur5_robot.urdf has base, ee_link and tool0).
+TOOL_FRAME = "tool0"
+
+
 def from_urdf(path: str | Path, base_link: str | None, tip_link: str | None,
               speeds: dict[str, float] | None = None) -> ChainSpec:
     """The chain from ``base_link`` to ``tip_link`` of a URDF file (yourdfpy; no meshes loaded).
 
-    Defaults: the URDF's root link, and its only leaf. Fixed joints fold into the next origin;
+    Defaults: the URDF's root link, and its only leaf (of several, ``TOOL_FRAME``, said in ``note``). Fixed joints
+    fold into the next origin;
     continuous joints have no limits; floating and planar joints, mimic joints and missing or
     unknown links are ``ChainError``s naming the element.
     """
@@ -191,10 +198,14 @@ def from_urdf(path: str | Path, base_link: str | None, tip_link: str | None,
         if len(roots) != 1:
             raise ChainError("base_link", f"the URDF has {len(roots)} root links ({', '.join(roots)}); name one")
         base_link = roots[0]
+    note = ""
     if tip_link is None:
-        if len(leaves) != 1:
+        if len(leaves) != 1 and TOOL_FRAME not in leaves:
             raise ChainError("tip_link", f"the URDF has {len(leaves)} leaf links ({', '.join(leaves[:6])}); name one")
-        tip_link = leaves[0]
+        tip_link = leaves[0] if len(leaves) == 1 else TOOL_FRAME
+        if len(leaves) > 1:
+            note = (f"robot.tip_link: {TOOL_FRAME} (the ROS-Industrial tool frame) of the URDF's {len(leaves)} leaf "
+                    f"links ({', '.join(leaves[:6])}); give robot.tip_link to choose another")
     for field_name, link in (("base_link", base_link), ("tip_link", tip_link)):
         if link not in links:
             raise ChainError(field_name, f"no link {link!r} in the URDF (links: {', '.join(sorted(links)[:8])})")
@@ -241,7 +252,7 @@ def from_urdf(path: str | Path, base_link: str | None, tip_link: str | None,
         pending = np.eye(4)
     if not joints:
         raise ChainError("tip_link", f"no movable joint between {base_link!r} and {tip_link!r}")
-    return ChainSpec(tuple(joints), pending)
+    return ChainSpec(tuple(joints), pending, note)
 
 
 #: The largest URDF read (a robot description with every mesh inlined is a few MB).

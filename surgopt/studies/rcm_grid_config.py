@@ -384,10 +384,12 @@ class Robot(StrictModel):
         return out
 
     def auto_lock_advice(self) -> list[str]:
-        """Says which joints were locked for the user, and why (``redundant_joints``)."""
+        """Says which joints were locked for the user, and why (``redundant_joints``), and which tip link a URDF
+        of several leaves was given."""
+        tip = [self.chain_spec().note] if self.urdf is not None and self.chain_spec().note else []
         if not self._auto_locked:
-            return []
-        return ["robot: no locked_joints_deg: " + "; ".join(f"{n} locked at 0 ({why})"
+            return tip
+        return tip + ["robot: no locked_joints_deg: " + "; ".join(f"{n} locked at 0 ({why})"
                                                             for n, why in self._auto_locked.items())
                 + " (give robot.locked_joints_deg to choose)"]
 
