@@ -269,8 +269,9 @@ def plot(
 
             from surgopt.report import feasible_rows
 
-            paths = search_figures(cfg, table, out, plan, reference=_grid_best(Store(store), st, cfg, plan),
-                                   feasible=feasible_rows(st, table))
+            paths = search_figures(cfg, table, out, plan, reference=_grid_best(Store(store), st, cfg, plan,
+                                                                                 st.reported_objective),
+                                   feasible=feasible_rows(st, table), objective=st.reported_objective)
         else:
             paths = st.figures(cfg, table, out, design)
         from surgopt.report import best_edges
@@ -519,13 +520,14 @@ def check(
     typer.echo(f"OK: {current.num_rows} rows match {baseline} (rtol={rtol:g}, atol={atol:g})")
 
 
-def _grid_best(store, study, cfg, plan):
-    """(label, value) of the best objective of the same config's own sweep (the grid), if it is stored."""
+def _grid_best(store, study, cfg, plan, objective=None):
+    """(label, value) of the best objective of the same config's own sweep (the grid), if it is stored;
+    ``objective`` (column, direction): over the grid's feasible designs, on that column."""
     from surgopt.config import study_key
 
     if len(plan.objectives) != 1:
         return None
-    col, direction = plan.objectives[0]
+    col, direction = objective or plan.objectives[0]
     default = study.config_model.model_fields["search"].default
     grid_cfg = cfg.model_copy(update={"search": default})
     try:
@@ -534,5 +536,9 @@ def _grid_best(store, study, cfg, plan):
         return None
     if run is None or not run.complete:
         return None
-    values = run.parts(study.schema_for(run.manifest["config"])).column(col)
-    return (f"the grid's best ({len(values):,} designs)", float(values.max() if direction == "maximize" else values.min()))
+    values = run.parts(study.schema_for(run.manifest["config"])).column(
+        col, where=study.feasible_mask if objective else None)
+    if not values.size:
+        return None
+    return (f"the grid's best ({len(values):,} {'feasible ' if objective else ''}designs)",
+            float(values.max() if direction == "maximize" else values.min()))

@@ -75,3 +75,20 @@ def test_a_urdf_of_several_leaves_ends_at_tool0_and_says_so(tmp_path):
     code, out = invoke("rcm-grid", "--robot", path, "robot.tool_length_m=0.3", "--dry-run", "--store",
                        str(tmp_path / "s"))
     assert code == 2 and "leaf links" in out and "name one" in out, out
+
+
+def test_a_port_place_search_is_drawn_on_the_cost_of_its_feasible_trials(tmp_path):
+    """Issue 42 item 7: the convergence of a port-place search drew its penalised score (-500 to 0), so the best
+    feasible cost was a flat line. The figure and the page draw the feasible trials' cost."""
+    from conftest import HERE
+
+    cfg = tmp_path / "search.toml"
+    cfg.write_text((HERE / "baselines" / "port_small.toml").read_text()
+                   + '\n[search]\nmethod = "cmaes"\ntrials = 64\nbatch = 32\nseed = 0\n')
+    store = tmp_path / "s"
+    cli("port-place", cfg, "--store", store, "--quiet")
+    r = cli("plot", "--store", store, "--out", tmp_path / "figs")
+    assert "search_convergence.png" in r.stdout
+    cli("report", "--store", store, "--out", tmp_path / "page.html")
+    text = (tmp_path / "page.html").read_text()
+    assert "cost (minimize) of the feasible trials only, on its own scale" in text

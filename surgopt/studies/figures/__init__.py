@@ -48,26 +48,32 @@ def save(fig, path: Path) -> Path:
     return path
 
 
-def search_figures(cfg, table, out: Path, plan, reference=None, feasible=None) -> list[Path]:
+def search_figures(cfg, table, out: Path, plan, reference=None, feasible=None, objective=None) -> list[Path]:
     """An optimiser's run: best objective against trials (one objective; ``reference`` = (label, value)
     draws e.g. the grid's best as a line), or the Pareto front of the feasible trials (several; ``feasible``, a
-    mask of the rows, default all), trials in grey, infeasible ones as crosses."""
+    mask of the rows, default all), trials in grey, infeasible ones as crosses. ``objective`` (column,
+    direction): what a person reads the search by when the optimiser's is a penalised stand-in
+    (``Study.reported_objective``): drawn for the feasible trials only, on its own scale."""
     from surgopt.studies.search import best_so_far, pareto_front
 
     plt = pyplot()
     c = columns(table)
     order = np.argsort(c[next(iter(c))], kind="stable")  # the first column is the trial number
     if len(plan.objectives) == 1:
-        col, direction = plan.objectives[0]
+        col, direction = objective or plan.objectives[0]
+        ok = (np.ones(len(order), bool) if feasible is None else np.asarray(feasible, bool))[order]
+        y = np.where(ok, c[col][order].astype(float), np.nan) if objective else c[col][order]
         fig, ax = plt.subplots(figsize=(5.6, 3.8))
-        ax.plot(np.arange(1, len(order) + 1), c[col][order], ".", color="0.75", ms=3, label="trials")
-        ax.plot(np.arange(1, len(order) + 1), best_so_far(c[col][order], direction), "-", label="best so far")
+        ax.plot(np.arange(1, len(order) + 1), y, ".", color="0.75", ms=3,
+                label="feasible trials" if objective else "trials")
+        ax.plot(np.arange(1, len(order) + 1), best_so_far(y, direction), "-", label="best so far")
         if reference is not None:
             ax.axhline(reference[1], color="C3", ls="--", lw=1, label=f"{reference[0]}: {reference[1]:.6g}")
         ax.set_xlabel("trial")
         ax.set_ylabel(col)
-        ax.set_title(f"{plan.spec.method}: best {col} {np.nanmax(c[col]) if direction == 'maximize' else np.nanmin(c[col]):.6g} "
-                     f"after {len(order)} trials (seed {plan.spec.seed})", fontsize=9)
+        best = (np.nanmax(y) if direction == "maximize" else np.nanmin(y)) if np.isfinite(y).any() else np.nan
+        ax.set_title(f"{plan.spec.method}: best {col} {best:.6g} after {len(order)} trials"
+                     + (f", {int(ok.sum())} feasible" if objective else "") + f" (seed {plan.spec.seed})", fontsize=9)
         ax.legend(fontsize=8)
         return [save(fig, out / "search_convergence.png")]
     (cx, dx), (cy, dy) = plan.objectives[:2]
