@@ -279,14 +279,19 @@ def test_the_manifest_is_not_rewritten_for_every_part(tmp_path, monkeypatch):
 
 def test_port_place_memory_estimate_is_above_its_measured_peak(tmp_path):
     """The estimate was 1.26-1.36x below the measured peak: on the wrong side of a budget. Memory, not time: the
-    resident peak of the default run (ru_maxrss of the child) against the estimate the budget is held to."""
+    resident peak of the default run (the child's own ru_maxrss, from wait4) against the estimate the budget is
+    held to; measured on a second run (the first compiles the kernels when the cache is cold: LLVM's memory on
+    top, which the estimate's LIBRARY_BYTES also covers)."""
     study = get_study("port-place")
     from surgopt.compose import variants
 
     (v,) = variants(study, None, [])
     est = study.estimate(v.config).peak_bytes
-    before = resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss
-    cli("port-place", "--store", tmp_path / "s", "--quiet")
-    peak = resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss * 1024
-    assert peak > before * 1024 or before == 0  # the premise: this child set the children's peak
+    cli("port-place", "--store", tmp_path / "s", "--quiet")  # kernels compiled or loaded into the cache
+    p = subprocess.Popen([sys.executable, "-m", "surgopt", "port-place", "--store", str(tmp_path / "s"), "--quiet",
+                          "--force"], stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    _, status, usage = os.wait4(p.pid, 0)
+    assert os.waitstatus_to_exitcode(status) == 0
+    peak = usage.ru_maxrss * 1024
+    assert peak > 200 * 2 ** 20  # the premise: this is the study's process, not a wrapper
     assert est >= peak, (est / 2 ** 20, peak / 2 ** 20)

@@ -600,9 +600,10 @@ NS_PER_SEARCHED_DESIGN_POINT = 470.0
 FEASIBLE_SHARE_ASSUMED = 0.02
 
 #: Resident memory port-place's own libraries and tables add to the base process (trimesh, scipy's spatial index,
-#: the sites' frames): measured peaks 440 MB (default) and 452 MB (PA10 arms) against a model of 349 MB without it
-#: (issue 43: the estimate was 1.26-1.36x below the peak, on the wrong side of a budget).
-LIBRARY_BYTES = 130 * 2 ** 20
+#: the sites' frames) and, on a first run, LLVM's while it compiles the kernels: measured peaks 440 MB (default,
+#: warm), 452 MB (PA10 arms, warm) and 548 MB (default, compiling in a fresh CI clone) against a model of 349 MB
+#: without it (issue 43: the estimate was 1.26-1.36x below the peak, on the wrong side of a budget).
+LIBRARY_BYTES = 220 * 2 ** 20
 
 
 def estimate(cfg) -> Estimate:
