@@ -87,7 +87,8 @@ def _split_args(args: list[str] | None) -> tuple[Optional[str], list[str]]:
     from pathlib import Path
 
     args = list(args or [])
-    first_is_file = bool(args) and Path(args[0]).suffix.lower() in (".toml", ".yaml", ".yml") and Path(args[0]).is_file()
+    first = Path(args[0]) if args else None
+    first_is_file = first is not None and first.suffix.lower() in (".toml", ".yaml", ".yml") and first.is_file()
     config = args.pop(0) if args and ("=" not in args[0] or first_is_file) else None  # my=cfg.toml is a file
     bad = [a for a in args if "=" not in a]
     if bad:
@@ -241,7 +242,7 @@ def _dry_run(study, todo, store, jobs, chunk_size, budget, backend="threads", sc
         except Exception as exc:  # noqa: BLE001 - shown, not raised: this is a dry run
             verdict = f"REFUSED: {str(exc).split(';')[0]}"
         rows.append([v.config_name, f"{est.items:,} {est.what}" if est else "?", plan.n_parts(study, v.config, chunk),
-                     key[:12], state, duration_text(wall_seconds(est, jobs)) if est else "?",
+                     key[:12], state, duration_text(wall_seconds(est, jobs, overhead=not rows)) if est else "?",
                      f"{run_bytes(est, backend, jobs, scheduler) / 2 ** 20:,.0f} MB" if est else "?", verdict])
     print_table(wide_console(), f"{study.name} --dry-run (nothing computed or written)",
                  ["config", "size", "parts", "key", "store", f"time on {jobs} core(s)", "peak memory", "budget"], rows)

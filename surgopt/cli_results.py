@@ -521,24 +521,11 @@ def check(
 
 
 def _grid_best(store, study, cfg, plan, objective=None):
-    """(label, value) of the best objective of the same config's own sweep (the grid), if it is stored;
-    ``objective`` (column, direction): over the grid's feasible designs, on that column."""
-    from surgopt.config import study_key
+    """(label, value) of the search's objective over the same config's grid, if stored (``results.grid_best``);
+    ``objective`` (column, direction): that column over the grid's feasible designs."""
+    from surgopt.results import grid_best
 
     if len(plan.objectives) != 1:
         return None
     col, direction = objective or plan.objectives[0]
-    default = study.config_model.model_fields["search"].default
-    grid_cfg = cfg.model_copy(update={"search": default})
-    try:
-        run = store.open(study.name, study_key(study.name, grid_cfg, study.kernel_version))
-    except Exception:  # noqa: BLE001 - no reference line then
-        return None
-    if run is None or not run.complete:
-        return None
-    values = run.parts(study.schema_for(run.manifest["config"])).column(
-        col, where=study.feasible_mask if objective else None)
-    if not values.size:
-        return None
-    return (f"the grid's best ({len(values):,} {'feasible ' if objective else ''}designs)",
-            float(values.max() if direction == "maximize" else values.min()))
+    return grid_best(store, study, cfg, col, direction, feasible_only=objective is not None)

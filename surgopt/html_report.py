@@ -211,7 +211,10 @@ def search_views(study, run, parts) -> list[View]:
                  "marker": {"size": 4, "color": "#9aa5b1"}},
                 {"type": "scatter", "mode": "lines", "x": trial, "y": best, "name": "best feasible so far",
                  "line": {"color": "#1f77b4", "width": 2}}]
-        ref = _grid_best(study, run, cfg, col, direction)
+        from surgopt.results import grid_best
+        from surgopt.store import Store
+
+        ref = grid_best(Store(run.path.parent.parent), study, cfg, col, direction, feasible_only=True)
         if ref is not None:
             data.append({"type": "scatter", "mode": "lines", "x": [1, len(trial)], "y": [ref[1], ref[1]],
                          "name": f"{ref[0]}: {ref[1]:.6g}", "line": {"dash": "dash", "color": "#a4000f"}})
@@ -232,25 +235,6 @@ def search_views(study, run, parts) -> list[View]:
     note = f"{plan.spec.method}: the {len(kept):,} feasible of {len(ok):,} trials; {cx} ({dx}) against {cy} ({dy})."
     return [View("Pareto front", note, {"search-front": {"data": data, "layout": {
         "xaxis": {"title": {"text": cx}}, "yaxis": {"title": {"text": cy}}, "height": 460}}})]
-
-
-def _grid_best(study, run, cfg, col: str, direction: str):
-    """(label, value) of ``col``'s best over the feasible designs of the same config's grid, if its store holds it."""
-    from surgopt.config import study_key
-    from surgopt.store import Store
-
-    try:
-        grid_cfg = cfg.model_copy(update={"search": study.config_model.model_fields["search"].default})
-        other = Store(run.path.parent.parent).open(study.name, study_key(study.name, grid_cfg, study.kernel_version))
-    except Exception:  # noqa: BLE001 - no reference line then
-        return None
-    if other is None or not other.complete:
-        return None
-    values = other.parts(study.schema_for(other.manifest["config"])).column(col, where=study.feasible_mask)
-    if not values.size:
-        return None
-    return (f"the grid's best ({len(values):,} feasible designs)",
-            float(values.max() if direction == "maximize" else values.min()))
 
 
 def provenance_rows(run) -> list[list]:

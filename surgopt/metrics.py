@@ -71,8 +71,9 @@ class PoseMetric(NamedTuple):
     unit: str
     suffix: str
     meaning: str
-    #: time per pose of a walk with this metric against one with the RCM metric (the estimate's and the chunk
-    #: size's cost models scale by it). Measured on the PA10's default map (benchmarks/bench_readme_estimates.py)
+    #: time per pose of a walk with this metric against the chain kernel's cost model for the RCM metric (the
+    #: estimate's and the chunk size's scale by it). Measured on the PA10's default map, whose walk is cheaper
+    #: than the model's average arm (benchmarks/bench_readme_estimates.py)
     relative_cost: float = 1.0
 
     @property
@@ -89,5 +90,5 @@ POSE_METRICS = {
         "standard", METRIC_STANDARD, False, "1", "_task_scaled",
         "singular values of the standard Jacobian at the same IK poses, columns times the rated speeds, rows "
         "divided by the task scaling (Sec. III-E): dimensionless",
-        relative_cost=2.5),  # a 6 x 6 Gram matrix's Jacobi eigenvalues at each pose, after the walk
+        relative_cost=5.0),  # a 6 x 6 Gram matrix's Jacobi eigenvalues at each pose, after the walk
 }

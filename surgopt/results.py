@@ -303,3 +303,22 @@ def diff_runs(store: Store, ref_a: str, ref_b: str, study_name: str | None = Non
             "rows_only_a": int((joined["_merge"] == "left_only").sum()),
             "rows_only_b": int((joined["_merge"] == "right_only").sum()),
             "metrics": metrics, "objective": objective, "worst": worst, "best": best}
+
+
+def grid_best(store: Store, study, cfg, column: str, direction: str, feasible_only: bool = False):
+    """(label, value) of ``column``'s best (``direction``) over the same config's own grid (its [search] replaced
+    by the study's default), if ``store`` holds that run complete; over its feasible designs with
+    ``feasible_only``. What a search's convergence is drawn against (``plot``, ``report``)."""
+    try:
+        grid_cfg = cfg.model_copy(update={"search": study.config_model.model_fields["search"].default})
+        run = store.open(study.name, study_key(study.name, grid_cfg, study.kernel_version))
+    except Exception:  # noqa: BLE001 - no reference then
+        return None
+    if run is None or not run.complete:
+        return None
+    values = run.parts(study.schema_for(run.manifest["config"])).column(
+        column, where=study.feasible_mask if feasible_only else None)
+    if not values.size:
+        return None
+    return (f"the grid's best ({len(values):,} {'feasible ' if feasible_only else ''}designs)",
+            float(values.max() if direction == "maximize" else values.min()))

@@ -110,10 +110,11 @@ RUN_OVERHEAD_S = 1.0
 STORE_SECONDS_PER_ROW = 1.5e-6
 
 
-def wall_seconds(est, jobs: int) -> float:
+def wall_seconds(est, jobs: int, overhead: bool = True) -> float:
     """An estimate's wall time: its single-core seconds spread over ``jobs`` workers (at most this machine's
-    cores), plus the run's fixed overhead and its rows' storing and reading back (warm: no compile)."""
-    return (est.seconds_one_core / max(1, min(jobs, os.cpu_count() or 1)) + RUN_OVERHEAD_S
+    cores), plus its rows' storing and reading back and (``overhead``: the first run of a command, which loads the
+    kernels) the run's fixed overhead (warm: no compile)."""
+    return (est.seconds_one_core / max(1, min(jobs, os.cpu_count() or 1)) + (RUN_OVERHEAD_S if overhead else 0.0)
             + (est.rows if est.stored_rows is None else est.stored_rows) * STORE_SECONDS_PER_ROW)
 
 

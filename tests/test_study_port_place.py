@@ -1014,7 +1014,8 @@ def test_the_raven_as_a_port_place_instrument_reaches_what_joint_sampling_reache
     cfg, arm, lim, wrist = _raven()
     site, centre = np.zeros(3), np.array([0.0, 0.0, -0.15])
     rot = K.docking_frames(site[None], centre, np.array([1.0, 0.0, 0.0]))
-    pts = centre + RNG.uniform(-0.2, 0.2, size=(200, 3))  # some beyond the 250 mm insertion, some off the cones
+    # its own stream: the module's RNG depends on which tests ran before in this worker (a premise failed once)
+    pts = centre + np.random.default_rng(1).uniform(-0.2, 0.2, size=(200, 3))  # some past the insertion, off cones
     reach, _ = K.instrument_tables(site[None], rot, pts, lim, 0.1, ANY_APPROACH)
     base = np.array([K.to_base(rot[0], site, p) for p in pts])
     home = arm.neutral_rad

@@ -688,7 +688,7 @@ def summary(parts) -> Summary:
         counts = {"feasible": feasible, "infeasible": n - feasible}
         counts.update({f"infeasible: {why}": by_bit[bit] for bit, why in REASONS.items()})
         headline = {"designs": n, "feasible": feasible}
-    best = _best(parts, 5)
+    best = least_cost_layouts(parts, 5)
     tables = []
     if best.num_rows:
         b = best.to_pylist()[0]
@@ -710,18 +710,22 @@ def summary(parts) -> Summary:
     return Summary(headline, counts, tables)
 
 
-def _best(parts, k: int):
-    """The k feasible designs of least cost (ties by design id), read part by part."""
+def least_cost_layouts(parts, k: int, feasible: bool = True, columns: list[str] | None = None):
+    """The k designs of least cost (ties by design id) among the feasible (or the infeasible) ones, read part by
+    part; only ``columns`` (with feasible, cost, design_id) when given: the closing report and the HTML page."""
     import pyarrow as pa
+    import pyarrow.compute as pc
 
+    if columns is not None:
+        columns = sorted({*columns, "feasible", "cost", "design_id"} & set(parts.schema.names))
     kept = []
-    for t in parts:
-        t = t.filter(t["feasible"])
+    for t in parts.only(columns):
+        t = t.filter(t["feasible"] if feasible else pc.invert(t["feasible"]))
         if t.num_rows:
             order = np.lexsort((t["design_id"].to_numpy(), t["cost"].to_numpy()))[:k]
             kept.append(t.take(pa.array(order)))
     if not kept:
-        return parts.schema.empty_table()
+        return parts.schema.empty_table() if columns is None else parts.schema.empty_table().select(columns)
     t = pa.concat_tables(kept)
     order = np.lexsort((t["design_id"].to_numpy(), t["cost"].to_numpy()))[:k]
     return t.take(pa.array(order))

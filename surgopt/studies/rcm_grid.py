@@ -309,9 +309,11 @@ def auto_chunk(cfg: RcmGridConfig) -> int:
 
 #: Time model of the estimate: ~8.5 ns per pose of the cube on one core, measured over the paper map
 #: (infeasible candidates cost less, the mirror half is already in it); docs/performance.md. The generic
-#: kernel: NS_PER_POSE_CHAIN_EST, measured over the shipped models' default maps (about half infeasible).
+#: kernel: NS_PER_POSE_CHAIN_EST, measured over the shipped models' default maps (about half infeasible): with
+#: the run's fixed overhead (runner.RUN_OVERHEAD_S) estimated at 2.8 / 2.3 / 1.9 s against 3.0 / 2.6 / 2.1 s measured
+#: for the UR5e / Panda / LBR iiwa (benchmarks/bench_readme_estimates.py).
 NS_PER_POSE_EST = 8.5
-NS_PER_POSE_CHAIN_EST = 500.0
+NS_PER_POSE_CHAIN_EST = 250.0
 
 
 def estimate(cfg: RcmGridConfig) -> Estimate:

@@ -39,24 +39,6 @@ def _site_best(parts, arms, n_sites: int) -> np.ndarray:
     return best
 
 
-def _least_cost(parts, k: int, feasible: bool, columns: list[str]):
-    """The k layouts of least cost among the feasible (or the infeasible) ones, streamed; only ``columns`` read."""
-    import pyarrow as pa
-    import pyarrow.compute as pc
-
-    columns = sorted({*columns, "feasible", "cost", "design_id"} & set(parts.schema.names))
-    kept = []
-    for t in parts.only(columns):
-        t = t.filter(t["feasible"] if feasible else pc.invert(t["feasible"]))
-        if t.num_rows:
-            order = np.lexsort((t["design_id"].to_numpy(), t["cost"].to_numpy()))[:k]
-            kept.append(t.take(pa.array(order)))
-    if not kept:
-        return parts.schema.empty_table()
-    t = pa.concat_tables(kept)
-    return t.take(pa.array(np.lexsort((t["design_id"].to_numpy(), t["cost"].to_numpy()))[:k]))
-
-
 def _body(cfg) -> dict:
     """The patient's surface as a Plotly trace: the dome's, or the mesh's triangles (at most ~6,000)."""
     from surgopt.studies.port_place import _mesh_of, body_extent_mm
@@ -77,7 +59,7 @@ def _body(cfg) -> dict:
 def views(run, parts) -> list[View]:
     from surgopt.results import config_of
     from surgopt.studies import get_study
-    from surgopt.studies.port_place import CLINICAL_CHECKS, arms_of, tables, target_points_mm
+    from surgopt.studies.port_place import CLINICAL_CHECKS, arms_of, least_cost_layouts, tables, target_points_mm
 
     study = get_study(run.study)
     cfg = config_of(study, run)
@@ -89,9 +71,9 @@ def views(run, parts) -> list[View]:
     wanted = sorted({*LAYOUT_COLUMNS, *[f"{a}_{s}" for a in arms for s in ("site", "x_mm", "y_mm", "z_mm")],
                      *[f for _, fields, _, _, _ in CLINICAL_CHECKS for f in fields], "infeasible",
                      *[f"{a}_elevation_deg" for a in arms[:-1]], *PARALLEL_COLUMNS} & set(parts.schema.names))
-    best = _least_cost(parts, max(PARALLEL, TOP_FEASIBLE), True, wanted)  # one pass: the table's and the lines'
+    best = least_cost_layouts(parts, max(PARALLEL, TOP_FEASIBLE), True, wanted)  # the table's and the lines'
     feasible = best.slice(0, TOP_FEASIBLE)
-    infeasible = _least_cost(parts, TOP_INFEASIBLE, False, wanted) if cfg.rows_stored == "all" else None
+    infeasible = least_cost_layouts(parts, TOP_INFEASIBLE, False, wanted) if cfg.rows_stored == "all" else None
     import pyarrow as pa
 
     top = pa.concat_tables([t for t in (feasible, infeasible) if t is not None and t.num_rows]) \
