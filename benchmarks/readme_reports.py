@@ -43,6 +43,8 @@ def main() -> None:
             tab.on("request", lambda r: requests.append(r.url) if not r.url.startswith(("file:", "data:")) else None)
             tab.goto(page.as_uri())
             tab.wait_for_selector("body[data-ready]", timeout=300_000)
+            tab.evaluate("drawAllPlots()")
+            tab.wait_for_selector("body[data-all]", state="attached", timeout=300_000)
             figures = tab.locator(".js-plotly-plot").count()
             tab.close()
             bad += bool(errors or requests or not figures)

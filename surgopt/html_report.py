@@ -123,13 +123,25 @@ td:first-child,th:first-child{text-align:left}tr.selected td{background:#ffe9a8}
 nav a{color:#fff;margin-right:14px;font-size:13px}#pp-checks td,#pp-checks th{white-space:normal}
 """
 
-#: Figures are drawn one after another once the page has loaded (the first at once), so that the page is
-#: interactive before the last is drawn; ``body[data-ready]`` is set when every one is (the browser tests wait
-#: for it).
+#: Figures are drawn one after another once the page has loaded, those near the top first; the ones further down
+#: when they are scrolled near (software WebGL, on a machine without a GPU, takes seconds for a 3-D scene or
+#: parallel coordinates: drawing them all at once kept the page busy for 8 s). ``body[data-ready]`` is set when the
+#: first screenful is drawn; ``drawAllPlots()`` draws the rest now (``body[data-all]`` then: tests, screenshots).
 PLOTS_SCRIPT = """
-function drawPlots(){let i=0;function next(){if(i>=PLOTS.length){document.body.dataset.ready='1';return;}
-  const f=PLOTS[i++];let r;try{r=f();}catch(e){console.error(e);}
-  Promise.resolve(r).then(function(){setTimeout(next,0);},function(e){console.error(e);setTimeout(next,0);});}next();}
+const LATER=[];let busy=Promise.resolve();
+function drawOne(entry){if(entry.done)return busy;entry.done=true;busy=busy.then(function(){let r;
+  try{r=entry[1]();}catch(e){console.error(e);}return Promise.resolve(r).catch(function(e){console.error(e);});});
+  return busy;}
+function drawAllPlots(){return Promise.all(PLOTS.map(drawOne)).then(function(){document.body.dataset.all='1';});}
+function drawPlots(){const near=window.innerHeight*1.5;const first=[];
+  PLOTS.forEach(function(entry){const el=document.getElementById(entry[0]);
+    if(!el||el.getBoundingClientRect().top<near){first.push(entry);}else{LATER.push(entry);}});
+  Promise.all(first.map(drawOne)).then(function(){document.body.dataset.ready='1';});
+  if('IntersectionObserver' in window){const io=new IntersectionObserver(function(seen){seen.forEach(function(s){
+      if(!s.isIntersecting)return;io.unobserve(s.target);
+      const entry=LATER.find(function(e){return e[0]===s.target.id;});if(entry)drawOne(entry);});},
+    {rootMargin:'600px 0px'});LATER.forEach(function(e){const el=document.getElementById(e[0]);if(el)io.observe(el);});}
+  else{LATER.forEach(drawOne);}}
 if(document.readyState==='complete'){drawPlots();}else{window.addEventListener('load',drawPlots);}
 """
 
@@ -168,8 +180,8 @@ def figure_div(fig_id: str, figure: dict, css: str = "plot") -> tuple[str, str]:
     spec = to_json({"data": figure.get("data", []), "layout": {"margin": {"l": 50, "r": 20, "t": 40, "b": 45},
                                                               **figure.get("layout", {})}})
     return (f'<div id="{esc(fig_id)}" class="{css}"></div>',
-            f"PLOTS.push(function(){{const f={spec};return Plotly.newPlot('{fig_id}',f.data,f.layout,"
-            f"{to_json(config)});}});")
+            f"PLOTS.push(['{fig_id}',function(){{const f={spec};return Plotly.newPlot('{fig_id}',f.data,f.layout,"
+            f"{to_json(config)});}}]);")
 
 
 def render_view(view: View, index: int) -> tuple[str, list[str], dict[str, str]]:

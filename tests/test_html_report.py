@@ -112,7 +112,9 @@ def _open(page, path: Path, tmp_path):
     page.on("request", lambda r: requests.append(r.url) if not r.url.startswith(("file:", "data:", "blob:")) else None)
     page.set_viewport_size({"width": 1400, "height": 1000})
     page.goto(path.as_uri())
-    page.wait_for_selector("body[data-ready]", timeout=120_000)  # every figure drawn
+    page.wait_for_selector("body[data-ready]", timeout=120_000)  # the first screenful drawn
+    page.evaluate("drawAllPlots()")  # and the figures further down (drawn as they are scrolled near)
+    page.wait_for_selector("body[data-all]", state="attached", timeout=120_000)
     return errors, requests
 
 

@@ -238,8 +238,9 @@ document.querySelectorAll('#pp-layouts tbody tr').forEach(tr => { tr.style.curso
   tr.addEventListener('click', () => draw(+tr.dataset.i)); });
 ['pp-feasible', 'pp-elev', 'pp-clear'].forEach(id => document.getElementById(id).addEventListener('input', filter));
 filter();
-PLOTS.unshift(function(){ const t0 = performance.now();
+PLOTS.unshift(['pp-scene', function(){ const t0 = performance.now();
+  if (document.getElementById('pp-scene').dataset.layout) return;  // a click drew it first
   const done = D.n_layouts > 0 ? draw(0) : Plotly.newPlot('pp-scene', base(), {height:620, scene:{aspectmode:'data'}});
-  return Promise.resolve(done).then(function(){ document.body.dataset.sceneMs = String(Math.round(performance.now() - t0)); }); });
+  return Promise.resolve(done).then(function(){ document.body.dataset.sceneMs = String(Math.round(performance.now() - t0)); }); }]);
 })();
 """

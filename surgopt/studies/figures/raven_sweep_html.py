@@ -100,6 +100,6 @@ function show(k){ const w = D.spaces[k];
   return Plotly.react('rv-space', data, {title:{text:D.labels[k]}, height:520, xaxis:{title:{text:'x (mm)'}},
                       yaxis:{title:{text:'y (mm)'}, scaleanchor:'x'}}, {displaylogo:false, responsive:true}); }
 document.getElementById('rv-design').addEventListener('change', e => show(+e.target.value));
-PLOTS.push(function(){ return show(0); });
+PLOTS.push(['rv-space', function(){ return show(0); }]);
 })();
 """
