@@ -282,10 +282,22 @@ def _report(study, result, brief: bool = False):
     run = result.run
     if result.cache_hit:
         console.print(f"cache hit: {study.name} {run.key[:12]} already in {run.path}")
-    with _reading_rows(result.parts, quiet=not sys.stderr.isatty()) as parts:
-        summary = study.summary(parts)
-        edges = best_edges(study, run, parts)
-        front = None if brief else search_front(study, run, parts)  # several objectives: the Pareto front
+    from surgopt.errors import StoreError
+
+    try:
+        with _reading_rows(result.parts, quiet=not sys.stderr.isatty()) as parts:
+            summary = study.summary(parts)
+            edges = best_edges(study, run, parts)
+            front = None if brief else search_front(study, run, parts)  # several objectives: the Pareto front
+    except StoreError:
+        if (run.path / "manifest.json").exists():
+            raise
+        # removed (`surgopt runs rm`) between its last part and this report: the run did finish; nothing to show
+        typer.echo(f"note: {study.name} run {run.key[:12]} finished, but was removed (surgopt runs rm) before its "
+                   f"report could read it", err=True)
+        from surgopt.studies import Summary
+
+        return Summary({}, {})
     t = Table(title=f"{study.name} ({run.manifest['config_name']})", show_header=False)
     for k, v in summary.headline.items():
         t.add_row(k, f"{v:.6g}" if isinstance(v, float) else str(v))

@@ -295,3 +295,23 @@ def test_port_place_memory_estimate_is_above_its_measured_peak(tmp_path):
     peak = usage.ru_maxrss * 1024
     assert peak > 200 * 2 ** 20  # the premise: this is the study's process, not a wrapper
     assert est >= peak, (est / 2 ** 20, peak / 2 ** 20)
+
+
+def test_a_run_removed_before_its_closing_report_is_a_note_not_damage(tmp_path, monkeypatch):
+    """`runs rm` issued as a study finished made it exit 1 "damaged" (1 in 4): removed between its last part and
+    the report's reading. The run did finish: a note, exit 0."""
+    import shutil
+
+    import surgopt.runner as R
+
+    real = R.run_study
+
+    def run_then_removed(*a, **kw):
+        result = real(*a, **kw)
+        shutil.rmtree(result.run.path)  # what `surgopt runs rm KEY` does once the study's lock is released
+        return result
+
+    monkeypatch.setattr(R, "run_study", run_then_removed)
+    code, out = invoke("rcm-grid", str(_cfg(tmp_path)), "--store", str(tmp_path / "s"), "--quiet")
+    assert code == 0, out
+    assert "was removed (surgopt runs rm) before its report" in out and "damaged" not in out
