@@ -97,10 +97,6 @@ def _finite(obj):
     return obj
 
 
-def _none_for_nan(v):
-    return None if isinstance(v, float) and not np.isfinite(v) else v
-
-
 def plotly_js() -> str:
     """Plotly's bundled JavaScript (from the ``plotly`` package: no network)."""
     from plotly.offline import get_plotlyjs

@@ -10,7 +10,9 @@ from pathlib import Path
 
 import pytest
 
-from conftest import cli, single_run
+from surgopt.store import Store
+
+from conftest import cli
 
 BASE = Path(__file__).parent / "baselines"
 SEARCH = """
@@ -45,11 +47,11 @@ def pages(tmp_path_factory):
         r = cli("report", "--store", store, "--study", study, "--out", tmp / f"{study}.html")
         assert f"{study} run" in r.stdout  # the run it drew is named
         out[study] = tmp / f"{study}.html"
-    search = next(r for r in __import__("surgopt.store", fromlist=["Store"]).Store(store).runs("rcm-grid")
+    search = next(r for r in Store(store).runs("rcm-grid")
                   if (r.manifest.get("plan") or {}).get("name") == "optuna")
     cli("report", search.key[:12], "--store", store, "--out", tmp / "search.html")
     out["search"] = tmp / "search.html"
-    keys = [r.key[:12] for r in __import__("surgopt.store", fromlist=["Store"]).Store(store).runs("rcm-grid")]
+    keys = [r.key[:12] for r in Store(store).runs("rcm-grid")]
     cli("report", *keys, "--store", store, "--out", tmp / "compare.html")
     out["compare"] = tmp / "compare.html"
     r = cli("report", "--store-index", "--store", store)
@@ -152,7 +154,6 @@ def test_clicking_a_layout_redraws_the_3d_scene_and_its_checks(pages, page, tmp_
         scene = page.locator("#pp-scene")
         assert page.locator("#pp-scene .gl-container canvas, #pp-scene canvas").count() >= 1  # a WebGL scene
         first = scene.get_attribute("data-layout")
-        checks_before = page.locator("#pp-checks tbody").inner_text()
         rows = page.locator("#pp-layouts tbody tr:visible")
         assert rows.count() >= 2
         target = rows.nth(1)
@@ -161,7 +162,6 @@ def test_clicking_a_layout_redraws_the_3d_scene_and_its_checks(pages, page, tmp_
         page.wait_for_function(f"document.getElementById('pp-scene').dataset.layout === '{design}'", timeout=30_000)
         assert scene.get_attribute("data-layout") == design != first
         assert page.locator("#pp-title").inner_text().startswith(f"Layout {design}")
-        assert page.locator("#pp-checks tbody").inner_text() != checks_before or True  # equal values can repeat
         assert page.locator("#pp-ports tbody tr").count() >= 3
         assert "selected" in (target.get_attribute("class") or "")
         all_rows = page.locator("#pp-layouts tbody tr").count()
