@@ -27,7 +27,11 @@ import numpy as np
 from surgopt.kinematics import port_designs as D
 from surgopt.kinematics import port_place as K
 from surgopt.robots import dvrk
-from surgopt.studies import port_place as S
+from surgopt.robots.models import get_model
+from surgopt.studies.port_place import config as C
+from surgopt.studies.port_place import geometry as G
+from surgopt.studies.port_place import tables as T
+from surgopt.studies.port_place import study as S
 
 
 def numpy_instrument_tables(sites, rot, targets, arm, length):
@@ -103,17 +107,17 @@ def best_of(f, repeat=3):
 
 
 def main() -> None:
-    cfg = S.PortPlaceConfig()
-    sites = S.sites_mm(cfg) / 1000
-    targets = S.target_points_mm(cfg.target) / 1000
+    cfg = C.PortPlaceConfig()
+    sites = G.sites_mm(cfg) / 1000
+    targets = G.target_points_mm(cfg.target) / 1000
     centre = np.asarray(cfg.target.centre_mm) / 1000
-    arm = S.arm_limits(dvrk.PSM_CLASSIC)
-    crit = S.criteria(cfg)
-    rot = K.docking_frames(sites, centre, S.LATERAL)
+    arm = T.arm_limits(get_model("dvrk_psm_classic"))
+    crit = T.criteria(cfg)
+    rot = K.docking_frames(sites, centre, T.LATERAL)
     n, m = len(sites), len(targets)
     print(f"default config: {n} sites, {m} target points, {S.n_designs(n):,} designs")
-    K.instrument_tables(sites, rot, targets, arm, 0.1, S.approach(cfg.target, dvrk.LND_WRIST_BEND_RAD))  # compiled or loaded
-    tk, (reach, dex) = best_of(lambda: K.instrument_tables(sites, rot, targets, arm, 0.1, S.approach(cfg.target, dvrk.LND_WRIST_BEND_RAD)))
+    K.instrument_tables(sites, rot, targets, arm, 0.1, T.approach(cfg.target, dvrk.LND_WRIST_BEND_RAD))  # compiled or loaded
+    tk, (reach, dex) = best_of(lambda: K.instrument_tables(sites, rot, targets, arm, 0.1, T.approach(cfg.target, dvrk.LND_WRIST_BEND_RAD)))
     tn, (reach_np, dex_np) = best_of(lambda: numpy_instrument_tables(sites, rot, targets, arm, 0.1))
     assert np.array_equal(reach, reach_np) and np.allclose(dex, dex_np, atol=1e-12)
     print(f"per-port tables: numba {n * m / tk / 1e6:.1f} M site-points/s, numpy {n * m / tn / 1e6:.2f} M/s, "
@@ -141,7 +145,8 @@ def main() -> None:
         assert pairs[0][i, j] == r[0] and math.isclose(pairs[2][i, j], r[2], rel_tol=1e-12)
     print(f"per-pair tables, plain numpy point by point ({len(fewer)} pairs): {len(fewer) * m / tp / 1e6:.3f} M "
           f"pair-points/s, numba / plain {(tp / len(fewer)) / (tk / n_pairs):.0f}x (one core each)")
-    _, t, crit, _, _ = S.tables(cfg)
+    model = T.model_of(cfg)
+    t, crit = model.grid.tables, model.criteria
     total = S.n_designs(n)
 
     def chunked(instruments, start, stop, feasible_only=False):  # task by task, as the runner calls it
@@ -171,17 +176,17 @@ def main() -> None:
 
 def serial() -> None:
     from surgopt.kinematics.pa10_rcm import pose_singular_values
-    from surgopt.studies.port_place_serial import serial_tables
-    from surgopt.studies.rcm_grid import arm_model
-    from surgopt.studies.rcm_grid_config import RcmGridConfig
+    from surgopt.studies.port_place.serial_arms import serial_tables
+    from surgopt.studies.rcm_grid.study import arm_model
+    from surgopt.studies.rcm_grid.config import RcmGridConfig
 
-    cfg = S.PortPlaceConfig.model_validate({"robot": {"instrument_serial": {
+    cfg = C.PortPlaceConfig.model_validate({"robot": {"instrument_serial": {
         "model": "pa10_7c", "rcm_in_base_m": [0.65, 0.0, 0.5]}}, "constraints": {"min_external_clearance_mm": 150.0}})
-    sites = S.sites_mm(cfg) / 1000
-    targets = S.target_points_mm(cfg.target) / 1000
+    sites = G.sites_mm(cfg) / 1000
+    targets = G.target_points_mm(cfg.target) / 1000
     n, m = len(sites), len(targets)
-    serial_tables(cfg, sites)  # compiled or loaded, Prim's order cached
-    tk, st = best_of(lambda: serial_tables(cfg, sites))
+    serial_tables(T.prepare(cfg), sites)  # compiled or loaded, Prim's order cached
+    tk, st = best_of(lambda: serial_tables(T.prepare(cfg), sites))
     arm = arm_model(RcmGridConfig())
     rcm = np.asarray(cfg.robot.instrument_serial.rcm_in_base_m)
 

@@ -106,7 +106,7 @@ def main():
     from surgopt.kinematics import raven_workspace as W
     from surgopt.kinematics.raven_plane import evaluate_geometries, plane_grid
     from surgopt.robots import raven_iv
-    from surgopt.studies import raven_sweep as S
+    from surgopt.studies.raven_sweep import study as S
 
     cfg = load_embedded(S.DEFAULT_CONFIG, S.Config)
     t = time.perf_counter()

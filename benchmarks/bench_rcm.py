@@ -72,7 +72,7 @@ def main():
     configure_numba()
     from surgopt.config import load_embedded
     from surgopt.kinematics import pa10_rcm as K
-    from surgopt.studies import rcm_grid as S
+    from surgopt.studies.rcm_grid import study as S
 
     cfg = load_embedded(S.DEFAULT_CONFIG, S.Config)
     arm = S.arm_model(cfg)
@@ -141,7 +141,7 @@ def generic(cfg, rcm, off, t_closed, quick):
     from surgopt.kinematics import pa10_rcm as K
     from surgopt.kinematics import chain_candidates as CC
     from surgopt.kinematics import serial_chain as C
-    from surgopt.studies import rcm_grid as S
+    from surgopt.studies.rcm_grid import study as S
 
     gcfg = validate({"robot": {"kernel": "generic"}}, S.Config, "bench")
     chain, _, seed = gcfg.robot.chain()

@@ -25,8 +25,8 @@ def main(trials: int, tpe: bool, batch: int | None) -> None:
     from surgopt.plans import split
     from surgopt.runner import run_study
     from surgopt.store import Store
-    from surgopt.studies import raven_sweep as R
-    from surgopt.studies.search import SearchSpec
+    from surgopt.studies.raven_sweep import study as R
+    from surgopt.plans.search import SearchSpec
 
     grid_cfg = R.Config()
     R.warm_up(grid_cfg)

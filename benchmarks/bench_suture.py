@@ -47,7 +47,7 @@ def main():
     configure_numba()
     from surgopt.config import load_embedded
     from surgopt.kinematics.throat import suture_run
-    from surgopt.studies import suture_sim as S
+    from surgopt.studies.suture_sim import study as S
 
     cfg = load_embedded(S.DEFAULT_CONFIG, S.Config)
     geo = S.geometry(cfg, 550.0, 150.0)

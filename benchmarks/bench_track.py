@@ -31,8 +31,8 @@ def main():
     from surgopt.robots import pa10_7c
     from surgopt.runner import run_study
     from surgopt.store import Store
-    from surgopt.studies import rcm_grid as G
-    from surgopt.studies import rcm_track as S
+    from surgopt.studies.rcm_grid import study as G
+    from surgopt.studies.rcm_track import study as S
 
     cfg = load_embedded(S.DEFAULT_CONFIG, S.Config)
     S.warm_up(cfg)

@@ -55,7 +55,7 @@ def main():
 
     from surgopt.config import load_embedded
     from surgopt.kinematics import pa10_rcm as K
-    from surgopt.studies import rcm_grid as S
+    from surgopt.studies.rcm_grid import study as S
 
     sys.path.insert(0, __file__.rsplit("/", 1)[0])
     from bench_rcm import best_of, numpy_rcm_singular_values

@@ -26,7 +26,7 @@ import numpy as np
 import pyarrow as pa
 
 import surgopt
-from surgopt.studies import raven_sweep as S
+from surgopt.studies.raven_sweep import study as S
 
 REPO = Path(__file__).resolve().parents[1]
 PARAMS = ("alpha_deg", "beta_deg", "phi_x_deg", "phi_y_deg", "phi_z_deg", "bx_mm", "by_mm", "iso_min")

@@ -10,7 +10,7 @@ from pathlib import Path
 import numpy as np
 
 from surgopt.config import load_config, load_embedded
-from surgopt.studies import rcm_grid as S
+from surgopt.studies.rcm_grid import study as S
 
 REPO = Path(__file__).resolve().parents[1]
 PAPER_GII = np.array([0.0357, 0.0351, 0.0148, 0.0421, 0.0340, 0.0107, 0.0356, 0.0440, 0.0139,

@@ -12,7 +12,7 @@ from pathlib import Path
 import numpy as np
 
 import surgopt
-from surgopt.studies.rcm_track import rank_correlation
+from surgopt.studies.rcm_track.study import rank_correlation
 
 REPO = Path(__file__).resolve().parents[1]
 store = sys.argv[1] if len(sys.argv) > 1 else str(REPO / "surgopt-store")

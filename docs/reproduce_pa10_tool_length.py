@@ -40,7 +40,7 @@ ax.legend(fontsize=8)
 fig.savefig(REPO / "docs" / "figures" / "rcm_tool_length.png", dpi=110, bbox_inches="tight")
 
 # Per RCM: each of Table I's 15 candidates over the same lengths (0.40 m added; GII 0 where infeasible).
-from surgopt.studies.rcm_grid import PAPER_TABLE_I  # noqa: E402
+from surgopt.studies.rcm_grid.study import PAPER_TABLE_I  # noqa: E402
 
 per_length = np.round(np.arange(0.40, 0.7501, 0.05), 3)
 cands = [[float(r[0]), float(r[1])] for r in PAPER_TABLE_I]

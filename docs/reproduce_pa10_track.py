@@ -13,7 +13,7 @@ import numpy as np
 import surgopt
 from surgopt.config import load_embedded
 from surgopt.studies import get_study
-from surgopt.studies import rcm_track as S
+from surgopt.studies.rcm_track import study as S
 
 REPO = Path(__file__).resolve().parents[1]
 store = sys.argv[1] if len(sys.argv) > 1 else str(REPO / "surgopt-store")

@@ -15,7 +15,7 @@ from surgopt.config import load_config, load_embedded
 from surgopt.plans import follow_up_plan
 from surgopt.runner import run_study
 from surgopt.store import Store
-from surgopt.studies import raven_sweep as S
+from surgopt.studies.raven_sweep import study as S
 
 REPO = Path(__file__).resolve().parents[1]
 

@@ -17,7 +17,7 @@ import numpy as np
 
 import surgopt
 from surgopt.store import Store
-from surgopt.studies.raven_sweep import PARAMS
+from surgopt.studies.raven_sweep.study import PARAMS
 
 REPO = Path(__file__).resolve().parents[1]
 store = sys.argv[1] if len(sys.argv) > 1 else str(REPO / "surgopt-store")

@@ -7,7 +7,7 @@ from __future__ import annotations
 import pyarrow as pa
 
 from surgopt.config import load_embedded
-from surgopt.studies import suture_sim as S
+from surgopt.studies.suture_sim import study as S
 
 
 def summary(cfg):

@@ -2,7 +2,6 @@
 imported, so a Ctrl-C or SIGTERM at any instant, even while the CLI loads, ends in one line and its exit code."""
 from __future__ import annotations
 
-import sys
 
 
 def main() -> None:

@@ -92,7 +92,7 @@ def plot(run: str | Path | None = None, store: str | Path | None = None, study: 
     returns their paths."""
     from surgopt.results import config_of, resolve_run
     from surgopt.store import Store
-    from surgopt.studies.figures import set_format
+    from surgopt.studies.plotting import set_format
 
     s = Store(store)
     st, r = resolve_run(s, None if run is None else str(run), study)
@@ -103,7 +103,7 @@ def plot(run: str | Path | None = None, store: str | Path | None = None, study: 
     table = r.read_table(st.schema_for(r.manifest["config"]))
     plan = st.search_plan(cfg) if st.search_plan else None
     if plan is not None:
-        from surgopt.studies.figures import search_figures
+        from surgopt.studies.plotting import search_figures
 
         from surgopt.report import feasible_rows
 

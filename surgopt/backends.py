@@ -216,6 +216,9 @@ def _quiet_on_stop_signals(client) -> None:
 def _worker_setup(cache_dir: str, study_name: str, cfg) -> str:
     """On a dask worker: one numba thread (dask does not set NUMBA_NUM_THREADS), a numba cache, compiled kernels."""
     os.environ.setdefault("NUMBA_CACHE_DIR", cache_dir)
+    from surgopt.jit import configure_numba
+
+    configure_numba()
     import numba
 
     numba.set_num_threads(1)

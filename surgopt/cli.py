@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import contextlib
 import sys
+from dataclasses import dataclass
 from typing import Annotated, Optional
 
 import typer
@@ -49,7 +50,7 @@ def _study_command(study) -> None:
     def command(**kw) -> None:
         given = [(f, kw.pop(f.dest)) for f in study.flags]
         given = [(f, v) for f, v in given if v not in (None, False)]
-        _run_study_command(study, flags=given, **kw)
+        _run_study_command(study, StudyCommand(**kw), given)
 
     command.__signature__ = inspect.Signature(params)
     command.__annotations__ = {p.name: p.annotation for p in params}
@@ -98,40 +99,70 @@ def _split_args(args: list[str] | None) -> tuple[Optional[str], list[str]]:
     return config, args
 
 
-def _run_study_command(study, args, store, jobs, force, quiet, chunk_size=None, backend="threads", scheduler=None,
-                       max_hours=1.0, max_memory_gb=None, flags=(), multirun=False, print_config=False,
-                       dry_run=False, name=None, tag=None, verbose=0):
-    set_verbosity(verbose)
+@dataclass(frozen=True)
+class StudyCommand:
+    """What a study command was given (its shared options; the study's own flags travel beside it): the config
+    and overrides (``args``), the store, how to run (``jobs``, ``backend``, ``scheduler``, ``chunk_size``,
+    ``force``, ``quiet``), the budget (``max_hours``, ``max_memory_gb``), what to do instead of running
+    (``multirun``, ``print_config``, ``dry_run``), and the run's ``name`` and ``tag``s."""
+
+    args: list | None = None
+    store: object = None
+    jobs: int = 2
+    force: bool = False
+    quiet: bool = False
+    chunk_size: int | None = None
+    backend: object = "threads"
+    scheduler: str | None = None
+    max_hours: float = 1.0
+    max_memory_gb: float | None = None
+    multirun: bool = False
+    print_config: bool = False
+    dry_run: bool = False
+    name: str | None = None
+    tag: list | None = None
+    verbose: int = 0
+
+    def run_options(self, **fields):
+        """The runner's ``RunOptions`` of this command (``fields``: a run's own name or tags)."""
+        from surgopt.runner import RunOptions
+
+        return RunOptions(jobs=self.jobs, backend=getattr(self.backend, "value", self.backend),
+                          scheduler=self.scheduler, chunk=self.chunk_size, force=self.force, quiet=self.quiet,
+                          max_hours=self.max_hours, max_memory_bytes=None if self.max_memory_gb is None
+                          else int(self.max_memory_gb * 2 ** 30), **fields)
+
+
+def _run_study_command(study, cmd: StudyCommand, flags=()):
+    set_verbosity(cmd.verbose)
     with guard():
-        tags = _tags(tag)
+        tags = _tags(cmd.tag)
         from surgopt.compose import variants
         from surgopt.runner import run_study
         from surgopt.store import Store
 
-        backend = getattr(backend, "value", backend)
-        config, overrides = _split_args(args)
+        options = cmd.run_options()
+        config, overrides = _split_args(cmd.args)
         updates = {k: v for f, value in flags for k, v in f.update(value).items()}
         flags_text = " ".join(f"{f.option} {v}" for f, v in flags if f.value_update is not None)
         flags = [f for f, _ in flags]
-        todo = variants(study, config, overrides, updates, multirun=multirun, flags_text=flags_text)
+        todo = variants(study, config, overrides, updates, multirun=cmd.multirun, flags_text=flags_text)
         todo = _expanded(study, todo, flags)
-        if print_config:
+        if cmd.print_config:
             _print_configs(todo)
             return
-        budget = dict(max_hours=max_hours, max_memory_bytes=None if max_memory_gb is None else int(max_memory_gb * 2 ** 30))
         notes = [n for v in todo if study.advice for n in study.advice(v.config)]
         for note in dict.fromkeys(notes):  # once each, in order (the runs of a --multirun often share one)
             typer.echo(f"note: {note}", err=True)
-        if dry_run:
-            _dry_run(study, todo, Store(store), jobs, chunk_size, budget, backend, scheduler)
+        if cmd.dry_run:
+            _dry_run(study, todo, Store(cmd.store), options)
             return
         say = lambda m: typer.echo(m, err=True)  # noqa: E731
         finished = []
         for v in todo:
-            run_name = name if name is None or len(todo) == 1 else f"{name}[{len(finished)}]"
-            result = run_study(study, v.config, config_name=v.config_name, store=Store(store), jobs=jobs,
-                               force=force, quiet=quiet, chunk=chunk_size, backend=backend, scheduler=scheduler,
-                               say=say, name=run_name, tags=tags, **budget)
+            run_name = cmd.name if cmd.name is None or len(todo) == 1 else f"{cmd.name}[{len(finished)}]"
+            result = run_study(study, v.config, config_name=v.config_name, store=Store(cmd.store), options=options,
+                               say=say, name=run_name, tags=tags)
             summary = _report(study, result, brief=len(todo) > 1)
             finished.append((v, result, summary))
             for f in flags:
@@ -140,8 +171,8 @@ def _run_study_command(study, args, store, jobs, force, quiet, chunk_size=None, 
                 from surgopt.plans import follow_up_plan
 
                 follow = run_study(study, v.config, plan=follow_up_plan(f.follow_up, study, v.config, result),
-                                   config_name=v.config_name + f.follow_up_suffix, store=Store(store), jobs=jobs,
-                                   force=force, quiet=quiet, backend=backend, scheduler=scheduler, say=say, **budget)
+                                   config_name=v.config_name + f.follow_up_suffix, store=Store(cmd.store),
+                                   options=options, chunk=None, say=say)
                 _report(study, follow)
         if len(todo) > 1:
             _multirun_table(study, finished)
@@ -213,7 +244,7 @@ def _print_configs(todo) -> None:
         typer.echo(to_toml(v.config.model_dump(mode="json")))
 
 
-def _dry_run(study, todo, store, jobs, chunk_size, budget, backend="threads", scheduler=None) -> None:
+def _dry_run(study, todo, store, options) -> None:
     """What each run would be: size, chunks, store key and state, estimated time and memory (the whole
     process tree's: the backend's worker processes counted)."""
     from surgopt.config import study_key
@@ -221,7 +252,8 @@ def _dry_run(study, todo, store, jobs, chunk_size, budget, backend="threads", sc
     from surgopt.plans import plan_for
     from surgopt.runner import check_budget, duration_text, run_bytes, usable_jobs, wall_seconds
 
-    jobs = usable_jobs(jobs, backend, scheduler, say=lambda m: wide_console().print(m))
+    backend, scheduler, chunk_size = options.backend, options.scheduler, options.chunk
+    jobs = usable_jobs(options.jobs, backend, scheduler, say=lambda m: wide_console().print(m))
 
     rows = []
     for v in todo:
@@ -236,7 +268,7 @@ def _dry_run(study, todo, store, jobs, chunk_size, budget, backend="threads", sc
         chunk = chunk_size or (run.manifest["chunk"] if run else plan.chunk(study, v.config))
         est = plan_estimate(study, v.config, plan)
         try:
-            check_budget(study, v.config, jobs, budget["max_hours"], budget["max_memory_bytes"], est=est,
+            check_budget(study, v.config, jobs, options.max_hours, options.max_memory_bytes, est=est,
                          backend=backend, scheduler=scheduler)
             verdict = "within budget"
         except Exception as exc:  # noqa: BLE001 - shown, not raised: this is a dry run

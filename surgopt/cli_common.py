@@ -46,10 +46,14 @@ TagOpt = Annotated[Optional[list[str]], typer.Option(
 NameOpt = Annotated[Optional[str], typer.Option(
     "--name", help="A name for the run, shown by `surgopt runs` (not part of the store key: a cache hit takes "
                    "the name too).", show_default=False)]
-class Backend(str, enum.Enum):
-    threads = "threads"
-    loky = "loky"
-    dask = "dask"
+def _backend_choices() -> enum.Enum:
+    """The CLI's --backend choices, derived from ``backends.BACKENDS`` (the one list; importing it loads no pool)."""
+    from surgopt.backends import BACKENDS
+
+    return enum.Enum("Backend", {name: name for name in BACKENDS}, type=str)
+
+
+Backend = _backend_choices()
 
 
 class ListFormat(str, enum.Enum):

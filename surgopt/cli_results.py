@@ -261,11 +261,11 @@ def plot(
             fail(f"--design: no {id_column} {design} in run {r.key[:12]}", 2)
         out = out if out is not None else r.path / FIGURES_FOLDER
         out.mkdir(parents=True, exist_ok=True)
-        from surgopt.studies.figures import set_format
+        from surgopt.studies.plotting import set_format
 
         set_format(fmt.value)
         if plan is not None:
-            from surgopt.studies.figures import search_figures
+            from surgopt.studies.plotting import search_figures
 
             from surgopt.report import feasible_rows
 

@@ -14,15 +14,19 @@ PACKAGE = Path(__file__).resolve().parent
 ROW_CODE = ("kinematics", "robots", "studies", "plans", "metrics.py", "jit.py")
 
 
+#: The files of a study folder that draw, not compute (a figure or a page changes no row).
+DRAWING = ("figures.py", "html.py", "plotting.py")
+
+
 def row_code_files() -> list[Path]:
-    """Every source file under ROW_CODE, in a fixed order (studies/figures/ left out: it draws, not computes)."""
+    """Every source file under ROW_CODE, in a fixed order (the DRAWING files left out)."""
     files = []
     for name in ROW_CODE:
         path = PACKAGE / name
         if path.is_file():
             files.append(path)
         else:
-            files += [f for f in path.rglob("*.py") if "figures" not in f.relative_to(path).parts]
+            files += [f for f in path.rglob("*.py") if f.name not in DRAWING]
     return sorted(files)
 
 

@@ -76,3 +76,18 @@ def hashed_config_file(field: str, path: Path, sha256: str | None, limit: int, s
         raise ValueError(f"{field}: {path} changed since this config was written ({sha_field} differs); drop "
                          f"{sha_field} to use the file as it is now")
     return data, sha
+
+
+def resolve_and_hash(model, field: str, sha_field: str, limit: int, context: dict) -> tuple[Path, str | None]:
+    """The file a config model's ``field`` names, resolved against the config's folder (``config_file_path``)
+    and set back on the model as an absolute path; unless the config is read as stored (``context["stored"]``),
+    read (bounded by ``limit`` bytes), hashed and held to the hash the model already carries, the hash set into
+    ``sha_field``. (path, sha256; None when stored.) The one way a config takes in a file (a URDF, a mesh, a
+    points file): its content, not its path, goes into the store key."""
+    path = config_file_path(getattr(model, field), context)
+    object.__setattr__(model, field, str(path))
+    if context.get("stored"):
+        return path, None
+    _, sha = hashed_config_file(field, path, getattr(model, sha_field), limit, sha_field)
+    object.__setattr__(model, sha_field, sha)
+    return path, sha

@@ -2,66 +2,22 @@
 
 A page is one file that works offline from ``file://``: Plotly's JavaScript, every style and every script are
 embedded, nothing is fetched (a hospital laptop, an e-mail attachment). It never embeds a run's raw rows: each
-study's views (``Study.html_views``, in ``surgopt/studies/figures/<study>_html.py``) compute aggregates from the
+study's views (``Study.html_views``, in ``surgopt/studies/<study>/html.py``) compute aggregates from the
 Parquet parts (per-site bests, the top N, histograms, a Pareto front) and say so on the page; ``surgopt export``
 gets the rest. This module knows no study by name: it lays out the page (the run's headline, the study's views,
 the summary tables, the config that was hashed, provenance, notes) and the index and comparison pages.
 """
 from __future__ import annotations
 
-import html
 import json
-from dataclasses import dataclass, field
-from pathlib import Path
 
 import numpy as np
+from surgopt.results import config_of
+from surgopt.studies.page import View, esc, table_html
 
 #: What every page says about what it embeds.
 AGGREGATE_NOTE = ("This page embeds aggregates of the run's rows (computed from its Parquet parts), not the rows "
                   "themselves; `surgopt export {key} --out rows.csv` writes every row.")
-
-
-@dataclass
-class View:
-    """One section of a page: a title, a sentence of what it shows (units and frame), Plotly figures (id ->
-    {data, layout}), HTML beside them (tables), data for the page's scripts (a JSON object under ``data_id``) and
-    a script that uses it."""
-
-    title: str
-    note: str = ""
-    figures: dict = field(default_factory=dict)
-    html: str = ""
-    data: dict | None = None
-    data_id: str = ""
-    script: str = ""
-
-
-def esc(x) -> str:
-    return html.escape(str(x), quote=True)
-
-
-def fmt(x) -> str:
-    """A cell: integers with separators, floats to 6 significant digits, NaN as 'n/a'."""
-    if isinstance(x, (bool, np.bool_)):
-        return "true" if x else "false"
-    if isinstance(x, (int, np.integer)):
-        return f"{int(x):,}"
-    if isinstance(x, (float, np.floating)):
-        return "n/a" if not np.isfinite(x) else f"{float(x):.6g}"
-    return str(x)
-
-
-def table_html(header, rows, table_id: str = "", sortable: bool = True, row_attrs=None) -> str:
-    """A table; ``sortable``: clicking a header sorts by it (numbers as numbers); ``row_attrs(i)``: attributes of
-    row i (e.g. a data index a script reads)."""
-    cls = ' class="sortable"' if sortable else ""
-    tid = f' id="{esc(table_id)}"' if table_id else ""
-    head = "".join(f"<th>{esc(h)}</th>" for h in header)
-    body = []
-    for i, row in enumerate(rows):
-        attrs = row_attrs(i) if row_attrs else ""
-        body.append(f"<tr{attrs}>" + "".join(f"<td>{esc(fmt(v))}</td>" for v in row) + "</tr>")
-    return f"<table{tid}{cls}><thead><tr>{head}</tr></thead><tbody>{''.join(body)}</tbody></table>"
 
 
 def to_json(obj) -> str:
@@ -199,8 +155,7 @@ def search_views(study, run, parts) -> list[View]:
     """An optimiser's run: the feasible trials' objective on its own scale (``Study.reported_objective``: not a
     penalised score) and its best so far, against the same config's grid when the store holds it; or, for several
     objectives, the Pareto front of the feasible trials."""
-    from surgopt.results import config_of
-    from surgopt.studies.search import best_so_far, pareto_front
+    from surgopt.plans.search import best_so_far, pareto_front
 
     cfg = config_of(study, run)
     plan = study.search_plan(cfg) if study.search_plan is not None else None
@@ -283,7 +238,6 @@ def run_sections(study, run, parts) -> tuple[list[str], list[str], dict[str, str
                     f'{table_html(["quantity", "value"], head, "headline-table", sortable=False)}</section>')
     notes = list(best_edges(study, run, parts)) if parts.num_rows else []
     if study.advice is not None:
-        from surgopt.results import config_of
 
         notes += study.advice(config_of(study, run))
     if notes:
@@ -292,7 +246,7 @@ def run_sections(study, run, parts) -> tuple[list[str], list[str], dict[str, str
     plan_name = (run.manifest.get("plan") or {}).get("name", "grid")
     views = search_views(study, run, parts) if plan_name not in ("grid", "cull", "refine") else []
     if study.html_views is not None and parts.num_rows:
-        views += study.html_views(run, parts)
+        views += study.html_views(run, config_of(study, run), parts)
     if views:
         for i, view in enumerate(views):
             sec, scr, dat = render_view(view, i)
@@ -340,7 +294,7 @@ def comparison_page(items) -> str:
     for i, (study, run, parts) in enumerate(items):
         if study.html_views is None or not parts.num_rows:
             continue
-        views = study.html_views(run, parts)
+        views = study.html_views(run, config_of(study, run), parts)
         if not views:
             continue
         view = views[0]

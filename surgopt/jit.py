@@ -1,8 +1,8 @@
 """Numba settings in one place: the compile flags every kernel uses and the process environment.
 
 ``configure_numba()`` must run before numba is imported (numba reads NUMBA_CACHE_DIR and
-NUMBA_CPU_FEATURES once, at import): ``surgopt.kinematics`` calls it first thing, so the first import
-of a kernel configures numba without the caller doing anything. Nothing else imports the kernels at
+NUMBA_CPU_FEATURES once, at import): every kernel compiles with ``njit`` below, which calls it before it
+first imports numba, so the first import of a kernel configures numba without the caller doing anything. Nothing else imports the kernels at
 module level: ``import surgopt``, ``import surgopt.cli`` and every ``--help`` load no numba or llvmlite
 and change no environment variable (tests/test_cli.py); a study imports its kernels when it first
 computes, and worker processes do the same.
@@ -24,6 +24,20 @@ from pathlib import Path
 EXACT = dict(cache=True, nogil=True, fastmath=False)
 VECTOR = dict(cache=True, nogil=True, fastmath=False, error_model="numpy")
 CONTRACT = dict(cache=True, nogil=True, fastmath={"contract"}, error_model="numpy")
+
+
+_configured = [False]
+
+
+def njit(*args, **flags):
+    """numba's ``njit``, numba configured first (``configure_numba``, once per process): the one way a kernel
+    module reaches numba."""
+    if not _configured[0]:
+        configure_numba()
+        _configured[0] = True
+    import numba
+
+    return numba.njit(*args, **flags)
 
 
 def numba_cache_dir() -> Path:

@@ -102,3 +102,10 @@ def _top_k(table, column: str, k: int, ascending: bool = False):
     order = table["__order"].to_numpy()
     idx = np.lexsort((order, v if ascending else -v))[:k]  # by value, then first occurrence
     return table.take(idx)
+
+
+def concat_rows(parts: list[dict]) -> dict:
+    """Column-wise concatenation of row dicts (in order)."""
+    if len(parts) == 1:
+        return parts[0]
+    return {c: np.concatenate([np.asarray(r[c]) for r in parts]) for c in parts[0]}

@@ -8,7 +8,7 @@ import json
 
 import numpy as np
 
-from surgopt.studies.figures import columns
+from surgopt.studies.plotting import columns
 
 STATS = ("count", "min", "p25", "median", "p75", "max", "mean")
 
@@ -105,7 +105,7 @@ def summary_sections(study, run, parts, top: int = 10, sort: str | None = None,
 def search_front(study, run, parts):
     """(title, header, rows) of the Pareto front of a multi-objective search run, else None."""
     from surgopt.results import config_of
-    from surgopt.studies.search import pareto_front
+    from surgopt.plans.search import pareto_front
 
     plan = study.search_plan(config_of(study, run)) if study.search_plan else None
     if plan is None or len(plan.objectives) < 2 or not parts.num_rows:

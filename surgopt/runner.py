@@ -194,24 +194,44 @@ def check_budget(study, cfg, jobs: int, max_hours: float | None, max_memory_byte
                          f"{math.ceil(need / 2 ** 30 * 1.2)} to run it anyway, or {est.smaller}")
 
 
-def run_study(study, cfg, *, config_name: str, store: Store, jobs: int = DEFAULT_JOBS,
-              force: bool = False, quiet: bool = False, chunk: int | None = None,
-              backend: str = "threads", scheduler: str | None = None, say=print,
-              max_hours: float | None = DEFAULT_MAX_HOURS, max_memory_bytes: int | None = None,
-              plan=None, name: str | None = None, tags: dict | None = None) -> RunResult:
+@dataclass(frozen=True)
+class RunOptions:
+    """How one run is carried out, none of it in the store key: ``jobs`` workers on ``backend`` ("threads": a
+    thread pool in this process, every kernel compiled ``nogil``, so tasks run in parallel and nothing has to start
+    or load kernels; "loky": local worker processes; "dask": joblib's dask backend on a ``distributed`` cluster at
+    ``scheduler``, or a LocalCluster of ``jobs`` single-threaded workers), ``chunk`` items a task (None: the
+    plan's), ``force`` (recompute a stored run), ``quiet`` (no progress bar), the budget ``check_budget`` holds
+    the estimate to (``max_hours``; ``max_memory_bytes``, None: half this machine's memory), and the ``name`` and
+    ``tags`` recorded in the manifest (a cache hit given another name or new tags records them)."""
+
+    jobs: int = DEFAULT_JOBS
+    backend: str = "threads"
+    scheduler: str | None = None
+    chunk: int | None = None
+    force: bool = False
+    quiet: bool = False
+    max_hours: float | None = DEFAULT_MAX_HOURS
+    max_memory_bytes: int | None = None
+    name: str | None = None
+    tags: dict | None = None
+
+
+def run_study(study, cfg, *, config_name: str, store: Store, options: RunOptions | None = None, plan=None,
+              say=print, **fields) -> RunResult:
     """Compute (or fetch from the store) the table of one study config explored by one plan.
 
+    ``options``: how (``RunOptions``; ``fields`` replace some of its values: ``run_study(..., jobs=1)``).
     ``plan``: how the design space is explored (``surgopt.plans``); None: the plan the config names (its
-    [search] method, else the study's grid). ``backend`` "threads" (a thread pool in this process; every kernel
-    is compiled ``nogil``, so tasks run in parallel and nothing has to start or load kernels), "loky" (local
-    worker processes) or "dask" (joblib's dask backend on a ``distributed`` cluster: ``scheduler`` address, or
-    a LocalCluster of ``jobs`` single-threaded workers). Every plan runs the same way: its session gives tasks,
-    the backend computes them, the session turns their rows into parts, and only this process writes them to
-    the store. ``max_hours``, ``max_memory_bytes`` (None: half this machine's memory): the budget
-    ``check_budget`` holds the study's estimate to before it starts. ``name``, ``tags``: recorded in the
-    manifest (not in the key); a cache hit given another name or new tags records them.
+    [search] method, else the study's grid). Every plan runs the same way: its session gives tasks, the backend
+    computes them, the session turns their rows into parts, and only this process writes them to the store.
     """
+    from dataclasses import replace
+
     from surgopt.plans import plan_for
+
+    o = replace(options or RunOptions(), **fields)
+    jobs, force, quiet, chunk, backend, scheduler = o.jobs, o.force, o.quiet, o.chunk, o.backend, o.scheduler
+    max_hours, max_memory_bytes, name, tags = o.max_hours, o.max_memory_bytes, o.name, o.tags
 
     where = get_backend(backend)
     if scheduler is not None and not where.takes_scheduler:
@@ -457,10 +477,10 @@ def _warm_up(study, cfg, say=None) -> tuple[float, bool]:
     update: numba's compile events say so) or loaded from the cache, with the time it took."""
     import threading
 
-    import surgopt.kinematics  # noqa: F401 - numba configured before it is imported
-    from numba.core import event
+    from surgopt.jit import compile_lock, configure_numba
 
-    from surgopt.jit import compile_lock
+    configure_numba()  # before numba is imported here
+    from numba.core import event
 
     waited = []
     on_wait = None if say is None else (lambda: (waited.append(time.perf_counter()), say(

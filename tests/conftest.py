@@ -20,7 +20,9 @@ if os.environ.get("CI"):
 # subprocesses compile the same kernels into one cache: NUMBA_CACHE_DIR, set here to $NUMBA_CACHE_DIR or
 # ~/.cache/surgopt/numba and shared by the pytest-xdist workers (a kernel is compiled once; a process that finds
 # another compiling waits on the cache's lock and says so: COMPILE_NOTES below)
-import surgopt.kinematics  # noqa: E402,F401  (configures numba on import)
+from surgopt.jit import configure_numba  # noqa: E402
+
+configure_numba()
 
 
 #: The notes a run prints while it compiles the kernels or waits for another process compiling them into the

@@ -488,7 +488,7 @@ def dh_chain_transform(model, q):
     t = np.eye(4)
     f = dh_standard if model.convention == "standard" else dh_modified
     for row, v in zip(model.dh, q, strict=True):
-        t = t @ f(v + np.radians(row.theta_offset_deg), row.d_m, row.a_m, np.radians(row.alpha_deg))
+        t = t @ f(v + row.theta_offset_rad, row.d_m, row.a_m, row.alpha_rad)
     return t
 
 

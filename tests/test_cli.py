@@ -9,7 +9,7 @@ import numpy as np
 from surgopt.config import load_config
 from surgopt.runner import run_study
 from surgopt.store import Store
-from surgopt.studies import rcm_grid as S
+from surgopt.studies.rcm_grid import study as S
 
 from conftest import cli, single_run, single_table
 

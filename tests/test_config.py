@@ -6,7 +6,7 @@ import pytest
 
 from surgopt.config import canonical_json, load_config, load_embedded, study_key
 from surgopt.errors import ConfigError
-from surgopt.studies import rcm_grid as S
+from surgopt.studies.rcm_grid import study as S
 
 from conftest import REPO
 

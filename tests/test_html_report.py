@@ -89,7 +89,7 @@ def test_a_run_page_names_its_run_and_shows_config_provenance_and_frame(pages, w
 def test_the_port_place_page_embeds_aggregates_not_rows(pages):
     """port_small has 360 layouts: the page's layout table holds the TOP_FEASIBLE feasible and TOP_INFEASIBLE
     infeasible of least cost at most, never every row."""
-    from surgopt.studies.figures.port_place_html import TOP_FEASIBLE, TOP_INFEASIBLE
+    from surgopt.studies.port_place.html import TOP_FEASIBLE, TOP_INFEASIBLE
 
     text = pages["port-place"].read_text()
     rows = re.findall(r'<tr data-i="\d+"', text)

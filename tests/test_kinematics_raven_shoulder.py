@@ -9,7 +9,7 @@ from surgopt.kinematics import raven as K
 from surgopt.kinematics import raven_plane as P
 from surgopt.kinematics import raven_shoulder as SH
 from surgopt.kinematics import raven_workspace as W
-from surgopt.studies import raven_sweep as S
+from surgopt.studies.raven_sweep import study as S
 
 import reference as R
 

@@ -7,7 +7,7 @@ import pytest
 
 from surgopt.kinematics import raven_plane as P
 from surgopt.kinematics import raven_workspace as W
-from surgopt.studies import raven_sweep as S
+from surgopt.studies.raven_sweep import study as S
 
 import reference as R
 

@@ -8,8 +8,8 @@ from surgopt.config import load_embedded
 from surgopt.kinematics import rcm_track as K
 from surgopt.kinematics.serial_chain import Chain, kernel_arrays, rcm_walk
 from surgopt.robots import pa10_7c
-from surgopt.studies import rcm_grid as G
-from surgopt.studies import rcm_track as S
+from surgopt.studies.rcm_grid import study as G
+from surgopt.studies.rcm_track import study as S
 
 
 def test_the_papers_path_length_and_speeds():

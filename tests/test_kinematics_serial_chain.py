@@ -17,7 +17,7 @@ from surgopt.kinematics import serial_chain as sc
 from surgopt.robots import pa10_7c
 from surgopt.robots.chain import chain_transform
 from surgopt.robots.models import MODELS, get_model
-from surgopt.studies import rcm_grid as S
+from surgopt.studies.rcm_grid import study as S
 
 DATA = Path(__file__).parent / "data"
 D1 = pa10_7c.LINKS_BIELEFELD_M[0]
@@ -150,7 +150,7 @@ def test_chain_fk_matches_textbook_dh_products(name):
         frames = [np.eye(4)]
         f = ref.dh_standard if model.convention == "standard" else ref.dh_modified
         for row, v in zip(model.dh, q):
-            frames.append(frames[-1] @ f(v, row.d_m, row.a_m, math.radians(row.alpha_deg)))
+            frames.append(frames[-1] @ f(v, row.d_m, row.a_m, row.alpha_rad))
         for k, n in enumerate(names):
             i = model.joint_names.index(n)
             fr = frames[i] if model.convention == "standard" else frames[i + 1]

@@ -9,7 +9,7 @@ from surgopt.kinematics import chain_candidates as cc
 from surgopt.kinematics import serial_chain as sc
 from surgopt.kinematics import serial_lanes as SL
 from surgopt.metrics import POSE_METRICS
-from surgopt.studies import rcm_grid as S
+from surgopt.studies.rcm_grid import study as S
 
 
 def pa10_generic():

@@ -9,11 +9,14 @@ import pytest
 
 from surgopt.kinematics import port_serial as P
 from surgopt.robots.models import get_model
-from surgopt.studies import port_place as S
-from surgopt.studies.port_place_serial import BASE_INSIDE, arm_kernel, serial_tables, walk_order
+from surgopt.studies.port_place import config as C
+from surgopt.studies.port_place import geometry as G
+from surgopt.studies.port_place import tables as T
+from surgopt.studies.port_place import study as S
+from surgopt.studies.port_place.serial_arms import BASE_INSIDE, serial_tables
 
 from conftest import cli
-from reference import (dh_chain_transform, pa10_frames, pa10_ik, rcm_constrained_isotropy, scaled_singular_values,
+from reference import (dh_chain_transform, pa10_ik, rcm_constrained_isotropy, scaled_singular_values,
                        segment_distance_sampled)
 
 #: Sites 36 mm apart, a 20 mm sphere at 10 mm: 33 points; the PA10 where it reaches most ports.
@@ -26,7 +29,7 @@ PA10_LINKS = (0.317, 0.45, 0.48, 0.07)
 
 def _config(model, rcm, **extra):
     d = {**SMALL, "robot": {"instrument_serial": {"model": model, "rcm_in_base_m": rcm, **extra}}}
-    return S.PortPlaceConfig.model_validate(d)
+    return C.PortPlaceConfig.model_validate(d)
 
 
 def _in_base(st, i, p):
@@ -47,16 +50,16 @@ def test_the_pa10s_reach_and_dexterity_are_its_closed_form_ik_at_every_port(rcm)
     stance, ports that reach all of it; from the paper's RCM (its best for a vertical tool) ports that reach
     none."""
     cfg = _config("pa10_7c", rcm)
-    sites = S.sites_mm(cfg) / 1000
-    st = serial_tables(cfg, sites)
-    targets = S.target_points_mm(cfg.target) / 1000
+    sites = G.sites_mm(cfg) / 1000
+    st = serial_tables(T.prepare(cfg), sites)
+    targets = G.target_points_mm(cfg.target) / 1000
     arm = cfg.robot.instrument_serial
     lim = np.radians([arm.joint_limit_deg.S1, arm.joint_limit_deg.S2, arm.joint_limit_deg.E1, arm.joint_limit_deg.E2,
                       arm.joint_limit_deg.W1])
     qdot = [arm.max_joint_speed_rad_s.S1, arm.max_joint_speed_rad_s.S2, arm.max_joint_speed_rad_s.E1,
             arm.max_joint_speed_rad_s.E2, arm.max_joint_speed_rad_s.W1]
     rcm = np.asarray(arm.rcm_in_base_m)
-    order, _ = walk_order(cfg.target.model_dump_json(), tuple(np.asarray(cfg.target.centre_mm) / 1000))
+    order, _ = T.walk_order(cfg.target, np.asarray(cfg.target.centre_mm) / 1000)
     tried = order[:: max(1, len(order) // P.ANCHOR_TRIES)]
     ref = np.zeros_like(st.reach)
     iso = np.zeros(st.reach.shape)
@@ -88,11 +91,11 @@ def test_every_solution_closes_the_ur5es_chain_in_the_patient_frame():
     arm = cfg.robot.instrument_serial
     model = get_model("ur5e")
     assert arm.locked_joints_deg == {"wrist_3": 0.0} and arm.tool_axis == [0.0, 0.0, 1.0] and not any(arm.tool_offset_m)
-    sites = S.sites_mm(cfg) / 1000
-    st = serial_tables(cfg, sites)
-    targets = S.target_points_mm(cfg.target) / 1000
+    sites = G.sites_mm(cfg) / 1000
+    st = serial_tables(T.prepare(cfg), sites)
+    targets = G.target_points_mm(cfg.target) / 1000
     assert st.reach.mean() > 0.5  # the premise: most (port, point) pairs reached
-    limits = [(math.radians(r.lower), math.radians(r.upper)) for r in model.dh[:5]]
+    limits = [(r.lower, r.upper) for r in model.dh[:5]]
     qdot = [r.max_speed for r in model.dh[:5]]
     checked_iso = 0
     for i in range(len(sites)):
@@ -169,7 +172,7 @@ def test_a_base_inside_the_body_refuses_the_port():
     """An RCM 0.06 m beside the base: a base under the dome (the ellipsoid's own inequality) refuses its port;
     a refused port reaches nothing and has no centre line."""
     cfg = _config("ur5e", [0.06, 0.0, 0.05])
-    st = serial_tables(cfg, S.sites_mm(cfg) / 1000)
+    st = serial_tables(T.prepare(cfg), G.sites_mm(cfg) / 1000)
     a, b, c = np.asarray(cfg.patient.semi_axes_mm) / 1000
     x, y, z = st.base_pos.T
     under = ((x / a) ** 2 + (y / b) ** 2 + (z / c) ** 2 < 1) & (z >= 0)
@@ -184,7 +187,7 @@ def test_links_through_or_near_the_wall_are_found_and_the_tool_entering_is_not()
     line whose only part inside is its last segment, the tool from the flange into the port, is not, as long
     as its flange, 40 mm above the dome's top, is farther from the wall than the links' radius (refused at 60
     mm, kept at 30 mm and at 0); no line (NaN) is not."""
-    from surgopt.studies.port_place_serial import _links_inside
+    from surgopt.studies.port_place.serial_arms import _links_inside
 
     outside = np.array([0.5, 0.0, 0.3])
     crossing = np.array([outside, outside, [0.3, 0.0, 0.05], [-0.3, 0.0, 0.05], [-0.3, 0.0, 0.4], [-0.2, 0.0, 0.4],
@@ -194,7 +197,7 @@ def test_links_through_or_near_the_wall_are_found_and_the_tool_entering_is_not()
     lines = np.stack([crossing, entering, np.full_like(crossing, np.nan)])
     cfg = _config("ur5e", [0.5, 0.0, 0.1])
     for radius, want in ((60.0, [True, True, False]), (30.0, [True, False, False]), (0.0, [True, False, False])):
-        assert not S.inside_body(crossing[:-1] * 1000, cfg.patient).any()  # the premise: every joint is outside
+        assert not G.inside_body(crossing[:-1] * 1000, cfg.patient).any()  # the premise: every joint is outside
         assert list(_links_inside(lines, cfg, radius)) == want, radius
 
 
@@ -206,15 +209,15 @@ def test_the_distance_to_the_dome_is_a_lower_bound_within_its_sampling_gap(expon
     that)."""
     from reference import ellipsoid_distance
 
-    from surgopt.studies.port_place_config import body_distance_mm, dome_samples_mm
+    from surgopt.studies.port_place.geometry import body_distance_mm, dome_samples_mm
 
     cfg = _config("ur5e", [0.5, 0.0, 0.1])
-    cfg = S.PortPlaceConfig.model_validate({**cfg.model_dump(), "patient": {**cfg.patient.model_dump(),
+    cfg = C.PortPlaceConfig.model_validate({**cfg.model_dump(), "patient": {**cfg.patient.model_dump(),
                                                                             "dome_exponent": exponent}})
     axes = cfg.patient.semi_axes_mm
     rng = np.random.default_rng(4)
     p = rng.uniform([-300.0, -350.0, 0.0], [300.0, 350.0, 260.0], (300, 3))
-    p = p[~S.inside_body(p, cfg.patient)][:150 if exponent == 2.0 else 40]
+    p = p[~G.inside_body(p, cfg.patient)][:150 if exponent == 2.0 else 40]
     got = body_distance_mm(p, cfg.patient, 1000.0)
     _, gap = dome_samples_mm(tuple(axes), exponent)
     assert gap < 3.0
@@ -251,7 +254,7 @@ def test_a_search_turns_each_serial_base_about_its_port():
     evaluated with both bases turned 20 deg is the grid's row of the config whose base_yaw_deg is 20 (the
     stance set in the config: another path to the same base frames)."""
     cfg = _config("pa10_7c", [0.65, 0.0, 0.5])
-    searched = S.PortPlaceConfig.model_validate({**cfg.model_dump(), "robot": {
+    searched = C.PortPlaceConfig.model_validate({**cfg.model_dump(), "robot": {
         **cfg.robot.model_dump(), "docking_range_deg": 30.0}, "search": {"method": "random", "trials": 8}})
     plan = S.search_plan(searched)
     assert list(plan.space)[3:] == ["psm1_docking_yaw_deg", "psm2_docking_yaw_deg"]
@@ -279,7 +282,7 @@ def test_a_search_moves_the_serial_arms_stance_with_the_ports():
     from surgopt.store import Store
 
     cfg = _config("pa10_7c", [0.65, 0.0, 0.5], stance_range_m=0.2)
-    searched = S.PortPlaceConfig.model_validate({**cfg.model_dump(), "search": {"method": "cmaes", "trials": 24,
+    searched = C.PortPlaceConfig.model_validate({**cfg.model_dump(), "search": {"method": "cmaes", "trials": 24,
                                                                                 "seed": 1}})
     plan = S.search_plan(searched)
     assert plan.space["instrument_stance_out_m"] == (-0.2, 0.2) and list(plan.space)[-1] == "instrument_stance_up_m"
@@ -344,11 +347,11 @@ def test_the_shipped_pa10_config_loads_and_both_best_ports_reach_the_whole_targe
 
     from surgopt.config import load_config
 
-    cfg = load_config(Path(__file__).parents[1] / "configs" / "port_place_pa10.toml", S.Config)
+    cfg = load_config(Path(__file__).parents[1] / "configs" / "port_place_pa10.toml", C.Config)
     assert cfg.robot.instrument_serial.holder().name == "pa10_7c (software RCM)"
-    sites = S.sites_mm(cfg)[[28, 144]] / 1000
+    sites = G.sites_mm(cfg)[[28, 144]] / 1000
     assert np.linalg.norm(sites[0] - sites[1]) == pytest.approx(0.180, abs=1e-9)
-    assert serial_tables(cfg, sites).reach.all()
+    assert serial_tables(T.prepare(cfg), sites).reach.all()
 
 
 def test_the_distance_to_a_mesh_patient_is_trimeshs_closest_point(tmp_path):
@@ -358,13 +361,13 @@ def test_the_distance_to_a_mesh_patient_is_trimeshs_closest_point(tmp_path):
     from test_study_port_place import _dome_mesh
 
     from surgopt.config import validate
-    from surgopt.studies.port_place_config import body_distance_mm
+    from surgopt.studies.port_place.geometry import body_distance_mm
 
     _dome_mesh(tmp_path / "dome.stl", subdivisions=5)
-    cfg = validate({"patient": {"shape": "mesh", "mesh_file": "dome.stl"}}, S.Config, "m", {"config_dir": str(tmp_path)})
+    cfg = validate({"patient": {"shape": "mesh", "mesh_file": "dome.stl"}}, C.Config, "m", {"config_dir": str(tmp_path)})
     rng = np.random.default_rng(5)
     p = rng.uniform([-300.0, -350.0, 5.0], [300.0, 350.0, 260.0], (200, 3))
-    p = p[~S.inside_body(p, cfg.patient)][:60]
+    p = p[~G.inside_body(p, cfg.patient)][:60]
     got = body_distance_mm(p, cfg.patient, 80.0)
     want = np.minimum([ellipsoid_distance(x, cfg.patient.semi_axes_mm) for x in p], 80.0)
     assert np.abs(got - want).max() < 1.0 and (want < 80.0).any() and (want == 80.0).any()
@@ -373,7 +376,7 @@ def test_the_distance_to_a_mesh_patient_is_trimeshs_closest_point(tmp_path):
 def _camera_config(rcm, **extra):
     d = {**SMALL, "target": {"spacing_mm": 15.0},
          "robot": {"camera_serial": {"model": "ur5e", "rcm_in_base_m": rcm, **extra}}}
-    return S.PortPlaceConfig.model_validate(d)
+    return C.PortPlaceConfig.model_validate(d)
 
 
 def test_a_serial_arm_holds_the_endoscope_where_the_scope_must_be():
@@ -384,15 +387,15 @@ def test_a_serial_arm_holds_the_endoscope_where_the_scope_must_be():
     shaft lines to its centre line (sampled segments)."""
     from surgopt.kinematics import port_place as K
     from surgopt.robots import dvrk
-    from surgopt.studies.port_place_serial import serial_camera_tables
+    from surgopt.studies.port_place.serial_arms import serial_camera_tables
 
     cfg = _camera_config([0.45, 0.0, 0.3])
     arm, model = cfg.robot.camera_serial, get_model("ur5e")
-    sites = S.sites_mm(cfg) / 1000
+    sites = G.sites_mm(cfg) / 1000
     centre = np.asarray(cfg.target.centre_mm) / 1000
-    rot = K.docking_frames(sites, centre, S.LATERAL)
-    tips, _, ok = K.camera_views(sites, rot, centre, S.camera_of(cfg))
-    held = serial_camera_tables(cfg, sites, tips, ok)
+    rot = K.docking_frames(sites, centre, T.LATERAL)
+    tips, _, ok = K.camera_views(sites, rot, centre, T.camera_of(cfg))
+    held = serial_camera_tables(T.prepare(cfg), sites, tips, ok)
     assert 0 < held.placed.sum() < len(sites)
     for i in np.flatnonzero(held.placed):
         flange = dh_chain_transform(model, [*held.joints[i], 0.0])
@@ -401,8 +404,8 @@ def test_a_serial_arm_holds_the_endoscope_where_the_scope_must_be():
         assert np.linalg.norm(tip - tips[i]) < 1e-9
         along = (tip - sites[i]) @ axis
         assert np.linalg.norm(tip - sites[i] - along * axis) < 1e-9 and 0 < along <= arm.tool_length_m
-    t, _, _ = S.port_tables(cfg, sites, rot)
-    free = K.camera_coverage(sites, rot, S.target_points_mm(cfg.target) / 1000, centre, S.camera_of(cfg))
+    t, _, _ = T.port_tables(T.prepare(cfg), sites, rot)
+    free = K.camera_coverage(sites, rot, G.target_points_mm(cfg.target) / 1000, centre, T.camera_of(cfg))
     np.testing.assert_array_equal(t.coverage, np.where(held.placed, free, 0.0))
     i = 0
     for k in np.flatnonzero(held.placed)[:4]:
@@ -433,7 +436,7 @@ def test_a_layout_of_serial_arms_only_runs_and_a_camera_arm_that_holds_the_scope
     the scope at no port is one line naming robot.camera_serial, exit 2, nothing written."""
     from test_study_port_place import refused_in_one_line
 
-    cfg = S.PortPlaceConfig.model_validate({**SMALL, "robot": {
+    cfg = C.PortPlaceConfig.model_validate({**SMALL, "robot": {
         "instrument_serial": {"model": "pa10_7c", "rcm_in_base_m": [0.65, 0.0, 0.5]},
         "camera_serial": {"model": "ur5e", "rcm_in_base_m": [0.55, 0.0, 0.1]}}})
     rows = S.compute_task(cfg, S.n_total(cfg), 0)

@@ -228,13 +228,13 @@ def test_a_self_intersecting_port_region_encloses_its_lobes(tmp_path):
     """A figure eight's signed area is 0, but under the even-odd rule (the docs' promise) its two lobes are
     inside: it is accepted and its sites lie in the lobes."""
     from surgopt.config import validate
-    from surgopt.studies.port_place_geometry import inside_polygon, polygon_area_mm2
+    from surgopt.studies.port_place.geometry import inside_polygon, polygon_area_mm2
 
     eight = [[-120.0, -120.0], [120.0, 120.0], [120.0, -120.0], [-120.0, 120.0]]
     assert polygon_area_mm2(np.array(eight)) == 0.0  # the premise
     study = get_study("port-place")
     cfg = validate({"patient": {"port_region": {"polygon_mm": eight}}}, study.config_model, "c.toml")
-    from surgopt.studies.port_place_geometry import sites_mm
+    from surgopt.studies.port_place.geometry import sites_mm
 
     sites = sites_mm(cfg)
     assert len(sites) > 0 and inside_polygon(sites[:, 0], sites[:, 1], np.array(eight)).all()

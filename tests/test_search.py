@@ -1,7 +1,7 @@
-"""Searches any study can use (surgopt/studies/search.py)."""
+"""Searches any study can use (surgopt/plans/search.py)."""
 import numpy as np
 
-from surgopt.studies.search import compass_search
+from surgopt.plans.search import compass_search
 
 
 def test_compass_search_finds_the_maximum_of_a_concave_quadratic():
@@ -38,7 +38,7 @@ from surgopt.errors import ConfigError  # noqa: E402
 from surgopt.runner import run_study  # noqa: E402
 from surgopt.store import Store  # noqa: E402
 from surgopt.studies import get_study  # noqa: E402
-from surgopt.studies.search import pareto_front  # noqa: E402
+from surgopt.plans.search import pareto_front  # noqa: E402
 
 from conftest import fault_lines, single_run, single_table, wait_for_parts  # noqa: E402
 
@@ -80,7 +80,7 @@ def test_a_search_is_deterministic_bounded_and_same_on_one_or_two_workers(tmp_pa
 def test_a_search_without_a_batch_stores_its_methods_default_part(tmp_path):
     """``batch`` left out: CMA-ES stores parts of at least 256 trials (whole generations; its parts are only the
     unit of durability), Optuna asks and stores 64 at a time; given, it is used as it is."""
-    from surgopt.studies.search import SearchSpec
+    from surgopt.plans.search import SearchSpec
 
     assert SearchSpec(method="cmaes").trials_per_part == 256 and SearchSpec(method="tpe").trials_per_part == 64
     assert SearchSpec(method="cmaes", batch=12).trials_per_part == 12
@@ -254,7 +254,7 @@ def test_a_search_stopped_between_ask_store_and_tell_resumes_to_the_same_trials(
     """The windows a kill -9 rarely hits, made to happen: in a batch's evaluation (after its asks, before its
     part), in the middle of telling Optuna a batch, and after CMA-ES was told but before the part was stored."""
     from surgopt import backends
-    from surgopt.studies import search as S
+    from surgopt.plans import optuna_plan as S
 
     rcm = get_study("rcm-grid")
     cfg = validate({"workspace": {"points_per_side": 5},
@@ -316,7 +316,7 @@ def test_a_search_killed_after_recording_a_batch_but_before_storing_it_resumes(t
     monkeypatch.undo()
     run = single_run(tmp_path / "x")
     assert sorted(run.done_tasks()) == [0, 1]
-    from surgopt.studies.search import Journal
+    from surgopt.plans.optuna_plan import Journal
 
     assert Journal.open(run.path / "optuna.journal", rcm.search_plan(cfg)).batches == 3  # the premise
     assert run_study(rcm, cfg, config_name="x", store=Store(tmp_path / "x"), jobs=1, quiet=True).table.equals(ref)

@@ -134,7 +134,7 @@ def test_the_key_knows_the_code_that_computes_rows(tmp_path, monkeypatch):
     copy = tmp_path / "surgopt"
     shutil.copytree(Path(surgopt.__file__).parent, copy, ignore=shutil.ignore_patterns("__pycache__"))
     hashes = {}
-    for what, path in (("as is", None), ("metrics.py", "metrics.py"), ("a figure", "studies/figures/rcm_grid.py")):
+    for what, path in (("as is", None), ("metrics.py", "metrics.py"), ("a figure", "studies/rcm_grid/figures.py")):
         if path:
             (copy / path).write_text((copy / path).read_text() + "\n# edited\n")
         monkeypatch.setattr(C, "PACKAGE", copy)

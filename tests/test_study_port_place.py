@@ -1,20 +1,22 @@
-"""port-place (surgopt/studies/port_place.py, surgopt/kinematics/port_place.py): the dVRK arms' RCM kinematics
+"""port-place (surgopt/studies/port_place/study.py, surgopt/kinematics/port_place.py): the dVRK arms' RCM kinematics
 against the modified-DH tables multiplied out in tests/reference.py, reach against joint-space sampling,
 angles and clearances against closed forms, a mirror-symmetric patient's optimum, bad input, the CLI."""
-import itertools
 import math
 import os
 
 import numpy as np
 import pytest
 
-from surgopt.kinematics import port_designs as D
 from surgopt.kinematics import port_place as K
 from surgopt.robots import dvrk
-from surgopt.studies import port_place as S
+from surgopt.robots.models import get_model
+from surgopt.studies.port_place import config as C
+from surgopt.studies.port_place import geometry as G
+from surgopt.studies.port_place import tables as T
+from surgopt.studies.port_place import study as S
 
 from conftest import cli, fault_lines
-from reference import ECM_CLASSIC_MDH, PSM_CLASSIC_MDH, brute_force_reach, finite_difference_jacobian, mdh_chain
+from reference import finite_difference_jacobian
 
 ANY_APPROACH = K.Approach(0.0, 0.0, -1.0, -2.0)  # no approach cone
 
@@ -23,169 +25,12 @@ SMALL = {"patient": {"port_region": {"site_spacing_mm": 36.0}}, "target": {"spac
 
 
 def _limits(arm):
-    return S.arm_limits(arm)
-
-
-@pytest.mark.parametrize("arm, rows", [(dvrk.PSM_CLASSIC, PSM_CLASSIC_MDH), (dvrk.ECM_CLASSIC, ECM_CLASSIC_MDH)])
-def test_closed_form_rcm_point_is_the_dh_product_and_inverts(arm, rows):
-    lim = _limits(arm)
-    for _ in range(200):
-        q = [RNG.uniform(lim.yaw_lo, lim.yaw_hi), RNG.uniform(lim.pitch_lo, lim.pitch_hi),
-             RNG.uniform(lim.insertion_lo, lim.insertion_hi)]
-        ref = mdh_chain(rows, q)
-        p = K.rcm_point(*q, lim.along_shaft_m)
-        assert np.allclose(p, ref[:3, 3], atol=1e-12)
-        assert np.allclose(K.shaft_direction(q[0], q[1]), ref[:3, 2], atol=1e-12)  # the shaft is the last z axis
-        back = K.rcm_inverse(p, lim.along_shaft_m)
-        if q[2] + lim.along_shaft_m > 1e-3:  # away from the RCM itself, where the direction is undefined
-            assert np.allclose(back, q, atol=1e-10), (q, back)
-
-
-def test_the_rcm_stays_at_the_port_for_every_joint_value():
-    """The shaft line through the wrist at two insertions passes through the base origin (the port)."""
-    for _ in range(100):
-        q1, q2 = RNG.uniform(-1.5, 1.5), RNG.uniform(-0.9, 0.9)
-        a, b = mdh_chain(PSM_CLASSIC_MDH, [q1, q2, 0.05])[:3, 3], mdh_chain(PSM_CLASSIC_MDH, [q1, q2, 0.2])[:3, 3]
-        assert np.linalg.norm(np.cross(a, b)) < 1e-12  # collinear with the origin
-        assert np.linalg.norm(b - a) == pytest.approx(0.15, abs=1e-12)
-
-
-def test_isotropy_is_the_scaled_jacobian_condition_from_finite_differences():
-    lim, length = _limits(dvrk.PSM_CLASSIC), 0.1
-    for _ in range(50):
-        q = np.array([RNG.uniform(-1.5, 1.5), RNG.uniform(-0.9, 0.9), RNG.uniform(0.02, 0.24)])
-        J = finite_difference_jacobian(lambda v: mdh_chain(PSM_CLASSIC_MDH, v)[:3, 3], q, h=1e-6)
-        J[:, :2] /= length  # angular columns in units of the characteristic length
-        s = np.linalg.svd(J, compute_uv=False)
-        assert K.isotropy(q[1], q[2] + lim.along_shaft_m, length) == pytest.approx(s[-1] / s[0], rel=1e-6)
-
-
-def test_reach_matches_joint_space_sampling():
-    """Target points around one port: the closed-form verdict against the nearest of ~44,000 joint-space
-    samples (reference.brute_force_reach), on every point not within a grid gap of the reach boundary."""
-    lim = _limits(dvrk.PSM_CLASSIC)
-    site, centre = np.array([0.0, 0.0, 0.0]), np.array([0.02, -0.03, -0.15])
-    rot = K.docking_frames(site[None], centre, np.array([1.0, 0.0, 0.0]))
-    pts = centre + RNG.uniform(-0.12, 0.12, size=(150, 3))
-    reach, _ = K.instrument_tables(site[None], rot, pts, lim, 0.1, ANY_APPROACH)
-    base = np.array([K.to_base(rot[0], site, p) for p in pts])
-    d, gap = brute_force_reach(base, PSM_CLASSIC_MDH, [(lim.yaw_lo, lim.yaw_hi), (lim.pitch_lo, lim.pitch_hi),
-                                                        (lim.insertion_lo, lim.insertion_hi)])
-    clear_out = d > gap
-    assert clear_out.sum() > 20  # the premise: the sample has points the arm cannot reach
-    assert reach[0][clear_out].sum() == 0  # far from every sample: never called reachable
-    near = d < 0.25 * gap
-    # a point near a sample is reachable unless it sits at the boundary (then the sample is a limit value)
-    q = np.array([K.rcm_inverse(p, lim.along_shaft_m) for p in base])
-    margin = np.minimum.reduce([q[:, 0] - lim.yaw_lo, lim.yaw_hi - q[:, 0], q[:, 1] - lim.pitch_lo,
-                                lim.pitch_hi - q[:, 1], q[:, 2] - lim.insertion_lo, lim.insertion_hi - q[:, 2]])
-    inside = near & (margin > 0.05)
-    assert inside.sum() > 20 and reach[0][inside].all()
-
-
-def test_manipulation_angle_and_shaft_distance_closed_forms():
-    """Two ports at (+-d, 0, h) over a point target at the origin: the angle 2 atan(d / h); two shafts that
-    cross at right angles a height g apart: distance g."""
-    d, h = 0.05, 0.1
-    sites = np.array([[-d, 0.0, h], [d, 0.0, h]])
-    target = np.zeros((1, 3))
-    crit = S.criteria(S.PortPlaceConfig())
-    reach = np.ones((2, 1), dtype=bool)
-    out = K.pair_tables(sites, reach, np.ones((2, 1)), target, np.zeros(3), crit)
-    assert out[2][0, 1] == pytest.approx(2 * math.atan(d / h), abs=1e-14)
-    assert out[6][0, 1] == pytest.approx(2 * math.atan(d / h), abs=1e-14)
-    g = 0.013
-    a0, a1 = np.array([-1.0, 0.0, 0.0]), np.array([1.0, 0.0, 0.0])
-    b0, b1 = np.array([0.0, -1.0, g]), np.array([0.0, 1.0, g])
-    assert K.segment_distance(a0, a1, b0, b1) == pytest.approx(g, abs=1e-15)
-    # against sampling both segments
-    for _ in range(20):
-        p0, p1, q0, q1 = RNG.normal(size=(4, 3))
-        s = np.linspace(0, 1, 401)
-        P, Q = p0 + s[:, None] * (p1 - p0), q0 + s[:, None] * (q1 - q0)
-        brute = np.min(np.linalg.norm(P[:, None] - Q[None], axis=2))
-        assert brute - 1e-2 <= K.segment_distance(p0, p1, q0, q1) <= brute + 1e-12
-
-
-def _tables(n, m, rng):
-    """Random per-port and per-pair tables of n sites over m target points (pair entries filled i < j), with
-    some sites reaching every point and some only part of them."""
-    reach = rng.random((n, m)) < 0.9
-    reach[: n // 2] = True
-    dex = rng.random((n, m)) * reach
-    upper = np.triu(np.ones((n, n), bool), 1)
-    pair = [np.where(upper, rng.random((n, n)), 0.0) for _ in range(8)]
-    count = np.where(upper, (reach[:, None, :] & reach[None, :, :]).sum(axis=2), 0)
-    spacing = rng.random((n, n)) * 0.2
-    spacing = spacing + spacing.T
-    return D.PortTables(reach.sum(axis=1), rng.random(n), count, *pair, spacing, rng.random((n, n)),
-                        rng.random((n, n)) - 0.5, m, D.reach_bits(reach), D.site_dexterity(reach, dex),
-                        np.zeros(n), rng.random((n, n))), reach, dex
-
-
-@pytest.mark.parametrize("instruments", [2, 3])
-def test_design_enumeration_covers_every_assignment_once(instruments):
-    n = 7
-    t, _, _ = _tables(n, 5, np.random.default_rng(1))
-    crit = S.criteria(S.PortPlaceConfig())
-    total = S.n_designs(n, instruments)
-    ids = np.concatenate([D.design_columns(t, crit, s, min(total, s + 13), instruments)[0]
-                          for s in range(0, total, 13)])
-    designs = {tuple(r) for r in ids.tolist()}
-    assert len(ids) == len(designs) == total
-    assert total == n * (n - 1) // 2 * (n - 2) * ((n - 3) if instruments == 3 else 1)
-    assert all(r[0] < r[1] and len(set(r)) == len(r) for r in designs)
-
-
-def test_three_instruments_combine_as_a_brute_force_over_the_reach_sets():
-    """Every 3-PSM design's columns against numpy over the reach matrix and the pair tables, written
-    per design: the common reach of all three (the premise: some designs need the bit count, neither the
-    pair nor the third reaching every point), the least clearances over the pairs, the spacing over the
-    four ports, the third's isotropy in the cost; the pair's columns are the 2-PSM design's."""
-    from surgopt.kinematics.port_place import REACH, SHAFTS, SPACING
-
-    n, m = 8, 131  # 131 points: three words, the last one partial
-    t, reach, dex = _tables(n, m, np.random.default_rng(2))
-    crit = S.criteria(S.PortPlaceConfig())._replace(min_shaft_gap_m=0.3, min_spacing_m=0.02)
-    ids, f, bad, cost, design = D.design_columns(t, crit, 0, S.n_designs(n, 3), 3)
-    ids2, f2, bad2, cost2, _ = D.design_columns(t, crit, 0, S.n_designs(n, 2), 2)
-    assert np.array_equal(design, np.arange(S.n_designs(n, 3)))
-    loose = crit._replace(min_shaft_gap_m=0.0, min_external_m=0.0, angle_lo_rad=0.0, angle_hi_rad=math.pi)
-    seen = t._replace(coverage=np.ones(n))  # the camera sees everything: feasibility is the reach and spacing
-    every = D.design_columns(seen, loose, 0, S.n_designs(n, 3), 3)
-    kept = D.design_columns(seen, loose, 0, S.n_designs(n, 3), 3, True)  # only the feasible rows, written alone
-    ok = every[2] == 0
-    assert 0 < ok.sum() < len(ok)
-    for got, full in zip(kept, every):
-        assert np.array_equal(got, full[ok])
-    two = {tuple(r): q for q, r in enumerate(ids2.tolist())}
-    pair = lambda a, x, y: a[min(x, y), max(x, y)]  # noqa: E731
-    bit_counted = 0
-    for r, (i, j, l, k) in enumerate(ids.tolist()):
-        common = np.count_nonzero(reach[i] & reach[j] & reach[l])
-        if not reach[l].all() and not (reach[i] & reach[j]).all():
-            bit_counted += 1
-        assert f[r, 2] == common / m
-        assert f[r, 14] == reach[l].sum() / m and f[r, 15] == pytest.approx(dex[l][reach[l]].mean(), abs=1e-12)
-        assert f[r, 11] == min(t.inside[i, j], pair(t.inside, i, l), pair(t.inside, j, l))
-        # the instruments' pairs from their table, each instrument and the camera from theirs ([instrument, camera])
-        assert f[r, 12] == min(*(pair(t.outside, x, y) for x, y in itertools.combinations((i, j, l), 2)),
-                               *(t.outside_camera[x, k] for x in (i, j, l)))
-        spacing = min(t.spacing[x, y] for x, y in itertools.combinations((i, j, l, k), 2))
-        assert bool(bad[r] & SPACING) == (spacing < crit.min_spacing_m)
-        assert bool(bad[r] & REACH) == (common < m)
-        assert bool(bad[r] & SHAFTS) == (f[r, 11] < crit.min_shaft_gap_m)
-        q = two[(i, j, k)]
-        for c in (0, 1, 3, 4, 5, 6, 7, 8, 9, 10, 13):
-            assert f[r, c] == f2[q, c]
-        expected = cost2[q] + crit.w_reach * (f2[q, 2] - f[r, 2]) + crit.w_dexterity * (1 - dex[l][reach[l]].mean())
-        assert cost[r] == pytest.approx(expected, abs=1e-12)
-    assert bit_counted > 0  # the premise: the popcount branch was taken
+    return T.arm_limits(arm)
 
 
 def test_a_mirror_symmetric_patient_gives_a_mirror_symmetric_optimum():
-    cfg = S.PortPlaceConfig.model_validate(SMALL)
-    sites = S.sites_mm(cfg)
+    cfg = C.PortPlaceConfig.model_validate(SMALL)
+    sites = G.sites_mm(cfg)
     mirror = {i: int(np.flatnonzero(np.all(np.isclose(sites, sites[i] * [-1, 1, 1]), axis=1))[0])
               for i in range(len(sites))}  # the premise: the sites are symmetric about x = 0
     cols = S.compute_task(cfg, S.n_total(cfg), 0)
@@ -207,8 +52,8 @@ def test_three_psms_on_a_mirror_symmetric_patient_give_every_design_its_mirror_t
     """3 PSMs + ECM, every design of a reduced case (18 sites): the mirror image of each design (each port
     mirrored about x = 0, the working pair reordered) has the same cost and feasibility; so the optimum is
     mirror-symmetric or comes with its twin. The common reach of all three against the reach matrix."""
-    cfg = S.PortPlaceConfig.model_validate(THREE)
-    sites = S.sites_mm(cfg)
+    cfg = C.PortPlaceConfig.model_validate(THREE)
+    sites = G.sites_mm(cfg)
     mirror = np.array([int(np.flatnonzero(np.all(np.isclose(sites, sites[i] * [-1, 1, 1]), axis=1))[0])
                        for i in range(len(sites))])
     cols = S.compute_task(cfg, S.n_total(cfg), 0)
@@ -220,7 +65,7 @@ def test_three_psms_on_a_mirror_symmetric_patient_give_every_design_its_mirror_t
     np.testing.assert_allclose(cols["cost"][twin], cols["cost"], rtol=1e-9, atol=1e-12)
     assert np.array_equal(cols["infeasible"][twin], cols["infeasible"])
     assert 0 < cols["feasible"].sum() < len(twin)
-    _, _, _, reach, _ = S.tables(cfg)
+    reach = T.model_of(cfg).grid.reach
     common = (reach[arms[0]] & reach[arms[1]] & reach[arms[2]]).mean(axis=1)
     np.testing.assert_array_equal(cols["common_reach"], common)
 
@@ -252,18 +97,18 @@ def test_a_target_from_a_points_file_gives_the_rows_of_the_same_points_sampled(t
     centroid."""
     from surgopt.config import validate
 
-    cfg = validate(SMALL, S.Config, "x")
-    pts = S.target_points_mm(cfg.target)
+    cfg = validate(SMALL, C.Config, "x")
+    pts = G.target_points_mm(cfg.target)
     np.savetxt(tmp_path / "t.csv", pts, delimiter=",", header="x_mm, y_mm, z_mm")
     np.save(tmp_path / "t.npy", pts / 1000)
     grid = S.compute_task(cfg, 10 ** 7, 0)
     for target in ({"points_file": str(tmp_path / "t.csv")}, {"points_file": str(tmp_path / "t.npy"), "points_units": "m"}):
-        f = validate({**SMALL, "target": {"shape": "points", "centre_mm": cfg.target.centre_mm, **target}}, S.Config, "x")
-        assert len(S.target_points_mm(f.target)) == len(pts) == 59
+        f = validate({**SMALL, "target": {"shape": "points", "centre_mm": cfg.target.centre_mm, **target}}, C.Config, "x")
+        assert len(G.target_points_mm(f.target)) == len(pts) == 59
         rows = S.compute_task(f, 10 ** 7, 0)
         for c, v in grid.items():
             np.testing.assert_allclose(rows[c], v, rtol=0, atol=1e-9, err_msg=c)
-    auto = validate({"target": {"shape": "points", "points_file": str(tmp_path / "t.csv")}}, S.Config, "x")
+    auto = validate({"target": {"shape": "points", "points_file": str(tmp_path / "t.csv")}}, C.Config, "x")
     np.testing.assert_allclose(auto.target.centre_mm, pts.mean(axis=0), atol=1e-6)
     assert len(auto.target.points_sha256) == 64
 
@@ -321,7 +166,7 @@ def test_bad_input_is_one_line_naming_the_field(tmp_path, case):
 def test_the_elevation_is_each_shafts_angle_above_the_horizontal():
     """Hanna et al.'s elevation angle of each instrument against atan2 of the rise over the horizontal run
     from its port to the target centre, from the rows' own port positions (three instruments, every row)."""
-    cfg = S.PortPlaceConfig.model_validate(THREE)
+    cfg = C.PortPlaceConfig.model_validate(THREE)
     cols = S.compute_task(cfg, S.n_total(cfg), 0)
     cx, cy, cz = cfg.target.centre_mm
     for arm in ("psm1", "psm2", "psm3"):
@@ -337,7 +182,7 @@ def test_the_cli_runs_stores_and_reports_the_clinical_checks(tmp_path):
     overrides = ["patient.port_region.site_spacing_mm=36", "target.spacing_mm=15"]
     r = cli("port-place", *overrides, "--store", tmp_path / "s", "--quiet")
     assert "clinical checks" in r.stdout and "manipulation angle at the centre" in r.stdout
-    cfg = S.PortPlaceConfig.model_validate(SMALL)
+    cfg = C.PortPlaceConfig.model_validate(SMALL)
     rec = json.loads(cli("summarize", "--store", tmp_path / "s", "--format", "json").stdout)
     assert rec["rows"] == S.n_total(cfg) and rec["headline"]["feasible"] > 0
     best = rec["top"][0]
@@ -381,11 +226,11 @@ def test_a_mesh_of_the_dome_gives_the_domes_sites_and_best_layout(tmp_path):
     mesh.apply_translation([0.0, 0.0, -0.02])  # 20 mm below the table: the offset puts it back
     mesh.export(tmp_path / "dome_m.ply")
     small = {"patient": {"port_region": {"site_spacing_mm": 72.0}}, "target": {"spacing_mm": 20.0}}
-    dome = validate(small, S.Config, "dome")
+    dome = validate(small, C.Config, "dome")
     as_mesh = validate({**small, "patient": {**small["patient"], "shape": "mesh", "mesh_file": "dome_m.ply",
                                              "mesh_units": "m", "mesh_offset_mm": [0.0, 0.0, 20.0]}},
-                       S.Config, "mesh", {"config_dir": str(tmp_path)})
-    a, b = S.sites_mm(dome), S.sites_mm(as_mesh)
+                       C.Config, "mesh", {"config_dir": str(tmp_path)})
+    a, b = G.sites_mm(dome), G.sites_mm(as_mesh)
     assert a.shape == b.shape and np.abs(a[:, :2] - b[:, :2]).max() < 1e-6
     assert np.abs(a[:, 2] - b[:, 2]).max() < 1.0  # mm: the icosphere's faceting
     assert len(as_mesh.patient.mesh_sha256) == 64
@@ -407,24 +252,24 @@ def test_a_superquadric_dome_lifts_the_sites_onto_its_own_surface_and_agrees_wit
     import trimesh
 
     from surgopt.config import validate
-    from surgopt.studies.port_place_config import dome_surface_mm
+    from surgopt.studies.port_place.geometry import dome_surface_mm
 
     small = {"patient": {"port_region": {"site_spacing_mm": 36.0}, "dome_exponent": 4.0}}
-    quad = validate(small, S.Config, "quad")
-    sites = S.sites_mm(quad)
+    quad = validate(small, C.Config, "quad")
+    sites = G.sites_mm(quad)
     a, b, c = quad.patient.semi_axes_mm
     np.testing.assert_allclose((np.abs(sites / [a, b, c]) ** 4).sum(axis=1), 1.0, rtol=0, atol=1e-9)
     pts = RNG.uniform([-a, -b, -10.0], [a, b, c], (2000, 3))
     want = (pts[:, 2] >= 0) & ((np.abs(pts / [a, b, c]) ** 4).sum(axis=1) < 1)
-    assert np.array_equal(S.inside_body(pts, quad.patient), want) and 0 < want.sum() < len(want)
-    assert len(sites) > len(S.sites_mm(validate({"patient": {"port_region": {"site_spacing_mm": 36.0}}}, S.Config,
+    assert np.array_equal(G.inside_body(pts, quad.patient), want) and 0 < want.sum() < len(want)
+    assert len(sites) > len(G.sites_mm(validate({"patient": {"port_region": {"site_spacing_mm": 36.0}}}, C.Config,
                                                  "ellipsoid")))
     u, v = np.meshgrid(np.linspace(0, 2 * np.pi, 360, endpoint=False), np.linspace(0, np.pi / 2, 90, endpoint=False))
     surface = np.vstack([np.stack([w.ravel() for w in dome_surface_mm((a, b, c), 4.0, u, v)], axis=1), [[0, 0, c]]])
     trimesh.convex.convex_hull(surface).export(tmp_path / "quad.stl")  # closed: the surface and its base
     as_mesh = validate({"patient": {"port_region": {"site_spacing_mm": 36.0}, "shape": "mesh",
-                                    "mesh_file": "quad.stl"}}, S.Config, "mesh", {"config_dir": str(tmp_path)})
-    m = S.sites_mm(as_mesh)
+                                    "mesh_file": "quad.stl"}}, C.Config, "mesh", {"config_dir": str(tmp_path)})
+    m = G.sites_mm(as_mesh)
     assert m.shape == sites.shape and np.abs(m[:, :2] - sites[:, :2]).max() < 1e-6
     assert np.abs(m[:, 2] - sites[:, 2]).max() < 1.0  # mm: the hull's faceting
     cols = S.compute_task(quad, 10 ** 6, 0)
@@ -454,10 +299,10 @@ def test_a_bad_mesh_is_refused_with_the_field_named(tmp_path, case):
     trimesh.load(_dome_mesh(tmp_path / "dome.stl", subdivisions=2)).apply_scale(0.001).export(tmp_path / "dome_m.stl")
     fields, words = MESH_ERRORS[case]
     with pytest.raises(ConfigError, match="patient") as e:
-        validate({"patient": {"shape": "mesh", **fields}}, S.Config, "c.toml", {"config_dir": str(tmp_path)})
+        validate({"patient": {"shape": "mesh", **fields}}, C.Config, "c.toml", {"config_dir": str(tmp_path)})
     assert words in str(e.value), str(e.value)
     with pytest.raises(ConfigError, match="set shape = 'mesh'"):
-        validate({"patient": {"mesh_file": "open.stl"}}, S.Config, "c.toml", {"config_dir": str(tmp_path)})
+        validate({"patient": {"mesh_file": "open.stl"}}, C.Config, "c.toml", {"config_dir": str(tmp_path)})
 
 
 def _target_mesh(path, subdivisions=4, open_base=False):
@@ -483,10 +328,10 @@ def test_a_target_mesh_of_the_ellipsoid_gives_the_ellipsoids_points_and_rows(tmp
 
     _target_mesh(tmp_path / "target.stl")
     small = {"patient": {"port_region": {"site_spacing_mm": 36.0}}}
-    ell = validate({**small, "target": {"spacing_mm": 10.0}}, S.Config, "ellipsoid")
+    ell = validate({**small, "target": {"spacing_mm": 10.0}}, C.Config, "ellipsoid")
     mesh = validate({**small, "target": {"shape": "mesh", "mesh_file": "target.stl", "mesh_units": "m",
-                                         "spacing_mm": 10.0}}, S.Config, "mesh", {"config_dir": str(tmp_path)})
-    a, b = S.target_points_mm(ell.target), S.target_points_mm(mesh.target)
+                                         "spacing_mm": 10.0}}, C.Config, "mesh", {"config_dir": str(tmp_path)})
+    a, b = G.target_points_mm(ell.target), G.target_points_mm(mesh.target)
     assert len(mesh.target.mesh_sha256) == 64 and np.allclose(mesh.target.centre_mm, [0.0, -100.0, 40.0], atol=1e-6)
     key = lambda p: {tuple(np.round(x, 3)) for x in p}  # noqa: E731 - to the um (an STL stores float32)
     assert key(b) <= key(a)
@@ -522,7 +367,7 @@ def test_a_bad_target_mesh_is_refused_with_the_field_named(tmp_path, case):
     pair.export(tmp_path / "pair.stl")  # two closed balls: the grid's one point, between them, is in neither
     fields, words = TARGET_MESH_ERRORS[case]
     with pytest.raises(ConfigError, match="target") as e:
-        validate({"target": {"shape": "mesh", **fields}}, S.Config, "c.toml", {"config_dir": str(tmp_path)})
+        validate({"target": {"shape": "mesh", **fields}}, C.Config, "c.toml", {"config_dir": str(tmp_path)})
     assert words in str(e.value), str(e.value)
 
 
@@ -538,7 +383,7 @@ def test_a_design_evaluated_alone_equals_its_row_of_the_enumeration(instruments)
     instruments, every 50th design)."""
     from surgopt.config import validate
 
-    cfg = validate({**COARSE, "robot": {"instrument_count": instruments}}, S.Config, "x")
+    cfg = validate({**COARSE, "robot": {"instrument_count": instruments}}, C.Config, "x")
     grid = S.compute_task(cfg, 10 ** 6, 0)
     if instruments == 3:
         grid = {c: v[::50] for c, v in grid.items()}
@@ -562,7 +407,7 @@ def test_free_docking_turns_the_base_and_a_search_explores_ports_and_docking(tmp
     from surgopt.store import Store
 
     cfg = validate({**COARSE, "robot": {"docking_range_deg": 60.0},
-                    "search": {"method": "cmaes", "trials": 120, "batch": 40, "seed": 3}}, S.Config, "x")
+                    "search": {"method": "cmaes", "trials": 120, "batch": 40, "seed": 3}}, C.Config, "x")
     base = [0.0, 1.0, 2.0]
     rows = S.evaluate_designs(cfg, np.array([base + [0, 0, 0, 0], base + [0, 60, 0, 0]]), np.arange(2), "t")
     # PSM1 pitched 60 deg off the centre, past its +-53 deg pitch range: most points out of reach, and its arm
@@ -576,7 +421,7 @@ def test_free_docking_turns_the_base_and_a_search_explores_ports_and_docking(tmp
     a = run_study(S.STUDY, cfg, config_name="a", store=Store(tmp_path / "a"), jobs=2, quiet=True).table
     b = run_study(S.STUDY, cfg, config_name="b", store=Store(tmp_path / "b"), jobs=1, quiet=True).table
     assert a.equals(b) and a.num_rows == 120
-    n = len(S.sites_mm(cfg))
+    n = len(G.sites_mm(cfg))
     for c in S.SITE_COLUMNS:
         assert set(a[c].to_pylist()) <= set(range(n))
     for c in S.DOCKING_COLUMNS:
@@ -594,8 +439,8 @@ def test_a_surface_search_places_each_port_at_the_site_nearest_its_point(tmp_pat
     from surgopt.store import Store
 
     cfg = validate({**COARSE, "search_ports": "surface", "search": {"method": "cmaes", "trials": 60, "seed": 2}},
-                   S.Config, "x")
-    sites = S.sites_mm(cfg)
+                   C.Config, "x")
+    sites = G.sites_mm(cfg)
     plan = S.search_plan(cfg)
     assert list(plan.space) == list(S.aim_columns(cfg)) == ["psm1_aim_x_mm", "psm1_aim_y_mm", "psm2_aim_x_mm",
                                                            "psm2_aim_y_mm", "ecm_aim_x_mm", "ecm_aim_y_mm"]
@@ -630,7 +475,7 @@ def test_a_pareto_front_is_of_the_feasible_layouts_only(tmp_path):
     from surgopt.store import Store
 
     cfg = validate({**COARSE, "search": {"method": "nsga2", "trials": 80, "seed": 1,
-                                         "objectives": ["-cost", "common_reach"]}}, S.Config, "x")
+                                         "objectives": ["-cost", "common_reach"]}}, C.Config, "x")
     res = run_study(S.STUDY, cfg, config_name="n", store=Store(tmp_path), jobs=1, quiet=True)
     t = res.table
     cost, reach, ok = (t[c].to_numpy() for c in ("cost", "common_reach", "feasible"))
@@ -656,12 +501,12 @@ def test_an_approach_cone_keeps_the_points_whose_shaft_the_wrist_can_turn_into_i
     base = {"target": {"spacing_mm": 15.0}, "patient": {"port_region": {"site_spacing_mm": 40.0}}}
     cone = {**base, "target": {**base["target"], "approach_direction": [0.0, 0.3, -1.0],
                                "approach_half_angle_deg": 30.0}}
-    free, coned = (validate(c, S.PortPlaceConfig, "t") for c in (base, cone))
-    sites = S.sites_mm(free) / 1000
-    rot = K.docking_frames(sites, np.asarray(free.target.centre_mm) / 1000, S.LATERAL)
-    _, reach_free, _ = S.port_tables(free, sites, rot)
-    _, reach_cone, dex_cone = S.port_tables(coned, sites, rot)
-    pts = S.target_points_mm(free.target) / 1000
+    free, coned = (validate(c, C.PortPlaceConfig, "t") for c in (base, cone))
+    sites = G.sites_mm(free) / 1000
+    rot = K.docking_frames(sites, np.asarray(free.target.centre_mm) / 1000, T.LATERAL)
+    _, reach_free, _ = T.port_tables(T.prepare(free), sites, rot)
+    _, reach_cone, dex_cone = T.port_tables(T.prepare(coned), sites, rot)
+    pts = G.target_points_mm(free.target) / 1000
     v = pts[None, :, :] - sites[:, None, :]
     d = np.array([0.0, 0.3, -1.0]) / np.linalg.norm([0.0, 0.3, -1.0])
     angle = np.degrees(np.arccos(np.clip(v @ d / np.linalg.norm(v, axis=2), -1, 1)))
@@ -670,11 +515,11 @@ def test_an_approach_cone_keeps_the_points_whose_shaft_the_wrist_can_turn_into_i
     assert np.all(dex_cone[~reach_cone] == 0)
     with pytest.raises(ConfigError, match="more than the instrument's wrist can bend"):
         validate({"target": {"approach_direction": [0, 0, -1], "approach_half_angle_deg": 85.0}},
-                 S.PortPlaceConfig, "t")
+                 C.PortPlaceConfig, "t")
     with pytest.raises(ConfigError, match="must be a direction"):
-        validate({"target": {"approach_direction": [0, 0, 0]}}, S.PortPlaceConfig, "t")
+        validate({"target": {"approach_direction": [0, 0, 0]}}, C.PortPlaceConfig, "t")
     with pytest.raises(ConfigError, match="goes with approach_direction"):
-        validate({"target": {"approach_half_angle_deg": 10.0}}, S.PortPlaceConfig, "t")
+        validate({"target": {"approach_half_angle_deg": 10.0}}, C.PortPlaceConfig, "t")
 
 
 def test_the_wrist_margin_is_what_the_cone_leaves_of_the_bend_at_the_worst_point():
@@ -685,22 +530,22 @@ def test_the_wrist_margin_is_what_the_cone_leaves_of_the_bend_at_the_worst_point
 
     base = {"target": {"spacing_mm": 15.0}, "patient": {"port_region": {"site_spacing_mm": 40.0}}}
     coned = validate({**base, "target": {**base["target"], "approach_direction": [0.0, 0.3, -1.0],
-                                         "approach_half_angle_deg": 10.0}}, S.PortPlaceConfig, "t")
-    sites = S.sites_mm(coned) / 1000
-    margin = S.wrist_margin_deg(coned, sites)
+                                         "approach_half_angle_deg": 10.0}}, C.PortPlaceConfig, "t")
+    sites = G.sites_mm(coned) / 1000
+    margin = T.wrist_margin_deg(T.prepare(coned), sites)
     d = np.array([0.0, 0.3, -1.0]) / np.linalg.norm([0.0, 0.3, -1.0])
     for i, site in enumerate(sites):
         worst = max(math.degrees(math.atan2(np.linalg.norm(np.cross(p - site, d)), (p - site) @ d))
-                    for p in S.target_points_mm(coned.target) / 1000)
+                    for p in G.target_points_mm(coned.target) / 1000)
         assert margin[i] == pytest.approx(math.degrees(dvrk.LND_WRIST_BEND_RAD) - 10.0 - worst, abs=1e-9)
-    rot = K.docking_frames(sites, np.asarray(coned.target.centre_mm) / 1000, S.LATERAL)
-    _, reach_cone, _ = S.port_tables(coned, sites, rot)
-    free = validate(base, S.PortPlaceConfig, "t")
-    _, reach_free, _ = S.port_tables(free, sites, rot)
+    rot = K.docking_frames(sites, np.asarray(coned.target.centre_mm) / 1000, T.LATERAL)
+    _, reach_cone, _ = T.port_tables(T.prepare(coned), sites, rot)
+    free = validate(base, C.PortPlaceConfig, "t")
+    _, reach_free, _ = T.port_tables(T.prepare(free), sites, rot)
     keeps = (reach_cone == reach_free).all(axis=1)
     assert 0 < (margin >= 0).sum() < len(sites)  # the premise: the cone binds at some ports, not all
     assert np.array_equal(margin >= -1e-9, keeps)
-    assert np.all(S.wrist_margin_deg(free, sites) == math.degrees(dvrk.LND_WRIST_BEND_RAD))
+    assert np.all(T.wrist_margin_deg(T.prepare(free), sites) == math.degrees(dvrk.LND_WRIST_BEND_RAD))
 
 
 def test_a_port_region_outline_keeps_the_sites_inside_it():
@@ -713,15 +558,15 @@ def test_a_port_region_outline_keeps_the_sites_inside_it():
     from surgopt.errors import ConfigError
 
     outline = [[-100, -160], [100, -160], [100, 40], [20, 40], [20, -60], [-20, -60], [-20, 40], [-100, 40]]
-    free = S.sites_mm(S.PortPlaceConfig())
-    cfg = validate({"patient": {"port_region": {"polygon_mm": outline}}}, S.PortPlaceConfig, "t")
-    sites = S.sites_mm(cfg)
+    free = G.sites_mm(C.PortPlaceConfig())
+    cfg = validate({"patient": {"port_region": {"polygon_mm": outline}}}, C.PortPlaceConfig, "t")
+    sites = G.sites_mm(cfg)
     inside = MplPath(np.asarray(outline, float)).contains_points(free[:, :2])
     assert 0 < len(sites) < len(free) and np.array_equal(sites, free[inside])
     notch = (np.abs(sites[:, 0]) < 20) & (sites[:, 1] > -60)
     assert not notch.any() and ((np.abs(free[:, 0]) < 20) & (free[:, 1] > -60) & (free[:, 1] < 40)).any()
     with pytest.raises(ConfigError, match="polygon_mm: its vertices enclose no area"):
-        validate({"patient": {"port_region": {"polygon_mm": [[0, 0], [10, 10], [20, 20]]}}}, S.PortPlaceConfig, "t")
+        validate({"patient": {"port_region": {"polygon_mm": [[0, 0], [10, 10], [20, 20]]}}}, C.PortPlaceConfig, "t")
 
 
 def _painted_dome(path, fmt="ply"):
@@ -751,11 +596,11 @@ def test_a_region_painted_on_the_mesh_keeps_the_sites_on_its_faces(tmp_path):
     mesh, painted = _painted_dome(tmp_path / "painted")
     base = {"patient": {"shape": "mesh", "mesh_file": "painted.ply", "port_region": {"site_spacing_mm": 36.0}},
             "target": {"spacing_mm": 20.0}}
-    plain = validate(base, S.Config, "plain", {"config_dir": str(tmp_path)})
+    plain = validate(base, C.Config, "plain", {"config_dir": str(tmp_path)})
     region = {**base["patient"]["port_region"], "face_color_rgb": [255, 0, 0]}
-    cfg = validate({**base, "patient": {**base["patient"], "port_region": region}}, S.Config, "painted",
+    cfg = validate({**base, "patient": {**base["patient"], "port_region": region}}, C.Config, "painted",
                    {"config_dir": str(tmp_path)})
-    every, kept = S.sites_mm(plain), S.sites_mm(cfg)
+    every, kept = G.sites_mm(plain), G.sites_mm(cfg)
     _, _, tri = trimesh.proximity.closest_point(mesh, every)
     centre = mesh.triangles_center[tri]
     expect = (centre[:, 1] < -20.0) & (centre[:, 2] > 30.0)
@@ -776,7 +621,7 @@ def test_a_painted_region_that_cannot_be_read_is_refused_with_the_field_named(tm
     patient = {"port_region": region} if case == "dome" else {
         "shape": "mesh", "mesh_file": "painted.stl" if case == "stl" else "painted.ply", "port_region": region}
     with pytest.raises(ConfigError, match="face_color_rgb") as e:
-        validate({"patient": patient}, S.Config, "bad.toml", {"config_dir": str(tmp_path)})
+        validate({"patient": patient}, C.Config, "bad.toml", {"config_dir": str(tmp_path)})
     assert {"dome": "needs shape = 'mesh'", "stl": "no per-face colours",
             "colour absent": "no face of"}[case] in str(e.value)
 
@@ -811,10 +656,10 @@ def test_an_angled_scope_looks_at_the_centre_from_the_standoff(view):
     shaft; the coverage counts the points in the cone about that view; a straight scope is unchanged."""
     from surgopt.kinematics import port_place as K
 
-    cfg = S.PortPlaceConfig.model_validate({"robot": {"camera_scope_angle_deg": 30.0, "camera_scope_view": view}})
-    sites, centre = S.sites_mm(cfg) / 1000, np.asarray(cfg.target.centre_mm) / 1000
-    cam = S.camera_of(cfg)
-    rot = K.docking_frames(sites, centre, S.LATERAL)
+    cfg = C.PortPlaceConfig.model_validate({"robot": {"camera_scope_angle_deg": 30.0, "camera_scope_view": view}})
+    sites, centre = G.sites_mm(cfg) / 1000, np.asarray(cfg.target.centre_mm) / 1000
+    cam = T.camera_of(cfg)
+    rot = K.docking_frames(sites, centre, T.LATERAL)
     tips, axes, ok = K.camera_views(sites, rot, centre, cam)
     assert ok.sum() > len(sites) // 2
     placed = ok & np.isclose(np.linalg.norm(centre - tips, axis=1), cam.standoff_m, rtol=0, atol=1e-12)
@@ -825,14 +670,14 @@ def test_an_angled_scope_looks_at_the_centre_from_the_standoff(view):
         shaft = (tips[i] - sites[i]) / np.linalg.norm(tips[i] - sites[i])
         assert math.degrees(math.acos(np.clip(shaft @ axes[i], -1, 1))) == pytest.approx(30.0, abs=1e-9)
         assert (shaft[2] > (centre - sites[i])[2] / np.linalg.norm(centre - sites[i])) == (view == "down")
-    targets = S.target_points_mm(cfg.target) / 1000
+    targets = G.target_points_mm(cfg.target) / 1000
     cover = K.camera_coverage(sites, rot, targets, centre, cam)
     for i in np.flatnonzero(ok)[::11]:
         d = targets - tips[i]
         r = np.linalg.norm(d, axis=1)
         seen = (r >= cam.near_m) & (r <= cam.far_m) & (d @ axes[i] >= r * math.cos(cam.half_fov_rad))
         assert cover[i] == seen.mean()
-    straight = S.camera_of(S.PortPlaceConfig())
+    straight = T.camera_of(C.PortPlaceConfig())
     assert np.array_equal(K.camera_views(sites, rot, centre, straight)[1][ok],
                           ((centre - sites[ok]).T / np.linalg.norm(centre - sites[ok], axis=1)).T)
 
@@ -841,8 +686,8 @@ def test_an_angled_scope_keeps_a_symmetric_layout_balanced_and_moves_the_best():
     """With a 30 deg scope the azimuths are taken about its view axis: the mirror-symmetric best layouts stay
     balanced (imbalance 0); the study still finds feasible layouts, and the angle changes what the camera sees."""
     small = {"patient": {"port_region": {"site_spacing_mm": 36.0}}, "target": {"spacing_mm": 20.0}}
-    straight = S.PortPlaceConfig.model_validate(small)
-    angled = S.PortPlaceConfig.model_validate({**small, "robot": {"camera_scope_angle_deg": 30.0}})
+    straight = C.PortPlaceConfig.model_validate(small)
+    angled = C.PortPlaceConfig.model_validate({**small, "robot": {"camera_scope_angle_deg": 30.0}})
     a, b = S.compute_task(straight, 10 ** 6, 0), S.compute_task(angled, 10 ** 6, 0)
     assert b["feasible"].any() and not np.array_equal(a["camera_coverage"], b["camera_coverage"])
     sym = (b["psm1_x_mm"] == -b["psm2_x_mm"]) & (b["psm1_y_mm"] == b["psm2_y_mm"]) & (b["ecm_x_mm"] == 0)
@@ -871,8 +716,8 @@ def ecm_urdf(rpy=(0.3, -0.7, 1.1), rcm=(0.12, -0.05, 0.4), pitch_gap_m=0.0, pitc
     minus the joint's, its limits negated), insertion along -z, a roll about the shaft, the scope's tip 0.7 mm
     past the RCM at zero insertion. ``pitch_gap_m`` moves the pitch axis off the yaw axis, ``pitch_rpy`` turns
     the pitch joint's frame."""
-    (lo, hi), (plo, phi), (ilo, ihi) = (dvrk.ECM_CLASSIC.yaw_limits_rad, dvrk.ECM_CLASSIC.pitch_limits_rad,
-                                        dvrk.ECM_CLASSIC.insertion_limits_m)
+    (lo, hi), (plo, phi), (ilo, ihi) = (get_model("dvrk_ecm_classic").yaw_limits_rad, get_model("dvrk_ecm_classic").pitch_limits_rad,
+                                        get_model("dvrk_ecm_classic").insertion_limits_m)
     joints = [("yaw", "revolute", f"{rcm[0]} {rcm[1]} {rcm[2]}", " ".join(map(str, rpy)), "0 -1 0", lo, hi),
               ("pitch", "revolute", f"0 0 {pitch_gap_m}", pitch_rpy, "1 0 0", -phi, -plo),
               ("insertion", "prismatic", "0 0 0", "0 0 0", "0 0 -1", ilo, ihi),
@@ -895,11 +740,11 @@ def test_an_rcm_arm_from_a_dh_table_or_a_urdf_gives_the_shipped_arms_rows(tmp_pa
     from surgopt.config import validate
 
     (tmp_path / "ecm.urdf").write_text(ecm_urdf())
-    shipped = validate(COARSE, S.Config, "x")
+    shipped = validate(COARSE, C.Config, "x")
     files = validate({**COARSE, "robot": {"instrument_file": {"dh": PSM_DH},
-                                          "camera_file": {"urdf": str(tmp_path / "ecm.urdf")}}}, S.Config, "x")
-    psm, ecm = S.instrument_of(files), S.camera_arm_of(files)
-    for got, ref in ((psm, dvrk.PSM_CLASSIC), (ecm, dvrk.ECM_CLASSIC)):
+                                          "camera_file": {"urdf": str(tmp_path / "ecm.urdf")}}}, C.Config, "x")
+    psm, ecm = C.instrument_of(files), C.camera_arm_of(files)
+    for got, ref in ((psm, get_model("dvrk_psm_classic")), (ecm, get_model("dvrk_ecm_classic"))):
         for f in ("yaw_limits_rad", "pitch_limits_rad", "insertion_limits_m"):
             assert getattr(got, f) == pytest.approx(getattr(ref, f), abs=1e-12), f
         assert got.along_shaft_m == pytest.approx(ref.along_shaft_m, abs=1e-12)
@@ -935,7 +780,7 @@ def test_a_file_arm_that_is_not_an_rcm_mechanism_is_refused_naming_the_field(tmp
         arm = '[robot.camera_file]\nurdf = "ecm.urdf"\n'
     elif kind == "ur5e":
         arm = '[robot.instrument_file]\ndh_convention = "standard"\n' + "".join(
-            f"[[robot.instrument_file.dh]]\na_m = {r.a_m}\nalpha_deg = {r.alpha_deg}\nd_m = {r.d_m}\n"
+            f"[[robot.instrument_file.dh]]\na_m = {r.a_m}\nalpha_deg = {math.degrees(r.alpha_rad)}\nd_m = {r.d_m}\n"
             for r in get_model("ur5e").dh)
     else:
         arm = "[robot.instrument_file]\n"
@@ -963,16 +808,16 @@ def _raven():
     from surgopt.robots import chain
     from surgopt.robots.chain import frames_at
 
-    cfg = S.PortPlaceConfig.model_validate({**COARSE, "robot": {"instrument_file": {"dh": RAVEN_DH,
+    cfg = C.PortPlaceConfig.model_validate({**COARSE, "robot": {"instrument_file": {"dh": RAVEN_DH,
                                                                                     "dh_convention": "standard"}}})
-    arm = S.instrument_of(cfg)
+    arm = C.instrument_of(cfg)
     spec = chain.from_dh([r.row(i) for i, r in enumerate(cfg.robot.instrument_file.dh)], "standard")
     base, rcm = np.array(arm.base_rotation), np.array(arm.rcm_m)
 
     def wrist(q):  # joint 5's frame origin: the wrist's first axis on the shaft
         return base.T @ (frames_at(spec, q)[4][:3, 3] - rcm)
 
-    return cfg, arm, S.arm_limits(arm), wrist
+    return cfg, arm, T.arm_limits(arm), wrist
 
 
 def test_a_spherical_rcm_arm_the_raven_is_solved_in_closed_form():
@@ -1041,11 +886,11 @@ def test_an_angled_scope_on_a_spherical_arm_is_held_to_that_arms_pointing():
     def views(pitch_deg):
         rows = [dict(r) for r in RAVEN_DH]
         rows[1].update(lower_deg=pitch_deg[0], upper_deg=pitch_deg[1])
-        scope = S.PortPlaceConfig.model_validate({**COARSE, "robot": {
+        scope = C.PortPlaceConfig.model_validate({**COARSE, "robot": {
             "camera_file": {"dh": rows, "dh_convention": "standard"}, "camera_scope_angle_deg": 30.0}})
-        cam = S.camera_of(scope)
-        sites, centre = S.sites_mm(scope) / 1000, np.asarray(scope.target.centre_mm) / 1000
-        rot = K.docking_frames(sites, centre, S.LATERAL)
+        cam = T.camera_of(scope)
+        sites, centre = G.sites_mm(scope) / 1000, np.asarray(scope.target.centre_mm) / 1000
+        rot = K.docking_frames(sites, centre, T.LATERAL)
         return cam, sites, rot, *K.camera_views(sites, rot, centre, cam)
 
     cam, sites, rot, tips, _, ok = views((60.0, 100.0))

@@ -1,4 +1,4 @@
-"""Study raven-sweep (surgopt/studies/raven_sweep.py): rows against closed forms and the paper, refine,
+"""Study raven-sweep (surgopt/studies/raven_sweep/study.py): rows against closed forms and the paper, refine,
 config, and the sweep through the CLI."""
 import math
 import subprocess
@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from surgopt.robots import raven_iv
-from surgopt.studies import raven_sweep as S
+from surgopt.studies.raven_sweep import study as S
 
 import reference as R
 

@@ -1,9 +1,9 @@
-"""Study rcm-grid (surgopt/studies/rcm_grid.py): Table I, the cull search, chunking, candidates."""
+"""Study rcm-grid (surgopt/studies/rcm_grid/study.py): Table I, the cull search, chunking, candidates."""
 import numpy as np
 import pytest
 
 from surgopt.config import load_config, load_embedded
-from surgopt.studies import rcm_grid as S
+from surgopt.studies.rcm_grid import study as S
 
 from conftest import REPO
 

@@ -1,4 +1,4 @@
-"""rcm-grid's robot section (surgopt/studies/rcm_grid_config.py): shipped models, URDF files, DH tables,
+"""rcm-grid's robot section (surgopt/studies/rcm_grid/config.py): shipped models, URDF files, DH tables,
 --robot, y candidates; every URDF and DH error through the CLI (exit 2, file and field named, nothing
 written)."""
 import json
@@ -11,7 +11,7 @@ import pytest
 
 from surgopt.config import validate
 from surgopt.errors import ConfigError
-from surgopt.studies import rcm_grid as S
+from surgopt.studies.rcm_grid import study as S
 
 from conftest import cli
 
@@ -237,7 +237,7 @@ def test_standard_jacobian_gii_against_the_reference():
     the alternative GII's profile (rank correlation > 0.95) with much lower values."""
     import reference as ref
     from surgopt.robots import pa10_7c
-    from surgopt.studies.rcm_track import rank_correlation
+    from surgopt.studies.rcm_track.study import rank_correlation
 
     base = {"workspace": {"points_per_side": 3}, "candidates": {"grid": {"x_count": 9, "z_count": 9}}}
     std = validate({**base, "metric": "standard"}, S.Config, "t")
@@ -467,10 +467,10 @@ def dh_rows_of(name: str) -> tuple[list[dict], str]:
     m = get_model(name)
     rows = []
     for r in m.dh:
-        row = dict(name=r.name, a_m=r.a_m, alpha_deg=r.alpha_deg, d_m=r.d_m, theta_offset_deg=r.theta_offset_deg,
-                   max_speed_rad_s=r.max_speed)
+        row = dict(name=r.name, a_m=r.a_m, alpha_deg=math.degrees(r.alpha_rad), d_m=r.d_m,
+                   theta_offset_deg=math.degrees(r.theta_offset_rad), max_speed_rad_s=r.max_speed)
         if r.lower is not None:
-            row.update(lower_deg=r.lower, upper_deg=r.upper)
+            row.update(lower_deg=math.degrees(r.lower), upper_deg=math.degrees(r.upper))
         rows.append(row)
     return rows, m.convention
 

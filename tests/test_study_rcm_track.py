@@ -1,4 +1,4 @@
-"""Study rcm-track (surgopt/studies/rcm_track.py): Table I's error column, the calibration, the CLI."""
+"""Study rcm-track (surgopt/studies/rcm_track/study.py): Table I's error column, the calibration, the CLI."""
 import signal
 import subprocess
 import sys
@@ -7,8 +7,8 @@ import numpy as np
 import pytest
 
 from surgopt.config import load_config, load_embedded
-from surgopt.studies import rcm_grid as G
-from surgopt.studies import rcm_track as S
+from surgopt.studies.rcm_grid import study as G
+from surgopt.studies.rcm_track import study as S
 
 from conftest import REPO, cli, single_run, single_table, wait_for_parts
 

@@ -1,11 +1,11 @@
-"""Study suture-sim (surgopt/studies/suture_sim.py): the paper's runs, task modes, config and CLI."""
+"""Study suture-sim (surgopt/studies/suture_sim/study.py): the paper's runs, task modes, config and CLI."""
 import math
 
 import numpy as np
 import pytest
 
 from surgopt.config import load_embedded
-from surgopt.studies import suture_sim as S
+from surgopt.studies.suture_sim import study as S
 
 LINKS = (60.0, 60.0, 110.0, 90.0, 80.0, 180.0)
 Q0 = np.array([1.4522, 2.4707, 50, 0, np.pi / 2, -np.pi / 3, 0, -np.pi / 3])

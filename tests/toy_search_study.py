@@ -17,7 +17,7 @@ from pydantic import Field
 
 from surgopt.config import StrictModel
 from surgopt.studies import Study, Summary
-from surgopt.studies.search import SearchPlan, objectives_of, optimiser_of, search_field
+from surgopt.plans.search import SearchPlan, objectives_of, optimiser_of, search_field
 
 NAME = "toy-search"
 DIMS = ("u", "v", "w")

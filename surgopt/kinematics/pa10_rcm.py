@@ -40,9 +40,8 @@ from __future__ import annotations
 from typing import NamedTuple
 
 import numpy as np
-from numba import njit
 
-from surgopt.jit import CONTRACT
+from surgopt.jit import CONTRACT, njit
 from surgopt.kinematics.rcm_metric import (  # noqa: F401 - the shared metric, re-exported for the tests
     SINGULAR_RTOL, STATUS_OK, STATUS_SINGULAR, STATUS_UNREACHABLE, TINY, TRISECT_CHEB, TRISECT_POLY,
     constrained_extremes, cos_third_acos, gram_lambda_max, probe_points, singular_values_3x3,

@@ -6,9 +6,8 @@ from __future__ import annotations
 from typing import NamedTuple
 
 import numpy as np
-from numba import njit
 
-from surgopt.jit import EXACT
+from surgopt.jit import EXACT, njit
 from surgopt.kinematics.port_place import ANGLE, CAMERA, CAMERA_SIDE, OUTSIDE, REACH, SHAFTS, SPACING
 
 
@@ -121,7 +120,8 @@ def design_columns(t, crit, start, stop, instruments=2, feasible_only=False):
     of the three pairs', the arms' outside and the ports' spacing the least of every pair's, and the cost adds
     the third's isotropy shortfall. Returns (ids [PSM1, PSM2, (PSM3,) ECM], columns, reason bits, cost, design
     numbers) of every design, or of the feasible ones only (``feasible_only``: the rows of the others are
-    never written, so a chunk's memory is its feasible rows')."""
+    never written, so a chunk's memory is its feasible rows').
+    (docs/port_placement.md, eq. P11: the cost and feasibility.)"""
     n = t.reach_count.shape[0]
     three = instruments == 3
     size = stop - start

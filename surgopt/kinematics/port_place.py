@@ -22,9 +22,8 @@ import math
 from typing import NamedTuple
 
 import numpy as np
-from numba import njit
 
-from surgopt.jit import EXACT
+from surgopt.jit import EXACT, njit
 
 
 class ArmLimits(NamedTuple):
@@ -105,21 +104,24 @@ REASONS = {REACH: "instruments do not both reach every target point", CAMERA: "t
 
 @njit(**EXACT)
 def shaft_direction(q1, q2):
-    """u(q1, q2) = (sin q1 cos q2, -sin q2, -cos q1 cos q2): the shaft's unit direction in the base frame."""
+    """u(q1, q2) = (sin q1 cos q2, -sin q2, -cos q1 cos q2): the shaft's unit direction in the base frame.
+    (docs/port_placement.md, eq. P1.)"""
     c2 = math.cos(q2)
     return np.array([math.sin(q1) * c2, -math.sin(q2), -math.cos(q1) * c2])
 
 
 @njit(**EXACT)
 def rcm_point(q1, q2, q3, along_shaft_m):
-    """The reaching point (wrist or scope tip) in the base frame: (q3 + along_shaft_m) u(q1, q2)."""
+    """The reaching point (wrist or scope tip) in the base frame: (q3 + along_shaft_m) u(q1, q2).
+    (docs/port_placement.md, eq. P1.)"""
     return (q3 + along_shaft_m) * shaft_direction(q1, q2)
 
 
 @njit(**EXACT)
 def rcm_inverse(p, along_shaft_m):
     """(q1, q2, q3) with rcm_point(q1, q2, q3) = p for a point below the RCM's equator (u_z < 0 branch,
-    |q1| < pi/2, |q2| < pi/2): rho = |p|, q2 = -asin(p_y / rho), q1 = atan2(p_x, -p_z), q3 = rho - offset."""
+    |q1| < pi/2, |q2| < pi/2): rho = |p|, q2 = -asin(p_y / rho), q1 = atan2(p_x, -p_z), q3 = rho - offset.
+    (docs/port_placement.md, eq. P2.)"""
     rho = math.sqrt(p[0] * p[0] + p[1] * p[1] + p[2] * p[2])
     if rho == 0.0:
         return 0.0, 0.0, -along_shaft_m
@@ -131,7 +133,8 @@ def rcm_inverse(p, along_shaft_m):
 @njit(**EXACT)
 def isotropy(q2, rho, length_m):
     """sigma_min / sigma_max of the position Jacobian [rho du/dq1, rho du/dq2, u] with its angular columns
-    divided by the characteristic length L: the columns are orthogonal, of norms rho cos q2 / L, rho / L, 1."""
+    divided by the characteristic length L: the columns are orthogonal, of norms rho cos q2 / L, rho / L, 1.
+    (docs/port_placement.md, eq. P5.)"""
     a = rho * math.cos(q2) / length_m
     b = rho / length_m
     lo = min(a, min(b, 1.0))
@@ -166,7 +169,8 @@ def spherical_inverse(d, arm):
     """(q1, q2, found) with R(w1, q1) R(w2, q2) s = d for a unit direction d, the shaft s = -z at q = 0, the yaw
     axis w1 and the pitch axis w2 (at q1 = 0) of a spherical ``arm`` (Paden-Kahan subproblem 2: c = R(w2, q2) s
     = R(w1, -q1) d lies on both cones, c = alpha w1 + beta w2 + gamma w1 x w2); of the two solutions the first
-    within the yaw and pitch ranges, ``found`` False when neither is (or d is off both cones)."""
+    within the yaw and pitch ranges, ``found`` False when neither is (or d is off both cones).
+    (docs/port_placement.md, eq. P2.)"""
     w1 = np.array([arm.yaw_x, arm.yaw_y, arm.yaw_z])
     w2 = np.array([arm.pitch_x, arm.pitch_y, arm.pitch_z])
     s = np.array([0.0, 0.0, -1.0])
@@ -193,7 +197,8 @@ def spherical_inverse(d, arm):
 def spherical_isotropy(q1, u, rho, arm, length_m):
     """sigma_min / sigma_max of the position Jacobian [rho w1 x u, rho w2(q1) x u, u] of a spherical ``arm``, its
     angular columns divided by L: u is orthogonal to both angular columns, so the Gram matrix is a 2 x 2 block
-    [[A, C], [C, B]] and 1, whose eigenvalues are (A + B) / 2 +- sqrt(((A - B) / 2)^2 + C^2)."""
+    [[A, C], [C, B]] and 1, whose eigenvalues are (A + B) / 2 +- sqrt(((A - B) / 2)^2 + C^2).
+    (docs/port_placement.md, eq. P5.)"""
     w1 = np.array([arm.yaw_x, arm.yaw_y, arm.yaw_z])
     w2 = rotate(w1, q1, np.array([arm.pitch_x, arm.pitch_y, arm.pitch_z]))
     k = rho / length_m
@@ -218,7 +223,7 @@ def within(q1, q2, q3, arm):
 def docking_frames(sites, centre, lateral):
     """Each port's base rotation (columns x, y, z): z = (site - centre)/|.| so the neutral shaft -z points at
     the target's centre, x = the patient's ``lateral`` axis made orthogonal to z (yaw swings the shaft
-    across the patient), y = z x x."""
+    across the patient), y = z x x. (docs/port_placement.md, eq. P3.)"""
     n = sites.shape[0]
     rot = np.zeros((n, 3, 3))
     for i in range(n):
@@ -241,7 +246,7 @@ def docking_frames(sites, centre, lateral):
 def tilted_frames(rot, yaw_rad, pitch_rad):
     """Docking offsets (free docking): each base frame turned by ``yaw_rad`` about its y axis, then by
     ``pitch_rad`` about the turned x axis, rot R_y(yaw) R_x(pitch); (0, 0) is the default docking. The arm's
-    neutral shaft (-z) then points that far off the target's centre."""
+    neutral shaft (-z) then points that far off the target's centre. (docs/port_placement.md, eq. P3.)"""
     out = np.array(rot, dtype=np.float64, copy=True)
     for i in range(out.shape[0]):
         cy, sy, cp, sp = math.cos(yaw_rad[i]), math.sin(yaw_rad[i]), math.cos(pitch_rad[i]), math.sin(pitch_rad[i])
@@ -254,7 +259,8 @@ def tilted_frames(rot, yaw_rad, pitch_rad):
 @njit(**EXACT)
 def external_clearances(sites, axes, length_m):
     """Per pair of ports: the distance between the arms' neutral shaft lines outside the body, each the
-    segment from its port ``length_m`` back along its base's outward ``axes[i]`` (unit z of the base frame)."""
+    segment from its port ``length_m`` back along its base's outward ``axes[i]`` (unit z of the base frame).
+    (docs/port_placement.md, eq. P7.)"""
     n = sites.shape[0]
     out = np.zeros((n, n))
     for i in range(n):
@@ -278,7 +284,8 @@ def instrument_tables(sites, rot, targets, arm, length_m, approach):
     """(reach[site, point], dexterity[site, point]): the RCM inverse kinematics of every target point at every
     port within the joint limits and, when the target asks for one, with the shaft within the wrist's bend of
     the approach cone (``Approach``), and the isotropy there (0 where unreachable). Scalar arithmetic in the
-    loop (``rcm_inverse`` and ``isotropy`` written out: no array per point)."""
+    loop (``rcm_inverse`` and ``isotropy`` written out: no array per point).
+    (docs/port_placement.md, eq. P1, P2, P4, P5.)"""
     n, m = sites.shape[0], targets.shape[0]
     reach = np.zeros((n, m), dtype=np.bool_)
     dex = np.zeros((n, m))
@@ -333,7 +340,7 @@ def camera_views(sites, rot, centre, camera):
     in the plane of ``scope_tilt_direction``, away from the side the view turns to. Insertion below its range is
     clamped (the tip stops farther back, on the same shaft; the view then passes beside the centre); beyond its
     range, or with r sin(theta) > d, or the shaft outside the arm's yaw and pitch in its docking frame ``rot``
-    (``rcm_inverse``), the port cannot be used."""
+    (``rcm_inverse``), the port cannot be used. (docs/port_placement.md, eq. P10.)"""
     n = sites.shape[0]
     tips = np.zeros((n, 3))
     axes = np.zeros((n, 3))
@@ -377,7 +384,8 @@ def camera_views(sites, rot, centre, camera):
 def camera_coverage(sites, rot, targets, centre, camera):
     """The share of target points each port's endoscope images (``camera_views``: its tip and view axis), a
     point counting when it lies inside the view cone and between ``near_m`` and ``far_m`` from the tip. A port
-    whose scope cannot be placed (too close, too far, beyond the arm's joints) covers nothing."""
+    whose scope cannot be placed (too close, too far, beyond the arm's joints) covers nothing.
+    (docs/port_placement.md, eq. P8.)"""
     n, m = sites.shape[0], targets.shape[0]
     out = np.zeros(n)
     tips, axes, ok = camera_views(sites, rot, centre, camera)
@@ -434,7 +442,8 @@ def pair_tables(sites, reach, dex, targets, centre, crit):
     et al. 1997) mean / min / max and share within [lo, hi]; the manipulation angle at the centre; the
     shafts' axis distance inside (ports to the centre, less the tip zone); and the distance outside (each
     shaft continued ``outside_length_m`` behind its port). Arrays n x n (entries i < j filled). The unit
-    vectors from every point to every port are computed once (no array per pair and point)."""
+    vectors from every point to every port are computed once (no array per pair and point).
+    (docs/port_placement.md, eq. P6.)"""
     n, m = sites.shape[0], targets.shape[0]
     count = np.zeros((n, n), dtype=np.int64)
     dex_mean = np.zeros((n, n))
@@ -492,7 +501,7 @@ def camera_pair_tables(sites, centre, lateral, view_axes=None):
     optical axis) and the instrument's side of the optical axis (its offset from the camera port along the
     patient's lateral axis made orthogonal to the optical axis, in m). The optical axis runs from the camera
     port to the centre, or, for an angled scope, along the unit ``view_axes[k]`` (``camera_views``) through the
-    centre."""
+    centre. (docs/port_placement.md, eq. P9.)"""
     n = sites.shape[0]
     azimuth = np.zeros((n, n))
     side = np.zeros((n, n))

@@ -32,9 +32,8 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from numba import njit
 
-from surgopt.jit import CONTRACT, EXACT
+from surgopt.jit import CONTRACT, EXACT, njit
 from surgopt.kinematics.port_place import segment_distance
 from surgopt.kinematics.serial_chain import (
     N_ACTIVE, chain_frames, constraint_reference, continue_walk, newton_rcm, pose_extremes_from_jacobian,
@@ -105,7 +104,7 @@ def _reach_from(chain_arrays, q, q_from, at, c, ref, end, tool_m, bufs):
     target = at.copy()
     for i in range(N_ACTIVE):
         q[i] = q_from[i]
-    newton_rcm(rot, pos, prismatic, q, target, c, ref, 0, axes, origins, jac, res, step, work, trig)
+    newton_rcm(rot, pos, prismatic, q, target, c, ref, 0, bufs)
     if continue_walk(rot, pos, prismatic, q, target, c, ref, end, bufs) < 0:
         return False
     if not within_limits(q, prismatic, lower, upper):
@@ -176,7 +175,7 @@ def serial_instrument_tables(chain_arrays, seed, restarts, rcm, tool_m, base_rot
             reach[i, k] = True
             for j in range(N_ACTIVE):
                 q_out[i, k, j] = q[j]
-            smin2, smax2, singular = pose_extremes_from_jacobian(bufs[2], qdot_max)
+            smin2, smax2, singular = pose_extremes_from_jacobian(bufs.jac, qdot_max)
             dex[i, k] = 0.0 if singular or smax2 <= 0.0 else math.sqrt(smin2 / smax2)
     return reach, dex
 

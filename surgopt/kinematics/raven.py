@@ -11,9 +11,8 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from numba import njit
 
-from surgopt.jit import EXACT, VECTOR
+from surgopt.jit import EXACT, VECTOR, njit
 from surgopt.kinematics.small_linalg import mat_mul, rigid_inverse
 from surgopt.robots import raven_iv
 

@@ -14,14 +14,13 @@ import math
 from typing import NamedTuple
 
 import numpy as np
-from numba import njit
 
-from surgopt.jit import EXACT, VECTOR
+from surgopt.jit import EXACT, VECTOR, njit
 from surgopt.kinematics.raven_shoulder import shoulder_design, shoulder_fields, theta1_inside_row, theta1_margin
 
 
 #: A node's level: how many of the nested Iso_min designs hold it, at most the number of Iso_min values
-#: (a sweep parameter has at most 10,001 values, ``surgopt.studies.raven_sweep_config``; int16 holds 32,767).
+#: (a sweep parameter has at most 10,001 values, ``surgopt.studies.raven_sweep.config``; int16 holds 32,767).
 LEVEL = np.int16
 
 

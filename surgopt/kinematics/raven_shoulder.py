@@ -26,9 +26,8 @@ import math
 from typing import NamedTuple
 
 import numpy as np
-from numba import njit
 
-from surgopt.jit import EXACT, VECTOR
+from surgopt.jit import EXACT, VECTOR, njit
 
 
 class ShoulderRange(NamedTuple):

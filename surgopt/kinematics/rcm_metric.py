@@ -13,10 +13,9 @@ shared too.
 from __future__ import annotations
 
 import numpy as np
-from numba import njit
 from numpy.polynomial import chebyshev as _chebyshev
 
-from surgopt.jit import CONTRACT
+from surgopt.jit import CONTRACT, njit
 
 #: J_a counts as singular when a constraint row or sigma_min of B falls below this fraction of sigma_max.
 SINGULAR_RTOL = 1e-12

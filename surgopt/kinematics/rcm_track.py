@@ -18,9 +18,8 @@ of the chain (``serial_chain.chain_frames``).
 from __future__ import annotations
 
 import numpy as np
-from numba import njit
 
-from surgopt.jit import CONTRACT
+from surgopt.jit import CONTRACT, njit
 from surgopt.kinematics.serial_chain import N_ACTIVE, chain_frames
 
 #: Time scalings s(u), u = t / T in [0, 1]: s(0) = 0, s(1) = 1, s'(0) = s'(1) = 0.

@@ -42,10 +42,11 @@ Jacobian's extremes (Sec. III-E) share that walk.
 """
 from __future__ import annotations
 
-import numpy as np
-from numba import njit
+from typing import NamedTuple
 
-from surgopt.jit import CONTRACT
+import numpy as np
+
+from surgopt.jit import CONTRACT, njit
 from surgopt.metrics import METRIC_RCM, METRIC_STANDARD
 from surgopt.kinematics.rcm_metric import constrained_extremes, workspace_centre
 from surgopt.robots.chain import Chain  # noqa: F401 - the kernel's input, defined with the data that builds it
@@ -279,9 +280,11 @@ def lu_solve(jac, rhs, out, work):
 
 
 @njit(**CONTRACT)
-def newton_rcm(rot, pos, prismatic, q, target, c, ref, max_iter, axes, origins, jac, res, step, work, trig):
-    """Damped Newton on the five equations from ``q`` (updated in place). Returns the number of steps
-    taken when max |res| < IK_TOL_M (``jac`` then holds the Jacobian at the solution), or -1."""
+def newton_rcm(rot, pos, prismatic, q, target, c, ref, max_iter, bufs):
+    """Damped Newton on the five equations from ``q`` (updated in place), in the ``Scratch`` ``bufs``. Returns
+    the number of steps taken when max |res| < IK_TOL_M (``bufs.jac`` then holds the Jacobian at the
+    solution), or -1."""
+    axes, origins, jac, res, step, work, trig = bufs
     for it in range(max_iter + 1):
         worst = rcm_residual_jacobian(rot, pos, prismatic, q, target, c, ref, axes, origins, jac, res, trig)
         if worst < IK_TOL_M:
@@ -426,7 +429,7 @@ def seed_solve(rot, pos, prismatic, lower, upper, seed, restarts, target, c, ref
     for r in range(restarts.shape[0] + 1):
         for i in range(N_ACTIVE):
             q[i] = seed[i] if r == 0 else seed[i] + restarts[r - 1, i]
-        if newton_rcm(rot, pos, prismatic, q, target, c, ref, SEED_ITER, axes, origins, jac, res, step, work, trig) >= 0:
+        if newton_rcm(rot, pos, prismatic, q, target, c, ref, SEED_ITER, bufs) >= 0:
             if within_limits(q, prismatic, lower, upper):
                 return True
     return False
@@ -449,7 +452,7 @@ def continue_walk(rot, pos, prismatic, q, target, c, ref, end, bufs):
             dp[i] = new - target[i]
             target[i] = new
         _predict(q, q, q, q, q, 0, jac, dp, step, work)
-        it = newton_rcm(rot, pos, prismatic, q, target, c, ref, WALK_ITER, axes, origins, jac, res, step, work, trig)
+        it = newton_rcm(rot, pos, prismatic, q, target, c, ref, WALK_ITER, bufs)
         if it < 0:
             return -1
         total += it
@@ -490,18 +493,31 @@ def seed_and_probe(chain_arrays, seed, restarts, c, start, probes, ref, q, targe
             q[i] = q0[i]
         for i in range(3):
             target[i] = c[i] + start[i]
-        newton_rcm(rot, pos, prismatic, q, target, c, ref, 0, axes, origins, jac, res, step, work, trig)
+        newton_rcm(rot, pos, prismatic, q, target, c, ref, 0, bufs)
     return True, steps_total
+
+
+class Scratch(NamedTuple):
+    """Scratch of one scalar Newton solve (Pinocchio's Data beside its Model), what ``newton_rcm``,
+    ``continue_walk`` and ``seed_solve`` take: each joint's axis and origin (5, 3), the Jacobian (5, 5), the
+    residual and the step (5), the solver's work (5, 6) and the joints' cached cos / sin (4, 5)."""
+
+    axes: np.ndarray
+    origins: np.ndarray
+    jac: np.ndarray
+    res: np.ndarray
+    step: np.ndarray
+    work: np.ndarray
+    trig: np.ndarray
 
 
 @njit(**CONTRACT)
 def scalar_buffers():
-    """Scratch for one scalar Newton solve: (axes, origins, jac, res, step, work, trig), the arguments
-    ``newton_rcm``, ``continue_walk`` and ``seed_solve`` take (``trig`` empty: exact cos/sin first)."""
+    """A fresh ``Scratch`` (``trig`` empty: exact cos/sin first)."""
     trig = np.zeros((4, N_ACTIVE))
     trig[2, :] = np.nan
-    return (np.empty((N_ACTIVE, 3)), np.empty((N_ACTIVE, 3)), np.empty((N_ACTIVE, N_ACTIVE)), np.empty(N_ACTIVE),
-            np.empty(N_ACTIVE), np.empty((N_ACTIVE, N_ACTIVE + 1)), trig)
+    return Scratch(np.empty((N_ACTIVE, 3)), np.empty((N_ACTIVE, 3)), np.empty((N_ACTIVE, N_ACTIVE)),
+                   np.empty(N_ACTIVE), np.empty(N_ACTIVE), np.empty((N_ACTIVE, N_ACTIVE + 1)), trig)
 
 
 @njit(**CONTRACT)
@@ -558,7 +574,7 @@ def chain_walk(chain_arrays, seed, restarts, c, offsets, start, probes, gii_to_b
             _predict(q, q1, q2, q3, q4, run, jac, dp, step, work)
             for i in range(N_ACTIVE):
                 q4[i], q3[i], q2[i], q1[i] = q3[i], q2[i], q1[i], qj[i]
-        it = newton_rcm(rot, pos, prismatic, q, target, c, ref, WALK_ITER, axes, origins, jac, res, step, work, trig)
+        it = newton_rcm(rot, pos, prismatic, q, target, c, ref, WALK_ITER, bufs)
         if it < 0 or not within_limits(q, prismatic, lower, upper):
             # the walk lost the point (a near-singular step: an elbow at full stretch, a wrist with W1 ~ 0):
             # reach it once more from the start's solution, straight from the workspace centre
@@ -566,7 +582,7 @@ def chain_walk(chain_arrays, seed, restarts, c, offsets, start, probes, gii_to_b
                 q[i] = q0[i]
             for i in range(3):
                 target[i] = c[i] + start[i]
-            newton_rcm(rot, pos, prismatic, q, target, c, ref, 0, axes, origins, jac, res, step, work, trig)
+            newton_rcm(rot, pos, prismatic, q, target, c, ref, 0, bufs)
             it = continue_walk(rot, pos, prismatic, q, target, c, ref, offsets[j], bufs)
             if it < 0 or not within_limits(q, prismatic, lower, upper):
                 return 0.0, 0.0, 1, 0, j + 1, steps_total

@@ -31,9 +31,8 @@ call them; splitting it would split the layout from the code that depends on it.
 from __future__ import annotations
 
 import numpy as np
-from numba import njit
 
-from surgopt.jit import CONTRACT
+from surgopt.jit import CONTRACT, njit
 from surgopt.metrics import METRIC_RCM
 from surgopt.kinematics.rcm_metric import constrained_extremes
 from surgopt.kinematics.serial_chain import (
@@ -527,7 +526,7 @@ def continue_from_start(chain_arrays, q, q0, target, c, start, ref, end, bufs):
         q[i] = q0[i]
     for i in range(3):
         target[i] = c[i] + start[i]
-    newton_rcm(rot, pos, prismatic, q, target, c, ref, 0, axes, origins, jac, res, step, work, trig)
+    newton_rcm(rot, pos, prismatic, q, target, c, ref, 0, bufs)
     return continue_walk(rot, pos, prismatic, q, target, c, ref, end, bufs)
 
 
@@ -538,7 +537,7 @@ def newton_from_prediction(rot, pos, prismatic, S, lane, c, ref, q, target, bufs
     axes, origins, jac, res, step, work, trig = bufs
     _lane_to_scalar(S, lane, QP, q, N)
     _lane_to_scalar(S, lane, TGT, target, 3)
-    return newton_rcm(rot, pos, prismatic, q, target, c, ref, WALK_ITER, axes, origins, jac, res, step, work, trig)
+    return newton_rcm(rot, pos, prismatic, q, target, c, ref, WALK_ITER, bufs)
 
 
 @njit(inline="always", **CONTRACT)

@@ -6,9 +6,8 @@ dependency), and BLAS is slower than plain loops at 3x3 to 6x6 anyway.
 from __future__ import annotations
 
 import numpy as np
-from numba import njit
 
-from surgopt.jit import EXACT
+from surgopt.jit import EXACT, njit
 
 
 @njit(**EXACT)

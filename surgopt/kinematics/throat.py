@@ -16,9 +16,8 @@ from __future__ import annotations
 from typing import NamedTuple
 
 import numpy as np
-from numba import njit
 
-from surgopt.jit import EXACT
+from surgopt.jit import EXACT, njit
 from surgopt.kinematics.small_linalg import cross, dot, mat_mul, mat_vec, solve_spd
 from surgopt.robots.throat_arm import SutureMode
 

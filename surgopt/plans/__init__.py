@@ -25,13 +25,13 @@ from typing import Any
 
 import numpy as np
 
+from surgopt.parts import concat_rows
+
 #: Plan name -> "module:class" (imported on first use, so that importing surgopt loads no optimiser).
 PLANS = {"grid": "surgopt.plans.grid:GridPlan", "cull": "surgopt.plans.cull:CullPlan",
          "refine": "surgopt.plans.refine:RefinePlan",
          "optuna": "surgopt.plans.optuna_plan:OptunaPlan", "cmaes": "surgopt.plans.cmaes_plan:CmaesPlan"}
 
-#: [search] method -> plan name.
-METHOD_PLANS = {"tpe": "optuna", "nsga2": "optuna", "random": "optuna", "cmaes": "cmaes"}
 
 
 @dataclass(frozen=True)
@@ -58,6 +58,10 @@ class Compass:
     first_id: int
 
 
+class Cull:
+    """Payload of the cull plan's one task (``plans.cull``): the study's exact argmax by culling."""
+
+
 @dataclass(frozen=True)
 class Task:
     """One unit of work on a backend: ``index`` (the study's chunk, or the plan's batch), ``sub`` (a slice of a
@@ -77,8 +81,6 @@ def run_task(study, cfg, chunk: int, task: Task) -> dict:
         return study.evaluate(cfg, p.x, p.ids, p.source)
     if isinstance(p, Compass):
         return compass_rows(study, cfg, p)
-    from surgopt.plans.cull import Cull
-
     if isinstance(p, Cull):
         return study.cull(cfg)
     raise TypeError(f"unknown task payload {type(p).__name__}")
@@ -86,7 +88,7 @@ def run_task(study, cfg, chunk: int, task: Task) -> dict:
 
 def compass_rows(study, cfg, p: Compass) -> dict:
     """Every design a compass search from ``p.start`` evaluated, as the study's rows (ids from ``p.first_id``)."""
-    from surgopt.studies.search import compass_search
+    from surgopt.plans.search import compass_search
 
     rows = []
 
@@ -97,13 +99,6 @@ def compass_rows(study, cfg, p: Compass) -> dict:
 
     compass_search(value, p.start, p.bounds, p.steps, p.max_evals)
     return concat_rows(rows)
-
-
-def concat_rows(parts: list[dict]) -> dict:
-    """Column-wise concatenation of row dicts (in order)."""
-    if len(parts) == 1:
-        return parts[0]
-    return {c: np.concatenate([np.asarray(r[c]) for r in parts]) for c in parts[0]}
 
 
 def split(x: np.ndarray, ids: np.ndarray, parts: int) -> list[tuple[np.ndarray, np.ndarray]]:
@@ -209,7 +204,7 @@ def get_plan_class(name: str):
 
 def plan_for(study, cfg):
     """The plan a config names: its [search] method's (an optimiser), else the study's own grid."""
-    from surgopt.studies.search import optimiser_of
+    from surgopt.plans.search import optimiser_of
 
     spec = optimiser_of(cfg)
     if spec is None:
@@ -218,6 +213,8 @@ def plan_for(study, cfg):
         from surgopt.errors import UsageError
 
         raise UsageError(f"{study.name}: [search] method {spec.method!r}: this study has no design space to search")
+    from surgopt.plans.search import METHOD_PLANS
+
     return get_plan_class(METHOD_PLANS[spec.method])(spec)
 
 

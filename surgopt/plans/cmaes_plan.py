@@ -16,7 +16,8 @@ import math
 
 import numpy as np
 
-from surgopt.plans import BatchCollector, Designs, OptimiserPlan, Task, concat_rows, split
+from surgopt.parts import concat_rows
+from surgopt.plans import BatchCollector, Designs, OptimiserPlan, Task, split
 
 #: Initial step size in the [0, 1] search coordinates (a third of each range).
 SIGMA0 = 0.3

@@ -3,11 +3,7 @@ whose rows are every candidate with its value or an upper bound. Named by the co
 study's ``--cull`` flag), so the run's key is the config's."""
 from __future__ import annotations
 
-from surgopt.plans import Task, TaskList
-
-
-class Cull:
-    """Payload of the cull's one task."""
+from surgopt.plans import Cull, Task, TaskList
 
 
 class CullPlan:

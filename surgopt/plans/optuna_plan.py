@@ -10,10 +10,12 @@ gone or unreadable while parts are stored cannot give the same trials: refused, 
 from __future__ import annotations
 
 import math
+from typing import Any
 
 import numpy as np
 
 from surgopt.plans import BatchCollector, Designs, OptimiserPlan, Task, split
+from surgopt.plans.search import SearchPlan, SearchSpec
 
 #: Optuna's own time per trial on one core, beyond the evaluation (benchmarks/bench_search.py, raven-sweep, batch
 #: 64, in memory): TPE's grows with the history (~6 ms a trial over 1,000 trials, ~8 ms over 5,000).
@@ -39,16 +41,14 @@ class OptunaSession:
 
     def __init__(self, plan, run, workers: int):
         from surgopt.errors import StoreError
-        from surgopt.studies import search as S
-
         self.plan, self.spec, self.run, self.workers = plan, plan.spec, run, workers
         self.names = list(plan.space)
         self.n_batches = math.ceil(self.spec.trials / self.spec.trials_per_part)
         self.repair = (f"delete the run (`surgopt runs rm {run.key[:12]}`) or rerun with --force to search again "
                        f"from the start")
         try:
-            self.journal = S.Journal.open(run.path / "optuna.journal", plan)
-        except S.JournalProblem as exc:
+            self.journal = Journal.open(run.path / "optuna.journal", plan)
+        except JournalProblem as exc:
             raise StoreError(f"{exc}; {self.repair}") from None
         stored = run.done_tasks()
         beyond = sorted(k for k in stored if k >= self.journal.batches)
@@ -56,9 +56,9 @@ class OptunaSession:
             raise StoreError(f"{run.path}: part {beyond[0]} is stored but Optuna's journal holds only "
                              f"{self.journal.batches} complete batch(es) (deleted or replaced?): the search cannot "
                              f"resume to the same trials; {self.repair}")
-        self.mem = S.memory_study(plan)
+        self.mem = memory_study(plan)
         self.mem.add_trials(self.journal.trials)
-        self.dists = S.distributions(plan.space)
+        self.dists = distributions(plan.space)
         self.total = self.spec.trials
         self.done = sum(self._size(k) for k in stored)
         self.k = 0
@@ -72,8 +72,6 @@ class OptunaSession:
         return any(k not in self.run.done_tasks() for k in range(self.n_batches))
 
     def next_tasks(self) -> list[Task]:
-        from surgopt.studies import search as S
-
         stored = self.run.done_tasks()
         while self.k < self.n_batches and self.k < self.journal.batches and self.k in stored:
             self.k += 1
@@ -84,7 +82,7 @@ class OptunaSession:
             recorded = self.journal.trials[first:first + n]
             points, asked = [[float(t.params[name]) for name in self.names] for t in recorded], None
         else:
-            self.mem.sampler = S.sampler_for(self.spec, k)
+            self.mem.sampler = sampler_for(self.spec, k)
             asked = [self.mem.ask(self.dists) for _ in range(n)]
             points, recorded = [[float(t.params[name]) for name in self.names] for t in asked], None
         x, ids = np.asarray(points, dtype=np.float64), first + np.arange(n)
@@ -93,8 +91,6 @@ class OptunaSession:
         return [Task(k, j, Designs(xs, i, self.spec.method)) for j, (xs, i) in enumerate(slices)]
 
     def on_result(self, task: Task, cols: dict) -> list[tuple[int, dict]]:
-        from surgopt.studies import search as S
-
         k, asked, recorded, collector = self._batch
         cols = collector.add(task.sub, cols)
         if cols is None:
@@ -103,7 +99,7 @@ class OptunaSession:
         if recorded is not None:
             same_trials(self.run, k, cols, recorded, objectives, self.names)
         else:
-            S.tell(self.mem, asked, [[float(cols[c][r]) for c, _ in objectives] for r in range(len(asked))])
+            tell(self.mem, asked, [[float(cols[c][r]) for c, _ in objectives] for r in range(len(asked))])
             first = k * self.spec.trials_per_part
             self.journal.append(self.mem.get_trials(deepcopy=False)[first:first + len(asked)])
         self.k += 1
@@ -127,3 +123,147 @@ def same_trials(run, index, cols, recorded, objectives, names) -> None:
         if not same or [float(cols[name][r]) for name in names] != [float(t.params[name]) for name in names]:
             raise StoreError(f"{run.path}: batch {index} evaluated again differs from Optuna's journal "
                              f"(trial {t.number}); delete the run and search again")
+
+
+# ---------------------------------------------------------------------------
+# Optuna's plumbing: samplers, distributions, the in-memory study and its journal (complete batches only)
+# ---------------------------------------------------------------------------
+
+
+def sampler_for(spec: SearchSpec, batch_index: int):
+    """A fresh Optuna sampler for one batch, seeded by (seed, batch): same history -> same trials."""
+    import optuna
+
+    seed = (spec.seed * 1_000_003 + batch_index) % (2 ** 31)
+    if spec.method == "tpe":
+        startup = min(2 * spec.trials_per_part, 100)
+        return optuna.samplers.TPESampler(seed=seed, multivariate=True, n_startup_trials=startup)
+    if spec.method == "nsga2":
+        return optuna.samplers.NSGAIISampler(seed=seed, population_size=max(8, spec.trials_per_part))
+    return optuna.samplers.RandomSampler(seed=seed)
+
+
+def distributions(space: dict[str, Any]) -> dict:
+    import optuna
+
+    out = {}
+    for name, dom in space.items():
+        if isinstance(dom, tuple):
+            out[name] = optuna.distributions.FloatDistribution(float(dom[0]), float(dom[1]))
+        else:
+            out[name] = optuna.distributions.CategoricalDistribution(list(dom))
+    return out
+
+
+def memory_study(plan: SearchPlan):
+    """A fresh Optuna study in memory, in the plan's directions (the search runs on it; the journal is its record)."""
+    import optuna
+
+    optuna.logging.set_verbosity(optuna.logging.WARNING)
+    return optuna.create_study(study_name="surgopt", storage=optuna.storages.InMemoryStorage(),
+                               directions=[d for _, d in plan.objectives])
+
+
+def _journal_study(path, plan: SearchPlan):
+    import optuna
+    from optuna.storages import JournalStorage
+    from optuna.storages.journal import JournalFileBackend
+
+    optuna.logging.set_verbosity(optuna.logging.WARNING)
+    return optuna.create_study(study_name="surgopt", storage=JournalStorage(JournalFileBackend(str(path))),
+                               load_if_exists=True, directions=[d for _, d in plan.objectives])
+
+
+class Journal:
+    """The search's record on disk: Optuna's journal file in the run's folder (optuna-dashboard reads it),
+    holding every trial of every *complete* batch, appended batch by batch once the batch is told.
+
+    ``Journal.open`` reads what an interrupted search left: the trials of its leading complete batches
+    (a batch cut short by a kill, or a half-written last line, is dropped and the file rewritten without
+    it). An unreadable journal raises ``JournalProblem``.
+    """
+
+    def __init__(self, path, plan: SearchPlan, study, trials: list):
+        self.path, self.plan, self._study, self.trials = path, plan, study, trials
+
+    @classmethod
+    def open(cls, path, plan: SearchPlan) -> "Journal":
+        from pathlib import Path
+
+        path = Path(path)
+        batch = plan.spec.trials_per_part
+        trials = []
+        ends_cleanly = not path.exists() or path.stat().st_size == 0 or _last_byte(path) == b"\n"
+        if path.exists() and path.stat().st_size:
+            try:
+                trials = _read_journal(path)
+            except Exception as exc:  # noqa: BLE001 - whatever Optuna raises on a damaged file
+                raise JournalProblem(f"{path}: Optuna's journal cannot be read ({type(exc).__name__}: "
+                                     f"{str(exc)[:120]})") from None
+        complete = []
+        for k in range(0, len(trials), batch):
+            n = min(batch, plan.spec.trials - k)
+            chunk = trials[k:k + n]
+            if len(chunk) < n or not all(t.state.is_finished() for t in chunk) \
+                    or [t.number for t in chunk] != list(range(k, k + n)):
+                break
+            complete += chunk
+        if len(complete) != len(trials) or not ends_cleanly:
+            _rewrite_journal(path, plan, complete)
+        return cls(path, plan, None, complete)
+
+    @property
+    def batches(self) -> int:
+        """How many complete batches the journal holds."""
+        return -(-len(self.trials) // self.plan.spec.trials_per_part) if self.trials else 0
+
+    def append(self, frozen_trials: list) -> None:
+        if self._study is None:
+            self._study = _journal_study(self.path, self.plan)
+        self._study.add_trials(frozen_trials)
+        self.trials += frozen_trials
+
+
+def _read_journal(path) -> list:
+    """The trials a journal holds, read without writing to it (creating the study would append to the file)."""
+    import optuna
+    from optuna.storages import JournalStorage
+    from optuna.storages.journal import JournalFileBackend
+
+    storage = JournalStorage(JournalFileBackend(str(path)))
+    if not storage.get_all_studies():
+        return []
+    return optuna.load_study(study_name="surgopt", storage=storage).get_trials(deepcopy=False)
+
+
+class JournalProblem(ValueError):
+    """A journal that cannot be read."""
+
+
+def _last_byte(path) -> bytes:
+    with open(path, "rb") as f:
+        f.seek(-1, 2)
+        return f.read(1)
+
+
+def _rewrite_journal(path, plan: SearchPlan, trials: list) -> None:
+    """Replace the journal with one holding exactly ``trials`` (written beside it, then renamed)."""
+    import os
+
+    tmp = path.with_name(f".{path.name}.tmp-{os.getpid()}")
+    tmp.unlink(missing_ok=True)
+    try:
+        _journal_study(tmp, plan).add_trials(trials)
+        os.replace(tmp, path)
+    finally:
+        tmp.unlink(missing_ok=True)
+
+
+def tell(study, trials, values: list[list[float]]) -> None:
+    import optuna
+
+    for trial, v in zip(trials, values):
+        if all(np.isfinite(v)):
+            study.tell(trial, v if len(v) > 1 else v[0])
+        else:
+            study.tell(trial, state=optuna.trial.TrialState.FAIL)

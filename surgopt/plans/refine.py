@@ -38,7 +38,7 @@ class RefinePlan:
         """Starts x max_evals designs, each costed as the study costs one trial of a search."""
         from dataclasses import replace
 
-        from surgopt.studies.search import SearchSpec
+        from surgopt.plans.search import SearchSpec
 
         n = max(1, len(self.starts)) * self.max_evals
         as_trials = study.estimate(cfg.model_copy(update={"search": SearchSpec(method="random", trials=n)}))

@@ -11,6 +11,8 @@ layer turns them into config errors on the field that brought the robot in.
 """
 from __future__ import annotations
 
+from functools import lru_cache
+
 import math
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -101,21 +103,32 @@ def axis_motion(axis, kind: str, q: float) -> np.ndarray:
 
 @dataclass(frozen=True)
 class DhRow:
-    """One DH row: a (m), alpha (deg), d (m), theta offset (deg), limits, rated speed, optional name.
+    """One DH row, of either convention (``from_dh`` is told which): a (m), alpha (rad), d (m), theta offset
+    (rad), limits, rated speed, optional name; the one DH row type (shipped models, config tables, the dVRK).
 
-    Revolute rows: ``lower``/``upper`` in degrees (None: continuous), ``max_speed`` in rad/s. A
-    prismatic row slides along d (``d`` is then its offset), limits in m, speed in m/s.
+    Revolute rows: ``lower``/``upper`` in rad (None: continuous), ``max_speed`` in rad/s. A prismatic row slides
+    along d (``d`` is then its offset), limits in m, speed in m/s. ``DhRow.deg`` builds a row from degrees (a
+    data sheet's), converting each angle once with ``math.radians``.
     """
 
     a_m: float
-    alpha_deg: float
+    alpha_rad: float
     d_m: float
-    theta_offset_deg: float = 0.0
+    theta_offset_rad: float = 0.0
     lower: float | None = None
     upper: float | None = None
     max_speed: float = 1.0
     name: str | None = None
     prismatic: bool = False
+
+    @classmethod
+    def deg(cls, a_m: float, alpha_deg: float, d_m: float, theta_offset_deg: float = 0.0,
+            lower: float | None = None, upper: float | None = None, max_speed: float = 1.0, name: str | None = None,
+            prismatic: bool = False) -> "DhRow":
+        """A row from angles in degrees (a revolute row's limits too; a prismatic row's stay in m)."""
+        limit = (lambda v: v) if prismatic else (lambda v: None if v is None else math.radians(v))
+        return cls(a_m, math.radians(alpha_deg), d_m, math.radians(theta_offset_deg), limit(lower), limit(upper),
+                   max_speed, name, prismatic)
 
 
 def from_dh(rows, convention: str = "standard") -> ChainSpec:
@@ -131,19 +144,19 @@ def from_dh(rows, convention: str = "standard") -> ChainSpec:
     before = np.eye(4)
     for i, r in enumerate(rows):
         name = r.name or f"j{i + 1}"
-        off = math.radians(r.theta_offset_deg)
+        off = r.theta_offset_rad
         if r.prismatic:
             lo, hi = (-math.inf if r.lower is None else r.lower), (math.inf if r.upper is None else r.upper)
             kind, fixed_after = PRISMATIC, rot_z(off) @ trans(0, 0, r.d_m)
         else:
-            lo = -math.inf if r.lower is None else math.radians(r.lower)
-            hi = math.inf if r.upper is None else math.radians(r.upper)
+            lo = -math.inf if r.lower is None else r.lower
+            hi = math.inf if r.upper is None else r.upper
             kind, fixed_after = (CONTINUOUS if r.lower is None and r.upper is None else REVOLUTE), \
                 rot_z(off) @ trans(0, 0, r.d_m)
         if convention == "standard":
-            origin, after = before, fixed_after @ trans(r.a_m, 0, 0) @ rot_x(math.radians(r.alpha_deg))
+            origin, after = before, fixed_after @ trans(r.a_m, 0, 0) @ rot_x(r.alpha_rad)
         else:
-            origin, after = before @ rot_x(math.radians(r.alpha_deg)) @ trans(r.a_m, 0, 0), fixed_after
+            origin, after = before @ rot_x(r.alpha_rad) @ trans(r.a_m, 0, 0), fixed_after
         joints.append(Joint(name, origin, np.array([0.0, 0.0, 1.0]), kind, lo, hi, float(r.max_speed)))
         before = after
     return ChainSpec(tuple(joints), before)
@@ -152,6 +165,13 @@ def from_dh(rows, convention: str = "standard") -> ChainSpec:
 #: The tip link a URDF's chain ends at when it has several leaves and none is named (ROS-Industrial's convention:
 #: example-robot-data's ur5_robot.urdf has base, ee_link and tool0).
 TOOL_FRAME = "tool0"
+
+
+@lru_cache(maxsize=16)
+def urdf_chain(path: str, sha256: str | None, base_link: str, tip_link: str, speeds: tuple = ()) -> "ChainSpec":
+    """``from_urdf`` of one file content (``sha256``, the config's hash of it) between two links, with
+    ``speeds`` ((joint, rad/s) pairs), parsed once per process: a ChainSpec is never modified."""
+    return from_urdf(path, base_link, tip_link, dict(speeds))
 
 
 def from_urdf(path: str | Path, base_link: str | None, tip_link: str | None,

@@ -1,11 +1,14 @@
-"""da Vinci Research Kit arms: the PSM (instrument arm) and the ECM (endoscope arm), both RCM mechanisms.
+"""da Vinci Research Kit arms: what the PSM (instrument arm) and the ECM (endoscope arm), both RCM mechanisms,
+share: the ``RcmArm`` type, their yaw / pitch / insertion rows, the Large Needle Driver's wrist, the shaft
+diameters. The arms themselves are model files (``dvrk_psm_classic.py``, ``dvrk_psm_si.py``, ``dvrk_ecm_classic.py``,
+``dvrk_ecm_si.py``) in the one registry of shipped arms (``robots.models.ARMS``, kind "rcm").
 
 Source: jhu-dvrk/sawIntuitiveResearchKit (commit 9e535e6, April 2026), share/kinematic/ (PSM.json,
 PSM_Si.json, ECM.json, ECM_Si.json), share/tool/ (LARGE_NEEDLE_DRIVER_400006.json, ..._420006.json), as
 transcribed in ../shared/robots/dvrk-kinematics.md. Modified DH (Craig): link i is
 Rx(alpha_i) Tx(A_i) Rz(theta_i) Tz(D_i); a revolute joint adds q + offset to theta, the prismatic joint
-q + offset to D. The base frame's origin is the remote centre of motion (the port). Lengths in m, angles
-in rad.
+q + offset to D. The base frame's origin is the remote centre of motion (the port). The rows are
+``chain.DhRow``s (the one DH row type), in the JSON files' own radians and metres.
 
 The first three rows (yaw, pitch, insertion) are the same mechanism in every arm here; the forward
 kinematics of that mechanism is, in the base frame,
@@ -25,20 +28,9 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
+from surgopt.robots.chain import DhRow
+
 HALF_PI = math.pi / 2
-
-
-@dataclass(frozen=True)
-class DhRowMdh:
-    """One modified-DH row: alpha (rad), A (m), D (m), prismatic or not, offset (rad or m), limits."""
-
-    alpha_rad: float
-    a_m: float
-    d_m: float
-    prismatic: bool
-    offset: float
-    lower: float
-    upper: float
 
 
 @dataclass(frozen=True)
@@ -48,7 +40,7 @@ class RcmArm:
     reaches (the wrist of an instrument, the tip of a scope)."""
 
     name: str
-    rows: tuple[DhRowMdh, ...]
+    rows: tuple[DhRow, ...]  # modified DH
     source: str
     #: how far the instrument's wrist turns the jaws off the shaft (0: a scope, no wrist)
     wrist_bend_rad: float = 0.0
@@ -67,15 +59,25 @@ class RcmArm:
 
     @property
     def along_shaft_m(self) -> float:
-        """Distance from the RCM, along the shaft, of the reaching point at zero insertion (q3 = 0)."""
-        return self.rows[2].offset + self.rows[3].d_m
+        """Distance from the RCM, along the shaft, of the reaching point at zero insertion (q3 = 0): the
+        insertion row's offset (its d) plus the next row's d."""
+        return self.rows[2].d_m + self.rows[3].d_m
 
 
-def _yaw_pitch_insertion(yaw: tuple[float, float], pitch: tuple[float, float], insertion: tuple[float, float],
-                         insertion_offset_m: float) -> tuple[DhRowMdh, ...]:
-    return (DhRowMdh(HALF_PI, 0.0, 0.0, False, HALF_PI, *yaw),
-            DhRowMdh(-HALF_PI, 0.0, 0.0, False, -HALF_PI, *pitch),
-            DhRowMdh(HALF_PI, 0.0, 0.0, True, insertion_offset_m, *insertion))
+def revolute(alpha_rad: float, a_m: float, d_m: float, offset_rad: float, lower_rad: float, upper_rad: float,
+             name: str) -> DhRow:
+    """A revolute modified-DH row in the dVRK JSON's order (alpha, A, D, offset, limits; radians and metres)."""
+    return DhRow(a_m, alpha_rad, d_m, offset_rad, lower_rad, upper_rad, name=name)
+
+
+def yaw_pitch_insertion(yaw_rad: tuple[float, float], pitch_rad: tuple[float, float],
+                        insertion_m: tuple[float, float], insertion_offset_m: float) -> tuple[DhRow, ...]:
+    """The first three rows of every dVRK arm: yaw, pitch (both about the RCM), insertion along the shaft
+    (a prismatic row whose d is its offset)."""
+    return (revolute(HALF_PI, 0.0, 0.0, HALF_PI, *yaw_rad, "yaw"),
+            revolute(-HALF_PI, 0.0, 0.0, -HALF_PI, *pitch_rad, "pitch"),
+            DhRow(0.0, HALF_PI, insertion_offset_m, 0.0, *insertion_m, name="insertion",
+                  prismatic=True))
 
 
 #: The Large Needle Driver's roll row (D: Classic 0.4162, Si 0.4670) and wrist rows (the wrist pitch and yaw
@@ -87,30 +89,6 @@ LND_WRIST_LINK_M = 0.0091
 #: (pitch and yaw each reach 80 deg; together they reach farther on the diagonals, so the cone is the
 #: conservative reading of the two limits).
 LND_WRIST_BEND_RAD = min(-LND_WRIST_LIMITS_RAD[0], LND_WRIST_LIMITS_RAD[1])
-
-PSM_CLASSIC = RcmArm(
-    "dvrk_psm_classic",
-    _yaw_pitch_insertion((-1.588, 1.588), (-0.925025, 0.925025), (0.0, 0.240), -0.4318)
-    + (DhRowMdh(0.0, 0.0, 0.4162, False, 0.0, *LND_ROLL_LIMITS_RAD),),
-    "PSM.json + LARGE_NEEDLE_DRIVER_400006.json", LND_WRIST_BEND_RAD)
-PSM_SI = RcmArm(
-    "dvrk_psm_si",
-    _yaw_pitch_insertion((-2.964, 2.964), (-1.265, 1.301), (0.0, 0.290), -0.4826)
-    + (DhRowMdh(0.0, 0.0, 0.4670, False, 0.0, *LND_ROLL_LIMITS_RAD),),
-    "PSM_Si.json + LARGE_NEEDLE_DRIVER_420006.json", LND_WRIST_BEND_RAD)
-ECM_CLASSIC = RcmArm(
-    "dvrk_ecm_classic",
-    _yaw_pitch_insertion((-1.5708, 1.5708), (-0.76794, 1.1344), (0.0, 0.255), -0.3822)
-    + (DhRowMdh(0.0, 0.0, 0.3829, False, 0.0, -1.552, 1.552),),
-    "ECM.json")
-ECM_SI = RcmArm(
-    "dvrk_ecm_si",
-    _yaw_pitch_insertion((-2.964, 2.964), (-1.1, 1.04), (0.001, 0.259), -0.3822)
-    + (DhRowMdh(0.0, 0.0, 0.3829, False, 0.0, -1.54, 1.54),),
-    "ECM_Si.json (its D rows as the Classic's: the file's values for rows 3-4 are the same)")
-
-INSTRUMENT_ARMS = {a.name: a for a in (PSM_CLASSIC, PSM_SI)}
-CAMERA_ARMS = {a.name: a for a in (ECM_CLASSIC, ECM_SI)}
 
 #: Instrument shaft diameter (robotic ports are 8 mm; the camera port 12 mm).
 INSTRUMENT_SHAFT_DIAMETER_MM = 8.0

@@ -31,7 +31,7 @@ DEG_S = 3.141592653589793 / 180.0
 
 MODEL = ArmModel(
     name="lbr_iiwa_14", title="KUKA LBR iiwa 14 R820", convention="standard",
-    dh=tuple(DhRow(0.0, alpha, d, 0.0, -rng, rng, v * DEG_S, name) for name, alpha, d, rng, v in _TABLE),
+    dh=tuple(DhRow.deg(0.0, alpha, d, 0.0, -rng, rng, v * DEG_S, name) for name, alpha, d, rng, v in _TABLE),
     locked_joints_deg={"A3": 0.0, "A7": 0.0},
     lock_reason="A7 only spins the tool; A3 (redundant upper-arm rotation) held at 0 like the PA10's S3",
     seed_deg={"A1": 0.0, "A2": 22.0, "A4": -111.0, "A5": 0.0, "A6": 47.0},

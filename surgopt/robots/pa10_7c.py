@@ -68,7 +68,7 @@ def dh_rows(links_m=LINKS_BIELEFELD_M, limits_deg=None, speeds_rad_s=None):
 
     limits_deg = {**JOINT_LIMIT_DEG, **(limits_deg or {})}
     speeds_rad_s = {**MAX_JOINT_SPEED_RAD_S, **(speeds_rad_s or {})}
-    return tuple(DhRow(0.0, alpha, 0.0 if link is None else links_m[link], 0.0, -limits_deg[n], limits_deg[n],
+    return tuple(DhRow.deg(0.0, alpha, 0.0 if link is None else links_m[link], 0.0, -limits_deg[n], limits_deg[n],
                        speeds_rad_s[n], n)
                  for n, alpha, link in zip(JOINT_NAMES, DH_ALPHA_DEG, DH_D_LINK))
 

@@ -30,7 +30,7 @@ _TABLE = (("joint1", 0.0, 0.0, 0.333, -2.8973, 2.8973, 2.1750),
 
 MODEL = ArmModel(
     name="panda", title="Franka Emika Panda", convention="modified",
-    dh=tuple(DhRow(a, alpha, d, 0.0, math.degrees(lo), math.degrees(hi), v, name)
+    dh=tuple(DhRow(a, math.radians(alpha), d, 0.0, lo, hi, v, name)  # the ranges as [FE] gives them (rad)
              for name, a, alpha, d, lo, hi, v in _TABLE),
     locked_joints_deg={"joint3": 0.0, "joint7": 0.0},
     lock_reason="joint7 only spins the tool; joint3 (redundant upper-arm rotation) held at 0 like the PA10's S3",

@@ -27,7 +27,7 @@ _TABLE = (("shoulder_pan", 0.0, 90.0, 0.1625), ("shoulder_lift", -0.425, 0.0, 0.
 
 MODEL = ArmModel(
     name="ur5e", title="Universal Robots UR5e", convention="standard",
-    dh=tuple(DhRow(a, alpha, d, 0.0, -RANGE_DEG, RANGE_DEG, SPEED_RAD_S, name) for name, a, alpha, d in _TABLE),
+    dh=tuple(DhRow.deg(a, alpha, d, 0.0, -RANGE_DEG, RANGE_DEG, SPEED_RAD_S, name) for name, a, alpha, d in _TABLE),
     locked_joints_deg={"wrist_3": 0.0},
     lock_reason="wrist_3 only spins the tool about its own axis",
     seed_deg={"shoulder_pan": 163.0, "shoulder_lift": -95.0, "elbow": 115.0, "wrist_1": -110.0, "wrist_2": -90.0},

@@ -2,9 +2,9 @@
 
 The orchestration (``runner``, ``store``, ``results``, ``report``, ``cli``) reads a study only
 through this protocol and knows no study by name; the registry below is the one place that lists
-them. A new study is a module under ``surgopt/studies`` that defines ``STUDY = Study(...)``, its
-figures under ``surgopt/studies/figures``, an embedded default config in ``surgopt/defaults``, and
-one line in ``STUDIES`` (docs/architecture.md, "Adding a study").
+them. A new study is a folder ``surgopt/studies/<study>/`` whose ``study.py`` defines ``STUDY = Study(...)``
+(beside its ``config.py``, ``figures.py`` and ``html.py``), an embedded default config in ``surgopt/defaults``,
+and one line in ``STUDIES`` (docs/architecture.md, "Adding a study").
 """
 from __future__ import annotations
 
@@ -15,9 +15,9 @@ from pathlib import Path
 from typing import Any, Callable, Mapping
 
 #: Study name (the CLI command) -> module defining ``STUDY``.
-STUDIES = {"rcm-grid": "surgopt.studies.rcm_grid", "rcm-track": "surgopt.studies.rcm_track",
-           "raven-sweep": "surgopt.studies.raven_sweep", "suture-sim": "surgopt.studies.suture_sim",
-           "port-place": "surgopt.studies.port_place"}
+STUDIES = {"rcm-grid": "surgopt.studies.rcm_grid.study", "rcm-track": "surgopt.studies.rcm_track.study",
+           "raven-sweep": "surgopt.studies.raven_sweep.study", "suture-sim": "surgopt.studies.suture_sim.study",
+           "port-place": "surgopt.studies.port_place.study"}
 
 
 @dataclass(frozen=True)
@@ -140,8 +140,9 @@ class Study:
     #: The objective a person reads a search by, when the optimiser's is a penalised stand-in for it: (column,
     #: "minimize" | "maximize"), over the feasible trials (port-place: the cost, not the score); None: the plan's
     reported_objective: tuple[str, str] | None = None
-    #: The sections of the run's HTML page (``surgopt report``): ``html_views(run, parts)`` -> [html_report.View]
-    html_views: Callable[[Any, Any], list] | None = None
+    #: The sections of the run's HTML page (``surgopt report``): ``html_views(run, cfg, parts)`` ->
+    #: [``studies.page.View``] (``cfg``: the run's validated config)
+    html_views: Callable[[Any, Any, Any], list] | None = None
     #: Override sets (KEY=VALUE strings) whose kernels the embedded default does not compile: ``surgopt warm``
     #: compiles them too (another metric, a generic arm, a serial arm in port-place)
     warm_variants: tuple[tuple[str, ...], ...] = ()
@@ -183,20 +184,21 @@ class Edge:
 
 
 def figures_in(module: str) -> Callable:
-    """``Study.figures`` for ``surgopt.studies.figures.<module>``, imported on the first call (so that
+    """``Study.figures`` for ``surgopt.studies.plotting.<module>``, imported on the first call (so that
     matplotlib loads only when a figure is drawn)."""
 
     def figures(cfg, table, out_dir: Path, design_id: int | None = None) -> list[Path]:
-        return importlib.import_module(f"surgopt.studies.figures.{module}").figures(cfg, table, out_dir, design_id)
+        return importlib.import_module(module).figures(cfg, table, out_dir, design_id)
 
     return figures
 
 
 def html_views_in(module: str) -> Callable:
-    """``Study.html_views`` for ``surgopt.studies.figures.<module>``'s ``views``, imported on the first call."""
+    """``Study.html_views`` for the ``views`` of the module of that dotted name (a study's ``html.py``), imported
+    on the first call."""
 
-    def views(run, parts) -> list:
-        return importlib.import_module(f"surgopt.studies.figures.{module}").views(run, parts)
+    def views(run, cfg, parts) -> list:
+        return importlib.import_module(module).views(run, cfg, parts)
 
     return views
 

@@ -4,12 +4,13 @@ from __future__ import annotations
 
 import numpy as np
 
-from surgopt.html_report import View, table_html
+from surgopt.studies.page import View, table_html
 
 JOINTS = 8
 
 
-def views(run, parts) -> list[View]:
+def views(run, cfg, parts) -> list[View]:
+    """The run's sections (``cfg``: its validated config), aggregates streamed from ``parts``."""
     t = parts.table()
     c = {n: t[n].to_numpy(zero_copy_only=False) for n in t.column_names}
     runs = np.unique(c["run_id"])

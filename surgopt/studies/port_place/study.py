@@ -22,42 +22,15 @@ other.
 from __future__ import annotations
 
 import math
-from functools import lru_cache
 
 import numpy as np
 
 from surgopt.robots import dvrk
 from surgopt.studies import Estimate, Study, Summary, figures_in, html_views_in, peak_bytes
-from surgopt.studies.port_place_config import (  # noqa: F401 - the config models and geometry, re-exported
-    MAX_MESH_BYTES,
-    MAX_MESH_FACES,
-    OBJECTIVE,
-    SEARCH_OBJECTIVES,
-    Config,
-    Constraints,
-    Objective,
-    Patient,
-    PortPlaceConfig,
-    PortRegion,
-    Robot,
-    Target,
-    Vec3,
-    _mesh_of,
-    _read_mesh_bytes,
-    camera_arm_of,
-    body_extent_mm,
-    body_mesh,
-    dome_height_mm,
-    grid_1d,
-    inside_body,
-    inside_dome,
-    inside_polygon,
-    instrument_of,
-    polygon_area_mm2,
-    sites_mm,
-    target_points_mm,
-    wall_height_mm,
-)
+from surgopt.parts import concat_rows
+from surgopt.studies.port_place.config import OBJECTIVE, PortPlaceConfig, camera_arm_of, instrument_of
+from surgopt.studies.port_place.geometry import sites_mm, target_points_mm
+from surgopt.studies.port_place.tables import LATERAL, model_of, port_tables
 
 NAME = "port-place"
 KERNEL_VERSION = "port-place-1"
@@ -76,150 +49,6 @@ HELP = """Port placement for the da Vinci Research Kit on a patient: two or thre
     keeping the RCM in software ([robot.instrument_serial], [robot.camera_serial]: a PA10, UR5e, Panda, iiwa or
     any DH/URDF arm, its base standing beside the port) in place of the dVRK's."""
 CONFIG_HELP = "TOML or YAML config ([patient], [target], [robot], [constraints], [objective]); default: the dVRK example."
-
-def arm_limits(arm):
-    """The kernel's ``ArmLimits`` of an arm (``dvrk.RcmArm`` or ``rcm_arm.RcmLimits``; a spherical mechanism with
-    its axes)."""
-    from surgopt.kinematics.port_place import ArmLimits
-
-    axes = getattr(arm, "yaw_axis", None)
-    spherical = (True, *arm.yaw_axis, *arm.pitch_axis) if axes is not None else ()
-    return ArmLimits(*arm.yaw_limits_rad, *arm.pitch_limits_rad, *arm.insertion_limits_m, arm.along_shaft_m,
-                     *spherical)
-
-
-def approach(target: Target, wrist_bend_rad: float):
-    """The target's approach cone for the kernel (``port_place.Approach``): a point is reached only where the
-    shaft's direction from the port lies within (wrist bend - half-angle) of the approach direction, so that the
-    wrist can point the jaws along every direction of the cone; any direction when none is given."""
-    from surgopt.kinematics.port_place import Approach
-
-    if target.approach_direction is None:
-        return Approach(0.0, 0.0, -1.0, -2.0)  # a cosine below -1: every shaft direction passes
-    d = np.asarray(target.approach_direction, float)
-    d = d / np.linalg.norm(d)
-    return Approach(*d, math.cos(wrist_bend_rad - math.radians(target.approach_half_angle_deg)))
-
-
-def approach_mask(sites: np.ndarray, targets: np.ndarray, cone) -> np.ndarray:
-    """[site, point]: whether the shaft from the port to the point lies within the approach cone's reach of the
-    wrist (``instrument_tables``' test, for arms whose reach is computed elsewhere)."""
-    d = targets[None, :, :] - sites[:, None, :]
-    return d @ np.array([cone.dx, cone.dy, cone.dz]) >= cone.cos_min * np.linalg.norm(d, axis=2)
-
-
-def camera_of(cfg: PortPlaceConfig):
-    """The endoscope for the kernels (``port_place.Camera``); held by a serial arm, its mechanism's ranges are left
-    open (the arm's own IK decides, ``port_place_serial.serial_camera_tables``)."""
-    from surgopt.kinematics.port_place import ArmLimits, Camera
-
-    r = cfg.robot
-    limits = (arm_limits(camera_arm_of(cfg)) if r.camera_serial is None else
-              ArmLimits(-math.pi, math.pi, -math.pi / 2, math.pi / 2, 0.0, 10.0, 0.0))
-    return Camera(limits, math.radians(r.camera_fov_deg) / 2,
-                  r.camera_standoff_mm / 1000, r.camera_range_mm[0] / 1000, r.camera_range_mm[1] / 1000,
-                  math.radians(r.camera_scope_angle_deg), r.camera_scope_view == "down")
-
-
-def criteria(cfg: PortPlaceConfig):
-    from surgopt.kinematics.port_place import Criteria
-
-    k, o = cfg.constraints, cfg.objective
-    lo, hi = (math.radians(v) for v in k.manipulation_angle_deg)
-    return Criteria(k.dexterity_length_m, lo, hi, math.radians(60.0), k.tip_zone_mm / 1000,
-                    (k.shaft_diameter_mm + k.min_shaft_clearance_mm) / 1000, k.min_external_clearance_mm / 1000,
-                    dvrk.OUTSIDE_LENGTH_M, k.min_port_spacing_mm / 1000, o.reach, o.angle, o.azimuth, o.camera,
-                    o.dexterity)
-
-
-LATERAL = np.array([1.0, 0.0, 0.0])
-
-
-@lru_cache(maxsize=4)
-def _tables(cfg_json: str):
-    """Every per-port and per-pair quantity of a config, computed once per process (the tasks share them)."""
-    from surgopt.kinematics import port_place as K
-
-    cfg = PortPlaceConfig.model_validate_json(cfg_json)
-    sites = sites_mm(cfg) / 1000
-    rot = K.docking_frames(sites, np.asarray(cfg.target.centre_mm, float) / 1000, LATERAL)
-    t, reach, dex = port_tables(cfg, sites, rot)
-    return sites, t, criteria(cfg), reach, dex
-
-
-def port_tables(cfg: PortPlaceConfig, sites: np.ndarray, rot: np.ndarray, outside=None, base_yaw_rad=None):
-    """(``PortTables``, reach, isotropy) of ports ``sites`` (m) docked in frames ``rot``; ``outside``: the arms'
-    external clearances when the docking is not the default (``external_clearances``); ``base_yaw_rad``: a serial
-    instrument arm's base turned further at each port (a search's free docking)."""
-    from surgopt.kinematics import port_designs as D
-    from surgopt.kinematics import port_place as K
-
-    targets = target_points_mm(cfg.target) / 1000
-    centre = np.asarray(cfg.target.centre_mm, float) / 1000
-    crit = criteria(cfg)
-    arm = instrument_of(cfg)
-    cone = approach(cfg.target, arm.wrist_bend_rad)
-    r = cfg.robot
-    serial = held = None
-    if r.instrument_serial is not None:  # a serial arm: its own IK, and its links' clearance outside
-        from surgopt.studies.port_place_serial import serial_tables
-
-        serial = serial_tables(cfg, sites, base_yaw_rad)
-        reach = serial.reach & approach_mask(sites, targets, cone)
-        dex = np.where(reach, serial.dexterity, 0.0)
-        outside = serial.outside_m
-    else:
-        reach, dex = K.instrument_tables(sites, rot, targets, arm_limits(arm), crit.dexterity_length_m, cone)
-    camera = camera_of(cfg)
-    coverage = K.camera_coverage(sites, rot, targets, centre, camera)
-    views = K.camera_views(sites, rot, centre, camera) if (r.camera_serial or camera.scope_angle_rad) else None
-    if r.camera_serial is not None:  # the endoscope held by a serial arm: placed by its IK
-        from surgopt.studies.port_place_serial import serial_camera_tables
-
-        held = serial_camera_tables(cfg, sites, views[0], views[2])
-        coverage = np.where(held.placed, coverage, 0.0)
-    pairs = list(K.pair_tables(sites, reach, dex, targets, centre, crit))
-    if outside is not None:
-        pairs[-1] = outside
-    outside_camera = camera_clearances(sites, rot, pairs[-1], serial, held)
-    if camera.scope_angle_rad == 0.0:  # the optical axis: port to centre
-        azimuth, side = K.camera_pair_tables(sites, centre, LATERAL)
-    else:  # along the angled scope's view, through the centre
-        azimuth, side = K.camera_pair_tables(sites, centre, LATERAL, views[1])
-    spacing = np.linalg.norm(sites[:, None, :] - sites[None, :, :], axis=2)
-    tables = D.PortTables(reach.sum(axis=1).astype(np.int64), coverage, *pairs, spacing, azimuth, side,
-                          len(targets), D.reach_bits(reach), D.site_dexterity(reach, dex), wrist_margin_deg(cfg, sites),
-                          outside_camera)
-    return tables, reach, dex
-
-
-def camera_clearances(sites: np.ndarray, rot: np.ndarray, outside: np.ndarray, serial=None, held=None):
-    """[instrument port, camera port]: the two arms' clearance outside the body, each arm its shaft line behind
-    its port (``outside``, the instruments' pair table, i < j), or a serial arm's centre line (``serial``: the
-    instruments' ``SerialTables``, ``held``: the camera's ``SerialCamera``)."""
-    from surgopt.kinematics import port_serial as S
-
-    if serial is None and held is None:
-        return outside + outside.T
-    if serial is not None and held is not None:
-        return S.polyline_clearances(serial.links, held.links)
-    axes = np.ascontiguousarray(rot[:, :, 2])
-    if held is None:
-        return S.link_camera_clearances(serial.links, sites, axes, dvrk.OUTSIDE_LENGTH_M)
-    return S.link_camera_clearances(held.links, sites, axes, dvrk.OUTSIDE_LENGTH_M).T
-
-
-@lru_cache(maxsize=4)
-def _sites_m(cfg_json: str) -> np.ndarray:
-    """The candidate sites (m) of a config, once per process (a search's tasks share them)."""
-    return sites_mm(PortPlaceConfig.model_validate_json(cfg_json)) / 1000
-
-
-def tables(cfg: PortPlaceConfig):
-    """(sites m, ``PortTables``, ``Criteria``, reach[site, point], isotropy[site, point]) of a config (memoised
-    per process)."""
-    return _tables(cfg.model_dump_json())
-
 
 def n_designs(n_sites: int, instruments: int = 2) -> int:
     """Designs of ``n_sites`` candidates (``port_designs.design_columns``'s enumeration): an unordered working
@@ -338,28 +167,14 @@ def compute_task(cfg, chunk: int, index: int) -> dict:
     (only the feasible ones' rows when ``rows_stored`` is 'feasible')."""
     from surgopt.kinematics.port_designs import design_columns
 
-    sites, t, crit, _, _ = tables(cfg)
+    model = model_of(cfg)
+    sites, (t, _, _), crit = model.sites_m, model.grid, model.criteria
     start = index * chunk
-    stop = min(n_total(cfg), start + chunk)
+    stop = min(n_designs(len(sites), cfg.robot.instrument_count), start + chunk)
     ids, f, bad, cost, design_ids = design_columns(t, crit, start, stop, cfg.robot.instrument_count,
                                                    cfg.rows_stored == "feasible")
     return design_rows(cfg, sites, t, ids, ids, f, bad, cost, design_ids,
                        np.zeros((len(design_ids), len(docking_columns(cfg)))))
-
-
-def wrist_margin_deg(cfg, sites: np.ndarray) -> np.ndarray:
-    """Per port (``sites``, m): how far the instrument's wrist could still turn the jaws at the worst target point,
-    wrist bend - cone half-angle - the angle between the shaft (port to point) and the approach direction, least
-    over the target's points (deg; negative: the cone is out of the wrist's reach there by that much). Without an
-    approach direction no point asks anything of the wrist: the margin is its whole bend."""
-    bend = math.degrees(instrument_of(cfg).wrist_bend_rad)
-    t = cfg.target
-    if t.approach_direction is None:
-        return np.full(len(sites), bend)
-    a = np.asarray(t.approach_direction, float) / np.linalg.norm(t.approach_direction)
-    shafts = target_points_mm(t)[None, :, :] / 1000 - sites[:, None, :]
-    cos = np.clip(shafts @ a / np.linalg.norm(shafts, axis=2), -1.0, 1.0)
-    return bend - t.approach_half_angle_deg - np.degrees(np.arccos(cos)).max(axis=1)
 
 
 def design_rows(cfg, sites, t, ids, site_ids, f, bad, cost, design_ids, docking_deg, aim_mm=None,
@@ -476,7 +291,7 @@ def search_plan(cfg):
     """A search's space: every arm's port (categorical: any candidate site; or, with ``search_ports = "surface"``,
     a top-view point within the candidate sites' box, continuous) and, when ``robot.docking_range_deg`` > 0, each
     instrument's docking yaw and pitch within +- that range."""
-    from surgopt.studies.search import SearchPlan, objectives_of, optimiser_of
+    from surgopt.plans.search import SearchPlan, objectives_of, optimiser_of
 
     spec = optimiser_of(cfg)
     if spec is None:
@@ -495,9 +310,8 @@ def evaluate_designs(cfg, x: np.ndarray, ids: np.ndarray, source: str) -> dict:
 
     ports = len(arms_of(cfg))
     x = np.asarray(x, dtype=np.float64).reshape(len(ids), -1)
-    all_sites = _sites_m(cfg.model_dump_json())  # not tables(cfg): a worker needs the sites, not every pair
-    crit = criteria(cfg)
-    centre = np.asarray(cfg.target.centre_mm, float) / 1000
+    model = model_of(cfg)  # its grid's tables are not built: a design builds the tables of its own ports
+    all_sites, crit, centre = model.sites_m, model.criteria, model.centre_m
     serial = cfg.robot.instrument_serial is not None
     names = list(design_dims(cfg))
     if x.shape[1] == ports:  # site numbers alone: the configured docking and stance
@@ -519,21 +333,20 @@ def evaluate_designs(cfg, x: np.ndarray, ids: np.ndarray, source: str) -> dict:
         cfg_r = with_stance(cfg, {c.split("_")[0]: (stance[k], stance[k + 1]) for k, c in enumerate(stances)
                                   if c.endswith("_out_m")}) if stances else cfg
         sites = all_sites[site_ids]
+        model_r = model.with_config(cfg_r) if stances else model
         if serial:  # the RCM mechanism (the camera) docked as in the grid, each serial base turned by its yaw
-            t, _, _ = port_tables(cfg_r, sites, K.docking_frames(sites, centre, LATERAL),
+            t, _, _ = port_tables(model_r, sites, K.docking_frames(sites, centre, LATERAL),
                                   base_yaw_rad=np.radians([*docking[0::2], 0.0]))
         else:
             rot = K.tilted_frames(K.docking_frames(sites, centre, LATERAL), np.radians([*docking[0::2], 0.0]),
                                   np.radians([*docking[1::2], 0.0]))
             outside = K.external_clearances(sites, np.ascontiguousarray(rot[:, :, 2]), dvrk.OUTSIDE_LENGTH_M)
-            t, _, _ = port_tables(cfg_r, sites, rot, outside)
+            t, _, _ = port_tables(model_r, sites, rot, outside)
         local, f, bad, cost, _ = design_columns(t, crit, 0, 1, ports - 1)
         out.append(design_rows(cfg, sites, t, local, site_ids[None, :], f, bad, cost,
                                np.asarray(ids[r:r + 1], dtype=np.int64), docking[None, :],
                                v[None, port_cols] if surface else None,
                                stance[None, :] if stances else None))
-    from surgopt.plans import concat_rows
-
     return concat_rows(out)
 
 
@@ -541,9 +354,10 @@ def warm_up(cfg) -> None:
     """The per-port tables (their kernels), then the design kernel as the config's tasks call it: the grid's
     chunks (``compute_task``), or a search's one design at a time (``evaluate_designs``)."""
     from surgopt.kinematics.port_designs import design_columns
-    from surgopt.studies.search import optimiser_of
+    from surgopt.plans.search import optimiser_of
 
-    _, t, crit, _, _ = tables(cfg)
+    model = model_of(cfg)
+    t, crit = model.grid.tables, model.criteria
     if optimiser_of(cfg) is None:
         design_columns(t, crit, 0, 1, cfg.robot.instrument_count, cfg.rows_stored == "feasible")
     else:
@@ -553,18 +367,19 @@ def warm_up(cfg) -> None:
 def preflight(cfg) -> None:
     """Refuse (a ValueError naming the field) a target that no candidate port's instrument reaches whole, docked
     toward its centre: every layout of the grid would fail on reach. (A search docks as it explores: not checked.)"""
-    from surgopt.studies.search import optimiser_of
+    from surgopt.plans.search import optimiser_of
 
     if optimiser_of(cfg) is not None:
         return
-    _, t, _, _, _ = tables(cfg)
+    model = model_of(cfg)
+    t = model.grid.tables
     best = int(t.reach_count.max())
     if best < t.n_points:
-        from surgopt.studies.port_place_serial import refused_ports_note
+        from surgopt.studies.port_place.serial_arms import refused_ports_note
 
         arm = ("" if cfg.robot.instrument_serial is None else
                f"; stand the arm elsewhere (robot.instrument_serial.rcm_in_base_m, base_yaw_deg: rcm-grid finds where "
-               f"an arm keeps an RCM best){refused_ports_note(cfg, tables(cfg)[0])}")
+               f"an arm keeps an RCM best){refused_ports_note(model, model.sites_m)}")
         raise ValueError(f"target: no candidate port's instrument ({instrument_of(cfg).name}, docked toward the "
                          f"target's centre) reaches the whole target: {best:,} of its {t.n_points:,} points at best, "
                          f"so every layout would fail on reach; move or shrink the target, ease its approach cone, "
@@ -607,7 +422,7 @@ LIBRARY_BYTES = 220 * 2 ** 20
 
 
 def estimate(cfg) -> Estimate:
-    from surgopt.studies.search import optimiser_of
+    from surgopt.plans.search import optimiser_of
 
     n = len(sites_mm(cfg))
     m = len(target_points_mm(cfg.target))
@@ -735,8 +550,8 @@ STUDY = Study(
     name=NAME, kernel_version=KERNEL_VERSION, config_model=PortPlaceConfig, default_config=DEFAULT_CONFIG,
     help=HELP, config_help=CONFIG_HELP, schema=schema, key_columns=("design_id",), objective=OBJECTIVE,
     auto_chunk=auto_chunk, n_tasks=n_tasks, warm_up=warm_up, compute_task=compute_task, summary=summary,
-    feasible_mask=feasible_mask, figures=figures_in("port_place"), estimate=estimate, search_plan=search_plan,
-    html_views=html_views_in("port_place_html"), reported_objective=("cost", "minimize"),
+    feasible_mask=feasible_mask, figures=figures_in("surgopt.studies.port_place.figures"), estimate=estimate, search_plan=search_plan,
+    html_views=html_views_in("surgopt.studies.port_place.html"), reported_objective=("cost", "minimize"),
     warm_variants=(('robot.instrument_serial={model = "pa10_7c", rcm_in_base_m = [0.65, 0.0, 0.5]}',
                     "constraints.min_external_clearance_mm=150.0"),),
     evaluate=evaluate_designs, figure_columns=figure_columns, preflight=preflight, top_columns=top_columns)

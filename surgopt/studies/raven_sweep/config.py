@@ -9,7 +9,7 @@ from pydantic import BeforeValidator, Discriminator, Field, Tag, field_validator
 
 from surgopt.config import StrictModel
 from surgopt.robots import raven_iv
-from surgopt.studies.search import check_objectives, search_field
+from surgopt.plans.search import check_objectives, search_field
 
 #: The design parameters, in the order of a design vector (refine starts, rows).
 PARAMS = ("alpha_deg", "beta_deg", "phi_x_deg", "phi_y_deg", "phi_z_deg", "bx_mm", "by_mm", "iso_min")

@@ -11,7 +11,7 @@ the robot section's resolution (sources, defaults, the chain checks) is most of 
 from __future__ import annotations
 
 import math
-from typing import Annotated, Literal
+from typing import Annotated, ClassVar, Literal
 
 from pydantic import Field, PrivateAttr, ValidationInfo, model_validator
 
@@ -19,7 +19,7 @@ from surgopt.config import NOT_IN_KEY, StrictModel
 from surgopt.metrics import POSE_METRICS
 from surgopt.robots import pa10_7c
 from surgopt.robots.models import MODELS, get_model
-from surgopt.studies.search import SearchSpec, check_objectives, search_field
+from surgopt.plans.search import SearchSpec, check_objectives, search_field
 
 
 def search_objectives(metric: str) -> tuple[str, ...]:
@@ -33,8 +33,6 @@ SEARCH_OBJECTIVES = search_objectives("alternative")
 PA10_FIELDS = ("link_d1_m", "link_d3_m", "link_d5_m", "link_d7_m", "tool_length_from", "elbow", "joint_limit_deg",
                "max_joint_speed_rad_s")
 Finite = Annotated[float, Field(ge=-1e3, le=1e3)]
-#: URDF chains read so far, by (path, sha256, base_link, tip_link): a ChainSpec is never modified.
-_URDF_CHAINS: dict = {}
 
 
 class JointLimitsDeg(StrictModel):
@@ -78,6 +76,9 @@ class DhRowConfig(StrictModel):
     max_speed_rad_s: float | None = Field(None, gt=0, le=1e3)
     max_speed_m_s: float | None = Field(None, gt=0, le=1e3)
 
+    #: whether a row must give its rated speed (rcm-grid's metric scales by it; an RCM arm's rows need none)
+    speed_required: ClassVar[bool] = True
+
     @model_validator(mode="after")
     def _fields_of_its_kind(self):
         rev = self.joint == "revolute"
@@ -86,7 +87,7 @@ class DhRowConfig(StrictModel):
         wrong = [f for f in other if getattr(self, f) is not None]
         if wrong:
             raise ValueError(f"a {self.joint} row takes {lo}, {hi}, {speed}, not {', '.join(wrong)}")
-        if getattr(self, speed) is None:
+        if self.speed_required and getattr(self, speed) is None:
             raise ValueError(f"{speed} is required (the rated speed: the joint's entry of the scaling Q)")
         if (getattr(self, lo) is None) != (getattr(self, hi) is None):
             raise ValueError(f"give both {lo} and {hi}, or neither (unlimited)")
@@ -98,9 +99,10 @@ class DhRowConfig(StrictModel):
         from surgopt.robots.chain import DhRow
 
         rev = self.joint == "revolute"
-        return DhRow(self.a_m, self.alpha_deg, self.d_m, self.theta_offset_deg,
-                     self.lower_deg if rev else self.lower_m, self.upper_deg if rev else self.upper_m,
-                     self.max_speed_rad_s if rev else self.max_speed_m_s, self.name or f"j{index + 1}", not rev)
+        speed = self.max_speed_rad_s if rev else self.max_speed_m_s
+        return DhRow.deg(self.a_m, self.alpha_deg, self.d_m, self.theta_offset_deg,
+                         self.lower_deg if rev else self.lower_m, self.upper_deg if rev else self.upper_m,
+                         1.0 if speed is None else speed, self.name or f"j{index + 1}", not rev)
 
 
 class Robot(StrictModel):
@@ -218,15 +220,10 @@ class Robot(StrictModel):
         self._fill(pa10_7c.MODEL.locked_joints_deg, seed, pa10_7c.TOOL_LENGTH_M)
 
     def _resolve_urdf(self, context):
-        from surgopt.files import config_file_path, hashed_config_file
+        from surgopt.files import resolve_and_hash
         from surgopt.robots.chain import MAX_URDF_BYTES
 
-        path = config_file_path(self.urdf, context)
-        object.__setattr__(self, "urdf", str(path))
-        if context.get("stored"):
-            return
-        _, sha = hashed_config_file("urdf", path, self.urdf_sha256, MAX_URDF_BYTES, "urdf_sha256")
-        object.__setattr__(self, "urdf_sha256", sha)
+        resolve_and_hash(self, "urdf", "urdf_sha256", MAX_URDF_BYTES, context)
 
     # ---- the chain ---------------------------------------------------------------------------------------
 
@@ -242,7 +239,9 @@ class Robot(StrictModel):
     @property
     def tool_past_flange_m(self) -> float | None:
         """How far the tool reaches past the flange (the tip link's origin for other arms): the longest
-        insertion below the RCM a tool can take."""
+        insertion below the RCM a tool can take. The one reading of ``tool_length_m``: measured from the flange,
+        or for the PA10 with ``tool_length_from = "wrist_centre"`` from the wrist centre, d7 before the flange;
+        ``tool()`` and ``tool_offset_pa10_m`` read it from here."""
         if self.tool_length_m is None:
             return None
         if self.is_pa10 and self.tool_length_from == "wrist_centre":
@@ -251,8 +250,11 @@ class Robot(StrictModel):
 
     @property
     def tool_offset_pa10_m(self) -> float:
-        """PA10: wrist centre to tool tip along the tool axis."""
-        return self.tool_length_m + (self.link_d7_m if self.tool_length_from == "flange" else 0.0)
+        """PA10: wrist centre to tool tip along the tool axis: the given length when it is measured from there,
+        else d7 (wrist centre to flange) + ``tool_past_flange_m``."""
+        if self.tool_length_from == "wrist_centre":
+            return self.tool_length_m
+        return self.tool_past_flange_m + self.link_d7_m
 
     def chain_spec(self):
         """The arm as a ``surgopt.robots.chain.ChainSpec`` (every joint, before locking)."""
@@ -260,10 +262,8 @@ class Robot(StrictModel):
 
         if self.urdf is not None:  # parsed once per file content and chain ends (validation, tasks, kernels)
             speeds = dict(self.speed_override_rad_s or {})
-            key = (self.urdf, self.urdf_sha256, self.base_link, self.tip_link, tuple(sorted(speeds.items())))
-            if key not in _URDF_CHAINS:
-                _URDF_CHAINS[key] = chain.from_urdf(self.urdf, self.base_link, self.tip_link, speeds)
-            return _URDF_CHAINS[key]
+            return chain.urdf_chain(self.urdf, self.urdf_sha256, self.base_link, self.tip_link,
+                                    tuple(sorted(speeds.items())))
         if self.dh is not None:
             return chain.from_dh([r.row(i) for i, r in enumerate(self.dh)], self.dh_convention or "standard")
         if self.is_pa10:
@@ -275,14 +275,11 @@ class Robot(StrictModel):
         return chain.from_dh(m.dh, m.convention)
 
     def tool(self):
-        """Tip link -> tool frame (``surgopt.robots.chain.tool_transform``). For the PA10 with
-        ``tool_length_from = "wrist_centre"`` the flange's d7 is taken off the length."""
+        """Tip link -> tool frame (``surgopt.robots.chain.tool_transform``), ``tool_past_flange_m`` along the
+        tool axis."""
         from surgopt.robots.chain import tool_transform
 
-        length = self.tool_length_m
-        if self.is_pa10 and self.tool_length_from == "wrist_centre":
-            length -= self.link_d7_m
-        return tool_transform(length, self.tool_axis, self.tool_offset_m)
+        return tool_transform(self.tool_past_flange_m, self.tool_axis, self.tool_offset_m)
 
     def chain(self):
         """(kernel ``Chain``, active joint names, seed (rad or m) in their order)."""

@@ -7,8 +7,8 @@ import math
 import numpy as np
 
 from surgopt.kinematics.raven import isotropy_at, theta2_interval
-from surgopt.studies.figures import columns, pyplot, save
-from surgopt.studies.raven_sweep import PARAMS, design_fields, paper_optimum_rank
+from surgopt.studies.plotting import columns, pyplot, save
+from surgopt.studies.raven_sweep.study import PARAMS, design_fields, paper_optimum_rank
 
 
 def _workspace_panel(ax, plt, cfg, params, title):

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from surgopt.html_report import View, table_html
+from surgopt.studies.page import View, table_html
 
 PAIRS = (("alpha_deg", "beta_deg", "link angles"), ("bx_mm", "by_mm", "port spacing"),
          ("phi_x_deg", "phi_y_deg", "base tilts"))
@@ -19,8 +19,9 @@ def best_over(a: np.ndarray, b: np.ndarray, v: np.ndarray):
     return av, bv, m
 
 
-def views(run, parts) -> list[View]:
-    from surgopt.studies.raven_sweep import PAPER_OPTIMUM, PARAMS, paper_optimum_rank
+def views(run, cfg, parts) -> list[View]:
+    """The run's sections (``cfg``: its validated config), aggregates streamed from ``parts``."""
+    from surgopt.studies.raven_sweep.study import PAPER_OPTIMUM, PARAMS, paper_optimum_rank
 
     names = ["design_id", "alpha_deg", "beta_deg", "phi_x_deg", "phi_y_deg", "phi_z_deg", "bx_mm", "by_mm", "iso_min",
              "cost", "zeta_cm", "iso_mean"]
@@ -45,10 +46,6 @@ def views(run, parts) -> list[View]:
             "yaxis": {"title": {"text": b}}, "height": 420, "legend": {"orientation": "h", "y": -0.25}}}
     order = np.argsort(-cost, kind="stable")[:50]
     top = [[c[n][i] for n in t.column_names] for i in order]
-    from surgopt.results import config_of
-    from surgopt.studies import get_study
-
-    cfg = config_of(get_study(run.study), run)
     shown = [int(i) for i in order[:WORKSPACES]]
     spaces = [_workspace(cfg, {p: float(c[p][i]) for p in PARAMS}) for i in shown]
     labels = [f"design {c['design_id'][i]} (C {c['cost'][i]:.4g})" for i in shown]
@@ -81,7 +78,7 @@ MAX_CELLS = 120
 
 def _workspace(cfg, params: dict) -> dict:
     """One design's common workspace on the reference plane (a 0/1 grid, thinned to MAX_CELLS a side) and ports."""
-    from surgopt.studies.raven_sweep import design_fields
+    from surgopt.studies.raven_sweep.study import design_fields
 
     xs, ys, ports, _, common = design_fields(cfg, params)
     sx, sy = max(1, -(-len(xs) // MAX_CELLS)), max(1, -(-len(ys) // MAX_CELLS))

@@ -15,8 +15,8 @@ from pydantic import Field, model_validator
 
 from surgopt.config import StrictModel
 from surgopt.studies import Estimate, Study, Summary, figures_in, html_views_in, peak_bytes
-from surgopt.studies import rcm_grid as grid
-from surgopt.studies.rcm_grid_config import RcmSetup
+from surgopt.studies.rcm_grid import study as grid
+from surgopt.studies.rcm_grid.config import RcmSetup
 
 NAME = "rcm-track"
 HELP = """Trajectory tracking at candidate RCM locations (Locke & Patel, ICRA 2007, Sec. IV, Table I's
@@ -331,9 +331,9 @@ def feasible_mask(table):
 
 
 STUDY = Study(
-    html_views=html_views_in("rcm_grid_html"),
+    html_views=html_views_in("surgopt.studies.rcm_grid.html"),
     name=NAME, kernel_version=KERNEL_VERSION, config_model=RcmTrackConfig, default_config=DEFAULT_CONFIG,
     help=HELP, config_help=CONFIG_HELP, schema=schema, key_columns=KEY_COLUMNS, objective=OBJECTIVE,
     auto_chunk=auto_chunk, n_tasks=n_tasks, warm_up=warm_up, compute_task=compute_task, summary=summary,
-    feasible_mask=feasible_mask, figures=figures_in("rcm_track"), estimate=estimate, extends="rcm-grid",
+    feasible_mask=feasible_mask, figures=figures_in("surgopt.studies.rcm_track.figures"), estimate=estimate, extends="rcm-grid",
     config_section="track")

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from surgopt.html_report import View, table_html
+from surgopt.studies.page import View, table_html
 
 FRAME = ("RCM candidates in the arm's base frame: x forward, z up (for the PA10-7C, z from the shoulder as in Locke & "
          "Patel 2007); GII = the Global Isotropy Index (eq. 7), dimensionless, 0 where a candidate does not reach the "
@@ -29,13 +29,10 @@ def grid_map(x, z, value, feasible):
     return xs, zs, m
 
 
-def views(run, parts) -> list[View]:
-    from surgopt.results import config_of
-    from surgopt.studies import get_study
-    from surgopt.studies.rcm_grid import PAPER_TABLE_I
+def views(run, cfg, parts) -> list[View]:
+    """The run's sections (``cfg``: its validated config), aggregates streamed from ``parts``."""
+    from surgopt.studies.rcm_grid.study import PAPER_TABLE_I
 
-    study = get_study(run.study)
-    cfg = config_of(study, run)
     c = _cols(parts, ["candidate_id", "x_rcm_m", "y_rcm_m", "z_rcm_m", "gii", "feasible"])
     feasible = c["feasible"].astype(bool)
     best = int(np.nanargmax(np.where(feasible, c["gii"], -1))) if feasible.any() else None

@@ -4,12 +4,12 @@ from __future__ import annotations
 
 import numpy as np
 
-from surgopt.studies.figures import columns, pyplot, save
+from surgopt.studies.plotting import columns, pyplot, save
 
 
 def _gii_map(cfg):
     """A coarse GII map (61 x 61 candidates, 9^3 cube) over the candidates' x-z box, for beneath Fig. 6."""
-    from surgopt.studies import rcm_grid as grid
+    from surgopt.studies.rcm_grid import study as grid
 
     xs = np.asarray(grid.candidate_xyz(cfg))
     pad = 0.05
@@ -27,8 +27,8 @@ def _gii_map(cfg):
 
 
 def figures(cfg, table, out, design_id=None):
-    from surgopt.studies.figures.rcm_grid import robot_title
-    from surgopt.studies.rcm_track import reference_path
+    from surgopt.studies.rcm_grid.figures import robot_title
+    from surgopt.studies.rcm_track.study import reference_path
 
     plt = pyplot()
     c = columns(table)
@@ -37,7 +37,7 @@ def figures(cfg, table, out, design_id=None):
     kept = [i for i, tr in enumerate(table["trace_t_s"].to_pylist()) if tr]
     if design_id is not None:
         kept = [i for i in kept if c["candidate_id"][i] == design_id]
-    from surgopt.studies import rcm_grid as grid
+    from surgopt.studies.rcm_grid import study as grid
 
     for i in kept:
         cid = int(c["candidate_id"][i])

@@ -3,8 +3,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from surgopt.studies.figures import columns, pyplot, save
-from surgopt.studies.rcm_grid import PAPER_TABLE_I
+from surgopt.studies.plotting import columns, pyplot, save
+from surgopt.studies.rcm_grid.study import PAPER_TABLE_I
 
 
 def robot_title(cfg) -> str:

@@ -54,7 +54,7 @@ def search_figures(cfg, table, out: Path, plan, reference=None, feasible=None, o
     mask of the rows, default all), trials in grey, infeasible ones as crosses. ``objective`` (column,
     direction): what a person reads the search by when the optimiser's is a penalised stand-in
     (``Study.reported_objective``): drawn for the feasible trials only, on its own scale."""
-    from surgopt.studies.search import best_so_far, pareto_front
+    from surgopt.plans.search import best_so_far, pareto_front
 
     plt = pyplot()
     c = columns(table)

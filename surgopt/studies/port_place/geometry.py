@@ -1,7 +1,8 @@
 """The geometry a ``port-place`` config implies (numpy; mm): the target's points (a shape on a grid, a points file,
 the grid points inside a mesh), the body (the half-ellipsoid or superquadric dome, or a closed mesh read by
 trimesh): what lies inside it, its wall's height over the table, the distance to it, its painted region, and
-the candidate port sites. Functions of the config's sections (``port_place_config``), which they read and never
+the candidate port sites. Functions of the config's sections (``config.Patient`` as ``patient``, ``config.Target``
+as ``t``, the whole ``config.PortPlaceConfig`` as ``cfg``), which they read and never
 import; the config's validators call them to check what a config implies before anything runs.
 
 The dome's and the mesh's versions of each quantity (inside, wall height, distance,
@@ -12,12 +13,8 @@ from __future__ import annotations
 import math
 from functools import lru_cache
 from pathlib import Path
-from typing import TYPE_CHECKING
 
 import numpy as np
-
-if TYPE_CHECKING:  # the config's sections, read here, defined there
-    from surgopt.studies.port_place_config import Patient, PortPlaceConfig, Target
 
 
 def polygon_area_mm2(poly: np.ndarray) -> float:
@@ -110,7 +107,7 @@ def mesh_points_mm(path: str, sha256: str, units: str, offset_mm: tuple, spacing
     return pts
 
 
-def target_points_mm(t: Target) -> np.ndarray:
+def target_points_mm(t) -> np.ndarray:
     """The target's points (mm): the file's, the grid points inside its mesh, or the shape sampled on a grid of
     ``spacing_mm`` centred on it (points inside the shape)."""
     if t.shape == "points":
@@ -161,7 +158,7 @@ def dome_samples_mm(semi_axes_mm: tuple, exponent: float) -> tuple[np.ndarray, f
     return points, float(diagonal.max()) / 2
 
 
-def body_distance_mm(p: np.ndarray, patient: Patient, cap_mm: float) -> np.ndarray:
+def body_distance_mm(p: np.ndarray, patient, cap_mm: float) -> np.ndarray:
     """Per point (mm) outside the body: its distance to the body wall, capped at ``cap_mm`` (the mesh's by
     trimesh's closest point, exact; the dome's to the nearest of ``dome_samples_mm``, less their gap: a lower
     bound within that gap of the true distance)."""
@@ -172,7 +169,7 @@ def body_distance_mm(p: np.ndarray, patient: Patient, cap_mm: float) -> np.ndarr
         return np.clip(nearest_distances(np.ascontiguousarray(p, float), samples, cap_mm + gap) - gap, 0.0, cap_mm)
     import trimesh
 
-    mesh = _mesh_of(patient)
+    mesh = patient_mesh(patient)
     out = np.full(len(p), cap_mm)
     lo, hi = mesh.bounds
     near = np.all((p >= lo - cap_mm) & (p <= hi + cap_mm), axis=1)
@@ -268,23 +265,23 @@ def check_mesh_scale(mesh, path: str, units: str, lo_mm: float, hi_mm: float, wh
                      f"mesh_units = '{units}', not {what} ({lo_mm:g} to {hi_mm:g} mm){hint}")
 
 
-def _mesh_of(patient: Patient):
+def patient_mesh(patient):
     return body_mesh(patient.mesh_file, patient.mesh_sha256, patient.mesh_units, tuple(patient.mesh_offset_mm))
 
 
-def inside_body(p: np.ndarray, patient: Patient) -> np.ndarray:
+def inside_body(p: np.ndarray, patient) -> np.ndarray:
     """Which points (mm) lie inside the body: the dome, or the closed mesh (trimesh's containment test)."""
     if patient.shape == "dome":
         return inside_dome(p, patient.semi_axes_mm, patient.dome_exponent)
-    return np.asarray(_mesh_of(patient).contains(p), bool) & (p[:, 2] >= 0)
+    return np.asarray(patient_mesh(patient).contains(p), bool) & (p[:, 2] >= 0)
 
 
-def wall_height_mm(x: np.ndarray, y: np.ndarray, patient: Patient) -> np.ndarray:
+def wall_height_mm(x: np.ndarray, y: np.ndarray, patient) -> np.ndarray:
     """Height (mm) of the body's upper wall over each top-view point: the dome's, or the highest crossing of a
     vertical ray with the mesh (NaN where the ray misses it)."""
     if patient.shape == "dome":
         return dome_height_mm(x, y, patient.semi_axes_mm, patient.dome_exponent)
-    return _mesh_wall(x, y, _mesh_of(patient))[0]
+    return _mesh_wall(x, y, patient_mesh(patient))[0]
 
 
 def _mesh_wall(x: np.ndarray, y: np.ndarray, mesh) -> tuple[np.ndarray, np.ndarray]:
@@ -302,7 +299,7 @@ def _mesh_wall(x: np.ndarray, y: np.ndarray, mesh) -> tuple[np.ndarray, np.ndarr
     return z, face
 
 
-def painted_faces(patient: Patient) -> np.ndarray | None:
+def painted_faces(patient) -> np.ndarray | None:
     """Which faces of a mesh patient carry ``port_region.face_color_rgb`` (None when no colour is given); a
     ValueError naming the field when the mesh has no per-face colours or none of that colour."""
     rgb = patient.port_region.face_color_rgb
@@ -311,7 +308,7 @@ def painted_faces(patient: Patient) -> np.ndarray | None:
     if patient.shape != "mesh":
         raise ValueError("patient.port_region.face_color_rgb: a painted region needs shape = 'mesh' (a PLY file "
                          "with per-face colours); on the dome, mark the region with polygon_mm")
-    mesh = _mesh_of(patient)
+    mesh = patient_mesh(patient)
     if getattr(mesh.visual, "kind", None) != "face":
         raise ValueError(f"patient.port_region.face_color_rgb: {patient.mesh_file} has no per-face colours (STL "
                          f"has none, OBJ stores vertex colours): export the painted mesh as PLY with face colours")
@@ -324,15 +321,15 @@ def painted_faces(patient: Patient) -> np.ndarray | None:
     return painted
 
 
-def body_extent_mm(patient: Patient) -> tuple[float, float, float]:
+def body_extent_mm(patient) -> tuple[float, float, float]:
     """Half widths in x and y about 0 and the height of the body (the dome's semi-axes, the mesh's bounds)."""
     if patient.shape == "dome":
         return tuple(patient.semi_axes_mm)
-    lo, hi = _mesh_of(patient).bounds
+    lo, hi = patient_mesh(patient).bounds
     return max(abs(lo[0]), abs(hi[0])), max(abs(lo[1]), abs(hi[1])), float(hi[2])
 
 
-def sites_mm(cfg: PortPlaceConfig) -> np.ndarray:
+def sites_mm(cfg) -> np.ndarray:
     """Candidate ports: a top-view grid at ``site_spacing_mm`` (symmetric about x = 0) lifted onto the body's
     upper wall (the dome, or the mesh by vertical rays), kept where the wall is at least
     ``min_height_fraction`` of the body's height, inside ``polygon_mm`` when given, on a face painted
@@ -345,7 +342,7 @@ def sites_mm(cfg: PortPlaceConfig) -> np.ndarray:
     if painted is None:
         z = wall_height_mm(x, y, cfg.patient)
     else:  # the face each site lies on must be painted
-        z, face = _mesh_wall(x, y, _mesh_of(cfg.patient))
+        z, face = _mesh_wall(x, y, patient_mesh(cfg.patient))
         z = np.where((face >= 0) & painted[np.maximum(face, 0)], z, np.nan)
     keep = np.nan_to_num(z, nan=-1.0) >= cfg.patient.port_region.min_height_fraction * c
     if cfg.patient.port_region.polygon_mm is not None:

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from surgopt.studies.figures import columns, pyplot, save
+from surgopt.studies.plotting import columns, pyplot, save
 
 COLOURS = {"psm1": "C3", "psm2": "C1", "psm3": "C2", "ecm": "C0"}
 
@@ -51,10 +51,11 @@ def chosen(c: dict, design_id: int | None) -> int | None:
 def serial_arms(ax, cfg, sites_m: np.ndarray, ports: list) -> None:
     """Each serial instrument arm's centre line (base, joints, flange, port) at its docked pose, at the (site,
     colour) ``ports``."""
-    from surgopt.studies.port_place_serial import serial_tables
+    from surgopt.studies.port_place.serial_arms import serial_tables
+    from surgopt.studies.port_place.tables import model_of
 
     chosen_sites = np.array([site for site, _ in ports])
-    lines = serial_tables(cfg, sites_m[chosen_sites]).links * 1000
+    lines = serial_tables(model_of(cfg), sites_m[chosen_sites]).links * 1000
     for line, (_, colour) in zip(lines, ports):
         ax.plot(*line.T, color=colour, lw=3, marker="o", ms=3, alpha=0.8)
     ax.plot([], [], color="0.3", lw=3, marker="o", ms=3, label=f"{cfg.robot.instrument_serial.holder().name}: "
@@ -62,13 +63,14 @@ def serial_arms(ax, cfg, sites_m: np.ndarray, ports: list) -> None:
 
 
 def figures(cfg, table, out, design_id=None):
-    from surgopt.studies import port_place as S
+    from surgopt.studies.port_place.tables import model_of
 
     plt = pyplot()
     c = columns(table)
-    sites_m, port_tables, _, reach, dex = S.tables(cfg)
+    model = model_of(cfg)
+    sites_m, (port_tables, _, dex) = model.sites_m, model.grid
     sites = sites_m * 1000
-    targets = S.target_points_mm(cfg.target)
+    targets = model.targets_m * 1000
     per_site = best_per_site(c, len(sites))
     row = chosen(c, design_id)
     paths = []
@@ -76,16 +78,16 @@ def figures(cfg, table, out, design_id=None):
     # 3-D: the dome, the candidate sites, the chosen ports with their shafts, the target by dexterity
     fig = plt.figure(figsize=(7.6, 6.2))
     ax = fig.add_subplot(projection="3d")
-    from surgopt.studies.port_place import _mesh_of, body_extent_mm
+    from surgopt.studies.port_place.geometry import body_extent_mm, patient_mesh
 
     a, b, h = body_extent_mm(cfg.patient)
     if cfg.patient.shape == "dome":
-        from surgopt.studies.port_place_config import dome_surface_mm
+        from surgopt.studies.port_place.geometry import dome_surface_mm
 
         u, v = np.meshgrid(np.linspace(0, 2 * np.pi, 49), np.linspace(0, np.pi / 2, 13))
         ax.plot_wireframe(*dome_surface_mm((a, b, h), cfg.patient.dome_exponent, u, v), color="0.8", lw=0.4)
     else:  # the mesh's triangles, thinned to at most ~4,000 for a readable figure
-        mesh = _mesh_of(cfg.patient)
+        mesh = patient_mesh(cfg.patient)
         faces = mesh.faces[:: max(1, len(mesh.faces) // 4000)]
         ax.plot_trisurf(*mesh.vertices.T, triangles=faces, color="0.85", alpha=0.25, lw=0.1, edgecolor="0.7")
     sc = ax.scatter(*sites.T, c=per_site, cmap="viridis_r", s=14, depthshade=False)
@@ -103,9 +105,9 @@ def figures(cfg, table, out, design_id=None):
         if cfg.robot.instrument_serial is not None:  # the serial arms themselves, at their docked poses
             serial_arms(ax, cfg, sites_m, [(c[f"{arm}_site"][row], colour) for arm, colour, _ in arms(c)[:-1]])
         if cfg.robot.camera_serial is not None:
-            from surgopt.studies.port_place_serial import camera_lines
+            from surgopt.studies.port_place.tables import camera_lines
 
-            line = camera_lines(cfg, sites_m[[c["ecm_site"][row]]])[0] * 1000
+            line = camera_lines(model_of(cfg), sites_m[[c["ecm_site"][row]]])[0] * 1000
             ax.plot(*line.T, color=COLOURS["ecm"], lw=3, marker="o", ms=3, alpha=0.8,
                     label=f"{cfg.robot.camera_serial.holder().name} holding the endoscope")
         ax.legend(fontsize=8, loc="upper left")
@@ -164,8 +166,7 @@ def reach_maps(plt, cfg, sites, t, dex, out):
     """Per-arm maps, top view: the share of the target an instrument docked at each site reaches (within its joint
     limits and any approach cone), its mean isotropy over the points it reaches, and the share of the target the
     camera docked there sees. A map whose value is the same at every site says so in its title."""
-    from surgopt.studies import port_place as S
-    from surgopt.studies.port_place import body_extent_mm
+    from surgopt.studies.port_place.geometry import body_extent_mm, target_points_mm
 
     a, b, _ = body_extent_mm(cfg.patient)
     reached = t.reach_count / t.n_points
@@ -174,7 +175,7 @@ def reach_maps(plt, cfg, sites, t, dex, out):
             (iso, "instrument: mean isotropy there", (np.nanmin(iso), max(np.nanmax(iso), np.nanmin(iso) + 1e-3))),
             (t.coverage, "camera: share of the target seen", (0.0, 1.0)))
     fig, axes = plt.subplots(1, 3, figsize=(13.0, 4.6), sharey=True)
-    targets = S.target_points_mm(cfg.target)
+    targets = target_points_mm(cfg.target)
     for ax, (v, title, (vmin, vmax)) in zip(axes, maps):
         lo, hi = np.nanmin(v), np.nanmax(v)
         sc = ax.scatter(sites[:, 0], sites[:, 1], c=v, cmap="viridis", vmin=vmin, vmax=vmax, s=30)
@@ -188,7 +189,7 @@ def reach_maps(plt, cfg, sites, t, dex, out):
                      fontsize=9)
     axes[0].set_ylabel("y cranial (mm)")
     axes[0].legend(fontsize=7, loc="lower left")
-    from surgopt.studies.port_place import camera_arm_of, instrument_of
+    from surgopt.studies.port_place.config import camera_arm_of, instrument_of
 
     fig.suptitle(f"per-arm maps: {instrument_of(cfg).name} and {camera_arm_of(cfg).name} docked at each candidate "
                  f"site toward the target's centre", fontsize=9)

@@ -4,8 +4,8 @@ from __future__ import annotations
 import numpy as np
 
 from surgopt.kinematics.throat import forward_kinematics
-from surgopt.studies.figures import columns, pyplot, save
-from surgopt.studies.suture_sim import JOINT_COLUMNS, NORM_COLUMNS, geometry
+from surgopt.studies.plotting import columns, pyplot, save
+from surgopt.studies.suture_sim.study import JOINT_COLUMNS, NORM_COLUMNS, geometry
 
 
 def figures(cfg, table, out, design_id=None):

@@ -19,7 +19,7 @@ import numpy as np
 
 from surgopt.metrics import METRIC_RCM, POSE_METRICS, global_isotropy_index
 from surgopt.studies import Estimate, Flag, Study, Summary, figures_in, html_views_in, peak_bytes
-from surgopt.studies.rcm_grid_config import (  # noqa: F401 - the config models, re-exported
+from surgopt.studies.rcm_grid.config import (  # noqa: F401 - the config models, re-exported
     SEARCH_OBJECTIVES,
     Candidates,
     Grid,
@@ -27,7 +27,7 @@ from surgopt.studies.rcm_grid_config import (  # noqa: F401 - the config models,
     Robot,
     Workspace,
 )
-from surgopt.studies.search import SearchPlan, objectives_of, optimiser_of
+from surgopt.plans.search import SearchPlan, objectives_of, optimiser_of
 
 NAME = "rcm-grid"
 HELP = """Global Isotropy Index of candidate remote-centre-of-motion locations for a serial arm
@@ -581,11 +581,11 @@ def feasible_mask(table):
 
 
 STUDY = Study(
-    html_views=html_views_in("rcm_grid_html"),
+    html_views=html_views_in("surgopt.studies.rcm_grid.html"),
     name=NAME, kernel_version=KERNEL_VERSION, config_model=RcmGridConfig, default_config=DEFAULT_CONFIG,
     help=HELP, config_help=CONFIG_HELP, schema=schema, key_columns=KEY_COLUMNS, objective=OBJECTIVE,
     auto_chunk=auto_chunk, n_tasks=n_tasks, warm_up=warm_up, compute_task=compute_task, summary=summary,
-    feasible_mask=feasible_mask, figures=figures_in("rcm_grid"), estimate=estimate, search_plan=search_plan,
+    feasible_mask=feasible_mask, figures=figures_in("surgopt.studies.rcm_grid.figures"), estimate=estimate, search_plan=search_plan,
     warm_variants=(("metric=standard",), ("robot.model=ur5e",)),
     evaluate=evaluate_designs, design_box=design_box, cull=lambda cfg: cull_search(cfg),
     advice=lambda cfg: (cfg.robot.auto_lock_advice() + cfg.robot.tool_axis_advice() + reach_grid_advice(cfg)

@@ -16,7 +16,7 @@ import numpy as np
 
 from surgopt.metrics import raven_cost, workspace_compactness
 from surgopt.studies import Estimate, Flag, Study, Summary, figures_in, html_views_in, peak_bytes
-from surgopt.studies.raven_sweep_config import (  # noqa: F401
+from surgopt.studies.raven_sweep.config import (  # noqa: F401
     PARAM_RANGES,
     PARAMS,
     Config,
@@ -28,7 +28,7 @@ from surgopt.studies.raven_sweep_config import (  # noqa: F401
     Sweep,
     values,
 )
-from surgopt.studies.search import SearchPlan, objectives_of, optimiser_of
+from surgopt.plans.search import SearchPlan, objectives_of, optimiser_of
 
 NAME = "raven-sweep"
 HELP = """Raven IV port placement and link design (Li, Glozman, Milutinovic, Rosen, ICRA 2011: eqs. 1-43,
@@ -379,11 +379,11 @@ def feasible_mask(table):
 
 
 STUDY = Study(
-    html_views=html_views_in("raven_sweep_html"),
+    html_views=html_views_in("surgopt.studies.raven_sweep.html"),
     name=NAME, kernel_version=KERNEL_VERSION, config_model=RavenSweepConfig, default_config=DEFAULT_CONFIG,
     help=HELP, config_help=CONFIG_HELP, schema=schema, key_columns=KEY_COLUMNS, objective=OBJECTIVE,
     auto_chunk=auto_chunk, n_tasks=n_tasks, warm_up=warm_up, compute_task=compute_task, summary=summary,
-    feasible_mask=feasible_mask, figures=figures_in("raven_sweep"), estimate=estimate, search_plan=search_plan,
+    feasible_mask=feasible_mask, figures=figures_in("surgopt.studies.raven_sweep.figures"), estimate=estimate, search_plan=search_plan,
     evaluate=evaluate_designs, refine_space=refine_space, design_box=design_box,
     flags=(Flag("--refine", "After the run, a compass search from its top refine.top_k designs inside the sweep's "
                             "bounds; stored as a second run that records the first's key.",

@@ -2,8 +2,9 @@
 
 ``compass_search``: derivative-free coordinate search inside box bounds (Kolda, Lewis & Torczon 2003,
 "Optimization by direct search", Sec. 3.5), a cheap local refinement of a grid's best designs.
-``SearchSpec`` / ``SearchPlan`` and the helpers below: Optuna optimisers ([search] sections), run
-batch by batch by ``surgopt.runner``.
+``SearchSpec`` / ``SearchPlan`` and the helpers below: the vocabulary of a [search] section (its method, trials,
+objectives) and of the space a study offers, which the studies declare and the optimiser plans
+(``optuna_plan``, ``cmaes_plan``) run; the Pareto front and best-so-far curves the reports draw.
 """
 from __future__ import annotations
 
@@ -56,11 +57,14 @@ def compass_search(objective: Callable[[np.ndarray], float], start: Sequence[flo
 
 
 # ---------------------------------------------------------------------------
-# Optuna searches over a study's continuous design space ([search] method = "cmaes" | "tpe" | ...)
+# A study's design space searched by an optimiser ([search] method = "cmaes" | "tpe" | ...)
 # ---------------------------------------------------------------------------
 
 
-METHODS = ("grid", "cmaes", "tpe", "nsga2", "random")
+#: [search] method -> the plan that runs it (``surgopt.plans.PLANS``): the one list of methods.
+METHOD_PLANS = {"cmaes": "cmaes", "tpe": "optuna", "nsga2": "optuna", "random": "optuna"}
+#: The values of [search] method: the grid (no optimiser), then every optimiser.
+METHODS = ("grid", *METHOD_PLANS)
 #: Trials per stored part when ``batch`` is left out. Optuna asks a batch at a time (its size shapes the search);
 #: CMA-ES asks a generation at a time, so its part is only the unit of durability: 256 trials a part store a
 #: 5,000-trial Table II search in 20 parts instead of 71, which takes ~0.4 s (a fifth of the search's own time
@@ -157,147 +161,6 @@ class SearchPlan:
 
 def objectives_of(spec: SearchSpec, default: str) -> list[tuple[str, str]]:
     return [(o.lstrip("-"), "minimize" if o.startswith("-") else "maximize") for o in (spec.objectives or [default])]
-
-
-def sampler_for(spec: SearchSpec, batch_index: int):
-    """A fresh Optuna sampler for one batch, seeded by (seed, batch): same history -> same trials."""
-    import optuna
-
-    seed = (spec.seed * 1_000_003 + batch_index) % (2 ** 31)
-    if spec.method == "cmaes":
-        return optuna.samplers.CmaEsSampler(seed=seed, warn_independent_sampling=False)
-    if spec.method == "tpe":
-        startup = min(2 * spec.trials_per_part, 100)
-        return optuna.samplers.TPESampler(seed=seed, multivariate=True, n_startup_trials=startup)
-    if spec.method == "nsga2":
-        return optuna.samplers.NSGAIISampler(seed=seed, population_size=max(8, spec.trials_per_part))
-    return optuna.samplers.RandomSampler(seed=seed)
-
-
-def distributions(space: dict[str, Any]) -> dict:
-    import optuna
-
-    out = {}
-    for name, dom in space.items():
-        if isinstance(dom, tuple):
-            out[name] = optuna.distributions.FloatDistribution(float(dom[0]), float(dom[1]))
-        else:
-            out[name] = optuna.distributions.CategoricalDistribution(list(dom))
-    return out
-
-
-def memory_study(plan: SearchPlan):
-    """A fresh Optuna study in memory, in the plan's directions (the search runs on it; the journal is its record)."""
-    import optuna
-
-    optuna.logging.set_verbosity(optuna.logging.WARNING)
-    return optuna.create_study(study_name="surgopt", storage=optuna.storages.InMemoryStorage(),
-                               directions=[d for _, d in plan.objectives])
-
-
-def _journal_study(path, plan: SearchPlan):
-    import optuna
-    from optuna.storages import JournalStorage
-    from optuna.storages.journal import JournalFileBackend
-
-    optuna.logging.set_verbosity(optuna.logging.WARNING)
-    return optuna.create_study(study_name="surgopt", storage=JournalStorage(JournalFileBackend(str(path))),
-                               load_if_exists=True, directions=[d for _, d in plan.objectives])
-
-
-class Journal:
-    """The search's record on disk: Optuna's journal file in the run's folder (optuna-dashboard reads it),
-    holding every trial of every *complete* batch, appended batch by batch once the batch is told.
-
-    ``Journal.open`` reads what an interrupted search left: the trials of its leading complete batches
-    (a batch cut short by a kill, or a half-written last line, is dropped and the file rewritten without
-    it). An unreadable journal raises ``JournalProblem``.
-    """
-
-    def __init__(self, path, plan: SearchPlan, study, trials: list):
-        self.path, self.plan, self._study, self.trials = path, plan, study, trials
-
-    @classmethod
-    def open(cls, path, plan: SearchPlan) -> "Journal":
-        from pathlib import Path
-
-        path = Path(path)
-        batch = plan.spec.trials_per_part
-        trials = []
-        ends_cleanly = not path.exists() or path.stat().st_size == 0 or _last_byte(path) == b"\n"
-        if path.exists() and path.stat().st_size:
-            try:
-                trials = _read_journal(path)
-            except Exception as exc:  # noqa: BLE001 - whatever Optuna raises on a damaged file
-                raise JournalProblem(f"{path}: Optuna's journal cannot be read ({type(exc).__name__}: "
-                                     f"{str(exc)[:120]})") from None
-        complete = []
-        for k in range(0, len(trials), batch):
-            n = min(batch, plan.spec.trials - k)
-            chunk = trials[k:k + n]
-            if len(chunk) < n or not all(t.state.is_finished() for t in chunk) \
-                    or [t.number for t in chunk] != list(range(k, k + n)):
-                break
-            complete += chunk
-        if len(complete) != len(trials) or not ends_cleanly:
-            _rewrite_journal(path, plan, complete)
-        return cls(path, plan, None, complete)
-
-    @property
-    def batches(self) -> int:
-        """How many complete batches the journal holds."""
-        return -(-len(self.trials) // self.plan.spec.trials_per_part) if self.trials else 0
-
-    def append(self, frozen_trials: list) -> None:
-        if self._study is None:
-            self._study = _journal_study(self.path, self.plan)
-        self._study.add_trials(frozen_trials)
-        self.trials += frozen_trials
-
-
-def _read_journal(path) -> list:
-    """The trials a journal holds, read without writing to it (creating the study would append to the file)."""
-    import optuna
-    from optuna.storages import JournalStorage
-    from optuna.storages.journal import JournalFileBackend
-
-    storage = JournalStorage(JournalFileBackend(str(path)))
-    if not storage.get_all_studies():
-        return []
-    return optuna.load_study(study_name="surgopt", storage=storage).get_trials(deepcopy=False)
-
-
-class JournalProblem(ValueError):
-    """A journal that cannot be read."""
-
-
-def _last_byte(path) -> bytes:
-    with open(path, "rb") as f:
-        f.seek(-1, 2)
-        return f.read(1)
-
-
-def _rewrite_journal(path, plan: SearchPlan, trials: list) -> None:
-    """Replace the journal with one holding exactly ``trials`` (written beside it, then renamed)."""
-    import os
-
-    tmp = path.with_name(f".{path.name}.tmp-{os.getpid()}")
-    tmp.unlink(missing_ok=True)
-    try:
-        _journal_study(tmp, plan).add_trials(trials)
-        os.replace(tmp, path)
-    finally:
-        tmp.unlink(missing_ok=True)
-
-
-def tell(study, trials, values: list[list[float]]) -> None:
-    import optuna
-
-    for trial, v in zip(trials, values):
-        if all(np.isfinite(v)):
-            study.tell(trial, v if len(v) > 1 else v[0])
-        else:
-            study.tell(trial, state=optuna.trial.TrialState.FAIL)
 
 
 def pareto_front(values: np.ndarray, directions: list[str]) -> np.ndarray:

@@ -401,8 +401,8 @@ def feasible_mask(table):
 
 
 STUDY = Study(
-    html_views=html_views_in("suture_sim_html"),
+    html_views=html_views_in("surgopt.studies.suture_sim.html"),
     name=NAME, kernel_version=KERNEL_VERSION, config_model=SutureSimConfig, default_config=DEFAULT_CONFIG,
     help=HELP, config_help=CONFIG_HELP, schema=schema, key_columns=KEY_COLUMNS, objective=OBJECTIVE,
     auto_chunk=auto_chunk, n_tasks=n_tasks, warm_up=warm_up, compute_task=compute_task, summary=summary,
-    feasible_mask=feasible_mask, figures=figures_in("suture_sim"), chunked=False, estimate=estimate)
+    feasible_mask=feasible_mask, figures=figures_in("surgopt.studies.suture_sim.figures"), chunked=False, estimate=estimate)

@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from surgopt.html_report import View, table_html
+from surgopt.studies.page import View, table_html
 
 TOP_FEASIBLE = 300
 TOP_INFEASIBLE = 100
@@ -41,32 +41,30 @@ def _site_best(parts, arms, n_sites: int) -> np.ndarray:
 
 def _body(cfg) -> dict:
     """The patient's surface as a Plotly trace: the dome's, or the mesh's triangles (at most ~6,000)."""
-    from surgopt.studies.port_place import _mesh_of, body_extent_mm
-    from surgopt.studies.port_place_geometry import dome_surface_mm
+    from surgopt.studies.port_place.geometry import body_extent_mm, dome_surface_mm, patient_mesh
 
     if cfg.patient.shape == "dome":
         u, v = np.meshgrid(np.linspace(0, 2 * np.pi, 61), np.linspace(0, np.pi / 2, 17))
         x, y, z = dome_surface_mm(body_extent_mm(cfg.patient), cfg.patient.dome_exponent, u, v)
         return {"type": "surface", "x": x, "y": y, "z": z, "opacity": 0.18, "showscale": False,
                 "colorscale": [[0, "#c9b8a6"], [1, "#c9b8a6"]], "hoverinfo": "skip", "name": "abdomen"}
-    mesh = _mesh_of(cfg.patient)
+    mesh = patient_mesh(cfg.patient)
     faces = np.asarray(mesh.faces)[:: max(1, len(mesh.faces) // 6000)]
     v = np.asarray(mesh.vertices)
     return {"type": "mesh3d", "x": v[:, 0], "y": v[:, 1], "z": v[:, 2], "i": faces[:, 0], "j": faces[:, 1],
             "k": faces[:, 2], "opacity": 0.18, "color": "#c9b8a6", "hoverinfo": "skip", "name": "body mesh"}
 
 
-def views(run, parts) -> list[View]:
-    from surgopt.results import config_of
-    from surgopt.studies import get_study
-    from surgopt.studies.port_place import CLINICAL_CHECKS, arms_of, least_cost_layouts, tables, target_points_mm
+def views(run, cfg, parts) -> list[View]:
+    """The run's sections (``cfg``: its validated config), aggregates streamed from ``parts``."""
+    from surgopt.studies.port_place.study import CLINICAL_CHECKS, arms_of, least_cost_layouts
+    from surgopt.studies.port_place.tables import camera_lines, model_of
 
-    study = get_study(run.study)
-    cfg = config_of(study, run)
     arms = list(arms_of(cfg))
-    sites_m, _, _, reach, dex = tables(cfg)
+    model = model_of(cfg)
+    sites_m, (_, reach, dex) = model.sites_m, model.grid
     sites = sites_m * 1000
-    targets = target_points_mm(cfg.target)
+    targets = model.targets_m * 1000
     site_best = _site_best(parts, arms, len(sites))
     wanted = sorted({*LAYOUT_COLUMNS, *[f"{a}_{s}" for a in arms for s in ("site", "x_mm", "y_mm", "z_mm")],
                      *[f for _, fields, _, _, _ in CLINICAL_CHECKS for f in fields], "infeasible",
@@ -84,13 +82,11 @@ def views(run, parts) -> list[View]:
 
     arm_lines = cam_lines = None
     if cfg.robot.instrument_serial is not None:  # the serial arms' centre lines at their docked pose, every site
-        from surgopt.studies.port_place_serial import serial_tables
+        from surgopt.studies.port_place.serial_arms import serial_tables
 
-        arm_lines = serial_tables(cfg, sites_m).links * 1000
+        arm_lines = serial_tables(model, sites_m).links * 1000
     if cfg.robot.camera_serial is not None:
-        from surgopt.studies.port_place_serial import camera_lines
-
-        cam_lines = camera_lines(cfg, sites_m) * 1000
+        cam_lines = camera_lines(model, sites_m) * 1000
     data = {
         "arm_lines": arm_lines, "cam_lines": cam_lines, "outside_mm": dvrk.OUTSIDE_LENGTH_M * 1000,
         "arms": arms, "colours": [COLOURS[a] for a in arms], "sites": sites, "site_best": site_best,

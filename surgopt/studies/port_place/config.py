@@ -3,7 +3,7 @@ region and its candidate sites, the target and its points, the robot, the constr
 
 A config is resolved once, at validation (a mesh file read, checked and hashed; the sites counted against the
 constraints), so the validated config says everything that is hashed into the store key. The geometry itself is
-in ``port_place_geometry`` (re-exported here).
+in ``geometry``.
 """
 from __future__ import annotations
 
@@ -15,35 +15,21 @@ from pydantic import Field, ValidationInfo, model_validator
 
 from surgopt.config import NOT_IN_KEY, StrictModel
 from surgopt.robots import dvrk
-from surgopt.studies.port_place_geometry import (  # noqa: F401 - the geometry, re-exported
+from surgopt.robots.models import CAMERA_ARMS, INSTRUMENT_ARMS, get_model
+from surgopt.studies.port_place.geometry import (
     MAX_MESH_BYTES,
-    MAX_MESH_FACES,
     MAX_POINTS_BYTES,
-    body_distance_mm,
-    body_extent_mm,
     body_mesh,
     check_mesh_scale,
-    dome_height_mm,
-    dome_samples_mm,
-    dome_surface_mm,
     file_points_mm,
-    grid_1d,
     inside_body,
-    inside_dome,
-    inside_polygon,
-    _mesh_of,
     mesh_points_mm,
-    _mesh_wall,
-    painted_faces,
     even_odd_area_mm2,
-    polygon_area_mm2,
-    _read_mesh_bytes,
     sites_mm,
     target_points_mm,
-    wall_height_mm,
 )
-from surgopt.studies.rcm_arm_config import RcmArmFile, SerialInstrumentArm, file_arm
-from surgopt.studies.search import check_objectives, search_field
+from surgopt.studies.port_place.arm_config import RcmArmFile, SerialInstrumentArm
+from surgopt.plans.search import check_objectives, search_field
 
 #: A 3-vector of a patient-sized quantity: finite and within 10 m (mm) of the patient frame's origin.
 Vec3 = list[Annotated[float, Field(ge=-10_000.0, le=10_000.0, allow_inf_nan=False)]]
@@ -114,16 +100,13 @@ class Patient(StrictModel):
 
     def _resolve_mesh(self, context) -> None:
         """The mesh file, relative to the config's folder, read (bounded), hashed and checked closed."""
-        from surgopt.files import config_file_path, hashed_config_file
+        from surgopt.files import resolve_and_hash
 
         if self.mesh_file is None:
             raise ValueError("shape = 'mesh' needs mesh_file (an STL, OBJ or PLY file)")
-        path = config_file_path(self.mesh_file, context)
-        object.__setattr__(self, "mesh_file", str(path))
-        if context.get("stored"):
+        path, sha = resolve_and_hash(self, "mesh_file", "mesh_sha256", MAX_MESH_BYTES, context)
+        if sha is None:
             return
-        _, sha = hashed_config_file("mesh_file", path, self.mesh_sha256, MAX_MESH_BYTES, "mesh_sha256")
-        object.__setattr__(self, "mesh_sha256", sha)
         mesh = body_mesh(str(path), sha, self.mesh_units, tuple(self.mesh_offset_mm))  # parsed and checked once here
         check_mesh_scale(mesh, str(path), self.mesh_units, 20.0, 1000.0, "an abdomen's")
 
@@ -181,15 +164,9 @@ class Target(StrictModel):
     def _resolved(self, field: str, sha_field: str, max_bytes: int, context: dict):
         """The file of ``field`` resolved against the config's folder (set back as a path), and, unless the config
         is read as stored, read (bounded) and hashed into ``sha_field``: (path, sha256 or None when stored)."""
-        from surgopt.files import config_file_path, hashed_config_file
+        from surgopt.files import resolve_and_hash
 
-        path = config_file_path(getattr(self, field), context)
-        object.__setattr__(self, field, str(path))
-        if context.get("stored"):
-            return path, None
-        _, sha = hashed_config_file(field, path, getattr(self, sha_field), max_bytes, sha_field)
-        object.__setattr__(self, sha_field, sha)
-        return path, sha
+        return resolve_and_hash(self, field, sha_field, max_bytes, context)
 
     def _resolve_mesh(self, context):
         """shape = 'mesh': the file resolved, read (bounded, closed), hashed, sampled; centre and extent from its
@@ -229,7 +206,7 @@ class Target(StrictModel):
 
 
 class Robot(StrictModel):
-    instrument_arm: Literal[tuple(dvrk.INSTRUMENT_ARMS)] = "dvrk_psm_classic"
+    instrument_arm: Literal[INSTRUMENT_ARMS] = "dvrk_psm_classic"
     instrument_file: RcmArmFile | None = Field(None, description="any RCM instrument arm from a URDF or DH table, "
                                                "in place of instrument_arm")
     instrument_serial: SerialInstrumentArm | None = Field(
@@ -243,7 +220,7 @@ class Robot(StrictModel):
     instrument_count: Literal[2, 3] = Field(2, description="instrument arms: 2 (PSM1, PSM2: the surgeon's hands) or "
                                                             "3 (and PSM3, the third arm: it must reach the target and "
                                                             "clear the others; the angles are the working pair's)")
-    camera_arm: Literal[tuple(dvrk.CAMERA_ARMS)] = "dvrk_ecm_classic"
+    camera_arm: Literal[CAMERA_ARMS] = "dvrk_ecm_classic"
     camera_fov_deg: float = Field(70.0, gt=0, lt=180, description="full view angle of a 0-deg scope (60-70 typical)")
     camera_standoff_mm: float = Field(100.0, gt=0, description="the scope tip stops this far before the target centre")
     camera_range_mm: list[float] = Field([10.0, 200.0], min_length=2, max_length=2,
@@ -370,22 +347,22 @@ class PortPlaceConfig(StrictModel):
 Config = PortPlaceConfig
 
 
-def _arm_of(cfg: PortPlaceConfig, role: str, shipped: dict):
+def _arm_of(cfg: PortPlaceConfig, role: str):
     """The ``role`` ("instrument", "camera") arm: a serial arm's ``SerialHolder`` (``robot.<role>_serial``), an
     RCM arm from its file (``robot.<role>_file``), or the shipped dVRK arm named (``robot.<role>_arm``)."""
     r = cfg.robot
     serial, file = getattr(r, f"{role}_serial"), getattr(r, f"{role}_file")
     if serial is not None:
         return serial.holder()
-    return file_arm(file.model_dump_json()) if file else shipped[getattr(r, f"{role}_arm")]
+    return file.limits() if file else get_model(getattr(r, f"{role}_arm"))
 
 
 def instrument_of(cfg: PortPlaceConfig):
     """The instrument arm (``_arm_of``)."""
-    return _arm_of(cfg, "instrument", dvrk.INSTRUMENT_ARMS)
+    return _arm_of(cfg, "instrument")
 
 
 def camera_arm_of(cfg: PortPlaceConfig):
     """The endoscope arm (``_arm_of``)."""
-    return _arm_of(cfg, "camera", dvrk.CAMERA_ARMS)
+    return _arm_of(cfg, "camera")
 

@@ -6,54 +6,31 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from functools import lru_cache
 from pathlib import Path
-from typing import Annotated, Literal
+from typing import ClassVar, Literal
 
 from pydantic import Field, ValidationInfo, model_validator
 
 from surgopt.config import NOT_IN_KEY, StrictModel
-from surgopt.studies.rcm_grid_config import Finite, Robot
+from surgopt.studies.rcm_grid.config import DhRowConfig, Finite, Robot
 
 
-class RcmDhRow(StrictModel):
-    """One joint of an RCM arm's inline DH table: lengths in m, angles in deg; a revolute row's range
-    ``lower_deg``/``upper_deg`` (both left out: one turn), a prismatic row's ``lower_m``/``upper_m`` (it slides
-    along d, which is then its offset)."""
+class RcmDhRow(DhRowConfig):
+    """One joint of an RCM arm's inline DH table: rcm-grid's DH row (``DhRowConfig``: lengths in m, angles in
+    deg) with no rated speed needed, and a prismatic row's ``lower_m``/``upper_m`` (the insertion range, along d,
+    which is then its offset) required, below its upper."""
 
-    name: str | None = Field(None, min_length=1, max_length=64)
-    joint: Literal["revolute", "prismatic"] = "revolute"
-    a_m: Annotated[float, Field(ge=-10, le=10)]
-    alpha_deg: Annotated[float, Field(ge=-360, le=360)]
-    d_m: Annotated[float, Field(ge=-10, le=10)]
-    theta_offset_deg: Annotated[float, Field(ge=-360, le=360)] = 0.0
-    lower_deg: Annotated[float, Field(ge=-720, le=720)] | None = None
-    upper_deg: Annotated[float, Field(ge=-720, le=720)] | None = None
-    lower_m: Annotated[float, Field(ge=-10, le=10)] | None = None
-    upper_m: Annotated[float, Field(ge=-10, le=10)] | None = None
+    speed_required: ClassVar[bool] = False
 
     @model_validator(mode="after")
-    def _limits_of_its_kind(self):
-        rev = self.joint == "revolute"
-        lo, hi = ("lower_deg", "upper_deg") if rev else ("lower_m", "upper_m")
-        wrong = [f for f in (("lower_m", "upper_m") if rev else ("lower_deg", "upper_deg")) if getattr(self, f) is not None]
-        if wrong:
-            raise ValueError(f"a {self.joint} row takes {lo} and {hi}, not {', '.join(wrong)}")
-        if not rev and (self.lower_m is None or self.upper_m is None):
+    def _insertion_range(self):
+        if self.joint == "prismatic" and (self.lower_m is None or self.upper_m is None):
             raise ValueError("a prismatic row needs lower_m and upper_m (the insertion range)")
-        if (getattr(self, lo) is None) != (getattr(self, hi) is None):
-            raise ValueError(f"give both {lo} and {hi}, or neither")
-        if getattr(self, lo) is not None and not getattr(self, lo) < getattr(self, hi):
-            raise ValueError(f"{lo} must be < {hi}")
+        lo, hi = (self.lower_deg, self.upper_deg) if self.joint == "revolute" else (self.lower_m, self.upper_m)
+        if lo is not None and not lo < hi:
+            raise ValueError(f"{'lower_deg' if self.joint == 'revolute' else 'lower_m'} must be < "
+                             f"{'upper_deg' if self.joint == 'revolute' else 'upper_m'}")
         return self
-
-    def row(self, index: int):
-        from surgopt.robots.chain import DhRow
-
-        rev = self.joint == "revolute"
-        return DhRow(self.a_m, self.alpha_deg, self.d_m, self.theta_offset_deg,
-                     self.lower_deg if rev else self.lower_m, self.upper_deg if rev else self.upper_m, 1.0,
-                     self.name or f"j{index + 1}", not rev)
 
 
 class RcmArmFile(StrictModel):
@@ -77,33 +54,26 @@ class RcmArmFile(StrictModel):
             raise ValueError("base_link and tip_link go with urdf")
         context = info.context or {}
         if self.urdf is not None:
-            from surgopt.files import config_file_path, hashed_config_file
+            from surgopt.files import resolve_and_hash
             from surgopt.robots.chain import MAX_URDF_BYTES
 
-            path = config_file_path(self.urdf, context)
-            object.__setattr__(self, "urdf", str(path))
-            if not context.get("stored"):
-                _, sha = hashed_config_file("urdf", path, self.urdf_sha256, MAX_URDF_BYTES, "urdf_sha256")
-                object.__setattr__(self, "urdf_sha256", sha)
+            resolve_and_hash(self, "urdf", "urdf_sha256", MAX_URDF_BYTES, context)
         if not context.get("stored"):
-            file_arm(self.model_dump_json())  # read and checked once here
+            self.limits()  # read and checked here
         return self
 
+    def limits(self):
+        """The arm's ``robots.rcm_arm.RcmLimits`` (a URDF parsed once per file content: ``chain.urdf_chain``)."""
+        from surgopt.robots import chain
+        from surgopt.robots.rcm_arm import rcm_mechanism
 
-@lru_cache(maxsize=8)
-def file_arm(arm_json: str):
-    """The ``robots.rcm_arm.RcmLimits`` of an ``RcmArmFile`` (its JSON), read once per process."""
-    from surgopt.robots import chain
-    from surgopt.robots.rcm_arm import rcm_mechanism
-
-    a = RcmArmFile.model_validate_json(arm_json, context={"stored": True})
-    if a.urdf is not None:
-        spec = chain.from_urdf(a.urdf, a.base_link, a.tip_link, {})
-        name, source = Path(a.urdf).stem, f"{a.urdf} (sha256 {a.urdf_sha256[:12] if a.urdf_sha256 else '?'})"
-    else:
-        spec = chain.from_dh([r.row(i) for i, r in enumerate(a.dh)], a.dh_convention)
-        name, source = "dh", f"inline {a.dh_convention} DH table"
-    return rcm_mechanism(spec, name, source, "urdf" if a.urdf is not None else "dh")
+        if self.urdf is not None:
+            spec = chain.urdf_chain(self.urdf, self.urdf_sha256, self.base_link, self.tip_link)
+            name, source = Path(self.urdf).stem, f"{self.urdf} (sha256 {(self.urdf_sha256 or '?')[:12]})"
+        else:
+            spec = chain.from_dh([r.row(i) for i, r in enumerate(self.dh)], self.dh_convention)
+            name, source = "dh", f"inline {self.dh_convention} DH table"
+        return rcm_mechanism(spec, name, source, "urdf" if self.urdf is not None else "dh")
 
 
 @dataclass(frozen=True)

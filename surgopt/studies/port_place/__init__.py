@@ -1,0 +1,1 @@
+"""The port_place study: its declaration (study.py), config, figures and report page."""

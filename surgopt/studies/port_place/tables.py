@@ -1,0 +1,274 @@
+"""port-place's prepared model: everything a config implies, built once (``prepare``), then read by the kernels,
+the rows, the summaries, the figures and the report page.
+
+The model follows Pinocchio's Model/Data split and STUMPY's "prepare once in the driver": ``PortModel`` holds the
+config's geometry (the candidate sites, the target's points and centre, each port's default docking frame), the
+kernels' named tuples (the instrument arm's ``ArmLimits``, its ``Approach`` cone, the ``Camera``, the
+``Criteria``), a serial arm's chain arrays and the target's walk order, and, built on first use, the per-port and
+per-pair tables of the default docking (``grid``: ``PortTables``, reach and isotropy per site and point), which
+the grid's chunks combine into designs. A search's tasks build only the tables of the ports they evaluate
+(``port_tables``), so a worker that searches never builds the grid's.
+
+``model_of(cfg)`` keeps the one model of the config a process is running: the tasks of a run on threads share
+the parent's; a worker process builds its own on its first task (rebuilding is cheaper than pickling the tables
+to every worker, and gives the same arrays). The model is where the setup joints' and the cart's tables will go.
+
+Equations: the docking frame (shaft through the target's centre, the frame's x as near the patient's lateral
+axis as the shaft allows) is ``kinematics.port_place.docking_frames``; reach is the RCM inverse of
+``rcm_point`` within ``ArmLimits`` (docs/port_placement.md, "Reach"); the pair tables are
+``kinematics.port_place.pair_tables`` (manipulation angle, Hanna et al. 1997); the wrist margin below is the
+approach cone's test of ``instrument_tables``.
+"""
+from __future__ import annotations
+
+import dataclasses
+import math
+import threading
+from functools import cached_property
+from typing import NamedTuple
+
+import numpy as np
+
+from surgopt.robots import dvrk
+from surgopt.studies.port_place.config import PortPlaceConfig, Target, camera_arm_of, instrument_of
+from surgopt.studies.port_place.geometry import sites_mm, target_points_mm
+
+#: The patient's lateral axis (x): each docking frame's x is turned as near it as the shaft allows.
+LATERAL = np.array([1.0, 0.0, 0.0])
+
+
+class SerialKernel(NamedTuple):
+    """A serial arm's inputs to ``kinematics.port_serial``, read once from its DH table or URDF: the chain's
+    arrays, the IK's seed and restarts, the tool's length past the flange (m). Its RCM (``rcm_in_base_m``) is
+    read from the arm itself, since a search moves it (``stance``)."""
+
+    chain: tuple
+    seed: np.ndarray
+    restarts: np.ndarray
+    tool_m: float
+
+
+class GridTables(NamedTuple):
+    """The default docking's tables: ``PortTables`` (what ``design_columns`` combines), reach[site, point] and
+    isotropy[site, point]."""
+
+    tables: object
+    reach: np.ndarray
+    dexterity: np.ndarray
+
+
+@dataclasses.dataclass(frozen=True, eq=False)
+class PortModel:
+    """A config's prepared model (``prepare``). Every array is in metres; ``cfg`` is the validated config it was
+    built from (a search's stance moves swap it, ``with_config``)."""
+
+    cfg: PortPlaceConfig
+    sites_m: np.ndarray  # (n, 3) candidate port sites
+    targets_m: np.ndarray  # (m, 3) the target's points
+    centre_m: np.ndarray  # (3,) the target's centre
+    rot: np.ndarray  # (n, 3, 3) each site's default docking frame (its z: the shaft toward the centre)
+    criteria: object  # kinematics.port_place.Criteria
+    camera: object  # kinematics.port_place.Camera
+    limits: object  # the instrument arm's kinematics.port_place.ArmLimits
+    cone: object  # kinematics.port_place.Approach of the target for the instrument's wrist
+    serial_instrument: SerialKernel | None
+    serial_camera: SerialKernel | None
+    walk: tuple | None  # (order, parent): Prim's order over the target from its centre (serial instruments)
+
+    @cached_property
+    def grid(self) -> GridTables:
+        """The per-port and per-pair tables at the default docking (built on first use: a search never needs
+        them)."""
+        return GridTables(*port_tables(self, self.sites_m, self.rot))
+
+    def with_config(self, cfg: PortPlaceConfig) -> "PortModel":
+        """The same model read through ``cfg`` (a serial arm's RCM moved by a search's stance; nothing the model
+        precomputed depends on it)."""
+        return dataclasses.replace(self, cfg=cfg)
+
+
+def serial_kernel(arm) -> SerialKernel:
+    """A ``SerialInstrumentArm``'s chain arrays, seed and restarts (``kinematics.serial_chain``)."""
+    from surgopt.kinematics.serial_chain import default_restarts, kernel_arrays
+
+    chain, _, seed = arm.chain()
+    seed = np.asarray(seed, np.float64)
+    return SerialKernel(kernel_arrays(chain), seed, default_restarts(seed), float(arm.tool_past_flange_m))
+
+
+def walk_order(target: Target, centre_m: np.ndarray) -> tuple:
+    """Prim's order over the target's points from the one nearest the centre (``port_serial.prim_order``): the
+    continuation a serial arm's IK walks."""
+    from surgopt.kinematics.port_serial import prim_order
+
+    pts = target_points_mm(target) / 1000
+    root = int(np.argmin(np.linalg.norm(pts - centre_m, axis=1)))
+    return prim_order(pts, root)
+
+
+def prepare(cfg: PortPlaceConfig) -> PortModel:
+    """Build the model of a validated config (the grid's tables on first use of ``PortModel.grid``)."""
+    from surgopt.kinematics import port_place as K
+
+    sites = sites_mm(cfg) / 1000
+    centre = np.asarray(cfg.target.centre_mm, float) / 1000
+    r = cfg.robot
+    instrument = instrument_of(cfg)
+    return PortModel(
+        cfg=cfg, sites_m=sites, targets_m=target_points_mm(cfg.target) / 1000, centre_m=centre,
+        rot=K.docking_frames(sites, centre, LATERAL), criteria=criteria(cfg), camera=camera_of(cfg),
+        limits=None if r.instrument_serial is not None else arm_limits(instrument),
+        cone=approach(cfg.target, instrument.wrist_bend_rad),
+        serial_instrument=None if r.instrument_serial is None else serial_kernel(r.instrument_serial),
+        serial_camera=None if r.camera_serial is None else serial_kernel(r.camera_serial),
+        walk=None if r.instrument_serial is None else walk_order(cfg.target, centre))
+
+
+_held: list = [None, None]  # [the canonical JSON of the config, its model]
+_held_lock = threading.Lock()
+
+
+def model_of(cfg: PortPlaceConfig) -> PortModel:
+    """The model of ``cfg``, built once per process and kept while the process runs that config (one at a time:
+    a second config replaces the first)."""
+    key = cfg.model_dump_json()
+    with _held_lock:
+        if _held[0] != key:
+            _held[:] = [key, prepare(cfg)]
+        return _held[1]
+
+
+def arm_limits(arm):
+    """The kernel's ``ArmLimits`` of an arm (``dvrk.RcmArm`` or ``rcm_arm.RcmLimits``; a spherical mechanism with
+    its axes)."""
+    from surgopt.kinematics.port_place import ArmLimits
+
+    axes = getattr(arm, "yaw_axis", None)
+    spherical = (True, *arm.yaw_axis, *arm.pitch_axis) if axes is not None else ()
+    return ArmLimits(*arm.yaw_limits_rad, *arm.pitch_limits_rad, *arm.insertion_limits_m, arm.along_shaft_m,
+                     *spherical)
+
+
+def approach(target: Target, wrist_bend_rad: float):
+    """The target's approach cone for the kernel (``port_place.Approach``): a point is reached only where the
+    shaft's direction from the port lies within (wrist bend - half-angle) of the approach direction, so that the
+    wrist can point the jaws along every direction of the cone; any direction when none is given."""
+    from surgopt.kinematics.port_place import Approach
+
+    if target.approach_direction is None:
+        return Approach(0.0, 0.0, -1.0, -2.0)  # a cosine below -1: every shaft direction passes
+    d = np.asarray(target.approach_direction, float)
+    d = d / np.linalg.norm(d)
+    return Approach(*d, math.cos(wrist_bend_rad - math.radians(target.approach_half_angle_deg)))
+
+
+def approach_mask(sites: np.ndarray, targets: np.ndarray, cone) -> np.ndarray:
+    """[site, point]: whether the shaft from the port to the point lies within the approach cone's reach of the
+    wrist (``instrument_tables``' test, for arms whose reach is computed elsewhere)."""
+    d = targets[None, :, :] - sites[:, None, :]
+    return d @ np.array([cone.dx, cone.dy, cone.dz]) >= cone.cos_min * np.linalg.norm(d, axis=2)
+
+
+def camera_of(cfg: PortPlaceConfig):
+    """The endoscope for the kernels (``port_place.Camera``); held by a serial arm, its mechanism's ranges are left
+    open (the arm's own IK decides, ``serial_arms.serial_camera_tables``)."""
+    from surgopt.kinematics.port_place import ArmLimits, Camera
+
+    r = cfg.robot
+    limits = (arm_limits(camera_arm_of(cfg)) if r.camera_serial is None else
+              ArmLimits(-math.pi, math.pi, -math.pi / 2, math.pi / 2, 0.0, 10.0, 0.0))
+    return Camera(limits, math.radians(r.camera_fov_deg) / 2,
+                  r.camera_standoff_mm / 1000, r.camera_range_mm[0] / 1000, r.camera_range_mm[1] / 1000,
+                  math.radians(r.camera_scope_angle_deg), r.camera_scope_view == "down")
+
+
+def criteria(cfg: PortPlaceConfig):
+    """The kernels' ``Criteria``: the constraints and the objective's weights, in radians and metres."""
+    from surgopt.kinematics.port_place import Criteria
+
+    k, o = cfg.constraints, cfg.objective
+    lo, hi = (math.radians(v) for v in k.manipulation_angle_deg)
+    return Criteria(k.dexterity_length_m, lo, hi, math.radians(60.0), k.tip_zone_mm / 1000,
+                    (k.shaft_diameter_mm + k.min_shaft_clearance_mm) / 1000, k.min_external_clearance_mm / 1000,
+                    dvrk.OUTSIDE_LENGTH_M, k.min_port_spacing_mm / 1000, o.reach, o.angle, o.azimuth, o.camera,
+                    o.dexterity)
+
+
+def wrist_margin_deg(model: PortModel, sites: np.ndarray) -> np.ndarray:
+    """Per port (``sites``, m): how far the instrument's wrist could still turn the jaws at the worst target point,
+    wrist bend - cone half-angle - the angle between the shaft (port to point) and the approach direction, least
+    over the target's points (deg; negative: the cone is out of the wrist's reach there by that much). Without an
+    approach direction no point asks anything of the wrist: the margin is its whole bend."""
+    bend = math.degrees(instrument_of(model.cfg).wrist_bend_rad)
+    t = model.cfg.target
+    if t.approach_direction is None:
+        return np.full(len(sites), bend)
+    a = np.asarray(t.approach_direction, float) / np.linalg.norm(t.approach_direction)
+    shafts = model.targets_m[None, :, :] - sites[:, None, :]
+    cos = np.clip(shafts @ a / np.linalg.norm(shafts, axis=2), -1.0, 1.0)
+    return bend - t.approach_half_angle_deg - np.degrees(np.arccos(cos)).max(axis=1)
+
+
+def port_tables(model: PortModel, sites: np.ndarray, rot: np.ndarray, outside=None, base_yaw_rad=None):
+    """(``PortTables``, reach, isotropy) of ports ``sites`` (m) docked in frames ``rot``; ``outside``: the arms'
+    external clearances when the docking is not the default (``external_clearances``); ``base_yaw_rad``: a serial
+    instrument arm's base turned further at each port (a search's free docking)."""
+    from surgopt.kinematics import port_designs as D
+    from surgopt.kinematics import port_place as K
+    from surgopt.studies.port_place import serial_arms
+
+    cfg, targets, centre, crit, camera = model.cfg, model.targets_m, model.centre_m, model.criteria, model.camera
+    r = cfg.robot
+    serial = held = None
+    if r.instrument_serial is not None:  # a serial arm: its own IK, and its links' clearance outside
+        serial = serial_arms.serial_tables(model, sites, base_yaw_rad)
+        reach = serial.reach & approach_mask(sites, targets, model.cone)
+        dex = np.where(reach, serial.dexterity, 0.0)
+        outside = serial.outside_m
+    else:
+        reach, dex = K.instrument_tables(sites, rot, targets, model.limits, crit.dexterity_length_m, model.cone)
+    coverage = K.camera_coverage(sites, rot, targets, centre, camera)
+    views = K.camera_views(sites, rot, centre, camera) if (r.camera_serial or camera.scope_angle_rad) else None
+    if r.camera_serial is not None:  # the endoscope held by a serial arm: placed by its IK
+        held = serial_arms.serial_camera_tables(model, sites, views[0], views[2])
+        coverage = np.where(held.placed, coverage, 0.0)
+    pairs = list(K.pair_tables(sites, reach, dex, targets, centre, crit))
+    if outside is not None:
+        pairs[-1] = outside
+    outside_camera = camera_clearances(sites, rot, pairs[-1], serial, held)
+    if camera.scope_angle_rad == 0.0:  # the optical axis: port to centre
+        azimuth, side = K.camera_pair_tables(sites, centre, LATERAL)
+    else:  # along the angled scope's view, through the centre
+        azimuth, side = K.camera_pair_tables(sites, centre, LATERAL, views[1])
+    spacing = np.linalg.norm(sites[:, None, :] - sites[None, :, :], axis=2)
+    tables = D.PortTables(reach.sum(axis=1).astype(np.int64), coverage, *pairs, spacing, azimuth, side,
+                          len(targets), D.reach_bits(reach), D.site_dexterity(reach, dex),
+                          wrist_margin_deg(model, sites), outside_camera)
+    return tables, reach, dex
+
+
+def camera_clearances(sites: np.ndarray, rot: np.ndarray, outside: np.ndarray, serial=None, held=None):
+    """[instrument port, camera port]: the two arms' clearance outside the body, each arm its shaft line behind
+    its port (``outside``, the instruments' pair table, i < j), or a serial arm's centre line (``serial``: the
+    instruments' ``SerialTables``, ``held``: the camera's ``SerialCamera``)."""
+    from surgopt.kinematics import port_serial as S
+
+    if serial is None and held is None:
+        return outside + outside.T
+    if serial is not None and held is not None:
+        return S.polyline_clearances(serial.links, held.links)
+    axes = np.ascontiguousarray(rot[:, :, 2])
+    if held is None:
+        return S.link_camera_clearances(serial.links, sites, axes, dvrk.OUTSIDE_LENGTH_M)
+    return S.link_camera_clearances(held.links, sites, axes, dvrk.OUTSIDE_LENGTH_M).T
+
+
+def camera_lines(model: PortModel, sites: np.ndarray) -> np.ndarray:
+    """The serial endoscope arm's centre lines (m) at ports ``sites`` docked as the grid docks them (NaN where it
+    cannot hold the scope): what the figures draw."""
+    from surgopt.kinematics import port_place as K
+    from surgopt.studies.port_place import serial_arms
+
+    tips, _, ok = K.camera_views(sites, K.docking_frames(sites, model.centre_m, LATERAL), model.centre_m,
+                                 model.camera)
+    return serial_arms.serial_camera_tables(model, sites, tips, ok).links

@@ -1,0 +1,1 @@
+"""The raven_sweep study: its declaration (study.py), config, figures and report page."""

@@ -1,0 +1,1 @@
+"""The rcm_grid study: its declaration (study.py), config, figures and report page."""

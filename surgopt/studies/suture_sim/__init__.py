@@ -1,0 +1,1 @@
+"""The suture_sim study: its declaration (study.py), config, figures and report page."""

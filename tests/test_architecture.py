@@ -1,0 +1,160 @@
+"""The house as docs/architecture.md draws it, read from the source (no module is imported here but the study
+registry): no import cycle, no import up a layer, one folder per study, no private name taken from another
+module, and a long module says why it is one.
+
+Every import counts, at module level or inside a function (a lazy import is still an arrow); imports under
+``if TYPE_CHECKING:`` do not run and do not count."""
+from __future__ import annotations
+
+import ast
+from pathlib import Path
+
+PACKAGE = Path(__file__).resolve().parents[1] / "surgopt"
+
+#: Layers, lowest first: a module may import its own layer and those below it, never one above.
+LAYERS = (
+    ("base", ("surgopt._version", "surgopt.errors", "surgopt.files", "surgopt.config", "surgopt.jit",
+              "surgopt.parts", "surgopt.metrics", "surgopt.code_identity", "surgopt.interrupts")),
+    ("robots", ("surgopt.robots",)),
+    ("kinematics", ("surgopt.kinematics",)),
+    ("plans", ("surgopt.plans",)),
+    ("studies", ("surgopt.studies",)),
+    ("orchestration", ("surgopt",)),  # config-to-rows machinery, the store, reports, the CLI, the API
+)
+
+
+def module_name(path: Path) -> str:
+    parts = list(path.relative_to(PACKAGE.parent).with_suffix("").parts)
+    return ".".join(parts[:-1] if parts[-1] == "__init__" else parts)
+
+
+MODULES = {module_name(p): p for p in PACKAGE.rglob("*.py")}
+
+
+def layer(module: str) -> int:
+    for rank, (_, prefixes) in enumerate(LAYERS):
+        if any(module == p or module.startswith(p + ".") for p in prefixes):
+            return rank
+    raise AssertionError(module)
+
+
+def _owner(name: str) -> str | None:
+    while name and name not in MODULES:
+        name = name.rpartition(".")[0]
+    return name or None
+
+
+def _type_checking_nodes(tree: ast.AST) -> set[int]:
+    """ids of the nodes under ``if TYPE_CHECKING:``."""
+    skip = set()
+    for node in ast.walk(tree):
+        if isinstance(node, ast.If) and getattr(node.test, "id", getattr(node.test, "attr", None)) == "TYPE_CHECKING":
+            skip.update(id(n) for stmt in node.body for n in ast.walk(stmt))
+    return skip
+
+
+def imports(module: str) -> list[tuple[str, str, int]]:
+    """(imported module, the name taken from it or '', line) of every import of the package in ``module``."""
+    path = MODULES[module]
+    tree = ast.parse(path.read_text())
+    skip = _type_checking_nodes(tree)
+    out = []
+    for node in ast.walk(tree):
+        if id(node) in skip:
+            continue
+        if isinstance(node, ast.Import):
+            out += [(_owner(a.name), "", node.lineno) for a in node.names if a.name.split(".")[0] == "surgopt"]
+        elif isinstance(node, ast.ImportFrom):
+            base = node.module or ""
+            if node.level:
+                pkg = module if path.name == "__init__.py" else module.rpartition(".")[0]
+                for _ in range(node.level - 1):
+                    pkg = pkg.rpartition(".")[0]
+                base = f"{pkg}.{base}" if base else pkg
+            if base.split(".")[0] != "surgopt":
+                continue
+            for a in node.names:
+                sub = f"{base}.{a.name}"
+                out.append((sub, "", node.lineno) if sub in MODULES else (_owner(base), a.name, node.lineno))
+    return [(m, n, line) for m, n, line in out if m and m != module]
+
+
+GRAPH = {m: sorted({t for t, _, _ in imports(m)}) for m in MODULES}
+
+
+def cycles(graph: dict[str, list[str]]) -> list[list[str]]:
+    """The strongly connected components of more than one module (Tarjan)."""
+    index, low, stack, on, found, counter = {}, {}, [], set(), [], [0]
+
+    def visit(v):
+        index[v] = low[v] = counter[0]
+        counter[0] += 1
+        stack.append(v)
+        on.add(v)
+        for w in graph[v]:
+            if w not in index:
+                visit(w)
+                low[v] = min(low[v], low[w])
+            elif w in on:
+                low[v] = min(low[v], index[w])
+        if low[v] == index[v]:
+            comp = []
+            while True:
+                w = stack.pop()
+                on.discard(w)
+                comp.append(w)
+                if w == v:
+                    break
+            if len(comp) > 1:
+                found.append(sorted(comp))
+
+    for v in graph:
+        if v not in index:
+            visit(v)
+    return found
+
+
+def test_the_cycle_finder_finds_a_cycle():
+    """The premise of the next test: a two-module and a three-module cycle are found, a chain is not."""
+    assert cycles({"a": ["b"], "b": ["a"], "c": ["d"], "d": ["e"], "e": ["c"], "f": ["a"]}) == [["a", "b"],
+                                                                                                 ["c", "d", "e"]]
+    assert cycles({"a": ["b"], "b": ["c"], "c": []}) == []
+
+
+def test_the_import_graph_has_no_cycle():
+    assert len(GRAPH) > 80 and sum(map(len, GRAPH.values())) > 200  # the premise: the graph was read
+    assert cycles(GRAPH) == []
+
+
+def test_no_module_imports_a_layer_above_its_own():
+    upward = [f"{m} ({LAYERS[layer(m)][0]}) imports {t} ({LAYERS[layer(t)][0]}), line {line}"
+              for m in MODULES for t, _, line in imports(m) if layer(t) > layer(m)]
+    assert upward == []
+
+
+def test_no_module_takes_a_private_name_from_another():
+    private = [f"{m} takes {name} from {t}, line {line}" for m in MODULES for t, name, line in imports(m)
+               if name.startswith("_") and not name.startswith("__")]
+    assert private == []
+
+
+def test_each_study_is_one_folder_with_its_declaration_figures_and_page():
+    from surgopt.studies import STUDIES, get_study
+
+    for name, module in STUDIES.items():
+        folder = module.rpartition(".")[0]
+        assert module == f"{folder}.study" and (PACKAGE.parent / folder.replace(".", "/") / "__init__.py").is_file()
+        study = get_study(name)
+        for hook in (study.figures, study.html_views):  # declared by module name, loaded on first use
+            (target,) = [c.cell_contents for c in hook.__closure__ if isinstance(c.cell_contents, str)]
+            assert target in MODULES and target.rpartition(".")[0].startswith("surgopt.studies."), (name, target)
+    loose = [m for m in MODULES if m.startswith("surgopt.studies.") and m.count(".") == 2
+             and MODULES[m].name != "__init__.py"
+             and m not in ("surgopt.studies.plotting", "surgopt.studies.page")]  # what every study draws with
+    assert loose == []  # nothing of a study outside its folder
+
+
+def test_a_module_past_600_lines_says_why_it_is_one_module():
+    long = [m for m, p in MODULES.items() if len(p.read_text().splitlines()) > 600
+            and "one module" not in " ".join(p.read_text().splitlines()[:40]).lower()]
+    assert long == []
