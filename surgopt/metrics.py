@@ -11,10 +11,14 @@ of its walk, reduced to the extremes over the workspace (sigma_min, sigma_max; t
   linear m/s and an angular rad/s scale), evaluated after the walk (``serial_chain.metric_over_solutions``).
   Dimensionless.
 
-A new metric is one entry here (its code, unit and column names), one branch of
-``serial_chain.metric_over_solutions`` (the kernel that evaluates it over a walk's solutions) and its
-parameters in the config (``RcmGridConfig.metric_params``). Kernels take the metric as its integer code (numba
-branches on it); rows and schemas take the names from here, so every column says its unit.
+A new metric is one entry here (its code, unit, column names and ``evaluator``, the kernel that evaluates it over
+a walk's solutions), that kernel, its branch in ``serial_chain.metric_over_solutions`` (the one dispatch point;
+tests/test_metrics.py holds every entry's branch to its evaluator) and its parameters in the config
+(``RcmGridConfig.metric_params``). Kernels take the metric as its integer code and numba branches on it: a
+kernel taking the evaluator itself as an argument misses numba's on-disk cache in every new process (the
+argument's type carries the function's identity: measured, a three-line kernel recompiled in each of three
+fresh processes), which for the walk would be its ~26 s compile per process and metric. Rows and schemas take
+the names from here, so every column says its unit.
 """
 from __future__ import annotations
 
@@ -71,6 +75,8 @@ class PoseMetric(NamedTuple):
     unit: str
     suffix: str
     meaning: str
+    #: the jitted kernel that evaluates it over a walk's IK solutions, "module:function" (None: the walk's own)
+    evaluator: str | None = None
     #: time per pose of a walk with this metric against the chain kernel's cost model for the RCM metric (the
     #: estimate's and the chunk size's scale by it). Measured on the PA10's default map, whose walk is cheaper
     #: than the model's average arm (benchmarks/bench_readme_estimates.py)
@@ -90,5 +96,6 @@ POSE_METRICS = {
         "standard", METRIC_STANDARD, False, "1", "_task_scaled",
         "singular values of the standard Jacobian at the same IK poses, columns times the rated speeds, rows "
         "divided by the task scaling (Sec. III-E): dimensionless",
+        evaluator="surgopt.kinematics.serial_chain:standard_over",
         relative_cost=5.0),  # a 6 x 6 Gram matrix's Jacobi eigenvalues at each pose, after the walk
 }

@@ -627,8 +627,8 @@ def standard_over(chain_arrays, q_out, n, task_scale):
 @njit(**CONTRACT)
 def metric_over_solutions(metric, chain_arrays, q_out, n, params):
     """(min sigma_min^2, max sigma_max^2, singular count) of a metric evaluated over the walk's first n
-    solutions (``metrics.POSE_METRICS``: every metric the walk does not compute itself); the one place such a metric
-    is added."""
+    solutions: each ``metrics.POSE_METRICS`` code the walk does not compute itself, to its entry's ``evaluator``;
+    the one place such a metric is dispatched."""
     if metric == METRIC_STANDARD:
         return standard_over(chain_arrays, q_out, n, params)
     return np.nan, np.nan, 0  # not a metric of the solutions (the RCM metric is the walk's own)
