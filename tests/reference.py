@@ -640,3 +640,56 @@ def ellipsoid_distance(p, semi_axes):
         lo, hi = (mid, hi) if f(mid) > 0 else (lo, mid)
     q = a * a * p / (lo + a * a)
     return float(np.linalg.norm(p - q))
+
+
+# ---- the dVRK's setup joints (SUJ), typed again from ../shared/robots/dvrk-kinematics.md and the dVRK's
+# suj-si-simulated.json: (world -> SUJ translation, rotation), rows (alpha, A, D, offset, prismatic), fixed rows
+# (alpha, A, theta), tip -> tool translation; the tip -> tool rotation is the same for every arm.
+_RZ_FLIP = [[-1, 0, 0], [0, -1, 0], [0, 0, 1]]
+_RZ_PLUS = [[0, -1, 0], [1, 0, 0], [0, 0, 1]]
+_RZ_MINUS = [[0, 1, 0], [-1, 0, 0], [0, 0, 1]]
+_EYE = [[1, 0, 0], [0, 1, 0], [0, 0, 1]]
+SUJ_TIP_ROTATION = [[0, 1, 0], [-1, 0, 0], [0, 0, 1]]
+_PSM12_ROWS = [(0, 0.0896, 0, 0, True), (0, 0, 0.4166, 0, False), (0, 0.4318, 0.1429, 0, False),
+               (0, 0.4318, -0.1302, 1.5708, False), (1.5708, 0, 0.4089, 0, False),
+               (-1.5708, 0, -0.1029, -1.5708, False)]
+SUJ_REFERENCE = {
+    ("classic", "PSM1"): ((-0.1016, -0.1016, 0.43), _RZ_FLIP, _PSM12_ROWS, [], (0.4864, 0, 0.1524)),
+    ("classic", "PSM2"): ((0.1016, -0.1016, 0.43), _EYE, _PSM12_ROWS, [], (0.4864, 0, 0.1524)),
+    ("classic", "PSM3"): ((0, 0, 0.1264), _RZ_PLUS,
+                          [(0, 0.0896, 0, 0, True), (0, 0, 0.3404, 0, False), (0, 0.5842, 0.1429, 0, False),
+                           (0, 0.4318, 0.2571, 1.5708, False), (1.5708, 0, 0.4089, 0, False),
+                           (-1.5708, 0, -0.1029, -1.5708, False)], [], (0.4864, 0, 0.1524)),
+    ("classic", "ECM"): ((0, 0, 0.43), _RZ_PLUS,
+                         [(0, 0.0896, 0, 0, True), (0, 0, 0.4166, 0, False), (0, 0.4318, 0.1429, 0, False),
+                          (0, 0.4318, -0.3459, 1.5708, False), (-0.7853, 0, 0, 1.5708, False),
+                          (0, -0.0667, 0, 0, False)], [], (0.6126, 0, 0.1016)),
+    ("si", "PSM1"): ((-0.2019, -0.0757, 0), _RZ_FLIP,
+                     [(0, 0, 0.1471, 0, True), (0, 0, 0.6654, 0, False), (0, 0.4572, 0.1397, 0, False),
+                      (0, 0.4572, -0.1301, 0, False)], [(1.5708, 0.049, -0.7854), (-1.5708, 0, 0)], (0.8343, 0, 0)),
+    ("si", "PSM2"): ((0.2019, -0.0757, 0), _EYE,
+                     [(0, 0, 0.1471, 0, True), (0, 0, 0.6654, 0, False), (0, 0.4572, 0.1397, 0, False),
+                      (0, 0.4572, -0.1301, 0, False)], [(1.5708, 0.049, -0.7854), (-1.5708, 0, 0)], (0.8343, 0, 0)),
+    ("si", "PSM3"): ((0, -0.2776, 0), _RZ_MINUS,
+                     [(0, 0, 0.0455, 0, True), (0, 0, 0.5887, 0, False), (0, 0.3429, -0.2667, 0, False),
+                      (0, 0.4572, 0.1397, 0, False), (0, 0.4572, -0.1864, 0, False)],
+                     [(1.5708, 0.0483, -0.2618), (-1.5708, 0, 0)], (0.8343, 0, 0)),
+    ("si", "ECM"): ((0, 0.1262, 0), _RZ_PLUS,
+                    [(0, 0, 0.1471, 0, True), (0, 0, 0.5861, 0, False), (0, 0.3302, 0.1397, 0, False),
+                     (0, 0.3302, 0.0549, 0, False)], [(1.5708, 0.1352, -1.2217), (-1.5708, 0, 0)], (0.8343, 0, 0)),
+}
+
+
+def suj_forward_reference(cart, arm, q):
+    """The arm's base (RCM) frame in the cart's world frame: world->SUJ, the modified-DH products of the rows at
+    q (a prismatic row: D + q; a revolute one: offset + q), the fixed rows at their theta, the tip -> tool."""
+    trans, rot, rows, fixed, tip = SUJ_REFERENCE[(cart, arm)]
+    t = np.eye(4)
+    t[:3, :3], t[:3, 3] = rot, trans
+    for (alpha, a, d, offset, prismatic), v in zip(rows, q, strict=True):
+        t = t @ (dh_modified(offset, d + v, a, alpha) if prismatic else dh_modified(v + offset, d, a, alpha))
+    for alpha, a, theta in fixed:
+        t = t @ dh_modified(theta, 0.0, a, alpha)
+    tool = np.eye(4)
+    tool[:3, :3], tool[:3, 3] = SUJ_TIP_ROTATION, tip
+    return t @ tool

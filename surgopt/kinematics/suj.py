@@ -1,0 +1,215 @@
+"""The patient cart's setup joints (SUJ, ``robots/dvrk_suj.py``): forward kinematics from the DH data, and
+inverse kinematics: the joint values that put an arm's base (its RCM frame) at a given pose in the cart's
+world frame, every solution, or the reason there is none.
+
+Every SUJ is a vertical column (prismatic), then revolute joints about vertical axes (a planar chain: they
+set the x, y and the yaw psi of their last frame), then either two more joints (the Classic's: they tilt the
+arm) or fixed links (the Si's: the arm's tilt is built in). So
+
+    T_world_rcm = W  H(column, planar joints)  G(wrist joints)  T_tip,                         (S1)
+
+with W = world_origin_to_SUJ, H = Trans(x, y, z) Rz(psi) and G the rest (constant on the Si).
+
+Classic PSM (S2, closed form): with M = R(W^-1 T) R_tip^T, the wrist's two axes are z and n = Rx(alpha_4) z
+(alpha_4 = 1.5708 as the file writes it: n is 2e-6 off a right angle to z), so M = Rz(psi) Rot(n, q4)
+Rz(q5 + offset_5), a Davenport decomposition: z.M z = c^2 + (1 - c^2) cos q4 with c = n.z gives q4 (two
+signs), then psi and q5 from M's other columns; the planar chain's end point gives the two elbows of its first
+two joints (the law of cosines) and the third closes the yaw; the column closes z. Up to 4 solutions.
+
+Si PSM1, PSM2, ECM (S3): G is constant, so the base's orientation can only turn about the vertical: the
+reachable docking orientations are R = Rz(psi) R_0, a one-parameter family (``si_orientation``); a pose off
+the family is refused with the angle it is off by; on it, two elbow solutions.
+
+All in metres and radians. Plain numpy: a handful of poses per arm, port and cart pose.
+"""
+from __future__ import annotations
+
+import math
+from typing import NamedTuple
+
+import numpy as np
+
+
+def mdh(alpha: float, a: float, theta: float, d: float) -> np.ndarray:
+    """Modified (Craig) DH link transform Rx(alpha) Tx(a) Rz(theta) Tz(d)."""
+    ca, sa, ct, st = math.cos(alpha), math.sin(alpha), math.cos(theta), math.sin(theta)
+    return np.array([[ct, -st, 0.0, a], [st * ca, ct * ca, -sa, -sa * d], [st * sa, ct * sa, ca, ca * d],
+                     [0.0, 0.0, 0.0, 1.0]])
+
+
+def link(row, q: float) -> np.ndarray:
+    """One ``chain.DhRow`` (modified) at joint value q: theta + q for a revolute joint, d + q for the column."""
+    if row.prismatic:
+        return mdh(row.alpha_rad, row.a_m, row.theta_offset_rad, row.d_m + q)
+    return mdh(row.alpha_rad, row.a_m, row.theta_offset_rad + q, row.d_m)
+
+
+def forward(suj, q) -> np.ndarray:
+    """(S1) The arm's base (RCM) frame in the cart's world frame at SUJ joints ``q`` (m, rad)."""
+    t = np.asarray(suj.world_to_suj, float)
+    for row, v in zip(suj.links, q, strict=True):
+        t = t @ link(row, v)
+    for row in suj.fixed:
+        t = t @ link(row, 0.0)
+    return t @ np.asarray(suj.tip_to_tool, float)
+
+
+class SujSolution(NamedTuple):
+    """The SUJ's joints (m, rad) and the least margin to their ranges (m for the column, rad otherwise; negative:
+    outside, by that much) with the joint it belongs to."""
+
+    joints: tuple
+    margin: float
+    tightest: str
+
+
+class SujAnswer(NamedTuple):
+    """Every solution within the ranges (``within``), the ones outside them (``outside``, nearest first), and why
+    there is none within (empty when there is)."""
+
+    within: tuple
+    outside: tuple
+    reason: str
+
+
+def wrap(angle: float) -> float:
+    """An angle in (-pi, pi]."""
+    a = math.remainder(angle, 2 * math.pi)
+    return math.pi if a == -math.pi else a
+
+
+def _margin(suj, q) -> tuple[float, str]:
+    """The least distance of the joints inside their ranges, and the joint's name (a revolute joint's value
+    wrapped into its range's turn when it fits there)."""
+    worst, name = math.inf, ""
+    for row, v, (lo, hi) in zip(suj.links, q, suj.ranges):
+        m = min(v - lo, hi - v)
+        if m < worst:
+            worst, name = m, row.name
+    return worst, name
+
+
+def _solution(suj, q) -> SujSolution:
+    q = tuple(float(v) for v in q)
+    return SujSolution(q, *_margin(suj, q))
+
+
+def _answer(suj, candidates) -> SujAnswer:
+    sols = sorted((_solution(suj, q) for q in candidates), key=lambda s: -s.margin)
+    within = tuple(s for s in sols if s.margin >= 0)
+    outside = tuple(s for s in sols if s.margin < 0)
+    if within:
+        return SujAnswer(within, outside, "")
+    if not outside:
+        return SujAnswer((), (), "out of reach: no joint values put the base there")
+    best = outside[0]
+    lo, hi = suj.ranges[[r.name for r in suj.links].index(best.tightest)]
+    value = best.joints[[r.name for r in suj.links].index(best.tightest)]
+    unit = "m" if best.tightest == "column" else "deg"
+    k = 1.0 if unit == "m" else 180 / math.pi
+    return SujAnswer((), outside, f"{suj.cart} {suj.arm} SUJ {best.tightest} = {value * k:.4g} {unit}, outside "
+                                  f"its range [{lo * k:.4g}, {hi * k:.4g}] {unit} (the nearest of "
+                                  f"{len(outside)} solution(s))")
+
+
+def _planar(suj, n_planar: int):
+    """(the column's x offset A_c, its D, the planar joints' A (from the second on) and D, their offsets)."""
+    col = suj.links[0]
+    rows = suj.links[1:1 + n_planar]
+    return col.a_m, col.d_m, [r.a_m for r in rows], [r.d_m for r in rows], [r.theta_offset_rad for r in rows]
+
+
+def _elbows(x: float, y: float, l1: float, l2: float) -> list[tuple[float, float]]:
+    """Both solutions (theta1, theta2) of a planar two-link chain from the origin to (x, y): l1 u(t1) +
+    l2 u(t1 + t2) = (x, y); none when the point is out of the links' reach."""
+    r2 = x * x + y * y
+    c = (r2 - l1 * l1 - l2 * l2) / (2 * l1 * l2)
+    if c > 1 + 1e-12 or c < -1 - 1e-12:
+        return []
+    c = min(1.0, max(-1.0, c))
+    out = []
+    for s in (math.sqrt(1 - c * c), -math.sqrt(1 - c * c)):
+        t2 = math.atan2(s, c)
+        t1 = math.atan2(y, x) - math.atan2(l2 * s, l1 + l2 * c)
+        out.append((wrap(t1), wrap(t2)))
+    return out if out[0] != out[1] else out[:1]
+
+
+def _planar_ik(suj, x: float, y: float, z: float, psi: float) -> list[tuple]:
+    """The column and the three planar joints that put the planar chain's last frame at (x, y, z) with yaw psi
+    (its x axis's heading): the two elbows."""
+    a_c, d_c, a, d, off = _planar(suj, 3)
+    column = z - d_c - sum(d)
+    out = []
+    for t1, t2 in _elbows(x - a_c, y, a[1], a[2]):
+        t3 = wrap(psi - t1 - t2 - off[2])  # t1, t2: the first two links' headings, offsets included
+        out.append((column, t1 - off[0], t2 - off[1], t3))
+    return out
+
+
+def _to_suj(suj, pose: np.ndarray) -> np.ndarray:
+    """The pose (the base's frame in the cart's world) in the SUJ's base frame, the tip transform taken off."""
+    return np.linalg.inv(np.asarray(suj.world_to_suj, float)) @ pose @ np.linalg.inv(np.asarray(suj.tip_to_tool, float))
+
+
+def classic_psm_ik(suj, pose: np.ndarray) -> SujAnswer:
+    """(S2) Every Classic PSM SUJ solution that puts the arm's base frame at ``pose`` (4x4, cart world)."""
+    t = _to_suj(suj, pose)
+    j4, j5 = suj.links[4], suj.links[5]
+    # t = H Rx(a4) Rz(q4) Tz(d4) Rx(a5) Rz(q5 + o5) Tz(d5) with H = Trans(p) Rz(psi)
+    a4, a5 = j4.alpha_rad, j5.alpha_rad
+    rx4, rx5 = mdh(a4, 0, 0, 0)[:3, :3], mdh(a5, 0, 0, 0)[:3, :3]
+    m = t[:3, :3]  # = Rz(psi) rx4 Rz(q4) rx5 Rz(q5 + o5)
+    z = np.array([0.0, 0.0, 1.0])
+    # z.m z = z.rx4 Rz(q4) rx5 z: Rz(psi) and Rz(q5) leave z alone
+    u, v = rx4.T @ z, rx5 @ z  # z.(rx4 Rz(q4) rx5 z) = u.(Rz(q4) v)
+    # u.Rz(q)v = (ux vx + uy vy) cos q + (ux vy - uy vx) sin q + uz vz
+    ca, sa, k = u[0] * v[0] + u[1] * v[1], u[1] * v[0] - u[0] * v[1], u[2] * v[2]
+    target = m[2, 2] - k
+    amp = math.hypot(ca, sa)
+    if amp < 1e-12 or abs(target) > amp * (1 + 1e-12):
+        return SujAnswer((), (), f"{suj.cart} {suj.arm} SUJ: no wrist angle tilts the arm's base so "
+                                 f"(its z is {math.degrees(math.acos(max(-1, min(1, m[2, 2])))):.1f} deg off vertical)")
+    phase = math.atan2(sa, ca)
+    spread = math.acos(max(-1.0, min(1.0, target / amp)))
+    candidates = []
+    for th4 in sorted({wrap(phase + spread), wrap(phase - spread)}):
+        r4 = rx4 @ mdh(0, 0, th4, 0)[:3, :3] @ rx5  # m = Rz(psi) r4 Rz(th5), th = q + offset
+        # m z = Rz(psi) r4 z: psi from the horizontal parts of m z and r4 z
+        w, g = m @ z, r4 @ z
+        psi = math.atan2(w[1], w[0]) - math.atan2(g[1], g[0])
+        rest = r4.T @ mdh(0, 0, -psi, 0)[:3, :3] @ m  # = Rz(q5 + o5)
+        th5 = math.atan2(rest[1, 0], rest[0, 0])
+        q4, q5 = wrap(th4 - j4.theta_offset_rad), wrap(th5 - j5.theta_offset_rad)
+        g4 = mdh(a4, j4.a_m, th4, j4.d_m) @ mdh(a5, j5.a_m, th5, j5.d_m)
+        h = t @ np.linalg.inv(g4)  # = Trans(x, y, z) Rz(psi)
+        for q in _planar_ik(suj, h[0, 3], h[1, 3], h[2, 3], math.atan2(h[1, 0], h[0, 0])):
+            candidates.append((*q, q4, q5))
+    return _answer(suj, candidates)
+
+
+def si_orientation(suj, yaw_rad: float) -> np.ndarray:
+    """(S3) The one orientation an Si SUJ gives its arm's base at yaw ``yaw_rad`` of its planar chain, in the
+    cart's world frame: R(W) Rz(yaw) R(fixed links) R_tip. Every reachable docking orientation is one of these."""
+    g = np.eye(4)
+    for row in suj.fixed:
+        g = g @ link(row, 0.0)
+    r = np.asarray(suj.world_to_suj, float)[:3, :3] @ mdh(0, 0, yaw_rad, 0)[:3, :3] @ g[:3, :3]
+    return r @ np.asarray(suj.tip_to_tool, float)[:3, :3]
+
+
+def si_ik(suj, pose: np.ndarray, tolerance_rad: float = 1e-9) -> SujAnswer:
+    """(S3) Every Si SUJ solution (PSM1, PSM2, ECM: a column and three planar joints) that puts the base at
+    ``pose``; refused when its orientation is off the reachable family by more than ``tolerance_rad``."""
+    if len(suj.links) != 4:
+        raise ValueError(f"{suj.cart} {suj.arm}: {len(suj.links) - 1} planar joints; si_ik solves three")
+    t = _to_suj(suj, pose)
+    g = np.eye(4)
+    for row in suj.fixed:
+        g = g @ link(row, 0.0)
+    h = t @ np.linalg.inv(g)  # must be Trans(x, y, z) Rz(psi)
+    off = math.degrees(math.acos(max(-1.0, min(1.0, h[2, 2]))))
+    if off > math.degrees(tolerance_rad):
+        return SujAnswer((), (), f"{suj.cart} {suj.arm} SUJ: the Si sets only the base's yaw; this docking is "
+                                 f"tilted {off:.2f} deg off the orientations it can give")
+    return _answer(suj, _planar_ik(suj, h[0, 3], h[1, 3], h[2, 3], math.atan2(h[1, 0], h[0, 0])))

@@ -1,0 +1,107 @@
+"""The patient cart's setup joints (surgopt/robots/dvrk_suj.py, surgopt/kinematics/suj.py): forward kinematics
+against the SUJ data typed again in tests/reference.py as textbook modified-DH products (the dVRK's sample
+``simulated_position`` vectors and random joints), inverse kinematics by round trips (every solution's forward
+kinematics is the pose to 1e-9 m and rad; random in-range joints recovered among the solutions) and the poses it
+must refuse, each with its reason."""
+import math
+
+import numpy as np
+import pytest
+
+from surgopt.kinematics import suj as K
+from surgopt.robots import dvrk_suj as D
+
+from reference import SUJ_REFERENCE, suj_forward_reference
+
+RNG = np.random.default_rng(40)
+ALL = sorted(SUJ_REFERENCE)
+CLASSIC_PSMS = ["PSM1", "PSM2", "PSM3"]
+SI_SOLVED = ["PSM1", "PSM2", "ECM"]
+
+
+def _random_joints(suj, n):
+    return [[RNG.uniform(lo, hi) for lo, hi in suj.ranges] for _ in range(n)]
+
+
+def _same_joints(a, b, tol=1e-8):
+    """Equal joint vectors, the revolute ones up to a whole turn."""
+    return abs(a[0] - b[0]) < tol and all(abs(K.wrap(x - y)) < tol for x, y in zip(a[1:], b[1:]))
+
+
+@pytest.mark.parametrize("cart, arm", ALL)
+def test_forward_kinematics_is_the_textbook_product_at_the_sample_and_random_joints(cart, arm):
+    suj = D.CARTS[cart][arm]
+    for q in [D.SAMPLE_JOINTS[(cart, arm)], *_random_joints(suj, 20)]:
+        np.testing.assert_allclose(K.forward(suj, q), suj_forward_reference(cart, arm, q), atol=1e-12)
+
+
+@pytest.mark.parametrize("cart", ["classic", "si"])
+def test_the_sample_positions_put_every_arms_rcm_over_one_patient(cart):
+    """The files' sample joints dock the four arms around one patient: their RCMs within 0.6 m of each other,
+    0.3-1.3 m in front of the cart and 0.35-1.1 m above its floor frame (a sanity check of the data as typed:
+    a sign or a swapped row puts an arm metres away)."""
+    rcms = np.array([K.forward(D.CARTS[cart][a], D.SAMPLE_JOINTS[(cart, a)])[:3, 3] for a in D.CARTS[cart]])
+    spread = np.max(np.linalg.norm(rcms[:, None] - rcms[None], axis=2))
+    assert spread < 0.6, rcms
+    assert np.all((0.3 < rcms[:, 1]) & (rcms[:, 1] < 1.3) & (0.35 < rcms[:, 2]) & (rcms[:, 2] < 1.1)), rcms
+
+
+@pytest.mark.parametrize("arm", CLASSIC_PSMS)
+def test_classic_psm_ik_round_trips_and_recovers_random_joints(arm):
+    """Every solution's forward kinematics is the pose (1e-9); the joints the pose was made from are among the
+    solutions; the solutions within the ranges are the ones whose margin is >= 0 (the premise, where the ranges
+    are the quoted ones, not full turns: some poses have solutions outside them too)."""
+    suj = D.CLASSIC[arm]
+    outside = 0
+    for q in _random_joints(suj, 60):
+        pose = K.forward(suj, q)
+        answer = K.classic_psm_ik(suj, pose)
+        sols = answer.within + answer.outside
+        assert any(_same_joints(s.joints, q) for s in answer.within)
+        for s in sols:
+            assert np.abs(K.forward(suj, s.joints) - pose).max() < 1e-9
+            inside = all(lo <= v <= hi for v, (lo, hi) in zip(s.joints, suj.ranges))
+            assert inside == (s.margin >= 0)
+        outside += len(answer.outside)
+    assert outside > 0 or arm == "PSM3"
+
+
+@pytest.mark.parametrize("arm", SI_SOLVED)
+def test_si_ik_round_trips_and_its_orientations_are_one_family(arm):
+    """Si: every solution's forward kinematics is the pose; the random joints are recovered; the base's
+    orientation is si_orientation at the planar chain's yaw (the one-parameter family of docking orientations
+    the Si can give)."""
+    suj = D.SI[arm]
+    for q in _random_joints(suj, 60):
+        pose = K.forward(suj, q)
+        answer = K.si_ik(suj, pose)
+        assert any(_same_joints(s.joints, q) for s in answer.within)
+        for s in answer.within + answer.outside:
+            assert np.abs(K.forward(suj, s.joints) - pose).max() < 1e-9
+        np.testing.assert_allclose(K.si_orientation(suj, sum(q[1:])), pose[:3, :3], atol=1e-12)
+
+
+def test_poses_the_suj_cannot_reach_are_refused_with_the_reason():
+    """Out of the planar chain's reach; inside its reach only with a joint out of its range (the joint and the
+    range named); an Si docking tilted off its family (the angle named)."""
+    psm1 = D.CLASSIC["PSM1"]
+    far = K.forward(psm1, D.SAMPLE_JOINTS[("classic", "PSM1")])
+    far[:3, 3] += np.array([3.0, 0.0, 0.0])
+    answer = K.classic_psm_ik(psm1, far)
+    assert not answer.within and "out of reach" in answer.reason
+    # joints made with j1 and j2 past their ranges until every solution of the pose is outside them (seeded)
+    for _ in range(200):
+        q = [RNG.uniform(lo, hi) for lo, hi in psm1.ranges]
+        q[1], q[2] = RNG.uniform(1.7, 2.5), RNG.uniform(0.5, 2.0)  # j1 past +90 deg, j2 past 0 deg
+        answer = K.classic_psm_ik(psm1, K.forward(psm1, q))
+        if not answer.within:
+            break
+    assert not answer.within and answer.outside  # the premise: such a pose was found
+    assert any(_same_joints(s.joints, q) for s in answer.outside)
+    assert "outside its range" in answer.reason and "PSM1 SUJ j" in answer.reason
+    si = D.SI["PSM1"]
+    pose = K.forward(si, D.SAMPLE_JOINTS[("si", "PSM1")])
+    tilt = np.eye(4)
+    tilt[:3, :3] = [[1, 0, 0], [0, math.cos(0.1), -math.sin(0.1)], [0, math.sin(0.1), math.cos(0.1)]]
+    answer = K.si_ik(si, pose @ tilt)
+    assert not answer.within and "tilted 5.73 deg" in answer.reason
