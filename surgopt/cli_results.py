@@ -377,7 +377,13 @@ def _headline_text(s, rec) -> str:
 def export(
     runs_: Annotated[list[str], typer.Argument(metavar="RUN...", help="Key prefixes (or configs) of the runs to "
                                                                       "export; several runs are stacked.")],
-    fmt: Annotated[ExportFormat, typer.Option("--format", help="csv, parquet or json (records).")] = ExportFormat.csv,
+    fmt: Annotated[str, typer.Option("--format", help="csv, parquet or json (records); or a study's own format "
+                                                       "of one design (--design), such as port-place's dvrk (the "
+                                                       "layout's set-up for the robot: cart pose, setup joints, "
+                                                       "ports, as JSON).")] = "csv",
+    design: Annotated[Optional[int], typer.Option("--design", help="The design (its key column's value, e.g. a "
+                                                                   "design_id) a study's own format writes.",
+                                                  show_default=False)] = None,
     out: Annotated[Optional[Path], typer.Option("--out", help="Output file [default: standard output; "
                                                               "needed for parquet].", show_default=False)] = None,
     store: StoreOpt = None,
@@ -389,9 +395,24 @@ def export(
     """A run's whole table as one tidy table, with the run key (and, for several runs, the config fields
     that differ between them) as columns. The CSV reads back with pandas.read_csv as it is."""
     with guard():
-        from surgopt.results import export_table
+        from surgopt.results import export_design, export_table
         from surgopt.store import Store
 
+        if fmt not in (f.value for f in ExportFormat):
+            if design is None or len(runs_) != 1:
+                fail(f"--format {fmt}: a study's own format writes one design of one run: give one RUN and --design",
+                     2)
+            text = export_design(Store(store), runs_[0], design, fmt, study)
+            if out is None:
+                sys.stdout.write(text)
+            else:
+                from surgopt.store import atomic_write
+
+                atomic_write(out, lambda tmp: tmp.write_text(text))
+                typer.echo(f"wrote {out} (design {design}, {fmt})", err=True)
+            return
+        if design is not None:
+            fail("--design goes with a study's own --format (csv, parquet and json export every row)", 2)
         if fmt == ExportFormat.parquet and out is None:
             fail("--format parquet needs --out FILE", 2)
         if out is not None and out.is_dir():

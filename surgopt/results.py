@@ -322,3 +322,21 @@ def grid_best(store: Store, study, cfg, column: str, direction: str, feasible_on
         return None
     return (f"the grid's best ({len(values):,} {'feasible ' if feasible_only else ''}designs)",
             float(values.max() if direction == "maximize" else values.min()))
+
+
+def export_design(store: Store, ref: str, design: int, fmt: str, study_name: str | None = None) -> str:
+    """One design's row of a run in a format its study declares (``Study.exports``): the text to write. A
+    UsageError naming what is wrong: a study without that format, a design not among the rows."""
+    import pyarrow.compute as pc
+
+    st, r = resolve_run(store, ref, study_name)
+    require_complete(store, r, False)
+    if fmt not in st.exports:
+        known = ", ".join(st.exports) or "none"
+        raise UsageError(f"--format {fmt}: not a format of {st.name} runs (csv, parquet, json; its own: {known})")
+    key = st.key_columns[0]
+    rows = [t.filter(pc.equal(t[key], design)) for t in r.parts(st.schema_for(r.manifest["config"]))]
+    rows = [t for t in rows if t.num_rows]
+    if not rows:
+        raise UsageError(f"--design {design}: no row of run {r.key[:12]} has {key} = {design}")
+    return st.exports[fmt](config_of(st, r), {**rows[0].to_pylist()[0], "run_key": r.key})

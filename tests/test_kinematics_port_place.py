@@ -122,7 +122,7 @@ def _tables(n, m, rng):
     spacing = spacing + spacing.T
     return D.PortTables(reach.sum(axis=1), rng.random(n), count, *pair, spacing, rng.random((n, n)),
                         rng.random((n, n)) - 0.5, m, D.reach_bits(reach), D.site_dexterity(reach, dex),
-                        np.zeros(n), rng.random((n, n))), reach, dex
+                        np.zeros(n), rng.random((n, n)), *T.no_cart(n)), reach, dex
 
 
 @pytest.mark.parametrize("instruments", [2, 3])
@@ -149,8 +149,9 @@ def test_three_instruments_combine_as_a_brute_force_over_the_reach_sets():
     n, m = 8, 131  # 131 points: three words, the last one partial
     t, reach, dex = _tables(n, m, np.random.default_rng(2))
     crit = T.criteria(C.PortPlaceConfig())._replace(min_shaft_gap_m=0.3, min_spacing_m=0.02)
-    ids, f, bad, cost, design = D.design_columns(t, crit, 0, S.n_designs(n, 3), 3)
-    ids2, f2, bad2, cost2, _ = D.design_columns(t, crit, 0, S.n_designs(n, 2), 2)
+    ids, f, bad, cost, design, dock = D.design_columns(t, crit, 0, S.n_designs(n, 3), 3)
+    ids2, f2, bad2, cost2, _, _ = D.design_columns(t, crit, 0, S.n_designs(n, 2), 2)
+    assert np.all(dock == [0, 0])  # no cart: every layout docks at the one pose, as enumerated
     assert np.array_equal(design, np.arange(S.n_designs(n, 3)))
     loose = crit._replace(min_shaft_gap_m=0.0, min_external_m=0.0, angle_lo_rad=0.0, angle_hi_rad=math.pi)
     seen = t._replace(coverage=np.ones(n))  # the camera sees everything: feasibility is the reach and spacing

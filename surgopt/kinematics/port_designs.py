@@ -8,7 +8,7 @@ from typing import NamedTuple
 import numpy as np
 
 from surgopt.jit import EXACT, njit
-from surgopt.kinematics.port_place import ANGLE, CAMERA, CAMERA_SIDE, OUTSIDE, REACH, SHAFTS, SPACING
+from surgopt.kinematics.port_place import ANGLE, CAMERA, CAMERA_SIDE, DOCKING, OUTSIDE, REACH, SHAFTS, SPACING
 
 
 class PortTables(NamedTuple):
@@ -34,6 +34,8 @@ class PortTables(NamedTuple):
     dex_site: np.ndarray  # per site: the mean isotropy over the points it reaches (0 where it reaches none)
     wrist_margin_deg: np.ndarray  # per site: the wrist's bend left at the worst point (the study's, for its rows)
     outside_camera: np.ndarray  # [instrument port, camera port]: the two arms' clearance outside the body
+    dock: np.ndarray  # (3, sites, words) uint64: bit p set where PSM1's, PSM2's, PSM3's setup joints dock at cart pose p
+    dock_camera: np.ndarray  # (sites, words) uint64: the ECM's
 
 
 def reach_bits(reach: np.ndarray) -> np.ndarray:
@@ -118,8 +120,9 @@ def design_columns(t, crit, start, stop, instruments=2, feasible_only=False):
     The pair's quantities (manipulation angle, azimuths, the camera between them, dexterity) are the working
     pair's; with a third instrument the common reach is all three's, the shafts' clearance inside is the least
     of the three pairs', the arms' outside and the ports' spacing the least of every pair's, and the cost adds
-    the third's isotropy shortfall. Returns (ids [PSM1, PSM2, (PSM3,) ECM], columns, reason bits, cost, design
-    numbers) of every design, or of the feasible ones only (``feasible_only``: the rows of the others are
+    the third's isotropy shortfall. A design no cart pose docks (``first_dock``) fails on DOCKING. Returns (ids
+    [PSM1, PSM2, (PSM3,) ECM], columns, reason bits, cost, design numbers, (cart pose, PSM1 and PSM2 swapped))
+    of every design, or of the feasible ones only (``feasible_only``: the rows of the others are
     never written, so a chunk's memory is its feasible rows').
     (docs/port_placement.md, eq. P11: the cost and feasibility.)"""
     n = t.reach_count.shape[0]
@@ -130,6 +133,7 @@ def design_columns(t, crit, start, stop, instruments=2, feasible_only=False):
     bad = np.empty(size, dtype=np.int64)
     cost = np.empty(size)
     design = np.empty(size, dtype=np.int64)
+    dock = np.empty((size, 2), dtype=np.int64)
     others = n - 3 if three else n - 2
     per_pair = (n - 2) * others if three else others
     i, j = pair_of(start // per_pair, n)
@@ -182,6 +186,9 @@ def design_columns(t, crit, start, stop, instruments=2, feasible_only=False):
             b |= ANGLE
         if t.side[i, k] * t.side[j, k] >= 0.0:
             b |= CAMERA_SIDE
+        pose, swapped = first_dock(t.dock, t.dock_camera, i, j, l, k)
+        if pose < 0:
+            b |= DOCKING
         if b == 0 or not feasible_only:
             ids[out, 0], ids[out, 1], ids[out, ids.shape[1] - 1] = i, j, k
             f[out, 0] = t.reach_count[i] / t.n_points
@@ -208,6 +215,7 @@ def design_columns(t, crit, start, stop, instruments=2, feasible_only=False):
                 f[out, 15] = t.dex_site[l]
                 cost[out] += crit.w_dexterity * (1.0 - t.dex_site[l])
             design[out] = start + r
+            dock[out, 0], dock[out, 1] = pose, swapped
             out += 1
         k = next_other(k, i, j, l)  # the next camera port; then the next third port; then the next pair
         if k == n:
@@ -220,7 +228,26 @@ def design_columns(t, crit, start, stop, instruments=2, feasible_only=False):
                     j = i + 1
                 l = next_other(-1, i, j, -1) if three else -1
             k = next_other(-1, i, j, l)
-    return ids[:out], f[:out], bad[:out], cost[:out], design[:out]
+    return ids[:out], f[:out], bad[:out], cost[:out], design[:out], dock[:out]
+
+
+@njit(**EXACT)
+def first_dock(dock, dock_camera, i, j, l, k):
+    """(the first cart pose at which the setup joints dock PSM1 and PSM2 on the pair's ports i, j (either way
+    round), PSM3 on l (l < 0: no third) and the ECM on k, or -1; 1 when PSM1 docks on j and PSM2 on i there,
+    else 0): the lowest bit of their words ANDed, the straight assignment preferred at that pose."""
+    for w in range(dock.shape[2]):
+        both = dock_camera[k, w]
+        if l >= 0:
+            both &= dock[2, l, w]
+        straight = dock[0, i, w] & dock[1, j, w] & both
+        crossed = dock[0, j, w] & dock[1, i, w] & both
+        either = straight | crossed
+        if either != 0:
+            low = either & (~either + np.uint64(1))
+            bit = np.int64(popcount64(low - np.uint64(1)))
+            return w * 64 + bit, 0 if (straight & low) != 0 else 1
+    return -1, 0
 
 
 @njit(**EXACT)

@@ -140,6 +140,10 @@ class Study:
     #: The objective a person reads a search by, when the optimiser's is a penalised stand-in for it: (column,
     #: "minimize" | "maximize"), over the feasible trials (port-place: the cost, not the score); None: the plan's
     reported_objective: tuple[str, str] | None = None
+    #: ``surgopt export KEY --design ID --format NAME``: a study's own formats of one design's row, NAME ->
+    #: ``write(cfg, row) -> text`` (``cfg`` the run's validated config; port-place: "dvrk", the layout's set-up for
+    #: the robot)
+    exports: Mapping[str, Callable[[Any, dict], str]] = field(default_factory=dict)
     #: The sections of the run's HTML page (``surgopt report``): ``html_views(run, cfg, parts)`` ->
     #: [``studies.page.View``] (``cfg``: the run's validated config)
     html_views: Callable[[Any, Any, Any], list] | None = None

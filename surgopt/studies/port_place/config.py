@@ -276,12 +276,66 @@ class Objective(StrictModel):
     dexterity: float = Field(1.0, ge=0)
 
 
+class Cart(StrictModel):
+    """The dVRK patient cart (issue 40): its setup joints (``robots/dvrk_suj.py``) must put each arm's base at its
+    port, docked as the rows assume (the neutral shaft through the target's centre). "none": docking is assumed,
+    as before the cart was modelled. "classic": the Classic cart; PSM1's and PSM2's (and PSM3's) setup joints are
+    solved for each port and cart pose (``kinematics.suj``), and a layout is dockable when at one cart pose every
+    instrument arm's SUJ has a solution within its ranges (PSM1 and PSM2 on either of the pair's ports). The ECM's
+    setup joints are not checked yet (their inverse is not in), and neither are the arms' links against each
+    other: a dockable layout is one the instrument arms' SUJs can reach.
+
+    The cart stands on the floor (its world frame's origin and heading, in the patient's floor frame: x lateral,
+    y cranial, mm; heading 0 = its arms reach toward +y, the patient's head) at a ``given`` pose or at each pose
+    of a ``grid`` around the target: around_deg from the patient's feet (0 at the foot end, +90 the patient's
+    left), distance_mm from the target's centre (horizontal), facing the target turned by each of
+    yaw_offsets_deg; poses whose origin falls within ``clear_of_table_mm`` of the table are left out. The
+    patient's frame is on the table top (``table_height_mm`` above the floor), tilted head down by
+    ``trendelenburg_deg`` and left side up by ``lateral_tilt_deg``."""
+
+    model: Literal["none", "classic"] = "none"
+    pose: Literal["grid", "given"] = "grid"
+    x_mm: float = Field(0.0, ge=-5000.0, le=5000.0, description="given pose: the cart's origin, lateral")
+    y_mm: float = Field(-1100.0, ge=-5000.0, le=5000.0, description="given pose: the cart's origin, cranial")
+    heading_deg: float = Field(0.0, ge=-180.0, le=180.0, description="given pose: where its arms reach, from +y "
+                                                                     "toward +x")
+    around_deg: list[float] = Field([-90.0, 90.0], min_length=2, max_length=2,
+                                    description="grid: the arc of positions around the target (0: at the feet)")
+    around_step_deg: float = Field(15.0, gt=0.0, le=180.0)
+    distance_mm: list[float] = Field([900.0, 1500.0], min_length=2, max_length=2,
+                                     description="grid: the cart origin's horizontal distance from the target")
+    distance_step_mm: float = Field(150.0, gt=0.0, le=2000.0)
+    yaw_offsets_deg: list[Annotated[float, Field(ge=-90.0, le=90.0)]] = Field(
+        [-20.0, 0.0, 20.0], min_length=1, max_length=32, description="grid: headings off facing the target")
+    table_height_mm: float = Field(800.0, ge=400.0, le=1300.0, description="the table top (the patient frame's "
+                                                                             "z = 0) above the floor (assumption)")
+    table_half_width_mm: float = Field(280.0, ge=100.0, le=1000.0, description="the table, about the patient's "
+                                                                               "midline (assumption)")
+    table_y_mm: list[float] = Field([-1000.0, 1000.0], min_length=2, max_length=2,
+                                    description="the table's foot and head ends, cranial (assumption)")
+    clear_of_table_mm: float = Field(350.0, ge=0.0, le=2000.0, description="the cart's origin this far from the "
+                                                                             "table's outline (its base's reach)")
+    trendelenburg_deg: float = Field(0.0, ge=-40.0, le=40.0, description="head down (positive) or up")
+    lateral_tilt_deg: float = Field(0.0, ge=-40.0, le=40.0, description="the patient's left side up (positive)")
+
+    @model_validator(mode="after")
+    def _ordered(self):
+        for name in ("around_deg", "distance_mm", "table_y_mm"):
+            lo, hi = getattr(self, name)
+            if not lo <= hi:
+                raise ValueError(f"{name}: [{lo:g}, {hi:g}] must be low <= high")
+        if self.distance_mm[0] <= 0:
+            raise ValueError("distance_mm: must be > 0")
+        return self
+
+
 class PortPlaceConfig(StrictModel):
     patient: Patient = Patient()
     target: Target = Target()
     robot: Robot = Robot()
     constraints: Constraints = Constraints()
     objective: Objective = Objective()
+    cart: Cart = Cart()
     rows_stored: Literal["all", "feasible"] = Field("all", description="'feasible': store only the feasible "
                                                     "designs' rows (the 3-PSM enumeration's 3.5 x 10^8 designs "
                                                     "would fill ~15 GB on disk at the 44 bytes a row measured for "
@@ -294,6 +348,19 @@ class PortPlaceConfig(StrictModel):
         "sites", description="how a [search] places a port: 'sites', a categorical choice of candidate site, or "
                              "'surface', a top-view point (x, y mm) taken to the nearest candidate site, so that "
                              "the optimiser sees neighbouring ports as neighbours")
+
+    @model_validator(mode="after")
+    def _the_cart_carries_its_arms(self):
+        if self.cart.model == "none":
+            return self
+        r = self.robot
+        if r.instrument_serial or r.instrument_file or r.instrument_arm != "dvrk_psm_classic":
+            raise ValueError("cart.model: 'classic' carries the Classic PSMs (robot.instrument_arm = "
+                             "'dvrk_psm_classic', no instrument_file or instrument_serial)")
+        if self.search != "grid":
+            raise ValueError("cart.model: the cart is enumerated with the grid of layouts; a [search] with the "
+                             "cart is not in yet (set cart.model = 'none' to search)")
+        return self
 
     @model_validator(mode="after")
     def _search_objectives_are_columns(self):

@@ -28,7 +28,7 @@ import numpy as np
 from surgopt.robots import dvrk
 from surgopt.studies import Estimate, Study, Summary, figures_in, html_views_in, peak_bytes
 from surgopt.parts import concat_rows
-from surgopt.studies.port_place.config import OBJECTIVE, PortPlaceConfig, camera_arm_of, instrument_of
+from surgopt.studies.port_place.config import OBJECTIVE, PortPlaceConfig, Target, camera_arm_of, instrument_of
 from surgopt.studies.port_place.geometry import sites_mm, target_points_mm
 from surgopt.studies.port_place.tables import LATERAL, model_of, port_tables
 
@@ -129,6 +129,7 @@ def schema(config=None):
                *[pa.field(c, pa.float64(), metadata={"meaning": "a search's move of the serial arm's RCM off "
                                                                  "rcm_in_base_m: out from its base, or up (m)"})
                  for c in stance_columns(config)],
+               *cart_fields(config),
                pa.field("cost", pa.float64()),
                pa.field("score", pa.float64(), metadata={"meaning": "what summarize ranks by (higher is better): "
                                                                      "-cost, less 100 per reason a design fails"}),
@@ -138,12 +139,53 @@ def schema(config=None):
     return pa.schema(fields, metadata=_stored_metadata(config))
 
 
+#: The cart's columns (with ``cart.model`` other than "none"): the first pose of its grid at which every arm
+#: docks (-1: none), that pose's origin on the floor and heading (the patient's floor frame).
+CART_COLUMNS = ("cart_pose", "cart_x_mm", "cart_y_mm", "cart_heading_deg")
+
+
+def cart_of(config) -> str:
+    """The cart a config models: validated, as stored (a dict), or none ("none")."""
+    if isinstance(config, dict):
+        return (config.get("cart") or {}).get("model", "none")
+    return "none" if config is None else config.cart.model
+
+
+def cart_fields(config) -> list:
+    import pyarrow as pa
+
+    if cart_of(config) == "none":
+        return []
+    return [pa.field("cart_pose", pa.int64(), metadata={"meaning": "the first pose of the cart's grid at which "
+                                                                    "every arm's setup joints dock (-1: none)"}),
+            *[pa.field(c, pa.float64()) for c in CART_COLUMNS[1:]]]
+
+
 def _stored_metadata(config) -> dict | None:
-    """With only feasible rows stored: how many designs were enumerated (what the summary counts the
-    infeasible from), when the config can be read again (a stored mesh config whose file moved cannot)."""
+    """With the cart: what its docking is solved from (``cart_metadata``); with only feasible rows stored: how
+    many designs were enumerated (what the summary counts the infeasible from), when the config can be read
+    again (a stored mesh config whose file moved cannot)."""
+    meta = cart_metadata(config)
     stored = config.get("rows_stored") if isinstance(config, dict) else getattr(config, "rows_stored", "all")
     if stored != "feasible":
+        return meta
+    return {**(meta or {}), **_feasible_metadata(config)}
+
+
+def cart_metadata(config) -> dict | None:
+    """The cart's settings and the target's centre (what its setup joints' docking is solved from), as the rows'
+    schema metadata: the summary finds the best layout's SUJ joints from them and the row."""
+    import json
+
+    if cart_of(config) == "none":
         return None
+    cart = config["cart"] if isinstance(config, dict) else config.cart.model_dump(mode="json")
+    target = config.get("target", {}) if isinstance(config, dict) else config.target.model_dump(mode="json")
+    centre = target.get("centre_mm", Target().centre_mm)
+    return {"cart": json.dumps(cart), "target_centre_mm": json.dumps(list(centre))}
+
+
+def _feasible_metadata(config) -> dict:
     try:
         cfg = (config if isinstance(config, PortPlaceConfig)  # as stored: its files not read and hashed again
                else PortPlaceConfig.model_validate(config, context={"stored": True}))
@@ -171,18 +213,26 @@ def compute_task(cfg, chunk: int, index: int) -> dict:
     sites, (t, _, _), crit = model.sites_m, model.grid, model.criteria
     start = index * chunk
     stop = min(n_designs(len(sites), cfg.robot.instrument_count), start + chunk)
-    ids, f, bad, cost, design_ids = design_columns(t, crit, start, stop, cfg.robot.instrument_count,
-                                                   cfg.rows_stored == "feasible")
+    ids, f, bad, cost, design_ids, dock = design_columns(t, crit, start, stop, cfg.robot.instrument_count,
+                                                         cfg.rows_stored == "feasible")
     return design_rows(cfg, sites, t, ids, ids, f, bad, cost, design_ids,
-                       np.zeros((len(design_ids), len(docking_columns(cfg)))))
+                       np.zeros((len(design_ids), len(docking_columns(cfg)))), dock=dock,
+                       floor=model.dock.poses.floor if cfg.cart.model != "none" else None)
 
 
 def design_rows(cfg, sites, t, ids, site_ids, f, bad, cost, design_ids, docking_deg, aim_mm=None,
-                stance_m=None) -> dict:
+                stance_m=None, dock=None, floor=None) -> dict:
     """The rows of designs: ``ids`` (a column per arm, ``arms_of``) index ``sites`` and ``t`` (the tables they
     were combined from), ``site_ids`` are the candidate sites' numbers reported; ``docking_deg`` (yaw, pitch of
-    each instrument) per design."""
+    each instrument) per design. With the cart (``floor``: its poses, ``tables.CartPoses.floor``), ``dock``
+    (cart pose, swapped) per design: where PSM1 docks on the pair's second port, PSM1's and PSM2's columns
+    are swapped, so that psm1_* is the arm on PSM1's setup joints."""
     arms = arms_of(cfg)
+    if floor is not None:
+        swap = dock[:, 1] == 1
+        ids, site_ids, f = ids.copy(), site_ids.copy(), f.copy()
+        for a in (ids, site_ids, f):
+            a[swap, 0], a[swap, 1] = a[swap, 1], a[swap, 0].copy()
     cols = {"design_id": design_ids}
     cols.update({f"{arm}_site": site_ids[:, a] for a, arm in enumerate(arms)})
     for a, arm in enumerate(arms):
@@ -209,6 +259,12 @@ def design_rows(cfg, sites, t, ids, site_ids, f, bad, cost, design_ids, docking_
         cols[name] = sites[ids[:, c // 2], c % 2] * 1000 if aim_mm is None else np.asarray(aim_mm[:, c], float)
     for c, name in enumerate(stance_columns(cfg)):  # 0 on the grid: the configured stance
         cols[name] = np.zeros(len(ids)) if stance_m is None else np.asarray(stance_m[:, c], float)
+    if floor is not None:
+        pose = dock[:, 0]
+        cols["cart_pose"] = pose
+        where = np.where(pose[:, None] >= 0, floor[np.maximum(pose, 0)], np.nan)
+        for c, name in enumerate(CART_COLUMNS[1:]):
+            cols[name] = where[:, c]
     cols["cost"] = cost
     failed = sum((bad >> bit) & 1 for bit in range(len(_reasons())))
     cols["score"] = -cost - INFEASIBLE_PENALTY * failed
@@ -342,7 +398,7 @@ def evaluate_designs(cfg, x: np.ndarray, ids: np.ndarray, source: str) -> dict:
                                   np.radians([*docking[1::2], 0.0]))
             outside = K.external_clearances(sites, np.ascontiguousarray(rot[:, :, 2]), dvrk.OUTSIDE_LENGTH_M)
             t, _, _ = port_tables(model_r, sites, rot, outside)
-        local, f, bad, cost, _ = design_columns(t, crit, 0, 1, ports - 1)
+        local, f, bad, cost, _, _ = design_columns(t, crit, 0, 1, ports - 1)
         out.append(design_rows(cfg, sites, t, local, site_ids[None, :], f, bad, cost,
                                np.asarray(ids[r:r + 1], dtype=np.int64), docking[None, :],
                                v[None, port_cols] if surface else None,
@@ -405,6 +461,11 @@ NS_PER_SITE_POINT_SERIAL = 4000.0
 NS_PER_PAIR_POINT = 300.0
 
 
+#: One setup joint's inverse kinematics (``kinematics.suj.classic_psm_ik``, plain Python): ~118 us measured
+#: (2,000 calls), 5.4 s for the default's 164 sites x 150 cart poses x 2 arms.
+NS_PER_SUJ_SOLVE = 120_000.0
+
+
 #: A searched design (its three ports' tables of its own): ~0.43 ms at 915 target points (measured, one core).
 NS_PER_SEARCHED_DESIGN_POINT = 470.0
 
@@ -435,6 +496,10 @@ def estimate(cfg) -> Estimate:
     per_design = NS_PER_DESIGN if arms == 2 else NS_PER_DESIGN_3
     per_site_point = NS_PER_SITE_POINT if cfg.robot.instrument_serial is None else NS_PER_SITE_POINT_SERIAL
     seconds = (d * per_design + n * m * per_site_point + n * n / 2 * m * NS_PER_PAIR_POINT) * 1e-9
+    if cfg.cart.model != "none":  # each instrument arm's setup joints at each site and cart pose
+        from surgopt.studies.port_place.tables import cart_poses
+
+        seconds += n * len(cart_poses(cfg).floor) * arms * NS_PER_SUJ_SOLVE * 1e-9
     row = ROW_BYTES if arms == 2 else ROW_BYTES_3
     working = n * n * 8 * 12 + n * m * 9 + LIBRARY_BYTES
     if cfg.rows_stored == "feasible":  # at most every design feasible: 8 bytes of each stored row in the parent
@@ -484,12 +549,15 @@ def summary(parts) -> Summary:
     """Feasible count, each reason's count, the best feasible design by cost with its clinical checks."""
     from surgopt.kinematics.port_place import REASONS
 
+    from surgopt.kinematics.port_place import DOCKING
+
     n = parts.num_rows
     by_bit = dict.fromkeys(REASONS, 0)
-    feasible = 0
+    feasible = only_docking = 0
     for t in parts.only(["infeasible"]):  # one pass over one column: every count at once
         bad = t["infeasible"].to_numpy()
         feasible += int(np.count_nonzero(bad == 0))
+        only_docking += int(np.count_nonzero(bad == DOCKING))
         for bit in by_bit:
             by_bit[bit] += int(np.count_nonzero(bad & bit))
     meta = {k.decode(): v.decode() for k, v in (parts.schema.metadata or {}).items()}
@@ -516,13 +584,45 @@ def summary(parts) -> Summary:
                   f"{b[f'{arm}_z_mm']:.0f}"] for arm in ("psm1", "psm2", "psm3", "ecm") if f"{arm}_site" in b]
         tables.append(("best layout: ports (x lateral, y cranial, z anterior)", ["arm", "site", "x_mm", "y_mm", "z_mm"],
                        ports))
+        if "cart_pose" in b:
+            tables += docking_tables(b, meta)
         cols = ["design_id", "cost", "common_reach", "dexterity_mean", "manipulation_angle_mean_deg",
                 "azimuth_imbalance_deg", "camera_coverage"]
         tables.append(("best feasible designs by cost", cols,
                        [[f"{r[c]:.4g}" if isinstance(r[c], float) else str(r[c]) for c in cols] for r in best.to_pylist()]))
     else:
         headline["best"] = "none: no design is feasible (see the reasons' counts)"
+    if "cart_pose" in parts.schema.names and meta.get("rows_stored") != "feasible":
+        counts["infeasible only for docking (feasible without the cart)"] = only_docking
     return Summary(headline, counts, tables)
+
+
+def dvrk_export(cfg, row: dict) -> str:
+    """``surgopt export KEY --design ID --format dvrk`` (``export.dvrk_setup``)."""
+    from surgopt.studies.port_place.export import dvrk_setup
+
+    return dvrk_setup(cfg, row)
+
+
+def docking_tables(best: dict, meta: dict) -> list:
+    """The best layout's cart pose and each arm's setup joints there (solved again from the row's ports and
+    pose, and the cart's settings in the rows' metadata)."""
+    import json
+
+    from surgopt.studies.port_place.config import Cart
+    from surgopt.studies.port_place.tables import docked_arms
+
+    cart = Cart.model_validate(json.loads(meta["cart"]))
+    centre = np.asarray(json.loads(meta["target_centre_mm"]), float) / 1000
+    pose = [[f"{best['cart_x_mm']:.0f}", f"{best['cart_y_mm']:.0f}", f"{best['cart_heading_deg']:.1f}",
+             str(best["cart_pose"])]]
+    arms = docked_arms(cart, centre, best)
+    rows = [[a.arm, a.site, " ".join(f"{v:.4f}" for v in a.joints) if a.joints else "-",
+             "-" if a.margin is None else f"{a.margin:.3f} ({a.tightest})", a.note] for a in arms]
+    return [(f"best layout: the {cart.model} cart (origin on the floor, patient frame; heading from +y toward +x)",
+             ["x_mm", "y_mm", "heading_deg", "grid pose"], pose),
+            ("best layout: setup joints (column m, then rad, the dVRK's simulated_position order)",
+             ["arm", "port", "suj_joints", "least range margin", "note"], rows)]
 
 
 def least_cost_layouts(parts, k: int, feasible: bool = True, columns: list[str] | None = None):
@@ -552,6 +652,7 @@ STUDY = Study(
     auto_chunk=auto_chunk, n_tasks=n_tasks, warm_up=warm_up, compute_task=compute_task, summary=summary,
     feasible_mask=feasible_mask, figures=figures_in("surgopt.studies.port_place.figures"), estimate=estimate, search_plan=search_plan,
     html_views=html_views_in("surgopt.studies.port_place.html"), reported_objective=("cost", "minimize"),
+    exports={"dvrk": dvrk_export},
     warm_variants=(('robot.instrument_serial={model = "pa10_7c", rcm_in_base_m = [0.65, 0.0, 0.5]}',
                     "constraints.min_external_clearance_mm=150.0"),),
     evaluate=evaluate_designs, figure_columns=figure_columns, preflight=preflight, top_columns=top_columns)

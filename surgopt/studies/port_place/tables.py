@@ -78,8 +78,13 @@ class PortModel:
     @cached_property
     def grid(self) -> GridTables:
         """The per-port and per-pair tables at the default docking (built on first use: a search never needs
-        them)."""
-        return GridTables(*port_tables(self, self.sites_m, self.rot))
+        them), with the cart's docking (``dock``)."""
+        return GridTables(*port_tables(self, self.sites_m, self.rot, dock=self.dock))
+
+    @cached_property
+    def dock(self) -> "DockTables":
+        """Which of the cart's setup joints dock which arm at which site and cart pose (``dock_tables``)."""
+        return dock_tables(self)
 
     def with_config(self, cfg: PortPlaceConfig) -> "PortModel":
         """The same model read through ``cfg`` (a serial arm's RCM moved by a search's stance; nothing the model
@@ -209,10 +214,11 @@ def wrist_margin_deg(model: PortModel, sites: np.ndarray) -> np.ndarray:
     return bend - t.approach_half_angle_deg - np.degrees(np.arccos(cos)).max(axis=1)
 
 
-def port_tables(model: PortModel, sites: np.ndarray, rot: np.ndarray, outside=None, base_yaw_rad=None):
+def port_tables(model: PortModel, sites: np.ndarray, rot: np.ndarray, outside=None, base_yaw_rad=None, dock=None):
     """(``PortTables``, reach, isotropy) of ports ``sites`` (m) docked in frames ``rot``; ``outside``: the arms'
     external clearances when the docking is not the default (``external_clearances``); ``base_yaw_rad``: a serial
-    instrument arm's base turned further at each port (a search's free docking)."""
+    instrument arm's base turned further at each port (a search's free docking); ``dock``: the cart's
+    ``DockTables`` of these sites (None: no cart, every arm docks)."""
     from surgopt.kinematics import port_designs as D
     from surgopt.kinematics import port_place as K
     from surgopt.studies.port_place import serial_arms
@@ -243,8 +249,15 @@ def port_tables(model: PortModel, sites: np.ndarray, rot: np.ndarray, outside=No
     spacing = np.linalg.norm(sites[:, None, :] - sites[None, :, :], axis=2)
     tables = D.PortTables(reach.sum(axis=1).astype(np.int64), coverage, *pairs, spacing, azimuth, side,
                           len(targets), D.reach_bits(reach), D.site_dexterity(reach, dex),
-                          wrist_margin_deg(model, sites), outside_camera)
+                          wrist_margin_deg(model, sites), outside_camera,
+                          *((dock.bits, dock.camera) if dock is not None else no_cart(len(sites))))
     return tables, reach, dex
+
+
+def no_cart(n: int) -> tuple[np.ndarray, np.ndarray]:
+    """Dock bits with no cart: one pose, at which every arm docks at every site."""
+    ones = np.ones((n, 1), np.uint64)
+    return np.stack([ones] * 3), ones
 
 
 def camera_clearances(sites: np.ndarray, rot: np.ndarray, outside: np.ndarray, serial=None, held=None):
@@ -272,3 +285,180 @@ def camera_lines(model: PortModel, sites: np.ndarray) -> np.ndarray:
     tips, _, ok = K.camera_views(sites, K.docking_frames(sites, model.centre_m, LATERAL), model.centre_m,
                                  model.camera)
     return serial_arms.serial_camera_tables(model, sites, tips, ok).links
+
+
+# ---- the patient cart (issue 40): where it stands, and which of its setup joints dock which arm at which port
+
+
+class CartPoses(NamedTuple):
+    """The cart's poses a config explores: ``floor`` (m, 3): its origin (x, y mm, the patient's floor frame) and
+    heading (deg, from +y toward +x) each; ``patient`` (m, 4, 4): the patient's frame in the cart's world frame
+    there (metres), the table's height and tilts applied."""
+
+    floor: np.ndarray
+    patient: np.ndarray
+
+
+def rot_x(a: float) -> np.ndarray:
+    c, s = math.cos(a), math.sin(a)
+    return np.array([[1.0, 0.0, 0.0], [0.0, c, -s], [0.0, s, c]])
+
+
+def rot_y(a: float) -> np.ndarray:
+    c, s = math.cos(a), math.sin(a)
+    return np.array([[c, 0.0, s], [0.0, 1.0, 0.0], [-s, 0.0, c]])
+
+
+def rot_z(a: float) -> np.ndarray:
+    c, s = math.cos(a), math.sin(a)
+    return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+
+
+def patient_in_cart(cart, x_mm: float, y_mm: float, heading_deg: float) -> np.ndarray:
+    """(4, 4) The patient's frame in the cart's world frame (m), the cart's origin at (x, y) on the floor of the
+    patient's untilted frame F, heading ``heading_deg`` (its +y toward F's +y turned toward +x), the patient tilted
+    in F about the table top under the frame's origin: T_cart_patient = T_F_cart^-1 T_F_patient with
+    T_F_patient = Rx(-trendelenburg) Ry(-lateral tilt) (head down, left side up) and T_F_cart =
+    [Rz(-heading), (x, y, -table height)]."""
+    f_cart = np.eye(4)
+    f_cart[:3, :3] = rot_z(-math.radians(heading_deg))
+    f_cart[:3, 3] = (x_mm / 1000, y_mm / 1000, -cart.table_height_mm / 1000)
+    f_patient = np.eye(4)
+    f_patient[:3, :3] = rot_x(-math.radians(cart.trendelenburg_deg)) @ rot_y(-math.radians(cart.lateral_tilt_deg))
+    return np.linalg.inv(f_cart) @ f_patient
+
+
+def off_table(cart, x_mm: np.ndarray, y_mm: np.ndarray) -> np.ndarray:
+    """Whether a cart origin at (x, y) stands at least ``clear_of_table_mm`` from the table's outline."""
+    dx = np.maximum(np.abs(x_mm) - cart.table_half_width_mm, 0.0)
+    dy = np.maximum(np.maximum(cart.table_y_mm[0] - y_mm, y_mm - cart.table_y_mm[1]), 0.0)
+    return np.hypot(dx, dy) >= cart.clear_of_table_mm
+
+
+def cart_poses(cfg: PortPlaceConfig) -> CartPoses:
+    """The given pose, or the grid's poses that stand clear of the table (in the grid's order: around, then
+    distance, then heading offset)."""
+    cart = cfg.cart
+    if cart.pose == "given":
+        floor = np.array([[cart.x_mm, cart.y_mm, cart.heading_deg]])
+    else:
+        cx, cy = cfg.target.centre_mm[0], cfg.target.centre_mm[1]
+        around = np.arange(cart.around_deg[0], cart.around_deg[1] + 1e-9, cart.around_step_deg)
+        distance = np.arange(cart.distance_mm[0], cart.distance_mm[1] + 1e-9, cart.distance_step_mm)
+        rows = []
+        for a in around:
+            for d in distance:
+                x, y = cx + d * math.sin(math.radians(a)), cy - d * math.cos(math.radians(a))
+                facing = math.degrees(math.atan2(cx - x, cy - y))  # from +y toward +x
+                rows += [[x, y, facing + off] for off in cart.yaw_offsets_deg]
+        floor = np.array(rows)
+        floor = floor[off_table(cart, floor[:, 0], floor[:, 1])]
+    return CartPoses(floor, np.array([patient_in_cart(cart, *f) for f in floor]))
+
+
+#: The instrument arms' setup joints, in the order of the rows' instrument ports when docked as enumerated.
+INSTRUMENT_SUJS = ("PSM1", "PSM2", "PSM3")
+
+
+class DockTables(NamedTuple):
+    """Which setup joint docks which arm at which site: ``bits`` (arms, sites, words) uint64, bit p of a site's
+    words set when that arm's SUJ has a solution within its ranges at cart pose p (PSM1, PSM2, PSM3); ``camera``
+    (sites, words): the ECM's (every pose: not checked yet); ``margin`` (arms, sites, poses) the best solution's
+    least range margin there (rad or m; -inf: none in reach); the poses."""
+
+    bits: np.ndarray
+    camera: np.ndarray
+    margin: np.ndarray
+    poses: CartPoses
+
+
+def base_pose(rot: np.ndarray, site_m: np.ndarray) -> np.ndarray:
+    """(4, 4) An arm's base frame in the patient's frame: its docking rotation at its port."""
+    t = np.eye(4)
+    t[:3, :3], t[:3, 3] = rot, site_m
+    return t
+
+
+def pack_bits(ok: np.ndarray) -> np.ndarray:
+    """ok[..., pose] (bool) as uint64 words, pose p in bit p % 64 of word p // 64."""
+    m = ok.shape[-1]
+    padded = np.zeros(ok.shape[:-1] + (-(-m // 64) * 64,), dtype=np.bool_)
+    padded[..., :m] = ok
+    return np.packbits(padded, axis=-1, bitorder="little").view("<u8").astype(np.uint64)
+
+
+def suj_answer(cfg: PortPlaceConfig, arm: str, rot: np.ndarray, site_m: np.ndarray, patient: np.ndarray):
+    """The cart's ``arm`` SUJ (``kinematics.suj.SujAnswer``) docking the arm at a port (its docking ``rot``,
+    ``site_m``) with the patient at ``patient`` (4, 4) in the cart's world frame."""
+    from surgopt.kinematics import suj as S
+    from surgopt.robots.dvrk_suj import CARTS
+
+    return S.classic_psm_ik(CARTS[cfg.cart.model][arm], patient @ base_pose(rot, site_m))
+
+
+def dock_tables(model: PortModel) -> DockTables:
+    """Every instrument arm's SUJ at every site and cart pose (``suj_answer``), as bits and margins; with no
+    cart, one pose at which everything docks."""
+    cfg = model.cfg
+    n = len(model.sites_m)
+    arms = INSTRUMENT_SUJS[:cfg.robot.instrument_count]
+    if cfg.cart.model == "none":
+        bits, camera = no_cart(n)
+        return DockTables(bits, camera, np.zeros((3, n, 1)), CartPoses(np.zeros((1, 3)), np.eye(4)[None]))
+    poses = cart_poses(cfg)
+    m = len(poses.floor)
+    margin = np.full((3, n, m), -np.inf)
+    for a, arm in enumerate(arms):
+        for i in range(n):
+            for p in range(m):
+                answer = suj_answer(cfg, arm, model.rot[i], model.sites_m[i], poses.patient[p])
+                sols = answer.within + answer.outside
+                if sols:
+                    margin[a, i, p] = sols[0].margin
+    bits = pack_bits(margin >= 0.0)
+    return DockTables(bits, pack_bits(np.ones((n, m), bool)), margin, poses)
+
+
+class DockedArm(NamedTuple):
+    """One arm of a layout on the cart: its SUJ's joints (m, rad; empty when none within the ranges), their least
+    range margin, and a note (why none, or what is not checked)."""
+
+    arm: str
+    site: str
+    joints: tuple
+    margin: float | None  # rad, or m for the column
+    tightest: str  # the joint of that margin
+    note: str
+    port_m: tuple
+    base: np.ndarray
+
+
+def docked_arms(cart, centre_m: np.ndarray, row: dict) -> list[DockedArm]:
+    """Each arm of a layout's row (its ports, ``psm1_x_mm`` ..., and its cart pose, ``cart_x_mm`` ...) docked by
+    the cart's setup joints: the best solution within the ranges (the largest least margin). The ECM's setup
+    joints are not solved yet: its row says so."""
+    from surgopt.kinematics import port_place as K
+    from surgopt.kinematics import suj as S
+    from surgopt.robots.dvrk_suj import CARTS
+
+    patient = patient_in_cart(cart, row["cart_x_mm"], row["cart_y_mm"], row["cart_heading_deg"])
+    out = []
+    for arm in ("psm1", "psm2", "psm3", "ecm"):
+        if f"{arm}_site" not in row:
+            continue
+        site = np.array([row[f"{arm}_{c}_mm"] for c in "xyz"]) / 1000
+        rot = K.docking_frames(site[None], centre_m, LATERAL)[0]
+        base = patient @ base_pose(rot, site)
+        if arm == "ecm":
+            out.append(DockedArm("ECM", str(row["ecm_site"]), (), None, "", "its setup joints are not solved yet",
+                                 tuple(site), base))
+            continue
+        answer = S.classic_psm_ik(CARTS[cart.model][arm.upper()], base)
+        if answer.within:
+            best = answer.within[0]
+            out.append(DockedArm(arm.upper(), str(row[f"{arm}_site"]), best.joints, best.margin, best.tightest, "",
+                                 tuple(site), base))
+        else:
+            out.append(DockedArm(arm.upper(), str(row[f"{arm}_site"]), (), None, "", answer.reason, tuple(site),
+                                 base))
+    return out

@@ -1,0 +1,69 @@
+"""port-place's own export formats (``surgopt export KEY --design ID --format dvrk``): one layout's set-up as
+the dVRK reads it: where the cart stands, each setup joint's values in the order and units of the dVRK's
+``simulated_position`` (the column in m, then rad), the transforms they were solved with, each port, and each
+arm's own joints when its instrument points at the target's centre."""
+from __future__ import annotations
+
+import json
+
+import numpy as np
+
+from surgopt.errors import UsageError
+from surgopt.studies.port_place.config import PortPlaceConfig, camera_arm_of, instrument_of
+
+#: The format's version: a reader can refuse one it does not know.
+DVRK_FORMAT = "surgopt-dvrk-setup-1"
+
+
+def _matrix(t) -> list:
+    return [[float(v) for v in row] for row in np.asarray(t, float)]
+
+
+def arm_joints_at_centre(arm, base_in_patient: np.ndarray, centre_m: np.ndarray) -> list[float]:
+    """The arm's yaw, pitch (rad) and insertion (m) that put its reaching point on the target's centre
+    (``kinematics.port_place.rcm_inverse``, eq. P2, in its base frame)."""
+    from surgopt.kinematics.port_place import rcm_inverse
+
+    p = base_in_patient[:3, :3].T @ (centre_m - base_in_patient[:3, 3])
+    return [float(v) for v in rcm_inverse(p, arm.along_shaft_m)]
+
+
+def dvrk_setup(cfg: PortPlaceConfig, row: dict) -> str:
+    """The layout of ``row`` (a design of a run with the cart) as JSON: ``cart_to_patient`` (the patient's frame
+    in the cart's world frame, 4x4, m) and one entry per arm (PSM1, PSM2, PSM3, ECM): its cart ("classic"), SUJ
+    joints, ``world_origin_to_suj`` and ``suj_tip_to_tool_origin`` as used, its port (mm, patient frame), its base
+    (RCM) frame in the cart's world frame, and its own joints at the target's centre."""
+    from surgopt.robots.dvrk_suj import CARTS
+    from surgopt.studies.port_place.tables import docked_arms, patient_in_cart
+
+    if cfg.cart.model == "none":
+        raise UsageError("--format dvrk: this run has no cart (cart.model = 'none'): run it with [cart] model = "
+                         "'classic' to solve the setup joints")
+    if row.get("cart_pose", -1) < 0:
+        raise UsageError(f"--format dvrk: design {row['design_id']} is not dockable (no cart pose of the grid "
+                         f"docks every arm); export a design whose cart_pose >= 0")
+    centre = np.asarray(cfg.target.centre_mm, float) / 1000
+    patient = patient_in_cart(cfg.cart, row["cart_x_mm"], row["cart_y_mm"], row["cart_heading_deg"])
+    arms = []
+    for a in docked_arms(cfg.cart, centre, row):
+        suj = CARTS[cfg.cart.model][a.arm]
+        holder = camera_arm_of(cfg) if a.arm == "ECM" else instrument_of(cfg)
+        base_patient = np.linalg.inv(patient) @ a.base
+        arms.append({
+            "name": a.arm, "suj": cfg.cart.model,
+            "suj_joints": list(a.joints) if a.joints else None,
+            "suj_least_range_margin": a.margin, "suj_tightest_joint": a.tightest or None, "note": a.note or None,
+            "world_origin_to_suj": _matrix(suj.world_to_suj), "suj_tip_to_tool_origin": _matrix(suj.tip_to_tool),
+            "port_mm": [float(v) * 1000 for v in a.port_m],
+            "base_in_cart": _matrix(a.base),
+            "arm": holder.name,
+            "arm_joints_at_target_centre": arm_joints_at_centre(holder, base_patient, centre),
+        })
+    out = {"format": DVRK_FORMAT, "run_key": row.get("run_key"), "design_id": row["design_id"],
+           "units": "metres and radians (the SUJ column in metres); port_mm in millimetres, in the patient's frame "
+                    "(x lateral, the patient's left +x; y cranial; z anterior; origin on the table top)",
+           "cart": {"model": cfg.cart.model, "x_mm": row["cart_x_mm"], "y_mm": row["cart_y_mm"],
+                    "heading_deg": row["cart_heading_deg"], "table_height_mm": cfg.cart.table_height_mm,
+                    "trendelenburg_deg": cfg.cart.trendelenburg_deg, "lateral_tilt_deg": cfg.cart.lateral_tilt_deg},
+           "cart_to_patient": _matrix(patient), "arms": arms}
+    return json.dumps(out, indent=1) + "\n"

@@ -1,0 +1,126 @@
+"""port-place with the patient cart (issue 40): which layouts the Classic cart's setup joints can dock, the rows'
+cart pose and the docking reason, the first-dock kernel against a numpy search over the poses, a mirror-symmetric
+patient with the cart on the midline, and the dvrk export, whose setup joints the reference forward kinematics
+(tests/reference.py, typed from the dVRK's files apart from the package) carry onto each port."""
+import json
+import math
+
+import numpy as np
+import pytest
+
+from surgopt.kinematics import port_designs as D
+from surgopt.kinematics.port_place import DOCKING
+from surgopt.studies.port_place import config as C
+from surgopt.studies.port_place import study as S
+from surgopt.studies.port_place import tables as T
+
+from conftest import cli
+from reference import suj_forward_reference
+
+SMALL = {"patient": {"port_region": {"site_spacing_mm": 36.0}}, "target": {"spacing_mm": 15.0}}
+MIDLINE = {**SMALL, "cart": {"model": "classic", "pose": "given", "x_mm": 0.0, "y_mm": -1500.0, "heading_deg": 0.0}}
+GRID = {**SMALL, "cart": {"model": "classic", "around_step_deg": 30.0, "distance_step_mm": 300.0}}
+#: The dVRK documentation's quoted Classic PSM SUJ ranges (deg; the column's in m is an assumption): j1 .. j5.
+QUOTED = {"PSM1": [(-90, 90), (-135, 0), (-90, 90), (-135, 135), (-135, 135)],
+          "PSM2": [(-90, 90), (0, 135), (-90, 90), (-135, 135), (-135, 135)]}
+
+
+def test_first_dock_is_the_lowest_pose_where_every_arm_docks():
+    """The kernel's first cart pose against a numpy search over random dock tables of 70 poses (two words): the
+    lowest pose at which PSM1 and PSM2 dock on the pair's ports (either way round; the straight assignment
+    preferred), PSM3 on the third and the ECM on the camera's; -1 when none (the premises: both outcomes, and
+    a swapped one, occur)."""
+    rng = np.random.default_rng(40)
+    n, m = 6, 70
+    ok = rng.random((3, n, m)) < 0.25
+    cam = rng.random((n, m)) < 0.6
+    bits, cam_bits = T.pack_bits(ok), T.pack_bits(cam)
+    seen = {"none": 0, "swapped": 0, "straight": 0}
+    for i in range(n):
+        for j in range(i + 1, n):
+            for l in (-1, *range(n)):
+                for k in range(n):
+                    if len({i, j, k, l}) < (4 if l >= 0 else 3):
+                        continue
+                    third = ok[2, l] if l >= 0 else np.ones(m, bool)
+                    straight = ok[0, i] & ok[1, j] & third & cam[k]
+                    crossed = ok[0, j] & ok[1, i] & third & cam[k]
+                    either = np.flatnonzero(straight | crossed)
+                    want = (int(either[0]), 0 if straight[either[0]] else 1) if len(either) else (-1, 0)
+                    assert D.first_dock(bits, cam_bits, i, j, l, k) == want
+                    seen["none" if want[0] < 0 else ("swapped" if want[1] else "straight")] += 1
+    assert min(seen.values()) > 0
+
+
+def test_with_the_cart_on_the_midline_every_dockable_layout_has_its_mirror_twin():
+    """A mirror-symmetric patient with the cart at its feet on the midline: PSM1 docks at a site exactly where
+    PSM2 docks at its mirror image, so every layout's mirror twin docks too, with PSM1 and PSM2 exchanged, and
+    costs the same: the optimum is mirror-symmetric. Premises: some layouts fail on docking alone, some dock."""
+    cfg = C.PortPlaceConfig.model_validate(MIDLINE)
+    model = T.model_of(cfg)
+    sites = model.sites_m * 1000
+    mirror = np.array([int(np.flatnonzero(np.all(np.isclose(sites, s * [-1, 1, 1]), axis=1))[0]) for s in sites])
+    ok = model.dock.margin[:, :, 0] >= 0
+    assert np.array_equal(ok[0], ok[1][mirror]) and 0 < ok[0].sum() < len(sites)
+    cols = S.compute_task(cfg, S.n_total(cfg), 0)
+    assert 0 < np.count_nonzero(cols["infeasible"] == DOCKING) and np.count_nonzero(cols["cart_pose"] == 0) > 0
+    key = {(a, b, c): r for r, (a, b, c) in enumerate(zip(cols["psm1_site"], cols["psm2_site"], cols["ecm_site"]))}
+    for r in np.flatnonzero(cols["feasible"]):
+        twin = key[(mirror[cols["psm2_site"][r]], mirror[cols["psm1_site"][r]], mirror[cols["ecm_site"][r]])]
+        assert cols["feasible"][twin] and cols["cost"][twin] == pytest.approx(cols["cost"][r], rel=1e-9, abs=1e-12)
+
+
+def _docking_frame(site_m, centre_m):
+    """The docking frame written from its definition: z from the centre to the port, x the patient's lateral
+    axis made orthogonal to it, y = z x x."""
+    z = (site_m - centre_m) / np.linalg.norm(site_m - centre_m)
+    x = np.array([1.0, 0.0, 0.0]) - z[0] * z
+    x /= np.linalg.norm(x)
+    return np.column_stack([x, np.cross(z, x), z])
+
+
+def test_the_dvrk_export_puts_each_psm_rcm_on_its_port_by_the_reference_kinematics(tmp_path):
+    """The CLI on a small config with a grid of cart poses: its closing report names the cart pose and the setup
+    joints; the best layout's ``--format dvrk`` export, its SUJ joints carried through the reference forward
+    kinematics (world -> SUJ, the DH products, SUJ tip -> tool), lands each PSM's RCM frame on its port, docked
+    toward the target's centre (1e-9 m, 1e-9), within the quoted ranges; the arm's own joints at the centre are
+    the neutral shaft (yaw = pitch = 0) inserted to the centre. A run without the cart, or an undockable design,
+    is refused in one line."""
+    (tmp_path / "c.toml").write_text(
+        "[patient.port_region]\nsite_spacing_mm = 36.0\n[target]\nspacing_mm = 15.0\n"
+        "[cart]\nmodel = \"classic\"\naround_step_deg = 30.0\ndistance_step_mm = 300.0\n")
+    r = cli("port-place", "c.toml", "--store", tmp_path / "s", cwd=tmp_path)
+    assert "classic cart" in r.stdout and "setup joints" in r.stdout and "PSM1" in r.stdout
+    best = int(r.stdout.split("best_design_id")[1].split()[1])
+    r = cli("export", "latest", "--store", tmp_path / "s", "--design", str(best), "--format", "dvrk", "--out",
+            tmp_path / "setup.json", cwd=tmp_path)
+    setup = json.loads((tmp_path / "setup.json").read_text())
+    patient = np.array(setup["cart_to_patient"])
+    centre = np.array(C.Target().centre_mm) / 1000
+    names = [a["name"] for a in setup["arms"]]
+    assert names == ["PSM1", "PSM2", "ECM"] and setup["arms"][2]["suj_joints"] is None
+    for arm in setup["arms"][:2]:
+        q = arm["suj_joints"]
+        base = suj_forward_reference("classic", arm["name"], q)
+        port = np.array(arm["port_mm"]) / 1000
+        want = patient @ np.vstack([np.column_stack([_docking_frame(port, centre), port]), [0, 0, 0, 1]])
+        np.testing.assert_allclose(base, want, atol=1e-9)
+        for v, (lo, hi) in zip(q[1:], QUOTED[arm["name"]]):
+            assert math.radians(lo) <= v <= math.radians(hi)
+        yaw, pitch, insertion = arm["arm_joints_at_target_centre"]
+        assert abs(yaw) < 1e-9 and abs(pitch) < 1e-9
+        assert insertion == pytest.approx(np.linalg.norm(port - centre) + 0.0156, abs=1e-9)
+    rows = cli("export", "latest", "--store", tmp_path / "s", "--format", "csv", cwd=tmp_path).stdout.splitlines()
+    header = rows[0].split(",")
+    pose, design = header.index("cart_pose"), header.index("design_id")
+    undockable = [line.split(",")[design] for line in rows[1:] if line.split(",")[pose] == "-1"]
+    assert undockable  # the premise: some layouts no cart pose docks
+    bad = cli("export", "latest", "--store", tmp_path / "s", "--design", undockable[0], "--format", "dvrk",
+              cwd=tmp_path, check=False)
+    assert bad.returncode == 2 and "not dockable" in bad.stderr and len(bad.stderr.strip().splitlines()) == 1
+    plain = tmp_path / "p.toml"
+    plain.write_text("[patient.port_region]\nsite_spacing_mm = 72.0\n[target]\nspacing_mm = 20.0\n")
+    cli("port-place", "p.toml", "--store", tmp_path / "s2", cwd=tmp_path)
+    bad = cli("export", "latest", "--store", tmp_path / "s2", "--design", "0", "--format", "dvrk", cwd=tmp_path,
+              check=False)
+    assert bad.returncode == 2 and "no cart" in bad.stderr
