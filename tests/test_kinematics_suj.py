@@ -105,3 +105,31 @@ def test_poses_the_suj_cannot_reach_are_refused_with_the_reason():
     tilt[:3, :3] = [[1, 0, 0], [0, math.cos(0.1), -math.sin(0.1)], [0, math.sin(0.1), math.cos(0.1)]]
     answer = K.si_ik(si, pose @ tilt)
     assert not answer.within and "tilted 5.73 deg" in answer.reason
+
+
+def test_the_classic_ecm_docks_with_its_own_yaw_and_pitch_aiming_the_scope():
+    """S4 on random bases around the files' sample ECM pose, aiming roughly down and forward: every docked
+    solution's SUJ joints, through the reference forward kinematics, put the RCM on its origin (1e-9 m) and the
+    scope's aim, in that base frame, at the returned yaw and pitch, within the ECM's ranges; its margin is the
+    least of the SUJ's and the ECM's. Premises: most dock, some do not."""
+    from surgopt.robots.models import get_model
+
+    suj, ecm = D.CLASSIC["ECM"], get_model("dvrk_ecm_classic")
+    centre = K.forward(suj, D.SAMPLE_JOINTS[("classic", "ECM")])[:3, 3]
+    origins = centre + RNG.uniform(-0.25, 0.25, (60, 3))
+    aims = np.array([0.0, 0.3, -1.0]) + RNG.uniform(-0.6, 0.6, (60, 3))
+    aims /= np.linalg.norm(aims, axis=1)[:, None]
+    margin, joints, aim = K.ecm_classic_dock(suj, ecm.yaw_limits_rad, ecm.pitch_limits_rad, origins, aims)
+    docked = np.flatnonzero(margin >= 0)
+    assert 30 < len(docked) < 60
+    for i in docked:
+        base = suj_forward_reference("classic", "ECM", joints[i])
+        np.testing.assert_allclose(base[:3, 3], origins[i], atol=1e-9)
+        u = base[:3, :3].T @ aims[i]
+        yaw, pitch = math.atan2(u[0], -u[2]), -math.asin(u[1])
+        assert (yaw, pitch) == pytest.approx(tuple(aim[i]), abs=1e-9)
+        want = min(yaw - ecm.yaw_limits_rad[0], ecm.yaw_limits_rad[1] - yaw, pitch - ecm.pitch_limits_rad[0],
+                   ecm.pitch_limits_rad[1] - pitch,
+                   *(min(K.wrap(v) - lo, hi - K.wrap(v)) if k else min(v - lo, hi - v)
+                     for k, (v, (lo, hi)) in enumerate(zip(joints[i], suj.ranges))))
+        assert margin[i] == pytest.approx(want, abs=1e-9)

@@ -213,3 +213,94 @@ def si_ik(suj, pose: np.ndarray, tolerance_rad: float = 1e-9) -> SujAnswer:
         return SujAnswer((), (), f"{suj.cart} {suj.arm} SUJ: the Si sets only the base's yaw; this docking is "
                                  f"tilted {off:.2f} deg off the orientations it can give")
     return _answer(suj, _planar_ik(suj, h[0, 3], h[1, 3], h[2, 3], math.atan2(h[1, 0], h[0, 0])))
+
+
+def _rz(a: np.ndarray) -> np.ndarray:
+    """Rotations about z by each angle of ``a`` (..., 3, 3)."""
+    c, s = np.cos(a), np.sin(a)
+    z, o = np.zeros_like(a), np.ones_like(a)
+    return np.stack([np.stack([c, -s, z], -1), np.stack([s, c, z], -1), np.stack([z, z, o], -1)], -2)
+
+
+def ecm_classic_dock(suj, yaw_rad: tuple, pitch_rad: tuple, origins: np.ndarray, aims: np.ndarray,
+                     psi_steps: int = 36, aim_steps: int = 36, q4_steps: int = 12):
+    """(S4) The Classic ECM's setup joints for an endoscope base at each of ``origins`` (n, 3: the RCM, at its
+    port, in the cart's world frame) whose own yaw and pitch (within ``yaw_rad``, ``pitch_rad``) aim its shaft
+    along ``aims`` (n, 3, unit: port to the target's centre).
+
+    The ECM's SUJ ends in two parallel joints about an axis alpha_4 = -0.7853 rad off the vertical, so its base's
+    z axis is always tilted |alpha_4| from the vertical at the planar chain's heading psi, and turned about
+    itself by sigma = theta4 + theta5: the base orientation is Rz(psi) Rx(alpha_4) Rz(sigma) R_tip. In the base
+    frame the aim u = R^T d has u_z fixed by psi and its horizontal part turned by sigma, so the aim is a choice
+    of the angle phi of that part: the shaft's pitch -asin(u_y) and yaw atan2(u_x, -u_z) must lie in their
+    ranges. The base's origin adds Rz(psi) Rx(alpha_4) (Rz(theta4) (A_5, 0, 0) + Rz(sigma) p_tip) to the planar
+    chain's end, whose two elbows and column follow (S2's planar inverse). Searched on a grid of psi
+    (``psi_steps``), phi (``aim_steps``) and theta4 (``q4_steps``); returns per origin (least margin, or -inf where
+    no grid point docks; SUJ joints (6,), ECM yaw and pitch (2,)) of the grid point with the largest least margin
+    (rad; the column's in m) over the SUJ's ranges and the ECM's yaw and pitch ranges."""
+    col, j1, j2, j3, j4, j5 = suj.links
+    w = np.asarray(suj.world_to_suj, float)
+    tip = np.asarray(suj.tip_to_tool, float)
+    p_tip = tip[:3, 3]
+    tip_angle = math.atan2(tip[1, 0], tip[0, 0])  # R_tip = Rz(tip_angle)
+    a4 = j4.alpha_rad
+    n = len(origins)
+    o = (origins - w[:3, 3]) @ w[:3, :3]  # in the SUJ's base frame
+    d = aims @ w[:3, :3]
+    psi = np.linspace(-math.pi, math.pi, psi_steps, endpoint=False)
+    # v = Rx(-a4) Rz(-psi) d: (n, P, 3)
+    dz = np.einsum("pij,nj->npi", _rz(-psi), d)
+    ca, sa = math.cos(a4), math.sin(a4)
+    v = np.stack([dz[..., 0], ca * dz[..., 1] + sa * dz[..., 2], -sa * dz[..., 1] + ca * dz[..., 2]], -1)
+    uz = v[..., 2]
+    r = np.sqrt(np.maximum(0.0, 1.0 - uz * uz))
+    phi = np.linspace(-math.pi, math.pi, aim_steps, endpoint=False)
+    ux, uy = r[..., None] * np.cos(phi), r[..., None] * np.sin(phi)  # (n, P, F)
+    pitch = -np.arcsin(np.clip(uy, -1.0, 1.0))
+    yaw = np.arctan2(ux, -uz[..., None])
+    aim_margin = np.minimum.reduce([yaw - yaw_rad[0], yaw_rad[1] - yaw, pitch - pitch_rad[0], pitch_rad[1] - pitch])
+    best_phi = aim_margin.argmax(axis=2)  # (n, P)
+    aim = np.take_along_axis(aim_margin, best_phi[..., None], 2)[..., 0]
+    # u_xy = Rz(-sigma - tip_angle) v_xy  ->  phi = angle(v_xy) - sigma - tip_angle
+    sigma = np.arctan2(v[..., 1], v[..., 0]) - phi[best_phi] - tip_angle
+    q4 = np.linspace(-math.pi, math.pi, q4_steps, endpoint=False)
+    th4 = q4 + j4.theta_offset_rad
+    # offset of the base's origin from the planar chain's end: Rz(psi) Rx(a4) (Rz(th4) (A5, 0, 0) + Rz(sigma) p_tip)
+    inner = (np.stack([np.cos(th4), np.sin(th4), np.zeros_like(th4)], -1)[None, None] * j5.a_m
+             + np.einsum("npij,j->npi", _rz(sigma), p_tip)[:, :, None, :])  # (n, P, Q, 3)
+    rx = np.array([[1.0, 0.0, 0.0], [0.0, ca, -sa], [0.0, sa, ca]])
+    off = np.einsum("pij,npqj->npqi", _rz(psi), inner @ rx.T)
+    end = o[:, None, None, :] - off  # the planar chain's end (n, P, Q, 3)
+    a_c, l2, l3 = col.a_m, j2.a_m, j3.a_m
+    x, y = end[..., 0] - a_c, end[..., 1]
+    c2 = (x * x + y * y - l2 * l2 - l3 * l3) / (2 * l2 * l3)
+    reach = np.abs(c2) <= 1.0
+    c2 = np.clip(c2, -1.0, 1.0)
+    column = end[..., 2] - col.d_m - j1.d_m - j2.d_m - j3.d_m
+    best = np.full(n, -np.inf)
+    joints = np.full((n, 6), np.nan)
+    ecm = np.full((n, 2), np.nan)
+    lim = suj.ranges
+    for sign in (1.0, -1.0):
+        s2 = sign * np.sqrt(1.0 - c2 * c2)
+        t2 = np.arctan2(s2, c2)
+        t1 = np.arctan2(y, x) - np.arctan2(l3 * s2, l2 + l3 * c2)
+        qs = [column, t1 - j1.theta_offset_rad, t2 - j2.theta_offset_rad,
+              psi[None, :, None] - t1 - t2 - j3.theta_offset_rad, np.broadcast_to(q4, column.shape),
+              sigma[:, :, None] - th4 - j5.theta_offset_rad]
+        qs = [qs[0]] + [np.remainder(q + math.pi, 2 * math.pi) - math.pi for q in qs[1:]]
+        margin = np.minimum.reduce([np.minimum(q - lo, hi - q) for q, (lo, hi) in zip(qs, lim)])
+        margin = np.where(reach, np.minimum(margin, aim[:, :, None]), -np.inf)
+        flat = margin.reshape(n, -1)
+        k = flat.argmax(axis=1)
+        better = flat[np.arange(n), k] > best
+        if better.any():
+            ip, iq = np.unravel_index(k, margin.shape[1:])
+            rows = np.flatnonzero(better)
+            best[rows] = flat[rows, k[rows]]
+            joints[rows] = np.stack([q[rows, ip[rows], iq[rows]] for q in qs], -1)
+            f = phi[best_phi[rows, ip[rows]]]
+            uxy = r[rows, ip[rows]]
+            u = np.stack([uxy * np.cos(f), uxy * np.sin(f), uz[rows, ip[rows]]], -1)
+            ecm[rows] = np.stack([np.arctan2(u[:, 0], -u[:, 2]), -np.arcsin(np.clip(u[:, 1], -1, 1))], -1)
+    return best, joints, ecm

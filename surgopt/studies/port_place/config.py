@@ -279,11 +279,11 @@ class Objective(StrictModel):
 class Cart(StrictModel):
     """The dVRK patient cart (issue 40): its setup joints (``robots/dvrk_suj.py``) must put each arm's base at its
     port, docked as the rows assume (the neutral shaft through the target's centre). "none": docking is assumed,
-    as before the cart was modelled. "classic": the Classic cart; PSM1's and PSM2's (and PSM3's) setup joints are
-    solved for each port and cart pose (``kinematics.suj``), and a layout is dockable when at one cart pose every
-    instrument arm's SUJ has a solution within its ranges (PSM1 and PSM2 on either of the pair's ports). The ECM's
-    setup joints are not checked yet (their inverse is not in), and neither are the arms' links against each
-    other: a dockable layout is one the instrument arms' SUJs can reach.
+    as before the cart was modelled. "classic": the Classic cart; every arm's setup joints are solved for each port
+    and cart pose (``kinematics.suj``: the PSMs' docked toward the target's centre, the ECM's with its own yaw and
+    pitch aiming the scope), and a layout is dockable when at one cart pose every arm's SUJ has a solution within
+    its ranges (PSM1 and PSM2 on either of the pair's ports). The arms' links are not checked against each other
+    yet: a dockable layout is one the setup joints can reach.
 
     The cart stands on the floor (its world frame's origin and heading, in the patient's floor frame: x lateral,
     y cranial, mm; heading 0 = its arms reach toward +y, the patient's head) at a ``given`` pose or at each pose

@@ -20,7 +20,7 @@ def _matrix(t) -> list:
 
 
 def arm_joints_at_centre(arm, base_in_patient: np.ndarray, centre_m: np.ndarray) -> list[float]:
-    """The arm's yaw, pitch (rad) and insertion (m) that put its reaching point on the target's centre
+    """An instrument arm's yaw, pitch (rad) and insertion (m) that put its reaching point on the target's centre
     (``kinematics.port_place.rcm_inverse``, eq. P2, in its base frame)."""
     from surgopt.kinematics.port_place import rcm_inverse
 
@@ -45,19 +45,24 @@ def dvrk_setup(cfg: PortPlaceConfig, row: dict) -> str:
     centre = np.asarray(cfg.target.centre_mm, float) / 1000
     patient = patient_in_cart(cfg.cart, row["cart_x_mm"], row["cart_y_mm"], row["cart_heading_deg"])
     arms = []
-    for a in docked_arms(cfg.cart, centre, row):
+    for a in docked_arms(cfg, row):
         suj = CARTS[cfg.cart.model][a.arm]
         holder = camera_arm_of(cfg) if a.arm == "ECM" else instrument_of(cfg)
-        base_patient = np.linalg.inv(patient) @ a.base
+        port = np.asarray(a.port_m)
+        if a.arm == "ECM":  # its own yaw and pitch aim the scope; inserted to the standoff before the centre
+            inserted = float(np.linalg.norm(centre - port)) - cfg.robot.camera_standoff_mm / 1000
+            joints = [*a.ecm, inserted - holder.along_shaft_m] if a.ecm else None
+        else:
+            joints = arm_joints_at_centre(holder, np.linalg.inv(patient) @ a.base, centre)
         arms.append({
             "name": a.arm, "suj": cfg.cart.model,
             "suj_joints": list(a.joints) if a.joints else None,
             "suj_least_range_margin": a.margin, "suj_tightest_joint": a.tightest or None, "note": a.note or None,
             "world_origin_to_suj": _matrix(suj.world_to_suj), "suj_tip_to_tool_origin": _matrix(suj.tip_to_tool),
-            "port_mm": [float(v) * 1000 for v in a.port_m],
-            "base_in_cart": _matrix(a.base),
+            "port_mm": [float(v) * 1000 for v in port],
+            "base_in_cart": None if a.base is None else _matrix(a.base),
             "arm": holder.name,
-            "arm_joints_at_target_centre": arm_joints_at_centre(holder, base_patient, centre),
+            "arm_joints_at_target_centre": joints,
         })
     out = {"format": DVRK_FORMAT, "run_key": row.get("run_key"), "design_id": row["design_id"],
            "units": "metres and radians (the SUJ column in metres); port_mm in millimetres, in the patient's frame "

@@ -28,7 +28,7 @@ import numpy as np
 from surgopt.robots import dvrk
 from surgopt.studies import Estimate, Study, Summary, figures_in, html_views_in, peak_bytes
 from surgopt.parts import concat_rows
-from surgopt.studies.port_place.config import OBJECTIVE, PortPlaceConfig, Target, camera_arm_of, instrument_of
+from surgopt.studies.port_place.config import OBJECTIVE, PortPlaceConfig, camera_arm_of, instrument_of
 from surgopt.studies.port_place.geometry import sites_mm, target_points_mm
 from surgopt.studies.port_place.tables import LATERAL, model_of, port_tables
 
@@ -173,16 +173,13 @@ def _stored_metadata(config) -> dict | None:
 
 
 def cart_metadata(config) -> dict | None:
-    """The cart's settings and the target's centre (what its setup joints' docking is solved from), as the rows'
-    schema metadata: the summary finds the best layout's SUJ joints from them and the row."""
+    """With the cart: the run's config (as stored) in the rows' schema metadata, so that the summary can solve the
+    best layout's setup joints again from its row."""
     import json
 
     if cart_of(config) == "none":
         return None
-    cart = config["cart"] if isinstance(config, dict) else config.cart.model_dump(mode="json")
-    target = config.get("target", {}) if isinstance(config, dict) else config.target.model_dump(mode="json")
-    centre = target.get("centre_mm", Target().centre_mm)
-    return {"cart": json.dumps(cart), "target_centre_mm": json.dumps(list(centre))}
+    return {"config": json.dumps(config if isinstance(config, dict) else config.model_dump(mode="json"))}
 
 
 def _feasible_metadata(config) -> dict:
@@ -464,6 +461,9 @@ NS_PER_PAIR_POINT = 300.0
 #: One setup joint's inverse kinematics (``kinematics.suj.classic_psm_ik``, plain Python): ~118 us measured
 #: (2,000 calls), 5.4 s for the default's 164 sites x 150 cart poses x 2 arms.
 NS_PER_SUJ_SOLVE = 120_000.0
+#: The ECM's setup joints at one site and cart pose (``kinematics.suj.ecm_classic_dock``'s grid of 36 x 36 x 12,
+#: numpy over a pose's sites): ~0.3 ms measured (7 s for the default's 164 x 150).
+NS_PER_ECM_DOCK = 300_000.0
 
 
 #: A searched design (its three ports' tables of its own): ~0.43 ms at 915 target points (measured, one core).
@@ -499,7 +499,7 @@ def estimate(cfg) -> Estimate:
     if cfg.cart.model != "none":  # each instrument arm's setup joints at each site and cart pose
         from surgopt.studies.port_place.tables import cart_poses
 
-        seconds += n * len(cart_poses(cfg).floor) * arms * NS_PER_SUJ_SOLVE * 1e-9
+        seconds += n * len(cart_poses(cfg).floor) * (arms * NS_PER_SUJ_SOLVE + NS_PER_ECM_DOCK) * 1e-9
     row = ROW_BYTES if arms == 2 else ROW_BYTES_3
     working = n * n * 8 * 12 + n * m * 9 + LIBRARY_BYTES
     if cfg.rows_stored == "feasible":  # at most every design feasible: 8 bytes of each stored row in the parent
@@ -606,20 +606,23 @@ def dvrk_export(cfg, row: dict) -> str:
 
 def docking_tables(best: dict, meta: dict) -> list:
     """The best layout's cart pose and each arm's setup joints there (solved again from the row's ports and
-    pose, and the cart's settings in the rows' metadata)."""
+    pose, and the run's config in the rows' metadata)."""
     import json
 
-    from surgopt.studies.port_place.config import Cart
     from surgopt.studies.port_place.tables import docked_arms
 
-    cart = Cart.model_validate(json.loads(meta["cart"]))
-    centre = np.asarray(json.loads(meta["target_centre_mm"]), float) / 1000
+    try:  # as stored: its files are not read and hashed again
+        cfg = PortPlaceConfig.model_validate(json.loads(meta["config"]), context={"stored": True})
+    except (ValueError, OSError, KeyError) as exc:
+        return [("best layout: the cart", ["note"], [[f"the run's config cannot be read again ({exc}); the cart "
+                                                       f"pose is in the row's cart_* columns"]])]
     pose = [[f"{best['cart_x_mm']:.0f}", f"{best['cart_y_mm']:.0f}", f"{best['cart_heading_deg']:.1f}",
              str(best["cart_pose"])]]
-    arms = docked_arms(cart, centre, best)
     rows = [[a.arm, a.site, " ".join(f"{v:.4f}" for v in a.joints) if a.joints else "-",
-             "-" if a.margin is None else f"{a.margin:.3f} ({a.tightest})", a.note] for a in arms]
-    return [(f"best layout: the {cart.model} cart (origin on the floor, patient frame; heading from +y toward +x)",
+             "-" if a.margin is None else f"{a.margin:.3f}" + (f" ({a.tightest})" if a.tightest else ""),
+             a.note or (f"ECM yaw {math.degrees(a.ecm[0]):.1f}, pitch {math.degrees(a.ecm[1]):.1f} deg" if a.ecm
+                        else "")] for a in docked_arms(cfg, best)]
+    return [(f"best layout: the {cfg.cart.model} cart (origin on the floor, patient frame; heading from +y toward +x)",
              ["x_mm", "y_mm", "heading_deg", "grid pose"], pose),
             ("best layout: setup joints (column m, then rad, the dVRK's simulated_position order)",
              ["arm", "port", "suj_joints", "least range margin", "note"], rows)]

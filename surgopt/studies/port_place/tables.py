@@ -363,12 +363,13 @@ INSTRUMENT_SUJS = ("PSM1", "PSM2", "PSM3")
 class DockTables(NamedTuple):
     """Which setup joint docks which arm at which site: ``bits`` (arms, sites, words) uint64, bit p of a site's
     words set when that arm's SUJ has a solution within its ranges at cart pose p (PSM1, PSM2, PSM3); ``camera``
-    (sites, words): the ECM's (every pose: not checked yet); ``margin`` (arms, sites, poses) the best solution's
-    least range margin there (rad or m; -inf: none in reach); the poses."""
+    (sites, words): the ECM's; ``margin`` (arms, sites, poses) and ``camera_margin`` (sites, poses): the best
+    solution's least range margin there (rad or m; -inf: none in reach); the poses."""
 
     bits: np.ndarray
     camera: np.ndarray
     margin: np.ndarray
+    camera_margin: np.ndarray
     poses: CartPoses
 
 
@@ -397,14 +398,15 @@ def suj_answer(cfg: PortPlaceConfig, arm: str, rot: np.ndarray, site_m: np.ndarr
 
 
 def dock_tables(model: PortModel) -> DockTables:
-    """Every instrument arm's SUJ at every site and cart pose (``suj_answer``), as bits and margins; with no
-    cart, one pose at which everything docks."""
+    """Every arm's setup joints at every site and cart pose, as bits and margins: each instrument arm's
+    (``suj_answer``) and the ECM's (``camera_dock``); with no cart, one pose at which everything docks."""
     cfg = model.cfg
     n = len(model.sites_m)
     arms = INSTRUMENT_SUJS[:cfg.robot.instrument_count]
     if cfg.cart.model == "none":
         bits, camera = no_cart(n)
-        return DockTables(bits, camera, np.zeros((3, n, 1)), CartPoses(np.zeros((1, 3)), np.eye(4)[None]))
+        return DockTables(bits, camera, np.zeros((3, n, 1)), np.zeros((n, 1)), CartPoses(np.zeros((1, 3)),
+                                                                                        np.eye(4)[None]))
     poses = cart_poses(cfg)
     m = len(poses.floor)
     margin = np.full((3, n, m), -np.inf)
@@ -415,8 +417,36 @@ def dock_tables(model: PortModel) -> DockTables:
                 sols = answer.within + answer.outside
                 if sols:
                     margin[a, i, p] = sols[0].margin
-    bits = pack_bits(margin >= 0.0)
-    return DockTables(bits, pack_bits(np.ones((n, m), bool)), margin, poses)
+    camera = np.stack([camera_dock(cfg, poses.patient[p], model.sites_m)[0] for p in range(m)], axis=1)
+    return DockTables(pack_bits(margin >= 0.0), pack_bits(camera >= 0.0), margin, camera, poses)
+
+
+def camera_shafts(camera, centre_m: np.ndarray, sites_m: np.ndarray) -> np.ndarray:
+    """(n, 3) The endoscope's shaft direction at each port (patient frame): toward the target's centre, or an
+    angled scope's shaft (``camera_views``' tip)."""
+    from surgopt.kinematics import port_place as K
+
+    if camera.scope_angle_rad == 0.0:
+        d = centre_m - sites_m
+    else:
+        tips, _, _ = K.camera_views(sites_m, K.docking_frames(sites_m, centre_m, LATERAL), centre_m, camera)
+        d = tips - sites_m
+    return d / np.linalg.norm(d, axis=1)[:, None]
+
+
+def camera_dock(cfg: PortPlaceConfig, patient: np.ndarray, sites_m: np.ndarray):
+    """The ECM's setup joints at ports ``sites_m`` with the patient at ``patient`` in the cart's world frame
+    (``kinematics.suj.ecm_classic_dock``: its own yaw and pitch aim the scope's shaft): (margin, SUJ joints,
+    ECM yaw and pitch) per port."""
+    from surgopt.kinematics import suj as S
+    from surgopt.robots.dvrk_suj import CARTS
+
+    arm = camera_arm_of(cfg)
+    centre = np.asarray(cfg.target.centre_mm, float) / 1000
+    origins = sites_m @ patient[:3, :3].T + patient[:3, 3]
+    aims = camera_shafts(camera_of(cfg), centre, sites_m) @ patient[:3, :3].T
+    return S.ecm_classic_dock(CARTS[cfg.cart.model]["ECM"], arm.yaw_limits_rad, arm.pitch_limits_rad, origins,
+                              aims)
 
 
 class DockedArm(NamedTuple):
@@ -430,35 +460,44 @@ class DockedArm(NamedTuple):
     tightest: str  # the joint of that margin
     note: str
     port_m: tuple
-    base: np.ndarray
+    base: np.ndarray | None  # the arm's base (RCM) frame in the cart's world frame
+    ecm: tuple  # the ECM's yaw and pitch aiming the scope (empty for an instrument arm)
 
 
-def docked_arms(cart, centre_m: np.ndarray, row: dict) -> list[DockedArm]:
+def docked_arms(cfg: PortPlaceConfig, row: dict) -> list[DockedArm]:
     """Each arm of a layout's row (its ports, ``psm1_x_mm`` ..., and its cart pose, ``cart_x_mm`` ...) docked by
-    the cart's setup joints: the best solution within the ranges (the largest least margin). The ECM's setup
-    joints are not solved yet: its row says so."""
+    the cart's setup joints: the best solution within the ranges (the largest least margin); the ECM's with its
+    own yaw and pitch aiming the scope (``camera_dock``), in ``ecm``."""
     from surgopt.kinematics import port_place as K
     from surgopt.kinematics import suj as S
     from surgopt.robots.dvrk_suj import CARTS
 
+    cart = cfg.cart
+    centre = np.asarray(cfg.target.centre_mm, float) / 1000
     patient = patient_in_cart(cart, row["cart_x_mm"], row["cart_y_mm"], row["cart_heading_deg"])
     out = []
     for arm in ("psm1", "psm2", "psm3", "ecm"):
         if f"{arm}_site" not in row:
             continue
         site = np.array([row[f"{arm}_{c}_mm"] for c in "xyz"]) / 1000
-        rot = K.docking_frames(site[None], centre_m, LATERAL)[0]
-        base = patient @ base_pose(rot, site)
         if arm == "ecm":
-            out.append(DockedArm("ECM", str(row["ecm_site"]), (), None, "", "its setup joints are not solved yet",
-                                 tuple(site), base))
+            margin, joints, aim = camera_dock(cfg, patient, site[None])
+            if margin[0] >= 0:
+                base = S.forward(CARTS[cart.model]["ECM"], joints[0])
+                out.append(DockedArm("ECM", str(row["ecm_site"]), tuple(float(v) for v in joints[0]),
+                                     float(margin[0]), "", "", tuple(site), base, tuple(float(v) for v in aim[0])))
+            else:
+                out.append(DockedArm("ECM", str(row["ecm_site"]), (), None, "", "no grid point of the ECM's setup "
+                                     "joints docks it", tuple(site), None, ()))
             continue
+        rot = K.docking_frames(site[None], centre, LATERAL)[0]
+        base = patient @ base_pose(rot, site)
         answer = S.classic_psm_ik(CARTS[cart.model][arm.upper()], base)
         if answer.within:
             best = answer.within[0]
             out.append(DockedArm(arm.upper(), str(row[f"{arm}_site"]), best.joints, best.margin, best.tightest, "",
-                                 tuple(site), base))
+                                 tuple(site), base, ()))
         else:
             out.append(DockedArm(arm.upper(), str(row[f"{arm}_site"]), (), None, "", answer.reason, tuple(site),
-                                 base))
+                                 base, ()))
     return out
