@@ -54,6 +54,21 @@ def forward(suj, q) -> np.ndarray:
     return t @ np.asarray(suj.tip_to_tool, float)
 
 
+def frames(suj, q) -> np.ndarray:
+    """(k, 4, 4) The SUJ's frames from its base to the arm's base (RCM), in the cart's world frame: the SUJ's
+    base, after each link, and the tool origin (what a figure draws and a collision check reads)."""
+    t = np.asarray(suj.world_to_suj, float)
+    out = [t]
+    for row, v in zip(suj.links, q, strict=True):
+        t = t @ link(row, v)
+        out.append(t)
+    for row in suj.fixed:
+        t = t @ link(row, 0.0)
+        out.append(t)
+    out.append(t @ np.asarray(suj.tip_to_tool, float))
+    return np.array(out)
+
+
 class SujSolution(NamedTuple):
     """The SUJ's joints (m, rad) and the least margin to their ranges (m for the column, rad otherwise; negative:
     outside, by that much) with the joint it belongs to."""

@@ -145,6 +145,9 @@ def figures(cfg, table, out, design_id=None):
     paths.append(save(fig, out / "port_place_sites_top.png"))
 
     paths.append(reach_maps(plt, cfg, sites, port_tables, dex, out))
+    if cfg.cart.model != "none" and row is not None and c["cart_pose"][row] >= 0:
+        paths.append(cart_figure(plt, cfg, {k: (v[row].item() if hasattr(v[row], "item") else v[row])
+                                            for k, v in c.items()}, out))
 
     # why designs fail
     from surgopt.kinematics.port_place import REASONS
@@ -194,3 +197,50 @@ def reach_maps(plt, cfg, sites, t, dex, out):
     fig.suptitle(f"per-arm maps: {instrument_of(cfg).name} and {camera_arm_of(cfg).name} docked at each candidate "
                  f"site toward the target's centre", fontsize=9)
     return save(fig, out / "port_place_reach_top.png")
+
+
+def cart_figure(plt, cfg, row: dict, out):
+    """The layout on the cart, in the cart's world frame (m; the floor at z = 0): the patient's surface and the
+    table, each arm's setup joints as the polyline of their frames (base, each link, the arm's RCM), and each arm
+    from its RCM back along the shaft (the outside segment) and in to the target's centre."""
+    from surgopt.kinematics import suj as S
+    from surgopt.robots import dvrk
+    from surgopt.robots.dvrk_suj import CARTS
+    from surgopt.studies.port_place.geometry import body_extent_mm, dome_surface_mm
+    from surgopt.studies.port_place.tables import docked_arms, patient_in_cart
+
+    patient = patient_in_cart(cfg.cart, row["cart_x_mm"], row["cart_y_mm"], row["cart_heading_deg"])
+    to_cart = lambda p: p @ patient[:3, :3].T + patient[:3, 3]  # noqa: E731 - patient (m) -> cart world (m)
+    fig = plt.figure(figsize=(8.0, 6.6))
+    ax = fig.add_subplot(projection="3d")
+    a, b, h = body_extent_mm(cfg.patient)
+    if cfg.patient.shape == "dome":
+        u, v = np.meshgrid(np.linspace(0, 2 * np.pi, 37), np.linspace(0, np.pi / 2, 10))
+        x, y, z = dome_surface_mm((a, b, h), cfg.patient.dome_exponent, u, v)
+        pts = to_cart(np.stack([x, y, z], -1).reshape(-1, 3) / 1000).reshape(x.shape + (3,))
+        ax.plot_wireframe(pts[..., 0], pts[..., 1], pts[..., 2], color="0.75", lw=0.4)
+    w, (y0, y1) = cfg.cart.table_half_width_mm / 1000, (v / 1000 for v in cfg.cart.table_y_mm)
+    table = to_cart(np.array([[-w, y0, 0], [w, y0, 0], [w, y1, 0], [-w, y1, 0], [-w, y0, 0]]))
+    ax.plot(*table.T, color="0.5", lw=1, label="table top")
+    centre = to_cart(np.asarray(cfg.target.centre_mm, float) / 1000)
+    ax.scatter(*centre, color="k", s=20, label="target centre")
+    for arm, colour in zip(docked_arms(cfg, row), ("C0", "C1", "C2", "C3")):
+        if not arm.joints:
+            continue
+        f = S.frames(CARTS[cfg.cart.model][arm.arm], arm.joints)
+        ax.plot(*f[:, :3, 3].T, color=colour, lw=2.5, marker="o", ms=3, label=f"{arm.arm} setup joints")
+        rcm = f[-1, :3, 3]
+        behind = rcm + f[-1, :3, :3] @ np.array([0.0, 0.0, dvrk.OUTSIDE_LENGTH_M])
+        shaft = np.stack([behind, rcm, centre])
+        ax.plot(*shaft.T, color=colour, lw=1.2, ls="--")
+    ax.plot([0], [0], [0], "ks", ms=8, label="cart origin")
+    ax.set_xlabel("x (m)")
+    ax.set_ylabel("y, the cart's forward (m)")
+    ax.set_zlabel("z up (m)")
+    lims = np.array([ax.get_xlim3d(), ax.get_ylim3d(), ax.get_zlim3d()])
+    ax.set_box_aspect(lims[:, 1] - lims[:, 0])
+    ax.view_init(elev=22, azim=-60)
+    ax.set_title(f"design {row['design_id']} on the {cfg.cart.model} cart: origin ({row['cart_x_mm']:.0f}, "
+                 f"{row['cart_y_mm']:.0f}) mm, heading {row['cart_heading_deg']:.0f} deg (patient frame)", fontsize=9)
+    ax.legend(fontsize=7, loc="upper left")
+    return save(fig, out / "port_place_cart_3d.png")

@@ -519,8 +519,11 @@ def top_columns(config) -> list[str]:
 
 
 def figure_columns(config) -> list[str]:
-    """What the grid's figures read: the ports, the cost and the feasibility (not the ~40 other columns)."""
-    return ["design_id", *(f"{arm}_site" for arm in arms_of(config)), "cost", "feasible", "infeasible"]
+    """What the grid's figures read: the ports, the cost and the feasibility (not the ~40 other columns); with the
+    cart, its pose and the ports' positions (the cart figure solves the setup joints again from them)."""
+    arms = arms_of(config)
+    cart = [*CART_COLUMNS, *(f"{arm}_{c}_mm" for arm in arms for c in "xyz")] if cart_of(config) != "none" else []
+    return ["design_id", *(f"{arm}_site" for arm in arms), "cost", "feasible", "infeasible", *cart]
 
 
 def feasible_mask(table):
