@@ -269,53 +269,63 @@ def ecm_classic_dock(suj, yaw_rad: tuple, pitch_rad: tuple, origins: np.ndarray,
     v = np.stack([dz[..., 0], ca * dz[..., 1] + sa * dz[..., 2], -sa * dz[..., 1] + ca * dz[..., 2]], -1)
     uz = v[..., 2]
     r = np.sqrt(np.maximum(0.0, 1.0 - uz * uz))
-    phi = np.linspace(-math.pi, math.pi, aim_steps, endpoint=False)
-    ux, uy = r[..., None] * np.cos(phi), r[..., None] * np.sin(phi)  # (n, P, F)
+    # the aim's grid k * step, k = -F/2 .. F/2 - 1 (F even: each aim's twin pi - phi is on it, below)
+    if aim_steps % 2:
+        raise ValueError(f"aim_steps must be even, not {aim_steps}")
+    phi = (2 * math.pi / aim_steps) * np.arange(-(aim_steps // 2), aim_steps - aim_steps // 2)
+    cos_phi, sin_phi = np.cos(np.abs(phi)), np.copysign(np.sin(np.abs(phi)), phi)
+    ux, uy = r[..., None] * cos_phi, r[..., None] * sin_phi  # (n, P, F)
     pitch = -np.arcsin(np.clip(uy, -1.0, 1.0))
     yaw = np.arctan2(ux, -uz[..., None])
     aim_margin = np.minimum.reduce([yaw - yaw_rad[0], yaw_rad[1] - yaw, pitch - pitch_rad[0], pitch_rad[1] - pitch])
-    best_phi = aim_margin.argmax(axis=2)  # (n, P)
-    aim = np.take_along_axis(aim_margin, best_phi[..., None], 2)[..., 0]
-    # u_xy = Rz(-sigma - tip_angle) v_xy  ->  phi = angle(v_xy) - sigma - tip_angle
-    sigma = np.arctan2(v[..., 1], v[..., 0]) - phi[best_phi] - tip_angle
+    # the aim with the largest margin, and its twin pi - phi: with the yaw range symmetric the two tie exactly
+    # (ux changes sign, uy does not), and which one lets the setup joints dock differs, so both are solved
+    # (an argmax alone picked one of them by rounding: which ECM docks changed with the CPU and the batch size)
+    first = aim_margin.argmax(axis=2)  # (n, P)
+    half = aim_steps // 2
+    twin = (half - (first - half) + half) % aim_steps  # pi - phi on the grid (k - half = j  ->  half - j)
     q4 = np.linspace(-math.pi, math.pi, q4_steps, endpoint=False)
     th4 = q4 + j4.theta_offset_rad
-    # offset of the base's origin from the planar chain's end: Rz(psi) Rx(a4) (Rz(th4) (A5, 0, 0) + Rz(sigma) p_tip)
-    inner = (np.stack([np.cos(th4), np.sin(th4), np.zeros_like(th4)], -1)[None, None] * j5.a_m
-             + np.einsum("npij,j->npi", _rz(sigma), p_tip)[:, :, None, :])  # (n, P, Q, 3)
     rx = np.array([[1.0, 0.0, 0.0], [0.0, ca, -sa], [0.0, sa, ca]])
-    off = np.einsum("pij,npqj->npqi", _rz(psi), inner @ rx.T)
-    end = o[:, None, None, :] - off  # the planar chain's end (n, P, Q, 3)
     a_c, l2, l3 = col.a_m, j2.a_m, j3.a_m
-    x, y = end[..., 0] - a_c, end[..., 1]
-    c2 = (x * x + y * y - l2 * l2 - l3 * l3) / (2 * l2 * l3)
-    reach = np.abs(c2) <= 1.0
-    c2 = np.clip(c2, -1.0, 1.0)
-    column = end[..., 2] - col.d_m - j1.d_m - j2.d_m - j3.d_m
     best = np.full(n, -np.inf)
     joints = np.full((n, 6), np.nan)
     ecm = np.full((n, 2), np.nan)
     lim = suj.ranges
-    for sign in (1.0, -1.0):
-        s2 = sign * np.sqrt(1.0 - c2 * c2)
-        t2 = np.arctan2(s2, c2)
-        t1 = np.arctan2(y, x) - np.arctan2(l3 * s2, l2 + l3 * c2)
-        qs = [column, t1 - j1.theta_offset_rad, t2 - j2.theta_offset_rad,
-              psi[None, :, None] - t1 - t2 - j3.theta_offset_rad, np.broadcast_to(q4, column.shape),
-              sigma[:, :, None] - th4 - j5.theta_offset_rad]
-        qs = [qs[0]] + [np.remainder(q + math.pi, 2 * math.pi) - math.pi for q in qs[1:]]
-        margin = np.minimum.reduce([np.minimum(q - lo, hi - q) for q, (lo, hi) in zip(qs, lim)])
-        margin = np.where(reach, np.minimum(margin, aim[:, :, None]), -np.inf)
-        flat = margin.reshape(n, -1)
-        k = flat.argmax(axis=1)
-        better = flat[np.arange(n), k] > best
-        if better.any():
-            ip, iq = np.unravel_index(k, margin.shape[1:])
-            rows = np.flatnonzero(better)
-            best[rows] = flat[rows, k[rows]]
-            joints[rows] = np.stack([q[rows, ip[rows], iq[rows]] for q in qs], -1)
-            f = phi[best_phi[rows, ip[rows]]]
-            uxy = r[rows, ip[rows]]
-            u = np.stack([uxy * np.cos(f), uxy * np.sin(f), uz[rows, ip[rows]]], -1)
-            ecm[rows] = np.stack([np.arctan2(u[:, 0], -u[:, 2]), -np.arcsin(np.clip(u[:, 1], -1, 1))], -1)
+    for best_phi in (first, twin):
+        aim = np.take_along_axis(aim_margin, best_phi[..., None], 2)[..., 0]
+        # u_xy = Rz(-sigma - tip_angle) v_xy  ->  phi = angle(v_xy) - sigma - tip_angle
+        sigma = np.arctan2(v[..., 1], v[..., 0]) - phi[best_phi] - tip_angle
+        # the base's origin less the planar chain's end: Rz(psi) Rx(a4) (Rz(th4) (A5, 0, 0) + Rz(sigma) p_tip)
+        inner = (np.stack([np.cos(th4), np.sin(th4), np.zeros_like(th4)], -1)[None, None] * j5.a_m
+                 + np.einsum("npij,j->npi", _rz(sigma), p_tip)[:, :, None, :])  # (n, P, Q, 3)
+        off = np.einsum("pij,npqj->npqi", _rz(psi), inner @ rx.T)
+        end = o[:, None, None, :] - off  # the planar chain's end (n, P, Q, 3)
+        x, y = end[..., 0] - a_c, end[..., 1]
+        c2 = (x * x + y * y - l2 * l2 - l3 * l3) / (2 * l2 * l3)
+        reach = np.abs(c2) <= 1.0
+        c2 = np.clip(c2, -1.0, 1.0)
+        column = end[..., 2] - col.d_m - j1.d_m - j2.d_m - j3.d_m
+        for sign in (1.0, -1.0):
+            s2 = sign * np.sqrt(1.0 - c2 * c2)
+            t2 = np.arctan2(s2, c2)
+            t1 = np.arctan2(y, x) - np.arctan2(l3 * s2, l2 + l3 * c2)
+            qs = [column, t1 - j1.theta_offset_rad, t2 - j2.theta_offset_rad,
+                  psi[None, :, None] - t1 - t2 - j3.theta_offset_rad, np.broadcast_to(q4, column.shape),
+                  sigma[:, :, None] - th4 - j5.theta_offset_rad]
+            qs = [qs[0]] + [np.remainder(q + math.pi, 2 * math.pi) - math.pi for q in qs[1:]]
+            margin = np.minimum.reduce([np.minimum(q - lo, hi - q) for q, (lo, hi) in zip(qs, lim)])
+            margin = np.where(reach, np.minimum(margin, aim[:, :, None]), -np.inf)
+            flat = margin.reshape(n, -1)
+            k = flat.argmax(axis=1)
+            better = flat[np.arange(n), k] > best
+            if better.any():
+                ip, iq = np.unravel_index(k, margin.shape[1:])
+                rows = np.flatnonzero(better)
+                best[rows] = flat[rows, k[rows]]
+                joints[rows] = np.stack([q[rows, ip[rows], iq[rows]] for q in qs], -1)
+                f = best_phi[rows, ip[rows]]
+                uxy = r[rows, ip[rows]]
+                u = np.stack([uxy * cos_phi[f], uxy * sin_phi[f], uz[rows, ip[rows]]], -1)
+                ecm[rows] = np.stack([np.arctan2(u[:, 0], -u[:, 2]), -np.arcsin(np.clip(u[:, 1], -1, 1))], -1)
     return best, joints, ecm
