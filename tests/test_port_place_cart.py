@@ -100,6 +100,7 @@ def test_the_dvrk_export_puts_each_psm_rcm_on_its_port_by_the_reference_kinemati
         "[cart]\nmodel = \"classic\"\naround_step_deg = 30.0\ndistance_step_mm = 300.0\n")
     r = cli("port-place", "c.toml", "--store", tmp_path / "s", cwd=tmp_path)
     assert "classic cart" in r.stdout and "setup joints" in r.stdout and "PSM1" in r.stdout
+    assert "least clearance outside the body" in r.stdout and "PSM1 and PSM2, over the target" in r.stdout
     best = int(r.stdout.split("best_design_id")[1].split()[1])
     r = cli("export", "latest", "--store", tmp_path / "s", "--design", str(best), "--format", "dvrk", "--out",
             tmp_path / "setup.json", cwd=tmp_path)
@@ -108,6 +109,9 @@ def test_the_dvrk_export_puts_each_psm_rcm_on_its_port_by_the_reference_kinemati
     centre = np.array(C.Target().centre_mm) / 1000
     names = [a["name"] for a in setup["arms"]]
     assert names == ["PSM1", "PSM2", "ECM"]
+    clear = setup["clearances_outside_body"]
+    assert len(clear["checks"]) == 3 * 2 + 3 * 2  # 3 pairs (docked, over the target), 3 arms x (patient, table)
+    assert clear["least_mm"] == min(c["clearance_mm"] for c in clear["checks"])
     ecm_arm = get_model("dvrk_ecm_classic")
     ecm = setup["arms"][2]
     base = suj_forward_reference("classic", "ECM", ecm["suj_joints"])

@@ -28,6 +28,20 @@ def arm_joints_at_centre(arm, base_in_patient: np.ndarray, centre_m: np.ndarray)
     return [float(v) for v in rcm_inverse(p, arm.along_shaft_m)]
 
 
+def clearances_of(cfg: PortPlaceConfig, row: dict, docked) -> dict:
+    """The layout's least clearances outside the body (``clashes``): each check's value (mm), links and where,
+    and the least of them; the model's radii are assumptions (``robots/dvrk_links.py``)."""
+    from surgopt.studies.port_place.clashes import layout_clearances, least
+
+    checks = layout_clearances(cfg, row, docked)
+    worst = least(checks)
+    return {"least_mm": None if worst is None else round(worst.clearance_mm, 1),
+            "model": "capsules about the setup joints' frames and the arms' links (robots/dvrk_links.py; radii "
+                     "assumed); not part of the rows' feasible",
+            "checks": [{"check": c.check, "clearance_mm": round(c.clearance_mm, 1), "link": c.link_a,
+                        "against": c.link_b, "where": c.where} for c in checks]}
+
+
 def dvrk_setup(cfg: PortPlaceConfig, row: dict) -> str:
     """The layout of ``row`` (a design of a run with the cart) as JSON: ``cart_to_patient`` (the patient's frame
     in the cart's world frame, 4x4, m) and one entry per arm (PSM1, PSM2, PSM3, ECM): its cart ("classic"), SUJ
@@ -45,7 +59,8 @@ def dvrk_setup(cfg: PortPlaceConfig, row: dict) -> str:
     centre = np.asarray(cfg.target.centre_mm, float) / 1000
     patient = patient_in_cart(cfg.cart, row["cart_x_mm"], row["cart_y_mm"], row["cart_heading_deg"])
     arms = []
-    for a in docked_arms(cfg, row):
+    docked = docked_arms(cfg, row)
+    for a in docked:
         suj = CARTS[cfg.cart.model][a.arm]
         holder = camera_arm_of(cfg) if a.arm == "ECM" else instrument_of(cfg)
         port = np.asarray(a.port_m)
@@ -70,5 +85,6 @@ def dvrk_setup(cfg: PortPlaceConfig, row: dict) -> str:
            "cart": {"model": cfg.cart.model, "x_mm": row["cart_x_mm"], "y_mm": row["cart_y_mm"],
                     "heading_deg": row["cart_heading_deg"], "table_height_mm": cfg.cart.table_height_mm,
                     "trendelenburg_deg": cfg.cart.trendelenburg_deg, "lateral_tilt_deg": cfg.cart.lateral_tilt_deg},
-           "cart_to_patient": _matrix(patient), "arms": arms}
+           "cart_to_patient": _matrix(patient), "arms": arms,
+           "clearances_outside_body": clearances_of(cfg, row, docked)}
     return json.dumps(out, indent=1) + "\n"

@@ -201,13 +201,14 @@ def reach_maps(plt, cfg, sites, t, dex, out):
 
 def cart_figure(plt, cfg, row: dict, out):
     """The layout on the cart, in the cart's world frame (m; the floor at z = 0): the patient's surface and the
-    table, each arm's setup joints as the polyline of their frames (base, each link, the arm's RCM), and each arm
-    from its RCM back along the shaft (the outside segment) and in to the target's centre."""
+    table, each arm's setup joints as the polyline of their frames (base, each link, the SUJ's tip), the arm's
+    own links docked (the axes of ``clashes``' capsules: mount, yaw link, parallelogram, insertion stage,
+    housing, the shaft outside the port) and a line from the RCM in to the target's centre."""
     from surgopt.kinematics import suj as S
-    from surgopt.robots import dvrk
     from surgopt.robots.dvrk_suj import CARTS
     from surgopt.studies.port_place.geometry import body_extent_mm, dome_surface_mm
-    from surgopt.studies.port_place.tables import docked_arms, patient_in_cart
+    from surgopt.studies.port_place.clashes import arm_poses
+    from surgopt.studies.port_place.tables import docked_arms, model_of, patient_in_cart
 
     patient = patient_in_cart(cfg.cart, row["cart_x_mm"], row["cart_y_mm"], row["cart_heading_deg"])
     to_cart = lambda p: p @ patient[:3, :3].T + patient[:3, 3]  # noqa: E731 - patient (m) -> cart world (m)
@@ -224,15 +225,18 @@ def cart_figure(plt, cfg, row: dict, out):
     ax.plot(*table.T, color="0.5", lw=1, label="table top")
     centre = to_cart(np.asarray(cfg.target.centre_mm, float) / 1000)
     ax.scatter(*centre, color="k", s=20, label="target centre")
+    model = model_of(cfg)
     for arm, colour in zip(docked_arms(cfg, row), ("C0", "C1", "C2", "C3")):
         if not arm.joints:
             continue
         f = S.frames(CARTS[cfg.cart.model][arm.arm], arm.joints)
-        ax.plot(*f[:, :3, 3].T, color=colour, lw=2.5, marker="o", ms=3, label=f"{arm.arm} setup joints")
-        rcm = f[-1, :3, 3]
-        behind = rcm + f[-1, :3, :3] @ np.array([0.0, 0.0, dvrk.OUTSIDE_LENGTH_M])
-        shaft = np.stack([behind, rcm, centre])
-        ax.plot(*shaft.T, color=colour, lw=1.2, ls="--")
+        ax.plot(*f[:-1, :3, 3].T, color=colour, lw=2.5, marker="o", ms=3, label=f"{arm.arm} setup joints")
+        links = arm_poses(cfg, arm, patient, model.targets_m[:0], model.limits.along_shaft_m)
+        own = [i for i, n in enumerate(links.names) if "setup joint" not in n]
+        for k, i in enumerate(own):  # the arm's own links, docked (clashes.py's capsules)
+            ax.plot(*links.segments[0, i].T, color=colour, lw=1.2, alpha=0.8,
+                    label=f"{arm.arm} links (capsule axes)" if k == 0 else None)
+        ax.plot(*np.stack([f[-1, :3, 3], centre]).T, color=colour, lw=0.8, ls="--")
     ax.plot([0], [0], [0], "ks", ms=8, label="cart origin")
     ax.set_xlabel("x (m)")
     ax.set_ylabel("y, the cart's forward (m)")

@@ -612,6 +612,7 @@ def docking_tables(best: dict, meta: dict) -> list:
     pose, and the run's config in the rows' metadata)."""
     import json
 
+    from surgopt.studies.port_place.clashes import layout_clearances
     from surgopt.studies.port_place.tables import docked_arms
 
     try:  # as stored: its files are not read and hashed again
@@ -619,16 +620,21 @@ def docking_tables(best: dict, meta: dict) -> list:
     except (ValueError, OSError, KeyError) as exc:
         return [("best layout: the cart", ["note"], [[f"the run's config cannot be read again ({exc}); the cart "
                                                        f"pose is in the row's cart_* columns"]])]
+    docked = docked_arms(cfg, best)
     pose = [[f"{best['cart_x_mm']:.0f}", f"{best['cart_y_mm']:.0f}", f"{best['cart_heading_deg']:.1f}",
              str(best["cart_pose"])]]
     rows = [[a.arm, a.site, " ".join(f"{v:.4f}" for v in a.joints) if a.joints else "-",
              "-" if a.margin is None else f"{a.margin:.3f}" + (f" ({a.tightest})" if a.tightest else ""),
              a.note or (f"ECM yaw {math.degrees(a.ecm[0]):.1f}, pitch {math.degrees(a.ecm[1]):.1f} deg" if a.ecm
-                        else "")] for a in docked_arms(cfg, best)]
+                        else "")] for a in docked]
+    clear = [[c.check, f"{c.clearance_mm:.0f}", c.link_a, c.link_b, c.where]
+             for c in layout_clearances(cfg, best, docked)]
     return [(f"best layout: the {cfg.cart.model} cart (origin on the floor, patient frame; heading from +y toward +x)",
              ["x_mm", "y_mm", "heading_deg", "grid pose"], pose),
             ("best layout: setup joints (column m, then rad, the dVRK's simulated_position order)",
-             ["arm", "port", "suj_joints", "least range margin", "note"], rows)]
+             ["arm", "port", "suj_joints", "least range margin", "note"], rows),
+            ("best layout: least clearance outside the body (capsules, radii assumed; negative: the links overlap; "
+             "not yet part of feasible)", ["between", "clearance_mm", "link", "against", "where"], clear)]
 
 
 def least_cost_layouts(parts, k: int, feasible: bool = True, columns: list[str] | None = None):

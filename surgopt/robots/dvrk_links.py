@@ -1,0 +1,107 @@
+"""The dVRK Classic arms' links outside the body, as capsules (a segment and a radius) for the clash check of
+issue 40: where the links are is data (sourced), how thick they are is an assumption (labelled).
+
+Where the links are: the Classic PSM's skeleton as the dVRK's own robot description writes it,
+jhu-dvrk/dvrk-ros ``dvrk_model/model/psm.base.urdf.xacro`` (commit be3910ac): each frame's parent, origin (xyz m,
+roll-pitch-yaw rad, URDF's fixed-axis convention R = Rz(yaw) Ry(pitch) Rx(roll)) and the joint it turns about its
+z with (yaw q1, pitch q2 times the parallelogram's mimic multiplier +-1, or insertion q3 along z). The frame
+``base`` is the PSM's base frame, whose origin is the RCM: at (q1, q2) the carriage-to-wrist line of this
+skeleton is the shaft u(q1, q2) of the DH model (``kinematics.port_place.shaft_direction``,
+tests/test_capsules.py checks it), so both descriptions agree where they overlap. The ECM's arm beyond its
+setup joints is not in that file; it is modelled as its scope's carriage, a line behind the RCM (below).
+
+How thick they are (*assumptions*: the description has meshes, not primitives, and the dVRK publishes no link
+widths): the setup joints' links 50 mm radius, the PSM's yaw link and its mount 45 mm, the parallelogram's links
+30 mm, the insertion stage 30 mm, the instrument's housing on the carriage 40 mm, the shaft outside the port
+4 mm (the 8 mm instrument: data), the ECM's scope 6 mm (the 12 mm camera port: data), its carriage and camera 40 mm. Read each as the link's half width.
+"""
+from __future__ import annotations
+
+import math
+from typing import NamedTuple
+
+
+class LinkFrame(NamedTuple):
+    """One frame of the arm's skeleton: T_parent_frame = Trans(xyz) RPY(rpy) then the joint, a turn about z by
+    ``multiplier * q[joint]`` (revolute) or a slide along z by it (``prismatic``); joint -1: fixed."""
+
+    name: str
+    parent: str
+    xyz_m: tuple
+    rpy_rad: tuple
+    joint: int  # 0 yaw, 1 pitch, 2 insertion, -1 none
+    multiplier: float = 1.0
+    prismatic: bool = False
+
+
+class Capsule(NamedTuple):
+    """A link as the segment between two points (each in a frame of the skeleton, m) and a radius (m)."""
+
+    name: str
+    frame_a: str
+    point_a_m: tuple
+    frame_b: str
+    point_b_m: tuple
+    radius_m: float
+    source: str
+
+
+HALF_PI = math.pi / 2
+
+#: The Classic PSM's skeleton (psm.base.urdf.xacro): the yaw link turns about the base's -y through the RCM; the
+#: parallelogram's back and front pivots sit on it 0.5185 and 0.4285 m from the RCM; its bottom and top links
+#: turn back by -q2 (mimic -1), the lower long link (0.520 m) forward again; the carriage ("tool_main") slides
+#: along the shaft, 0.4318 m behind the RCM at q3 = 0.
+PSM_CLASSIC_FRAMES = (
+    LinkFrame("yaw", "base", (0.0, 0.0, 0.0), (0.0, -HALF_PI, HALF_PI), 0),
+    LinkFrame("pitch", "yaw", (0.0, 0.0, 0.0), (-HALF_PI, -HALF_PI, 0.0), 1),
+    LinkFrame("back", "yaw", (0.0, 0.0295, 0.5185), (-HALF_PI, -HALF_PI, 0.0), 1),
+    LinkFrame("front", "yaw", (0.0, 0.0295, 0.4285), (-HALF_PI, -HALF_PI, 0.0), 1),
+    LinkFrame("bottom", "back", (0.04178, 0.15007, -0.0137), (0.0, 0.0, 0.0), 1, -1.0),
+    LinkFrame("top", "back", (0.04209, 0.18695, -0.02412), (0.0, 0.0, 0.0), 1, -1.0),
+    LinkFrame("insertion", "bottom", (-0.520, 0.0, -0.0155), (0.0, 0.0, 0.0), 1),
+    LinkFrame("carriage", "pitch", (0.0, 0.4318, 0.0), (HALF_PI, 0.0, 0.0), 2, 1.0, True),
+)
+
+URDF = "jhu-dvrk/dvrk-ros psm.base.urdf.xacro"
+ASSUMED = "radius assumed"
+
+#: "mount": the SUJ's tip (the base frame's point where SUJ_tip_to_tool_origin starts, ``dvrk_suj``) is added
+#: by the code as frame "mount"; the capsules between it and the yaw link close the arm to its setup joints.
+PSM_CLASSIC_CAPSULES = (
+    Capsule("mount", "mount", (0.0, 0.0, 0.0), "back", (0.0, 0.0, 0.0), 0.045, f"{URDF}, suj-simulated.json; "
+            f"{ASSUMED}"),
+    Capsule("yaw link", "front", (0.0, 0.0, 0.0), "back", (0.0, 0.0, 0.0), 0.045, f"{URDF}; {ASSUMED}"),
+    Capsule("parallelogram back link", "back", (0.0, 0.0, 0.0), "top", (0.0, 0.0, 0.0), 0.03,
+            f"{URDF}; {ASSUMED}"),
+    Capsule("parallelogram lower link", "bottom", (0.0, 0.0, 0.0), "insertion", (0.0, 0.0, 0.0), 0.03,
+            f"{URDF}; {ASSUMED}"),
+    # the stage the carriage slides on: from the lower link's end back along the shaft over the carriage's
+    # 0.24 m travel and its housing (the stage's length is an assumption; the file draws it as a mesh)
+    Capsule("insertion stage", "insertion", (0.0, 0.0, 0.0), "insertion", (0.0, 0.35, 0.0), 0.03,
+            f"{URDF}; length and {ASSUMED}"),
+    Capsule("instrument housing", "carriage", (0.0, 0.0, 0.0), "carriage", (0.0, 0.0, -0.08), 0.04,
+            f"{URDF}; length and {ASSUMED}"),
+    Capsule("shaft outside the port", "carriage", (0.0, 0.0, 0.0), "base", (0.0, 0.0, 0.0), 0.004,
+            "dvrk-kinematics.md: 8 mm shaft"),
+)
+
+#: The ECM's yaw and pitch are the PSM's (their DH rows 1 and 2 are the same), so its skeleton is the first two
+#: frames; the scope runs behind the RCM along the pitch frame's +y.
+ECM_CLASSIC_FRAMES = PSM_CLASSIC_FRAMES[:2]
+
+#: The ECM beyond its setup joints: its carriage and camera as one line behind the RCM along the scope, from
+#: the port to 0.3822 m (its insertion offset at q3 = 0) plus 0.1 m of camera head (an assumption throughout).
+ECM_CLASSIC_CAPSULES = (
+    Capsule("mount", "mount", (0.0, 0.0, 0.0), "pitch", (0.0, 0.4822, 0.0), 0.04, f"suj-simulated.json; "
+            f"{ASSUMED}"),
+    Capsule("scope outside the port", "base", (0.0, 0.0, 0.0), "pitch", (0.0, 0.2822, 0.0), 0.006,
+            "dvrk-kinematics.md: 12 mm camera port"),
+    Capsule("carriage and camera", "pitch", (0.0, 0.2822, 0.0), "pitch", (0.0, 0.4822, 0.0), 0.04,
+            f"ECM.json insertion offset; {ASSUMED}"),
+)
+
+#: The setup joints' links: the segments between successive frames of ``kinematics.suj.frames``; the first two
+#: (the cart's column and the arm's carriage on it) are part of the cart and not checked between arms.
+SUJ_RADIUS_M = 0.05
+SUJ_ON_COLUMN = 2
