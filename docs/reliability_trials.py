@@ -55,7 +55,7 @@ def main(n: int) -> None:
                                  stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
             target = rng.randint(1, 100)
             while p.poll() is None:
-                m = glob.glob(f"{store}/study=rcm-grid/key=*/manifest.json")
+                m = glob.glob(f"{store}/study=rcm-grid/key=*/_manifest.json")
                 try:
                     if m and len(json.load(open(m[0]))["parts"]) >= target:
                         break

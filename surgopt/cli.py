@@ -322,7 +322,9 @@ def _report(study, result, brief: bool = False):
             edges = best_edges(study, run, parts)
             front = None if brief else search_front(study, run, parts)  # several objectives: the Pareto front
     except StoreError:
-        if (run.path / "manifest.json").exists():
+        from surgopt.store import manifest_of
+
+        if manifest_of(run.path).exists():
             raise
         # removed (`surgopt runs rm`) between its last part and this report: the run did finish; nothing to show
         typer.echo(f"note: {study.name} run {run.key[:12]} finished, but was removed (surgopt runs rm) before its "

@@ -11,7 +11,7 @@ import numpy as np
 
 from surgopt.config import load_config, study_key
 from surgopt.errors import ConfigError, UsageError
-from surgopt.store import Run, Store
+from surgopt.store import Run, Store, manifest_of
 from surgopt.studies import STUDIES, get_study
 
 
@@ -178,7 +178,7 @@ def config_of(study, run: Run):
     except ValidationError as exc:
         first = exc.errors()[0]
         where = ".".join(str(p) for p in first["loc"]) or "(top level)"
-        raise StoreError(f"{run.path / 'manifest.json'}: its config is not a valid {study.name} config "
+        raise StoreError(f"{manifest_of(run.path)}: its config is not a valid {study.name} config "
                          f"({where}: {first['msg']}); delete the run (`surgopt runs rm {run.key[:12]}`)") from None
 
 

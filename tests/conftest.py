@@ -97,7 +97,7 @@ def wait_for_parts(store, study, n, proc, timeout=120):
 
     t0 = time.time()
     while time.time() - t0 < timeout:
-        for m in Path(store).glob(f"study={study}/key=*/manifest.json"):
+        for m in Path(store).glob(f"study={study}/key=*/_manifest.json"):
             try:
                 if len(json.loads(m.read_text())["parts"]) >= n:
                     return

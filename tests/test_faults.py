@@ -64,7 +64,7 @@ MANIFESTS = {"empty object": "{}", "no parts": None, "parts as a list": [], "not
 @pytest.mark.parametrize("how", sorted(MANIFESTS))
 def test_a_manifest_of_the_wrong_shape_is_one_line_and_rebuilt(stored, how):
     cfg, store, table = stored
-    mpath = single_run(store).path / "manifest.json"
+    mpath = single_run(store).path / "_manifest.json"
     m = json.loads(mpath.read_text())
     value = MANIFESTS[how]
     if how == "no parts":
@@ -99,10 +99,10 @@ def test_clean_up_leaves_a_run_that_is_being_written_alone(stored):
     s = Store(store)
     run = single_run(store)
     run.manifest["parts"].pop("3")  # partial, as if interrupted, but its lock is held below
-    (run.path / "manifest.json").write_text(json.dumps(run.manifest))
+    (run.path / "_manifest.json").write_text(json.dumps(run.manifest))
     with s.lock(run.study, run.key):
         assert invoke("runs", "gc", "--store", store)[0] == 0
-        assert (run.path / "manifest.json").exists()  # gc skipped it
+        assert (run.path / "_manifest.json").exists()  # gc skipped it
         code, out = invoke("runs", "rm", run.key[:8], "--store", store)
         assert code == 1 and "being written now" in out
         listing = invoke("runs", "--store", store)[1]

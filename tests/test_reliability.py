@@ -28,9 +28,9 @@ def _run(cfg, store, **kw):
 def test_a_run_of_an_unknown_store_format_is_never_rewritten_read_or_collected(stored):
     cfg, store, _ = stored
     run = single_run(store)
-    m = json.loads((run.path / "manifest.json").read_text())
+    m = json.loads((run.path / "_manifest.json").read_text())
     m["format"] = 2  # written by a later surgopt
-    (run.path / "manifest.json").write_text(json.dumps(m))
+    (run.path / "_manifest.json").write_text(json.dumps(m))
     parts = sorted(p.name for p in run.path.glob("part-*"))
     for force in (False, True):
         with pytest.raises(StoreError, match="store format 2"):
@@ -43,7 +43,7 @@ def test_a_run_of_an_unknown_store_format_is_never_rewritten_read_or_collected(s
     code, out = invoke("runs", "--store", store)
     assert "UNREADABLE" in out and "store format 2" in out
     assert sorted(p.name for p in run.path.glob("part-*")) == parts  # nothing deleted
-    assert json.loads((run.path / "manifest.json").read_text())["format"] == 2
+    assert json.loads((run.path / "_manifest.json").read_text())["format"] == 2
 
 
 def test_a_swap_killed_between_its_two_renames_is_restored_and_never_collected(stored):
@@ -73,7 +73,7 @@ def _make_partial(store, keep):
     run = single_run(store)
     for i in list(run.manifest["parts"])[keep:]:
         (run.path / run.manifest["parts"].pop(i)["file"]).unlink()
-    (run.path / "manifest.json").write_text(json.dumps(run.manifest))
+    (run.path / "_manifest.json").write_text(json.dumps(run.manifest))
     return run
 
 
@@ -110,7 +110,7 @@ def test_a_part_or_manifest_that_is_a_device_or_oversized_is_never_read(stored, 
     part.symlink_to(big)
     code, out = invoke("summarize", "--store", store)
     assert code == 1 and "8589934592 bytes where" in out, out
-    mpath = run.path / "manifest.json"
+    mpath = run.path / "_manifest.json"
     mpath.unlink()
     mpath.symlink_to("/dev/zero")
     code, out = invoke("runs", "--store", store)
@@ -124,7 +124,7 @@ def test_a_study_name_never_reaches_out_of_the_store(stored, command):
     _, store, _ = stored
     outside = store.parent / "outside" / "k"
     outside.mkdir(parents=True)
-    shutil.copy(single_run(store).path / "manifest.json", outside / "manifest.json")
+    shutil.copy(single_run(store).path / "_manifest.json", outside / "_manifest.json")
     args = [command] + (["x"] if command == "export" else []) + ["--study", "../outside", "--store", store]
     code, out = invoke(*args)
     assert code == 2 and "study" in out and "Traceback" not in out, out
@@ -200,9 +200,9 @@ def test_a_manifest_with_bad_fields_is_one_line(stored, tmp_path, case):
     _, store, _ = stored
     run = single_run(store)
     change, words = BAD_MANIFEST_FIELDS[case]
-    m = json.loads((run.path / "manifest.json").read_text())
+    m = json.loads((run.path / "_manifest.json").read_text())
     change(m)
-    (run.path / "manifest.json").write_text(json.dumps(m))
+    (run.path / "_manifest.json").write_text(json.dumps(m))
     code, out = invoke("plot", run.key[:12], "--store", store, "--out", tmp_path / "figs")
     assert code in (1, 2) and words in out and "Traceback" not in out, out
     assert len(out.strip().splitlines()) == 1

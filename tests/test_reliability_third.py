@@ -96,10 +96,10 @@ def test_a_manifest_row_count_that_is_not_the_parts_is_damage(tmp_path):
     cli("rcm-grid", cfg, "--store", store, "--quiet")
     run = single_run(store)
     ref = single_table(store)
-    manifest = json.loads((run.path / "manifest.json").read_text())
+    manifest = json.loads((run.path / "_manifest.json").read_text())
     first = sorted(manifest["parts"], key=int)[0]
     manifest["parts"][first]["rows"] += 1000
-    (run.path / "manifest.json").write_text(json.dumps(manifest))
+    (run.path / "_manifest.json").write_text(json.dumps(manifest))
     assert Store(store).runs()[0].damaged()  # the premise: only the manifest was changed, and it is caught
     r = cli("summarize", run.key[:12], "--store", store, check=False)
     assert r.returncode != 0 and "rows where the manifest says" in r.stderr, r.stderr
@@ -114,11 +114,11 @@ def test_a_partial_run_whose_task_count_was_edited_is_not_a_cache_hit(tmp_path):
     cli("rcm-grid", cfg, "--store", store, "--quiet", "--chunk-size", "5")
     run = single_run(store)
     ref = single_table(store)
-    manifest = json.loads((run.path / "manifest.json").read_text())
+    manifest = json.loads((run.path / "_manifest.json").read_text())
     for k in sorted(manifest["parts"], key=int)[3:]:
         (run.path / manifest["parts"].pop(k)["file"]).unlink()
     manifest["n_tasks"] = len(manifest["parts"])  # claims to be complete
-    (run.path / "manifest.json").write_text(json.dumps(manifest))
+    (run.path / "_manifest.json").write_text(json.dumps(manifest))
     assert Store(store).runs()[0].complete  # the premise: the edit makes it look complete
     r = cli("rcm-grid", cfg, "--store", store, "--quiet")
     assert "cache hit" not in r.stdout and "tasks where the config and its chunk size" in r.stderr, r.stderr

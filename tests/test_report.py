@@ -140,9 +140,9 @@ def test_summarize_says_when_a_run_is_partial(store, tmp_path):
     s2 = tmp_path / "store"
     shutil.copytree(store, s2)
     run = next(r for r in Store(s2).runs() if r.study == "rcm-grid")
-    manifest = json.loads((run.path / "manifest.json").read_text())
+    manifest = json.loads((run.path / "_manifest.json").read_text())
     manifest["n_tasks"] = len(manifest["parts"]) + 3  # three chunks still to come
-    (run.path / "manifest.json").write_text(json.dumps(manifest))
+    (run.path / "_manifest.json").write_text(json.dumps(manifest))
     r = cli("summarize", run.key[:10], "--store", s2)
     assert "PARTIAL" in r.stdout
     # runs lists it as partial; gc removes it and nothing else

@@ -104,7 +104,7 @@ def test_an_optuna_search_parts_are_optunas_record(tmp_path, method):
                     "search": {"method": method, "trials": 30, "batch": 10, "seed": 1}}, rcm.config_model, "x")
     a = run_study(rcm, cfg, config_name="a", store=Store(tmp_path), jobs=2, quiet=True).table
     study = optuna.load_study(study_name="surgopt", storage=JournalStorage(JournalFileBackend(
-        str(single_run(tmp_path).path / "optuna.journal"))))
+        str(single_run(tmp_path).path / "_optuna.journal"))))
     trials = study.get_trials()
     assert [t.number for t in trials] == list(range(30))
     assert [t.params["x_rcm_m"] for t in trials] == a["x_rcm_m"].to_pylist()
@@ -318,7 +318,7 @@ def test_a_search_killed_after_recording_a_batch_but_before_storing_it_resumes(t
     assert sorted(run.done_tasks()) == [0, 1]
     from surgopt.plans.optuna_plan import Journal
 
-    assert Journal.open(run.path / "optuna.journal", rcm.search_plan(cfg)).batches == 3  # the premise
+    assert Journal.open(run.path / "_optuna.journal", rcm.search_plan(cfg)).batches == 3  # the premise
     assert run_study(rcm, cfg, config_name="x", store=Store(tmp_path / "x"), jobs=1, quiet=True).table.equals(ref)
 
 
@@ -343,7 +343,7 @@ def _partial(tmp_path, rcm, cfg, stop_at=3):
 def test_a_damaged_journal_is_refused_with_the_repair_or_resumed_exactly(tmp_path, damage):
     rcm, cfg, ref = _tpe(tmp_path)
     run = _partial(tmp_path, rcm, cfg)
-    journal = run.path / "optuna.journal"
+    journal = run.path / "_optuna.journal"
     lines = journal.read_bytes().splitlines(keepends=True)
     if damage == "deleted":
         journal.unlink()

@@ -55,7 +55,8 @@ def test_hive_layout_reads_in_duckdb_with_study_and_key_columns(tmp_path, small_
 
 def test_the_readmes_python_snippets_read_a_real_store(tmp_path, small_cfg, monkeypatch):
     """README, "Results": the duckdb and pandas code blocks, run as written in a folder with a store (the
-    key filled in): the pandas read of a run folder failed on manifest.json before the README said how."""
+    key filled in): a plain ``pd.read_parquet(run_folder)`` reads the rows alone (the manifest, the figures and
+    the page are named with the leading "_" Parquet readers skip; issue 42 item 8)."""
     import re
 
     from conftest import REPO
@@ -92,6 +93,28 @@ def test_a_store_in_the_older_layout_is_still_read(tmp_path, small_cfg):
     assert single_run(store).path == legacy and single_table(store).equals(table)
     assert "cache hit" in cli("rcm-grid", small_cfg, "--store", store, "--quiet").stdout
     assert "complete" in cli("runs", "--store", store).stdout
+
+
+def test_a_run_whose_manifest_has_its_older_name_is_still_read_and_renamed_on_resume(tmp_path, small_cfg):
+    """A run written before the manifest took its leading "_" (``manifest.json``): listed, a cache hit, read
+    verified; resumed after a part is lost, its manifest is rewritten as ``_manifest.json`` and the old name
+    goes. A plain ``pd.read_parquet`` of a new run's folder reads its rows (the premise of the rename)."""
+    import pandas as pd
+
+    store = tmp_path / "store"
+    cli("rcm-grid", small_cfg, "--store", store, "--quiet", "--chunk-size", "2")
+    run = single_run(store)
+    table = single_table(store)
+    assert len(pd.read_parquet(run.path)) == run.rows  # item 8: the natural call
+    (run.path / "_manifest.json").rename(run.path / "manifest.json")
+    assert single_run(store).path == run.path and single_table(store).equals(table)
+    assert "cache hit" in cli("rcm-grid", small_cfg, "--store", store, "--quiet", "--chunk-size", "2").stdout
+    assert "complete" in cli("runs", "--store", store).stdout
+    assert len(run.manifest["parts"]) > 1  # the premise: a part can be lost and the run still have some
+    (run.path / "part-00001.parquet").unlink()
+    cli("rcm-grid", small_cfg, "--store", store, "--quiet", "--chunk-size", "2")
+    assert (run.path / "_manifest.json").exists() and not (run.path / "manifest.json").exists()
+    assert single_table(store).equals(table)
 
 
 def test_parts_are_read_from_arrow_owned_memory():

@@ -21,6 +21,16 @@ from surgopt.plans.search import SearchPlan, SearchSpec
 #: 64, in memory): TPE's grows with the history (~6 ms a trial over 1,000 trials, ~8 ms over 5,000).
 SECONDS_PER_TRIAL = {"tpe": 0.008, "nsga2": 0.001, "random": 0.001}
 
+#: Optuna's journal in the run's folder ("_": Parquet readers skip it, like the manifest), and its name before.
+JOURNAL, LEGACY_JOURNAL = "_optuna.journal", "optuna.journal"
+
+
+def journal_of(folder):
+    """The run's journal: ``_optuna.journal``, or an older search's ``optuna.journal`` when only that exists."""
+    if not (folder / JOURNAL).exists() and (folder / LEGACY_JOURNAL).exists():
+        return folder / LEGACY_JOURNAL
+    return folder / JOURNAL
+
 
 class OptunaPlan(OptimiserPlan):
     name = "optuna"
@@ -47,7 +57,7 @@ class OptunaSession:
         self.repair = (f"delete the run (`surgopt runs rm {run.key[:12]}`) or rerun with --force to search again "
                        f"from the start")
         try:
-            self.journal = Journal.open(run.path / "optuna.journal", plan)
+            self.journal = Journal.open(journal_of(run.path), plan)
         except JournalProblem as exc:
             raise StoreError(f"{exc}; {self.repair}") from None
         stored = run.done_tasks()
