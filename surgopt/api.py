@@ -5,6 +5,7 @@
     surgopt.runs()                       # what the store holds
     df = surgopt.load("597ae5d5")        # a run by key prefix (or a config file)
     surgopt.summarize("597ae5d5")        # headline, top designs, ... as a dict; plot(...), diff(a, b) likewise
+    df[df.feasible].nsmallest(3, "cost")  # rank the feasible rows: an infeasible row keeps its terms' numbers
 
 Configs and overrides are validated exactly as on the command line (the same errors); the store is
 ``store``, else $SURGOPT_STORE, else ./surgopt-store. Importing ``surgopt`` configures numba (its cache
@@ -27,7 +28,8 @@ def run(study: str, config: str | Path | None = None, overrides: dict[str, Any] 
     follow-up plan ("refine": the config's own run first, then a compass search from its best designs, as
     ``--refine`` does; its rows are returned); or a plan object (``surgopt.plans``).
     The DataFrame's ``attrs`` hold the run's ``key``, ``config`` (as validated and hashed), ``config_name`` and
-    ``plan`` record.
+    ``plan`` record. Every row is returned, the infeasible ones with the numbers of their terms (a port-place
+    layout's ``cost`` among them): rank ``df[df.feasible]``.
     """
     from surgopt.compose import variants
     from surgopt.plans import follow_up_plan

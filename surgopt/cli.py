@@ -332,6 +332,10 @@ def _report(study, result, brief: bool = False):
         from surgopt.studies import Summary
 
         return Summary({}, {})
+    if run.complete and "headline" not in run.manifest:  # kept for `runs --compare`, the index, duckdb
+        from surgopt.store import Store
+
+        Store(run.path.parent.parent).record_headline(run, summary.headline)
     t = Table(title=f"{study.name} ({run.manifest['config_name']})", show_header=False)
     for k, v in summary.headline.items():
         t.add_row(k, f"{v:.6g}" if isinstance(v, float) else str(v))

@@ -359,15 +359,15 @@ def _write_text(path: Path, text: str) -> None:
 
 
 def _headline_text(s, rec) -> str:
-    """A run's headline numbers in one line (from its summary; empty for a run with no rows)."""
-    from surgopt.results import resolve_run
+    """A run's headline numbers in one line (as its manifest keeps them, else from its summary; empty for a run
+    with no rows or not complete)."""
+    from surgopt.results import headline_of, resolve_run
 
     try:
         st, r = resolve_run(s, rec["key"], rec["study"])
-        parts = r.parts(st.schema_for(r.manifest["config"]))
-        if not parts.num_rows:
+        if not r.complete:
             return ""
-        head = st.summary(parts).headline
+        head = headline_of(s, st, r)
     except Exception:  # noqa: BLE001 - a damaged run: the index lists it, its state says why
         return ""
     return "; ".join(f"{k} {v:.4g}" if isinstance(v, float) else f"{k} {v}" for k, v in list(head.items())[:5])

@@ -137,6 +137,21 @@ def run_records(store: Store, study: str | None = None) -> list[dict]:
     return out
 
 
+def headline_of(store: Store, study, run: Run) -> dict:
+    """A complete run's headline numbers: as its manifest keeps them (``Store.record_headline``), else from its
+    summary (which reads its rows), then kept for the next reader. Empty for a run with no rows."""
+    from surgopt.store import plain_headline
+
+    kept = plain_headline(run.manifest.get("headline"))
+    if kept is not None:
+        return kept
+    if not run.rows:
+        return {}
+    headline = study.summary(run.parts(study.schema_for(run.manifest["config"]))).headline
+    store.record_headline(run, headline)
+    return headline
+
+
 def compare_records(store: Store, study) -> tuple[list[str], list[str], list[dict]]:
     """The complete runs of one study side by side (``surgopt runs --compare``, as ``dvc exp show``): the config
     keys whose values differ between them, the study's numeric headline metrics, and one record per run."""
@@ -144,7 +159,7 @@ def compare_records(store: Store, study) -> tuple[list[str], list[str], list[dic
     for r in store.runs(study.name):
         if not r.complete:
             continue
-        headline = study.summary(r.parts(study.schema_for(r.manifest["config"]))).headline if r.rows else {}
+        headline = headline_of(store, study, r)
         records.append({"key": r.key, "name": r.manifest.get("name") or "", "plan": (r.manifest.get("plan") or {})
                         .get("name", "grid"), "config": flat_config(r.manifest["config"]), "headline": headline,
                         "created": r.manifest.get("created")})

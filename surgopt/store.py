@@ -30,6 +30,7 @@ import datetime as _dt
 import errno
 import hashlib
 import json
+import math
 import os
 import time
 import re
@@ -98,6 +99,22 @@ def manifest_of(folder: Path) -> Path:
     if not path.exists() and (folder / LEGACY_MANIFEST).exists():
         return folder / LEGACY_MANIFEST
     return path
+
+
+def plain_headline(headline) -> dict | None:
+    """A headline as JSON values (numpy scalars made plain; None for anything else, or for a headline that is
+    not a flat mapping of names to numbers, text or booleans): what a manifest may hold as ``headline``."""
+    if not isinstance(headline, dict):
+        return None
+    out = {}
+    for k, v in headline.items():
+        v = v.item() if hasattr(v, "item") and not isinstance(v, (str, bytes)) else v
+        if not isinstance(k, str) or not (v is None or isinstance(v, (bool, int, float, str))):
+            return None
+        if isinstance(v, float) and not math.isfinite(v):
+            v = None
+        out[k] = v
+    return out
 
 
 def load_manifest(mpath: Path) -> dict:
@@ -557,6 +574,36 @@ class Store:
         _fsync_dir(final.parent)
         shutil.rmtree(trash, ignore_errors=True)
         return Run(final, run.manifest)
+
+    def record_headline(self, run: Run, headline: dict) -> bool:
+        """Keep a complete run's headline numbers (its summary's: best, feasible count, ...) in its manifest as
+        ``headline``, which ``runs --compare``, the store index and any JSON reader (duckdb's ``read_json``) read
+        without the rows. Best effort: False, and nothing written, when the run is not complete, its lock is held
+        (it is being written), it was replaced since it was read, or the store cannot be written."""
+        from filelock import FileLock, Timeout
+
+        clean = plain_headline(headline)
+        if not run.complete or clean is None:
+            return False
+        lock = FileLock(self.lock_path(run.study, run.key))
+        try:
+            lock.acquire(timeout=0)
+        except (Timeout, OSError):
+            return False
+        try:
+            fresh = load_manifest(manifest_of(run.path))
+            if fresh.get("parts") != run.manifest.get("parts"):
+                return False  # replaced meanwhile: its own report records its own
+            fresh["headline"] = clean
+            data = json.dumps(fresh, indent=1, sort_keys=True).encode()
+            atomic_write(run.path / MANIFEST, lambda tmp: tmp.write_bytes(data))
+            (run.path / LEGACY_MANIFEST).unlink(missing_ok=True)
+            run.manifest["headline"] = clean
+            return True
+        except (OSError, ValueError, StoreError):
+            return False
+        finally:
+            lock.release()
 
     def _remove_unlisted_parts(self, run: Run) -> list[Path]:
         listed = {m["file"] for m in run.manifest["parts"].values()}

@@ -117,6 +117,35 @@ def test_a_run_whose_manifest_has_its_older_name_is_still_read_and_renamed_on_re
     assert single_table(store).equals(table)
 
 
+def test_a_runs_headline_is_kept_in_its_manifest_for_readers_without_the_rows(tmp_path, small_cfg):
+    """Issue 42 item 4: the closing report keeps the run's headline in ``_manifest.json``: its best GII is the
+    best of the feasible rows and its count theirs, duckdb's ``read_json`` of the manifests reads it, and
+    ``runs --compare`` shows it; a malformed kept headline is not trusted (read from the rows again)."""
+    import json
+
+    import duckdb
+
+    from surgopt.results import headline_of
+    from surgopt.store import Store
+    from surgopt.studies import get_study
+
+    store = tmp_path / "store"
+    cli("rcm-grid", small_cfg, "--store", store, "--quiet")
+    run = single_run(store)
+    table = single_table(store).to_pandas()
+    head = json.loads((run.path / "_manifest.json").read_text())["headline"]
+    assert head["best_gii"] == table[table.feasible]["gii"].max() and head["feasible"] == int(table.feasible.sum())
+    assert table["gii"].max() > 0 and not table.feasible.all()  # the premise: some rows are not feasible
+    got = duckdb.sql(f"SELECT key, headline.best_gii FROM read_json('{store}/study=rcm-grid/*/_manifest.json')")
+    assert got.fetchall() == [(run.key, head["best_gii"])]
+    assert f"{head['best_gii']:.6g}" in cli("runs", "--compare", "--study", "rcm-grid", "--store", store).stdout
+    m = json.loads((run.path / "_manifest.json").read_text())
+    m["headline"] = {"best_gii": [1, 2]}
+    (run.path / "_manifest.json").write_text(json.dumps(m))
+    again = headline_of(Store(store), get_study("rcm-grid"), single_run(store))
+    assert again == head and json.loads((run.path / "_manifest.json").read_text())["headline"] == head
+
+
 def test_parts_are_read_from_arrow_owned_memory():
     """Arrow's readers must not hold the Python bytes of a part: a pool thread dropping such a reference
     while the interpreter exits aborts the process (exit -6 after a clean run; see ``arrow_owned``)."""
