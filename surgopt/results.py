@@ -282,6 +282,10 @@ def export_table(store: Store, refs: list[str], study_name: str | None = None, a
     return pa.concat_tables(tables, promote_options="permissive")
 
 
+#: Decimals a design's identity columns are rounded to before two runs are joined on them (port-place: 1e-6 mm).
+MATCH_DECIMALS = 6
+
+
 def diff_runs(store: Store, ref_a: str, ref_b: str, study_name: str | None = None, top: int = 5) -> dict:
     """Two runs of one study compared: differing config fields, per-metric changes on the rows joined
     by the key columns, the most changed rows by the objective, the best design of each."""
@@ -293,12 +297,21 @@ def diff_runs(store: Store, ref_a: str, ref_b: str, study_name: str | None = Non
     config = {k: (fa.get(k), fb.get(k)) for k in dict.fromkeys([*fa, *fb]) if fa.get(k) != fb.get(k)}
     a = ra.read_table(sa.schema_for(ra.manifest["config"])).to_pandas()
     b = rb.read_table(sb.schema_for(rb.manifest["config"])).to_pandas()
-    keys = list(sa.key_columns)
+    keys, index_only = list(sa.key_columns), []
+    if sa.design_identity is not None:  # enumerations differ between runs: join on what the design is
+        ka, ia = sa.design_identity(ra.manifest["config"])
+        kb, ib = sb.design_identity(rb.manifest["config"])
+        if ka != kb:
+            raise UsageError(f"the runs' designs are not alike ({', '.join(ka)} against {', '.join(kb)}): diff "
+                             f"compares runs whose designs have the same parts")
+        keys, index_only = list(ka), [c for c in dict.fromkeys([*ia, *ib]) if c in a.columns]
+        for t in (a, b):
+            t[keys] = t[keys].round(MATCH_DECIMALS)
     joined = a.merge(b, on=keys, how="outer", suffixes=("_a", "_b"), indicator=True)
     both = joined[joined["_merge"] == "both"]
     metrics = {}
     for c in a.columns:
-        if c in keys or not np.issubdtype(a[c].dtype, np.number) or a[c].dtype == bool:
+        if c in keys or c in index_only or not np.issubdtype(a[c].dtype, np.number) or a[c].dtype == bool:
             continue
         d = both[f"{c}_b"].astype(float) - both[f"{c}_a"].astype(float)
         metrics[c] = {"changed": int((d.abs() > 0).sum()), "max_abs": float(d.abs().max()) if len(d) else 0.0,

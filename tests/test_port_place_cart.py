@@ -147,3 +147,31 @@ def test_the_dvrk_export_puts_each_psm_rcm_on_its_port_by_the_reference_kinemati
     bad = cli("export", "latest", "--store", tmp_path / "s2", "--design", "0", "--format", "dvrk", cwd=tmp_path,
               check=False)
     assert bad.returncode == 2 and "no cart" in bad.stderr
+
+
+def test_diff_of_two_port_place_runs_matches_layouts_by_their_ports(tmp_path):
+    """Issue 42 item 1: a run on the whole abdomen and one on a marked region number their sites, so their
+    designs, differently; ``diff`` joins them on each arm's port, so every layout of the region's run is found
+    in the other with identical numbers (0 changed in every metric: only the enumeration differs), and the
+    design_id and site indices are not reported as changes. A diff by design_id (the old join) would compare
+    unrelated layouts: the premise checked on the same rows."""
+    import pandas as pd
+
+    from surgopt.results import diff_runs
+    from surgopt.store import Store
+
+    for name in ("all", "region"):  # the SMALL config, then with a marked region
+        lines = ["[patient.port_region]", "site_spacing_mm = 36.0", "[target]", "spacing_mm = 15.0"]
+        if name == "region":
+            lines.insert(2, "polygon_mm = [[-150, -150], [150, -150], [150, 120], [-150, 120]]")
+        (tmp_path / f"{name}.toml").write_text("\n".join(lines) + "\n")
+        cli("port-place", tmp_path / f"{name}.toml", "--store", tmp_path / "s", "--quiet", cwd=tmp_path)
+    store = Store(tmp_path / "s")
+    runs = sorted(store.runs("port-place"), key=lambda r: r.rows, reverse=True)
+    d = diff_runs(store, runs[0].key, runs[1].key)
+    assert d["rows_joined"] == runs[1].rows and d["rows_only_b"] == 0 and d["rows_only_a"] > 0
+    assert all(m["changed"] == 0 for m in d["metrics"].values()) and "cost" in d["metrics"]
+    assert "design_id" not in d["metrics"] and "psm1_site" not in d["metrics"]
+    a, b = (r.read_table(S.schema()).to_pandas() for r in runs)
+    by_id = pd.merge(a, b, on="design_id", suffixes=("_a", "_b"))
+    assert (by_id["psm1_x_mm_a"] != by_id["psm1_x_mm_b"]).any()  # the premise: ids name other layouts

@@ -167,6 +167,11 @@ class Study:
     #: a config file without that section is the other study's when a command must tell them apart
     extends: str | None = None
     config_section: str | None = None
+    #: ``design_identity(config as stored)``: (columns that identify a design across runs whose enumerations
+    #: differ, rounded to ``MATCH_DECIMALS`` when joined; columns that only index the run's own enumeration).
+    #: ``diff`` joins two runs on the former and leaves the latter out of its changes (port-place: each arm's
+    #: port coordinates; design_id and the site indices). None: the key columns identify a design.
+    design_identity: Callable[[Any], tuple[tuple[str, ...], tuple[str, ...]]] | None = None
 
     def schema_for(self, config=None):
         """The schema of a run's rows: ``schema(config)`` when the study's columns depend on its config (rcm-grid's

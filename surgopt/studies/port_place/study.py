@@ -74,6 +74,15 @@ def arms_of(config=None) -> tuple[str, ...]:
     return tuple(f"psm{a + 1}" for a in range(instruments_of(config))) + ("ecm",)
 
 
+def design_identity(config=None) -> tuple[tuple[str, ...], tuple[str, ...]]:
+    """What a layout is across runs whose candidate sites differ (a marked region, another spacing): each arm's
+    port, x, y, z (mm, patient frame); design_id and the site indices only number the run's own enumeration
+    (``surgopt diff`` joins on the ports, issue 42 item 1)."""
+    arms = arms_of(config)
+    return (tuple(f"{arm}_{c}_mm" for arm in arms for c in "xyz"),
+            ("design_id", *(f"{arm}_site" for arm in arms), "cart_pose"))
+
+
 #: Designs per task: ~1 s of combining and a few MB of rows; with only the feasible rows stored, a task's
 #: memory is its feasible rows' and it can be ten times larger (fewer parts for the parent to write).
 CHUNK = 200_000
@@ -667,4 +676,5 @@ STUDY = Study(
     exports={"dvrk": dvrk_export},
     warm_variants=(('robot.instrument_serial={model = "pa10_7c", rcm_in_base_m = [0.65, 0.0, 0.5]}',
                     "constraints.min_external_clearance_mm=150.0"),),
-    evaluate=evaluate_designs, figure_columns=figure_columns, preflight=preflight, top_columns=top_columns)
+    evaluate=evaluate_designs, figure_columns=figure_columns, preflight=preflight, top_columns=top_columns,
+    design_identity=design_identity)
