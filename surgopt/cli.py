@@ -290,6 +290,14 @@ def _multirun_table(study, finished) -> None:
                     + [f"{summary.headline.get(h):.6g}" if isinstance(summary.headline.get(h), float)
                        else str(summary.headline.get(h, "")) for h in heads])
     print_table(wide_console(), f"{study.name} --multirun: {len(finished)} runs", keys + ["key"] + heads, rows)
+    seen: dict = {}
+    for v, _, summary in finished:  # the same headline: the same answer (two seeds on one branch, say)
+        numbers = tuple(f"{x:.9g}" if isinstance(x, float) else x for x in map(summary.headline.get, heads))
+        label = " ".join(f"{k}={v.varied[k]}" for k in keys)
+        if heads and numbers in seen:
+            wide_console().print(f"note: {label} gives the headline numbers of {seen[numbers]} (to 9 digits: the "
+                                 f"same best; their other rows may still differ)")
+        seen.setdefault(numbers, label)
 
 
 def _register_studies() -> None:

@@ -392,6 +392,17 @@ def test_branches_runs_the_map_once_per_ik_branch(tmp_path):
     assert heads["0"]["best_gii"] == pytest.approx(plain["best_gii"], rel=1e-9)
     assert (heads["0"]["best_x_rcm_m"], heads["0"]["best_z_rcm_m"]) == (plain["best_x_rcm_m"], plain["best_z_rcm_m"])
     assert max(h["best_gii"] for h in heads.values()) > 1.1 * heads["0"]["best_gii"]
+    # #42 item 9: a plain run says it follows one branch of several; runs with one answer are named as such
+    said = cli("rcm-grid", "--robot", "ur5e", *small, "--store", tmp_path / "plain", "-q")
+    assert f"follows one IK branch, the one ur5e's seed lands on; the branch search finds {len(branches)}" in (
+        said.stdout + said.stderr)
+    first = {}
+    for k in sorted(heads, key=int):
+        numbers = tuple(f"{v:.9g}" if isinstance(v, float) else v for v in heads[k].values())
+        if numbers in first:
+            assert f"branch={k} gives the headline numbers of branch={first[numbers]}" in r.stdout + r.stderr
+        first.setdefault(numbers, k)
+    assert len(first) < len(heads)  # the premise: two seeds gave one answer
     bad = cli("rcm-grid", "--branches", "--dry-run", "--store", tmp_path / "none", check=False)
     assert bad.returncode == 2 and "robot.elbow" in bad.stderr
 

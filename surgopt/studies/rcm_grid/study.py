@@ -519,6 +519,23 @@ def seed_advice(cfg: RcmGridConfig) -> list[str]:
             f"candidate grid"]
 
 
+def branch_advice(cfg: RcmGridConfig) -> list[str]:
+    """A shipped model run without ``--branches`` (#42 item 9): the map follows the one IK branch its seed
+    lands on; say so, and how many the branch search finds at the grid's centre (``ik_branches``)."""
+    from surgopt.robots.models import get_model
+
+    r = cfg.robot
+    if r.closed_form or r.urdf is not None or r.dh is not None or r.model is None:
+        return []
+    if r.seed_deg and dict(r.seed_deg) != dict(get_model(r.model).seed_deg or {}):
+        return []  # a seed of the user's (or of a --branches run): the branch is chosen
+    n = len(ik_branches(cfg))
+    if n < 2:
+        return []
+    return [f"robot: the map follows one IK branch, the one {r.model}'s seed lands on; the branch search finds {n} "
+            f"at the grid's centre, whose best RCM and GII can differ: --branches runs each"]
+
+
 def unseeded_file_arm(cfg: RcmGridConfig) -> str | None:
     """Why ``--branches`` applies without the flag (#28 item 1): a URDF or DH arm given no seed_deg has no branch
     chosen for it, so the command line runs the map once per branch found and reports each and the best."""
@@ -589,7 +606,7 @@ STUDY = Study(
     warm_variants=(("metric=standard",), ("robot.model=ur5e",)),
     evaluate=evaluate_designs, design_box=design_box, cull=lambda cfg: cull_search(cfg),
     advice=lambda cfg: (cfg.robot.auto_lock_advice() + cfg.robot.tool_axis_advice() + reach_grid_advice(cfg)
-                        + seed_advice(cfg)),
+                        + seed_advice(cfg) + branch_advice(cfg)),
     flags=(Flag("--cull", "Fast exact argmax with the Culling algorithm (Stocco & Salcudean) instead of "
                           "the full GII map; culled candidates carry an upper bound.",
                 config_update={"search": "cull"}),
