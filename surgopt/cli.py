@@ -56,7 +56,33 @@ def _study_command(study) -> None:
     command.__annotations__ = {p.name: p.annotation for p in params}
     command.__doc__ = _literal(_reflow(study.help))
     command.__name__ = study.name.replace("-", "_")
-    app.command(study.name)(command)
+    app.command(study.name, cls=_other_studies_flags(study.name))(command)
+
+
+def _other_studies_flags(name: str):
+    """A study command that answers a flag of another study (``port-place --robot ur5e``: click suggested
+    --jobs, --verbose) by saying whose flag it is and where this study takes that choice."""
+    from typer.core import TyperCommand
+
+    class Command(TyperCommand):
+        def parse_args(self, ctx, args):
+            try:
+                return super().parse_args(ctx, args)
+            except Exception as exc:  # click's NoSuchOption (typer carries its own click)
+                if type(exc).__name__ != "NoSuchOption":
+                    raise
+                from surgopt.studies import STUDIES, get_study
+
+                owners = [s for s in STUDIES if s != name
+                          and any(exc.option_name == f.option for f in get_study(s).flags)]
+                if owners:
+                    exc.message = (f"{exc.option_name} is a flag of {' and '.join(owners)}, not of {name}: {name} "
+                                   f"takes that choice from its config (see `surgopt {name} --help` and "
+                                   f"--print-config)")
+                    exc.possibilities = None
+                raise
+
+    return Command
 
 
 def _literal(text: str) -> str:

@@ -297,3 +297,14 @@ def test_every_readme_command_line_is_valid_as_written(tmp_path, monkeypatch):
             others += 1
     assert studies >= 20 and others >= 10  # the premise: the README's lines were found
     assert not (tmp_path / "store").exists()  # nothing written
+
+
+def test_another_studys_flag_is_named_as_such(tmp_path):
+    """#42 item 11: `port-place --robot ur5e` suggested --jobs, --verbose; it now says whose flag --robot is and
+    where port-place takes its arms from (exit 2, nothing written); a mistyped shared option keeps click's
+    suggestion."""
+    r = cli("port-place", "--robot", "ur5e", "--store", tmp_path / "s", check=False)
+    assert r.returncode == 2 and "--robot is a flag of rcm-grid" in r.stderr and "--verbose" not in r.stderr
+    assert not (tmp_path / "s").exists()
+    r = cli("port-place", "--jbs", "2", "--store", tmp_path / "s", check=False)
+    assert r.returncode == 2 and "--jobs" in r.stderr
