@@ -101,6 +101,8 @@ def test_the_dvrk_export_puts_each_psm_rcm_on_its_port_by_the_reference_kinemati
     r = cli("port-place", "c.toml", "--store", tmp_path / "s", cwd=tmp_path)
     assert "classic cart" in r.stdout and "setup joints" in r.stdout and "PSM1" in r.stdout
     assert "least clearance outside the body" in r.stdout and "PSM1 and PSM2, over the target" in r.stdout
+    checks = r.stdout.split("best layout: clinical checks")[1].split("best layout: ports")[0]
+    assert "within" in checks and ("yes" in checks or "OUTSIDE" in checks)
     best = int(r.stdout.split("best_design_id")[1].split()[1])
     r = cli("export", "latest", "--store", tmp_path / "s", "--design", str(best), "--format", "dvrk", "--out",
             tmp_path / "setup.json", cwd=tmp_path)
@@ -175,3 +177,13 @@ def test_diff_of_two_port_place_runs_matches_layouts_by_their_ports(tmp_path):
     a, b = (r.read_table(S.schema()).to_pandas() for r in runs)
     by_id = pd.merge(a, b, on="design_id", suffixes=("_a", "_b"))
     assert (by_id["psm1_x_mm_a"] != by_id["psm1_x_mm_b"]).any()  # the premise: ids name other layouts
+
+
+def test_a_clinical_check_outside_its_band_is_marked():
+    """#42 item 11: the closing report's clinical checks mark a value outside the literature's band (any of
+    two values: the manipulation angle's range over the target), and leave checks without a band unmarked."""
+    assert S.within_band([62.3], (45.0, 75.0)) == "yes"
+    assert S.within_band([49.1, 82.4], (45.0, 75.0)) == "OUTSIDE"
+    assert S.within_band([82.0], (80.0, math.inf)) == "yes" and S.within_band([1.0], None) == ""
+    bands = {label: band for label, *_, band in S.CLINICAL_CHECKS}
+    assert bands["manipulation angle over the target (deg)"] == (45.0, 75.0)

@@ -9,6 +9,8 @@ reach and isotropy tables (n_sites x n_points, from the config), the reasons' co
 feasible layouts' metrics."""
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from surgopt.studies.page import View, table_html
@@ -67,7 +69,7 @@ def views(run, cfg, parts) -> list[View]:
     targets = model.targets_m * 1000
     site_best = _site_best(parts, arms, len(sites))
     wanted = sorted({*LAYOUT_COLUMNS, *[f"{a}_{s}" for a in arms for s in ("site", "x_mm", "y_mm", "z_mm")],
-                     *[f for _, fields, _, _, _ in CLINICAL_CHECKS for f in fields], "infeasible",
+                     *[f for _, fields, *_ in CLINICAL_CHECKS for f in fields], "infeasible",
                      *[f"{a}_elevation_deg" for a in arms[:-1]], *PARALLEL_COLUMNS} & set(parts.schema.names))
     best = least_cost_layouts(parts, max(PARALLEL, TOP_FEASIBLE), True, wanted)  # the table's and the lines'
     feasible = best.slice(0, TOP_FEASIBLE)
@@ -93,8 +95,9 @@ def views(run, cfg, parts) -> list[View]:
         "targets": targets, "centre": np.asarray(cfg.target.centre_mm, float),
         "reach": np.asarray(reach, bool).astype(np.int8), "dex": np.round(np.asarray(dex, float), 4),
         "layouts": layouts, "n_layouts": top.num_rows, "body": _body(cfg),
-        "checks": [[label, list(fields), digits, joiner, clinical] for label, fields, digits, joiner, clinical in
-                   CLINICAL_CHECKS],
+        "checks": [[label, list(fields), digits, joiner, clinical,
+                    None if band is None else [band[0], band[1] if math.isfinite(band[1]) else None]]
+                   for label, fields, digits, joiner, clinical, band in CLINICAL_CHECKS],
         "reasons": [[int(bit), why] for bit, why in REASONS.items()],
     }
     rows = [[layouts[c][i] for c in LAYOUT_COLUMNS if c in layouts]
@@ -120,7 +123,7 @@ def views(run, cfg, parts) -> list[View]:
                                               "chosen ports (black: not reached by every instrument)."),
         {}, '<div class="row"><div><div id="pp-scene" class="plot" style="min-height:620px"></div></div>'
             '<div style="flex:0 1 460px"><h3 id="pp-title"></h3><table id="pp-checks"><thead><tr><th>check</th>'
-            '<th>this layout</th><th>clinical number</th></tr></thead><tbody></tbody></table>'
+            '<th>this layout</th><th>clinical number</th><th>within</th></tr></thead><tbody></tbody></table>'
             '<table id="pp-ports"><thead><tr><th>arm</th><th>site</th><th>x_mm</th><th>y_mm</th><th>z_mm</th></tr>'
             '</thead><tbody></tbody></table></div></div>'
             f"<h3>Top layouts: the {feasible.num_rows} feasible of least cost"
@@ -204,11 +207,13 @@ function draw(i){
   const body = document.querySelector('#pp-checks tbody'); body.innerHTML = '';
   D.checks.forEach(c => { const tr = document.createElement('tr');
     const v = c[1].map(f => fmt(col(f, i), c[2])).join(c[3]);
-    [c[0], v, c[4]].forEach(t => { const td = document.createElement('td'); td.textContent = t; tr.appendChild(td); });
+    const out = c[5] && c[1].some(f => col(f, i) < c[5][0] || (c[5][1] !== null && col(f, i) > c[5][1]));
+    if (out) tr.className = 'flag';
+    [c[0], v, c[4], c[5] ? (out ? 'OUTSIDE' : 'yes') : ''].forEach(t => { const td = document.createElement('td'); td.textContent = t; tr.appendChild(td); });
     body.appendChild(tr); });
   const bad = col('infeasible', i);
   if (bad) { D.reasons.forEach(r => { if (bad & r[0]) { const tr = document.createElement('tr'); tr.className = 'flag';
-    tr.innerHTML = '<td colspan="3"></td>'; tr.firstChild.textContent = 'fails: ' + r[1]; body.appendChild(tr); } }); }
+    tr.innerHTML = '<td colspan="4"></td>'; tr.firstChild.textContent = 'fails: ' + r[1]; body.appendChild(tr); } }); }
   const ports = document.querySelector('#pp-ports tbody'); ports.innerHTML = '';
   arms.forEach(a => { const tr = document.createElement('tr');
     [a.toUpperCase(), col(a+'_site', i), fmt(col(a+'_x_mm', i), 0), fmt(col(a+'_y_mm', i), 0), fmt(col(a+'_z_mm', i), 0)]

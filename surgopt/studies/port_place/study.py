@@ -541,20 +541,30 @@ def feasible_mask(table):
 
 #: A layout's clinical checks beside their literature values: (quantity, row fields, decimals, how the fields'
 #: values are joined, the clinical number and its source). The closing report and the HTML page read it.
+#: The best layout's checks against the literature: (quantity, columns, digits, joiner, the clinical number, its
+#: band (lo, hi) where the literature gives one: a value outside it is marked).
 CLINICAL_CHECKS = (
-    ("port spacing (mm)", ("min_port_spacing_mm",), 0, "", ">= 80 (assumption: 8 cm)"),
-    ("instrument port to target centre (mm)", ("psm_to_target_mm",), 0, "", "<= 180 (J Endourol 2004)"),
+    ("port spacing (mm)", ("min_port_spacing_mm",), 0, "", ">= 80 (assumption: 8 cm)", (80.0, math.inf)),
+    ("instrument port to target centre (mm)", ("psm_to_target_mm",), 0, "", "<= 180 (J Endourol 2004)",
+     (0.0, 180.0)),
     ("manipulation angle at the centre (deg)", ("manipulation_angle_centre_deg",), 1, "",
-     "45-75, 60 best (Hanna 1997)"),
+     "45-75, 60 best (Hanna 1997)", (45.0, 75.0)),
     ("manipulation angle over the target (deg)", ("manipulation_angle_min_deg", "manipulation_angle_max_deg"), 1,
-     " - ", "45-75"),
-    ("azimuth imbalance (deg)", ("azimuth_imbalance_deg",), 1, "", "0: equal azimuths (Hanna 1997)"),
+     " - ", "45-75", (45.0, 75.0)),
+    ("azimuth imbalance (deg)", ("azimuth_imbalance_deg",), 1, "", "0: equal azimuths (Hanna 1997)", None),
     ("instrument elevation at the centre (deg)", ("psm1_elevation_deg", "psm2_elevation_deg"), 1, " / ",
-     "60 with a 60-deg manipulation angle (Hanna 1997)"),
-    ("optical axis off the instruments' arc (deg)", ("camera_off_arc_deg",), 1, "", "0: camera between them"),
-    ("common reach", ("common_reach",), 3, "", "1"),
-    ("camera coverage", ("camera_coverage",), 3, "", "1"),
+     "60 with a 60-deg manipulation angle (Hanna 1997)", None),
+    ("optical axis off the instruments' arc (deg)", ("camera_off_arc_deg",), 1, "", "0: camera between them", None),
+    ("common reach", ("common_reach",), 3, "", "1", (1.0, 1.0)),
+    ("camera coverage", ("camera_coverage",), 3, "", "1", (1.0, 1.0)),
 )
+
+
+def within_band(values, band) -> str:
+    """"yes", "OUTSIDE" (any value out of the band) or "" (the literature gives no band)."""
+    if band is None:
+        return ""
+    return "yes" if all(band[0] <= v <= band[1] for v in values) else "OUTSIDE"
 
 
 def summary(parts) -> Summary:
@@ -589,9 +599,10 @@ def summary(parts) -> Summary:
         b = best.to_pylist()[0]
         headline.update({"best_design_id": b["design_id"], "best_cost": b["cost"]})
         checks = [[label + (" (all three instruments)" if fields == ("common_reach",) and "psm3_reach" in b else ""),
-                   joiner.join(f"{b[f]:.{digits}f}" for f in fields), clinical]
-                  for label, fields, digits, joiner, clinical in CLINICAL_CHECKS]
-        tables.append(("best layout: clinical checks", ["quantity", "value", "clinical number"], checks))
+                   joiner.join(f"{b[f]:.{digits}f}" for f in fields), clinical,
+                   within_band([b[f] for f in fields], band)]
+                  for label, fields, digits, joiner, clinical, band in CLINICAL_CHECKS]
+        tables.append(("best layout: clinical checks", ["quantity", "value", "clinical number", "within"], checks))
         ports = [[arm, str(b[f"{arm}_site"]), f"{b[f'{arm}_x_mm']:.0f}", f"{b[f'{arm}_y_mm']:.0f}",
                   f"{b[f'{arm}_z_mm']:.0f}"] for arm in ("psm1", "psm2", "psm3", "ecm") if f"{arm}_site" in b]
         tables.append(("best layout: ports (x lateral, y cranial, z anterior)", ["arm", "site", "x_mm", "y_mm", "z_mm"],
