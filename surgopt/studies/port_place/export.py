@@ -10,6 +10,7 @@ import numpy as np
 
 from surgopt.errors import UsageError
 from surgopt.studies.port_place.config import PortPlaceConfig, camera_arm_of, instrument_of
+from surgopt.studies.port_place.geometry import FRAME_TEXT
 
 #: The format's version: a reader can refuse one it does not know.
 DVRK_FORMAT = "surgopt-dvrk-setup-1"
@@ -80,8 +81,7 @@ def dvrk_setup(cfg: PortPlaceConfig, row: dict) -> str:
             "arm_joints_at_target_centre": joints,
         })
     out = {"format": DVRK_FORMAT, "run_key": row.get("run_key"), "design_id": row["design_id"],
-           "units": "metres and radians (the SUJ column in metres); port_mm in millimetres, in the patient's frame "
-                    "(x lateral, the patient's left +x; y cranial; z anterior; origin on the table top)",
+           "units": f"metres and radians (the SUJ column in metres); port_mm in millimetres, in the {FRAME_TEXT}",
            "cart": {"model": cfg.cart.model, "x_mm": row["cart_x_mm"], "y_mm": row["cart_y_mm"],
                     "heading_deg": row["cart_heading_deg"], "table_height_mm": cfg.cart.table_height_mm,
                     "trendelenburg_deg": cfg.cart.trendelenburg_deg, "lateral_tilt_deg": cfg.cart.lateral_tilt_deg},

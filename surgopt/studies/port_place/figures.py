@@ -5,6 +5,7 @@ from __future__ import annotations
 import numpy as np
 
 from surgopt.studies.plotting import columns, pyplot, save
+from surgopt.studies.port_place.geometry import X_LABEL, Y_LABEL, Z_LABEL
 
 COLOURS = {"psm1": "C3", "psm2": "C1", "psm3": "C2", "ecm": "C0"}
 
@@ -111,9 +112,9 @@ def figures(cfg, table, out, design_id=None):
             ax.plot(*line.T, color=COLOURS["ecm"], lw=3, marker="o", ms=3, alpha=0.8,
                     label=f"{cfg.robot.camera_serial.holder().name} holding the endoscope")
         ax.legend(fontsize=8, loc="upper left")
-    ax.set_xlabel("x lateral (mm)")
-    ax.set_ylabel("y cranial (mm)")
-    ax.set_zlabel("z anterior (mm)")
+    ax.set_xlabel(X_LABEL)
+    ax.set_ylabel(Y_LABEL)
+    ax.set_zlabel(Z_LABEL)
     serial = cfg.robot.instrument_serial is not None or cfg.robot.camera_serial is not None
     lims = [ax.get_xlim3d(), ax.get_ylim3d(), ax.get_zlim3d()]
     ax.set_box_aspect([hi - lo for lo, hi in lims] if serial else (a, b, h))
@@ -138,8 +139,8 @@ def figures(cfg, table, out, design_id=None):
             p = sites[c[f"{arm}_site"][row]]
             ax.plot(p[0], p[1], "*", color=colour, ms=16, mec="k", label=label)
     ax.set_aspect("equal")
-    ax.set_xlabel("x lateral (mm)")
-    ax.set_ylabel("y cranial (mm)")
+    ax.set_xlabel(X_LABEL)
+    ax.set_ylabel(Y_LABEL)
     ax.set_title("candidate ports (top view) and the best layout", fontsize=9)
     ax.legend(fontsize=7, loc="upper center", bbox_to_anchor=(0.5, -0.1), ncol=4)
     paths.append(save(fig, out / "port_place_sites_top.png"))
@@ -187,10 +188,10 @@ def reach_maps(plt, cfg, sites, t, dex, out):
         ax.set_xlim(-a, a)
         ax.set_ylim(-b, b)
         ax.set_aspect("equal")
-        ax.set_xlabel("x lateral (mm)")
+        ax.set_xlabel(X_LABEL)
         ax.set_title(title + (f"\n(every site: {lo:.2f})" if np.isclose(lo, hi) else f"\n({lo:.2f} to {hi:.2f})"),
                      fontsize=9)
-    axes[0].set_ylabel("y cranial (mm)")
+    axes[0].set_ylabel(Y_LABEL)
     axes[0].legend(fontsize=7, loc="lower left")
     from surgopt.studies.port_place.config import camera_arm_of, instrument_of
 

@@ -17,6 +17,13 @@ from pathlib import Path
 import numpy as np
 
 
+#: The patient frame, said once (the reports, the figures, the page, the export): where +x, +y, +z point and
+#: where the origin is (#42 item 3: the frame said which axis, not which side).
+FRAME_TEXT = ("patient frame, mm: +x toward the patient's left, +y toward the head, +z anterior (up from the "
+              "table); origin: the centre of the body's base on the table top")
+X_LABEL, Y_LABEL, Z_LABEL = "x (mm), + the patient's left", "y (mm), + toward the head", "z anterior (mm)"
+
+
 def polygon_area_mm2(poly: np.ndarray) -> float:
     """|Shoelace area| of a polygon's vertices (N, 2), in order."""
     x, y = poly[:, 0], poly[:, 1]

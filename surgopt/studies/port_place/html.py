@@ -14,13 +14,13 @@ import math
 import numpy as np
 
 from surgopt.studies.page import View, table_html
+from surgopt.studies.port_place.geometry import FRAME_TEXT, X_LABEL, Y_LABEL, Z_LABEL
 
 TOP_FEASIBLE = 300
 TOP_INFEASIBLE = 100
 PARALLEL = 2000
 COLOURS = {"psm1": "#d62728", "psm2": "#ff7f0e", "psm3": "#2ca02c", "ecm": "#1f77b4"}
-FRAME = ("Patient frame, mm: x lateral, y cranial (toward the head), z anterior (up from the table); the origin is "
-         "the centre of the body's base on the table. Costs are to be minimised.")
+FRAME = FRAME_TEXT[0].upper() + FRAME_TEXT[1:] + ". Costs are to be minimised."
 LAYOUT_COLUMNS = ("design_id", "cost", "feasible", "common_reach", "dexterity_mean", "manipulation_angle_centre_deg",
                   "azimuth_imbalance_deg", "camera_coverage", "min_port_spacing_mm", "external_clearance_mm")
 PARALLEL_COLUMNS = ("cost", "common_reach", "dexterity_mean", "manipulation_angle_centre_deg", "azimuth_imbalance_deg",
@@ -99,6 +99,7 @@ def views(run, cfg, parts) -> list[View]:
                     None if band is None else [band[0], band[1] if math.isfinite(band[1]) else None]]
                    for label, fields, digits, joiner, clinical, band in CLINICAL_CHECKS],
         "reasons": [[int(bit), why] for bit, why in REASONS.items()],
+        "axes": [X_LABEL, Y_LABEL, Z_LABEL],
     }
     rows = [[layouts[c][i] for c in LAYOUT_COLUMNS if c in layouts]
             + [", ".join(str(layouts[f"{a}_site"][i]) for a in arms)] for i in range(top.num_rows)]
@@ -200,8 +201,8 @@ function draw(i){
   });
   const layout = {uirevision:'keep', height:620, margin:{l:0, r:0, t:30, b:0}, showlegend:true, legend:{orientation:'h', x:0, y:0, bgcolor:'rgba(255,255,255,0.7)'},
     title:{text:'layout '+col('design_id', i)+' · cost '+fmt(col('cost', i), 4)+(col('feasible', i)?'':' · INFEASIBLE'), font:{size:13}},
-    scene:{aspectmode:'data', xaxis:{title:{text:'x lateral (mm)'}}, yaxis:{title:{text:'y cranial (mm)'}},
-           zaxis:{title:{text:'z anterior (mm)'}}, camera:{eye:{x:-1.2, y:-1.6, z:1.0}}}};
+    scene:{aspectmode:'data', xaxis:{title:{text:D.axes[0]}}, yaxis:{title:{text:D.axes[1]}},
+           zaxis:{title:{text:D.axes[2]}}, camera:{eye:{x:-1.2, y:-1.6, z:1.0}}}};
   const drawn = Plotly.react('pp-scene', traces, layout, {displaylogo:false, responsive:true});
   document.getElementById('pp-title').textContent = 'Layout ' + col('design_id', i) + (col('feasible', i) ? '' : ' (infeasible)');
   const body = document.querySelector('#pp-checks tbody'); body.innerHTML = '';

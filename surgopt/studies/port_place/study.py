@@ -29,7 +29,7 @@ from surgopt.robots import dvrk
 from surgopt.studies import Estimate, Study, Summary, figures_in, html_views_in, peak_bytes
 from surgopt.parts import concat_rows
 from surgopt.studies.port_place.config import OBJECTIVE, PortPlaceConfig, camera_arm_of, instrument_of
-from surgopt.studies.port_place.geometry import sites_mm, target_points_mm
+from surgopt.studies.port_place.geometry import FRAME_TEXT, sites_mm, target_points_mm
 from surgopt.studies.port_place.tables import LATERAL, model_of, port_tables
 
 NAME = "port-place"
@@ -605,7 +605,7 @@ def summary(parts) -> Summary:
         tables.append(("best layout: clinical checks", ["quantity", "value", "clinical number", "within"], checks))
         ports = [[arm, str(b[f"{arm}_site"]), f"{b[f'{arm}_x_mm']:.0f}", f"{b[f'{arm}_y_mm']:.0f}",
                   f"{b[f'{arm}_z_mm']:.0f}"] for arm in ("psm1", "psm2", "psm3", "ecm") if f"{arm}_site" in b]
-        tables.append(("best layout: ports (x lateral, y cranial, z anterior)", ["arm", "site", "x_mm", "y_mm", "z_mm"],
+        tables.append((f"best layout: ports ({FRAME_TEXT})", ["arm", "site", "x_mm", "y_mm", "z_mm"],
                        ports))
         if "cart_pose" in b:
             tables += docking_tables(b, meta)
