@@ -136,10 +136,11 @@ def test_the_dvrk_export_puts_each_psm_rcm_on_its_port_by_the_reference_kinemati
         yaw, pitch, insertion = arm["arm_joints_at_target_centre"]
         assert abs(yaw) < 1e-9 and abs(pitch) < 1e-9
         assert insertion == pytest.approx(np.linalg.norm(port - centre) + 0.0156, abs=1e-9)
-    rows = cli("export", "latest", "--store", tmp_path / "s", "--format", "csv", cwd=tmp_path).stdout.splitlines()
-    header = rows[0].split(",")
-    pose, design = header.index("cart_pose"), header.index("design_id")
-    undockable = [line.split(",")[design] for line in rows[1:] if line.split(",")[pose] == "-1"]
+    from surgopt.store import Store
+
+    (run,) = Store(tmp_path / "s").runs("port-place")
+    rows = run.read_table(S.STUDY.schema_for(run.manifest["config"]), columns=["design_id", "cart_pose"]).to_pandas()
+    undockable = rows.loc[rows.cart_pose == -1, "design_id"].astype(str).tolist()
     assert undockable  # the premise: some layouts no cart pose docks
     bad = cli("export", "latest", "--store", tmp_path / "s", "--design", undockable[0], "--format", "dvrk",
               cwd=tmp_path, check=False)
@@ -163,13 +164,13 @@ def test_diff_of_two_port_place_runs_matches_layouts_by_their_ports(tmp_path):
     from surgopt.results import diff_runs
     from surgopt.store import Store
 
-    for name in ("all", "region"):  # the SMALL config, then with a marked region
-        lines = ["[patient.port_region]", "site_spacing_mm = 36.0", "[target]", "spacing_mm = 15.0"]
-        if name == "region":
-            lines.insert(2, "polygon_mm = [[-150, -150], [150, -150], [150, 120], [-150, 120]]")
-        (tmp_path / f"{name}.toml").write_text("\n".join(lines) + "\n")
-        cli("port-place", tmp_path / f"{name}.toml", "--store", tmp_path / "s", "--quiet", cwd=tmp_path)
+    from surgopt.runner import run_study
+
     store = Store(tmp_path / "s")
+    region = {**SMALL, "patient": {"port_region": {"site_spacing_mm": 36.0, "polygon_mm": [
+        [-150.0, -150.0], [150.0, -150.0], [150.0, 120.0], [-150.0, 120.0]]}}}
+    for name, raw in (("all", SMALL), ("region", region)):  # the SMALL config, then with a marked region
+        run_study(S.STUDY, C.PortPlaceConfig.model_validate(raw), config_name=name, store=store, jobs=1, quiet=True)
     runs = sorted(store.runs("port-place"), key=lambda r: r.rows, reverse=True)
     d = diff_runs(store, runs[0].key, runs[1].key)
     assert d["rows_joined"] == runs[1].rows and d["rows_only_b"] == 0 and d["rows_only_a"] > 0
