@@ -20,6 +20,7 @@ import numpy as np
 
 from surgopt.jit import EXACT, njit
 from surgopt.kinematics.port_place import segment_distance
+from surgopt.robots.chain import rot_x, rot_y, rot_z, trans
 
 GOLDEN = (math.sqrt(5.0) - 1.0) / 2.0
 
@@ -32,29 +33,14 @@ class Capsules(NamedTuple):
     names: tuple
 
 
-def rpy_matrix(roll: float, pitch: float, yaw: float) -> np.ndarray:
-    """URDF's origin rotation: Rz(yaw) Ry(pitch) Rx(roll) (fixed axes x, y, z)."""
-    cr, sr, cp, sp, cy, sy = (math.cos(roll), math.sin(roll), math.cos(pitch), math.sin(pitch), math.cos(yaw),
-                              math.sin(yaw))
-    return np.array([[cy * cp, cy * sp * sr - sy * cr, cy * sp * cr + sy * sr],
-                     [sy * cp, sy * sp * sr + cy * cr, sy * sp * cr - cy * sr],
-                     [-sp, cp * sr, cp * cr]])
-
-
 def frame_transform(frame, q) -> np.ndarray:
-    """(C4) T_parent_frame = Trans(xyz) RPY(rpy) Rz(m q_j) (revolute) or Tz(m q_j) (prismatic)."""
-    t = np.eye(4)
-    t[:3, :3] = rpy_matrix(*frame.rpy_rad)
-    t[:3, 3] = frame.xyz_m
+    """(C4) T_parent_frame = Trans(xyz) Rz(yaw) Ry(pitch) Rx(roll) (URDF's origin) then Rz(m q_j) (revolute) or
+    Tz(m q_j) (prismatic)."""
+    roll, pitch, yaw = frame.rpy_rad
+    t = trans(*frame.xyz_m) @ rot_z(yaw) @ rot_y(pitch) @ rot_x(roll)
     if frame.joint >= 0:
         v = frame.multiplier * q[frame.joint]
-        j = np.eye(4)
-        if frame.prismatic:
-            j[2, 3] = v
-        else:
-            c, s = math.cos(v), math.sin(v)
-            j[:2, :2] = [[c, -s], [s, c]]
-        t = t @ j
+        t = t @ (trans(0.0, 0.0, v) if frame.prismatic else rot_z(v))
     return t
 
 

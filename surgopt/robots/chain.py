@@ -76,6 +76,13 @@ def rot_x(a: float) -> np.ndarray:
     return t
 
 
+def rot_y(a: float) -> np.ndarray:
+    c, s = math.cos(a), math.sin(a)
+    t = np.eye(4)
+    t[0, 0], t[0, 2], t[2, 0], t[2, 2] = c, s, -s, c
+    return t
+
+
 def rot_z(a: float) -> np.ndarray:
     c, s = math.cos(a), math.sin(a)
     t = np.eye(4)

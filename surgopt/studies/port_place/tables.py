@@ -30,6 +30,7 @@ from typing import NamedTuple
 import numpy as np
 
 from surgopt.robots import dvrk
+from surgopt.robots.chain import rot_x, rot_y, rot_z
 from surgopt.studies.port_place.config import PortPlaceConfig, Target, camera_arm_of, instrument_of
 from surgopt.studies.port_place.geometry import sites_mm, target_points_mm
 
@@ -299,21 +300,6 @@ class CartPoses(NamedTuple):
     patient: np.ndarray
 
 
-def rot_x(a: float) -> np.ndarray:
-    c, s = math.cos(a), math.sin(a)
-    return np.array([[1.0, 0.0, 0.0], [0.0, c, -s], [0.0, s, c]])
-
-
-def rot_y(a: float) -> np.ndarray:
-    c, s = math.cos(a), math.sin(a)
-    return np.array([[c, 0.0, s], [0.0, 1.0, 0.0], [-s, 0.0, c]])
-
-
-def rot_z(a: float) -> np.ndarray:
-    c, s = math.cos(a), math.sin(a)
-    return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
-
-
 def patient_in_cart(cart, x_mm: float, y_mm: float, heading_deg: float) -> np.ndarray:
     """(4, 4) The patient's frame in the cart's world frame (m), the cart's origin at (x, y) on the floor of the
     patient's untilted frame F, heading ``heading_deg`` (its +y toward F's +y turned toward +x), the patient tilted
@@ -321,10 +307,11 @@ def patient_in_cart(cart, x_mm: float, y_mm: float, heading_deg: float) -> np.nd
     T_F_patient = Rx(-trendelenburg) Ry(-lateral tilt) (head down, left side up) and T_F_cart =
     [Rz(-heading), (x, y, -table height)]."""
     f_cart = np.eye(4)
-    f_cart[:3, :3] = rot_z(-math.radians(heading_deg))
+    f_cart[:3, :3] = rot_z(-math.radians(heading_deg))[:3, :3]
     f_cart[:3, 3] = (x_mm / 1000, y_mm / 1000, -cart.table_height_mm / 1000)
     f_patient = np.eye(4)
-    f_patient[:3, :3] = rot_x(-math.radians(cart.trendelenburg_deg)) @ rot_y(-math.radians(cart.lateral_tilt_deg))
+    f_patient[:3, :3] = (rot_x(-math.radians(cart.trendelenburg_deg))
+                         @ rot_y(-math.radians(cart.lateral_tilt_deg)))[:3, :3]
     return np.linalg.inv(f_cart) @ f_patient
 
 
