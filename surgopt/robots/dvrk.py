@@ -44,6 +44,10 @@ class RcmArm:
     source: str
     #: how far the instrument's wrist turns the jaws off the shaft (0: a scope, no wrist)
     wrist_bend_rad: float = 0.0
+    #: the jaws' tip past the wrist point along a straight wrist (an instrument's last link; 0: a scope's tip)
+    tip_beyond_wrist_m: float = 0.0
+    #: the least distance of the wrist from the RCM the arm's controller accepts (0: none stated)
+    min_wrist_depth_m: float = 0.0
 
     @property
     def yaw_limits_rad(self) -> tuple[float, float]:
@@ -85,6 +89,12 @@ def yaw_pitch_insertion(yaw_rad: tuple[float, float], pitch_rad: tuple[float, fl
 LND_ROLL_LIMITS_RAD = (-4.53786, 4.53786)
 LND_WRIST_LIMITS_RAD = (-1.39626, 1.39626)
 LND_WRIST_LINK_M = 0.0091
+#: The dVRK's PSM controller: Cartesian control is refused while the first joint at the end of the instrument's
+#: shaft (the wrist) is within 45 mm of the RCM (``SafeDistanceFromRCM``), and the cannula's tip is ~25 mm from
+#: the RCM (``EngageDepthCannula``): jhu-dvrk/sawIntuitiveResearchKit, core/components/include/
+#: sawIntuitiveResearchKit/mtsIntuitiveResearchKit.h, namespace PSM.
+PSM_SAFE_DISTANCE_FROM_RCM_M = 0.045
+PSM_CANNULA_ENGAGE_DEPTH_M = 0.025
 #: How far the Large Needle Driver's jaws can point away from its shaft: a cone of the wrist rows' +-80 deg
 #: (pitch and yaw each reach 80 deg; together they reach farther on the diagonals, so the cone is the
 #: conservative reading of the two limits).

@@ -7,10 +7,12 @@ brings the reaching point to the wrist (an instrument) or the scope's tip.
 """
 from __future__ import annotations
 
-from surgopt.robots.dvrk import LND_ROLL_LIMITS_RAD, LND_WRIST_BEND_RAD, RcmArm, revolute, yaw_pitch_insertion
+from surgopt.robots.dvrk import (LND_ROLL_LIMITS_RAD, LND_WRIST_BEND_RAD, LND_WRIST_LINK_M, PSM_SAFE_DISTANCE_FROM_RCM_M,
+                                 RcmArm, revolute, yaw_pitch_insertion)
 
 MODEL = RcmArm(
     "dvrk_psm_classic",
     yaw_pitch_insertion((-1.588, 1.588), (-0.925025, 0.925025), (0.0, 0.240), -0.4318)
     + (revolute(0.0, 0.0, 0.4162, 0.0, *LND_ROLL_LIMITS_RAD, "roll"),),
-    "PSM.json + LARGE_NEEDLE_DRIVER_400006.json", LND_WRIST_BEND_RAD)
+    "PSM.json + LARGE_NEEDLE_DRIVER_400006.json", LND_WRIST_BEND_RAD, LND_WRIST_LINK_M,
+    PSM_SAFE_DISTANCE_FROM_RCM_M)

@@ -237,6 +237,35 @@ class Robot(StrictModel):
                                                  "about its port (yaw); 0: docked toward the centre. The grid "
                                                  "enumerates the default docking only")
 
+    tip_beyond_wrist_mm: float | None = Field(
+        None, ge=0.0, le=100.0, description="the point that must reach every target point lies this far past the "
+        "instrument's wrist-pitch point along its shaft (the wrist straight); none: the instrument's own jaw tip "
+        "(the dVRK Large Needle Driver's 9.1 mm, its wrist-yaw link; 0 for an arm from a file); 0: the "
+        "wrist-pitch point (as before issue 40)")
+    min_wrist_depth_mm: float | None = Field(
+        None, ge=0.0, le=300.0, description="the instrument's wrist at least this far inside the body, from the "
+        "RCM (the port), at every target point; none: the arm's own controller limit (the dVRK PSM refuses "
+        "Cartesian control within 45 mm, SafeDistanceFromRCM; 0 for an arm from a file)")
+    docking_roll_deg: float = Field(
+        0.0, ge=0.0, le=90.0, description="each instrument arm's base turned about its neutral shaft by this "
+        "angle after docking: 0, its yaw swings the shaft across the patient; 90, head to foot. Ports on the "
+        "patient's left (x >= 0) turn the frame's x toward the head, on the right toward the feet (mirror "
+        "images, so a symmetric patient gives a symmetric answer)")
+    docking_roll: Literal["given", "most_reach"] = Field(
+        "given", description="'given': docking_roll_deg at every port; 'most_reach': at each port the roll of "
+                             "0, 15, ..., 90 deg (mirrored as docking_roll_deg) that reaches the most target "
+                             "points (ties: the one nearest docking_roll_deg)")
+
+    @model_validator(mode="after")
+    def _rcm_instrument_choices(self):
+        if self.instrument_serial is None:
+            return self
+        for name in ("tip_beyond_wrist_mm", "min_wrist_depth_mm", "docking_roll_deg", "docking_roll"):
+            if getattr(self, name) != type(self).model_fields[name].default:  # a stored config lists every field
+                raise ValueError(f"{name} goes with an RCM instrument arm (instrument_arm or instrument_file); a "
+                                 f"serial arm's tool is its own tool_m, its base turns by docking_range_deg")
+        return self
+
     @model_validator(mode="after")
     def _one_arm_each(self):
         for role in ("instrument", "camera"):
@@ -252,8 +281,14 @@ class Robot(StrictModel):
 class Constraints(StrictModel):
     min_port_spacing_mm: float = Field(80.0, ge=0, description="between any two ports (assumption: 8 cm)")
     port_to_target_mm: list[float] = Field([80.0, 180.0], min_length=2, max_length=2,
-                                           description="candidate sites this far from the target centre "
-                                                       "(<= 18 cm: J Endourol 18(6):572, 2004)")
+                                           description="candidate sites this far from the target centre, "
+                                                       "measured as port_to_target_measure says (<= 18 cm: J "
+                                                       "Endourol 18(6):572, 2004, from the pubis on the "
+                                                       "insufflated skin)")
+    port_to_target_measure: Literal["3d", "horizontal"] = Field(
+        "3d", description="'3d': the straight distance from port to target centre; 'horizontal': its top-view "
+                          "part (x, y) alone, as the J Endourol figure is read (a port 18 cm from the pubis "
+                          "along the table)")
     shaft_diameter_mm: float = Field(dvrk.INSTRUMENT_SHAFT_DIAMETER_MM, gt=0)
     min_shaft_clearance_mm: float = Field(5.0, ge=0, description="between shaft surfaces inside the body")
     tip_zone_mm: float = Field(30.0, ge=0, description="last stretch before the target centre left out of the "
@@ -375,6 +410,18 @@ class PortPlaceConfig(StrictModel):
                 raise ValueError(f"target.approach_half_angle_deg: {self.target.approach_half_angle_deg:g} deg is "
                                  f"more than the instrument's wrist can bend the jaws from its shaft ({bend:.0f} "
                                  f"deg): no port can give every direction of that cone")
+        return self
+
+    @model_validator(mode="after")
+    def _the_insertion_reaches_the_least_depth(self):
+        r = self.robot
+        if r.instrument_serial is not None or r.min_wrist_depth_mm is None:
+            return self
+        arm = instrument_of(self)
+        deepest_mm = (arm.insertion_limits_m[1] + arm.along_shaft_m) * 1000
+        if r.min_wrist_depth_mm > deepest_mm:
+            raise ValueError(f"robot.min_wrist_depth_mm: {r.min_wrist_depth_mm:g} mm, but {arm.name}'s insertion "
+                             f"takes its wrist at most {deepest_mm:.1f} mm past the RCM: no point would be reached")
         return self
 
     @model_validator(mode="after")

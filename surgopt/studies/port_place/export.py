@@ -20,13 +20,14 @@ def _matrix(t) -> list:
     return [[float(v) for v in row] for row in np.asarray(t, float)]
 
 
-def arm_joints_at_centre(arm, base_in_patient: np.ndarray, centre_m: np.ndarray) -> list[float]:
-    """An instrument arm's yaw, pitch (rad) and insertion (m) that put its reaching point on the target's centre
-    (``kinematics.port_place.rcm_inverse``, eq. P2, in its base frame)."""
+def arm_joints_at_centre(limits, base_in_patient: np.ndarray, centre_m: np.ndarray) -> list[float]:
+    """An instrument arm's yaw, pitch (rad) and insertion (m) that put its reaching point (the tip or the wrist,
+    as the run's ``ArmLimits`` say) on the target's centre (``kinematics.port_place.rcm_inverse``, eq. P2, in its
+    base frame)."""
     from surgopt.kinematics.port_place import rcm_inverse
 
     p = base_in_patient[:3, :3].T @ (centre_m - base_in_patient[:3, 3])
-    return [float(v) for v in rcm_inverse(p, arm.along_shaft_m)]
+    return [float(v) for v in rcm_inverse(p, limits.along_shaft_m)]
 
 
 def clearances_of(cfg: PortPlaceConfig, row: dict, docked) -> dict:
@@ -49,7 +50,7 @@ def dvrk_setup(cfg: PortPlaceConfig, row: dict) -> str:
     joints, ``world_origin_to_suj`` and ``suj_tip_to_tool_origin`` as used, its port (mm, patient frame), its base
     (RCM) frame in the cart's world frame, and its own joints at the target's centre."""
     from surgopt.robots.dvrk_suj import CARTS
-    from surgopt.studies.port_place.tables import docked_arms, patient_in_cart
+    from surgopt.studies.port_place.tables import docked_arms, model_of, patient_in_cart
 
     if cfg.cart.model == "none":
         raise UsageError("--format dvrk: this run has no cart (cart.model = 'none'): run it with [cart] model = "
@@ -69,7 +70,7 @@ def dvrk_setup(cfg: PortPlaceConfig, row: dict) -> str:
             inserted = float(np.linalg.norm(centre - port)) - cfg.robot.camera_standoff_mm / 1000
             joints = [*a.ecm, inserted - holder.along_shaft_m] if a.ecm else None
         else:
-            joints = arm_joints_at_centre(holder, np.linalg.inv(patient) @ a.base, centre)
+            joints = arm_joints_at_centre(model_of(cfg).limits, np.linalg.inv(patient) @ a.base, centre)
         arms.append({
             "name": a.arm, "suj": cfg.cart.model,
             "suj_joints": list(a.joints) if a.joints else None,

@@ -340,7 +340,8 @@ def sites_mm(cfg) -> np.ndarray:
     """Candidate ports: a top-view grid at ``site_spacing_mm`` (symmetric about x = 0) lifted onto the body's
     upper wall (the dome, or the mesh by vertical rays), kept where the wall is at least
     ``min_height_fraction`` of the body's height, inside ``polygon_mm`` when given, on a face painted
-    ``face_color_rgb`` when given, and where the target centre is within ``port_to_target_mm``."""
+    ``face_color_rgb`` when given, and where the target centre is within ``port_to_target_mm`` (3-D or top-view,
+    ``port_to_target_measure``)."""
     a, b, c = body_extent_mm(cfg.patient)
     s = cfg.patient.port_region.site_spacing_mm
     gx, gy = np.meshgrid(grid_1d(a, s), grid_1d(b, s), indexing="ij")
@@ -355,6 +356,7 @@ def sites_mm(cfg) -> np.ndarray:
     if cfg.patient.port_region.polygon_mm is not None:
         keep &= inside_polygon(x, y, np.asarray(cfg.patient.port_region.polygon_mm, float))
     pts = np.stack([x[keep], y[keep], z[keep]], axis=1)
-    dist = np.linalg.norm(pts - np.asarray(cfg.target.centre_mm), axis=1)
+    apart = pts - np.asarray(cfg.target.centre_mm)
+    dist = np.linalg.norm(apart[:, :2] if cfg.constraints.port_to_target_measure == "horizontal" else apart, axis=1)
     lo, hi = cfg.constraints.port_to_target_mm
     return pts[(dist >= lo) & (dist <= hi)]

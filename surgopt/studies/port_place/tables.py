@@ -83,6 +83,12 @@ class PortModel:
         return GridTables(*port_tables(self, self.sites_m, self.rot, dock=self.dock))
 
     @cached_property
+    def instrument_rot(self) -> np.ndarray:
+        """(n, 3, 3) Each site's instrument docking frame: the default frame turned about its shaft by the
+        config's docking roll (``instrument_frames``)."""
+        return instrument_frames(self, self.sites_m, self.rot)
+
+    @cached_property
     def dock(self) -> "DockTables":
         """Which of the cart's setup joints dock which arm at which site and cart pose (``dock_tables``)."""
         return dock_tables(self)
@@ -123,7 +129,7 @@ def prepare(cfg: PortPlaceConfig) -> PortModel:
     return PortModel(
         cfg=cfg, sites_m=sites, targets_m=target_points_mm(cfg.target) / 1000, centre_m=centre,
         rot=K.docking_frames(sites, centre, LATERAL), criteria=criteria(cfg), camera=camera_of(cfg),
-        limits=None if r.instrument_serial is not None else arm_limits(instrument),
+        limits=None if r.instrument_serial is not None else instrument_limits(cfg, instrument),
         cone=approach(cfg.target, instrument.wrist_bend_rad),
         serial_instrument=None if r.instrument_serial is None else serial_kernel(r.instrument_serial),
         serial_camera=None if r.camera_serial is None else serial_kernel(r.camera_serial),
@@ -153,6 +159,71 @@ def arm_limits(arm):
     spherical = (True, *arm.yaw_axis, *arm.pitch_axis) if axes is not None else ()
     return ArmLimits(*arm.yaw_limits_rad, *arm.pitch_limits_rad, *arm.insertion_limits_m, arm.along_shaft_m,
                      *spherical)
+
+
+def reach_offsets_m(cfg: PortPlaceConfig, arm) -> tuple[float, float]:
+    """(tip past the wrist, least wrist depth), m: the config's ``robot.tip_beyond_wrist_mm`` and
+    ``robot.min_wrist_depth_mm``, or, where they are not given, the arm's own (``dvrk.RcmArm``: the Large Needle
+    Driver's 9.1 mm, the PSM controller's 45 mm; 0 for an arm from a file)."""
+    r = cfg.robot
+    tip = getattr(arm, "tip_beyond_wrist_m", 0.0) if r.tip_beyond_wrist_mm is None else r.tip_beyond_wrist_mm / 1000
+    depth = (getattr(arm, "min_wrist_depth_m", 0.0) if r.min_wrist_depth_mm is None
+             else r.min_wrist_depth_mm / 1000)
+    return tip, depth
+
+
+def instrument_limits(cfg: PortPlaceConfig, arm):
+    """The instrument's ``ArmLimits`` with the config's reaching point and least wrist depth: the reaching point
+    moved from the wrist to the tip (along_shaft_m + tip: the point rcm_point puts on a target point, eq. P1), and
+    insertion's lower limit raised so that the wrist, at q3 + the wrist's own offset from the RCM, lies at least
+    the least depth inside (q3 >= depth - offset)."""
+    limits = arm_limits(arm)
+    tip, depth = reach_offsets_m(cfg, arm)
+    wrist = limits.along_shaft_m
+    return limits._replace(along_shaft_m=wrist + tip, insertion_lo=max(limits.insertion_lo, depth - wrist))
+
+
+#: The rolls about the shaft a 'most_reach' docking tries at each port (deg).
+ROLL_CHOICES_DEG = (0.0, 15.0, 30.0, 45.0, 60.0, 75.0, 90.0)
+
+
+def roll_sides(sites: np.ndarray) -> np.ndarray:
+    """+1 for a port on the patient's left (x >= 0), -1 on the right: a roll's sense, mirrored about the
+    midline."""
+    return np.where(sites[:, 0] >= 0.0, 1.0, -1.0)
+
+
+def rolled(rot: np.ndarray, roll_rad: np.ndarray) -> np.ndarray:
+    """rot[i] Rz(roll_i): each base frame turned about its own z (the neutral shaft's line), its x toward its y
+    for a positive roll."""
+    c, s = np.cos(roll_rad)[:, None], np.sin(roll_rad)[:, None]
+    out = np.array(rot, dtype=np.float64, copy=True)
+    out[:, :, 0] = c * rot[:, :, 0] + s * rot[:, :, 1]
+    out[:, :, 1] = c * rot[:, :, 1] - s * rot[:, :, 0]
+    return out
+
+
+def instrument_rolls_rad(model: PortModel, sites: np.ndarray, rot: np.ndarray) -> np.ndarray:
+    """Each port's docking roll (rad, signed by ``roll_sides``): ``robot.docking_roll_deg``, or with
+    ``docking_roll = 'most_reach'`` the one of ``ROLL_CHOICES_DEG`` whose frame reaches the most target points
+    (``instrument_tables``; ties: the choice nearest docking_roll_deg, then the smaller)."""
+    from surgopt.kinematics import port_place as K
+
+    r = model.cfg.robot
+    side = roll_sides(sites)
+    if r.docking_roll == "given" or model.limits is None:
+        return np.radians(r.docking_roll_deg) * side
+    choices = np.array(ROLL_CHOICES_DEG)
+    counts = np.stack([K.instrument_tables(sites, rolled(rot, np.radians(c) * side), model.targets_m, model.limits,
+                                           model.criteria.dexterity_length_m, model.cone)[0].sum(axis=1)
+                       for c in choices], axis=1)
+    order = np.argsort(np.abs(choices - r.docking_roll_deg), kind="stable")
+    return np.radians(choices[order[np.argmax(counts[:, order], axis=1)]]) * side
+
+
+def instrument_frames(model: PortModel, sites: np.ndarray, rot: np.ndarray) -> np.ndarray:
+    """The instrument arms' docking frames at ``sites``: the frames ``rot`` turned by each port's roll."""
+    return rolled(rot, instrument_rolls_rad(model, sites, rot))
 
 
 def approach(target: Target, wrist_bend_rad: float):
@@ -233,7 +304,8 @@ def port_tables(model: PortModel, sites: np.ndarray, rot: np.ndarray, outside=No
         dex = np.where(reach, serial.dexterity, 0.0)
         outside = serial.outside_m
     else:
-        reach, dex = K.instrument_tables(sites, rot, targets, model.limits, crit.dexterity_length_m, model.cone)
+        reach, dex = K.instrument_tables(sites, instrument_frames(model, sites, rot), targets, model.limits,
+                                         crit.dexterity_length_m, model.cone)
     coverage = K.camera_coverage(sites, rot, targets, centre, camera)
     views = K.camera_views(sites, rot, centre, camera) if (r.camera_serial or camera.scope_angle_rad) else None
     if r.camera_serial is not None:  # the endoscope held by a serial arm: placed by its IK
@@ -400,7 +472,7 @@ def dock_tables(model: PortModel) -> DockTables:
     for a, arm in enumerate(arms):
         for i in range(n):
             for p in range(m):
-                answer = suj_answer(cfg, arm, model.rot[i], model.sites_m[i], poses.patient[p])
+                answer = suj_answer(cfg, arm, model.instrument_rot[i], model.sites_m[i], poses.patient[p])
                 sols = answer.within + answer.outside
                 if sols:
                     margin[a, i, p] = sols[0].margin
@@ -477,7 +549,7 @@ def docked_arms(cfg: PortPlaceConfig, row: dict) -> list[DockedArm]:
                 out.append(DockedArm("ECM", str(row["ecm_site"]), (), None, "", "no grid point of the ECM's setup "
                                      "joints docks it", tuple(site), None, ()))
             continue
-        rot = K.docking_frames(site[None], centre, LATERAL)[0]
+        rot = instrument_frames(model_of(cfg), site[None], K.docking_frames(site[None], centre, LATERAL))[0]
         base = patient @ base_pose(rot, site)
         answer = S.classic_psm_ik(CARTS[cart.model][arm.upper()], base)
         if answer.within:
