@@ -30,9 +30,10 @@ def _study_command(study) -> None:
 
     P = inspect.Parameter
     params = [P("args", P.KEYWORD_ONLY, default=None, annotation=Annotated[Optional[list[str]], typer.Argument(
-        help=_literal(f"{study.config_help} Then any KEY=VALUE overrides (dotted keys, e.g. "
+        help=_literal(f"{study.config_help} Several CONFIG files are merged in order, the later over the earlier "
+                      f"(a patient file, then a region file). Then any KEY=VALUE overrides (dotted keys, e.g. "
                       f"{_example_override(study.config_model)}; a comma list with --multirun)."),
-        show_default=False, metavar="[CONFIG] [KEY=VALUE]")])]
+        show_default=False, metavar="[CONFIG ...] [KEY=VALUE]")])]
     params += [P(f.dest, P.KEYWORD_ONLY, default=None if f.metavar else False,
                  annotation=Annotated[Optional[str], typer.Option(f.option, help=_literal(f.help), metavar=f.metavar,
                                                                   show_default=False)]
@@ -109,20 +110,28 @@ def _reflow(text: str) -> str:
     return "\n\n".join(" ".join(p.split()) for p in inspect.cleandoc(text).split("\n\n"))
 
 
-def _split_args(args: list[str] | None) -> tuple[Optional[str], list[str]]:
-    """[CONFIG] [KEY=VALUE ...]: the first argument is the config when it is not an override."""
+def _is_config(arg: str) -> bool:
+    """Whether a study command's argument is a config file rather than a KEY=VALUE override: it has no "=", or
+    it is a TOML/YAML file that exists (my=cfg.toml is a file)."""
     from pathlib import Path
 
+    p = Path(arg)
+    return "=" not in arg or (p.suffix.lower() in (".toml", ".yaml", ".yml") and p.is_file())
+
+
+def _split_args(args: list[str] | None) -> tuple[Optional[str | list], list[str]]:
+    """[CONFIG ...] [KEY=VALUE ...]: the leading arguments that are config files (one, or several merged in order,
+    the later over the earlier), then the overrides."""
     args = list(args or [])
-    first = Path(args[0]) if args else None
-    first_is_file = first is not None and first.suffix.lower() in (".toml", ".yaml", ".yml") and first.is_file()
-    config = args.pop(0) if args and ("=" not in args[0] or first_is_file) else None  # my=cfg.toml is a file
+    configs = []
+    while args and _is_config(args[0]):
+        configs.append(args.pop(0))
     bad = [a for a in args if "=" not in a]
     if bad:
         from surgopt.errors import UsageError
 
-        raise UsageError(f"{bad[0]!r}: after CONFIG only KEY=VALUE overrides are allowed")
-    return config, args
+        raise UsageError(f"{bad[0]!r}: config files come first (CONFIG ...), then KEY=VALUE overrides")
+    return (None if not configs else configs[0] if len(configs) == 1 else configs), args
 
 
 @dataclass(frozen=True)

@@ -17,6 +17,7 @@ from surgopt.config import (
     parse_overrides,
     parse_text,
     read_config_data,
+    read_layered_data,
     validate,
     with_override,
 )
@@ -35,13 +36,24 @@ class Variant:
 MAX_VARIANTS = 1000
 
 
-def base_data(study, config: str | Path | None) -> tuple[dict, str, str]:
-    """(parsed data, source for messages, config name for the manifest) of a config file or the default."""
+def base_data(study, config: str | Path | list | None) -> tuple[dict, str, str]:
+    """(parsed data, source for messages, config name for the manifest) of a config file, of several merged in
+    order (a list: ``config.read_layered_data``; named "a+b"), or of the default."""
     if config is None:
         source = f"<embedded default {study.default_config}>"
         data = parse_text(embedded_default_text(study.default_config), source, ".toml")
         return data, source, f"embedded:{Path(study.default_config).stem}"
+    if isinstance(config, (list, tuple)):
+        if len(config) > 1:
+            return (read_layered_data(list(config)), " + ".join(str(c) for c in config),
+                    "+".join(Path(c).stem for c in config))
+        config = config[0]
     return read_config_data(config), str(config), Path(config).stem
+
+
+def first_config(config: str | Path | list | None):
+    """The config file whose folder relative paths of the command line are taken from: the first of several."""
+    return config[0] if isinstance(config, (list, tuple)) else config
 
 
 def _format(v: Any) -> str:
@@ -86,7 +98,7 @@ def variants(study, config: str | Path | None = None, overrides: list[str] | dic
             varied[key] = v
         for key, v in (updates or {}).items():
             d = with_override(d, key, v)
-        cfg = validate_for(study, d, source, config)
+        cfg = validate_for(study, d, source, first_config(config))
         suffix = "".join(f"+{k}={_format(v)}" for k, v in varied.items())
         out.append(Variant(cfg, name + suffix, varied))
     return out

@@ -240,6 +240,47 @@ def read_config_data(path: str | Path) -> Any:
     return parse_text(text, source, p.suffix.lower())
 
 
+def with_files_from(data: Any, folder: Path) -> Any:
+    """``data`` with every relative path under a file field (``files.FILE_FIELDS``) taken from ``folder``: a
+    layer's files stay its own when layers from several folders are merged."""
+    from surgopt.files import FILE_FIELDS
+
+    if isinstance(data, dict):
+        return {k: (str((folder / v).resolve()) if k in FILE_FIELDS and isinstance(v, str)
+                    and not Path(v).expanduser().is_absolute() else with_files_from(v, folder))
+                for k, v in data.items()}
+    if isinstance(data, list):
+        return [with_files_from(v, folder) for v in data]
+    return data
+
+
+def merged(base: Any, layer: Any, source: str, where: str = "") -> Any:
+    """``layer`` over ``base``: tables merged key by key, recursively; any other value (a list, a number, a
+    table over a value) replaces what was there, as Hydra composes config groups."""
+    if not isinstance(layer, dict):
+        raise ConfigError(source, f"{where or 'the file'}: a layered config is a table of sections, not "
+                                  f"{type(layer).__name__}")
+    out = dict(base) if isinstance(base, dict) else {}
+    for k, v in layer.items():
+        out[k] = merged(out.get(k), v, source, f"{where}.{k}" if where else k) if isinstance(v, dict) \
+            and isinstance(out.get(k), dict) else v
+    return out
+
+
+def read_layered_data(paths: list) -> Any:
+    """Several config files merged in order, the later over the earlier (``merged``), each one's file fields
+    taken from its own folder (``with_files_from``)."""
+    data: Any = {}
+    for path in paths:
+        layer = read_config_data(path)
+        if layer is None:
+            continue
+        if not isinstance(layer, dict):
+            raise ConfigError(str(path), f"a layered config is a table of sections, not {type(layer).__name__}")
+        data = merged(data, with_files_from(layer, Path(path).resolve().parent), str(path))
+    return data
+
+
 def load_config(path: str | Path, model: type[M]) -> M:
     """Read and validate a TOML or YAML config file."""
     return validate(read_config_data(path), model, str(path), {"config_dir": str(Path(path).resolve().parent)})

@@ -44,6 +44,11 @@ def read_bounded(path: Path, limit: int, expected: int | None = None) -> bytes:
         os.close(fd)
 
 
+#: The config fields that name a file (resolved by ``resolve_and_hash`` against the folder of the config that
+#: gave them): a layered config (several CONFIG files) resolves each layer's own against its own folder.
+FILE_FIELDS = ("urdf", "mesh_file", "points_file")
+
+
 def config_file_path(value: str, context: dict) -> Path:
     """A file a config names, as an absolute path: relative paths are taken from the config file's folder
     (``context["config_dir"]``), or the working directory for overrides and embedded configs."""

@@ -49,3 +49,44 @@ def test_errors_name_the_field_suggest_a_key_and_the_right_study(tmp_path):
     raven.write_text("[sweep]\nalpha_deg = [45.0]\n")
     with pytest.raises(ConfigError, match="this is a raven-sweep config, not a rcm-grid one: run `surgopt raven-sweep"):
         variants(RCM, raven)
+
+
+def test_several_config_files_merge_in_order_each_files_paths_its_own(tmp_path):
+    """A patient file and a region file (issue 42 item 11): merged table by table, the later over the earlier;
+    a mesh named in a file of another folder is taken from that file's folder; the run is the one a single file
+    with the merged fields gives (same store key), named after both."""
+    import numpy as np
+
+    from surgopt.cli import _split_args
+
+    study = get_study("port-place")
+    (tmp_path / "bodies").mkdir()
+    (tmp_path / "bodies" / "target.txt").write_text("0 -100 40\n10 -100 40\n0 -90 45\n")
+    (tmp_path / "bodies" / "patient.toml").write_text(
+        '[patient]\nsemi_axes_mm = [170.0, 210.0, 140.0]\n[patient.port_region]\nsite_spacing_mm = 36.0\n'
+        '[target]\nshape = "points"\npoints_file = "target.txt"\n')
+    (tmp_path / "region.toml").write_text(
+        "[patient.port_region]\npolygon_mm = [[-150, -200], [150, -200], [150, 40], [-150, 40]]\n")
+    args = [str(tmp_path / "bodies" / "patient.toml"), str(tmp_path / "region.toml"), "objective.angle=2.0"]
+    config, overrides = _split_args(args)
+    assert config == args[:2] and overrides == ["objective.angle=2.0"]
+    (v,) = variants(study, config, overrides)
+    cfg = v.config
+    assert cfg.patient.port_region.site_spacing_mm == 36.0  # from the first file, beside the second's polygon
+    assert cfg.patient.port_region.polygon_mm[0] == [-150.0, -200.0]
+    assert cfg.target.points_file == str((tmp_path / "bodies" / "target.txt").resolve())
+    assert cfg.objective.angle == 2.0 and v.config_name == "patient+region+objective.angle=2.0"
+    one = tmp_path / "bodies" / "one.toml"
+    one.write_text((tmp_path / "bodies" / "patient.toml").read_text().replace(
+        "site_spacing_mm = 36.0\n", "site_spacing_mm = 36.0\npolygon_mm = [[-150, -200], [150, -200], [150, 40], "
+                                    "[-150, 40]]\n") + "[objective]\nangle = 2.0\n")
+    (w,) = variants(study, str(one))
+    assert study_key("port-place", w.config, "k") == study_key("port-place", cfg, "k")
+    assert np.isfinite(cfg.target.centre_mm).all()
+
+
+def test_a_later_config_file_that_is_not_a_table_is_refused_naming_it(tmp_path):
+    (tmp_path / "a.toml").write_text("[objective]\nangle = 2.0\n")
+    (tmp_path / "b.yaml").write_text("- 1\n- 2\n")
+    with pytest.raises(ConfigError, match=r"b\.yaml.*table of sections"):
+        variants(get_study("port-place"), [str(tmp_path / "a.toml"), str(tmp_path / "b.yaml")])
