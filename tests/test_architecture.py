@@ -158,3 +158,20 @@ def test_a_module_past_600_lines_says_why_it_is_one_module():
     long = [m for m, p in MODULES.items() if len(p.read_text().splitlines()) > 600
             and "one module" not in " ".join(p.read_text().splitlines()[:40]).lower()]
     assert long == []
+
+
+def test_every_file_a_config_names_is_a_file_field_that_layered_configs_resolve():
+    """A field read through ``files.resolve_and_hash`` names a file relative to its config's folder; a layered
+    config (several CONFIG files) takes each layer's from its own folder by ``files.FILE_FIELDS``: every such
+    field must be listed there."""
+    import re
+
+    listed = next(node.value for node in ast.parse((PACKAGE / "files.py").read_text()).body
+                  if isinstance(node, ast.Assign) and getattr(node.targets[0], "id", "") == "FILE_FIELDS")
+    FILE_FIELDS = ast.literal_eval(listed)
+    named = set()
+    for path in PACKAGE.rglob("*.py"):
+        text = path.read_text()
+        named |= set(re.findall(r'resolve_and_hash\(\w+, "(\w+)"', text))
+        named |= set(re.findall(r'_resolved\("(\w+)"', text))
+    assert named and named <= set(FILE_FIELDS), sorted(named - set(FILE_FIELDS))
