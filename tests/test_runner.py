@@ -50,25 +50,29 @@ def test_dask_local_cluster_equals_threads(tmp_path, name, dask_cluster):
 
 
 def test_three_psm_port_placement_on_dask_equals_threads_and_its_feasible_rows(tmp_path, dask_cluster):
-    """port-place's 3-PSM + ECM enumeration (issue #29) at reduced size (18 sites: 36,720 designs) on a local
-    Dask cluster, chunk by chunk, gives the threads' rows; storing only the feasible rows stores exactly those
-    of the full table (the premise: some are feasible, most are not)."""
+    """port-place's 3-PSM + ECM enumeration (issue #29) with the Classic cart on a grid of floor poses (issue 40)
+    at reduced size (18 sites: 36,720 designs) on a local Dask cluster, chunk by chunk, gives the threads' rows
+    (each worker solves the setup joints itself); storing only the feasible rows stores exactly those of the full
+    table (the premises: some are feasible, most are not, and some fail on docking alone)."""
     study = get_study("port-place")
     small = {"patient": {"port_region": {"site_spacing_mm": 50.0}}, "target": {"spacing_mm": 15.0},
-             "robot": {"instrument_count": 3}}
+             "robot": {"instrument_count": 3},
+             "cart": {"model": "classic", "around_step_deg": 30.0, "distance_step_mm": 300.0}}
     cfg = study.config_model.model_validate(small)
 
     def run(tag, cfg, **kw):
         return run_study(study, cfg, config_name=tag, store=Store(tmp_path / tag), quiet=True, **kw).table
 
-    threads = run("threads", cfg, jobs=2)
+    threads = run("threads", cfg, jobs=2, chunk=4_000)  # the same chunks: the parts, and so the rows, in one order
     dask = run("dask", cfg, jobs=2, backend="dask", scheduler=dask_cluster.scheduler_address, chunk=4_000)
-    assert threads.num_rows == 36_720 and threads.equals(dask)
+    # pandas' equals: NaN (an undocked layout's cart columns) equals NaN at the same place; pyarrow's does not
+    assert threads.num_rows == 36_720 and threads.to_pandas().equals(dask.to_pandas())
     feasible = run("feasible", study.config_model.model_validate({**small, "rows_stored": "feasible"}), jobs=2,
                    chunk=4_000)
     expected = threads.filter(threads["feasible"])
     assert 0 < expected.num_rows < threads.num_rows // 2
-    assert feasible.select(expected.column_names).equals(expected)
+    assert (threads["infeasible"].to_numpy() == 128).any() and (threads["cart_pose"].to_numpy() > 0).any()
+    assert feasible.select(expected.column_names).to_pandas().equals(expected.to_pandas())
 
 
 def test_cli_dask_backend_with_its_own_local_cluster(tmp_path):
@@ -205,3 +209,29 @@ def test_a_wait_on_the_compile_lock_is_announced_only_when_it_lasts(tmp_path, mo
     finally:
         release.touch()
         holder.wait(timeout=60)
+
+
+def test_the_slurm_recipe_writes_one_single_threaded_worker_per_job_with_the_shared_cache():
+    """docs/slurm_cluster.py (README, "Running on a cluster"): the job script dask-jobqueue generates asks SLURM
+    for one CPU and the memory given, exports the shared numba cache, and starts one worker with one thread on
+    this Python, pointed at the cluster's scheduler. Nothing is submitted (the cluster is never scaled)."""
+    import importlib.util
+
+    pytest.importorskip("dask_jobqueue", reason="dask-jobqueue not installed (pip install 'surgopt[dask]')")
+    spec = importlib.util.spec_from_file_location("slurm_cluster", Path(__file__).parents[1] / "docs" /
+                                                  "slurm_cluster.py")
+    recipe = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(recipe)
+    cluster = recipe.slurm_cluster(6.0, "02:30:00", account="mylab", partition="normal", cache_dir="/shared/numba")
+    try:
+        script = cluster.job_script()
+        lines = script.splitlines()
+        for directive in ("#SBATCH -J surgopt-worker", "#SBATCH -A mylab", "#SBATCH -p normal", "#SBATCH -n 1",
+                          "#SBATCH --cpus-per-task=1", "#SBATCH --mem=6G", "#SBATCH -t 02:30:00"):
+            assert directive in lines, script
+        assert "export NUMBA_CACHE_DIR=/shared/numba" in lines
+        (worker,) = [line for line in lines if "distributed.cli.dask_worker" in line]
+        assert worker.startswith(sys.executable) and cluster.scheduler_address in worker
+        assert " --nthreads 1 " in worker + " " and not cluster.workers  # no job submitted
+    finally:
+        cluster.close()
