@@ -107,7 +107,19 @@ def test_poses_the_suj_cannot_reach_are_refused_with_the_reason():
     assert not answer.within and "tilted 5.73 deg" in answer.reason
 
 
-def test_the_classic_ecm_docks_with_its_own_yaw_and_pitch_aiming_the_scope():
+def _ecm_batch(suj, yaw_rad, pitch_rad, origins, aims):
+    """``suj_batch.ecm_margins`` (the jitted S4 the dock tables use) with ``ecm_classic_dock``'s arguments."""
+    from surgopt.kinematics import suj_batch as B
+
+    return B.ecm_margins(B.ecm_arrays(suj, yaw_rad, pitch_rad), np.ascontiguousarray(origins, float),
+                         np.ascontiguousarray(aims, float), *K.ECM_GRID_STEPS)
+
+
+ECM_SOLVERS = {"numpy": K.ecm_classic_dock, "jitted": _ecm_batch}
+
+
+@pytest.mark.parametrize("solver", sorted(ECM_SOLVERS))
+def test_the_classic_ecm_docks_with_its_own_yaw_and_pitch_aiming_the_scope(solver):
     """S4 on random bases around the files' sample ECM pose, aiming roughly down and forward: every docked
     solution's SUJ joints, through the reference forward kinematics, put the RCM on its origin (1e-9 m) and the
     scope's aim, in that base frame, at the returned yaw and pitch, within the ECM's ranges; its margin is the
@@ -119,7 +131,7 @@ def test_the_classic_ecm_docks_with_its_own_yaw_and_pitch_aiming_the_scope():
     origins = centre + RNG.uniform(-0.25, 0.25, (60, 3))
     aims = np.array([0.0, 0.3, -1.0]) + RNG.uniform(-0.6, 0.6, (60, 3))
     aims /= np.linalg.norm(aims, axis=1)[:, None]
-    margin, joints, aim = K.ecm_classic_dock(suj, ecm.yaw_limits_rad, ecm.pitch_limits_rad, origins, aims)
+    margin, joints, aim = ECM_SOLVERS[solver](suj, ecm.yaw_limits_rad, ecm.pitch_limits_rad, origins, aims)
     docked = np.flatnonzero(margin >= 0)
     assert 30 < len(docked) < 60
     for i in docked:
@@ -135,7 +147,8 @@ def test_the_classic_ecm_docks_with_its_own_yaw_and_pitch_aiming_the_scope():
         assert margin[i] == pytest.approx(want, abs=1e-9)
 
 
-def test_the_classic_ecm_dock_does_not_jump_with_rounding():
+@pytest.mark.parametrize("solver", sorted(ECM_SOLVERS))
+def test_the_classic_ecm_dock_does_not_jump_with_rounding(solver):
     """S4 is a continuous function of the port and aim: the same bases solved as one batch, one at a time, and
     with each aim moved by ~1e-15, give margins within 1e-9 of each other and the same docking. (Each aim's twin
     pi - phi ties it exactly under the ECM's symmetric yaw range; an argmax that picked one of the two by
@@ -149,11 +162,66 @@ def test_the_classic_ecm_dock_does_not_jump_with_rounding():
     aims = np.array([0.0, 0.3, -1.0]) + rng.uniform(-0.6, 0.6, (80, 3))
     aims /= np.linalg.norm(aims, axis=1)[:, None]
     limits = ecm.yaw_limits_rad, ecm.pitch_limits_rad
-    batch = K.ecm_classic_dock(suj, *limits, origins, aims)[0]
-    alone = np.array([K.ecm_classic_dock(suj, *limits, origins[i:i + 1], aims[i:i + 1])[0][0] for i in range(80)])
-    nudged = K.ecm_classic_dock(suj, *limits, origins, aims * (1 + 2e-16 * rng.choice([-1, 1], (80, 1))))[0]
+    dock = ECM_SOLVERS[solver]
+    batch = dock(suj, *limits, origins, aims)[0]
+    alone = np.array([dock(suj, *limits, origins[i:i + 1], aims[i:i + 1])[0][0] for i in range(80)])
+    nudged = dock(suj, *limits, origins, aims * (1 + 2e-16 * rng.choice([-1, 1], (80, 1))))[0]
     finite = np.isfinite(batch)
     assert 0 < np.count_nonzero(batch >= 0) < 80  # the premise: some dock, some do not
     for other in (alone, nudged):
         assert np.array_equal(np.isfinite(other), finite) and np.array_equal(other >= 0, batch >= 0)
         np.testing.assert_allclose(other[finite], batch[finite], atol=1e-9)
+
+
+def _python_margin(suj, pose) -> float:
+    answer = K.classic_psm_ik(suj, pose)
+    sols = answer.within + answer.outside
+    return sols[0].margin if sols else -math.inf
+
+
+@pytest.mark.parametrize("arm", CLASSIC_PSMS)
+def test_the_batch_solver_gives_the_closed_forms_best_margin_pose_by_pose(arm):
+    """``suj_batch.classic_psm_margins`` (the jitted S2 the dock tables use) against ``classic_psm_ik`` (plain
+    Python, itself held to the textbook forward kinematics above): the best solution's least margin of poses made
+    from random joints (in range, and past the ranges by up to 0.5 rad), of those poses turned off what the wrist
+    can tilt, and moved out of the planar chain's reach (-inf both ways). The premises: each kind occurs."""
+    from surgopt.kinematics import suj_batch as B
+
+    suj = D.CLASSIC[arm]
+    s = B.suj_arrays(suj)
+    poses = []
+    for q in _random_joints(suj, 40):
+        poses.append(K.forward(suj, q))
+        wide = [v + RNG.uniform(-0.5, 0.5) for v in q]
+        poses.append(K.forward(suj, wide))
+        tilted = K.forward(suj, q)
+        tilted[:3, :3] = tilted[:3, :3] @ K.mdh(RNG.uniform(-1.5, 1.5), 0.0, 0.0, 0.0)[:3, :3]
+        poses.append(tilted)
+        far = K.forward(suj, q)
+        far[:2, 3] *= 4.0
+        poses.append(far)
+    poses = np.array(poses)
+    got = B.classic_psm_margins(s, poses)
+    want = np.array([_python_margin(suj, p) for p in poses])
+    assert np.array_equal(np.isinf(got), np.isinf(want))
+    np.testing.assert_allclose(got[np.isfinite(want)], want[np.isfinite(want)], rtol=0, atol=1e-12)
+    assert (want >= 0).any() and ((want < 0) & np.isfinite(want)).any() and np.isinf(want).any()
+
+
+def test_the_jitted_ecm_dock_picks_the_numpy_grids_point():
+    """The jitted S4 walks the numpy version's grid in its order with its strict comparisons: the same margins
+    (1e-12), SUJ joints (1e-9) and ECM yaw and pitch at 200 random bases, docked or not (premise: both occur)."""
+    from surgopt.robots.models import get_model
+
+    suj, ecm = D.CLASSIC["ECM"], get_model("dvrk_ecm_classic")
+    centre = K.forward(suj, D.SAMPLE_JOINTS[("classic", "ECM")])[:3, 3]
+    origins = centre + RNG.uniform(-0.3, 0.3, (200, 3))
+    aims = np.array([0.0, 0.3, -1.0]) + RNG.uniform(-0.8, 0.8, (200, 3))
+    aims /= np.linalg.norm(aims, axis=1)[:, None]
+    limits = ecm.yaw_limits_rad, ecm.pitch_limits_rad
+    want, got = K.ecm_classic_dock(suj, *limits, origins, aims), _ecm_batch(suj, *limits, origins, aims)
+    finite = np.isfinite(want[0])
+    assert np.array_equal(np.isfinite(got[0]), finite) and 0 < np.count_nonzero(want[0] >= 0) < finite.sum()
+    np.testing.assert_allclose(got[0][finite], want[0][finite], rtol=0, atol=1e-12)
+    np.testing.assert_allclose(got[1][finite], want[1][finite], rtol=0, atol=1e-9)
+    np.testing.assert_allclose(got[2][finite], want[2][finite], rtol=0, atol=1e-9)

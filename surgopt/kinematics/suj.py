@@ -20,7 +20,8 @@ Si PSM1, PSM2, ECM (S3): G is constant, so the base's orientation can only turn 
 reachable docking orientations are R = Rz(psi) R_0, a one-parameter family (``si_orientation``); a pose off
 the family is refused with the angle it is off by; on it, two elbow solutions.
 
-All in metres and radians. Plain numpy: a handful of poses per arm, port and cart pose.
+All in metres and radians. Plain numpy, pose by pose; ``kinematics.suj_batch`` jits S2 and S4 over every
+(site, cart pose) for the dock tables and is held to these.
 """
 from __future__ import annotations
 
@@ -237,8 +238,13 @@ def _rz(a: np.ndarray) -> np.ndarray:
     return np.stack([np.stack([c, -s, z], -1), np.stack([s, c, z], -1), np.stack([z, z, o], -1)], -2)
 
 
+#: The Classic ECM docking's grid (S4): the planar chain's heading, the aim's angle, theta4.
+ECM_GRID_STEPS = (36, 36, 12)
+
+
 def ecm_classic_dock(suj, yaw_rad: tuple, pitch_rad: tuple, origins: np.ndarray, aims: np.ndarray,
-                     psi_steps: int = 36, aim_steps: int = 36, q4_steps: int = 12):
+                     psi_steps: int = ECM_GRID_STEPS[0], aim_steps: int = ECM_GRID_STEPS[1],
+                     q4_steps: int = ECM_GRID_STEPS[2]):
     """(S4) The Classic ECM's setup joints for an endoscope base at each of ``origins`` (n, 3: the RCM, at its
     port, in the cart's world frame) whose own yaw and pitch (within ``yaw_rad``, ``pitch_rad``) aim its shaft
     along ``aims`` (n, 3, unit: port to the target's centre).

@@ -467,12 +467,12 @@ NS_PER_SITE_POINT_SERIAL = 4000.0
 NS_PER_PAIR_POINT = 300.0
 
 
-#: One setup joint's inverse kinematics (``kinematics.suj.classic_psm_ik``, plain Python): ~118 us measured
-#: (2,000 calls), 5.4 s for the default's 164 sites x 150 cart poses x 2 arms.
-NS_PER_SUJ_SOLVE = 120_000.0
-#: The ECM's setup joints at one site and cart pose (``kinematics.suj.ecm_classic_dock``'s grid of 36 x 36 x 12,
-#: numpy over a pose's sites): ~0.3 ms measured (7 s for the default's 164 x 150).
-NS_PER_ECM_DOCK = 300_000.0
+#: One Classic PSM setup joint's inverse kinematics (``kinematics.suj_batch.classic_psm_margins``, jitted): ~3.4 us
+#: measured (benchmarks/bench_cart.py; plain Python's classic_psm_ik: ~118 us).
+NS_PER_SUJ_SOLVE = 4_000.0
+#: The ECM's setup joints at one site and cart pose (``kinematics.suj_batch.ecm_margins``' grid of 36 x 36 x 12,
+#: jitted): ~125 us measured (3.1 s for the default's 164 x 150; numpy over a pose's sites: ~300 us).
+NS_PER_ECM_DOCK = 130_000.0
 
 
 #: A searched design (its three ports' tables of its own): ~0.43 ms at 915 target points (measured, one core).

@@ -447,18 +447,11 @@ def pack_bits(ok: np.ndarray) -> np.ndarray:
     return np.packbits(padded, axis=-1, bitorder="little").view("<u8").astype(np.uint64)
 
 
-def suj_answer(cfg: PortPlaceConfig, arm: str, rot: np.ndarray, site_m: np.ndarray, patient: np.ndarray):
-    """The cart's ``arm`` SUJ (``kinematics.suj.SujAnswer``) docking the arm at a port (its docking ``rot``,
-    ``site_m``) with the patient at ``patient`` (4, 4) in the cart's world frame."""
-    from surgopt.kinematics import suj as S
-    from surgopt.robots.dvrk_suj import CARTS
-
-    return S.classic_psm_ik(CARTS[cfg.cart.model][arm], patient @ base_pose(rot, site_m))
-
-
 def dock_tables(model: PortModel) -> DockTables:
-    """Every arm's setup joints at every site and cart pose, as bits and margins: each instrument arm's
-    (``suj_answer``) and the ECM's (``camera_dock``); with no cart, one pose at which everything docks."""
+    """Every arm's setup joints at every site and cart pose, as bits and margins: each instrument arm's best
+    solution's least margin (``kinematics.suj_batch``, S2 jitted over every (site, pose); its docking frame the
+    rolled one, ``PortModel.instrument_rot``) and the ECM's (``camera_dock``); with no cart, one pose at which
+    everything docks."""
     cfg = model.cfg
     n = len(model.sites_m)
     arms = INSTRUMENT_SUJS[:cfg.robot.instrument_count]
@@ -466,17 +459,18 @@ def dock_tables(model: PortModel) -> DockTables:
         bits, camera = no_cart(n)
         return DockTables(bits, camera, np.zeros((3, n, 1)), np.zeros((n, 1)), CartPoses(np.zeros((1, 3)),
                                                                                         np.eye(4)[None]))
+    from surgopt.kinematics.suj_batch import classic_psm_margins, suj_arrays
+    from surgopt.robots.dvrk_suj import CARTS
+
     poses = cart_poses(cfg)
     m = len(poses.floor)
     margin = np.full((3, n, m), -np.inf)
-    for a, arm in enumerate(arms):
-        for i in range(n):
-            for p in range(m):
-                answer = suj_answer(cfg, arm, model.instrument_rot[i], model.sites_m[i], poses.patient[p])
-                sols = answer.within + answer.outside
-                if sols:
-                    margin[a, i, p] = sols[0].margin
-    camera = np.stack([camera_dock(cfg, poses.patient[p], model.sites_m)[0] for p in range(m)], axis=1)
+    bases = np.zeros((n, 4, 4))
+    bases[:, :3, :3], bases[:, :3, 3], bases[:, 3, 3] = model.instrument_rot, model.sites_m, 1.0
+    in_cart = np.ascontiguousarray(np.einsum("pij,njk->npik", poses.patient, bases).reshape(n * m, 4, 4))
+    for a, arm in enumerate(arms):  # the best solution's least margin (suj_answer's first), every site and pose
+        margin[a] = classic_psm_margins(suj_arrays(CARTS[cfg.cart.model][arm]), in_cart).reshape(n, m)
+    camera = camera_dock(cfg, poses.patient, model.sites_m)[0].reshape(m, n).T
     return DockTables(pack_bits(margin >= 0.0), pack_bits(camera >= 0.0), margin, camera, poses)
 
 
@@ -494,18 +488,21 @@ def camera_shafts(camera, centre_m: np.ndarray, sites_m: np.ndarray) -> np.ndarr
 
 
 def camera_dock(cfg: PortPlaceConfig, patient: np.ndarray, sites_m: np.ndarray):
-    """The ECM's setup joints at ports ``sites_m`` with the patient at ``patient`` in the cart's world frame
-    (``kinematics.suj.ecm_classic_dock``: its own yaw and pitch aim the scope's shaft): (margin, SUJ joints,
-    ECM yaw and pitch) per port."""
-    from surgopt.kinematics import suj as S
+    """The ECM's setup joints at ports ``sites_m`` (n, 3) with the patient at ``patient`` (4, 4, or (m, 4, 4):
+    each cart pose) in the cart's world frame (``kinematics.suj_batch.ecm_margins``, S4: its own yaw and pitch
+    aim the scope's shaft): (margin, SUJ joints, ECM yaw and pitch) per port (per pose, then port)."""
+    from surgopt.kinematics.suj import ECM_GRID_STEPS
+    from surgopt.kinematics.suj_batch import ecm_arrays, ecm_margins
     from surgopt.robots.dvrk_suj import CARTS
 
     arm = camera_arm_of(cfg)
     centre = np.asarray(cfg.target.centre_mm, float) / 1000
-    origins = sites_m @ patient[:3, :3].T + patient[:3, 3]
-    aims = camera_shafts(camera_of(cfg), centre, sites_m) @ patient[:3, :3].T
-    return S.ecm_classic_dock(CARTS[cfg.cart.model]["ECM"], arm.yaw_limits_rad, arm.pitch_limits_rad, origins,
-                              aims)
+    patients = patient.reshape(-1, 4, 4)
+    shafts = camera_shafts(camera_of(cfg), centre, sites_m)
+    origins = np.concatenate([sites_m @ p[:3, :3].T + p[:3, 3] for p in patients])
+    aims = np.concatenate([shafts @ p[:3, :3].T for p in patients])
+    s = ecm_arrays(CARTS[cfg.cart.model]["ECM"], arm.yaw_limits_rad, arm.pitch_limits_rad)
+    return ecm_margins(s, np.ascontiguousarray(origins), np.ascontiguousarray(aims), *ECM_GRID_STEPS)
 
 
 class DockedArm(NamedTuple):

@@ -1,0 +1,118 @@
+"""port-place with the patient cart (issue 40): the setup joints' solvers and the (layout, cart pose) pairs end to end.
+
+Run:  python benchmarks/bench_cart.py
+Prints, on the default config with the Classic cart on its grid of floor poses (164 sites, 150 poses):
+- the Classic PSM SUJ's closed form (S2): the jitted batch (``kinematics.suj_batch.classic_psm_margins``) in solves/s
+  against the plain Python ``kinematics.suj.classic_psm_ik`` pose by pose (a sample), the two checked equal;
+- the Classic ECM's docking grid (S4): the jitted ``ecm_margins`` against the numpy ``ecm_classic_dock`` vectorised
+  over the sites (one cart pose at a time), checked equal;
+- `surgopt port-place cart.model=classic` end to end, warm, 2 threads: the (layout, cart pose) pairs it decides
+  (every layout against every pose of the grid, 64 poses a word in the design kernel), pairs/s, and the estimate
+  the dry run printed beforehand against the time taken. Also with a finer grid of 300+ poses.
+"""
+from __future__ import annotations
+
+import math
+import subprocess
+import sys
+import tempfile
+import time
+
+import numpy as np
+
+from surgopt.kinematics import suj as K
+from surgopt.kinematics import suj_batch as B
+from surgopt.robots.dvrk_suj import CARTS
+from surgopt.studies.port_place import config as C
+from surgopt.studies.port_place import study as S
+from surgopt.studies.port_place import tables as T
+
+
+def best_of(f, repeat=3):
+    times, out = [], None
+    for _ in range(repeat):
+        t0 = time.perf_counter()
+        out = f()
+        times.append(time.perf_counter() - t0)
+    return min(times), out
+
+
+def solvers() -> None:
+    cfg = C.PortPlaceConfig.model_validate({"cart": {"model": "classic"}})
+    model = T.prepare(cfg)
+    poses = T.cart_poses(cfg)
+    n, m = len(model.sites_m), len(poses.floor)
+    bases = np.zeros((n, 4, 4))
+    bases[:, :3, :3], bases[:, :3, 3], bases[:, 3, 3] = model.instrument_rot, model.sites_m, 1.0
+    in_cart = np.ascontiguousarray(np.einsum("pij,njk->npik", poses.patient, bases).reshape(n * m, 4, 4))
+    suj = CARTS["classic"]["PSM1"]
+    s = B.suj_arrays(suj)
+    B.classic_psm_margins(s, in_cart[:2])  # compiled or loaded
+    tj, got = best_of(lambda: B.classic_psm_margins(s, in_cart))
+    sample = in_cart[:: max(1, len(in_cart) // 2000)]
+
+    def plain():
+        out = []
+        for pose in sample:
+            a = K.classic_psm_ik(suj, pose)
+            sols = a.within + a.outside
+            out.append(sols[0].margin if sols else -math.inf)
+        return np.array(out)
+
+    tp, want = best_of(plain, repeat=1)
+    same = np.array_equal(np.isinf(want), np.isinf(got[:: max(1, len(in_cart) // 2000)])) and np.allclose(
+        want[np.isfinite(want)], got[:: max(1, len(in_cart) // 2000)][np.isfinite(want)], atol=1e-12)
+    print(f"Classic PSM SUJ (S2), {n * m:,} (site, pose) cells: jitted {n * m / tj / 1e6:.2f} M solves/s "
+          f"({tj * 1e6 / (n * m):.2f} us), plain Python {len(sample) / tp / 1e3:.1f} k solves/s "
+          f"({tp * 1e6 / len(sample):.0f} us): {(tp / len(sample)) / (tj / (n * m)):.0f}x; equal: {same}")
+
+    ecm = T.camera_arm_of(cfg)
+    centre = np.asarray(cfg.target.centre_mm, float) / 1000
+    shafts = T.camera_shafts(T.camera_of(cfg), centre, model.sites_m)
+    some = poses.patient[:: max(1, m // 10)]
+
+    def numpy_ecm():
+        return [K.ecm_classic_dock(CARTS["classic"]["ECM"], ecm.yaw_limits_rad, ecm.pitch_limits_rad,
+                                   model.sites_m @ p[:3, :3].T + p[:3, 3], shafts @ p[:3, :3].T)[0] for p in some]
+
+    T.camera_dock(cfg, some[:1], model.sites_m[:2])  # compiled or loaded
+    tn, want = best_of(numpy_ecm, repeat=1)
+    tj, got = best_of(lambda: T.camera_dock(cfg, poses.patient, model.sites_m)[0], repeat=1)
+    got = got.reshape(m, n)[:: max(1, m // 10)]
+    want = np.array(want)
+    same = np.array_equal(np.isinf(want), np.isinf(got)) and np.allclose(want[np.isfinite(want)],
+                                                                         got[np.isfinite(want)], atol=1e-12)
+    print(f"Classic ECM docking grid (S4, 36 x 36 x 12), per (site, pose): jitted {tj * 1e6 / (n * m):.0f} us, "
+          f"numpy over the sites {tn * 1e6 / want.size:.0f} us: {(tn / want.size) / (tj / (n * m)):.1f}x; "
+          f"equal: {same}")
+
+
+def end_to_end() -> None:
+    for label, args in (("the default grid", ["cart.model=classic"]),
+                        ("a finer grid", ["cart.model=classic", "cart.around_step_deg=7.5",
+                                          "cart.distance_step_mm=100"])):
+        cfg = C.PortPlaceConfig.model_validate({"cart": {"model": "classic", **{
+            a.split("=")[0].split(".")[1]: float(a.split("=")[1]) for a in args[1:]}}})
+        poses = len(T.cart_poses(cfg).floor)
+        layouts = S.n_total(cfg)
+        dry = subprocess.run([sys.executable, "-m", "surgopt", "port-place", *args, "--dry-run"],
+                             capture_output=True, text=True).stdout
+        cells = [c.strip() for line in dry.splitlines() if "port designs" in line for c in line.split("│")]
+        est = next(float(c[:-2]) for c in cells if c.endswith(" s") and c[:-2].replace(".", "", 1).isdigit())
+        with tempfile.TemporaryDirectory() as tmp:
+            subprocess.run([sys.executable, "-m", "surgopt", "port-place", *args, "--store", tmp, "-q"], check=True,
+                           capture_output=True)  # compiled or loaded once (the kernels' cache)
+        with tempfile.TemporaryDirectory() as tmp:
+            t0 = time.perf_counter()
+            subprocess.run([sys.executable, "-m", "surgopt", "port-place", *args, "--store", tmp, "-q"], check=True,
+                           capture_output=True)
+            took = time.perf_counter() - t0
+        pairs = layouts * poses
+        print(f"surgopt port-place, {label} ({poses} cart poses), end to end (warm, 2 threads): {took:.1f} s for "
+              f"{layouts:,} layouts x {poses} poses = {pairs:.3g} (layout, cart pose) pairs, {pairs / took:.3g} "
+              f"pairs/s; the dry run's estimate {est:.1f} s ({est / took:.2f}x the time)")
+
+
+if __name__ == "__main__":
+    solvers()
+    end_to_end()
