@@ -190,3 +190,25 @@ def test_a_clinical_check_outside_its_band_is_marked():
     assert S.within_band([82.0], (80.0, math.inf)) == "yes" and S.within_band([1.0], None) == ""
     bands = {label: band for label, *_, band in S.CLINICAL_CHECKS}
     assert bands["manipulation angle over the target (deg)"] == (45.0, 75.0)
+
+
+def test_the_embedded_default_docks_on_the_classic_cart_and_other_arms_say_why_not():
+    """The embedded default's ``cart.model = "auto"`` is the Classic cart for the Classic PSMs and ECM (the same run,
+    the same key, as cart.model = "classic"), and "none" with a note for arms it cannot carry (the Si PSM, a
+    serial arm); "classic" given with such an arm is refused naming the field."""
+    from surgopt.compose import variants
+    from surgopt.config import ConfigError, study_key
+    from surgopt.studies import get_study
+    from surgopt.studies.port_place.study import advice
+
+    study = get_study("port-place")
+    (default,) = variants(study, None, [])
+    (given,) = variants(study, None, ["cart.model=classic"])
+    assert default.config.cart.model == "classic" and advice(default.config) == []
+    assert study_key(study.name, default.config, "k") == study_key(study.name, given.config, "k")
+    (si,) = variants(study, None, ["robot.instrument_arm=dvrk_psm_si"])
+    assert si.config.cart.model == "none"
+    (note,) = advice(si.config)
+    assert "docking is assumed" in note and "dvrk_psm_si" in note
+    with pytest.raises(ConfigError, match="cart.model: 'classic' carries the Classic PSMs and ECM, not dvrk_ecm_si"):
+        variants(study, None, ["cart.model=classic", "robot.camera_arm=dvrk_ecm_si"])

@@ -328,7 +328,11 @@ class Cart(StrictModel):
     patient's frame is on the table top (``table_height_mm`` above the floor), tilted head down by
     ``trendelenburg_deg`` and left side up by ``lateral_tilt_deg``."""
 
-    model: Literal["none", "classic"] = "none"
+    model: Literal["none", "classic", "auto"] = Field(
+        "none", description="'none': docking assumed; 'classic': the Classic cart's setup joints solved; 'auto' "
+                            "(the embedded default's): 'classic' where its arms are the Classic PSMs and ECM on "
+                            "the grid of layouts, 'none' otherwise (a note says why); resolved when the config is "
+                            "read, so the stored config names the one used")
     pose: Literal["grid", "given"] = "grid"
     x_mm: float = Field(0.0, ge=-5000.0, le=5000.0, description="given pose: the cart's origin, lateral")
     y_mm: float = Field(-1100.0, ge=-5000.0, le=5000.0, description="given pose: the cart's origin, cranial")
@@ -386,12 +390,13 @@ class PortPlaceConfig(StrictModel):
 
     @model_validator(mode="after")
     def _the_cart_carries_its_arms(self):
+        if self.cart.model == "auto":
+            object.__setattr__(self.cart, "model", "none" if cart_does_not_carry(self) else "classic")
         if self.cart.model == "none":
             return self
-        r = self.robot
-        if r.instrument_serial or r.instrument_file or r.instrument_arm != "dvrk_psm_classic":
-            raise ValueError("cart.model: 'classic' carries the Classic PSMs (robot.instrument_arm = "
-                             "'dvrk_psm_classic', no instrument_file or instrument_serial)")
+        why = cart_does_not_carry(self)
+        if why and self.search == "grid":
+            raise ValueError(f"cart.model: 'classic' carries the Classic PSMs and ECM, {why}")
         if self.search != "grid":
             raise ValueError("cart.model: the cart is enumerated with the grid of layouts; a [search] with the "
                              "cart is not in yet (set cart.model = 'none' to search)")
@@ -459,6 +464,21 @@ class PortPlaceConfig(StrictModel):
 
 
 Config = PortPlaceConfig
+
+
+def cart_does_not_carry(cfg: PortPlaceConfig) -> str:
+    """Why the Classic cart cannot dock this config's arms ("" when it can): it carries the Classic PSMs and the
+    Classic ECM, and is enumerated with the grid of layouts."""
+    r = cfg.robot
+    if r.instrument_serial or r.instrument_file or r.instrument_arm != "dvrk_psm_classic":
+        return (f"not {'a serial arm' if r.instrument_serial else 'an arm from a file' if r.instrument_file else r.instrument_arm} "
+                f"(robot.instrument_arm = 'dvrk_psm_classic', no instrument_file or instrument_serial)")
+    if r.camera_serial or r.camera_file or r.camera_arm != "dvrk_ecm_classic":
+        return (f"not {'a serial arm' if r.camera_serial else 'an arm from a file' if r.camera_file else r.camera_arm}"
+                f" (robot.camera_arm = 'dvrk_ecm_classic', no camera_file or camera_serial)")
+    if cfg.search != "grid":
+        return "with the grid of layouts, not a [search]"
+    return ""
 
 
 def _arm_of(cfg: PortPlaceConfig, role: str):

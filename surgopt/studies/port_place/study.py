@@ -678,6 +678,16 @@ def least_cost_layouts(parts, k: int, feasible: bool = True, columns: list[str] 
     return t.take(pa.array(order))
 
 
+def advice(cfg) -> list[str]:
+    """A note when the cart is left out because it cannot carry the config's arms (the embedded default's
+    ``cart.model = "auto"`` then resolves to "none"): docking is assumed."""
+    from surgopt.studies.port_place.config import cart_does_not_carry
+
+    why = cart_does_not_carry(cfg) if cfg.cart.model == "none" else ""
+    return [f"no patient cart in this run: docking is assumed (the Classic cart carries the Classic PSMs and ECM, "
+            f"{why})"] if why else []
+
+
 STUDY = Study(
     name=NAME, kernel_version=KERNEL_VERSION, config_model=PortPlaceConfig, default_config=DEFAULT_CONFIG,
     help=HELP, config_help=CONFIG_HELP, schema=schema, key_columns=("design_id",), objective=OBJECTIVE,
@@ -688,4 +698,4 @@ STUDY = Study(
     warm_variants=(('robot.instrument_serial={model = "pa10_7c", rcm_in_base_m = [0.65, 0.0, 0.5]}',
                     "constraints.min_external_clearance_mm=150.0"),),
     evaluate=evaluate_designs, figure_columns=figure_columns, preflight=preflight, top_columns=top_columns,
-    design_identity=design_identity)
+    design_identity=design_identity, advice=advice)
