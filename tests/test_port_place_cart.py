@@ -195,20 +195,24 @@ def test_a_clinical_check_outside_its_band_is_marked():
 def test_the_embedded_default_docks_on_the_classic_cart_and_other_arms_say_why_not():
     """The embedded default's ``cart.model = "auto"`` is the Classic cart for the Classic PSMs and ECM (the same run,
     the same key, as cart.model = "classic"), and "none" with a note for arms it cannot carry (the Si PSM, a
-    serial arm); "classic" given with such an arm is refused naming the field."""
+    serial arm), which the closing report's headline says (``no_cart_note``, in the rows' metadata); "classic" given
+    with such an arm is refused naming the field."""
     from surgopt.compose import variants
     from surgopt.config import ConfigError, study_key
     from surgopt.studies import get_study
-    from surgopt.studies.port_place.study import advice
+    from surgopt.studies.port_place.study import no_cart_note
 
     study = get_study("port-place")
     (default,) = variants(study, None, [])
     (given,) = variants(study, None, ["cart.model=classic"])
-    assert default.config.cart.model == "classic" and advice(default.config) == []
+    assert default.config.cart.model == "classic"
     assert study_key(study.name, default.config, "k") == study_key(study.name, given.config, "k")
     (si,) = variants(study, None, ["robot.instrument_arm=dvrk_psm_si"])
     assert si.config.cart.model == "none"
-    (note,) = advice(si.config)
-    assert "docking is assumed" in note and "dvrk_psm_si" in note
+    note = no_cart_note(si.config)
+    assert S.schema(si.config).metadata[b"cart"].decode() == note
+    assert note.startswith("none: docking assumed") and "not dvrk_psm_si" in note
+    (plain,) = variants(study, None, ["cart.model=none"])
+    assert no_cart_note(plain.config.model_dump(mode="json")) == "none: docking assumed (cart.model = none)"
     with pytest.raises(ConfigError, match="cart.model: 'classic' carries the Classic PSMs and ECM, not dvrk_ecm_si"):
         variants(study, None, ["cart.model=classic", "robot.camera_arm=dvrk_ecm_si"])

@@ -183,11 +183,13 @@ def _stored_metadata(config) -> dict | None:
 
 def cart_metadata(config) -> dict | None:
     """With the cart: the run's config (as stored) in the rows' schema metadata, so that the summary can solve the
-    best layout's setup joints again from its row."""
+    best layout's setup joints again from its row; without: why there is no cart (``no_cart_note``)."""
     import json
 
-    if cart_of(config) == "none":
+    if config is None:
         return None
+    if cart_of(config) == "none":  # what the closing report says of the cart: none, and why
+        return {"cart": no_cart_note(config)}
     return {"config": json.dumps(config if isinstance(config, dict) else config.model_dump(mode="json"))}
 
 
@@ -459,6 +461,8 @@ def preflight(cfg) -> None:
 NS_PER_DESIGN = 60.0
 NS_PER_DESIGN_3 = 70.0
 ROW_BYTES, ROW_BYTES_3 = 190, 230
+#: The cart's columns in a row: cart_pose (int64) and the pose's x, y and heading (float64).
+CART_ROW_BYTES = 32
 IN_FLIGHT_TASKS = 4
 NS_PER_SITE_POINT = 60.0
 #: A serial instrument arm's per-port tables: ~3.4 us per site x target point (generic Newton IK by continuation,
@@ -509,7 +513,7 @@ def estimate(cfg) -> Estimate:
         from surgopt.studies.port_place.tables import cart_poses
 
         seconds += n * len(cart_poses(cfg).floor) * (arms * NS_PER_SUJ_SOLVE + NS_PER_ECM_DOCK) * 1e-9
-    row = ROW_BYTES if arms == 2 else ROW_BYTES_3
+    row = (ROW_BYTES if arms == 2 else ROW_BYTES_3) + (CART_ROW_BYTES if cfg.cart.model != "none" else 0)
     working = n * n * 8 * 12 + n * m * 9 + LIBRARY_BYTES
     if cfg.rows_stored == "feasible":  # at most every design feasible: 8 bytes of each stored row in the parent
         # and, in flight, tasks of feasible rows only (2 per worker, ~4 on this scale of machine)
@@ -615,9 +619,25 @@ def summary(parts) -> Summary:
                        [[f"{r[c]:.4g}" if isinstance(r[c], float) else str(r[c]) for c in cols] for r in best.to_pylist()]))
     else:
         headline["best"] = "none: no design is feasible (see the reasons' counts)"
+    if "cart" in meta:
+        headline["cart"] = meta["cart"]
     if "cart_pose" in parts.schema.names and meta.get("rows_stored") != "feasible":
         counts["infeasible only for docking (feasible without the cart)"] = only_docking
     return Summary(headline, counts, tables)
+
+
+def no_cart_note(config) -> str:
+    """What a run without the cart says of it (validated or as stored): docking assumed, and why the cart is not
+    in (the arms it cannot carry, or cart.model = "none")."""
+    from surgopt.studies.port_place.config import cart_does_not_carry
+
+    try:
+        cfg = (config if isinstance(config, PortPlaceConfig)
+               else PortPlaceConfig.model_validate(config, context={"stored": True}))
+    except (ValueError, OSError):
+        return "none: docking assumed"
+    why = cart_does_not_carry(cfg)
+    return f"none: docking assumed ({'the Classic cart carries the Classic PSMs and ECM, ' + why if why else 'cart.model = none'})"
 
 
 def dvrk_export(cfg, row: dict) -> str:
@@ -678,16 +698,6 @@ def least_cost_layouts(parts, k: int, feasible: bool = True, columns: list[str] 
     return t.take(pa.array(order))
 
 
-def advice(cfg) -> list[str]:
-    """A note when the cart is left out because it cannot carry the config's arms (the embedded default's
-    ``cart.model = "auto"`` then resolves to "none"): docking is assumed."""
-    from surgopt.studies.port_place.config import cart_does_not_carry
-
-    why = cart_does_not_carry(cfg) if cfg.cart.model == "none" else ""
-    return [f"no patient cart in this run: docking is assumed (the Classic cart carries the Classic PSMs and ECM, "
-            f"{why})"] if why else []
-
-
 STUDY = Study(
     name=NAME, kernel_version=KERNEL_VERSION, config_model=PortPlaceConfig, default_config=DEFAULT_CONFIG,
     help=HELP, config_help=CONFIG_HELP, schema=schema, key_columns=("design_id",), objective=OBJECTIVE,
@@ -698,4 +708,4 @@ STUDY = Study(
     warm_variants=(('robot.instrument_serial={model = "pa10_7c", rcm_in_base_m = [0.65, 0.0, 0.5]}',
                     "constraints.min_external_clearance_mm=150.0"),),
     evaluate=evaluate_designs, figure_columns=figure_columns, preflight=preflight, top_columns=top_columns,
-    design_identity=design_identity, advice=advice)
+    design_identity=design_identity)
