@@ -85,6 +85,27 @@ class Patient(StrictModel):
                                              "toward the head, z anterior, as for the dome")
     mesh_sha256: str | None = Field(None, description="filled in: the mesh file's content hash (in the store key)")
     port_region: PortRegion = PortRegion()
+    landmarks_mm: dict[Annotated[str, Field(min_length=1, max_length=40, pattern=r"^[A-Za-z][\w -]*$")],
+                       Annotated[list[Annotated[float, Field(ge=-2000.0, le=2000.0, allow_inf_nan=False)]],
+                                 Field(min_length=2, max_length=2)]] | None = Field(
+        None, max_length=50, description="named landmarks on the patient, top view ({name = [x, y]} mm, the patient "
+        "frame: the umbilicus, the pubis, the xiphoid, a costal margin's point...), that the report measures each "
+        "port from; none: for the dome, xiphoid, umbilicus and pubis on the midline at +0.85, 0 and -0.85 of its "
+        "cranio-caudal semi-axis (assumptions), for a mesh the frame's origin")
+    reference_landmark: str | None = Field(None, description="the landmark ports are measured from (one of "
+                                                             "landmarks_mm; none: the umbilicus, or the first)")
+
+    @model_validator(mode="after")
+    def _a_known_reference(self):
+        if self.reference_landmark is None:
+            return self
+        from surgopt.studies.port_place.geometry import landmarks_mm
+
+        names = list(landmarks_mm(self))
+        if self.reference_landmark not in names:
+            raise ValueError(f"reference_landmark: {self.reference_landmark!r} is not a landmark of this patient "
+                             f"({', '.join(names)}; name it in landmarks_mm)")
+        return self
 
     @model_validator(mode="after")
     def _positive(self, info: ValidationInfo):

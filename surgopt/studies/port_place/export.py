@@ -89,3 +89,33 @@ def dvrk_setup(cfg: PortPlaceConfig, row: dict) -> str:
            "cart_to_patient": _matrix(patient), "arms": arms,
            "clearances_outside_body": clearances_of(cfg, row, docked)}
     return json.dumps(out, indent=1) + "\n"
+
+
+def ports_csv(cfg: PortPlaceConfig, row: dict) -> str:
+    """``surgopt export KEY --design ID --format ports``: the layout's ports and the patient's landmarks as CSV, one
+    line each: what (port, landmark), name, site, x_mm, y_mm, z_mm (the patient frame; a landmark's z is the
+    body's wall over it, blank where there is none), and each one's top-view offset from the reference landmark,
+    left_mm (the patient's left +) and cranial_mm (toward the head +), with the same in words."""
+    import csv
+    import io
+
+    from surgopt.studies.port_place.geometry import from_landmark, landmarks_mm, reference_landmark, wall_height_mm
+
+    name, mark = reference_landmark(cfg.patient)
+    out = io.StringIO()
+    w = csv.writer(out, lineterminator="\n")
+    w.writerow(["what", "name", "site", "x_mm", "y_mm", "z_mm", f"left_of_{name}_mm", f"cranial_of_{name}_mm",
+                f"from_{name}"])
+
+    def line(what, label, site, x, y, z):
+        w.writerow([what, label, site, f"{x:.1f}", f"{y:.1f}", "" if not np.isfinite(z) else f"{z:.1f}",
+                    f"{x - mark[0]:.1f}", f"{y - mark[1]:.1f}", from_landmark(x, y, mark)])
+
+    for arm in ("psm1", "psm2", "psm3", "ecm"):
+        if f"{arm}_site" in row:
+            line("port", arm.upper(), row[f"{arm}_site"], row[f"{arm}_x_mm"], row[f"{arm}_y_mm"], row[f"{arm}_z_mm"])
+    for label, (x, y) in landmarks_mm(cfg.patient).items():
+        z = float(wall_height_mm(np.array([x]), np.array([y]), cfg.patient)[0])
+        line("landmark", label, "", x, y, z)
+    return out.getvalue()
+

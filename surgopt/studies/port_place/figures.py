@@ -138,6 +138,7 @@ def figures(cfg, table, out, design_id=None):
         for arm, colour, label in arms(c):
             p = sites[c[f"{arm}_site"][row]]
             ax.plot(p[0], p[1], "*", color=colour, ms=16, mec="k", label=label)
+    sides_and_landmarks(ax, cfg)
     ax.set_aspect("equal")
     ax.set_xlabel(X_LABEL)
     ax.set_ylabel(Y_LABEL)
@@ -166,6 +167,23 @@ def figures(cfg, table, out, design_id=None):
     return paths
 
 
+def sides_and_landmarks(ax, cfg) -> None:
+    """A top view's sides named (the patient's left and right, head and feet, at the axes' edges) and the
+    patient's landmarks marked and labelled (``geometry.landmarks_mm``), the reference one in bold."""
+    from surgopt.studies.port_place.geometry import landmarks_mm, reference_landmark
+
+    ref, _ = reference_landmark(cfg.patient)
+    for name, (x, y) in landmarks_mm(cfg.patient).items():
+        ax.plot(x, y, "P", color="k", ms=7, mfc="w")
+        ax.annotate(name, (x, y), xytext=(5, 4), textcoords="offset points", fontsize=7,
+                    fontweight="bold" if name == ref else "normal")
+    style = dict(transform=ax.transAxes, fontsize=8, color="0.3", ha="center", va="center")
+    ax.text(0.98, 0.5, "L", **style)
+    ax.text(0.02, 0.5, "R", **style)
+    ax.text(0.5, 0.98, "head", **style)
+    ax.text(0.5, 0.02, "feet", **style)
+
+
 def reach_maps(plt, cfg, sites, t, dex, out):
     """Per-arm maps, top view: the share of the target an instrument docked at each site reaches (within its joint
     limits and any approach cone), its mean isotropy over the points it reaches, and the share of the target the
@@ -187,6 +205,7 @@ def reach_maps(plt, cfg, sites, t, dex, out):
         target_top_view(ax, cfg, targets, "C3")
         ax.set_xlim(-a, a)
         ax.set_ylim(-b, b)
+        sides_and_landmarks(ax, cfg)
         ax.set_aspect("equal")
         ax.set_xlabel(X_LABEL)
         ax.set_title(title + (f"\n(every site: {lo:.2f})" if np.isclose(lo, hi) else f"\n({lo:.2f} to {hi:.2f})"),

@@ -23,6 +23,42 @@ FRAME_TEXT = ("patient frame, mm: +x toward the patient's left, +y toward the he
               "table); origin: the centre of the body's base on the table top")
 X_LABEL, Y_LABEL, Z_LABEL = "x (mm), + the patient's left", "y (mm), + toward the head", "z anterior (mm)"
 
+#: The dome's landmarks when a config names none (issue 42 item 3): on the midline, at these fractions of the
+#: dome's cranio-caudal semi-axis b from its centre. Assumptions, stated: the xiphoid and the pubic symphysis near
+#: the ends of an insufflated abdomen (+-0.85 b: +-179 mm on the default 210 mm), the umbilicus over its centre.
+DOME_LANDMARKS = (("xiphoid", 0.85), ("umbilicus", 0.0), ("pubis", -0.85))
+#: The landmark a layout's ports are measured from when the config names none and it has one of this name.
+REFERENCE_LANDMARK = "umbilicus"
+
+
+def landmarks_mm(patient) -> dict[str, tuple[float, float]]:
+    """The patient's named landmarks, top view (x, y mm): the config's ``landmarks_mm``, or the dome's defaults
+    (``DOME_LANDMARKS``), or for a mesh without any the frame's origin (the centre of the body's base)."""
+    if patient.landmarks_mm:
+        return {name: (float(x), float(y)) for name, (x, y) in patient.landmarks_mm.items()}
+    if patient.shape == "dome":
+        b = patient.semi_axes_mm[1]
+        return {name: (0.0, round(f * b, 6)) for name, f in DOME_LANDMARKS}
+    return {"origin": (0.0, 0.0)}
+
+
+def reference_landmark(patient) -> tuple[str, tuple[float, float]]:
+    """(name, (x, y) mm) of the landmark ports are measured from: ``reference_landmark``, or the umbilicus, or the
+    first landmark."""
+    marks = landmarks_mm(patient)
+    name = patient.reference_landmark or (REFERENCE_LANDMARK if REFERENCE_LANDMARK in marks else next(iter(marks)))
+    return name, marks[name]
+
+
+def from_landmark(x_mm: float, y_mm: float, mark: tuple[float, float]) -> str:
+    """A port's top-view position from a landmark along named directions: "72 left, 18 caudal" (mm; the
+    patient's left or right, toward the head (cranial) or the feet (caudal); "midline" or "level" within half a
+    millimetre)."""
+    dx, dy = x_mm - mark[0], y_mm - mark[1]
+    across = "midline" if abs(dx) < 0.5 else f"{abs(dx):.0f} {'left' if dx > 0 else 'right'}"
+    along = "level" if abs(dy) < 0.5 else f"{abs(dy):.0f} {'cranial' if dy > 0 else 'caudal'}"
+    return f"{across}, {along}"
+
 
 def polygon_area_mm2(poly: np.ndarray) -> float:
     """|Shoelace area| of a polygon's vertices (N, 2), in order."""

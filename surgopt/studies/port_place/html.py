@@ -14,7 +14,8 @@ import math
 import numpy as np
 
 from surgopt.studies.page import View, table_html
-from surgopt.studies.port_place.geometry import FRAME_TEXT, X_LABEL, Y_LABEL, Z_LABEL
+from surgopt.studies.port_place.geometry import (FRAME_TEXT, X_LABEL, Y_LABEL, Z_LABEL, from_landmark,
+                                                 reference_landmark)
 
 TOP_FEASIBLE = 300
 TOP_INFEASIBLE = 100
@@ -79,6 +80,10 @@ def views(run, cfg, parts) -> list[View]:
     top = pa.concat_tables([t for t in (feasible, infeasible) if t is not None and t.num_rows]) \
         if (feasible.num_rows or (infeasible is not None and infeasible.num_rows)) else feasible
     layouts = {c: top[c].to_numpy(zero_copy_only=False) for c in wanted}
+    mark_name, mark = reference_landmark(cfg.patient)
+    for a in arms:  # each port from the reference landmark, in words (the closing report's)
+        layouts[f"{a}_from"] = np.array([from_landmark(x, y, mark) for x, y in zip(layouts[f"{a}_x_mm"],
+                                                                                  layouts[f"{a}_y_mm"])])
     from surgopt.kinematics.port_place import REASONS
     from surgopt.robots import dvrk
 
@@ -125,8 +130,8 @@ def views(run, cfg, parts) -> list[View]:
         {}, '<div class="row"><div><div id="pp-scene" class="plot" style="min-height:620px"></div></div>'
             '<div style="flex:0 1 460px"><h3 id="pp-title"></h3><table id="pp-checks"><thead><tr><th>check</th>'
             '<th>this layout</th><th>clinical number</th><th>within</th></tr></thead><tbody></tbody></table>'
-            '<table id="pp-ports"><thead><tr><th>arm</th><th>site</th><th>x_mm</th><th>y_mm</th><th>z_mm</th></tr>'
-            '</thead><tbody></tbody></table></div></div>'
+            '<table id="pp-ports"><thead><tr><th>arm</th><th>site</th><th>x_mm</th><th>y_mm</th><th>z_mm</th>'
+            f'<th>from the {mark_name} (mm, top view)</th></tr></thead><tbody></tbody></table></div></div>'
             f"<h3>Top layouts: the {feasible.num_rows} feasible of least cost"
             + (f" and the {infeasible.num_rows} infeasible of least cost" if infeasible is not None else "")
             + f" (of {parts.num_rows:,} rows)</h3>{filters}<div class=\"scroll\">{table}</div>",
@@ -217,7 +222,8 @@ function draw(i){
     tr.innerHTML = '<td colspan="4"></td>'; tr.firstChild.textContent = 'fails: ' + r[1]; body.appendChild(tr); } }); }
   const ports = document.querySelector('#pp-ports tbody'); ports.innerHTML = '';
   arms.forEach(a => { const tr = document.createElement('tr');
-    [a.toUpperCase(), col(a+'_site', i), fmt(col(a+'_x_mm', i), 0), fmt(col(a+'_y_mm', i), 0), fmt(col(a+'_z_mm', i), 0)]
+    [a.toUpperCase(), col(a+'_site', i), fmt(col(a+'_x_mm', i), 0), fmt(col(a+'_y_mm', i), 0), fmt(col(a+'_z_mm', i), 0),
+     col(a+'_from', i)]
       .forEach(t => { const td = document.createElement('td'); td.textContent = t; tr.appendChild(td); });
     ports.appendChild(tr); });
   document.querySelectorAll('#pp-layouts tbody tr').forEach(tr => tr.classList.toggle('selected', +tr.dataset.i === i));

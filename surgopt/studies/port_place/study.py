@@ -21,6 +21,7 @@ other.
 """
 from __future__ import annotations
 
+import json
 import math
 
 import numpy as np
@@ -29,7 +30,7 @@ from surgopt.robots import dvrk
 from surgopt.studies import Estimate, Study, Summary, figures_in, html_views_in, peak_bytes
 from surgopt.parts import concat_rows
 from surgopt.studies.port_place.config import OBJECTIVE, PortPlaceConfig, camera_arm_of, instrument_of
-from surgopt.studies.port_place.geometry import FRAME_TEXT, sites_mm, target_points_mm
+from surgopt.studies.port_place.geometry import FRAME_TEXT, from_landmark, sites_mm, target_points_mm
 from surgopt.studies.port_place.tables import LATERAL, model_of, port_tables
 
 NAME = "port-place"
@@ -174,11 +175,29 @@ def _stored_metadata(config) -> dict | None:
     """With the cart: what its docking is solved from (``cart_metadata``); with only feasible rows stored: how
     many designs were enumerated (what the summary counts the infeasible from), when the config can be read
     again (a stored mesh config whose file moved cannot)."""
-    meta = cart_metadata(config)
+    meta = {**(cart_metadata(config) or {}), **landmark_metadata(config)} or None
     stored = config.get("rows_stored") if isinstance(config, dict) else getattr(config, "rows_stored", "all")
     if stored != "feasible":
         return meta
     return {**(meta or {}), **_feasible_metadata(config)}
+
+
+def landmark_metadata(config) -> dict:
+    """The landmark the closing report measures ports from (``geometry.reference_landmark``), as JSON [name, x, y]
+    in the rows' schema metadata (nothing when the config cannot be read again)."""
+    import json
+
+    from surgopt.studies.port_place.geometry import reference_landmark
+
+    if config is None:
+        return {}
+    try:
+        cfg = (config if isinstance(config, PortPlaceConfig)
+               else PortPlaceConfig.model_validate(config, context={"stored": True}))
+    except (ValueError, OSError):
+        return {}
+    name, (x, y) = reference_landmark(cfg.patient)
+    return {"landmark": json.dumps([name, x, y])}
 
 
 def cart_metadata(config) -> dict | None:
@@ -607,16 +626,27 @@ def summary(parts) -> Summary:
                    within_band([b[f] for f in fields], band)]
                   for label, fields, digits, joiner, clinical, band in CLINICAL_CHECKS]
         tables.append(("best layout: clinical checks", ["quantity", "value", "clinical number", "within"], checks))
+        mark = json.loads(meta["landmark"]) if "landmark" in meta else None
         ports = [[arm, str(b[f"{arm}_site"]), f"{b[f'{arm}_x_mm']:.0f}", f"{b[f'{arm}_y_mm']:.0f}",
-                  f"{b[f'{arm}_z_mm']:.0f}"] for arm in ("psm1", "psm2", "psm3", "ecm") if f"{arm}_site" in b]
-        tables.append((f"best layout: ports ({FRAME_TEXT})", ["arm", "site", "x_mm", "y_mm", "z_mm"],
-                       ports))
+                  f"{b[f'{arm}_z_mm']:.0f}"] + ([from_landmark(b[f"{arm}_x_mm"], b[f"{arm}_y_mm"], mark[1:])]
+                                                if mark else [])
+                 for arm in ("psm1", "psm2", "psm3", "ecm") if f"{arm}_site" in b]
+        tables.append((f"best layout: ports ({FRAME_TEXT})", ["arm", "site", "x_mm", "y_mm", "z_mm"]
+                       + ([f"from the {mark[0]} (mm, top view)"] if mark else []), ports))
         if "cart_pose" in b:
             tables += docking_tables(b, meta)
         cols = ["design_id", "cost", "common_reach", "dexterity_mean", "manipulation_angle_mean_deg",
                 "azimuth_imbalance_deg", "camera_coverage"]
-        tables.append(("best feasible designs by cost", cols,
+        repeats = best.schema.metadata.get(b"repeats_collapsed", b"0").decode() if best.schema.metadata else "0"
+        tables.append(("best feasible designs by cost" + (f" ({repeats} repeats of a listed layout collapsed)"
+                                                          if repeats != "0" else ""), cols,
                        [[f"{r[c]:.4g}" if isinstance(r[c], float) else str(r[c]) for c in cols] for r in best.to_pylist()]))
+        if mark:
+            arms = [a for a in ("psm1", "psm2", "psm3", "ecm") if f"{a}_x_mm" in b]
+            tables.append((f"best feasible designs: ports from the {mark[0]} (mm, top view: the patient's left or "
+                           f"right, cranial or caudal)", ["design_id", *arms],
+                           [[str(r["design_id"]), *(from_landmark(r[f"{a}_x_mm"], r[f"{a}_y_mm"], mark[1:])
+                                                    for a in arms)] for r in best.to_pylist()]))
     else:
         headline["best"] = "none: no design is feasible (see the reasons' counts)"
     if "cart" in meta:
@@ -638,6 +668,13 @@ def no_cart_note(config) -> str:
         return "none: docking assumed"
     why = cart_does_not_carry(cfg)
     return f"none: docking assumed ({'the Classic cart carries the Classic PSMs and ECM, ' + why if why else 'cart.model = none'})"
+
+
+def ports_export(cfg, row: dict) -> str:
+    """``surgopt export KEY --design ID --format ports`` (``export.ports_csv``)."""
+    from surgopt.studies.port_place.export import ports_csv
+
+    return ports_csv(cfg, row)
 
 
 def dvrk_export(cfg, row: dict) -> str:
@@ -677,25 +714,60 @@ def docking_tables(best: dict, meta: dict) -> list:
              "not yet part of feasible)", ["between", "clearance_mm", "link", "against", "where"], clear)]
 
 
+def layout_columns(names) -> list[str]:
+    """The columns that make two rows the same layout: each arm's site, and a search's docking and stance (a
+    search evaluates a layout again when its optimiser asks again; its rows repeat one layout)."""
+    return [c for c in names if c.endswith("_site") or "_docking_" in c or "_stance_" in c]
+
+
+def first_of_each_layout(t, key: list[str]):
+    """``t`` (ordered) with each layout's first row only: (the rows, the (cost, design_id) of the rows dropped)."""
+    if not key or t.num_rows < 2:
+        return t, np.zeros((0, 2))
+    import pyarrow as pa
+
+    keys = np.stack([t[c].to_numpy().astype(np.float64) for c in key], axis=1)
+    _, first = np.unique(keys, axis=0, return_index=True)
+    first = np.sort(first)
+    dropped = np.setdiff1d(np.arange(t.num_rows), first)
+    return t.take(pa.array(first)), np.stack([t["cost"].to_numpy()[dropped],
+                                              t["design_id"].to_numpy()[dropped]], axis=1)
+
+
 def least_cost_layouts(parts, k: int, feasible: bool = True, columns: list[str] | None = None):
-    """The k designs of least cost (ties by design id) among the feasible (or the infeasible) ones, read part by
-    part; only ``columns`` (with feasible, cost, design_id) when given: the closing report and the HTML page."""
+    """The k layouts of least cost (ties by design id) among the feasible (or the infeasible) ones, read part by
+    part, each layout once (``first_of_each_layout``: a search's repeats collapsed, their count among the rows
+    ranked up to the last listed in the table's metadata, ``repeats_collapsed``); only ``columns`` (with feasible,
+    cost, design_id and the layout's) when given: the closing report and the HTML page."""
     import pyarrow as pa
     import pyarrow.compute as pc
 
+    key = layout_columns(parts.schema.names)
     if columns is not None:
-        columns = sorted({*columns, "feasible", "cost", "design_id"} & set(parts.schema.names))
-    kept = []
+        columns = sorted({*columns, "feasible", "cost", "design_id", *key} & set(parts.schema.names))
+    kept, dropped = [], []
     for t in parts.only(columns):
         t = t.filter(t["feasible"] if feasible else pc.invert(t["feasible"]))
         if t.num_rows:
-            order = np.lexsort((t["design_id"].to_numpy(), t["cost"].to_numpy()))[:k]
-            kept.append(t.take(pa.array(order)))
+            order = np.lexsort((t["design_id"].to_numpy(), t["cost"].to_numpy()))
+            window = 4 * k + 16  # the best rows first; more only while repeats leave fewer than k layouts
+            while True:
+                top, gone = first_of_each_layout(t.take(pa.array(order[:window])), key)
+                if top.num_rows >= k or window >= len(order):
+                    break
+                window *= 4
+            kept.append(top.slice(0, k))
+            dropped.append(gone)
     if not kept:
         return parts.schema.empty_table() if columns is None else parts.schema.empty_table().select(columns)
     t = pa.concat_tables(kept)
-    order = np.lexsort((t["design_id"].to_numpy(), t["cost"].to_numpy()))[:k]
-    return t.take(pa.array(order))
+    t = t.take(pa.array(np.lexsort((t["design_id"].to_numpy(), t["cost"].to_numpy()))))
+    t, gone = first_of_each_layout(t, key)
+    t = t.slice(0, k)
+    gone = np.concatenate([*dropped, gone])
+    last = (t["cost"][-1].as_py(), t["design_id"][-1].as_py())
+    repeats = int(np.count_nonzero((gone[:, 0] < last[0]) | ((gone[:, 0] == last[0]) & (gone[:, 1] <= last[1]))))
+    return t.replace_schema_metadata({**(t.schema.metadata or {}), b"repeats_collapsed": str(repeats).encode()})
 
 
 STUDY = Study(
@@ -704,7 +776,7 @@ STUDY = Study(
     auto_chunk=auto_chunk, n_tasks=n_tasks, warm_up=warm_up, compute_task=compute_task, summary=summary,
     feasible_mask=feasible_mask, figures=figures_in("surgopt.studies.port_place.figures"), estimate=estimate, search_plan=search_plan,
     html_views=html_views_in("surgopt.studies.port_place.html"), reported_objective=("cost", "minimize"),
-    exports={"dvrk": dvrk_export},
+    exports={"dvrk": dvrk_export, "ports": ports_export},
     warm_variants=(('robot.instrument_serial={model = "pa10_7c", rcm_in_base_m = [0.65, 0.0, 0.5]}',
                     "constraints.min_external_clearance_mm=150.0"),),
     evaluate=evaluate_designs, figure_columns=figure_columns, preflight=preflight, top_columns=top_columns,

@@ -1,0 +1,121 @@
+"""Answers a surgeon can mark on the patient (issue 42 item 3): landmarks on the patient (the dome's defaults or the
+config's), every listed layout's ports as distances from the reference landmark along named directions (the closing
+report, the ports CSV), the figures' sides, and a search's repeated layouts listed once."""
+from __future__ import annotations
+
+import csv
+import io
+
+import numpy as np
+import pydantic
+import pytest
+
+from surgopt.studies.port_place import config as C
+from surgopt.studies.port_place import geometry as G
+from surgopt.studies.port_place import study as S
+
+COARSE = {"patient": {"port_region": {"site_spacing_mm": 72.0}}, "target": {"spacing_mm": 20.0}}
+
+
+@pytest.mark.parametrize("x, y, words", [(72.0, -18.0, "72 left, 18 caudal"), (-72.0, 18.0, "72 right, 18 cranial"),
+                                         (0.2, 40.0, "midline, 40 cranial"), (-54.0, -0.3, "54 right, level")])
+def test_a_port_is_said_from_the_landmark_along_the_patients_directions(x, y, words):
+    """+x is the patient's left and +y the head (the frame, geometry.FRAME_TEXT); from a landmark at (0, 0)."""
+    assert G.from_landmark(x, y, (0.0, 0.0)) == words
+    assert G.from_landmark(x + 10.0, y - 25.0, (10.0, -25.0)) == words  # measured from the landmark, not the origin
+
+
+def test_the_domes_landmarks_are_on_its_midline_and_a_config_names_its_own():
+    dome = C.PortPlaceConfig().patient
+    assert G.landmarks_mm(dome) == {"xiphoid": (0.0, 178.5), "umbilicus": (0.0, 0.0), "pubis": (0.0, -178.5)}
+    assert G.reference_landmark(dome) == ("umbilicus", (0.0, 0.0))
+    own = C.PortPlaceConfig.model_validate({"patient": {"landmarks_mm": {"pubis": [0.0, -150.0], "ASIS left":
+                                                                         [120.0, -120.0]},
+                                                        "reference_landmark": "pubis"}}).patient
+    assert G.landmarks_mm(own) == {"pubis": (0.0, -150.0), "ASIS left": (120.0, -120.0)}
+    assert G.reference_landmark(own) == ("pubis", (0.0, -150.0))
+    with pytest.raises(pydantic.ValidationError, match="reference_landmark: 'navel' is not a landmark of this "
+                                                       "patient \\(xiphoid, umbilicus, pubis"):
+        C.PortPlaceConfig.model_validate({"patient": {"reference_landmark": "navel"}})
+    with pytest.raises(pydantic.ValidationError, match="landmarks_mm"):
+        C.PortPlaceConfig.model_validate({"patient": {"landmarks_mm": {"pubis": [0.0, float("nan")]}}})
+
+
+def test_the_ports_csv_measures_the_layout_and_the_landmarks_from_the_reference(tmp_path):
+    """``export --format ports``: each port's row as stored, each landmark with the dome's height over it (the
+    half-ellipsoid's closed form), and every offset = position - the reference landmark's, in words too."""
+    cfg = C.PortPlaceConfig.model_validate({**COARSE, "patient": {**COARSE["patient"],
+                                                                  "reference_landmark": "pubis"}})
+    cols = S.compute_task(cfg, S.n_total(cfg), 0)
+    i = int(np.argmax(cols["feasible"]))
+    row = {k: (v[i].item() if hasattr(v[i], "item") else v[i]) for k, v in cols.items()}
+    lines = list(csv.DictReader(io.StringIO(S.ports_export(cfg, row))))
+    assert [r["name"] for r in lines] == ["PSM1", "PSM2", "ECM", "xiphoid", "umbilicus", "pubis"]
+    a, b, c = cfg.patient.semi_axes_mm
+    for r in lines:
+        x, y = float(r["x_mm"]), float(r["y_mm"])
+        assert float(r["left_of_pubis_mm"]) == pytest.approx(x - 0.0, abs=0.051)
+        assert float(r["cranial_of_pubis_mm"]) == pytest.approx(y + 178.5, abs=0.051)
+        assert r["from_pubis"] == G.from_landmark(x, y, (0.0, -178.5))
+        if r["what"] == "port":
+            arm = r["name"].lower()
+            assert (x, y, float(r["z_mm"])) == pytest.approx((row[f"{arm}_x_mm"], row[f"{arm}_y_mm"],
+                                                              row[f"{arm}_z_mm"]), abs=0.051)
+        else:
+            assert float(r["z_mm"]) == pytest.approx(c * np.sqrt(1 - (x / a) ** 2 - (y / b) ** 2), abs=0.051)
+
+
+def test_the_closing_report_gives_each_listed_layouts_ports_from_the_umbilicus(tmp_path):
+    from surgopt.runner import run_study
+    from surgopt.store import Store
+
+    from conftest import single_run
+
+    cfg = C.PortPlaceConfig.model_validate(COARSE)
+    run_study(S.STUDY, cfg, config_name="c", store=Store(tmp_path), jobs=1, quiet=True)
+    run = single_run(tmp_path)
+    summary = S.summary(run.parts(S.schema(cfg)))
+    tables = {title.split(" (")[0]: (names, rows) for title, names, rows in summary.tables}
+    names, rows = tables["best layout: ports"]
+    assert names[-1] == "from the umbilicus (mm, top view)"
+    for r in rows:
+        assert r[-1] == G.from_landmark(float(r[2]), float(r[3]), (0.0, 0.0))
+    names, rows = tables["best feasible designs: ports from the umbilicus"]
+    best = S.least_cost_layouts(run.parts(S.schema(cfg)), 5).to_pylist()
+    assert names == ["design_id", "psm1", "psm2", "ecm"] and len(rows) == len(best) == 5
+    for r, b in zip(rows, best):
+        assert r == [str(b["design_id"]), *(G.from_landmark(b[f"{a}_x_mm"], b[f"{a}_y_mm"], (0.0, 0.0))
+                                            for a in ("psm1", "psm2", "ecm"))]
+
+
+def test_a_searchs_repeated_layouts_are_listed_once_and_counted():
+    """A search evaluates a layout again when its optimiser asks again: rows that repeat a layout under new design
+    ids (here the grid's rows, the best ones asked again and again, in two parts as a run stores them). The
+    least-cost list is the first row of each layout (pandas' drop_duplicates over the sites, brute force), and the
+    repeats among the rows ranked up to the last listed are counted."""
+    import pyarrow as pa
+
+    from surgopt.parts import Parts
+
+    cfg = C.PortPlaceConfig.model_validate(COARSE)
+    grid = pa.Table.from_pydict(S.compute_task(cfg, S.n_total(cfg), 0), schema=S.schema(cfg))
+    ok = np.flatnonzero(grid["feasible"].to_numpy())
+    best = ok[np.argsort(grid["cost"].to_numpy()[ok], kind="stable")][:8]
+    rng = np.random.default_rng(3)
+    again = grid.take(pa.array(rng.choice(best, 30)))
+    again = again.set_column(0, "design_id", pa.array(np.arange(30) + 10 ** 6))  # new trials of old layouts
+    halves = [pa.concat_tables([grid.slice(0, grid.num_rows // 2), again.slice(0, 15)]),
+              pa.concat_tables([grid.slice(grid.num_rows // 2), again.slice(15)])]
+    parts = Parts(lambda columns=None: [t if columns is None else t.select(columns) for t in halves],
+                  grid.num_rows + 30, grid.schema)
+    listed = S.least_cost_layouts(parts, 5)
+    df = pa.concat_tables(halves).to_pandas()
+    ranked = df[df["feasible"]].sort_values(["cost", "design_id"])
+    firsts = ranked.drop_duplicates(["psm1_site", "psm2_site", "ecm_site"])
+    assert listed["design_id"].to_pylist() == firsts["design_id"].head(5).tolist()
+    last = ranked.index.get_loc(firsts.index[4])
+    repeats = int(ranked.iloc[:last + 1].duplicated(["psm1_site", "psm2_site", "ecm_site"]).sum())
+    assert repeats > 0 and listed.schema.metadata[b"repeats_collapsed"] == str(repeats).encode()
+    plain = S.least_cost_layouts(Parts.of_table(grid), 5)  # the grid alone: no repeats, the five best rows
+    assert plain["design_id"].to_pylist() == grid.take(pa.array(best[:5]))["design_id"].to_pylist()
+    assert plain.schema.metadata[b"repeats_collapsed"] == b"0"
