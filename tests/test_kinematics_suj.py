@@ -118,19 +118,25 @@ def _ecm_batch(suj, yaw_rad, pitch_rad, origins, aims):
 ECM_SOLVERS = {"numpy": K.ecm_classic_dock, "jitted": _ecm_batch}
 
 
+def _ecm_bases(rng, n: int, spread_m: float, tilt: float):
+    """n random ECM bases around the files' sample ECM pose (within spread_m) aiming roughly down and forward
+    (each aim's components moved by up to ``tilt``): (suj, ecm arm, origins, unit aims)."""
+    from surgopt.robots.models import get_model
+
+    suj, ecm = D.CLASSIC["ECM"], get_model("dvrk_ecm_classic")
+    centre = K.forward(suj, D.SAMPLE_JOINTS[("classic", "ECM")])[:3, 3]
+    origins = centre + rng.uniform(-spread_m, spread_m, (n, 3))
+    aims = np.array([0.0, 0.3, -1.0]) + rng.uniform(-tilt, tilt, (n, 3))
+    return suj, ecm, origins, aims / np.linalg.norm(aims, axis=1)[:, None]
+
+
 @pytest.mark.parametrize("solver", sorted(ECM_SOLVERS))
 def test_the_classic_ecm_docks_with_its_own_yaw_and_pitch_aiming_the_scope(solver):
     """S4 on random bases around the files' sample ECM pose, aiming roughly down and forward: every docked
     solution's SUJ joints, through the reference forward kinematics, put the RCM on its origin (1e-9 m) and the
     scope's aim, in that base frame, at the returned yaw and pitch, within the ECM's ranges; its margin is the
     least of the SUJ's and the ECM's. Premises: most dock, some do not."""
-    from surgopt.robots.models import get_model
-
-    suj, ecm = D.CLASSIC["ECM"], get_model("dvrk_ecm_classic")
-    centre = K.forward(suj, D.SAMPLE_JOINTS[("classic", "ECM")])[:3, 3]
-    origins = centre + RNG.uniform(-0.25, 0.25, (60, 3))
-    aims = np.array([0.0, 0.3, -1.0]) + RNG.uniform(-0.6, 0.6, (60, 3))
-    aims /= np.linalg.norm(aims, axis=1)[:, None]
+    suj, ecm, origins, aims = _ecm_bases(np.random.default_rng(40), 60, 0.25, 0.6)  # the same for both solvers
     margin, joints, aim = ECM_SOLVERS[solver](suj, ecm.yaw_limits_rad, ecm.pitch_limits_rad, origins, aims)
     docked = np.flatnonzero(margin >= 0)
     assert 30 < len(docked) < 60
@@ -153,14 +159,8 @@ def test_the_classic_ecm_dock_does_not_jump_with_rounding(solver):
     with each aim moved by ~1e-15, give margins within 1e-9 of each other and the same docking. (Each aim's twin
     pi - phi ties it exactly under the ECM's symmetric yaw range; an argmax that picked one of the two by
     rounding made the margin jump by up to 0.5 rad, and which ECM docks depend on the CPU and the batch size.)"""
-    from surgopt.robots.models import get_model
-
     rng = np.random.default_rng(41)
-    suj, ecm = D.CLASSIC["ECM"], get_model("dvrk_ecm_classic")
-    centre = K.forward(suj, D.SAMPLE_JOINTS[("classic", "ECM")])[:3, 3]
-    origins = centre + rng.uniform(-0.25, 0.25, (80, 3))
-    aims = np.array([0.0, 0.3, -1.0]) + rng.uniform(-0.6, 0.6, (80, 3))
-    aims /= np.linalg.norm(aims, axis=1)[:, None]
+    suj, ecm, origins, aims = _ecm_bases(rng, 80, 0.25, 0.6)
     limits = ecm.yaw_limits_rad, ecm.pitch_limits_rad
     dock = ECM_SOLVERS[solver]
     batch = dock(suj, *limits, origins, aims)[0]
@@ -211,13 +211,7 @@ def test_the_batch_solver_gives_the_closed_forms_best_margin_pose_by_pose(arm):
 def test_the_jitted_ecm_dock_picks_the_numpy_grids_point():
     """The jitted S4 walks the numpy version's grid in its order with its strict comparisons: the same margins
     (1e-12), SUJ joints (1e-9) and ECM yaw and pitch at 200 random bases, docked or not (premise: both occur)."""
-    from surgopt.robots.models import get_model
-
-    suj, ecm = D.CLASSIC["ECM"], get_model("dvrk_ecm_classic")
-    centre = K.forward(suj, D.SAMPLE_JOINTS[("classic", "ECM")])[:3, 3]
-    origins = centre + RNG.uniform(-0.3, 0.3, (200, 3))
-    aims = np.array([0.0, 0.3, -1.0]) + RNG.uniform(-0.8, 0.8, (200, 3))
-    aims /= np.linalg.norm(aims, axis=1)[:, None]
+    suj, ecm, origins, aims = _ecm_bases(np.random.default_rng(42), 200, 0.3, 0.8)
     limits = ecm.yaw_limits_rad, ecm.pitch_limits_rad
     want, got = K.ecm_classic_dock(suj, *limits, origins, aims), _ecm_batch(suj, *limits, origins, aims)
     finite = np.isfinite(want[0])
