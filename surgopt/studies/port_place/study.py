@@ -14,7 +14,7 @@ evaluated; docs/port_placement.md has the model, its sources and assumptions.
 
 The config models are in ``port_place_config``, the geometry they imply (patient, sites, target) in
 ``port_place_geometry``, the design kernels in ``kinematics.port_designs``, a serial arm's tables in
-``port_place_serial``. One module of ~710 lines: the memoised tables, the rows and their columns, the design's
+``port_place_serial``. One module of ~790 lines: the memoised tables, the rows and their columns, the design's
 dimensions (ports, docking, stance) that both the rows and the search read, the evaluator, the estimate and the
 summary are one declaration, read together; split, the study's declaration and its search would import each
 other.

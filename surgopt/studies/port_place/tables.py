@@ -13,6 +13,10 @@ the grid's chunks combine into designs. A search's tasks build only the tables o
 the parent's; a worker process builds its own on its first task (rebuilding is cheaper than pickling the tables
 to every worker, and gives the same arrays). The model is where the setup joints' and the cart's tables will go.
 
+One module of ~560 lines: the model, the per-port tables built from it and the cart's dock tables are built
+together (a dock table reads the model's rolled docking frames; the grid's tables read the dock tables), and the
+docked arms of one layout (the report, the export, the figures) are solved the way the tables were.
+
 Equations: the docking frame (shaft through the target's centre, the frame's x as near the patient's lateral
 axis as the shaft allows) is ``kinematics.port_place.docking_frames``; reach is the RCM inverse of
 ``rcm_point`` within ``ArmLimits`` (docs/port_placement.md, "Reach"); the pair tables are
