@@ -77,7 +77,7 @@ def test_three_psms_from_the_cli_store_only_feasible_rows_and_say_so(tmp_path):
     import json
 
     overrides = ["patient.port_region.site_spacing_mm=50", "target.spacing_mm=15", "robot.instrument_count=3",
-                 "rows_stored=feasible"]
+                 "rows_stored=feasible", "cart.model=none"]  # three PSMs on the cart: tests/test_runner.py
     r = cli("port-place", *overrides, "--store", tmp_path / "s")
     assert "feasible only" in r.stdout and "psm3" in r.stdout and "all three instruments" in r.stdout
     rec = json.loads(cli("summarize", "--store", tmp_path / "s", "--format", "json").stdout)
@@ -179,7 +179,8 @@ def test_the_elevation_is_each_shafts_angle_above_the_horizontal():
 def test_the_cli_runs_stores_and_reports_the_clinical_checks(tmp_path):
     import json
 
-    overrides = ["patient.port_region.site_spacing_mm=36", "target.spacing_mm=15"]
+    overrides = ["patient.port_region.site_spacing_mm=36", "target.spacing_mm=15", "cart.model=none"]  # the
+    # cart's report: tests/test_port_place_cart.py
     r = cli("port-place", *overrides, "--store", tmp_path / "s", "--quiet")
     assert "clinical checks" in r.stdout and "manipulation angle at the centre" in r.stdout
     cfg = C.PortPlaceConfig.model_validate(SMALL)
