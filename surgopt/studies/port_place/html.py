@@ -131,7 +131,7 @@ def views(run, cfg, parts) -> list[View]:
             '<div style="flex:0 1 460px"><h3 id="pp-title"></h3><table id="pp-checks"><thead><tr><th>check</th>'
             '<th>this layout</th><th>clinical number</th><th>within</th></tr></thead><tbody></tbody></table>'
             '<table id="pp-ports"><thead><tr><th>arm</th><th>site</th><th>x_mm</th><th>y_mm</th><th>z_mm</th>'
-            f'<th>from the {mark_name} (mm, top view)</th></tr></thead><tbody></tbody></table></div></div>'
+            f'<th>from the {mark_name} (mm)</th></tr></thead><tbody></tbody></table></div></div>'
             f"<h3>Top layouts: the {feasible.num_rows} feasible of least cost"
             + (f" and the {infeasible.num_rows} infeasible of least cost" if infeasible is not None else "")
             + f" (of {parts.num_rows:,} rows)</h3>{filters}<div class=\"scroll\">{table}</div>",
