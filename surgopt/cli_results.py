@@ -397,7 +397,7 @@ def export(
     """A run's whole table as one tidy table, with the run key (and, for several runs, the config fields
     that differ between them) as columns. The CSV reads back with pandas.read_csv as it is."""
     with guard():
-        from surgopt.results import export_design, export_table
+        from surgopt.results import export_design
         from surgopt.store import Store
 
         if fmt not in (f.value for f in ExportFormat):
@@ -419,24 +419,15 @@ def export(
             fail("--format parquet needs --out FILE", 2)
         if out is not None and out.is_dir():
             fail(f"--out: {out} is a folder; give a file", 2)
-        table = export_table(Store(store), runs_, study, allow_partial=partial)
-        if fmt == ExportFormat.parquet:
-            import pyarrow.parquet as pq
+        from surgopt.export import export_runs, write_csv, write_json, write_parquet
 
-            from surgopt.store import atomic_write
-
-            atomic_write(out, lambda tmp: pq.write_table(table, tmp, compression="zstd"))
-        else:
-            df = table.to_pandas()
-            text = df.to_csv(index=False, float_format=_shortest) if fmt == ExportFormat.csv else df.to_json(orient="records", indent=1)
-            if out is None:
-                sys.stdout.write(text)
-            else:
-                from surgopt.store import atomic_write
-
-                atomic_write(out, lambda tmp: tmp.write_text(text))
+        export = export_runs(Store(store), runs_, study, allow_partial=partial)
+        for note in export.notes:
+            typer.echo(note, err=True)
+        writer = {ExportFormat.csv: write_csv, ExportFormat.parquet: write_parquet, ExportFormat.json: write_json}
+        writer[ExportFormat(fmt)](export, out)
     if out is not None:
-        typer.echo(f"wrote {out} ({table.num_rows} rows, {table.num_columns} columns)", err=True)
+        typer.echo(f"wrote {out} ({export.num_rows} rows, {len(export.schema)} columns)", err=True)
 
 
 @app.command("diff")

@@ -256,32 +256,6 @@ def write_baseline(table, keys, path: Path) -> None:
                                                   compression="zstd"))
 
 
-def export_table(store: Store, refs: list[str], study_name: str | None = None, allow_partial: bool = False):
-    """The tables of the runs ``refs`` stacked, with ``run_key`` and the config fields that differ
-    between the runs (dotted names) as leading columns. A partial run is refused unless ``allow_partial``."""
-    import pyarrow as pa
-
-    resolved = [resolve_run(store, ref, study_name) for ref in refs]
-    for _, r in resolved:
-        require_complete(store, r, allow_partial)
-    studies = {st.name for st, _ in resolved}
-    if len(studies) > 1:
-        raise UsageError(f"the runs are of different studies ({', '.join(sorted(studies))}); export them one by one")
-    flats = [flat_config(r.manifest["config"]) for _, r in resolved]
-    varied = [k for k in flats[0] if len({repr(f.get(k)) for f in flats}) > 1] if len(flats) > 1 else []
-    tables = []
-    for (st, r), flat in zip(resolved, flats):
-        t = r.read_table(st.schema_for(r.manifest["config"]))
-        extra = {"run_key": pa.array([r.key] * t.num_rows, pa.string())}
-        for k in varied:
-            v = flat.get(k)
-            extra[k] = pa.array([v if isinstance(v, (int, float, str, bool)) else str(v)] * t.num_rows)
-        for i, (name, col) in enumerate(extra.items()):
-            t = t.add_column(i, name, col)
-        tables.append(t)
-    return pa.concat_tables(tables, promote_options="permissive")
-
-
 #: Decimals a design's identity columns are rounded to before two runs are joined on them (port-place: 1e-6 mm).
 MATCH_DECIMALS = 6
 

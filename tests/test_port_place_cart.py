@@ -180,6 +180,20 @@ def test_diff_of_two_port_place_runs_matches_layouts_by_their_ports(tmp_path):
     a, b = (r.read_table(S.schema()).to_pandas() for r in runs)
     by_id = pd.merge(a, b, on="design_id", suffixes=("_a", "_b"))
     assert (by_id["psm1_x_mm_a"] != by_id["psm1_x_mm_b"]).any()  # the premise: ids name other layouts
+    # export of both runs stacked: says which columns match a layout across them, and matched on those the
+    # region's every layout has the whole run's cost (#42 item 1, for export)
+    import pyarrow as pa
+
+    from surgopt.export import export_runs
+
+    stacked = export_runs(store, [runs[0].key, runs[1].key])
+    assert len(stacked.notes) == 1 and "design_id, psm1_site" in stacked.notes[0] and "psm1_x_mm" in stacked.notes[0]
+    rows = pa.concat_tables(list(stacked.tables())).to_pandas()
+    assert len(rows) == stacked.num_rows == runs[0].rows + runs[1].rows
+    ports = [c for c in rows.columns if c.endswith(("_x_mm", "_y_mm", "_z_mm")) and c.split("_")[0] in ("psm1", "psm2", "ecm")]
+    whole, part = (rows[rows.run_key == r.key].round({c: 6 for c in ports}) for r in runs)
+    matched = part.merge(whole, on=ports, suffixes=("_r", "_w"))
+    assert len(matched) == len(part) and (matched.cost_r == matched.cost_w).all()
 
 
 def test_a_clinical_check_outside_its_band_is_marked():
