@@ -80,12 +80,12 @@ def summarize(run: str | Path | None = None, store: str | Path | None = None, st
               top: int = 10, sort: str | None = None) -> dict:
     """What ``surgopt summarize --format json`` prints, as a dict: headline, feasibility, the top designs, the
     objective's distribution, the study's tables, the best design's edges of the box."""
-    from surgopt.report import summary_record
+    from surgopt.report import run_record
     from surgopt.results import resolve_run
     from surgopt.store import Store
 
     st, r = resolve_run(Store(store), None if run is None else str(run), study)
-    return summary_record(st, r, r.parts(st.schema_for(r.manifest["config"])), top=top, sort=sort)
+    return run_record(st, r, top=top, sort=sort)
 
 
 def plot(run: str | Path | None = None, store: str | Path | None = None, study: str | None = None,

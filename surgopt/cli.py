@@ -13,6 +13,7 @@ from dataclasses import dataclass
 from typing import Annotated, Optional
 
 import typer
+from typer.core import TyperGroup
 
 from surgopt.cli_common import (  # noqa: F401 - app and the options: the commands below register on them
     RESUME, Backend, BackendOpt, ChunkOpt, DryRunOpt, ForceOpt, JobsOpt, MaxHoursOpt, MaxMemoryOpt, MultirunOpt,
@@ -20,13 +21,18 @@ from surgopt.cli_common import (  # noqa: F401 - app and the options: the comman
     wide_console,
 )
 
-def _study_command(study) -> None:
-    """Register ``surgopt <study.name>``: CONFIG and KEY=VALUE overrides, its own flags, the shared options.
+def _study_command(name: str):
+    """The click command ``surgopt <name>``: CONFIG and KEY=VALUE overrides, the study's own flags, the shared
+    options.
 
     The command's signature is built from the study's declaration (``Study.flags``, ``Study.chunked``),
     so this module names no study.
     """
     import inspect
+
+    from surgopt.studies import get_study
+
+    study = get_study(name)
 
     P = inspect.Parameter
     params = [P("args", P.KEYWORD_ONLY, default=None, annotation=Annotated[Optional[list[str]], typer.Argument(
@@ -57,7 +63,9 @@ def _study_command(study) -> None:
     command.__annotations__ = {p.name: p.annotation for p in params}
     command.__doc__ = _literal(_reflow(study.help))
     command.__name__ = study.name.replace("-", "_")
-    app.command(study.name, cls=_other_studies_flags(study.name))(command)
+    one = typer.Typer(rich_markup_mode=app.rich_markup_mode, pretty_exceptions_enable=False, add_completion=False)
+    one.command(study.name, cls=_other_studies_flags(study.name))(command)
+    return typer.main.get_command(one)
 
 
 def _other_studies_flags(name: str):
@@ -335,21 +343,53 @@ def _multirun_table(study, finished) -> None:
         seen.setdefault(numbers, label)
 
 
-def _register_studies() -> None:
-    from surgopt.studies import STUDIES, get_study
+class _StudyCommands(TyperGroup):
+    """The app's commands, each study's built from its declaration only when that study is run or its own help
+    is asked for: ``surgopt --help`` lists the studies from their packages' ``HELP`` without importing them
+    (numpy, pydantic and five configs: issue 42 item 5), and ``surgopt port-place`` imports port-place alone."""
 
-    for name in STUDIES:
-        _study_command(get_study(name))
+    _listing = False
+
+    def list_commands(self, ctx):
+        from surgopt.studies import STUDIES
+
+        return [*STUDIES, *(c for c in super().list_commands(ctx) if c not in STUDIES)]
+
+    def get_command(self, ctx, name):
+        from surgopt.studies import STUDIES
+
+        if name in STUDIES and name not in self.commands:
+            if self._listing:
+                return _listed_study(name)
+            self.add_command(_study_command(name), name)
+        return super().get_command(ctx, name)
+
+    def format_help(self, ctx, formatter):
+        self._listing = True
+        try:
+            return super().format_help(ctx, formatter)
+        finally:
+            self._listing = False
 
 
-_register_studies()
+def _listed_study(name: str):
+    """A study's line in the top-level help: its name and help (from the study package, not its declaration)."""
+    import importlib
+
+    from typer.core import TyperCommand
+
+    from surgopt.studies import STUDIES
+
+    package = importlib.import_module(STUDIES[name].rpartition(".")[0])
+    return TyperCommand(name, help=_literal(_reflow(package.HELP)))
+
+
+app.info.cls = _StudyCommands
 
 
 def _report(study, result, brief: bool = False):
     """The closing report of one run (``brief``: headline only, for each run of a --multirun)."""
     from rich.table import Table
-
-    from surgopt.report import best_edges, search_front
 
     console = wide_console()
     for m in result.messages:
@@ -360,10 +400,7 @@ def _report(study, result, brief: bool = False):
     from surgopt.errors import StoreError
 
     try:
-        with _reading_rows(result.parts, quiet=not sys.stderr.isatty()) as parts:
-            summary = study.summary(parts)
-            edges = best_edges(study, run, parts)
-            front = None if brief else search_front(study, run, parts)  # several objectives: the Pareto front
+        summary, edges, front = _closing_numbers(study, run, result.parts, brief)
     except StoreError:
         from surgopt.store import manifest_of
 
@@ -396,6 +433,18 @@ def _report(study, result, brief: bool = False):
         if front is not None:
             print_table(console, *front)
     return summary
+
+
+def _closing_numbers(study, run, parts, brief: bool):
+    """(Summary, best-on-an-edge notes, Pareto front or None) of a run: derived from its rows once, then kept
+    beside the run (``surgopt.derived``: a cache hit of a 2.2 M-row run does not read its rows again)."""
+    from surgopt.derived import derived
+    from surgopt.report import run_edges, run_summary, search_front
+
+    with _reading_rows(parts, quiet=not sys.stderr.isatty()) as watched:
+        summary, edges = run_summary(study, run, watched), run_edges(study, run, watched)
+        front = None if brief else derived(run, "search_front", lambda: search_front(study, run, watched))
+    return summary, edges, (tuple(front) if front is not None else None)
 
 
 #: Rows past which reading a run back for its report shows a progress line (a 2.2 M-row run takes seconds).
@@ -459,6 +508,17 @@ def warm(
 
 # the commands that read the store (imported last: they register on ``app``)
 from surgopt import cli_results  # noqa: E402,F401
+
+
+def _reflow_helps() -> None:
+    """Every command's docstring as paragraphs of single lines: Rich keeps the source's line breaks, which broke
+    the top-level help's lines mid-sentence ("or before / starting several runs")."""
+    for info in app.registered_commands:
+        if info.help is None and info.callback is not None and info.callback.__doc__:
+            info.help = _reflow(info.callback.__doc__)
+
+
+_reflow_helps()
 
 
 def main() -> None:

@@ -188,7 +188,7 @@ def summarize(
     and for studies without an objective their own comparison tables. Works on partial runs and says so."""
     fmt = fmt.value
     with guard():
-        from surgopt.report import render, summary_sections
+        from surgopt.report import render, run_sections
         from surgopt.results import resolve_run
         from surgopt.store import Store
 
@@ -196,10 +196,9 @@ def summarize(
         if fmt == "json":
             import json
 
-            from surgopt.report import summary_record
+            from surgopt.report import run_record
 
-            typer.echo(json.dumps(summary_record(st, r, r.parts(st.schema_for(r.manifest["config"])), top=top, sort=sort), indent=1,
-                                  default=str))
+            typer.echo(json.dumps(run_record(st, r, top=top, sort=sort), indent=1, default=str))
             return
         if fmt == "csv":  # one table pandas.read_csv reads as it is: the top rows, every column, full precision
             from surgopt.report import top_table
@@ -213,7 +212,7 @@ def summarize(
             sys.stdout.write(table.to_pandas().to_csv(index=False, float_format=_shortest))
             return
         shown = [c.strip() for c in columns.split(",") if c.strip()] if columns else None
-        sections = summary_sections(st, r, r.parts(st.schema_for(r.manifest["config"])), top=top, sort=sort, columns_shown=shown)
+        sections = run_sections(st, r, top=top, sort=sort, columns_shown=shown)
     if fmt != "table":
         typer.echo(render(sections, fmt))
         return

@@ -85,6 +85,24 @@ class Parts:
             return self.schema.empty_table()
         return best.drop_columns(["__order"])
 
+    def scan(self, column: str, k: int, ascending: bool = False, where: Callable | None = None):
+        """One pass over the parts for what a summary shows of ``column``: (its k largest rows as ``top`` gives
+        them, unfiltered; the column whole; the column over rows where ``where(part)``, or None)."""
+        import pyarrow as pa
+
+        best, offset, values, kept = None, 0, [], []
+        for t in self:
+            v = t[column].to_numpy(zero_copy_only=False)
+            values.append(v)
+            if where is not None:
+                kept.append(v[_np(where(t))])
+            cand = t.append_column("__order", pa.array(np.arange(offset, offset + t.num_rows), pa.int64()))
+            offset += t.num_rows
+            best = _top_k(cand if best is None else pa.concat_tables([best, cand]), column, k, ascending)
+        top = self.schema.empty_table() if best is None else best.drop_columns(["__order"])
+        whole = np.concatenate(values) if values else np.zeros(0)
+        return top, whole, (np.concatenate(kept) if kept else np.zeros(0)) if where is not None else None
+
     def filter(self, where: Callable):
         """All rows where ``where(part)`` as one table (for rows known to be few)."""
         import pyarrow as pa

@@ -58,17 +58,17 @@ def summary_sections(study, run, parts, top: int = 10, sort: str | None = None,
         parts = Parts.of_table(parts)
     done, total = len(run.manifest["parts"]), run.manifest["n_tasks"]
     state = "complete" if done == total else f"PARTIAL: {done} of {total} chunks stored (rerun the study to finish)"
-    summary = study.summary(parts) if parts.num_rows else None
+    summary = run_summary(study, run, parts) if parts.num_rows else None
     head = [["study", study.name], ["key", run.key[:12]], ["config", run.manifest.get("config_name", "?")],
             ["rows", parts.num_rows], ["state", state], ["created", run.manifest.get("created", "?")]]
     head += [[k, v] for k, v in summary.feasibility.items()] if summary else []
-    head += [["best on an edge", note] for note in best_edges(study, run, parts)]
+    head += [["best on an edge", note] for note in run_edges(study, run, parts)]
     sections = [("run", ["field", "value"], head)]
     objective, ascending = sort_order(sort, study)
     if objective is not None and parts.num_rows:
         names_all = parts.schema.names
         check_sort_column(parts.schema, objective)
-        best = parts.top(objective, top, ascending=ascending)
+        best, every, feasible = parts.scan(objective, top, ascending=ascending, where=study.feasible_mask)
         cols = columns(best)
         names = [c for c in names_all if cols[c].dtype != object or c in study.key_columns]
         more = ""
@@ -87,8 +87,7 @@ def summary_sections(study, run, parts, top: int = 10, sort: str | None = None,
                          f"{more if not columns_shown and study.top_columns is not None and more else ''}", names,
                          [[_fmt(cols[c][i]) for c in names] for i in range(best.num_rows)]))
         rows = []
-        for label, v in (("all", parts.column(objective).astype(float)),
-                         ("feasible", parts.column(objective, where=study.feasible_mask).astype(float))):
+        for label, v in (("all", every.astype(float)), ("feasible", feasible.astype(float))):
             if v.size:
                 q = np.percentile(v, [0, 25, 50, 75, 100])
                 rows.append([label, len(v)] + [_fmt(x) for x in q] + [_fmt(v.mean())])
@@ -156,6 +155,46 @@ def edges_of_best(study, cfg, parts) -> list[str]:
     return notes
 
 
+def run_summary(study, run, parts):
+    """``study.summary`` of a run's rows (``parts``: the run's own), kept beside the run once it is complete
+    (``surgopt.derived``): the closing report, ``summarize`` and the API derive it once."""
+    from surgopt.derived import derived
+    from surgopt.studies import Summary
+
+    def compute():
+        s = study.summary(parts)
+        return {"headline": s.headline, "feasibility": s.feasibility, "tables": s.tables}
+
+    got = derived(run, "summary", compute)
+    return Summary(got["headline"], got["feasibility"], [tuple(t) for t in got["tables"]])
+
+
+def run_edges(study, run, parts) -> list[str]:
+    """``best_edges`` of a run's rows, kept as ``run_summary`` is."""
+    from surgopt.derived import derived
+
+    return derived(run, "best_edges", lambda: best_edges(study, run, parts))
+
+
+def run_sections(study, run, top: int = 10, sort: str | None = None,
+                 columns_shown: list[str] | None = None) -> list:
+    """``summary_sections`` of a stored run's own rows: derived once a run is complete, then kept beside it
+    (``surgopt.derived``: ``summarize`` of a 2.2 M-row run reads no row the second time)."""
+    from surgopt.derived import derived
+
+    return derived(run, "summary_sections", lambda: summary_sections(
+        study, run, run.parts(study.schema_for(run.manifest["config"])), top, sort, columns_shown),
+        top=top, sort=sort, columns=columns_shown)
+
+
+def run_record(study, run, top: int = 10, sort: str | None = None) -> dict:
+    """``summary_record`` of a stored run's own rows, kept as ``run_sections`` is."""
+    from surgopt.derived import derived
+
+    return derived(run, "summary_record", lambda: summary_record(
+        study, run, run.parts(study.schema_for(run.manifest["config"])), top, sort), top=top, sort=sort)
+
+
 def summary_record(study, run, parts, top: int = 10, sort: str | None = None) -> dict:
     """``summarize --format json``: the same facts as ``summary_sections`` with stable snake_case keys and
     values at full precision."""
@@ -164,21 +203,21 @@ def summary_record(study, run, parts, top: int = 10, sort: str | None = None) ->
     if not isinstance(parts, Parts):
         parts = Parts.of_table(parts)
     done, total = len(run.manifest["parts"]), run.manifest["n_tasks"]
-    summary = study.summary(parts) if parts.num_rows else None
+    summary = run_summary(study, run, parts) if parts.num_rows else None
     out = {"study": study.name, "key": run.key, "config_name": run.manifest.get("config_name"),
            "rows": parts.num_rows, "complete": done == total, "chunks_stored": done, "chunks": total,
            "created": run.manifest.get("created"),
            "feasibility": summary.feasibility if summary else {}, "headline": summary.headline if summary else {},
-           "best_on_an_edge": best_edges(study, run, parts)}
+           "best_on_an_edge": run_edges(study, run, parts)}
     objective, ascending = sort_order(sort, study)
     if objective is not None and parts.num_rows:
         check_sort_column(parts.schema, objective)
         out["objective"] = objective
         out["ascending"] = ascending
-        out["top"] = parts.top(objective, top, ascending=ascending).to_pylist()
+        best, every, feasible = parts.scan(objective, top, ascending=ascending, where=study.feasible_mask)
+        out["top"] = best.to_pylist()
         out["distribution"] = {}
-        for label, v in (("all", parts.column(objective).astype(float)),
-                         ("feasible", parts.column(objective, where=study.feasible_mask).astype(float))):
+        for label, v in (("all", every.astype(float)), ("feasible", feasible.astype(float))):
             if v.size:
                 q = np.percentile(v, [0, 25, 50, 75, 100])
                 out["distribution"][label] = dict(zip(STATS, [int(v.size)] + [float(x) for x in q] + [float(v.mean())]))

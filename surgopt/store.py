@@ -84,6 +84,10 @@ def store_root(path: str | os.PathLike | None = None) -> Path:
 MAX_MANIFEST_BYTES = 512 * 2 ** 20
 
 
+#: Threads that check a run's parts at once (a cache hit checks every part of the run before it answers).
+VERIFY_THREADS = 2
+
+
 def read_bounded(path: Path, limit: int, expected: int | None = None) -> bytes:
     """``surgopt.files.read_bounded``, its refusals as StoreErrors."""
     try:
@@ -290,12 +294,12 @@ class Run:
 
     def damaged(self) -> list[tuple[str, str]]:
         """(part file, problem) of every listed part that fails its check."""
-        out = []
-        for i in sorted(self.manifest["parts"], key=int):
-            problem, _ = self.part_problem(i)
-            if problem:
-                out.append((self.manifest["parts"][i]["file"], problem))
-        return out
+        from concurrent.futures import ThreadPoolExecutor
+
+        order = sorted(self.manifest["parts"], key=int)
+        with ThreadPoolExecutor(VERIFY_THREADS) as pool:  # reading and hashing release the GIL
+            problems = list(pool.map(lambda i: self.part_problem(i)[0], order))
+        return [(self.manifest["parts"][i]["file"], p) for i, p in zip(order, problems) if p]
 
     def read_table(self, schema=None, columns=None):
         """All parts in task order as one Arrow table (only ``columns``, if given), each verified against the

@@ -24,6 +24,9 @@ from typing import NamedTuple
 import numpy as np
 
 from surgopt.jit import EXACT, njit
+from surgopt.kinematics.port_reasons import (  # noqa: F401 - the bits the kernels set (and REASONS, for callers)
+    ANGLE, CAMERA, CAMERA_SIDE, DOCKING, OUTSIDE, REACH, REASONS, SHAFTS, SPACING,
+)
 
 
 class ArmLimits(NamedTuple):
@@ -91,15 +94,6 @@ class Criteria(NamedTuple):
     w_azimuth: float
     w_camera: float
     w_dexterity: float
-
-
-#: Reasons a design is infeasible (bits of the ``infeasible`` column).
-REACH, CAMERA, SPACING, SHAFTS, OUTSIDE, ANGLE, CAMERA_SIDE, DOCKING = 1, 2, 4, 8, 16, 32, 64, 128
-REASONS = {REACH: "instruments do not both reach every target point", CAMERA: "the camera does not see every "
-           "target point", SPACING: "ports closer than the minimum spacing", SHAFTS: "shafts closer than their "
-           "clearance inside the body", OUTSIDE: "arms closer than their clearance outside the body",
-           ANGLE: "manipulation angle at the target centre outside its range", CAMERA_SIDE: "the camera is not "
-           "between the instruments", DOCKING: "no cart pose at which the setup joints dock every arm"}
 
 
 @njit(**EXACT)

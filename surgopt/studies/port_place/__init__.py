@@ -1,1 +1,19 @@
-"""The port_place study: its declaration (study.py), config, figures and report page."""
+"""The port_place study: its declaration (study.py), config, figures and report page.
+
+``HELP``, the study command's help, is here so that ``surgopt --help`` lists the studies without importing them
+(numpy, pydantic, their configs).
+"""
+
+HELP = """Port placement for the da Vinci Research Kit on a patient: two or three PSMs and the ECM.
+
+    Candidate ports on an insufflated abdomen (a half-ellipsoid or superquadric dome, or a closed mesh), a
+    target inside it (sphere, ellipsoid or box sampled at a spacing, a points file, or a closed mesh). Every
+    assignment of the instrument ports (robot.instrument_count = 2 or 3) and the camera port is one design:
+    reach of each instrument (RCM inverse kinematics within the joint limits), common reach, dexterity,
+    manipulation angle (45-75 deg, Hanna 1997), azimuth imbalance, camera coverage, port spacing, shaft and arm
+    clearances, cost, and why a design is infeasible (a bit mask). Rows: one per
+    design. The summary ranks feasible designs by cost and checks the best against the clinical numbers.
+    A 3-PSM enumeration runs to 10^8 designs and more: rows_stored=feasible keeps only the feasible designs'
+    rows. Any RCM arm from a DH table or URDF ([robot.instrument_file], [robot.camera_file]), or a serial arm
+    keeping the RCM in software ([robot.instrument_serial], [robot.camera_serial]: a PA10, UR5e, Panda, iiwa or
+    any DH/URDF arm, its base standing beside the port) in place of the dVRK's."""

@@ -152,7 +152,7 @@ def figures(cfg, table, out, design_id=None):
                                             for k, v in c.items()}, out))
 
     # why designs fail
-    from surgopt.kinematics.port_place import REASONS
+    from surgopt.kinematics.port_reasons import REASONS
 
     if cfg.rows_stored == "feasible":  # the infeasible designs' rows, and so their reasons, were not kept
         return paths

@@ -84,7 +84,7 @@ def views(run, cfg, parts) -> list[View]:
     for a in arms:  # each port from the reference landmark, in words (the closing report's)
         layouts[f"{a}_from"] = np.array([from_landmark(x, y, mark) for x, y in zip(layouts[f"{a}_x_mm"],
                                                                                   layouts[f"{a}_y_mm"])])
-    from surgopt.kinematics.port_place import REASONS
+    from surgopt.kinematics.port_reasons import REASONS
     from surgopt.robots import dvrk
 
     arm_lines = cam_lines = None

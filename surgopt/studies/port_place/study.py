@@ -27,6 +27,7 @@ import math
 import numpy as np
 
 from surgopt.robots import dvrk
+from surgopt.studies.port_place import HELP  # the command's help, read by the CLI without importing this module
 from surgopt.studies import Estimate, Study, Summary, figures_in, html_views_in, peak_bytes
 from surgopt.parts import concat_rows
 from surgopt.studies.port_place.config import OBJECTIVE, PortPlaceConfig, camera_arm_of, instrument_of
@@ -36,19 +37,6 @@ from surgopt.studies.port_place.tables import LATERAL, model_of, port_tables
 NAME = "port-place"
 KERNEL_VERSION = "port-place-1"
 DEFAULT_CONFIG = "port_place_dvrk.toml"
-HELP = """Port placement for the da Vinci Research Kit on a patient: two or three PSMs and the ECM (issue #29).
-
-    Candidate ports on an insufflated abdomen (a half-ellipsoid or superquadric dome, or a closed mesh), a
-    target inside it (sphere, ellipsoid or box sampled at a spacing, a points file, or a closed mesh). Every
-    assignment of the instrument ports (robot.instrument_count = 2 or 3) and the camera port is one design:
-    reach of each instrument (RCM inverse kinematics within the joint limits), common reach, dexterity,
-    manipulation angle (45-75 deg, Hanna 1997), azimuth imbalance, camera coverage, port spacing, shaft and arm
-    clearances, cost, and why a design is infeasible (a bit mask). Rows: one per
-    design. The summary ranks feasible designs by cost and checks the best against the clinical numbers.
-    A 3-PSM enumeration runs to 10^8 designs and more: rows_stored=feasible keeps only the feasible designs'
-    rows. Any RCM arm from a DH table or URDF ([robot.instrument_file], [robot.camera_file]), or a serial arm
-    keeping the RCM in software ([robot.instrument_serial], [robot.camera_serial]: a PA10, UR5e, Panda, iiwa or
-    any DH/URDF arm, its base standing beside the port) in place of the dVRK's."""
 CONFIG_HELP = "TOML or YAML config ([patient], [target], [robot], [constraints], [objective]); default: the dVRK example."
 
 def n_designs(n_sites: int, instruments: int = 2) -> int:
@@ -222,7 +210,7 @@ def _feasible_metadata(config) -> dict:
 
 
 def _reasons():
-    from surgopt.kinematics.port_place import REASONS
+    from surgopt.kinematics.port_reasons import REASONS
 
     return REASONS
 
@@ -596,9 +584,9 @@ def within_band(values, band) -> str:
 
 def summary(parts) -> Summary:
     """Feasible count, each reason's count, the best feasible design by cost with its clinical checks."""
-    from surgopt.kinematics.port_place import REASONS
+    from surgopt.kinematics.port_reasons import REASONS
 
-    from surgopt.kinematics.port_place import DOCKING
+    from surgopt.kinematics.port_reasons import DOCKING
 
     n = parts.num_rows
     by_bit = dict.fromkeys(REASONS, 0)

@@ -15,6 +15,7 @@ import math
 import numpy as np
 
 from surgopt.metrics import raven_cost, workspace_compactness
+from surgopt.studies.raven_sweep import HELP  # the command's help, read by the CLI without importing this module
 from surgopt.studies import Estimate, Flag, Study, Summary, figures_in, html_views_in, peak_bytes
 from surgopt.studies.raven_sweep.config import (  # noqa: F401
     PARAM_RANGES,
@@ -31,16 +32,6 @@ from surgopt.studies.raven_sweep.config import (  # noqa: F401
 from surgopt.plans.search import SearchPlan, objectives_of, optimiser_of
 
 NAME = "raven-sweep"
-HELP = """Raven IV port placement and link design (Li, Glozman, Milutinovic, Rosen, ICRA 2011: eqs. 1-43,
-    Table II, Figs. 4, 6-8).
-
-    For every design (alpha, beta, phi_x, phi_y, phi_z, bx, by, Iso_min) the common workspace of all arms
-    on a plane 150 mm below the ports: a point belongs to an arm when its tool axis can point there with
-    theta2 in the range narrowed by Iso_min, d4 <= 250 mm and the shoulder joint theta1 inside
-    geometry.theta1_range_deg (by default the Raven II's [0, 90] deg; [-180, 180]: unlimited). Rows: the
-    eight parameters, area_cm2, perimeter_cm, zeta_cm (eq. 33), iso_sum, iso_mean, iso_area_cm2,
-    iso_min_actual, n_points, cost (eq. 43), source (grid | refine). Ends with the top designs and the rank of the paper's optimum.
-    """
 CONFIG_HELP = ("TOML or YAML config. Without it: the paper's Table II sweep (250,000 designs: alpha, beta "
              "5-90 deg step 20; phi +-20 deg step 10; bx, by 50-200 mm step 50; Iso_min 0.1-0.9 step 0.2).")
 #: raven-4: the half-plane evaluation of mirror-symmetric layouts (rows move <= 2e-14); raven-5: a node at

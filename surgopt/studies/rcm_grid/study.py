@@ -18,6 +18,7 @@ import math
 import numpy as np
 
 from surgopt.metrics import METRIC_RCM, POSE_METRICS, global_isotropy_index
+from surgopt.studies.rcm_grid import HELP  # the command's help, read by the CLI without importing this module
 from surgopt.studies import Estimate, Flag, Study, Summary, figures_in, html_views_in, peak_bytes
 from surgopt.studies.rcm_grid.config import (  # noqa: F401 - the config models, re-exported
     SEARCH_OBJECTIVES,
@@ -30,19 +31,6 @@ from surgopt.studies.rcm_grid.config import (  # noqa: F401 - the config models,
 from surgopt.plans.search import SearchPlan, objectives_of, optimiser_of
 
 NAME = "rcm-grid"
-HELP = """Global Isotropy Index of candidate remote-centre-of-motion locations for a serial arm
-    (Locke & Patel, ICRA 2007: eqs. 5-9, Fig. 3, Table I): the paper's PA10-7C, a shipped UR5e, Panda
-    or LBR iiwa 14, a URDF file or a DH table (--robot NAME|FILE, or the config's [robot]).
-
-    For every RCM candidate the tool tip visits each point of a cube below the RCM with the tool axis
-    through the RCM; the RCM-constrained IK (closed form for the PA10, damped Newton along a serpentine
-    walk for any other arm) and the alternative Jacobian under the RCM constraint give the reverse
-    Jacobian J_r, scaled by the rated joint speeds. GII = min sigma_min / max sigma_max over the cube
-    (eq. 7); a candidate with any unreachable point (or joint limit passed) is infeasible.
-    Rows: candidate_id, x_rcm_m, y_rcm_m, z_rcm_m, gii, feasible, sigma_min_m_per_s, sigma_max_m_per_s
-    (metric = "standard": sigma_min_task_scaled, sigma_max_task_scaled, dimensionless), n_unreachable,
-    n_singular, points_evaluated, gii_is_exact.
-    """
 CONFIG_HELP = ("TOML or YAML config. Without it: the paper's setup (121 x 121 RCM candidates, "
                "17^3-point 50 mm cube, PA10-7C, 587 mm tool), or with --robot that arm's own default study.")
 #: Bump when a kernel change alters results: stored runs then miss the cache.

@@ -18,18 +18,10 @@ from pydantic import Field, model_validator
 from surgopt.config import StrictModel
 from surgopt.robots.throat_arm import MODE_NAMES, SutureMode
 from surgopt.robots import throat_arm as arm
+from surgopt.studies.suture_sim import HELP  # the command's help, read by the CLI without importing this module
 from surgopt.studies import Estimate, Study, Summary, figures_in, html_views_in, peak_bytes
 
 NAME = "suture-sim"
-HELP = """Suturing with one arm of the two-armed throat robot (Wei, Xu & Simaan: eqs. 2-32, Figs. 6-7).
-
-    Five-bar, Z-theta stage through the laryngoscope fulcrum, two constant-curvature snake segments:
-    8 inputs for the 6-DoF gripper pose. Each time step takes a weighted least-norm step
-    dq = W^-1 J^T (J W^-1 J^T)^-1 dx (eq. 32) with closed-loop correction. Every combination of weight
-    set, arm length, fulcrum position, task mode (spin | orbit_parallel | orbit_tangent), radius and
-    speed is one run. Rows: run settings, step, t_s, q1_rad..q8_rad (q3 in mm), q1_norm..q8_norm
-    (|q_i / q_imax|), pos_err_mm, rot_err_deg. Ends with the joint ranges of the weight sets side by side.
-    """
 CONFIG_HELP = ("TOML or YAML config. Without it: the paper's suturing simulation (W1 and W2, 550 and 800 mm "
              "arms, 6 mm half circle at 0.5 mm/s, dt 0.01 s).")
 KERNEL_VERSION = "throat-2"  # 2: per-joint range margins stored with every step
