@@ -66,3 +66,66 @@ def test_pandas_reads_the_csv_back_as_the_table_was():
     assert back["x_mm"].dtype == float and back["f32"].tolist() == [float(np.float32(0.1)), 2.5, 3.0]
     pd.testing.assert_frame_equal(back, want, check_dtype=False, check_exact=True)
     assert back.dtypes.astype(str).tolist()[:5] == ["float64", "float64", "float64", "int64", "bool"]
+
+
+def pandas_diff(a, b, keys, index_only, objective, top=5, decimals=None):
+    """``diff``'s metrics, worst rows and best rows the plain way (what surgopt did before issue 42 item 5): both
+    tables whole in pandas, rounded keys, an outer merge."""
+    a, b = a.to_pandas(), b.to_pandas()
+    if decimals is not None:
+        for t in (a, b):
+            t[keys] = t[keys].round(decimals) + 0.0
+    joined = a.merge(b, on=keys, how="outer", suffixes=("_a", "_b"), indicator=True)
+    both = joined[joined["_merge"] == "both"]
+    metrics = {}
+    for c in a.columns:
+        if c in keys or c in index_only or not np.issubdtype(a[c].dtype, np.number) or a[c].dtype == bool:
+            continue
+        d = both[f"{c}_b"].astype(float) - both[f"{c}_a"].astype(float)
+        metrics[c] = {"changed": int((d.abs() > 0).sum()), "max_abs": float(d.abs().max()) if len(d) else 0.0,
+                      "mean": float(d.mean()) if len(d) else 0.0}
+    delta = (both[f"{objective}_b"] - both[f"{objective}_a"]).abs()
+    rows = both.loc[delta.sort_values(ascending=False, kind="stable").index[:top]]
+    worst = [{**{k: r[k] for k in keys}, f"{objective}_a": r[f"{objective}_a"], f"{objective}_b": r[f"{objective}_b"]}
+             for _, r in rows.iterrows()]
+    show = keys + [c for c in a.columns if c not in keys][:8]
+    best = {"a": a.loc[a[objective].idxmax(), show].to_dict(), "b": b.loc[b[objective].idxmax(), show].to_dict()}
+    return {"rows_joined": len(both), "rows_only_a": int((joined["_merge"] == "left_only").sum()),
+            "rows_only_b": int((joined["_merge"] == "right_only").sum()), "metrics": metrics, "worst": worst,
+            "best": best}
+
+
+def same_diff(ours: dict, plain: dict) -> None:
+    """Our diff equals the plain one: counts exactly, numbers to 1e-12 (a mean's summation order may differ)."""
+    for k in ("rows_joined", "rows_only_a", "rows_only_b"):
+        assert ours[k] == plain[k], k
+    assert ours["metrics"].keys() == plain["metrics"].keys()
+    for c, m in plain["metrics"].items():
+        assert ours["metrics"][c]["changed"] == m["changed"], c
+        np.testing.assert_allclose([ours["metrics"][c]["max_abs"], ours["metrics"][c]["mean"]],
+                                   [m["max_abs"], m["mean"]], rtol=1e-12, atol=1e-12, err_msg=c)
+    assert [{k: float(v) for k, v in r.items()} for r in ours["worst"]] == \
+        [{k: float(v) for k, v in r.items()} for r in plain["worst"]]
+    for side in ("a", "b"):
+        assert {k: float(v) for k, v in ours["best"][side].items()} == \
+            {k: float(v) for k, v in plain["best"][side].items()}
+
+
+def test_diff_equals_a_plain_pandas_merge(monkeypatch, tmp_path):
+    """Two toy runs whose designs overlap in part (i = 0..29 against 0..19, other values): ``diff_runs`` (Arrow's
+    join, column by column) gives what a pandas merge of the whole tables gives."""
+    from surgopt.results import diff_runs
+    from surgopt.runner import run_study
+    from surgopt.store import Store
+    from surgopt.studies import STUDIES, get_study
+
+    monkeypatch.setitem(STUDIES, "toy", "toy_study")
+    toy = get_study("toy")
+    store = Store(tmp_path)
+    for cfg in (toy.config_model(n=30), toy.config_model(n=20, offset=-4.5)):
+        run_study(toy, cfg, config_name="t", store=store, jobs=1, quiet=True)
+    ra, rb = sorted(store.runs("toy"), key=lambda r: -r.rows)
+    ours = diff_runs(store, ra.key, rb.key)
+    plain = pandas_diff(ra.read_table(toy.schema()), rb.read_table(toy.schema()), ["i"], [], "square")
+    assert plain["rows_only_a"] == 10 and plain["metrics"]["x"]["changed"] == 20  # the premise: they differ
+    same_diff(ours, plain)

@@ -180,6 +180,10 @@ def test_diff_of_two_port_place_runs_matches_layouts_by_their_ports(tmp_path):
     a, b = (r.read_table(S.schema()).to_pandas() for r in runs)
     by_id = pd.merge(a, b, on="design_id", suffixes=("_a", "_b"))
     assert (by_id["psm1_x_mm_a"] != by_id["psm1_x_mm_b"]).any()  # the premise: ids name other layouts
+    from test_export import pandas_diff, same_diff
+
+    ka, ia = S.STUDY.design_identity(runs[0].manifest["config"])
+    same_diff(d, pandas_diff(*(r.read_table(S.schema()) for r in runs), list(ka), list(ia), "score", decimals=6))
     # export of both runs stacked: says which columns match a layout across them, and matched on those the
     # region's every layout has the whole run's cost (#42 item 1, for export)
     import pyarrow as pa
