@@ -234,3 +234,31 @@ def test_the_embedded_default_docks_on_the_classic_cart_and_other_arms_say_why_n
     assert no_cart_note(plain.config.model_dump(mode="json")) == "none: docking assumed (cart.model = none)"
     with pytest.raises(ConfigError, match="cart.model: 'classic' carries the Classic PSMs and ECM, not dvrk_ecm_si"):
         variants(study, None, ["cart.model=classic", "robot.camera_arm=dvrk_ecm_si"])
+
+
+def test_the_best_layouts_are_screened_for_their_links_clearance(monkeypatch):
+    """The closing report checks the SCREEN_LAYOUTS best layouts' links outside the body (not yet in feasible):
+    the first whose least clearance is >= 0 is named in the headline; when none clears it says so with the least
+    overlap among them; each row's least is the least of that layout's clearances."""
+    import json
+
+    from surgopt.studies.port_place import clashes
+
+    rows = [{"design_id": i, "cost": 0.3 + i / 100} for i in range(S.SCREEN_LAYOUTS + 3)]
+    least_mm = {0: -100.0, 1: -20.0, 2: 5.0, 3: 40.0}
+    seen = []
+
+    def fake(cfg, row):
+        seen.append(row["design_id"])
+        v = least_mm.get(row["design_id"], -50.0)
+        return [clashes.Clearance("PSM1 and PSM2, docked", v, "a", "b", "docked"),
+                clashes.Clearance("PSM1 and the table", v + 10, "c", "table", "docked")]
+
+    monkeypatch.setattr(clashes, "layout_clearances", fake)
+    meta = {"config": json.dumps(C.PortPlaceConfig.model_validate(SMALL).model_dump(mode="json"))}
+    word, (title, header, table) = S.clearance_screen(rows, meta)
+    assert seen == list(range(S.SCREEN_LAYOUTS)) and len(table) == S.SCREEN_LAYOUTS
+    assert word.startswith("design 2 ") and [r[2] for r in table[:4]] == ["-100", "-20", "5", "40"]
+    least_mm.update({2: -5.0, 3: -8.0})
+    word, _ = S.clearance_screen(rows, meta)
+    assert word.startswith(f"none of the {S.SCREEN_LAYOUTS} best") and "by 5 mm or more" in word

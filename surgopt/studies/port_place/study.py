@@ -608,7 +608,9 @@ def summary(parts) -> Summary:
         counts = {"feasible": feasible, "infeasible": n - feasible}
         counts.update({f"infeasible: {why}": by_bit[bit] for bit, why in REASONS.items()})
         headline = {"designs": n, "feasible": feasible}
-    best = least_cost_layouts(parts, 5)
+    best = least_cost_layouts(parts, max(5, SCREEN_LAYOUTS))
+    screened = best.to_pylist()
+    best = best.slice(0, 5)
     tables = []
     if best.num_rows:
         b = best.to_pylist()[0]
@@ -627,6 +629,10 @@ def summary(parts) -> Summary:
                        + ([f"from the {mark[0]} (mm, top view)"] if mark else []), ports))
         if "cart_pose" in b:
             tables += docking_tables(b, meta)
+            screen = clearance_screen(screened, meta)
+            if screen is not None:
+                headline["links_clear"], table = screen
+                tables.append(table)
         cols = ["design_id", "cost", "common_reach", "dexterity_mean", "manipulation_angle_mean_deg",
                 "azimuth_imbalance_deg", "camera_coverage"]
         repeats = best.schema.metadata.get(b"repeats_collapsed", b"0").decode() if best.schema.metadata else "0"
@@ -704,6 +710,46 @@ def docking_tables(best: dict, meta: dict) -> list:
              ["arm", "port", "suj_joints", "least range margin", "note"], rows),
             ("best layout: least clearance outside the body (capsules, radii assumed; negative: the links overlap; "
              "not yet part of feasible)", ["between", "clearance_mm", "link", "against", "where"], clear)]
+
+
+#: The best distinct feasible layouts whose links the closing report checks for clearance outside the body (each
+#: ~0.2 s: its setup joints solved again, its arms' capsules docked and over the target, against each other, the
+#: patient and the table; ``clashes.layout_clearances``).
+SCREEN_LAYOUTS = 10
+
+
+def clearance_screen(rows: list[dict], meta: dict):
+    """The best layouts (``rows``, distinct, by cost) screened for their links' clearance outside the body, which
+    feasible does not yet include (issue 40): (the headline's word, the table), or None when the run's config
+    cannot be read again. The first layout whose every clearance is >= 0 is named; else how much the least of
+    them overlaps."""
+    from surgopt.studies.port_place.clashes import layout_clearances, least
+
+    try:  # as stored: its files are not read and hashed again
+        cfg = PortPlaceConfig.model_validate(json.loads(meta["config"]), context={"stored": True})
+    except (ValueError, OSError, KeyError):
+        return None
+    out, clear = [], None
+    for r in rows[:SCREEN_LAYOUTS]:
+        c = least(layout_clearances(cfg, r))
+        if c is None:
+            continue
+        out.append([str(r["design_id"]), f"{r['cost']:.4g}", f"{c.clearance_mm:.0f}", c.check,
+                    f"{c.link_a} / {c.link_b}", c.where])
+        if clear is None and c.clearance_mm >= 0:
+            clear = r["design_id"]
+    if not out:
+        return None
+    n = len(out)
+    if clear is not None:
+        word = f"design {clear} (the best of the {n} best feasible layouts whose links clear)"
+    else:
+        worst = max(float(x[2]) for x in out)
+        word = (f"none of the {n} best feasible layouts: their links overlap outside the body by {-worst:.0f} mm "
+                f"or more (link clearance is not yet part of feasible)")
+    title = (f"the {n} best feasible layouts, their links' least clearance outside the body (capsules, radii "
+             f"assumed; negative: they overlap; not yet part of feasible)")
+    return word, (title, ["design_id", "cost", "least_clearance_mm", "between", "links", "where"], out)
 
 
 def layout_columns(names) -> list[str]:
