@@ -21,6 +21,8 @@ DERIVED = "_derived.json"
 #: A derived file larger than this is not one surgopt wrote (a port-place report's entries are ~20 kB).
 MAX_DERIVED_BYTES = 16 * 2 ** 20
 FORMAT = 1
+#: Entries kept per run (each summarize's --top/--sort/--columns is one): the oldest are dropped past this.
+MAX_ENTRIES = 32
 
 
 @lru_cache(maxsize=1)
@@ -49,8 +51,10 @@ def derived(run, name: str, compute: Callable[[], Any], **args) -> Any:
         if value is not None:
             return value[0]
     text = json.dumps(compute(), default=_plain, allow_nan=True)  # keys in their order: tables show it
-    if run.complete:  # the entries as they are now (``compute`` may have kept others meanwhile)
-        _write(run, {**(_read(run) or {}), entry: {"sha256": hashlib.sha256(text.encode()).hexdigest(), "value": text}})
+    if run.complete:  # the entries as they are now (``compute`` may have kept others meanwhile), the newest last
+        entries = {k: v for k, v in (_read(run) or {}).items() if k != entry}
+        entries[entry] = {"sha256": hashlib.sha256(text.encode()).hexdigest(), "value": text}
+        _write(run, dict(list(entries.items())[-MAX_ENTRIES:]))
     return json.loads(text)
 
 

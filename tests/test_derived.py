@@ -129,3 +129,14 @@ def test_help_lists_every_study_without_importing_one():
         package = __import__(module.rpartition(".")[0], fromlist=["HELP"])
         assert f" {name} " in out and package.HELP.split("\n")[0][:60] in out
         assert get_study(name).help == package.HELP  # the declaration's help is the package's
+
+
+def test_the_kept_entries_are_bounded(toy_run, monkeypatch):
+    """Each set of arguments is an entry; past MAX_ENTRIES the oldest are dropped (the file does not grow with
+    every --top a user tries), the newest kept."""
+    toy, run = toy_run
+    monkeypatch.setattr(D, "MAX_ENTRIES", 3)
+    for k in range(5):
+        assert D.derived(run, "x", lambda: {"k": k}, k=k) == {"k": k}
+    kept = D._read(run)
+    assert list(kept) == [f'x:{{"k": {k}}}' for k in (2, 3, 4)]
