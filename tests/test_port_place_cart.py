@@ -87,6 +87,13 @@ def _docking_frame(site_m, centre_m):
     return np.column_stack([x, np.cross(z, x), z])
 
 
+def _rolled(frame, deg):
+    """A docking frame turned by ``deg`` about its z (its x toward its y)."""
+    r = math.radians(deg)
+    return np.column_stack([math.cos(r) * frame[:, 0] + math.sin(r) * frame[:, 1],
+                            math.cos(r) * frame[:, 1] - math.sin(r) * frame[:, 0], frame[:, 2]])
+
+
 def test_the_dvrk_export_puts_each_psm_rcm_on_its_port_by_the_reference_kinematics(tmp_path):
     """The CLI on a small config with a grid of cart poses: its closing report names the cart pose and the setup
     joints; the best layout's ``--format dvrk`` export, its SUJ joints carried through the reference forward
@@ -129,7 +136,8 @@ def test_the_dvrk_export_puts_each_psm_rcm_on_its_port_by_the_reference_kinemati
         q = arm["suj_joints"]
         base = suj_forward_reference("classic", arm["name"], q)
         port = np.array(arm["port_mm"]) / 1000
-        want = patient @ np.vstack([np.column_stack([_docking_frame(port, centre), port]), [0, 0, 0, 1]])
+        frame = _rolled(_docking_frame(port, centre), arm["docking_roll_deg"] or 0.0)  # turned where it must clear
+        want = patient @ np.vstack([np.column_stack([frame, port]), [0, 0, 0, 1]])
         np.testing.assert_allclose(base, want, atol=1e-9)
         for v, (lo, hi) in zip(q[1:], QUOTED[arm["name"]]):
             assert math.radians(lo) <= v <= math.radians(hi)
@@ -254,11 +262,79 @@ def test_the_best_layouts_are_screened_for_their_links_clearance(monkeypatch):
         return [clashes.Clearance("PSM1 and PSM2, docked", v, "a", "b", "docked"),
                 clashes.Clearance("PSM1 and the table", v + 10, "c", "table", "docked")]
 
+    rolled = {}  # design -> (rolls, least clearance) that the roll search finds
+
+    def fake_rolls(cfg, row):
+        if row["design_id"] in rolled:
+            rolls, mm = rolled[row["design_id"]]
+            return clashes.RollsThatClear(rolls, clashes.Clearance("PSM2 and ECM", mm, "p", "q", "x"), 9)
+        return clashes.RollsThatClear({}, None, 9)
+
     monkeypatch.setattr(clashes, "layout_clearances", fake)
+    monkeypatch.setattr(clashes, "rolls_that_clear", fake_rolls)
     meta = {"config": json.dumps(C.PortPlaceConfig.model_validate(SMALL).model_dump(mode="json"))}
     word, (title, header, table) = S.clearance_screen(rows, meta)
     assert seen == list(range(S.SCREEN_LAYOUTS)) and len(table) == S.SCREEN_LAYOUTS
     assert word.startswith("design 2 ") and [r[2] for r in table[:4]] == ["-100", "-20", "5", "40"]
+    assert table[0][-1] == "none of 9 that reach and dock" and table[2][-1] == "-"  # tried only where it overlaps
     least_mm.update({2: -5.0, 3: -8.0})
+    rolled[3] = ({"PSM1": 0.0, "PSM2": -60.0}, 12.0)
+    word, (_, _, table) = S.clearance_screen(rows, meta)
+    assert word.startswith("design 3 with its PSMs' docking rolled (PSM2 -60 deg") and "12 mm" in word
+    assert table[3][-1].startswith("PSM1 +0, PSM2 -60: 12 mm")
+    rolled.clear()
     word, _ = S.clearance_screen(rows, meta)
     assert word.startswith(f"none of the {S.SCREEN_LAYOUTS} best") and "by 5 mm or more" in word
+
+
+def test_a_layout_whose_links_overlap_clears_with_a_psm_rolled_about_its_shaft(tmp_path):
+    """``clashes.rolls_that_clear`` on the small grid-cart run: a best layout whose links overlap at roll 0 (the
+    premise) clears with its PSMs rolled, and what it returns holds by things apart from the search: each rolled
+    PSM's base keeps the neutral shaft (z) with x turned by the roll from the docking frame written from its
+    definition, its setup joints through the reference FK land that base, every target point is reached within
+    the joint limits (closed-form inverse, then the forward map back to the point), and every clearance of the
+    layout so docked is >= 0."""
+    from surgopt.kinematics import port_place as K
+    from surgopt.runner import run_study
+    from surgopt.store import Store
+    from surgopt.studies.port_place.clashes import layout_clearances, least, rolled_docks, rolls_that_clear
+
+    store = Store(tmp_path / "s")
+    cfg = C.PortPlaceConfig.model_validate(GRID)
+    run_study(S.STUDY, cfg, config_name="grid", store=store, jobs=1, quiet=True)
+    (run,) = store.runs("port-place")
+    rows = S.least_cost_layouts(run.parts(S.STUDY.schema_for(run.manifest["config"])), 10).to_pylist()
+    found = [(r, rolls_that_clear(cfg, r)) for r in rows]
+    row, got = next((r, g) for r, g in found if g.least is not None)
+    assert least(layout_clearances(cfg, row)).clearance_mm < 0  # the premise: it overlaps at the run's roll
+    assert got.least.clearance_mm >= 0 and any(d != 0 for d in got.rolls.values())
+    patient = T.patient_in_cart(cfg.cart, row["cart_x_mm"], row["cart_y_mm"], row["cart_heading_deg"])
+    centre = np.asarray(cfg.target.centre_mm, float) / 1000
+    model = T.model_of(cfg)
+    arms = []
+    for name, deg in got.rolls.items():
+        arm = dict(rolled_docks(cfg, row, name.lower(), patient))[deg]
+        port = np.array([row[f"{name.lower()}_{c}_mm"] for c in "xyz"]) / 1000
+        want = _rolled(_docking_frame(port, centre), deg)
+        np.testing.assert_allclose(arm.base[:3, :3], patient[:3, :3] @ want, atol=1e-12)
+        np.testing.assert_allclose(suj_forward_reference("classic", name, arm.joints), arm.base, atol=1e-9)
+        lim = model.limits
+        world = model.targets_m @ patient[:3, :3].T + patient[:3, 3]
+        for p in (world - arm.base[:3, 3]) @ arm.base[:3, :3]:
+            q = K.rcm_inverse(p, lim.along_shaft_m)
+            assert lim.yaw_lo <= q[0] <= lim.yaw_hi and lim.pitch_lo <= q[1] <= lim.pitch_hi
+            assert lim.insertion_lo <= q[2] <= lim.insertion_hi
+            np.testing.assert_allclose(K.rcm_point(*q, lim.along_shaft_m), p, atol=1e-12)
+        arms.append(arm)
+    ecm = [a for a in T.docked_arms(cfg, row) if a.arm == "ECM"]
+    again = layout_clearances(cfg, row, arms + ecm)
+    assert min(c.clearance_mm for c in again) == got.least.clearance_mm >= 0
+    # the robot's file docks it so: each PSM's roll, its SUJ joints landing the rolled frame, its links clear
+    setup = json.loads(S.dvrk_export(cfg, row))
+    assert "turned about its neutral shaft" in setup["docking"] and setup["clearances_outside_body"]["least_mm"] >= 0
+    for arm in setup["arms"][:-1]:
+        assert arm["docking_roll_deg"] == got.rolls[arm["name"]]
+        port = np.array(arm["port_mm"]) / 1000
+        want = patient @ np.vstack([np.column_stack([_rolled(_docking_frame(port, centre), arm["docking_roll_deg"]),
+                                                     port]), [0, 0, 0, 1]])
+        np.testing.assert_allclose(suj_forward_reference("classic", arm["name"], arm["suj_joints"]), want, atol=1e-9)

@@ -175,3 +175,86 @@ def layout_clearances(cfg, row: dict, docked=None) -> list[Clearance]:
 
 def least(clearances: list[Clearance]) -> Clearance | None:
     return min(clearances, key=lambda c: c.clearance_mm) if clearances else None
+
+
+#: Docking rolls (deg) each PSM may take about its neutral shaft when a layout's links do not clear at the run's
+#: own roll (the docking frame's x turned toward its y; issue 40's "docking roll searched per arm").
+ROLL_GRID_DEG = tuple(range(-90, 91, 15))
+#: Roll combinations whose docked links clear that are then checked over the target too, best docked first.
+ROLL_FULL_CHECKS = 4
+
+
+def rolled_docks(cfg, row: dict, arm: str, patient: np.ndarray) -> list[tuple[float, object]]:
+    """(roll in deg, ``tables.DockedArm``) for each roll of ROLL_GRID_DEG at which PSM ``arm`` (``psm1`` ...)
+    still reaches every target point from its port (the kernel's own reach test in the rolled frame) and its
+    setup joints dock the rolled frame within their ranges (S2)."""
+    from surgopt.kinematics import port_place as K
+    from surgopt.kinematics import suj as S
+    from surgopt.robots.dvrk_suj import CARTS
+    from surgopt.studies.port_place.tables import LATERAL, DockedArm, base_pose, model_of, rolled
+
+    model = model_of(cfg)
+    site = np.array([row[f"{arm}_{c}_mm"] for c in "xyz"]) / 1000
+    rolls = np.radians(np.array(ROLL_GRID_DEG, float))
+    neutral = K.docking_frames(site[None], np.asarray(cfg.target.centre_mm, float) / 1000, LATERAL)
+    frames = rolled(np.repeat(neutral, len(rolls), axis=0), rolls)
+    reach, _ = K.instrument_tables(np.repeat(site[None], len(rolls), axis=0), frames, model.targets_m, model.limits,
+                                   model.criteria.dexterity_length_m, model.cone)
+    out = []
+    for deg, rot, full in zip(ROLL_GRID_DEG, frames, reach.all(axis=1)):
+        if not full:
+            continue
+        base = patient @ base_pose(rot, site)
+        answer = S.classic_psm_ik(CARTS[cfg.cart.model][arm.upper()], base)
+        if answer.within:
+            best = answer.within[0]
+            out.append((float(deg), DockedArm(arm.upper(), str(row[f"{arm}_site"]), best.joints, best.margin,
+                                              best.tightest, "", tuple(site), base, ())))
+    return out
+
+
+class RollsThatClear(NamedTuple):
+    """Per-PSM docking rolls (deg, by arm) at which a layout's every clearance outside the body is >= 0, and the
+    least of them; ``tried``: the roll combinations whose arms all reach and dock."""
+
+    rolls: dict
+    least: Clearance | None
+    tried: int
+
+
+def rolls_that_clear(cfg, row: dict) -> RollsThatClear:
+    """A layout's PSMs docked at every combination of ROLL_GRID_DEG (each PSM's own roll; the ECM as it docks):
+    the combinations are ranked by their docked arms' least clearance to each other (fast: one pose each), and the
+    ROLL_FULL_CHECKS best of those that clear docked are checked in full (``layout_clearances``: over the target,
+    the patient, the table). The one with the largest least clearance >= 0, or ``least`` None."""
+    import itertools
+
+    from surgopt.kinematics.capsules import least_pair_clearance
+    from surgopt.studies.port_place.tables import docked_arms, model_of, patient_in_cart
+
+    patient = patient_in_cart(cfg.cart, row["cart_x_mm"], row["cart_y_mm"], row["cart_heading_deg"])
+    ecm = [a for a in docked_arms(cfg, row) if a.arm == "ECM" and a.joints]
+    psms = [a for a in ("psm1", "psm2", "psm3") if f"{a}_site" in row]
+    options = {a: rolled_docks(cfg, row, a, patient) for a in psms}
+    along = model_of(cfg).limits.along_shaft_m
+    none = np.zeros((0, 3))
+    docked_pose = {(a, deg): arm_poses(cfg, d, patient, none, along) for a in psms for deg, d in options[a]}
+    ecm_pose = arm_poses(cfg, ecm[0], patient, none, along) if ecm else None
+
+    def pair(p, q):
+        return least_pair_clearance(p.segments[0], p.radii, q.segments[0], q.radii)[0]
+
+    with_ecm = {k: pair(p, ecm_pose) if ecm_pose is not None else np.inf for k, p in docked_pose.items()}
+    combos = []
+    for choice in itertools.product(*([(a, deg) for deg, _ in options[a]] for a in psms)):
+        c = min([with_ecm[k] for k in choice]
+                + [pair(docked_pose[x], docked_pose[y]) for x, y in itertools.combinations(choice, 2)])
+        combos.append((c, choice))
+    combos.sort(key=lambda t: -t[0])
+    best = None
+    for c, choice in [t for t in combos if t[0] >= 0][:ROLL_FULL_CHECKS]:
+        arms = [dict(options[a])[deg] for a, deg in choice] + ecm
+        worst = least(layout_clearances(cfg, row, arms))
+        if worst is not None and worst.clearance_mm >= 0 and (best is None or worst.clearance_mm > best[1].clearance_mm):
+            best = ({a.upper(): deg for a, deg in choice}, worst)
+    return RollsThatClear(best[0] if best else {}, best[1] if best else None, len(combos))

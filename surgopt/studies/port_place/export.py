@@ -44,6 +44,29 @@ def clearances_of(cfg: PortPlaceConfig, row: dict, docked) -> dict:
                         "against": c.link_b, "where": c.where} for c in checks]}
 
 
+def _docking_that_clears(cfg: PortPlaceConfig, row: dict, patient: np.ndarray, docked: list):
+    """(the arms as docked, each PSM's docking roll about its shaft in deg where it was turned, what was done): the
+    run's own docking when the layout's links clear outside the body; else, when some combination of each PSM's
+    roll clears them (``clashes.rolls_that_clear``: full reach and the setup joints' ranges kept), the PSMs docked
+    so, so that the file a robot loads does not dock arms whose links overlap."""
+    from surgopt.studies.port_place.clashes import layout_clearances, least, rolled_docks, rolls_that_clear
+
+    worst = least(layout_clearances(cfg, row, docked))
+    if worst is None or worst.clearance_mm >= 0:
+        return docked, {}, "the run's docking frames (robot.docking_roll)"
+    found = rolls_that_clear(cfg, row)
+    if found.least is None:
+        return docked, {}, (f"the run's docking frames (robot.docking_roll); their links overlap outside the body by "
+                            f"{-worst.clearance_mm:.0f} mm ({worst.link_a} / {worst.link_b}) and no roll of each PSM "
+                            f"about its shaft (of {found.tried} that reach and dock) clears them")
+    turned = {arm: dict(rolled_docks(cfg, row, arm.lower(), patient))[deg] for arm, deg in found.rolls.items()}
+    return ([turned.get(a.arm, a) for a in docked], found.rolls,
+            f"each PSM's docking frame turned about its neutral shaft by docking_roll_deg (x toward y) so that the "
+            f"links clear outside the body (least {found.least.clearance_mm:.0f} mm: {found.least.link_a} / "
+            f"{found.least.link_b}); at the run's own docking they overlap by {-worst.clearance_mm:.0f} mm "
+            f"({worst.link_a} / {worst.link_b}); the run's rows and cost are at its own docking")
+
+
 def dvrk_setup(cfg: PortPlaceConfig, row: dict) -> str:
     """The layout of ``row`` (a design of a run with the cart) as JSON: ``cart_to_patient`` (the patient's frame
     in the cart's world frame, 4x4, m) and one entry per arm (PSM1, PSM2, PSM3, ECM): its cart ("classic"), SUJ
@@ -61,7 +84,7 @@ def dvrk_setup(cfg: PortPlaceConfig, row: dict) -> str:
     centre = np.asarray(cfg.target.centre_mm, float) / 1000
     patient = patient_in_cart(cfg.cart, row["cart_x_mm"], row["cart_y_mm"], row["cart_heading_deg"])
     arms = []
-    docked = docked_arms(cfg, row)
+    docked, rolls, docking = _docking_that_clears(cfg, row, patient, docked_arms(cfg, row))
     for a in docked:
         suj = CARTS[cfg.cart.model][a.arm]
         holder = camera_arm_of(cfg) if a.arm == "ECM" else instrument_of(cfg)
@@ -78,6 +101,7 @@ def dvrk_setup(cfg: PortPlaceConfig, row: dict) -> str:
             "world_origin_to_suj": _matrix(suj.world_to_suj), "suj_tip_to_tool_origin": _matrix(suj.tip_to_tool),
             "port_mm": [float(v) * 1000 for v in port],
             "base_in_cart": None if a.base is None else _matrix(a.base),
+            "docking_roll_deg": rolls.get(a.arm),
             "arm": holder.name,
             "arm_joints_at_target_centre": joints,
         })
@@ -86,7 +110,7 @@ def dvrk_setup(cfg: PortPlaceConfig, row: dict) -> str:
            "cart": {"model": cfg.cart.model, "x_mm": row["cart_x_mm"], "y_mm": row["cart_y_mm"],
                     "heading_deg": row["cart_heading_deg"], "table_height_mm": cfg.cart.table_height_mm,
                     "trendelenburg_deg": cfg.cart.trendelenburg_deg, "lateral_tilt_deg": cfg.cart.lateral_tilt_deg},
-           "cart_to_patient": _matrix(patient), "arms": arms,
+           "cart_to_patient": _matrix(patient), "docking": docking, "arms": arms,
            "clearances_outside_body": clearances_of(cfg, row, docked)}
     return json.dumps(out, indent=1) + "\n"
 

@@ -716,14 +716,16 @@ def docking_tables(best: dict, meta: dict) -> list:
 #: ~0.2 s: its setup joints solved again, its arms' capsules docked and over the target, against each other, the
 #: patient and the table; ``clashes.layout_clearances``).
 SCREEN_LAYOUTS = 10
+ROLL_TEXT = "a 15-degree grid over +-90 about the neutral shaft"
 
 
 def clearance_screen(rows: list[dict], meta: dict):
     """The best layouts (``rows``, distinct, by cost) screened for their links' clearance outside the body, which
     feasible does not yet include (issue 40): (the headline's word, the table), or None when the run's config
-    cannot be read again. The first layout whose every clearance is >= 0 is named; else how much the least of
-    them overlaps."""
-    from surgopt.studies.port_place.clashes import layout_clearances, least
+    cannot be read again. A layout whose links overlap at the run's docking roll is tried with each PSM's own
+    roll (``clashes.rolls_that_clear``: full reach and the setup joints' ranges kept). The headline names the
+    first layout that clears, at the run's roll or with rolls; else how much the least of them overlaps."""
+    from surgopt.studies.port_place.clashes import layout_clearances, least, rolls_that_clear
 
     try:  # as stored: its files are not read and hashed again
         cfg = PortPlaceConfig.model_validate(json.loads(meta["config"]), context={"stored": True})
@@ -734,22 +736,36 @@ def clearance_screen(rows: list[dict], meta: dict):
         c = least(layout_clearances(cfg, r))
         if c is None:
             continue
+        rolled = rolls_that_clear(cfg, r) if c.clearance_mm < 0 else None
+        if rolled is None:
+            with_rolls = "-"
+        elif rolled.least is None:
+            with_rolls = f"none of {rolled.tried} that reach and dock"
+        else:
+            with_rolls = (", ".join(f"{a} {d:+.0f}" for a, d in rolled.rolls.items()) + f": {rolled.least.clearance_mm:.0f} "
+                          f"mm ({rolled.least.link_a} / {rolled.least.link_b})")
         out.append([str(r["design_id"]), f"{r['cost']:.4g}", f"{c.clearance_mm:.0f}", c.check,
-                    f"{c.link_a} / {c.link_b}", c.where])
+                    f"{c.link_a} / {c.link_b}", with_rolls])
         if clear is None and c.clearance_mm >= 0:
-            clear = r["design_id"]
+            clear = f"design {r['design_id']} (the best of the {{n}} best feasible layouts whose links clear)"
+        elif clear is None and rolled is not None and rolled.least is not None:
+            turned = ", ".join(f"{a} {d:+.0f}" for a, d in rolled.rolls.items() if d)
+            clear = (f"design {r['design_id']} with its PSMs' docking rolled ({turned} deg about the shaft): least "
+                     f"clearance {rolled.least.clearance_mm:.0f} mm ({rolled.least.link_a} / {rolled.least.link_b}); "
+                     f"its cost is at the run's roll; `surgopt export --format dvrk` docks it so")
     if not out:
         return None
     n = len(out)
     if clear is not None:
-        word = f"design {clear} (the best of the {n} best feasible layouts whose links clear)"
+        word = clear.replace("{n}", str(n))
     else:
         worst = max(float(x[2]) for x in out)
-        word = (f"none of the {n} best feasible layouts: their links overlap outside the body by {-worst:.0f} mm "
-                f"or more (link clearance is not yet part of feasible)")
+        word = (f"none of the {n} best feasible layouts, at the run's docking roll or each PSM's own: their links "
+                f"overlap outside the body by {-worst:.0f} mm or more (link clearance is not yet part of feasible)")
     title = (f"the {n} best feasible layouts, their links' least clearance outside the body (capsules, radii "
-             f"assumed; negative: they overlap; not yet part of feasible)")
-    return word, (title, ["design_id", "cost", "least_clearance_mm", "between", "links", "where"], out)
+             f"assumed; negative: they overlap; not yet part of feasible), and each PSM's docking roll (deg, "
+             f"{ROLL_TEXT}) at which they clear")
+    return word, (title, ["design_id", "cost", "least_clearance_mm", "between", "links", "with rolls"], out)
 
 
 def layout_columns(names) -> list[str]:
