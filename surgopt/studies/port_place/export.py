@@ -44,7 +44,7 @@ def clearances_of(cfg: PortPlaceConfig, row: dict, docked) -> dict:
                         "against": c.link_b, "where": c.where} for c in checks]}
 
 
-def _docking_that_clears(cfg: PortPlaceConfig, row: dict, patient: np.ndarray, docked: list):
+def docking_that_clears(cfg: PortPlaceConfig, row: dict, patient: np.ndarray, docked: list):
     """(the arms as docked, each PSM's docking roll about its shaft in deg where it was turned, what was done): the
     run's own docking when the layout's links clear outside the body; else, when some combination of each PSM's
     roll clears them (``clashes.rolls_that_clear``: full reach and the setup joints' ranges kept), the PSMs docked
@@ -84,7 +84,7 @@ def dvrk_setup(cfg: PortPlaceConfig, row: dict) -> str:
     centre = np.asarray(cfg.target.centre_mm, float) / 1000
     patient = patient_in_cart(cfg.cart, row["cart_x_mm"], row["cart_y_mm"], row["cart_heading_deg"])
     arms = []
-    docked, rolls, docking = _docking_that_clears(cfg, row, patient, docked_arms(cfg, row))
+    docked, rolls, docking = docking_that_clears(cfg, row, patient, docked_arms(cfg, row))
     for a in docked:
         suj = CARTS[cfg.cart.model][a.arm]
         holder = camera_arm_of(cfg) if a.arm == "ECM" else instrument_of(cfg)

@@ -684,29 +684,37 @@ def dvrk_export(cfg, row: dict) -> str:
 
 def docking_tables(best: dict, meta: dict) -> list:
     """The best layout's cart pose and each arm's setup joints there (solved again from the row's ports and
-    pose, and the run's config in the rows' metadata)."""
+    pose, and the run's config in the rows' metadata), docked as the dvrk export docks it (``docking_that_clears``:
+    where the links overlap at the run's own docking and a roll of each PSM about its shaft clears them, so),
+    and the links' clearances so docked."""
     import json
 
     from surgopt.studies.port_place.clashes import layout_clearances
-    from surgopt.studies.port_place.tables import docked_arms
+    from surgopt.studies.port_place.export import docking_that_clears
+    from surgopt.studies.port_place.tables import docked_arms, patient_in_cart
 
     try:  # as stored: its files are not read and hashed again
         cfg = PortPlaceConfig.model_validate(json.loads(meta["config"]), context={"stored": True})
     except (ValueError, OSError, KeyError) as exc:
         return [("best layout: the cart", ["note"], [[f"the run's config cannot be read again ({exc}); the cart "
                                                        f"pose is in the row's cart_* columns"]])]
-    docked = docked_arms(cfg, best)
+    patient = patient_in_cart(cfg.cart, best["cart_x_mm"], best["cart_y_mm"], best["cart_heading_deg"])
+    docked, rolls, _ = docking_that_clears(cfg, best, patient, docked_arms(cfg, best))  # as the export docks it
+    turned = {arm: deg for arm, deg in rolls.items() if deg}
     pose = [[f"{best['cart_x_mm']:.0f}", f"{best['cart_y_mm']:.0f}", f"{best['cart_heading_deg']:.1f}",
              str(best["cart_pose"])]]
     rows = [[a.arm, a.site, " ".join(f"{v:.4f}" for v in a.joints) if a.joints else "-",
              "-" if a.margin is None else f"{a.margin:.3f}" + (f" ({a.tightest})" if a.tightest else ""),
              a.note or (f"ECM yaw {math.degrees(a.ecm[0]):.1f}, pitch {math.degrees(a.ecm[1]):.1f} deg" if a.ecm
+                        else f"docking rolled {turned[a.arm]:+.0f} deg about the shaft" if a.arm in turned
                         else "")] for a in docked]
     clear = [[c.check, f"{c.clearance_mm:.0f}", c.link_a, c.link_b, c.where]
              for c in layout_clearances(cfg, best, docked)]
     return [(f"best layout: the {cfg.cart.model} cart (origin on the floor, patient frame; heading from +y toward +x)",
              ["x_mm", "y_mm", "heading_deg", "grid pose"], pose),
-            ("best layout: setup joints (column m, then rad, the dVRK's simulated_position order)",
+            ("best layout: setup joints (column m, then rad, the dVRK's simulated_position order)"
+             + (" as `export --format dvrk` docks it: each PSM's docking turned so that the links clear" if turned
+                else ""),
              ["arm", "port", "suj_joints", "least range margin", "note"], rows),
             ("best layout: least clearance outside the body (capsules, radii assumed; negative: the links overlap; "
              "not yet part of feasible)", ["between", "clearance_mm", "link", "against", "where"], clear)]
