@@ -338,3 +338,34 @@ def test_a_layout_whose_links_overlap_clears_with_a_psm_rolled_about_its_shaft(t
         want = patient @ np.vstack([np.column_stack([_rolled(_docking_frame(port, centre), arm["docking_roll_deg"]),
                                                      port]), [0, 0, 0, 1]])
         np.testing.assert_allclose(suj_forward_reference("classic", arm["name"], arm["suj_joints"]), want, atol=1e-9)
+
+
+def test_a_search_docks_on_the_cart_as_the_grid_does(tmp_path):
+    """#40 "the cart searched": a [search] with the cart evaluates each design with the cart's dock tables of its
+    own ports: a design evaluated alone equals its row of the grid's enumeration in every column, the cart's
+    included (every 37th design of the small grid-cart config; some dockable, some not: the premise); a CMA-ES
+    search runs, each feasible trial docked (a cart pose, in the cart's columns); a search that also tilts the
+    docking is refused naming the field."""
+    from surgopt.config import validate
+    from surgopt.errors import ConfigError
+    from surgopt.runner import run_study
+    from surgopt.store import Store
+
+    cfg = validate(GRID, C.Config, "x")
+    grid = S.compute_task(cfg, 10 ** 6, 0)
+    pick = np.arange(0, len(grid["design_id"]), 37)
+    assert 0 < int(np.sum(grid["cart_pose"][pick] >= 0)) < len(pick) and int(np.sum(grid["feasible"][pick])) > 0
+    x = np.column_stack([grid[f"{a}_site"][pick] for a in S.arms_of(cfg)]).astype(float)
+    alone = S.evaluate_designs(cfg, x, grid["design_id"][pick], "t")
+    assert set(alone) == set(grid)
+    for c, v in grid.items():
+        np.testing.assert_allclose(np.asarray(alone[c], float), np.asarray(v, float)[pick], rtol=0, atol=1e-9,
+                                   err_msg=c)
+    searched = validate({**GRID, "search": {"method": "cmaes", "trials": 64, "batch": 32, "seed": 0}}, C.Config, "x")
+    rows = run_study(S.STUDY, searched, config_name="s", store=Store(tmp_path / "s"), jobs=1, quiet=True).table
+    feasible = rows.filter(rows["feasible"]).to_pydict()
+    assert len(rows) == 64 and feasible["cart_pose"] and all(p >= 0 for p in feasible["cart_pose"])
+    assert not np.isnan(np.asarray(feasible["cart_x_mm"], float)).any()
+    with pytest.raises(ConfigError, match="robot.docking_range_deg"):
+        validate({**GRID, "robot": {"docking_range_deg": 10.0}, "search": {"method": "cmaes", "trials": 8}},
+                 C.Config, "x")

@@ -421,9 +421,10 @@ class PortPlaceConfig(StrictModel):
         why = cart_does_not_carry(self)
         if why and self.search == "grid":
             raise ValueError(f"cart.model: 'classic' carries the Classic PSMs and ECM, {why}")
-        if self.search != "grid":
-            raise ValueError("cart.model: the cart is enumerated with the grid of layouts; a [search] with the "
-                             "cart is not in yet (set cart.model = 'none' to search)")
+        if self.search != "grid" and self.robot.docking_range_deg > 0:
+            raise ValueError("cart.model: the setup joints are solved for the docking frames toward the target's "
+                             "centre; a [search] that also tilts the docking (robot.docking_range_deg > 0) with the "
+                             "cart is not in yet (set robot.docking_range_deg = 0, or cart.model = 'none')")
         return self
 
     @model_validator(mode="after")

@@ -375,7 +375,8 @@ def evaluate_designs(cfg, x: np.ndarray, ids: np.ndarray, source: str) -> dict:
     "surface"`` every arm's top-view point (x, y mm, taken to the nearest candidate site), then each instrument's
     docking yaw and pitch in deg when free), each from its own ports docked as given: the per-port and per-pair tables
     of those ports (``port_tables``), combined as the enumeration combines them (its design 0 is the ports in
-    this order). A design whose ports coincide is infeasible (zero spacing and clearance)."""
+    this order), with the cart's dock tables of those ports when the run has a cart. A design whose ports coincide
+    is infeasible (zero spacing and clearance)."""
     from surgopt.kinematics import port_place as K
     from surgopt.kinematics.port_designs import design_columns
 
@@ -394,6 +395,7 @@ def evaluate_designs(cfg, x: np.ndarray, ids: np.ndarray, source: str) -> dict:
     stances = [c for c in stance_columns(cfg) if c in col]
     port_cols = [col[c] for c in (aim_columns(cfg) if surface else [f"{arm}_site" for arm in arms_of(cfg)])]
     docking_cols = [col.get(c) for c in docking_columns(cfg)]  # None: not free, 0
+    cart = cfg.cart.model != "none"  # the grid's dock tables (every site, every cart pose), each design's sites
     out = []
     for r in range(x.shape[0]):
         v = x[r]
@@ -412,13 +414,20 @@ def evaluate_designs(cfg, x: np.ndarray, ids: np.ndarray, source: str) -> dict:
             rot = K.tilted_frames(K.docking_frames(sites, centre, LATERAL), np.radians([*docking[0::2], 0.0]),
                                   np.radians([*docking[1::2], 0.0]))
             outside = K.external_clearances(sites, np.ascontiguousarray(rot[:, :, 2]), dvrk.OUTSIDE_LENGTH_M)
-            t, _, _ = port_tables(model_r, sites, rot, outside)
-        local, f, bad, cost, _, _ = design_columns(t, crit, 0, 1, ports - 1)
+            t, _, _ = port_tables(model_r, sites, rot, outside, dock=cart_of_sites(model.dock, site_ids) if cart else None)
+        local, f, bad, cost, _, dock = design_columns(t, crit, 0, 1, ports - 1)
         out.append(design_rows(cfg, sites, t, local, site_ids[None, :], f, bad, cost,
                                np.asarray(ids[r:r + 1], dtype=np.int64), docking[None, :],
                                v[None, port_cols] if surface else None,
-                               stance[None, :] if stances else None))
+                               stance[None, :] if stances else None,
+                               dock=dock if cart else None, floor=model.dock.poses.floor if cart else None))
     return concat_rows(out)
+
+
+def cart_of_sites(dock, site_ids: np.ndarray):
+    """The cart's dock tables (``tables.DockTables``, every candidate site) of a design's own ports, in its order."""
+    return dock._replace(bits=dock.bits[:, site_ids], camera=dock.camera[site_ids], margin=dock.margin[:, site_ids],
+                         camera_margin=dock.camera_margin[site_ids])
 
 
 def warm_up(cfg) -> None:
