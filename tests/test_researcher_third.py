@@ -92,3 +92,30 @@ def test_a_port_place_search_is_drawn_on_the_cost_of_its_feasible_trials(tmp_pat
     cli("report", "--store", store, "--out", tmp_path / "page.html")
     text = (tmp_path / "page.html").read_text()
     assert "cost (minimize) of the feasible trials only, on its own scale" in text
+
+
+def test_the_3d_layout_figure_gives_sites_and_target_points_each_their_own_colour_bar(tmp_path, monkeypatch):
+    """Issue 42 item 7: the 3-D layout figure drew the sites' cost and the target points' isotropy on one colour
+    bar's scale; now each has its own palette and colour bar, labelled."""
+    import numpy as np
+
+    from surgopt.config import validate
+    from surgopt.studies.port_place import config as C
+    from surgopt.studies.port_place import figures as F
+    from surgopt.studies.port_place import study as S
+
+    labels = {}
+
+    def kept(fig, path):
+        labels[path.name] = sorted(a.get_ylabel() for a in fig.axes if a.get_label() == "<colorbar>")
+        return path
+
+    monkeypatch.setattr(F, "save", kept)
+    cfg = validate({"patient": {"port_region": {"site_spacing_mm": 54.0}}, "target": {"spacing_mm": 20.0}},
+                   C.PortPlaceConfig, "x")
+    rows = S.compute_task(cfg, 10 ** 6, 0)
+    import pyarrow as pa
+
+    F.figures(cfg, pa.table({k: np.asarray(v) for k, v in rows.items()}), tmp_path)
+    assert labels["port_place_layout_3d.png"] == ["least cost of a feasible design using the site",
+                                                  "target point: the instruments' smaller isotropy"]

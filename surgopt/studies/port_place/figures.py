@@ -95,7 +95,9 @@ def figures(cfg, table, out, design_id=None):
     fig.colorbar(sc, ax=ax, shrink=0.6, pad=0.1, label="least cost of a feasible design using the site")
     if row is not None:
         iso = np.min([dex[c[f"{arm}_site"][row]] for arm, _, _ in arms(c)[:-1]], axis=0)  # the instruments
-        ax.scatter(*targets.T, c=iso, cmap="magma", s=3, depthshade=False)
+        tp = ax.scatter(*targets.T, c=iso, cmap="magma", s=3, depthshade=False)
+        # a palette and a colour bar of their own: the points' isotropy is not the sites' cost (#42 item 7)
+        fig.colorbar(tp, ax=ax, shrink=0.6, pad=0.02, label="target point: the instruments' smaller isotropy")
         centre = np.asarray(cfg.target.centre_mm)
         for arm, colour, label in arms(c):
             p = sites[c[f"{arm}_site"][row]]
