@@ -245,9 +245,10 @@ def test_the_embedded_default_docks_on_the_classic_cart_and_other_arms_say_why_n
 
 
 def test_the_best_layouts_are_screened_for_their_links_clearance(monkeypatch):
-    """The closing report checks the SCREEN_LAYOUTS best layouts' links outside the body (not yet in feasible):
-    the first whose least clearance is >= 0 is named in the headline; when none clears it says so with the least
-    overlap among them; each row's least is the least of that layout's clearances."""
+    """The closing report checks the best layouts' links outside the body (not yet in feasible) in cost order until
+    one clears, at most SCREEN_LAYOUTS: the first whose least clearance is >= 0 (at the run's docking, or with the
+    PSMs rolled) is named in the headline; when none clears it says so with the least overlap among them; each
+    row's least is the least of that layout's clearances."""
     import json
 
     from surgopt.studies.port_place import clashes
@@ -274,8 +275,8 @@ def test_the_best_layouts_are_screened_for_their_links_clearance(monkeypatch):
     monkeypatch.setattr(clashes, "rolls_that_clear", fake_rolls)
     meta = {"config": json.dumps(C.PortPlaceConfig.model_validate(SMALL).model_dump(mode="json"))}
     word, (title, header, table) = S.clearance_screen(rows, meta)
-    assert seen == list(range(S.SCREEN_LAYOUTS)) and len(table) == S.SCREEN_LAYOUTS
-    assert word.startswith("design 2 ") and [r[2] for r in table[:4]] == ["-100", "-20", "5", "40"]
+    assert seen == [0, 1, 2] and len(table) == 3  # screened by cost until one clears
+    assert word.startswith("design 2 (") and [r[2] for r in table] == ["-100", "-20", "5"]
     assert table[0][-1] == "none of 9 that reach and dock" and table[2][-1] == "-"  # tried only where it overlaps
     least_mm.update({2: -5.0, 3: -8.0})
     rolled[3] = ({"PSM1": 0.0, "PSM2": -60.0}, 12.0)
@@ -283,8 +284,10 @@ def test_the_best_layouts_are_screened_for_their_links_clearance(monkeypatch):
     assert word.startswith("design 3 with its PSMs' docking rolled (PSM2 -60 deg") and "12 mm" in word
     assert table[3][-1].startswith("PSM1 +0, PSM2 -60: 12 mm")
     rolled.clear()
-    word, _ = S.clearance_screen(rows, meta)
+    seen.clear()
+    word, (_, _, table) = S.clearance_screen(rows, meta)
     assert word.startswith(f"none of the {S.SCREEN_LAYOUTS} best") and "by 5 mm or more" in word
+    assert seen == list(range(S.SCREEN_LAYOUTS)) and len(table) == S.SCREEN_LAYOUTS  # at most SCREEN_LAYOUTS
 
 
 def test_a_layout_whose_links_overlap_clears_with_a_psm_rolled_about_its_shaft(tmp_path):

@@ -225,8 +225,8 @@ class RollsThatClear(NamedTuple):
 def rolls_that_clear(cfg, row: dict) -> RollsThatClear:
     """A layout's PSMs docked at every combination of ROLL_GRID_DEG (each PSM's own roll; the ECM as it docks):
     the combinations are ranked by their docked arms' least clearance to each other (fast: one pose each), and the
-    ROLL_FULL_CHECKS best of those that clear docked are checked in full (``layout_clearances``: over the target,
-    the patient, the table). The one with the largest least clearance >= 0, or ``least`` None."""
+    ROLL_FULL_CHECKS best of those that clear docked are checked in full, in that order (``layout_clearances``:
+    over the target, the patient, the table). The first whose least clearance is >= 0, or ``least`` None."""
     import itertools
 
     from surgopt.kinematics.capsules import least_pair_clearance
@@ -245,16 +245,21 @@ def rolls_that_clear(cfg, row: dict) -> RollsThatClear:
         return least_pair_clearance(p.segments[0], p.radii, q.segments[0], q.radii)[0]
 
     with_ecm = {k: pair(p, ecm_pose) if ecm_pose is not None else np.inf for k, p in docked_pose.items()}
+    between_psms = {}  # each (arm, roll) pair once, however many combinations share it
+
+    def psms_pair(x, y):
+        if (x, y) not in between_psms:
+            between_psms[x, y] = pair(docked_pose[x], docked_pose[y])
+        return between_psms[x, y]
+
     combos = []
     for choice in itertools.product(*([(a, deg) for deg, _ in options[a]] for a in psms)):
-        c = min([with_ecm[k] for k in choice]
-                + [pair(docked_pose[x], docked_pose[y]) for x, y in itertools.combinations(choice, 2)])
+        c = min([with_ecm[k] for k in choice] + [psms_pair(x, y) for x, y in itertools.combinations(choice, 2)])
         combos.append((c, choice))
     combos.sort(key=lambda t: -t[0])
-    best = None
     for c, choice in [t for t in combos if t[0] >= 0][:ROLL_FULL_CHECKS]:
         arms = [dict(options[a])[deg] for a, deg in choice] + ecm
         worst = least(layout_clearances(cfg, row, arms))
-        if worst is not None and worst.clearance_mm >= 0 and (best is None or worst.clearance_mm > best[1].clearance_mm):
-            best = ({a.upper(): deg for a, deg in choice}, worst)
-    return RollsThatClear(best[0] if best else {}, best[1] if best else None, len(combos))
+        if worst is not None and worst.clearance_mm >= 0:  # the first that clears, best docked first
+            return RollsThatClear({a.upper(): deg for a, deg in choice}, worst, len(combos))
+    return RollsThatClear({}, None, len(combos))

@@ -764,12 +764,14 @@ def clearance_screen(rows: list[dict], meta: dict):
         out.append([str(r["design_id"]), f"{r['cost']:.4g}", f"{c.clearance_mm:.0f}", c.check,
                     f"{c.link_a} / {c.link_b}", with_rolls])
         if clear is None and c.clearance_mm >= 0:
-            clear = f"design {r['design_id']} (the best of the {{n}} best feasible layouts whose links clear)"
+            clear = f"design {r['design_id']} (the best feasible layout whose links clear; {{n}} screened)"
         elif clear is None and rolled is not None and rolled.least is not None:
             turned = ", ".join(f"{a} {d:+.0f}" for a, d in rolled.rolls.items() if d)
             clear = (f"design {r['design_id']} with its PSMs' docking rolled ({turned} deg about the shaft): least "
                      f"clearance {rolled.least.clearance_mm:.0f} mm ({rolled.least.link_a} / {rolled.least.link_b}); "
                      f"its cost is at the run's roll; `surgopt export --format dvrk` docks it so")
+        if clear is not None:  # what the headline needs: the best layout that clears (each costs ~0.5-2 s)
+            break
     if not out:
         return None
     n = len(out)
@@ -779,7 +781,8 @@ def clearance_screen(rows: list[dict], meta: dict):
         worst = max(float(x[2]) for x in out)
         word = (f"none of the {n} best feasible layouts, at the run's docking roll or each PSM's own: their links "
                 f"overlap outside the body by {-worst:.0f} mm or more (link clearance is not yet part of feasible)")
-    title = (f"the {n} best feasible layouts, their links' least clearance outside the body (capsules, radii "
+    title = (f"the best feasible layouts, {n} screened by cost until one clears (at most {SCREEN_LAYOUTS}): their "
+             f"links' least clearance outside the body (capsules, radii "
              f"assumed; negative: they overlap; not yet part of feasible), and each PSM's docking roll (deg, "
              f"{ROLL_TEXT}) at which they clear")
     return word, (title, ["design_id", "cost", "least_clearance_mm", "between", "links", "with rolls"], out)
