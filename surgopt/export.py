@@ -184,8 +184,9 @@ def _column_text(col):
     if pa.types.is_floating(col.type):
         col = col.cast(pa.float64())  # a float32's own value, not its shortest float32 text
         text = pc.cast(col, pa.string())
-        # an integral value Arrow wrote without a point or an exponent (72, not 1e+10): 72.0
-        integral = pc.and_(pc.equal(pc.floor(col), col), pc.invert(pc.match_substring(text, "e")))
+        # a finite integral value Arrow wrote without a point or an exponent (72; not 1e+10, inf): 72.0
+        integral = pc.and_(pc.and_(pc.is_finite(col), pc.equal(pc.floor(col), col)),
+                           pc.invert(pc.match_substring(text, "e")))
         text = pc.if_else(integral, pc.binary_join_element_wise(text, ".0", ""), text)
         return pc.if_else(pc.is_nan(col), None, text)  # empty, as pandas writes NaN
     if pa.types.is_string(col.type) or pa.types.is_large_string(col.type):

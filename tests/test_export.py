@@ -16,7 +16,8 @@ from hypothesis import strategies as st
 from surgopt.export import csv_lines
 
 FLOATS = st.one_of(st.floats(allow_nan=True, allow_infinity=True), st.integers(-10**17, 10**17).map(float),
-                   st.sampled_from([0.0, -0.0, 1e-300, 4.469429938361067e-09, 1e-5, 72.0, -144.0, 1e16, 0.1]),
+                   st.sampled_from([0.0, -0.0, 1e-300, 4.469429938361067e-09, 1e-5, 72.0, -144.0, 1e16, 0.1,
+                                    float("inf"), float("-inf")]),
                    st.none())
 TEXT = st.one_of(st.text(alphabet=st.sampled_from(list('ab ,"\n\r;é')), max_size=6), st.none())
 
@@ -54,7 +55,7 @@ def test_csv_cells_are_what_python_writes(rows):
 def test_pandas_reads_the_csv_back_as_the_table_was():
     """Integral floats keep their ".0" (a column of 72.0 and -144.0 reads back as floats, not integers), a float32
     is written as its own value, a dictionary column as its values; pandas' frame equals the table's exactly."""
-    table = pa.table({"x_mm": pa.array([72.0, -144.0, 18.0]), "y": pa.array([0.1, np.nan, 1e-300]),
+    table = pa.table({"x_mm": pa.array([72.0, -144.0, 18.0]), "y": pa.array([0.1, np.nan, np.inf]),
                       "f32": pa.array([0.1, 2.5, 3.0], pa.float32()), "site": pa.array([1, 2, 3], pa.int32()),
                       "feasible": pa.array([True, False, True]),
                       "arm": pa.array(["PSM1", "a, b", 'say "hi"']).dictionary_encode()})
