@@ -225,7 +225,8 @@ def cart_figure(plt, cfg, row: dict, out):
     """The layout on the cart, in the cart's world frame (m; the floor at z = 0): the patient's surface and the
     table, each arm's setup joints as the polyline of their frames (base, each link, the SUJ's tip), the arm's
     own links docked (the axes of ``clashes``' capsules: mount, yaw link, parallelogram, insertion stage,
-    housing, the shaft outside the port) and a line from the RCM in to the target's centre."""
+    housing, the shaft outside the port) and a line from the RCM in to the target's centre; docked as the dvrk
+    export docks it (``export.docking_that_clears``: each PSM rolled about its shaft where that clears the links)."""
     from surgopt.kinematics import suj as S
     from surgopt.robots.dvrk_suj import CARTS
     from surgopt.studies.port_place.geometry import body_extent_mm, dome_surface_mm
@@ -248,7 +249,11 @@ def cart_figure(plt, cfg, row: dict, out):
     centre = to_cart(np.asarray(cfg.target.centre_mm, float) / 1000)
     ax.scatter(*centre, color="k", s=20, label="target centre")
     model = model_of(cfg)
-    for arm, colour in zip(docked_arms(cfg, row), ("C0", "C1", "C2", "C3")):
+    from surgopt.studies.port_place.export import docking_that_clears
+
+    docked, rolls, _ = docking_that_clears(cfg, row, patient, docked_arms(cfg, row))  # as the dvrk export docks it
+    turned = ", ".join(f"{a} rolled {d:+.0f} deg" for a, d in rolls.items() if d)
+    for arm, colour in zip(docked, ("C0", "C1", "C2", "C3")):
         if not arm.joints:
             continue
         f = S.frames(CARTS[cfg.cart.model][arm.arm], arm.joints)
@@ -267,6 +272,8 @@ def cart_figure(plt, cfg, row: dict, out):
     ax.set_box_aspect(lims[:, 1] - lims[:, 0])
     ax.view_init(elev=22, azim=-60)
     ax.set_title(f"design {row['design_id']} on the {cfg.cart.model} cart: origin ({row['cart_x_mm']:.0f}, "
-                 f"{row['cart_y_mm']:.0f}) mm, heading {row['cart_heading_deg']:.0f} deg (patient frame)", fontsize=9)
+                 f"{row['cart_y_mm']:.0f}) mm, heading {row['cart_heading_deg']:.0f} deg (patient frame)"
+                 + (f"\ndocked as the dvrk export docks it so that the links clear: {turned}" if turned else ""),
+                 fontsize=9)
     ax.legend(fontsize=7, loc="upper left")
     return save(fig, out / "port_place_cart_3d.png")
