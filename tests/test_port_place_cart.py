@@ -332,6 +332,17 @@ def test_a_layout_whose_links_overlap_clears_with_a_psm_rolled_about_its_shaft(t
     ecm = [a for a in T.docked_arms(cfg, row) if a.arm == "ECM"]
     again = layout_clearances(cfg, row, arms + ecm)
     assert min(c.clearance_mm for c in again) == got.least.clearance_mm >= 0
+    # an arm whose mount (the SUJ's tip) lies below the table top is named with its depth: the tip from the
+    # reference FK of the tool origin and the cart data's tip-to-tool transform
+    from surgopt.robots.dvrk_suj import CARTS
+    from surgopt.studies.port_place.clashes import mounts_below_table_top
+
+    low = mounts_below_table_top(cfg, row, arms + ecm)
+    assert low  # the premise here: the rolled PSM2 comes in from below the table top (the default's does too)
+    for arm in arms + ecm:
+        tip = suj_forward_reference("classic", arm.arm, arm.joints) @ np.linalg.inv(CARTS["classic"][arm.arm].tip_to_tool)
+        height_mm = float((tip[:3, 3] - patient[:3, 3]) @ patient[:3, 2]) * 1000
+        assert (arm.arm in low) == (height_mm < 0) and low.get(arm.arm, -height_mm) == pytest.approx(-height_mm, abs=1e-6)
     # the robot's file docks it so: each PSM's roll, its SUJ joints landing the rolled frame, its links clear
     setup = json.loads(S.dvrk_export(cfg, row))
     assert "turned about its neutral shaft" in setup["docking"] and setup["clearances_outside_body"]["least_mm"] >= 0

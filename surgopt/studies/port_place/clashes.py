@@ -263,3 +263,22 @@ def rolls_that_clear(cfg, row: dict) -> RollsThatClear:
         if worst is not None and worst.clearance_mm >= 0:  # the first that clears, best docked first
             return RollsThatClear({a.upper(): deg for a, deg in choice}, worst, len(combos))
     return RollsThatClear({}, None, len(combos))
+
+
+def mounts_below_table_top(cfg, row: dict, docked) -> dict:
+    """Each docked arm whose mount (the setup joints' last frame, where the arm's own links begin) lies below the
+    table top: its depth there (mm). Clear of the table slab the model has, such an arm still rises from beside the
+    table, where the patient's arms, the arm boards and the rails stand (not modelled): a docking to check."""
+    from surgopt.kinematics import suj as S
+    from surgopt.robots.dvrk_suj import CARTS
+    from surgopt.studies.port_place.tables import patient_in_cart
+
+    patient = patient_in_cart(cfg.cart, row["cart_x_mm"], row["cart_y_mm"], row["cart_heading_deg"])
+    out = {}
+    for a in docked:
+        if a.joints:
+            mount = S.frames(CARTS[cfg.cart.model][a.arm], a.joints)[-2, :3, 3]
+            z = float((mount - patient[:3, 3]) @ patient[:3, 2]) * 1000  # height over the table top
+            if z < 0:
+                out[a.arm] = -z
+    return out

@@ -60,11 +60,24 @@ def docking_that_clears(cfg: PortPlaceConfig, row: dict, patient: np.ndarray, do
                             f"{-worst.clearance_mm:.0f} mm ({worst.link_a} / {worst.link_b}) and no roll of each PSM "
                             f"about its shaft (of {found.tried} that reach and dock) clears them")
     turned = {arm: dict(rolled_docks(cfg, row, arm.lower(), patient))[deg] for arm, deg in found.rolls.items()}
-    return ([turned.get(a.arm, a) for a in docked], found.rolls,
+    arms = [turned.get(a.arm, a) for a in docked]
+    return (arms, found.rolls,
             f"each PSM's docking frame turned about its neutral shaft by docking_roll_deg (x toward y) so that the "
             f"links clear outside the body (least {found.least.clearance_mm:.0f} mm: {found.least.link_a} / "
             f"{found.least.link_b}); at the run's own docking they overlap by {-worst.clearance_mm:.0f} mm "
-            f"({worst.link_a} / {worst.link_b}); the run's rows and cost are at its own docking")
+            f"({worst.link_a} / {worst.link_b}); the run's rows and cost are at its own docking"
+            + below_table_note(cfg, row, arms))
+
+
+def below_table_note(cfg: PortPlaceConfig, row: dict, docked) -> str:
+    """"; PSM2's mount 58 mm below the table top, ..." for arms docked from below the table top (``clashes``)."""
+    from surgopt.studies.port_place.clashes import mounts_below_table_top
+
+    low = mounts_below_table_top(cfg, row, docked)
+    if not low:
+        return ""
+    return ("; " + ", ".join(f"{a}'s mount {d:.0f} mm below the table top" for a, d in low.items())
+            + " (beside the table: the patient's arms, arm boards and rails there are not modelled; check that side)")
 
 
 def dvrk_setup(cfg: PortPlaceConfig, row: dict) -> str:

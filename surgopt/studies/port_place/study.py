@@ -769,7 +769,8 @@ def clearance_screen(rows: list[dict], meta: dict):
             turned = ", ".join(f"{a} {d:+.0f}" for a, d in rolled.rolls.items() if d)
             clear = (f"design {r['design_id']} with its PSMs' docking rolled ({turned} deg about the shaft): least "
                      f"clearance {rolled.least.clearance_mm:.0f} mm ({rolled.least.link_a} / {rolled.least.link_b}); "
-                     f"its cost is at the run's roll; `surgopt export --format dvrk` docks it so")
+                     f"its cost is at the run's roll; `surgopt export --format dvrk` docks it so"
+                     + _below_table(cfg, r, rolled.rolls))
         if clear is not None:  # what the headline needs: the best layout that clears (each costs ~0.5-2 s)
             break
     if not out:
@@ -786,6 +787,18 @@ def clearance_screen(rows: list[dict], meta: dict):
              f"assumed; negative: they overlap; not yet part of feasible), and each PSM's docking roll (deg, "
              f"{ROLL_TEXT}) at which they clear")
     return word, (title, ["design_id", "cost", "least_clearance_mm", "between", "links", "with rolls"], out)
+
+
+def _below_table(cfg, row: dict, rolls: dict) -> str:
+    """``export.below_table_note`` of a layout docked with these PSM rolls."""
+    from surgopt.studies.port_place.clashes import rolled_docks
+    from surgopt.studies.port_place.export import below_table_note
+    from surgopt.studies.port_place.tables import docked_arms, patient_in_cart
+
+    patient = patient_in_cart(cfg.cart, row["cart_x_mm"], row["cart_y_mm"], row["cart_heading_deg"])
+    arms = [dict(rolled_docks(cfg, row, a.arm.lower(), patient))[rolls[a.arm]] if a.arm in rolls else a
+            for a in docked_arms(cfg, row)]
+    return below_table_note(cfg, row, arms)
 
 
 def layout_columns(names) -> list[str]:
