@@ -273,6 +273,7 @@ def test_the_best_layouts_are_screened_for_their_links_clearance(monkeypatch):
 
     monkeypatch.setattr(clashes, "layout_clearances", fake)
     monkeypatch.setattr(clashes, "rolls_that_clear", fake_rolls)
+    monkeypatch.setattr(S, "_below_table", lambda cfg, row, rolls: "")  # these rows have no cart pose to dock at
     meta = {"config": json.dumps(C.PortPlaceConfig.model_validate(SMALL).model_dump(mode="json"))}
     word, (title, header, table) = S.clearance_screen(rows, meta)
     assert seen == [0, 1, 2] and len(table) == 3  # screened by cost until one clears
