@@ -282,3 +282,35 @@ def mounts_below_table_top(cfg, row: dict, docked) -> dict:
             if z < 0:
                 out[a.arm] = -z
     return out
+
+
+def docking_that_clears(cfg, row: dict, patient: np.ndarray, docked: list):
+    """(the arms as docked, each PSM's docking roll about its shaft in deg where it was turned, what was done): the
+    run's own docking when the layout's links clear outside the body; else, when some combination of each PSM's
+    roll clears them (``clashes.rolls_that_clear``: full reach and the setup joints' ranges kept), the PSMs docked
+    so, so that the file a robot loads does not dock arms whose links overlap."""
+    worst = least(layout_clearances(cfg, row, docked))
+    if worst is None or worst.clearance_mm >= 0:
+        return docked, {}, "the run's docking frames (robot.docking_roll)"
+    found = rolls_that_clear(cfg, row)
+    if found.least is None:
+        return docked, {}, (f"the run's docking frames (robot.docking_roll); their links overlap outside the body by "
+                            f"{-worst.clearance_mm:.0f} mm ({worst.link_a} / {worst.link_b}) and no roll of each PSM "
+                            f"about its shaft (of {found.tried} that reach and dock) clears them")
+    turned = {arm: dict(rolled_docks(cfg, row, arm.lower(), patient))[deg] for arm, deg in found.rolls.items()}
+    arms = [turned.get(a.arm, a) for a in docked]
+    return (arms, found.rolls,
+            f"each PSM's docking frame turned about its neutral shaft by docking_roll_deg (x toward y) so that the "
+            f"links clear outside the body (least {found.least.clearance_mm:.0f} mm: {found.least.link_a} / "
+            f"{found.least.link_b}); at the run's own docking they overlap by {-worst.clearance_mm:.0f} mm "
+            f"({worst.link_a} / {worst.link_b}); the run's rows and cost are at its own docking"
+            + below_table_note(cfg, row, arms))
+
+
+def below_table_note(cfg, row: dict, docked) -> str:
+    """"; PSM2's mount 58 mm below the table top, ..." for arms docked from below the table top."""
+    low = mounts_below_table_top(cfg, row, docked)
+    if not low:
+        return ""
+    return ("; " + ", ".join(f"{a}'s mount {d:.0f} mm below the table top" for a, d in low.items())
+            + " (beside the table: the patient's arms, arm boards and rails there are not modelled; check that side)")

@@ -44,48 +44,13 @@ def clearances_of(cfg: PortPlaceConfig, row: dict, docked) -> dict:
                         "against": c.link_b, "where": c.where} for c in checks]}
 
 
-def docking_that_clears(cfg: PortPlaceConfig, row: dict, patient: np.ndarray, docked: list):
-    """(the arms as docked, each PSM's docking roll about its shaft in deg where it was turned, what was done): the
-    run's own docking when the layout's links clear outside the body; else, when some combination of each PSM's
-    roll clears them (``clashes.rolls_that_clear``: full reach and the setup joints' ranges kept), the PSMs docked
-    so, so that the file a robot loads does not dock arms whose links overlap."""
-    from surgopt.studies.port_place.clashes import layout_clearances, least, rolled_docks, rolls_that_clear
-
-    worst = least(layout_clearances(cfg, row, docked))
-    if worst is None or worst.clearance_mm >= 0:
-        return docked, {}, "the run's docking frames (robot.docking_roll)"
-    found = rolls_that_clear(cfg, row)
-    if found.least is None:
-        return docked, {}, (f"the run's docking frames (robot.docking_roll); their links overlap outside the body by "
-                            f"{-worst.clearance_mm:.0f} mm ({worst.link_a} / {worst.link_b}) and no roll of each PSM "
-                            f"about its shaft (of {found.tried} that reach and dock) clears them")
-    turned = {arm: dict(rolled_docks(cfg, row, arm.lower(), patient))[deg] for arm, deg in found.rolls.items()}
-    arms = [turned.get(a.arm, a) for a in docked]
-    return (arms, found.rolls,
-            f"each PSM's docking frame turned about its neutral shaft by docking_roll_deg (x toward y) so that the "
-            f"links clear outside the body (least {found.least.clearance_mm:.0f} mm: {found.least.link_a} / "
-            f"{found.least.link_b}); at the run's own docking they overlap by {-worst.clearance_mm:.0f} mm "
-            f"({worst.link_a} / {worst.link_b}); the run's rows and cost are at its own docking"
-            + below_table_note(cfg, row, arms))
-
-
-def below_table_note(cfg: PortPlaceConfig, row: dict, docked) -> str:
-    """"; PSM2's mount 58 mm below the table top, ..." for arms docked from below the table top (``clashes``)."""
-    from surgopt.studies.port_place.clashes import mounts_below_table_top
-
-    low = mounts_below_table_top(cfg, row, docked)
-    if not low:
-        return ""
-    return ("; " + ", ".join(f"{a}'s mount {d:.0f} mm below the table top" for a, d in low.items())
-            + " (beside the table: the patient's arms, arm boards and rails there are not modelled; check that side)")
-
-
 def dvrk_setup(cfg: PortPlaceConfig, row: dict) -> str:
     """The layout of ``row`` (a design of a run with the cart) as JSON: ``cart_to_patient`` (the patient's frame
     in the cart's world frame, 4x4, m) and one entry per arm (PSM1, PSM2, PSM3, ECM): its cart ("classic"), SUJ
     joints, ``world_origin_to_suj`` and ``suj_tip_to_tool_origin`` as used, its port (mm, patient frame), its base
     (RCM) frame in the cart's world frame, and its own joints at the target's centre."""
     from surgopt.robots.dvrk_suj import CARTS
+    from surgopt.studies.port_place.clashes import docking_that_clears
     from surgopt.studies.port_place.tables import docked_arms, model_of, patient_in_cart
 
     if cfg.cart.model == "none":

@@ -226,7 +226,7 @@ def cart_figure(plt, cfg, row: dict, out):
     table, each arm's setup joints as the polyline of their frames (base, each link, the SUJ's tip), the arm's
     own links docked (the axes of ``clashes``' capsules: mount, yaw link, parallelogram, insertion stage,
     housing, the shaft outside the port) and a line from the RCM in to the target's centre; docked as the dvrk
-    export docks it (``export.docking_that_clears``: each PSM rolled about its shaft where that clears the links)."""
+    export docks it (``clashes.docking_that_clears``: each PSM rolled about its shaft where that clears the links)."""
     from surgopt.kinematics import suj as S
     from surgopt.robots.dvrk_suj import CARTS
     from surgopt.studies.port_place.geometry import body_extent_mm, dome_surface_mm
@@ -249,7 +249,7 @@ def cart_figure(plt, cfg, row: dict, out):
     centre = to_cart(np.asarray(cfg.target.centre_mm, float) / 1000)
     ax.scatter(*centre, color="k", s=20, label="target centre")
     model = model_of(cfg)
-    from surgopt.studies.port_place.export import docking_that_clears
+    from surgopt.studies.port_place.clashes import docking_that_clears
 
     docked, rolls, _ = docking_that_clears(cfg, row, patient, docked_arms(cfg, row))  # as the dvrk export docks it
     turned = ", ".join(f"{a} rolled {d:+.0f} deg" for a, d in rolls.items() if d)

@@ -699,7 +699,7 @@ def docking_tables(best: dict, meta: dict) -> list:
     import json
 
     from surgopt.studies.port_place.clashes import layout_clearances
-    from surgopt.studies.port_place.export import docking_that_clears
+    from surgopt.studies.port_place.clashes import docking_that_clears
     from surgopt.studies.port_place.tables import docked_arms, patient_in_cart
 
     try:  # as stored: its files are not read and hashed again
@@ -790,9 +790,9 @@ def clearance_screen(rows: list[dict], meta: dict):
 
 
 def _below_table(cfg, row: dict, rolls: dict) -> str:
-    """``export.below_table_note`` of a layout docked with these PSM rolls."""
+    """``clashes.below_table_note`` of a layout docked with these PSM rolls."""
     from surgopt.studies.port_place.clashes import rolled_docks
-    from surgopt.studies.port_place.export import below_table_note
+    from surgopt.studies.port_place.clashes import below_table_note
     from surgopt.studies.port_place.tables import docked_arms, patient_in_cart
 
     patient = patient_in_cart(cfg.cart, row["cart_x_mm"], row["cart_y_mm"], row["cart_heading_deg"])
