@@ -333,6 +333,8 @@ def test_a_layout_whose_links_overlap_clears_with_a_psm_rolled_about_its_shaft(t
     ecm = [a for a in T.docked_arms(cfg, row) if a.arm == "ECM"]
     again = layout_clearances(cfg, row, arms + ecm)
     assert min(c.clearance_mm for c in again) == got.least.clearance_mm >= 0
+    assert list(got.clearances) == again  # kept with the rolls: what the report's and the export's tables show
+    assert rolls_that_clear(cfg, row) is got  # kept for the process: the report, the figure, the export share it
     # an arm whose mount (the SUJ's tip) lies below the table top is named with its depth: the tip from the
     # reference FK of the tool origin and the cart data's tip-to-tool transform
     from surgopt.robots.dvrk_suj import CARTS
@@ -347,6 +349,8 @@ def test_a_layout_whose_links_overlap_clears_with_a_psm_rolled_about_its_shaft(t
     # the robot's file docks it so: each PSM's roll, its SUJ joints landing the rolled frame, its links clear
     setup = json.loads(S.dvrk_export(cfg, row))
     assert "turned about its neutral shaft" in setup["docking"] and setup["clearances_outside_body"]["least_mm"] >= 0
+    assert [c["clearance_mm"] for c in setup["clearances_outside_body"]["checks"]] == [
+        round(c.clearance_mm, 1) for c in again]
     for arm in setup["arms"][:-1]:
         assert arm["docking_roll_deg"] == got.rolls[arm["name"]]
         port = np.array(arm["port_mm"]) / 1000
@@ -384,3 +388,36 @@ def test_a_search_docks_on_the_cart_as_the_grid_does(tmp_path):
     with pytest.raises(ConfigError, match="robot.docking_range_deg"):
         validate({**GRID, "robot": {"docking_range_deg": 10.0}, "search": {"method": "cmaes", "trials": 8}},
                  C.Config, "x")
+
+
+def test_the_closing_report_searches_each_layouts_rolls_once(tmp_path, monkeypatch):
+    """The closing report's screen and its "best layout" tables ask for the same layout's clearances and rolls:
+    each is computed once in a process (``clashes._memoised``), the premise (the best layout's links overlap at
+    the run's roll, so its rolls are searched) asserted; and the tables show the rolled docking's clearances."""
+    from surgopt.runner import run_study
+    from surgopt.store import Store
+    from surgopt.studies.port_place import clashes
+
+    store = Store(tmp_path / "s")
+    cfg = C.PortPlaceConfig.model_validate(GRID)
+    run_study(S.STUDY, cfg, config_name="grid", store=store, jobs=1, quiet=True)
+    (run,) = store.runs("port-place")
+    calls = {"rolls": [], "clearances": []}
+    search = clashes._rolls_that_clear
+
+    def counted_search(cfg, row):
+        calls["rolls"].append(row["design_id"])
+        return search(cfg, row)
+
+    monkeypatch.setattr(clashes, "_rolls_that_clear", counted_search)
+    monkeypatch.setattr(clashes, "_memo", {})
+    summary = S.summary(run.parts(S.STUDY.schema_for(run.manifest["config"])))
+    best = summary.headline["best_design_id"]
+    assert best in calls["rolls"]  # the premise: the best layout overlaps at the run's roll
+    assert len(calls["rolls"]) == len(set(calls["rolls"]))  # each layout's rolls searched once
+    (clear,) = [t for t in summary.tables if t[0].startswith("best layout: least clearance")]
+    row = next(r for r in S.least_cost_layouts(run.parts(S.STUDY.schema_for(run.manifest["config"])), 1).to_pylist())
+    rolled = clashes.rolls_that_clear(cfg, row)  # kept: not searched again
+    shown = rolled.clearances or clashes.layout_clearances(cfg, row)  # docked to clear where a roll clears it
+    assert [r[1] for r in clear[2]] == [f"{c.clearance_mm:.0f}" for c in shown]
+    assert calls["rolls"].count(best) == 1

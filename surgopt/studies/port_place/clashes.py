@@ -151,14 +151,33 @@ def against_table(cfg, a: ArmPoses, patient: np.ndarray) -> Clearance:
                      f"{a.arm} {a.poses[s // n]}")
 
 
+#: Answers (a layout's clearances, or its roll search) a process keeps: the closing report screens up to
+#: ``study.SCREEN_LAYOUTS`` (10) layouts, two answers each, and then its tables, the figure and the export ask again
+#: for the best layout's (~0.5-1.5 s each time otherwise).
+MEMO_ENTRIES = 32
+_memo: dict = {}
+
+
+def _memoised(what: str, cfg, row: dict, compute):
+    """``compute()`` once per (what, the config, the row's values) in this process, the MEMO_ENTRIES latest kept:
+    both functions memoised are pure functions of the config and the row."""
+    key = (what, cfg.model_dump_json(), tuple(sorted((k, repr(v)) for k, v in row.items())))
+    if key not in _memo:
+        while len(_memo) >= MEMO_ENTRIES:
+            _memo.pop(next(iter(_memo)))
+        _memo[key] = compute()
+    return _memo[key]
+
+
 def layout_clearances(cfg, row: dict, docked=None) -> list[Clearance]:
     """Every least clearance of a layout's row on the cart (its ports and cart pose): each pair of docked arms
     (docked and over the target), each arm against the patient and the table. Arms that do not dock are left
-    out (their setup joints have no solution to place links at)."""
+    out (their setup joints have no solution to place links at). ``docked``: the arms docked otherwise than the
+    row's own docking (rolled); without it the answer is kept for the process (``_memoised``)."""
     from surgopt.studies.port_place.tables import docked_arms, model_of, patient_in_cart
 
     if docked is None:
-        docked = docked_arms(cfg, row)
+        return list(_memoised("clearances", cfg, row, lambda: layout_clearances(cfg, row, docked_arms(cfg, row))))
     patient = patient_in_cart(cfg.cart, row["cart_x_mm"], row["cart_y_mm"], row["cart_heading_deg"])
     model = model_of(cfg)
     start = int(np.argmin(np.linalg.norm(model.targets_m - model.centre_m, axis=1)))
@@ -214,15 +233,22 @@ def rolled_docks(cfg, row: dict, arm: str, patient: np.ndarray) -> list[tuple[fl
 
 
 class RollsThatClear(NamedTuple):
-    """Per-PSM docking rolls (deg, by arm) at which a layout's every clearance outside the body is >= 0, and the
-    least of them; ``tried``: the roll combinations whose arms all reach and dock."""
+    """Per-PSM docking rolls (deg, by arm) at which a layout's every clearance outside the body is >= 0, the least
+    of them and all of them (``layout_clearances`` so docked); ``tried``: the roll combinations whose arms all
+    reach and dock."""
 
     rolls: dict
     least: Clearance | None
     tried: int
+    clearances: tuple = ()
 
 
 def rolls_that_clear(cfg, row: dict) -> RollsThatClear:
+    """``_rolls_that_clear``, kept for the process (``_memoised``)."""
+    return _memoised("rolls", cfg, row, lambda: _rolls_that_clear(cfg, row))
+
+
+def _rolls_that_clear(cfg, row: dict) -> RollsThatClear:
     """A layout's PSMs docked at every combination of ROLL_GRID_DEG (each PSM's own roll; the ECM as it docks):
     the combinations are ranked by their docked arms' least clearance to each other (fast: one pose each), and the
     ROLL_FULL_CHECKS best of those that clear docked are checked in full, in that order (``layout_clearances``:
@@ -259,9 +285,10 @@ def rolls_that_clear(cfg, row: dict) -> RollsThatClear:
     combos.sort(key=lambda t: -t[0])
     for c, choice in [t for t in combos if t[0] >= 0][:ROLL_FULL_CHECKS]:
         arms = [dict(options[a])[deg] for a, deg in choice] + ecm
-        worst = least(layout_clearances(cfg, row, arms))
+        found = layout_clearances(cfg, row, arms)
+        worst = least(found)
         if worst is not None and worst.clearance_mm >= 0:  # the first that clears, best docked first
-            return RollsThatClear({a.upper(): deg for a, deg in choice}, worst, len(combos))
+            return RollsThatClear({a.upper(): deg for a, deg in choice}, worst, len(combos), tuple(found))
     return RollsThatClear({}, None, len(combos))
 
 
@@ -284,19 +311,25 @@ def mounts_below_table_top(cfg, row: dict, docked) -> dict:
     return out
 
 
-def docking_that_clears(cfg, row: dict, patient: np.ndarray, docked: list):
-    """(the arms as docked, each PSM's docking roll about its shaft in deg where it was turned, what was done): the
-    run's own docking when the layout's links clear outside the body; else, when some combination of each PSM's
-    roll clears them (``clashes.rolls_that_clear``: full reach and the setup joints' ranges kept), the PSMs docked
-    so, so that the file a robot loads does not dock arms whose links overlap."""
-    worst = least(layout_clearances(cfg, row, docked))
+def docking_that_clears(cfg, row: dict):
+    """(the arms as docked, each PSM's docking roll about its shaft in deg where it was turned, what was done,
+    the links' clearances so docked): the run's own docking when the layout's links clear outside the body; else,
+    when some combination of each PSM's roll clears them (``clashes.rolls_that_clear``: full reach and the setup
+    joints' ranges kept), the PSMs docked so, so that the file a robot loads does not dock arms whose links
+    overlap."""
+    from surgopt.studies.port_place.tables import docked_arms, patient_in_cart
+
+    docked = docked_arms(cfg, row)
+    clearances = layout_clearances(cfg, row)
+    worst = least(clearances)
     if worst is None or worst.clearance_mm >= 0:
-        return docked, {}, "the run's docking frames (robot.docking_roll)"
+        return docked, {}, "the run's docking frames (robot.docking_roll)", clearances
     found = rolls_that_clear(cfg, row)
     if found.least is None:
         return docked, {}, (f"the run's docking frames (robot.docking_roll); their links overlap outside the body by "
                             f"{-worst.clearance_mm:.0f} mm ({worst.link_a} / {worst.link_b}) and no roll of each PSM "
-                            f"about its shaft (of {found.tried} that reach and dock) clears them")
+                            f"about its shaft (of {found.tried} that reach and dock) clears them"), clearances
+    patient = patient_in_cart(cfg.cart, row["cart_x_mm"], row["cart_y_mm"], row["cart_heading_deg"])
     turned = {arm: dict(rolled_docks(cfg, row, arm.lower(), patient))[deg] for arm, deg in found.rolls.items()}
     arms = [turned.get(a.arm, a) for a in docked]
     return (arms, found.rolls,
@@ -304,7 +337,7 @@ def docking_that_clears(cfg, row: dict, patient: np.ndarray, docked: list):
             f"links clear outside the body (least {found.least.clearance_mm:.0f} mm: {found.least.link_a} / "
             f"{found.least.link_b}); at the run's own docking they overlap by {-worst.clearance_mm:.0f} mm "
             f"({worst.link_a} / {worst.link_b}); the run's rows and cost are at its own docking"
-            + below_table_note(cfg, row, arms))
+            + below_table_note(cfg, row, arms), list(found.clearances))
 
 
 def below_table_note(cfg, row: dict, docked) -> str:

@@ -30,12 +30,11 @@ def arm_joints_at_centre(limits, base_in_patient: np.ndarray, centre_m: np.ndarr
     return [float(v) for v in rcm_inverse(p, limits.along_shaft_m)]
 
 
-def clearances_of(cfg: PortPlaceConfig, row: dict, docked) -> dict:
+def clearances_of(checks: list) -> dict:
     """The layout's least clearances outside the body (``clashes``): each check's value (mm), links and where,
     and the least of them; the model's radii are assumptions (``robots/dvrk_links.py``)."""
-    from surgopt.studies.port_place.clashes import layout_clearances, least
+    from surgopt.studies.port_place.clashes import least
 
-    checks = layout_clearances(cfg, row, docked)
     worst = least(checks)
     return {"least_mm": None if worst is None else round(worst.clearance_mm, 1),
             "model": "capsules about the setup joints' frames and the arms' links (robots/dvrk_links.py; radii "
@@ -51,7 +50,7 @@ def dvrk_setup(cfg: PortPlaceConfig, row: dict) -> str:
     (RCM) frame in the cart's world frame, and its own joints at the target's centre."""
     from surgopt.robots.dvrk_suj import CARTS
     from surgopt.studies.port_place.clashes import docking_that_clears
-    from surgopt.studies.port_place.tables import docked_arms, model_of, patient_in_cart
+    from surgopt.studies.port_place.tables import model_of, patient_in_cart
 
     if cfg.cart.model == "none":
         raise UsageError("--format dvrk: this run has no cart (cart.model = 'none'): run it with [cart] model = "
@@ -62,7 +61,7 @@ def dvrk_setup(cfg: PortPlaceConfig, row: dict) -> str:
     centre = np.asarray(cfg.target.centre_mm, float) / 1000
     patient = patient_in_cart(cfg.cart, row["cart_x_mm"], row["cart_y_mm"], row["cart_heading_deg"])
     arms = []
-    docked, rolls, docking = docking_that_clears(cfg, row, patient, docked_arms(cfg, row))
+    docked, rolls, docking, clearances = docking_that_clears(cfg, row)
     for a in docked:
         suj = CARTS[cfg.cart.model][a.arm]
         holder = camera_arm_of(cfg) if a.arm == "ECM" else instrument_of(cfg)
@@ -89,7 +88,7 @@ def dvrk_setup(cfg: PortPlaceConfig, row: dict) -> str:
                     "heading_deg": row["cart_heading_deg"], "table_height_mm": cfg.cart.table_height_mm,
                     "trendelenburg_deg": cfg.cart.trendelenburg_deg, "lateral_tilt_deg": cfg.cart.lateral_tilt_deg},
            "cart_to_patient": _matrix(patient), "docking": docking, "arms": arms,
-           "clearances_outside_body": clearances_of(cfg, row, docked)}
+           "clearances_outside_body": clearances_of(clearances)}
     return json.dumps(out, indent=1) + "\n"
 
 

@@ -231,7 +231,7 @@ def cart_figure(plt, cfg, row: dict, out):
     from surgopt.robots.dvrk_suj import CARTS
     from surgopt.studies.port_place.geometry import body_extent_mm, dome_surface_mm
     from surgopt.studies.port_place.clashes import arm_poses
-    from surgopt.studies.port_place.tables import docked_arms, model_of, patient_in_cart
+    from surgopt.studies.port_place.tables import model_of, patient_in_cart
 
     patient = patient_in_cart(cfg.cart, row["cart_x_mm"], row["cart_y_mm"], row["cart_heading_deg"])
     to_cart = lambda p: p @ patient[:3, :3].T + patient[:3, 3]  # noqa: E731 - patient (m) -> cart world (m)
@@ -251,7 +251,7 @@ def cart_figure(plt, cfg, row: dict, out):
     model = model_of(cfg)
     from surgopt.studies.port_place.clashes import docking_that_clears
 
-    docked, rolls, _ = docking_that_clears(cfg, row, patient, docked_arms(cfg, row))  # as the dvrk export docks it
+    docked, rolls, _, _ = docking_that_clears(cfg, row)  # as the dvrk export docks it
     turned = ", ".join(f"{a} rolled {d:+.0f} deg" for a, d in rolls.items() if d)
     for arm, colour in zip(docked, ("C0", "C1", "C2", "C3")):
         if not arm.joints:

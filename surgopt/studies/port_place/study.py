@@ -636,9 +636,9 @@ def summary(parts) -> Summary:
                  for arm in ("psm1", "psm2", "psm3", "ecm") if f"{arm}_site" in b]
         tables.append((f"best layout: ports ({FRAME_TEXT})", ["arm", "site", "x_mm", "y_mm", "z_mm"]
                        + ([f"from the {mark[0]} (mm, top view)"] if mark else []), ports))
-        if "cart_pose" in b:
-            tables += docking_tables(b, meta)
+        if "cart_pose" in b:  # the screen first: the best layout's clearances and rolls are then known
             screen = clearance_screen(screened, meta)
+            tables += docking_tables(b, meta)
             if screen is not None:
                 headline["links_clear"], table = screen
                 tables.append(table)
@@ -698,17 +698,14 @@ def docking_tables(best: dict, meta: dict) -> list:
     and the links' clearances so docked."""
     import json
 
-    from surgopt.studies.port_place.clashes import layout_clearances
     from surgopt.studies.port_place.clashes import docking_that_clears
-    from surgopt.studies.port_place.tables import docked_arms, patient_in_cart
 
     try:  # as stored: its files are not read and hashed again
         cfg = PortPlaceConfig.model_validate(json.loads(meta["config"]), context={"stored": True})
     except (ValueError, OSError, KeyError) as exc:
         return [("best layout: the cart", ["note"], [[f"the run's config cannot be read again ({exc}); the cart "
                                                        f"pose is in the row's cart_* columns"]])]
-    patient = patient_in_cart(cfg.cart, best["cart_x_mm"], best["cart_y_mm"], best["cart_heading_deg"])
-    docked, rolls, _ = docking_that_clears(cfg, best, patient, docked_arms(cfg, best))  # as the export docks it
+    docked, rolls, _, clearances = docking_that_clears(cfg, best)  # as the export docks it
     turned = {arm: deg for arm, deg in rolls.items() if deg}
     pose = [[f"{best['cart_x_mm']:.0f}", f"{best['cart_y_mm']:.0f}", f"{best['cart_heading_deg']:.1f}",
              str(best["cart_pose"])]]
@@ -718,7 +715,7 @@ def docking_tables(best: dict, meta: dict) -> list:
                         else f"docking rolled {turned[a.arm]:+.0f} deg about the shaft" if a.arm in turned
                         else "")] for a in docked]
     clear = [[c.check, f"{c.clearance_mm:.0f}", c.link_a, c.link_b, c.where]
-             for c in layout_clearances(cfg, best, docked)]
+             for c in clearances]
     return [(f"best layout: the {cfg.cart.model} cart (origin on the floor, patient frame; heading from +y toward +x)",
              ["x_mm", "y_mm", "heading_deg", "grid pose"], pose),
             ("best layout: setup joints (column m, then rad, the dVRK's simulated_position order)"
