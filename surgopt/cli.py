@@ -189,8 +189,11 @@ def _run_study_command(study, cmd: StudyCommand, flags=()):
         updates = {k: v for f, value in flags for k, v in f.update(value).items()}
         flags_text = " ".join(f"{f.option} {v}" for f, v in flags if f.value_update is not None)
         flags = [f for f, _ in flags]
-        todo = variants(study, config, overrides, updates, multirun=cmd.multirun, flags_text=flags_text)
-        todo = _expanded(study, todo, flags)
+        from surgopt.files import recording
+
+        with recording() as files_read:
+            given = variants(study, config, overrides, updates, multirun=cmd.multirun, flags_text=flags_text)
+            todo = _expanded(study, given, flags)
         if cmd.print_config:
             _print_configs(todo)
             return
@@ -220,6 +223,18 @@ def _run_study_command(study, cmd: StudyCommand, flags=()):
         if len(todo) > 1:
             _multirun_table(study, finished)
             _best_of(study, finished)
+        elif _plain(cmd, flags) and todo == given and finished[0][1].run.complete:
+            from surgopt.hits import record
+
+            record(Store(cmd.store), study.name, list(cmd.args or []), finished[0][1].run, files_read,
+                   list(dict.fromkeys(notes)))
+
+
+def _plain(cmd: StudyCommand, flags) -> bool:
+    """Whether a study command was given nothing but configs, overrides and --store (``surgopt.hits`` answers
+    such a command line again from the store without loading the study)."""
+    return not flags and cmd == StudyCommand(args=cmd.args, store=cmd.store, backend=cmd.backend) \
+        and getattr(cmd.backend, "value", cmd.backend) == "threads"
 
 
 def _expanded(study, todo, flags) -> list:
@@ -389,14 +404,7 @@ app.info.cls = _StudyCommands
 
 def _report(study, result, brief: bool = False):
     """The closing report of one run (``brief``: headline only, for each run of a --multirun)."""
-    from rich.table import Table
-
-    console = wide_console()
-    for m in result.messages:
-        console.print(m)
     run = result.run
-    if result.cache_hit:
-        console.print(f"cache hit: {study.name} {run.key[:12]} already in {run.path}")
     from surgopt.errors import StoreError
 
     try:
@@ -406,6 +414,8 @@ def _report(study, result, brief: bool = False):
 
         if manifest_of(run.path).exists():
             raise
+        for m in result.messages:
+            wide_console().print(m)
         # removed (`surgopt runs rm`) between its last part and this report: the run did finish; nothing to show
         typer.echo(f"note: {study.name} run {run.key[:12]} finished, but was removed (surgopt runs rm) before its "
                    f"report could read it", err=True)
@@ -416,11 +426,28 @@ def _report(study, result, brief: bool = False):
         from surgopt.store import Store
 
         Store(run.path.parent.parent).record_headline(run, summary.headline)
-    t = Table(title=f"{study.name} ({run.manifest['config_name']})", show_header=False)
+    print_report(study.name, run, summary, edges, front, rows=result.parts.num_rows, elapsed_s=result.elapsed_s,
+                 cache_hit=result.cache_hit, messages=result.messages, brief=brief)
+    return summary
+
+
+def print_report(study_name: str, run, summary, edges, front, *, rows: int, elapsed_s: float, cache_hit: bool,
+                 messages=(), brief: bool = False) -> None:
+    """The closing report's text: the run's messages, the headline table, the best-on-an-edge notes and (unless
+    ``brief``) the study's tables and a search's front (also what ``surgopt.hits`` prints for a recorded
+    command line)."""
+    from rich.table import Table
+
+    console = wide_console()
+    for m in messages:
+        console.print(m)
+    if cache_hit:
+        console.print(f"cache hit: {study_name} {run.key[:12]} already in {run.path}")
+    t = Table(title=f"{study_name} ({run.manifest['config_name']})", show_header=False)
     for k, v in summary.headline.items():
         t.add_row(k, f"{v:.6g}" if isinstance(v, float) else str(v))
-    t.add_row("rows", str(result.parts.num_rows))
-    t.add_row("time_s", f"{result.elapsed_s:.2f}")
+    t.add_row("rows", str(rows))
+    t.add_row("time_s", f"{elapsed_s:.2f}")
     t.add_row("store", f"{run.path}")
     console.print(t)
     from rich.markup import escape
@@ -428,11 +455,10 @@ def _report(study, result, brief: bool = False):
     for note in edges:
         console.print(f"note: {escape(note)}")
     if not brief:
-        for title, header, rows in summary.tables:
-            print_table(console, title, header, rows)
+        for title, header, table_rows in summary.tables:
+            print_table(console, title, header, table_rows)
         if front is not None:
             print_table(console, *front)
-    return summary
 
 
 def _closing_numbers(study, run, parts, brief: bool):
@@ -536,6 +562,10 @@ def run() -> None:
     from surgopt import interrupts
 
     try:
+        from surgopt.hits import answered
+
+        if answered(sys.argv[1:]):  # a recorded plain command line whose run checks out: its report, nothing loaded
+            sys.exit(0)
         app(prog_name="surgopt")  # ends in SystemExit; a stop outside a command's guard is typer's silent 130
     except BaseException as exc:  # noqa: BLE001 - any exception a stop caused is the stop
         if interrupts.received() is None and not isinstance(exc, (SystemExit, KeyboardInterrupt)):

@@ -223,12 +223,12 @@ def validate(data: Any, model: type[M], source: str, context: dict | None = None
 
 def read_config_data(path: str | Path) -> Any:
     """The parsed (not yet validated) contents of a TOML or YAML config file."""
-    from surgopt.files import FileProblem, read_bounded
+    from surgopt.files import FileProblem, note_read, read_bounded
 
     p = Path(path)
     source = str(path)
     try:
-        text = read_bounded(p, MAX_CONFIG_BYTES).decode("utf-8")
+        text = note_read(p, read_bounded(p, MAX_CONFIG_BYTES)).decode("utf-8")
     except FileNotFoundError:
         raise ConfigError(source, "file not found") from None
     except IsADirectoryError:

@@ -44,18 +44,28 @@ def derived(run, name: str, compute: Callable[[], Any], **args) -> Any:
     """``compute()`` for this run, or the value kept from an earlier call with the same ``name`` and ``args`` (see
     the module's docstring for when a kept value is used). The value is returned as JSON reads it back (lists for
     tuples, plain floats), the same on the first call as on later ones."""
-    entry = f"{name}:{json.dumps(args, sort_keys=True)}"
-    kept = _read(run) if run.complete else None
-    if kept is not None and entry in kept:
-        value = _checked(kept[entry])
-        if value is not None:
-            return value[0]
+    value = kept(run, name, **args)
+    if value is not None:
+        return value[0]
+    entry = _entry(name, args)
     text = json.dumps(compute(), default=_plain, allow_nan=True)  # keys in their order: tables show it
     if run.complete:  # the entries as they are now (``compute`` may have kept others meanwhile), the newest last
         entries = {k: v for k, v in (_read(run) or {}).items() if k != entry}
         entries[entry] = {"sha256": hashlib.sha256(text.encode()).hexdigest(), "value": text}
         _write(run, dict(list(entries.items())[-MAX_ENTRIES:]))
     return json.loads(text)
+
+
+def kept(run, name: str, **args) -> tuple[Any] | None:
+    """(value,) kept for this run under ``name`` and ``args``, used on the terms of the module's docstring; None
+    when there is none to use (nothing is computed: ``surgopt.hits`` answers a cache hit only from kept values)."""
+    entries = _read(run) if run.complete else None
+    entry = _entry(name, args)
+    return _checked(entries[entry]) if entries is not None and entry in entries else None
+
+
+def _entry(name: str, args: dict) -> str:
+    return f"{name}:{json.dumps(args, sort_keys=True)}"
 
 
 def _checked(item) -> tuple[Any] | None:

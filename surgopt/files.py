@@ -2,6 +2,7 @@
 read, and a bound on how much is read (a FIFO never blocks, /dev/zero or an 8 GB file is never read whole)."""
 from __future__ import annotations
 
+import contextlib
 import errno
 import os
 from pathlib import Path
@@ -58,10 +59,35 @@ def config_file_path(value: str, context: dict) -> Path:
     return path.resolve()
 
 
+#: While a command records (``recording``): (path, sha256) of every file a config was read from or named.
+_read_files: list | None = None
+
+
+@contextlib.contextmanager
+def recording():
+    """The files configs read while inside, as a list of (absolute path, sha256) filled in as they are read:
+    what a cache hit answered before the config is validated must find unchanged (``surgopt.hits``)."""
+    global _read_files
+    outer, _read_files = _read_files, []
+    try:
+        yield _read_files
+    finally:
+        _read_files = outer
+
+
+def note_read(path: Path, data: bytes) -> bytes:
+    """``data`` as read from ``path`` for a config, noted while ``recording``."""
+    if _read_files is not None:
+        import hashlib
+
+        _read_files.append((str(Path(path).resolve()), hashlib.sha256(data).hexdigest()))
+    return data
+
+
 def read_config_file(field: str, path: Path, limit: int) -> bytes:
     """The bytes of a file a config names (``read_bounded``); every failure a ValueError naming ``field``."""
     try:
-        return read_bounded(path, limit)
+        return note_read(path, read_bounded(path, limit))
     except FileNotFoundError:
         raise ValueError(f"{field}: file not found: {path}") from None
     except FileProblem as exc:

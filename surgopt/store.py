@@ -128,14 +128,11 @@ def load_manifest(mpath: Path) -> dict:
 
 
 def _footer_rows(data: bytes) -> int | None:
-    """The row count a Parquet file's footer records (None if it has none readable)."""
-    import pyarrow as pa
-    import pyarrow.parquet as pq
+    """The row count a Parquet file's footer records (None if it has none readable): ``parquet_footer``'s
+    reading of its FileMetaData, without loading pyarrow (and numpy) for it (a cache hit checks every part)."""
+    from surgopt.parquet_footer import footer_num_rows
 
-    try:
-        return pq.read_metadata(pa.BufferReader(data)).num_rows
-    except (pa.ArrowException, OSError, ValueError):
-        return None
+    return footer_num_rows(data)
 
 
 def _sha256_bytes(data: bytes) -> str:
