@@ -17,8 +17,8 @@ from typer.core import TyperGroup
 
 from surgopt.cli_common import (  # noqa: F401 - app and the options: the commands below register on them
     RESUME, Backend, BackendOpt, ChunkOpt, DryRunOpt, ForceOpt, JobsOpt, MaxHoursOpt, MaxMemoryOpt, MultirunOpt,
-    NameOpt, PrintConfigOpt, TagOpt, QuietOpt, SchedulerOpt, StoreOpt, VerboseOpt, app, guard, print_table, set_verbosity,
-    wide_console,
+    NameOpt, PrintConfigOpt, TagOpt, QuietOpt, SchedulerOpt, StoreOpt, VerboseOpt, app, guard, print_report, print_table,
+    set_verbosity, wide_console,
 )
 
 def _study_command(name: str):
@@ -429,36 +429,6 @@ def _report(study, result, brief: bool = False):
     print_report(study.name, run, summary, edges, front, rows=result.parts.num_rows, elapsed_s=result.elapsed_s,
                  cache_hit=result.cache_hit, messages=result.messages, brief=brief)
     return summary
-
-
-def print_report(study_name: str, run, summary, edges, front, *, rows: int, elapsed_s: float, cache_hit: bool,
-                 messages=(), brief: bool = False) -> None:
-    """The closing report's text: the run's messages, the headline table, the best-on-an-edge notes and (unless
-    ``brief``) the study's tables and a search's front (also what ``surgopt.hits`` prints for a recorded
-    command line)."""
-    from rich.table import Table
-
-    console = wide_console()
-    for m in messages:
-        console.print(m)
-    if cache_hit:
-        console.print(f"cache hit: {study_name} {run.key[:12]} already in {run.path}")
-    t = Table(title=f"{study_name} ({run.manifest['config_name']})", show_header=False)
-    for k, v in summary.headline.items():
-        t.add_row(k, f"{v:.6g}" if isinstance(v, float) else str(v))
-    t.add_row("rows", str(rows))
-    t.add_row("time_s", f"{elapsed_s:.2f}")
-    t.add_row("store", f"{run.path}")
-    console.print(t)
-    from rich.markup import escape
-
-    for note in edges:
-        console.print(f"note: {escape(note)}")
-    if not brief:
-        for title, header, table_rows in summary.tables:
-            print_table(console, title, header, table_rows)
-        if front is not None:
-            print_table(console, *front)
 
 
 def _closing_numbers(study, run, parts, brief: bool):

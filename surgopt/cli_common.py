@@ -236,3 +236,33 @@ def print_table(console, title, header, rows) -> None:
     if omitted:
         console.print(f"({len(omitted)} more column(s) not shown at {console.width} columns: {', '.join(omitted)}; "
                       f"widen the terminal, or use --format csv / json)", highlight=False)
+
+
+def print_report(study_name: str, run, summary, edges, front, *, rows: int, elapsed_s: float, cache_hit: bool,
+                 messages=(), brief: bool = False) -> None:
+    """The closing report's text: the run's messages, the headline table, the best-on-an-edge notes and (unless
+    ``brief``) the study's tables and a search's front (also what ``surgopt.hits`` prints for a recorded
+    command line)."""
+    from rich.table import Table
+
+    console = wide_console()
+    for m in messages:
+        console.print(m)
+    if cache_hit:
+        console.print(f"cache hit: {study_name} {run.key[:12]} already in {run.path}")
+    t = Table(title=f"{study_name} ({run.manifest['config_name']})", show_header=False)
+    for k, v in summary.headline.items():
+        t.add_row(k, f"{v:.6g}" if isinstance(v, float) else str(v))
+    t.add_row("rows", str(rows))
+    t.add_row("time_s", f"{elapsed_s:.2f}")
+    t.add_row("store", f"{run.path}")
+    console.print(t)
+    from rich.markup import escape
+
+    for note in edges:
+        console.print(f"note: {escape(note)}")
+    if not brief:
+        for title, header, table_rows in summary.tables:
+            print_table(console, title, header, table_rows)
+        if front is not None:
+            print_table(console, *front)

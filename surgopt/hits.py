@@ -106,8 +106,7 @@ def answered(argv: list[str]) -> bool:
     if found is None:
         return False
     run, entry, summary, edges, front = found
-    from surgopt.cli import print_report
-    from surgopt.cli_common import guard
+    from surgopt.cli_common import guard, print_report
 
     with guard():  # as the usual way prints (a closed pipe is one line)
         for note in entry["notes"]:
