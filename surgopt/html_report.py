@@ -79,9 +79,11 @@ nav a{color:#fff;margin-right:14px;font-size:13px}#pp-checks td,#pp-checks th{wh
 #: when they are scrolled near (software WebGL, on a machine without a GPU, takes seconds for a 3-D scene or
 #: parallel coordinates: drawing them all at once kept the page busy for 8 s). ``body[data-ready]`` is set when the
 #: first screenful is drawn; ``drawAllPlots()`` draws the rest now (``body[data-all]`` then: tests, screenshots).
+#: Each figure is drawn in a task of its own (a click waiting between two is answered before the next).
 PLOTS_SCRIPT = """
 const LATER=[];let busy=Promise.resolve();
-function drawOne(entry){if(entry.done)return busy;entry.done=true;busy=busy.then(function(){let r;
+function drawOne(entry){if(entry.done)return busy;entry.done=true;
+  busy=busy.then(function(){return new Promise(function(go){setTimeout(go,0);});}).then(function(){let r;
   try{r=entry[1]();}catch(e){console.error(e);}return Promise.resolve(r).catch(function(e){console.error(e);});});
   return busy;}
 function drawAllPlots(){return Promise.all(PLOTS.map(drawOne)).then(function(){document.body.dataset.all='1';});}
@@ -126,12 +128,18 @@ def _guarded(script: str) -> str:
     return f"try{{{script}}}catch(e){{console.error(e);}}"
 
 
+#: Plotly's height of a figure whose layout gives none (px).
+PLOTLY_DEFAULT_HEIGHT_PX = 450
+
+
 def figure_div(fig_id: str, figure: dict, css: str = "plot") -> tuple[str, str]:
     """(div, script) drawing ``figure`` ({data, layout}) with Plotly in a div of that id."""
     config = {"displaylogo": False, "responsive": True}
     spec = to_json({"data": figure.get("data", []), "layout": {"margin": {"l": 50, "r": 20, "t": 40, "b": 45},
                                                               **figure.get("layout", {})}})
-    return (f'<div id="{esc(fig_id)}" class="{css}"></div>',
+    # its room kept before it is drawn, so that nothing below it moves when it is (a click aimed below still lands)
+    height = figure.get("layout", {}).get("height", PLOTLY_DEFAULT_HEIGHT_PX)
+    return (f'<div id="{esc(fig_id)}" class="{css}" style="min-height:{int(height)}px"></div>',
             f"PLOTS.push(['{fig_id}',function(){{const f={spec};return Plotly.newPlot('{fig_id}',f.data,f.layout,"
             f"{to_json(config)});}}]);")
 

@@ -158,9 +158,16 @@ def test_clicking_a_layout_redraws_the_3d_scene_and_its_checks(pages, page, tmp_
         assert rows.count() >= 2
         target = rows.nth(1)
         design = target.locator("td").first.inner_text().replace(",", "")
+        tops = ("Array.from(document.querySelectorAll('.plot')).map(e => Math.round(e.getBoundingClientRect().top "
+                "+ window.scrollY))")  # on the page, not the viewport: the click scrolls
+        before = page.evaluate(tops)
         target.click()
         page.wait_for_function(f"document.getElementById('pp-scene').dataset.layout === '{design}'", timeout=30_000)
         assert scene.get_attribute("data-layout") == design != first
+        assert page.evaluate("+document.getElementById('pp-scene').dataset.paintedMs") > 0  # checks painted first
+        page.evaluate("drawAllPlots()")  # every figure drawn: none grew past the room kept for it (nothing moved)
+        page.wait_for_selector("body[data-all]", state="attached", timeout=60_000)
+        assert len(before) >= 3 and page.evaluate(tops) == before
         assert page.locator("#pp-title").inner_text().startswith(f"Layout {design}")
         assert page.locator("#pp-ports tbody tr").count() >= 3
         assert "selected" in (target.get_attribute("class") or "")

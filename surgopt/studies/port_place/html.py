@@ -177,6 +177,18 @@ function base(){
   return [body, sites, none];
 }
 function draw(i){
+  // the checks, ports and title at once; the scene on the next frame, once they are painted (software WebGL takes
+  // seconds), and only for the latest click: a click while a scene is drawn replaces the one waiting
+  showLayout(i);
+  const el = document.getElementById('pp-scene'); el.dataset.requested = String(i);
+  return new Promise(r => requestAnimationFrame(() => setTimeout(() => {  // painted: when (ms since navigation)
+    el.dataset.paintedMs = String(Math.round(performance.now())); r(); }, 0))).then(() => {
+    if (el.dataset.requested !== String(i)) return null;
+    return Plotly.react('pp-scene', sceneTraces(i), sceneLayout(i), {displaylogo:false, responsive:true}).then(() => {
+      if (el.dataset.requested === String(i)) el.dataset.layout = String(col('design_id', i)); });
+  });
+}
+function sceneTraces(i){
   const traces = base();
   const ins = arms.slice(0, -1).map(a => col(a+'_site', i));
   const reachAll = D.targets.map((p, k) => ins.every(s => D.reach[s][k] === 1));
@@ -204,11 +216,15 @@ function draw(i){
         hoverinfo:'name'});
     }
   });
-  const layout = {uirevision:'keep', height:620, margin:{l:0, r:0, t:30, b:0}, showlegend:true, legend:{orientation:'h', x:0, y:0, bgcolor:'rgba(255,255,255,0.7)'},
+  return traces;
+}
+function sceneLayout(i){
+  return {uirevision:'keep', height:620, margin:{l:0, r:0, t:30, b:0}, showlegend:true, legend:{orientation:'h', x:0, y:0, bgcolor:'rgba(255,255,255,0.7)'},
     title:{text:'layout '+col('design_id', i)+' · cost '+fmt(col('cost', i), 4)+(col('feasible', i)?'':' · INFEASIBLE'), font:{size:13}},
     scene:{aspectmode:'data', xaxis:{title:{text:D.axes[0]}}, yaxis:{title:{text:D.axes[1]}},
            zaxis:{title:{text:D.axes[2]}}, camera:{eye:{x:-1.2, y:-1.6, z:1.0}}}};
-  const drawn = Plotly.react('pp-scene', traces, layout, {displaylogo:false, responsive:true});
+}
+function showLayout(i){
   document.getElementById('pp-title').textContent = 'Layout ' + col('design_id', i) + (col('feasible', i) ? '' : ' (infeasible)');
   const body = document.querySelector('#pp-checks tbody'); body.innerHTML = '';
   D.checks.forEach(c => { const tr = document.createElement('tr');
@@ -227,8 +243,7 @@ function draw(i){
       .forEach(t => { const td = document.createElement('td'); td.textContent = t; tr.appendChild(td); });
     ports.appendChild(tr); });
   document.querySelectorAll('#pp-layouts tbody tr').forEach(tr => tr.classList.toggle('selected', +tr.dataset.i === i));
-  document.getElementById('pp-scene').dataset.layout = String(col('design_id', i));
-  return drawn;
+  document.getElementById('pp-scene').dataset.shown = String(col('design_id', i));
 }
 function filter(){
   const feas = document.getElementById('pp-feasible').checked;
@@ -247,7 +262,7 @@ document.querySelectorAll('#pp-layouts tbody tr').forEach(tr => { tr.style.curso
 ['pp-feasible', 'pp-elev', 'pp-clear'].forEach(id => document.getElementById(id).addEventListener('input', filter));
 filter();
 PLOTS.unshift(['pp-scene', function(){ const t0 = performance.now();
-  if (document.getElementById('pp-scene').dataset.layout) return;  // a click drew it first
+  if (document.getElementById('pp-scene').dataset.requested) return;  // a click asked for it first
   const done = D.n_layouts > 0 ? draw(0) : Plotly.newPlot('pp-scene', base(), {height:620, scene:{aspectmode:'data'}});
   return Promise.resolve(done).then(function(){ document.body.dataset.sceneMs = String(Math.round(performance.now() - t0)); }); }]);
 })();
