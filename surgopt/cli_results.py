@@ -260,19 +260,20 @@ def plot(
             fail(f"--design: no {id_column} {design} in run {r.key[:12]}", 2)
         out = out if out is not None else r.path / FIGURES_FOLDER
         out.mkdir(parents=True, exist_ok=True)
-        from surgopt.studies.plotting import set_format
+        from surgopt.studies.plotting import set_format, stamped
 
         set_format(fmt.value)
-        if plan is not None:
-            from surgopt.studies.plotting import search_figures
+        with stamped(run_stamp(st.name, r)):
+            if plan is not None:
+                from surgopt.studies.plotting import search_figures
 
-            from surgopt.report import feasible_rows
+                from surgopt.report import feasible_rows
 
-            paths = search_figures(cfg, table, out, plan, reference=_grid_best(Store(store), st, cfg, plan,
-                                                                                 st.reported_objective),
-                                   feasible=feasible_rows(st, table), objective=st.reported_objective)
-        else:
-            paths = st.figures(cfg, table, out, design)
+                paths = search_figures(cfg, table, out, plan, reference=_grid_best(Store(store), st, cfg, plan,
+                                                                                     st.reported_objective),
+                                       feasible=feasible_rows(st, table), objective=st.reported_objective)
+            else:
+                paths = st.figures(cfg, table, out, design)
         from surgopt.report import best_edges
 
         notes = best_edges(st, r, r.parts(st.schema_for(r.manifest["config"])))
@@ -283,6 +284,14 @@ def plot(
         typer.echo(str(p))
     for note in notes:  # what the figures show on an edge of the box (#27 item 2)
         typer.echo(f"note: {note}", err=True)
+
+
+def run_stamp(study: str, run) -> str:
+    """What a figure of a run says of it: the study, the key, the run's name or config, surgopt's version."""
+    from surgopt._version import __version__
+
+    label = run.manifest.get("name") or run.manifest.get("config_name", "")
+    return f"{study} run {run.key[:12]} ({label}) · surgopt {__version__}"
 
 
 @app.command("report")

@@ -198,6 +198,9 @@ def test_plots(store, tmp_path):
         r = cli("plot", BASE / "rcm_small.toml", "--store", store, "--out", tmp_path / fmt, "--format", fmt)
         paths = [Path(p) for p in r.stdout.split()]
         assert paths and all(p.suffix == f".{fmt}" and p.read_bytes().startswith(magic) for p in paths)
+        if fmt == "svg":  # each figure names its run (the SVG keeps a text's string beside its glyphs)
+            drew = r.stderr.split("drew rcm-grid run ", 1)[1][:12]
+            assert all(f"rcm-grid run {drew} (" in p.read_text() for p in paths)
 
 
 def test_summarize_csv_is_one_table_pandas_reads_and_sort_goes_both_ways(store):

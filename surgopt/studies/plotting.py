@@ -6,6 +6,8 @@ as plain numpy arrays.
 """
 from __future__ import annotations
 
+import contextlib
+
 from pathlib import Path
 
 import numpy as np
@@ -41,8 +43,24 @@ def set_format(fmt: str) -> None:
     _format[0] = fmt
 
 
+_stamp: list[str] = []
+
+
+@contextlib.contextmanager
+def stamped(text: str):
+    """Every figure ``save`` writes inside carries ``text`` in its bottom right corner (``surgopt plot``: the
+    run's key and config, so that a figure pasted elsewhere says which run it shows)."""
+    _stamp.append(text)
+    try:
+        yield
+    finally:
+        _stamp.pop()
+
+
 def save(fig, path: Path) -> Path:
     path = path.with_suffix(f".{_format[0]}")
+    if _stamp:
+        fig.text(0.995, 0.003, _stamp[-1], ha="right", va="bottom", fontsize=6, color="0.45")
     fig.savefig(path, dpi=110, bbox_inches="tight")
     pyplot().close(fig)
     return path
