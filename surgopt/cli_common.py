@@ -250,15 +250,15 @@ def print_report(study_name: str, run, summary, edges, front, *, rows: int, elap
         console.print(m)
     if cache_hit:
         console.print(f"cache hit: {study_name} {run.key[:12]} already in {run.path}")
-    t = Table(title=f"{study_name} ({run.manifest['config_name']})", show_header=False)
-    for k, v in summary.headline.items():
-        t.add_row(k, f"{v:.6g}" if isinstance(v, float) else str(v))
+    from rich.markup import escape
+
+    t = Table(title=escape(f"{study_name} ({run.manifest['config_name']})"), show_header=False)
+    for k, v in summary.headline.items():  # a value may hold "[search]": text, not markup
+        t.add_row(k, f"{v:.6g}" if isinstance(v, float) else escape(str(v)))
     t.add_row("rows", str(rows))
     t.add_row("time_s", f"{elapsed_s:.2f}")
     t.add_row("store", f"{run.path}")
     console.print(t)
-    from rich.markup import escape
-
     for note in edges:
         console.print(f"note: {escape(note)}")
     if not brief:

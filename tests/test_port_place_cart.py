@@ -421,3 +421,65 @@ def test_the_closing_report_searches_each_layouts_rolls_once(tmp_path, monkeypat
     shown = rolled.clearances or clashes.layout_clearances(cfg, row)  # docked to clear where a roll clears it
     assert [r[1] for r in clear[2]] == [f"{c.clearance_mm:.0f}" for c in shown]
     assert calls["rolls"].count(best) == 1
+
+
+def test_a_searched_cart_pose_docks_each_design_at_its_own_pose(tmp_path):
+    """#40 "the cart ... searched": with ``cart.pose = "search"`` the cart's pose is three dimensions of the
+    [search] (around the target, distance, heading off facing it) and each design docks at its own: a design
+    evaluated at (around, distance, offset) equals, in every column, its row of the grid enumerated with the cart
+    given at that floor pose (``tables.floor_pose``: the grid's own formula; three poses, some designs dockable
+    there and some not: the premise); a pose within ``clear_of_table_mm`` of the table docks nothing; a CMA-ES
+    search keeps each trial's pose, its feasible trials docked there (cart_x/y/heading from the pose), and the best
+    one's dvrk export lands PSM1's RCM on its port by the reference forward kinematics; ``pose = "search"``
+    without a [search] is refused naming the field."""
+    from surgopt.config import validate
+    from surgopt.errors import ConfigError
+    from surgopt.runner import run_study
+    from surgopt.store import Store
+
+    searched = {**GRID, "cart": {**GRID["cart"], "pose": "search"}}
+    cfg = validate({**searched, "search": {"method": "cmaes", "trials": 48, "batch": 16, "seed": 1}}, C.Config, "x")
+    names = list(S.design_dims(cfg))
+    assert names[-3:] == ["cart_around_deg", "cart_distance_mm", "cart_yaw_offset_deg"]
+    for around, distance, offset in ((-60.0, 900.0, 20.0), (60.0, 1200.0, -20.0), (0.0, 1500.0, 0.0)):
+        x_mm, y_mm, heading = T.floor_pose(cfg, around, distance, offset)
+        assert T.off_table(cfg.cart, np.array([x_mm]), np.array([y_mm]))[0]  # the cart can stand there
+        given = validate({**SMALL, "cart": {"model": "classic", "pose": "given", "x_mm": x_mm, "y_mm": y_mm,
+                                            "heading_deg": heading}}, C.Config, "x")
+        grid = S.compute_task(given, 10 ** 6, 0)
+        pick = np.arange(0, len(grid["design_id"]), 211)
+        assert 0 < int(np.sum(grid["cart_pose"][pick] >= 0)) < len(pick)  # the premise: some dock, some do not
+        x = np.column_stack([grid[f"{a}_site"][pick] for a in S.arms_of(cfg)]
+                            + [np.full(len(pick), v) for v in (around, distance, offset)]).astype(float)
+        alone = S.evaluate_designs(cfg, x, grid["design_id"][pick], "t")
+        for c, v in grid.items():
+            np.testing.assert_allclose(np.asarray(alone[c], float), np.asarray(v, float)[pick], rtol=0, atol=1e-9,
+                                       err_msg=f"{c} at {around, distance, offset}")
+        assert np.all(alone["cart_around_deg"] == around) and np.all(alone["cart_distance_mm"] == distance)
+    near = T.floor_pose(cfg, 0.0, 400.0, 0.0)  # the foot of the table: not clear of it
+    assert not T.off_table(cfg.cart, np.array([near[0]]), np.array([near[1]]))[0]
+    x = np.array([[float(grid["psm1_site"][pick[0]]), float(grid["psm2_site"][pick[0]]),
+                   float(grid["ecm_site"][pick[0]]), 0.0, 400.0, 0.0]])
+    assert S.evaluate_designs(cfg, x, np.array([0]), "t")["cart_pose"][0] == -1
+    narrow = validate({**searched, "cart": {**searched["cart"], "around_deg": [-90.0, -45.0],
+                                            "distance_mm": [850.0, 950.0]},
+                       "search": {"method": "cmaes", "trials": 64, "batch": 16, "seed": 1}}, C.Config, "x")
+    rows = run_study(S.STUDY, narrow, config_name="s", store=Store(tmp_path / "s"), jobs=1, quiet=True).table
+    assert len(rows) == 64 and len({round(a, 6) for a in rows["cart_around_deg"].to_pylist()}) > 10
+    assert -90 <= min(rows["cart_around_deg"].to_pylist()) <= max(rows["cart_around_deg"].to_pylist()) <= -45
+    feasible = rows.filter(rows["feasible"]).to_pylist()
+    assert feasible  # the premise
+    for r in feasible:
+        assert r["cart_pose"] == 0
+        np.testing.assert_allclose([r["cart_x_mm"], r["cart_y_mm"], r["cart_heading_deg"]],
+                                   T.floor_pose(narrow, r["cart_around_deg"], r["cart_distance_mm"],
+                                                r["cart_yaw_offset_deg"]), atol=1e-9)
+    best = min(feasible, key=lambda r: r["cost"])
+    setup = json.loads(S.dvrk_export(narrow, best))
+    patient = np.array(setup["cart_to_patient"])
+    psm1 = setup["arms"][0]
+    port = np.array(psm1["port_mm"]) / 1000
+    np.testing.assert_allclose(suj_forward_reference("classic", "PSM1", psm1["suj_joints"])[:3, 3],
+                               patient[:3, :3] @ port + patient[:3, 3], atol=1e-9)
+    with pytest.raises(ConfigError, match="cart.pose"):
+        validate(searched, C.Config, "x")

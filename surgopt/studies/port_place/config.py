@@ -348,7 +348,8 @@ class Cart(StrictModel):
     y cranial, mm; heading 0 = its arms reach toward +y, the patient's head) at a ``given`` pose or at each pose
     of a ``grid`` around the target: around_deg from the patient's feet (0 at the foot end, +90 the patient's
     left), distance_mm from the target's centre (horizontal), facing the target turned by each of
-    yaw_offsets_deg; poses whose origin falls within ``clear_of_table_mm`` of the table are left out. The
+    yaw_offsets_deg; poses whose origin falls within ``clear_of_table_mm`` of the table are left out; or, with a
+    [search], at a pose ``search``ed on that arc (each trial its own; one too near the table docks nothing). The
     patient's frame is on the table top (``table_height_mm`` above the floor), tilted head down by
     ``trendelenburg_deg`` and left side up by ``lateral_tilt_deg``."""
 
@@ -357,7 +358,11 @@ class Cart(StrictModel):
                             "(the embedded default's): 'classic' where its arms are the Classic PSMs and ECM on "
                             "the grid of layouts, 'none' otherwise (a note says why); resolved when the config is "
                             "read, so the stored config names the one used")
-    pose: Literal["grid", "given"] = "grid"
+    pose: Literal["grid", "given", "search"] = Field(
+        "grid", description="'grid': every pose of the grid below, a layout's first that docks; 'given': x_mm, "
+                            "y_mm, heading_deg; 'search': a [search]'s dimensions (cart_around_deg, "
+                            "cart_distance_mm, cart_yaw_offset_deg within around_deg, distance_mm and the range of "
+                            "yaw_offsets_deg), each trial docked at its own pose")
     x_mm: float = Field(0.0, ge=-5000.0, le=5000.0, description="given pose: the cart's origin, lateral")
     y_mm: float = Field(-1100.0, ge=-5000.0, le=5000.0, description="given pose: the cart's origin, cranial")
     heading_deg: float = Field(0.0, ge=-180.0, le=180.0, description="given pose: where its arms reach, from +y "
@@ -418,6 +423,9 @@ class PortPlaceConfig(StrictModel):
             object.__setattr__(self.cart, "model", "none" if cart_does_not_carry(self) else "classic")
         if self.cart.model == "none":
             return self
+        if self.cart.pose == "search" and self.search == "grid":
+            raise ValueError("cart.pose: 'search' makes the cart's pose a dimension of a [search]: give a [search] "
+                             "table, or pose = 'grid' (every pose of the grid) or 'given'")
         why = cart_does_not_carry(self)
         if why and self.search == "grid":
             raise ValueError(f"cart.model: 'classic' carries the Classic PSMs and ECM, {why}")
@@ -501,8 +509,8 @@ def cart_does_not_carry(cfg: PortPlaceConfig) -> str:
     if r.camera_serial or r.camera_file or r.camera_arm != "dvrk_ecm_classic":
         return (f"not {'a serial arm' if r.camera_serial else 'an arm from a file' if r.camera_file else r.camera_arm}"
                 f" (robot.camera_arm = 'dvrk_ecm_classic', no camera_file or camera_serial)")
-    if cfg.search != "grid":
-        return "with the grid of layouts, not a [search]"
+    if cfg.search != "grid" and cfg.cart.pose != "search":
+        return "with the grid of layouts, not a [search] (give cart.model = 'classic', or cart.pose = 'search')"
     return ""
 
 

@@ -128,6 +128,10 @@ def schema(config=None):
                                                                  "rcm_in_base_m: out from its base, or up (m)"})
                  for c in stance_columns(config)],
                *cart_fields(config),
+               *[pa.field(c, pa.float64(), metadata={"meaning": "a search's cart pose (cart.pose = 'search'): on "
+                                                                 "the arc around the target, from the feet (deg), "
+                                                                 "its distance (mm), off facing it (deg)"})
+                 for c in cart_search_columns(config)],
                pa.field("cost", pa.float64()),
                pa.field("score", pa.float64(), metadata={"meaning": "what summarize ranks by (higher is better): "
                                                                      "-cost, less 100 per reason a design fails"}),
@@ -147,6 +151,22 @@ def cart_of(config) -> str:
     if isinstance(config, dict):
         return (config.get("cart") or {}).get("model", "none")
     return "none" if config is None else config.cart.model
+
+
+def cart_search_columns(config) -> tuple[str, ...]:
+    """A search's cart dimensions (``cart.pose = "search"``; ``tables.searched_pose_box``), else none."""
+    from surgopt.studies.port_place.tables import searched_pose_box
+
+    if config is None or cart_of(config) == "none":
+        return ()
+    cart = config.get("cart") or {} if isinstance(config, dict) else config.cart
+    if (cart.get("pose") if isinstance(cart, dict) else cart.pose) != "search":
+        return ()
+    if isinstance(cart, dict):
+        from surgopt.studies.port_place.config import Cart
+
+        cart = Cart.model_validate(cart)
+    return tuple(searched_pose_box(cart))
 
 
 def cart_fields(config) -> list:
@@ -236,7 +256,7 @@ def compute_task(cfg, chunk: int, index: int) -> dict:
 
 
 def design_rows(cfg, sites, t, ids, site_ids, f, bad, cost, design_ids, docking_deg, aim_mm=None,
-                stance_m=None, dock=None, floor=None) -> dict:
+                stance_m=None, dock=None, floor=None, cart_searched=None) -> dict:
     """The rows of designs: ``ids`` (a column per arm, ``arms_of``) index ``sites`` and ``t`` (the tables they
     were combined from), ``site_ids`` are the candidate sites' numbers reported; ``docking_deg`` (yaw, pitch of
     each instrument) per design. With the cart (``floor``: its poses, ``tables.CartPoses.floor``), ``dock``
@@ -280,6 +300,8 @@ def design_rows(cfg, sites, t, ids, site_ids, f, bad, cost, design_ids, docking_
         where = np.where(pose[:, None] >= 0, floor[np.maximum(pose, 0)], np.nan)
         for c, name in enumerate(CART_COLUMNS[1:]):
             cols[name] = where[:, c]
+    for c, name in enumerate(cart_search_columns(cfg)):  # the searched pose, docked there or not
+        cols[name] = np.asarray(cart_searched[:, c], float)
     cols["cost"] = cost
     failed = sum((bad >> bit) & 1 for bit in range(len(_reasons())))
     cols["score"] = -cost - INFEASIBLE_PENALTY * failed
@@ -344,6 +366,10 @@ def design_dims(cfg: PortPlaceConfig) -> dict:
     for c in stance_columns(cfg):
         reach = getattr(cfg.robot, f"{c.split('_')[0]}_serial").stance_range_m
         dims[c] = (-reach, reach)
+    if cart_search_columns(cfg):
+        from surgopt.studies.port_place.tables import searched_pose_box
+
+        dims.update(searched_pose_box(cfg.cart))
     return dims
 
 
@@ -396,6 +422,11 @@ def evaluate_designs(cfg, x: np.ndarray, ids: np.ndarray, source: str) -> dict:
     port_cols = [col[c] for c in (aim_columns(cfg) if surface else [f"{arm}_site" for arm in arms_of(cfg)])]
     docking_cols = [col.get(c) for c in docking_columns(cfg)]  # None: not free, 0
     cart = cfg.cart.model != "none"  # the grid's dock tables (every site, every cart pose), each design's sites
+    searched = [c for c in cart_search_columns(cfg) if c in col]  # or, searched, each design's own pose's
+    if cart_search_columns(cfg):  # a design of sites alone: the search box's middle, as model.dock's one pose
+        from surgopt.studies.port_place.tables import searched_pose_box
+
+        box = searched_pose_box(cfg.cart)
     out = []
     for r in range(x.shape[0]):
         v = x[r]
@@ -414,14 +445,33 @@ def evaluate_designs(cfg, x: np.ndarray, ids: np.ndarray, source: str) -> dict:
             rot = K.tilted_frames(K.docking_frames(sites, centre, LATERAL), np.radians([*docking[0::2], 0.0]),
                                   np.radians([*docking[1::2], 0.0]))
             outside = K.external_clearances(sites, np.ascontiguousarray(rot[:, :, 2]), dvrk.OUTSIDE_LENGTH_M)
-            t, _, _ = port_tables(model_r, sites, rot, outside, dock=cart_of_sites(model.dock, site_ids) if cart else None)
+            tables = (None if not cart else cart_of_sites(model.dock, site_ids) if not searched
+                      else searched_dock(model, site_ids, {c: v[col[c]] for c in searched}))
+            t, _, _ = port_tables(model_r, sites, rot, outside, dock=tables)
         local, f, bad, cost, _, dock = design_columns(t, crit, 0, 1, ports - 1)
         out.append(design_rows(cfg, sites, t, local, site_ids[None, :], f, bad, cost,
                                np.asarray(ids[r:r + 1], dtype=np.int64), docking[None, :],
                                v[None, port_cols] if surface else None,
                                stance[None, :] if stances else None,
-                               dock=dock if cart else None, floor=model.dock.poses.floor if cart else None))
+                               dock=dock if cart else None, floor=tables.poses.floor if cart else None,
+                               cart_searched=np.array([[v[col[c]] if c in col else sum(box[c]) / 2
+                                                        for c in cart_search_columns(cfg)]])))
     return concat_rows(out)
+
+
+def searched_dock(model, site_ids: np.ndarray, values: dict):
+    """The dock tables of a design's own ports at its own searched cart pose (``values``: the pose's dimensions):
+    one pose, none of whose arms docks when its origin stands within ``clear_of_table_mm`` of the table."""
+    from surgopt.studies.port_place.tables import dock_at, off_table, poses_of, searched_floor
+
+    cfg = model.cfg
+    floor = np.array([searched_floor(cfg, values)])
+    dock = dock_at(model, site_ids, poses_of(cfg.cart, floor))
+    if off_table(cfg.cart, floor[:, 0], floor[:, 1])[0]:
+        return dock
+    return dock._replace(bits=np.zeros_like(dock.bits), camera=np.zeros_like(dock.camera),
+                         margin=np.full_like(dock.margin, -np.inf), camera_margin=np.full_like(dock.camera_margin,
+                                                                                               -np.inf))
 
 
 def cart_of_sites(dock, site_ids: np.ndarray):
@@ -708,7 +758,8 @@ def docking_tables(best: dict, meta: dict) -> list:
     docked, rolls, _, clearances = docking_that_clears(cfg, best)  # as the export docks it
     turned = {arm: deg for arm, deg in rolls.items() if deg}
     pose = [[f"{best['cart_x_mm']:.0f}", f"{best['cart_y_mm']:.0f}", f"{best['cart_heading_deg']:.1f}",
-             str(best["cart_pose"])]]
+             str(best["cart_pose"]) if cfg.cart.pose != "search" else
+             f"searched: {best['cart_around_deg']:.1f} deg around, {best['cart_distance_mm']:.0f} mm"]]
     rows = [[a.arm, a.site, " ".join(f"{v:.4f}" for v in a.joints) if a.joints else "-",
              "-" if a.margin is None else f"{a.margin:.3f}" + (f" ({a.tightest})" if a.tightest else ""),
              a.note or (f"ECM yaw {math.degrees(a.ecm[0]):.1f}, pitch {math.degrees(a.ecm[1]):.1f} deg" if a.ecm
@@ -717,7 +768,7 @@ def docking_tables(best: dict, meta: dict) -> list:
     clear = [[c.check, f"{c.clearance_mm:.0f}", c.link_a, c.link_b, c.where]
              for c in clearances]
     return [(f"best layout: the {cfg.cart.model} cart (origin on the floor, patient frame; heading from +y toward +x)",
-             ["x_mm", "y_mm", "heading_deg", "grid pose"], pose),
+             ["x_mm", "y_mm", "heading_deg", "pose (of the grid, or searched)"], pose),
             ("best layout: setup joints (column m, then rad, the dVRK's simulated_position order)"
              + (" as `export --format dvrk` docks it: each PSM's docking turned so that the links clear" if turned
                 else ""),

@@ -398,25 +398,52 @@ def off_table(cart, x_mm: np.ndarray, y_mm: np.ndarray) -> np.ndarray:
     return np.hypot(dx, dy) >= cart.clear_of_table_mm
 
 
+def floor_pose(cfg: PortPlaceConfig, around_deg: float, distance_mm: float, offset_deg: float) -> list[float]:
+    """[x, y, heading] of the cart on the arc around the target: ``around_deg`` from the patient's feet toward
+    their left, ``distance_mm`` from the target's centre (horizontal), facing the centre turned by ``offset_deg``."""
+    cx, cy = cfg.target.centre_mm[0], cfg.target.centre_mm[1]
+    x, y = cx + distance_mm * math.sin(math.radians(around_deg)), cy - distance_mm * math.cos(math.radians(around_deg))
+    facing = math.degrees(math.atan2(cx - x, cy - y))  # from +y toward +x
+    return [x, y, facing + offset_deg]
+
+
+def searched_pose_box(cart) -> dict:
+    """A [search]'s cart dimensions (``cart.pose = "search"``): each of around_deg, distance_mm and the range of
+    yaw_offsets_deg that spans more than a point, with its bounds."""
+    box = {"cart_around_deg": tuple(cart.around_deg), "cart_distance_mm": tuple(cart.distance_mm),
+           "cart_yaw_offset_deg": (min(cart.yaw_offsets_deg), max(cart.yaw_offsets_deg))}
+    return {k: (float(lo), float(hi)) for k, (lo, hi) in box.items() if hi > lo}
+
+
+def searched_floor(cfg: PortPlaceConfig, values: dict) -> list[float]:
+    """[x, y, heading] of a searched cart pose (``values``: its dimensions; one not searched at its range's middle)."""
+    cart = cfg.cart
+    mid = {"cart_around_deg": sum(cart.around_deg) / 2, "cart_distance_mm": sum(cart.distance_mm) / 2,
+           "cart_yaw_offset_deg": (min(cart.yaw_offsets_deg) + max(cart.yaw_offsets_deg)) / 2}
+    mid.update(values)
+    return floor_pose(cfg, mid["cart_around_deg"], mid["cart_distance_mm"], mid["cart_yaw_offset_deg"])
+
+
 def cart_poses(cfg: PortPlaceConfig) -> CartPoses:
     """The given pose, or the grid's poses that stand clear of the table (in the grid's order: around, then
-    distance, then heading offset)."""
+    distance, then heading offset); a searched pose (``pose = "search"``): the search box's middle (each trial
+    docks at its own, ``dock_at``)."""
     cart = cfg.cart
     if cart.pose == "given":
         floor = np.array([[cart.x_mm, cart.y_mm, cart.heading_deg]])
+    elif cart.pose == "search":
+        floor = np.array([searched_floor(cfg, {})])
     else:
-        cx, cy = cfg.target.centre_mm[0], cfg.target.centre_mm[1]
         around = np.arange(cart.around_deg[0], cart.around_deg[1] + 1e-9, cart.around_step_deg)
         distance = np.arange(cart.distance_mm[0], cart.distance_mm[1] + 1e-9, cart.distance_step_mm)
-        rows = []
-        for a in around:
-            for d in distance:
-                x, y = cx + d * math.sin(math.radians(a)), cy - d * math.cos(math.radians(a))
-                facing = math.degrees(math.atan2(cx - x, cy - y))  # from +y toward +x
-                rows += [[x, y, facing + off] for off in cart.yaw_offsets_deg]
-        floor = np.array(rows)
+        floor = np.array([floor_pose(cfg, a, d, off) for a in around for d in distance for off in cart.yaw_offsets_deg])
         floor = floor[off_table(cart, floor[:, 0], floor[:, 1])]
-    return CartPoses(floor, np.array([patient_in_cart(cart, *f) for f in floor]))
+    return poses_of(cart, floor)
+
+
+def poses_of(cart, floor: np.ndarray) -> CartPoses:
+    """``CartPoses`` of floor poses (m, 3: x, y mm, heading deg)."""
+    return CartPoses(floor, np.array([patient_in_cart(cart, *f) for f in floor]).reshape(-1, 4, 4))
 
 
 #: The instrument arms' setup joints, in the order of the rows' instrument ports when docked as enumerated.
@@ -458,23 +485,30 @@ def dock_tables(model: PortModel) -> DockTables:
     everything docks."""
     cfg = model.cfg
     n = len(model.sites_m)
-    arms = INSTRUMENT_SUJS[:cfg.robot.instrument_count]
     if cfg.cart.model == "none":
         bits, camera = no_cart(n)
         return DockTables(bits, camera, np.zeros((3, n, 1)), np.zeros((n, 1)), CartPoses(np.zeros((1, 3)),
                                                                                         np.eye(4)[None]))
+    return dock_at(model, np.arange(n), cart_poses(cfg))
+
+
+def dock_at(model: PortModel, site_ids: np.ndarray, poses: CartPoses) -> DockTables:
+    """``dock_tables`` of some candidate sites (``site_ids``, in that order: a design's own ports) at some cart
+    poses (a searched pose: one)."""
     from surgopt.kinematics.suj_batch import classic_psm_margins, suj_arrays
     from surgopt.robots.dvrk_suj import CARTS
 
-    poses = cart_poses(cfg)
-    m = len(poses.floor)
+    cfg = model.cfg
+    arms = INSTRUMENT_SUJS[:cfg.robot.instrument_count]
+    n, m = len(site_ids), len(poses.floor)
+    sites = model.sites_m[site_ids]
     margin = np.full((3, n, m), -np.inf)
     bases = np.zeros((n, 4, 4))
-    bases[:, :3, :3], bases[:, :3, 3], bases[:, 3, 3] = model.instrument_rot, model.sites_m, 1.0
+    bases[:, :3, :3], bases[:, :3, 3], bases[:, 3, 3] = model.instrument_rot[site_ids], sites, 1.0
     in_cart = np.ascontiguousarray(np.einsum("pij,njk->npik", poses.patient, bases).reshape(n * m, 4, 4))
     for a, arm in enumerate(arms):  # the best solution's least margin (suj_answer's first), every site and pose
         margin[a] = classic_psm_margins(suj_arrays(CARTS[cfg.cart.model][arm]), in_cart).reshape(n, m)
-    camera = camera_dock(cfg, poses.patient, model.sites_m)[0].reshape(m, n).T
+    camera = camera_dock(cfg, poses.patient, sites)[0].reshape(m, n).T
     return DockTables(pack_bits(margin >= 0.0), pack_bits(camera >= 0.0), margin, camera, poses)
 
 
