@@ -73,6 +73,7 @@ td:first-child,th:first-child{text-align:left}tr.selected td{background:#ffe9a8}
 .row>div{flex:1 1 480px;min-width:380px}pre{font-size:12px;background:#f6f8fa;padding:8px;overflow:auto;max-height:360px}
 .flag{color:#a4000f;font-weight:600}.ok{color:#176d2c}label{font-size:12px;margin-right:12px}
 nav a{color:#fff;margin-right:14px;font-size:13px}#pp-checks td,#pp-checks th{white-space:normal}
+#headline td{white-space:normal}#headline td+td,#headline th+th{text-align:left;max-width:110ch}
 """
 
 #: Figures are drawn one after another once the page has loaded, those near the top first; the ones further down

@@ -151,6 +151,10 @@ def test_clicking_a_layout_redraws_the_3d_scene_and_its_checks(pages, page, tmp_
     errors, requests = _open(page, pages["port-place"], tmp_path)
     try:
         assert not errors and not requests, (errors, requests)
+        # a headline value as long as the default run's links_clear (~330 characters) wraps inside its section
+        page.evaluate("document.querySelector('#headline td + td').textContent = 'design 884280 with ... '.repeat(15)")
+        assert page.evaluate("document.querySelector('#headline table').getBoundingClientRect().right <= "
+                             "document.querySelector('#headline').getBoundingClientRect().right")
         scene = page.locator("#pp-scene")
         assert page.locator("#pp-scene .gl-container canvas, #pp-scene canvas").count() >= 1  # a WebGL scene
         first = scene.get_attribute("data-layout")
