@@ -287,7 +287,9 @@ def test_port_place_memory_estimate_is_above_its_measured_peak(tmp_path):
 
     (v,) = variants(study, None, [])
     est = study.estimate(v.config).peak_bytes
-    cli("port-place", "--store", tmp_path / "s", "--quiet")  # kernels compiled or loaded into the cache
+    # the same kernels compiled or loaded into the cache by a small run (its coarse grids: ~1 s, not ~10)
+    cli("port-place", "patient.port_region.site_spacing_mm=72", "target.spacing_mm=20", "--store", tmp_path / "w",
+        "--quiet")
     p = subprocess.Popen([sys.executable, "-m", "surgopt", "port-place", "--store", str(tmp_path / "s"), "--quiet",
                           "--force"], stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
     _, status, usage = os.wait4(p.pid, 0)

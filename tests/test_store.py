@@ -22,7 +22,7 @@ def test_corrupt_part_is_recomputed(tmp_path, small_cfg):
 
 def test_two_processes_on_one_key(tmp_path):
     cfg = tmp_path / "slow.toml"
-    cfg.write_text(RCM_SLOW.replace("x_count = 121", "x_count = 31"))  # 32 chunks of 40: the spin is the wait
+    cfg.write_text(RCM_SLOW.replace("x_count = 121", "x_count = 15"))  # 16 chunks of 40: the spin is the wait
     store = tmp_path / "store"
     args = ["rcm-grid", str(cfg), "--store", str(store), "--quiet", "--jobs", "1", "--chunk-size", "40"]
     # the first holds the run's lock for 8 s whatever the machine's load (its third chunk spins: tests/slow_cli.py),
