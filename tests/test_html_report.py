@@ -31,9 +31,37 @@ list_m = [[0.535, 0.0, -0.21], [0.46, 0.0, -0.3], [0.63, 0.0, -0.39]]
 
 
 @pytest.fixture(scope="module")
-def pages(tmp_path_factory):
-    """A store with a small run of each study and a search; each run's page, a comparison page and the index."""
-    tmp = tmp_path_factory.mktemp("html")
+def pages(tmp_path_factory, worker_id):
+    """A store with a small run of each study and a search; each run's page, a comparison page and the index.
+    Built once for both test workers (pytest-xdist's recipe: a lock in the folder the workers' temporary folders
+    share; the pages are only read): it took ~24 s on each."""
+    import json
+
+    from filelock import FileLock
+
+    if worker_id == "master":  # not under xdist: this session's own
+        return _make_pages(tmp_path_factory.mktemp("html"))
+    shared = tmp_path_factory.getbasetemp().parent  # this session's, shared by its workers
+    made = shared / "html-pages.json"
+    with FileLock(str(shared / "html-pages.lock")):
+        if made.exists():
+            return {k: Path(v) for k, v in json.loads(made.read_text()).items()}
+        out = _make_pages(shared / "html-pages")
+        made.write_text(json.dumps({k: str(v) for k, v in out.items()}))
+        return out
+
+
+def _make_pages(tmp: Path) -> dict:
+    """The pages, their runs and reports made in this process (``conftest.invoke``: 14 subprocesses took ~1 s
+    each of start-up and kernel loading)."""
+    from conftest import invoke
+
+    def cli(*args):
+        code, output = invoke(*args)
+        assert code == 0, output
+        return type("Result", (), {"stdout": output})
+
+    tmp.mkdir(exist_ok=True)
     store = tmp / "store"
     for name, study in (("rcm_small", "rcm-grid"), ("raven_small", "raven-sweep"), ("suture_small", "suture-sim"),
                         ("port_small", "port-place")):
