@@ -20,9 +20,12 @@ STUDY_OF = {"rcm_small": "rcm-grid", "raven_small": "raven-sweep", "suture_small
 @pytest.fixture(scope="module")
 def store(tmp_path_factory):
     """One store with a run of each baseline config."""
+    from conftest import invoke
+
     s = tmp_path_factory.mktemp("reports") / "store"
-    for name, study in STUDY_OF.items():
-        cli(study, BASE / f"{name}.toml", "--store", s, "--quiet")
+    for name, study in STUDY_OF.items():  # in this process: no start-up and kernel loading per run
+        code, output = invoke(study, BASE / f"{name}.toml", "--store", s, "--quiet")
+        assert code == 0, output
     return s
 
 
