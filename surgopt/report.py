@@ -68,7 +68,8 @@ def summary_sections(study, run, parts, top: int = 10, sort: str | None = None,
     if objective is not None and parts.num_rows:
         names_all = parts.schema.names
         check_sort_column(parts.schema, objective)
-        best, every, feasible = parts.scan(objective, top, ascending=ascending, where=study.feasible_mask)
+        best, every, feasible = parts.scan(objective, top, ascending=ascending, where=study.feasible_mask,
+                                            where_columns=study.feasible_columns)
         cols = columns(best)
         names = [c for c in names_all if cols[c].dtype != object or c in study.key_columns]
         more = ""
@@ -214,7 +215,8 @@ def summary_record(study, run, parts, top: int = 10, sort: str | None = None) ->
         check_sort_column(parts.schema, objective)
         out["objective"] = objective
         out["ascending"] = ascending
-        best, every, feasible = parts.scan(objective, top, ascending=ascending, where=study.feasible_mask)
+        best, every, feasible = parts.scan(objective, top, ascending=ascending, where=study.feasible_mask,
+                                            where_columns=study.feasible_columns)
         out["top"] = best.to_pylist()
         out["distribution"] = {}
         for label, v in (("all", every.astype(float)), ("feasible", feasible.astype(float))):

@@ -326,7 +326,7 @@ class Run:
         summaries use, so that memory does not grow with the run."""
         from surgopt.parts import Parts
 
-        return Parts(lambda columns=None: self._iter_tables(schema, columns), self.rows,
+        return Parts(lambda columns=None, which=None: self._iter_tables(schema, columns, which), self.rows,
                      schema if schema is not None else self._first_schema())
 
     def _first_schema(self):
@@ -370,8 +370,10 @@ class Run:
             raise StoreError(f"{self.path / self.manifest['parts'][i]['file']}: passes its checksum but "
                              f"does not match the study's schema ({exc})") from None
 
-    def _iter_tables(self, schema, columns=None):
-        for i in sorted(self.manifest["parts"], key=int):
+    def _iter_tables(self, schema, columns=None, which=None):
+        """The parts in task order (only those at the positions ``which``, sorted, when given)."""
+        order = sorted(self.manifest["parts"], key=int)
+        for i in order if which is None else [order[w] for w in which]:
             yield self.part_table(i, schema, columns)
 
     def _reload(self) -> bool:

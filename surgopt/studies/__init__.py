@@ -126,6 +126,9 @@ class Study:
     feasible_mask: Callable[[Any], Any]
     figures: Callable[[Any, Any, Path, int | None], list[Path]]
     flags: tuple[Flag, ...] = ()
+    #: the columns ``feasible_mask`` reads, when it reads a table by these names alone: a summary then reads those
+    #: and its objective, not every column (``Parts.scan``); None: any
+    feasible_columns: tuple[str, ...] | None = None
     #: ``preflight(cfg)``: a check that needs the kernels (port-place: a target no candidate port reaches), run in
     #: the parent after the kernels load and before anything is written; a ValueError "field: why" refuses the config
     preflight: Callable[[Any], None] | None = None

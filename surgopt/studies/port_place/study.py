@@ -909,7 +909,7 @@ STUDY = Study(
     name=NAME, kernel_version=KERNEL_VERSION, config_model=PortPlaceConfig, default_config=DEFAULT_CONFIG,
     help=HELP, config_help=CONFIG_HELP, schema=schema, key_columns=("design_id",), objective=OBJECTIVE,
     auto_chunk=auto_chunk, n_tasks=n_tasks, warm_up=warm_up, compute_task=compute_task, summary=summary,
-    feasible_mask=feasible_mask, figures=figures_in("surgopt.studies.port_place.figures"), estimate=estimate, search_plan=search_plan,
+    feasible_mask=feasible_mask, feasible_columns=("feasible",), figures=figures_in("surgopt.studies.port_place.figures"), estimate=estimate, search_plan=search_plan,
     html_views=html_views_in("surgopt.studies.port_place.html"), reported_objective=("cost", "minimize"),
     exports={"dvrk": dvrk_export, "ports": ports_export},
     warm_variants=(('robot.instrument_serial={model = "pa10_7c", rcm_in_base_m = [0.65, 0.0, 0.5]}',

@@ -374,7 +374,7 @@ STUDY = Study(
     name=NAME, kernel_version=KERNEL_VERSION, config_model=RavenSweepConfig, default_config=DEFAULT_CONFIG,
     help=HELP, config_help=CONFIG_HELP, schema=schema, key_columns=KEY_COLUMNS, objective=OBJECTIVE,
     auto_chunk=auto_chunk, n_tasks=n_tasks, warm_up=warm_up, compute_task=compute_task, summary=summary,
-    feasible_mask=feasible_mask, figures=figures_in("surgopt.studies.raven_sweep.figures"), estimate=estimate, search_plan=search_plan,
+    feasible_mask=feasible_mask, feasible_columns=("n_points",), figures=figures_in("surgopt.studies.raven_sweep.figures"), estimate=estimate, search_plan=search_plan,
     evaluate=evaluate_designs, refine_space=refine_space, design_box=design_box,
     flags=(Flag("--refine", "After the run, a compass search from its top refine.top_k designs inside the sweep's "
                             "bounds; stored as a second run that records the first's key.",

@@ -590,7 +590,7 @@ STUDY = Study(
     name=NAME, kernel_version=KERNEL_VERSION, config_model=RcmGridConfig, default_config=DEFAULT_CONFIG,
     help=HELP, config_help=CONFIG_HELP, schema=schema, key_columns=KEY_COLUMNS, objective=OBJECTIVE,
     auto_chunk=auto_chunk, n_tasks=n_tasks, warm_up=warm_up, compute_task=compute_task, summary=summary,
-    feasible_mask=feasible_mask, figures=figures_in("surgopt.studies.rcm_grid.figures"), estimate=estimate, search_plan=search_plan,
+    feasible_mask=feasible_mask, feasible_columns=("feasible",), figures=figures_in("surgopt.studies.rcm_grid.figures"), estimate=estimate, search_plan=search_plan,
     warm_variants=(("metric=standard",), ("robot.model=ur5e",)),
     evaluate=evaluate_designs, design_box=design_box, cull=lambda cfg: cull_search(cfg),
     advice=lambda cfg: (cfg.robot.auto_lock_advice() + cfg.robot.tool_axis_advice() + reach_grid_advice(cfg)

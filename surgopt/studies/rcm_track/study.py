@@ -323,5 +323,5 @@ STUDY = Study(
     name=NAME, kernel_version=KERNEL_VERSION, config_model=RcmTrackConfig, default_config=DEFAULT_CONFIG,
     help=HELP, config_help=CONFIG_HELP, schema=schema, key_columns=KEY_COLUMNS, objective=OBJECTIVE,
     auto_chunk=auto_chunk, n_tasks=n_tasks, warm_up=warm_up, compute_task=compute_task, summary=summary,
-    feasible_mask=feasible_mask, figures=figures_in("surgopt.studies.rcm_track.figures"), estimate=estimate, extends="rcm-grid",
+    feasible_mask=feasible_mask, feasible_columns=("feasible",), figures=figures_in("surgopt.studies.rcm_track.figures"), estimate=estimate, extends="rcm-grid",
     config_section="track")
