@@ -483,3 +483,56 @@ def test_a_searched_cart_pose_docks_each_design_at_its_own_pose(tmp_path):
                                patient[:3, :3] @ port + patient[:3, 3], atol=1e-9)
     with pytest.raises(ConfigError, match="cart.pose"):
         validate(searched, C.Config, "x")
+
+
+def test_the_report_says_why_the_best_layouts_without_the_cart_do_not_dock(tmp_path):
+    """#40 "how many of the previous best layouts are not dockable, and why": of the 1,000 layouts of least cost
+    that are feasible without the cart (pandas over the run's rows), the count the cart cannot dock; and each
+    reason held, for sample layouts, by the setup joints solved pose by pose in plain Python apart from the
+    tables (S2 for the PSMs, the numpy S4 grid for the ECM): a pair's PSMs that take its ports at no pose either
+    way round, or arms each docking somewhere but never all at one pose (the premise: some layouts of a reason)."""
+    from surgopt.kinematics import suj as SUJ
+    from surgopt.kinematics.port_reasons import DOCKING
+    from surgopt.robots.dvrk_suj import CARTS
+    from surgopt.runner import run_study
+    from surgopt.store import Store
+
+    cfg = C.PortPlaceConfig.model_validate(GRID)
+    run_study(S.STUDY, cfg, config_name="g", store=Store(tmp_path / "s"), jobs=1, quiet=True)
+    (run,) = Store(tmp_path / "s").runs("port-place")
+    parts = run.parts(S.STUDY.schema_for(run.manifest["config"]))
+    meta = {k.decode(): v.decode() for k, v in parts.schema.metadata.items()}
+    ((title, _, rows),) = S.undocked_table(parts, meta)
+    df = parts.table().to_pandas()
+    best = df[df["infeasible"].isin([0, DOCKING])].sort_values(["cost", "design_id"]).head(S.UNDOCKED_OF_BEST)
+    undocked = best[best["infeasible"] == DOCKING]
+    assert f": {len(undocked):,} the classic cart" in title and len(undocked) > 0
+    assert sum(int(r[1].replace(",", "")) for r in rows) == len(undocked)
+    model = T.model_of(cfg)
+    why = S.why_undocked(model.dock, undocked[["psm1_site", "psm2_site", "ecm_site"]].to_numpy())
+    assert {1, 3} <= set(why.tolist())  # the premise: both kinds occur here
+    poses = model.dock.poses.patient
+    centre = np.asarray(cfg.target.centre_mm, float) / 1000
+    arm = T.camera_arm_of(cfg)
+
+    def psm_docks(name, site):
+        return [bool(SUJ.classic_psm_ik(CARTS["classic"][name], p @ T.base_pose(model.instrument_rot[site],
+                                                                                 model.sites_m[site])).within)
+                for p in poses]
+
+    def ecm_docks(site):
+        shaft = (centre - model.sites_m[site]) / np.linalg.norm(centre - model.sites_m[site])
+        origins = np.array([p[:3, :3] @ model.sites_m[site] + p[:3, 3] for p in poses])
+        aims = np.array([p[:3, :3] @ shaft for p in poses])
+        return list(SUJ.ecm_classic_dock(CARTS["classic"]["ECM"], arm.yaw_limits_rad, arm.pitch_limits_rad,
+                                         origins, aims)[0] >= 0)
+
+    for kind in (1, 3):
+        for a, b, k in undocked[["psm1_site", "psm2_site", "ecm_site"]].to_numpy()[why == kind][:2]:
+            p1a, p2b, p1b, p2a = psm_docks("PSM1", a), psm_docks("PSM2", b), psm_docks("PSM1", b), psm_docks("PSM2", a)
+            if kind == 1:  # no way round has both PSMs docking anywhere
+                assert not (any(p1a) and any(p2b)) and not (any(p1b) and any(p2a))
+            else:  # each docks somewhere; at no pose do all
+                e = ecm_docks(k)
+                assert any(e) and ((any(p1a) and any(p2b)) or (any(p1b) and any(p2a)))
+                assert not any(e[p] and ((p1a[p] and p2b[p]) or (p1b[p] and p2a[p])) for p in range(len(poses)))

@@ -689,6 +689,8 @@ def summary(parts) -> Summary:
         if "cart_pose" in b:  # the screen first: the best layout's clearances and rolls are then known
             screen = clearance_screen(screened, meta)
             tables += docking_tables(b, meta)
+            if meta.get("rows_stored") != "feasible":
+                tables += undocked_table(parts, meta)
             if screen is not None:
                 headline["links_clear"], table = screen
                 tables.append(table)
@@ -775,6 +777,57 @@ def docking_tables(best: dict, meta: dict) -> list:
              ["arm", "port", "suj_joints", "least range margin", "note"], rows),
             ("best layout: least clearance outside the body (capsules, radii assumed; negative: the links overlap; "
              "not yet part of feasible)", ["between", "clearance_mm", "link", "against", "where"], clear)]
+
+
+#: The layouts of least cost among those feasible without the cart whose docking the closing report explains.
+UNDOCKED_OF_BEST = 1000
+UNDOCKED_WHY = ("the ECM's setup joints reach its port at no cart pose",
+                "PSM1's and PSM2's setup joints take the pair's two ports at no cart pose, either way round",
+                "PSM3's setup joints reach its port at no cart pose",
+                "every arm docks at some cart pose of the grid, never all at one")
+
+
+def undocked_table(parts, meta: dict) -> list:
+    """How many of the UNDOCKED_OF_BEST layouts of least cost that are feasible without the cart (every reason
+    but docking passes) the cart cannot dock, and why (``why_undocked``): the closing report's answer to "which
+    of the previous best layouts are not dockable"."""
+    from surgopt.kinematics.port_reasons import DOCKING
+    from surgopt.studies.port_place.tables import model_of
+
+    arms = [a for a in ("psm1", "psm2", "psm3", "ecm") if f"{a}_site" in parts.schema.names]
+    cols = {c: [] for c in ["cost", "design_id", "infeasible", *(f"{a}_site" for a in arms)]}
+    for t in parts.only(list(cols)):
+        keep = np.isin(t["infeasible"].to_numpy(), (0, DOCKING))
+        for c in cols:
+            cols[c].append(t[c].to_numpy()[keep])
+    got = {c: np.concatenate(v) if v else np.zeros(0) for c, v in cols.items()}
+    best = np.lexsort((got["design_id"], got["cost"]))[:UNDOCKED_OF_BEST]
+    undocked = best[got["infeasible"][best] == DOCKING]
+    try:  # as stored: its files are not read and hashed again
+        cfg = PortPlaceConfig.model_validate(json.loads(meta["config"]), context={"stored": True})
+    except (ValueError, OSError, KeyError):
+        return []
+    if cfg.cart.pose == "search":  # each trial docked at its own pose, not at the grid's
+        return []
+    sites = np.column_stack([got[f"{a}_site"][undocked] for a in arms]).astype(np.int64)
+    why = why_undocked(model_of(cfg).dock, sites)
+    rows = [[w, f"{int(np.sum(why == k)):,}"] for k, w in enumerate(UNDOCKED_WHY) if np.any(why == k)]
+    return [(f"the {len(best):,} layouts of least cost feasible without the cart: {len(undocked):,} the "
+             f"{cfg.cart.model} cart's setup joints cannot dock at any pose of its grid, because", ["why", "layouts"],
+             rows)]
+
+
+def why_undocked(dock, sites: np.ndarray) -> np.ndarray:
+    """For layouts the cart docks at no pose (``sites``: each arm's site, PSM1, PSM2[, PSM3], ECM), why, as an
+    index into UNDOCKED_WHY, from the best solutions' margins at each pose (``DockTables.margin``, >= 0 where
+    an arm docks): the first that holds of the ECM docking nowhere, the working pair's PSMs taking its two ports
+    at no pose either way round, PSM3 docking nowhere, else no pose common to all."""
+    some = (dock.margin >= 0.0).any(axis=2)  # (arms, sites): the arm docks there at some pose
+    camera = (dock.camera_margin >= 0.0).any(axis=1)
+    a, b, k = sites[:, 0], sites[:, 1], sites[:, -1]
+    pair = (some[0, a] & some[1, b]) | (some[0, b] & some[1, a])
+    third = some[2, sites[:, 2]] if sites.shape[1] == 4 else np.ones(len(sites), bool)
+    return np.select([~camera[k], ~pair, ~third], [0, 1, 2], default=3)
 
 
 #: The best distinct feasible layouts whose links the closing report checks for clearance outside the body (each
