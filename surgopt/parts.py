@@ -136,13 +136,9 @@ class Parts:
             needed = sorted(set(part.tolist()))
             import pyarrow as pa
 
-            taken = {p: t.take(pa.array(rows[part == p] - starts[p])) for p, t in zip(needed, self.at(needed))}
-            at = {p: 0 for p in needed}
-            pieces = []
-            for p in part:  # the rows in their rank's order
-                pieces.append(taken[p].slice(at[p], 1))
-                at[p] += 1
-            top = pa.concat_tables(pieces)
+            grouped = pa.concat_tables([t.take(pa.array(rows[part == p] - starts[p]))  # by part, each in rank order
+                                        for p, t in zip(needed, self.at(needed))])
+            top = grouped.take(pa.array(np.argsort(np.argsort(part, kind="stable"))))  # back in rank order
         return top, whole, (np.concatenate(kept) if kept else np.zeros(0)) if where is not None else None
 
     def filter(self, where: Callable):
