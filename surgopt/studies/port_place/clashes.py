@@ -241,6 +241,7 @@ class RollsThatClear(NamedTuple):
     least: Clearance | None
     tried: int
     clearances: tuple = ()
+    arms: tuple = ()  # ``tables.DockedArm`` of each arm so docked (the PSMs rolled, then the ECM)
 
 
 def rolls_that_clear(cfg, row: dict) -> RollsThatClear:
@@ -288,7 +289,8 @@ def _rolls_that_clear(cfg, row: dict) -> RollsThatClear:
         found = layout_clearances(cfg, row, arms)
         worst = least(found)
         if worst is not None and worst.clearance_mm >= 0:  # the first that clears, best docked first
-            return RollsThatClear({a.upper(): deg for a, deg in choice}, worst, len(combos), tuple(found))
+            return RollsThatClear({a.upper(): deg for a, deg in choice}, worst, len(combos), tuple(found),
+                                  tuple(arms))
     return RollsThatClear({}, None, len(combos))
 
 
@@ -317,7 +319,7 @@ def docking_that_clears(cfg, row: dict):
     when some combination of each PSM's roll clears them (``clashes.rolls_that_clear``: full reach and the setup
     joints' ranges kept), the PSMs docked so, so that the file a robot loads does not dock arms whose links
     overlap."""
-    from surgopt.studies.port_place.tables import docked_arms, patient_in_cart
+    from surgopt.studies.port_place.tables import docked_arms
 
     docked = docked_arms(cfg, row)
     clearances = layout_clearances(cfg, row)
@@ -329,8 +331,7 @@ def docking_that_clears(cfg, row: dict):
         return docked, {}, (f"the run's docking frames (robot.docking_roll); their links overlap outside the body by "
                             f"{-worst.clearance_mm:.0f} mm ({worst.link_a} / {worst.link_b}) and no roll of each PSM "
                             f"about its shaft (of {found.tried} that reach and dock) clears them"), clearances
-    patient = patient_in_cart(cfg.cart, row["cart_x_mm"], row["cart_y_mm"], row["cart_heading_deg"])
-    turned = {arm: dict(rolled_docks(cfg, row, arm.lower(), patient))[deg] for arm, deg in found.rolls.items()}
+    turned = {a.arm: a for a in found.arms if a.arm in found.rolls}  # as the roll search docked them
     arms = [turned.get(a.arm, a) for a in docked]
     return (arms, found.rolls,
             f"each PSM's docking frame turned about its neutral shaft by docking_roll_deg (x toward y) so that the "

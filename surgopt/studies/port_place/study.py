@@ -159,7 +159,7 @@ def cart_search_columns(config) -> tuple[str, ...]:
 
     if config is None or cart_of(config) == "none":
         return ()
-    cart = config.get("cart") or {} if isinstance(config, dict) else config.cart
+    cart = (config.get("cart") or {}) if isinstance(config, dict) else config.cart
     if (cart.get("pose") if isinstance(cart, dict) else cart.pose) != "search":
         return ()
     if isinstance(cart, dict):
@@ -422,11 +422,7 @@ def evaluate_designs(cfg, x: np.ndarray, ids: np.ndarray, source: str) -> dict:
     port_cols = [col[c] for c in (aim_columns(cfg) if surface else [f"{arm}_site" for arm in arms_of(cfg)])]
     docking_cols = [col.get(c) for c in docking_columns(cfg)]  # None: not free, 0
     cart = cfg.cart.model != "none"  # the grid's dock tables (every site, every cart pose), each design's sites
-    searched = [c for c in cart_search_columns(cfg) if c in col]  # or, searched, each design's own pose's
-    if cart_search_columns(cfg):  # a design of sites alone: the search box's middle, as model.dock's one pose
-        from surgopt.studies.port_place.tables import searched_pose_box
-
-        box = searched_pose_box(cfg.cart)
+    searched = cart_search_columns(cfg)  # or, searched, each design's own pose's (of sites alone: the box's middle)
     out = []
     for r in range(x.shape[0]):
         v = x[r]
@@ -437,6 +433,7 @@ def evaluate_designs(cfg, x: np.ndarray, ids: np.ndarray, source: str) -> dict:
         cfg_r = with_stance(cfg, {c.split("_")[0]: (stance[k], stance[k + 1]) for k, c in enumerate(stances)
                                   if c.endswith("_out_m")}) if stances else cfg
         sites = all_sites[site_ids]
+        pose = searched_values(cfg.cart, {c: v[col[c]] for c in searched if c in col}) if searched else None
         model_r = model.with_config(cfg_r) if stances else model
         if serial:  # the RCM mechanism (the camera) docked as in the grid, each serial base turned by its yaw
             t, _, _ = port_tables(model_r, sites, K.docking_frames(sites, centre, LATERAL),
@@ -445,8 +442,8 @@ def evaluate_designs(cfg, x: np.ndarray, ids: np.ndarray, source: str) -> dict:
             rot = K.tilted_frames(K.docking_frames(sites, centre, LATERAL), np.radians([*docking[0::2], 0.0]),
                                   np.radians([*docking[1::2], 0.0]))
             outside = K.external_clearances(sites, np.ascontiguousarray(rot[:, :, 2]), dvrk.OUTSIDE_LENGTH_M)
-            tables = (None if not cart else cart_of_sites(model.dock, site_ids) if not searched
-                      else searched_dock(model, site_ids, {c: v[col[c]] for c in searched}))
+            tables = (None if not cart else cart_of_sites(model.dock, site_ids) if pose is None
+                      else searched_dock(model, site_ids, pose))
             t, _, _ = port_tables(model_r, sites, rot, outside, dock=tables)
         local, f, bad, cost, _, dock = design_columns(t, crit, 0, 1, ports - 1)
         out.append(design_rows(cfg, sites, t, local, site_ids[None, :], f, bad, cost,
@@ -454,24 +451,31 @@ def evaluate_designs(cfg, x: np.ndarray, ids: np.ndarray, source: str) -> dict:
                                v[None, port_cols] if surface else None,
                                stance[None, :] if stances else None,
                                dock=dock if cart else None, floor=tables.poses.floor if cart else None,
-                               cart_searched=np.array([[v[col[c]] if c in col else sum(box[c]) / 2
-                                                        for c in cart_search_columns(cfg)]])))
+                               cart_searched=np.array([[pose[c] for c in searched]]) if searched else None))
     return concat_rows(out)
 
 
-def searched_dock(model, site_ids: np.ndarray, values: dict):
-    """The dock tables of a design's own ports at its own searched cart pose (``values``: the pose's dimensions):
-    one pose, none of whose arms docks when its origin stands within ``clear_of_table_mm`` of the table."""
-    from surgopt.studies.port_place.tables import dock_at, off_table, poses_of, searched_floor
+def searched_dock(model, site_ids: np.ndarray, pose: dict):
+    """The dock tables of a design's own ports at its own searched cart pose (``pose``: the pose's dimensions,
+    ``tables.searched_values``): one pose, at which no arm docks (nothing solved) when the cart's origin would
+    stand within ``clear_of_table_mm`` of the table."""
+    from surgopt.studies.port_place.tables import DockTables, dock_at, floor_pose, off_table, pack_bits, poses_of
 
     cfg = model.cfg
-    floor = np.array([searched_floor(cfg, values)])
-    dock = dock_at(model, site_ids, poses_of(cfg.cart, floor))
+    floor = np.array([floor_pose(cfg, *pose.values())])
+    poses = poses_of(cfg.cart, floor)
     if off_table(cfg.cart, floor[:, 0], floor[:, 1])[0]:
-        return dock
-    return dock._replace(bits=np.zeros_like(dock.bits), camera=np.zeros_like(dock.camera),
-                         margin=np.full_like(dock.margin, -np.inf), camera_margin=np.full_like(dock.camera_margin,
-                                                                                               -np.inf))
+        return dock_at(model, site_ids, poses)
+    margin, camera = np.full((3, len(site_ids), 1), -np.inf), np.full((len(site_ids), 1), -np.inf)
+    return DockTables(pack_bits(margin >= 0.0), pack_bits(camera >= 0.0), margin, camera, poses)
+
+
+def searched_values(cart, given: dict) -> dict:
+    """A searched cart pose's three dimensions in ``floor_pose``'s order: those ``given``, the others (not
+    searched, or a design of sites alone) at the middle of their range."""
+    from surgopt.studies.port_place.tables import searched_middle
+
+    return {**searched_middle(cart), **given}
 
 
 def cart_of_sites(dock, site_ids: np.ndarray):
@@ -871,7 +875,7 @@ def clearance_screen(rows: list[dict], meta: dict):
             clear = (f"design {r['design_id']} with its PSMs' docking rolled ({turned} deg about the shaft): least "
                      f"clearance {rolled.least.clearance_mm:.0f} mm ({rolled.least.link_a} / {rolled.least.link_b}); "
                      f"its cost is at the run's roll; `surgopt export --format dvrk` docks it so"
-                     + _below_table(cfg, r, rolled.rolls))
+                     + _below_table(cfg, r, rolled))
         if clear is not None:  # what the headline needs: the best layout that clears (each costs ~0.5-2 s)
             break
     if not out:
@@ -890,16 +894,11 @@ def clearance_screen(rows: list[dict], meta: dict):
     return word, (title, ["design_id", "cost", "least_clearance_mm", "between", "links", "with rolls"], out)
 
 
-def _below_table(cfg, row: dict, rolls: dict) -> str:
-    """``clashes.below_table_note`` of a layout docked with these PSM rolls."""
-    from surgopt.studies.port_place.clashes import rolled_docks
+def _below_table(cfg, row: dict, rolled) -> str:
+    """``clashes.below_table_note`` of a layout docked as the roll search (``rolled``, ``RollsThatClear``) found."""
     from surgopt.studies.port_place.clashes import below_table_note
-    from surgopt.studies.port_place.tables import docked_arms, patient_in_cart
 
-    patient = patient_in_cart(cfg.cart, row["cart_x_mm"], row["cart_y_mm"], row["cart_heading_deg"])
-    arms = [dict(rolled_docks(cfg, row, a.arm.lower(), patient))[rolls[a.arm]] if a.arm in rolls else a
-            for a in docked_arms(cfg, row)]
-    return below_table_note(cfg, row, arms)
+    return below_table_note(cfg, row, rolled.arms)
 
 
 def layout_columns(names) -> list[str]:

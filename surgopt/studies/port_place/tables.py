@@ -415,13 +415,10 @@ def searched_pose_box(cart) -> dict:
     return {k: (float(lo), float(hi)) for k, (lo, hi) in box.items() if hi > lo}
 
 
-def searched_floor(cfg: PortPlaceConfig, values: dict) -> list[float]:
-    """[x, y, heading] of a searched cart pose (``values``: its dimensions; one not searched at its range's middle)."""
-    cart = cfg.cart
-    mid = {"cart_around_deg": sum(cart.around_deg) / 2, "cart_distance_mm": sum(cart.distance_mm) / 2,
-           "cart_yaw_offset_deg": (min(cart.yaw_offsets_deg) + max(cart.yaw_offsets_deg)) / 2}
-    mid.update(values)
-    return floor_pose(cfg, mid["cart_around_deg"], mid["cart_distance_mm"], mid["cart_yaw_offset_deg"])
+def searched_middle(cart) -> dict:
+    """The middle of a searched cart pose's three ranges, in ``floor_pose``'s order (around, distance, offset)."""
+    return {"cart_around_deg": sum(cart.around_deg) / 2, "cart_distance_mm": sum(cart.distance_mm) / 2,
+            "cart_yaw_offset_deg": (min(cart.yaw_offsets_deg) + max(cart.yaw_offsets_deg)) / 2}
 
 
 def cart_poses(cfg: PortPlaceConfig) -> CartPoses:
@@ -432,7 +429,7 @@ def cart_poses(cfg: PortPlaceConfig) -> CartPoses:
     if cart.pose == "given":
         floor = np.array([[cart.x_mm, cart.y_mm, cart.heading_deg]])
     elif cart.pose == "search":
-        floor = np.array([searched_floor(cfg, {})])
+        floor = np.array([floor_pose(cfg, *searched_middle(cart).values())])
     else:
         around = np.arange(cart.around_deg[0], cart.around_deg[1] + 1e-9, cart.around_step_deg)
         distance = np.arange(cart.distance_mm[0], cart.distance_mm[1] + 1e-9, cart.distance_step_mm)
