@@ -151,7 +151,7 @@ def test_three_instruments_combine_as_a_brute_force_over_the_reach_sets():
     crit = T.criteria(C.PortPlaceConfig())._replace(min_shaft_gap_m=0.3, min_spacing_m=0.02)
     ids, f, bad, cost, design, dock = D.design_columns(t, crit, 0, S.n_designs(n, 3), 3)
     ids2, f2, bad2, cost2, _, _ = D.design_columns(t, crit, 0, S.n_designs(n, 2), 2)
-    assert np.all(dock == [0, 0])  # no cart: every layout docks at the one pose, as enumerated
+    assert np.all(dock == [0, 0, -1])  # no cart: every layout docks at the one pose, as enumerated, no links
     assert np.array_equal(design, np.arange(S.n_designs(n, 3)))
     loose = crit._replace(min_shaft_gap_m=0.0, min_external_m=0.0, angle_lo_rad=0.0, angle_hi_rad=math.pi)
     seen = t._replace(coverage=np.ones(n))  # the camera sees everything: feasibility is the reach and spacing

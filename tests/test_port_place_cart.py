@@ -35,7 +35,7 @@ def test_first_dock_is_the_lowest_pose_where_every_arm_docks():
     n, m = 6, 70
     ok = rng.random((3, n, m)) < 0.25
     cam = rng.random((n, m)) < 0.6
-    bits, cam_bits = T.pack_bits(ok), T.pack_bits(cam)
+    bits, cam_bits = D.pack_bits(ok), D.pack_bits(cam)
     seen = {"none": 0, "swapped": 0, "straight": 0}
     for i in range(n):
         for j in range(i + 1, n):

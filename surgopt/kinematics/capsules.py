@@ -142,3 +142,231 @@ def along(segments: np.ndarray, spacing_m: float) -> tuple[np.ndarray, np.ndarra
         pts.append(p0 + t * (p1 - p0))
         owner.append(np.full(n, i))
     return np.concatenate(pts), np.concatenate(owner)
+
+
+# ---- the least clearance between two arms, pruned (issue 40: the links' clearance in every row)
+#
+# An arm at many poses is bounded link by link by a ball holding that link at every pose (``swept_balls``); the
+# least clearance between two arms (``least_between``) visits link pairs in the order of their balls' bound and
+# stops when a bound is no better than the least found, and within a link pair skips each pose of one arm whose
+# segment's distance to the other's ball already bounds it out. The answer is the exact least (the bounds are
+# lower bounds, never estimates): held to ``least_over_poses`` by tests/test_capsules.py.
+
+
+@njit(**EXACT)
+def swept_balls(segs, radii, groups):
+    """(L, G, 4) Per link of an arm at poses ``segs`` (P, L, 2, 3) and per group of poses (``groups`` (G + 1,):
+    group g is poses groups[g] .. groups[g + 1] - 1): a ball (centre, radius) holding the capsule at every pose of
+    the group: the centre of its endpoints' box, the radius their farthest distance from it plus the link's."""
+    n_link, n_group = segs.shape[1], groups.shape[0] - 1
+    out = np.empty((n_link, n_group, 4))
+    for k in range(n_link):
+        for g in range(n_group):
+            lo = np.full(3, np.inf)
+            hi = np.full(3, -np.inf)
+            for p in range(groups[g], groups[g + 1]):
+                for e in range(2):
+                    for c in range(3):
+                        lo[c] = min(lo[c], segs[p, k, e, c])
+                        hi[c] = max(hi[c], segs[p, k, e, c])
+            centre = 0.5 * (lo + hi)
+            far = 0.0
+            for p in range(groups[g], groups[g + 1]):
+                for e in range(2):
+                    far = max(far, math.sqrt(((segs[p, k, e] - centre) ** 2).sum()))
+            out[k, g, :3] = centre
+            out[k, g, 3] = far + radii[k]
+    return out
+
+
+@njit(**EXACT)
+def whole_balls(balls):
+    """(L, 4) One ball per link holding its groups' balls (``swept_balls``)."""
+    out = np.empty((balls.shape[0], 4))
+    for k in range(balls.shape[0]):
+        lo = np.full(3, np.inf)
+        hi = np.full(3, -np.inf)
+        for g in range(balls.shape[1]):
+            for c in range(3):
+                lo[c] = min(lo[c], balls[k, g, c] - balls[k, g, 3])
+                hi[c] = max(hi[c], balls[k, g, c] + balls[k, g, 3])
+        centre = 0.5 * (lo + hi)
+        far = 0.0
+        for g in range(balls.shape[1]):
+            far = max(far, math.sqrt(((balls[k, g, :3] - centre) ** 2).sum()) + balls[k, g, 3])
+        out[k, :3] = centre
+        out[k, 3] = far
+    return out
+
+
+@njit(**EXACT)
+def point_segment_distance(x, p0, p1):
+    """The distance from point x to the segment [p0, p1]."""
+    d = p1 - p0
+    dd = (d * d).sum()
+    t = 0.0 if dd == 0.0 else min(1.0, max(0.0, ((x - p0) * d).sum() / dd))
+    return math.sqrt(((p0 + t * d - x) ** 2).sum())
+
+
+@njit(**EXACT)
+def segments_distance(p, q):
+    """The shortest distance between segments p (2, 3) and q (2, 3), either possibly of zero length (Ericson,
+    Real-Time Collision Detection, 5.1.9, with its degenerate cases), in scalars."""
+    d1x, d1y, d1z = p[1, 0] - p[0, 0], p[1, 1] - p[0, 1], p[1, 2] - p[0, 2]
+    d2x, d2y, d2z = q[1, 0] - q[0, 0], q[1, 1] - q[0, 1], q[1, 2] - q[0, 2]
+    rx, ry, rz = p[0, 0] - q[0, 0], p[0, 1] - q[0, 1], p[0, 2] - q[0, 2]
+    a = d1x * d1x + d1y * d1y + d1z * d1z
+    e = d2x * d2x + d2y * d2y + d2z * d2z
+    f = d2x * rx + d2y * ry + d2z * rz
+    eps = 1e-18
+    if a <= eps and e <= eps:
+        s = t = 0.0
+    elif a <= eps:
+        s, t = 0.0, min(1.0, max(0.0, f / e))
+    else:
+        c = d1x * rx + d1y * ry + d1z * rz
+        if e <= eps:
+            t, s = 0.0, min(1.0, max(0.0, -c / a))
+        else:
+            b = d1x * d2x + d1y * d2y + d1z * d2z
+            denom = a * e - b * b
+            s = min(1.0, max(0.0, (b * f - c * e) / denom)) if denom > eps else 0.0
+            t = (b * s + f) / e
+            if t < 0.0:
+                t, s = 0.0, min(1.0, max(0.0, -c / a))
+            elif t > 1.0:
+                t, s = 1.0, min(1.0, max(0.0, (b - c) / a))
+    wx = rx + s * d1x - t * d2x
+    wy = ry + s * d1y - t * d2y
+    wz = rz + s * d1z - t * d2z
+    return math.sqrt(wx * wx + wy * wy + wz * wz)
+
+
+@njit(**EXACT)
+def _gap(x, y):
+    """The least clearance two balls (centre, radius) allow: a lower bound of their contents'."""
+    return math.sqrt((x[0] - y[0]) ** 2 + (x[1] - y[1]) ** 2 + (x[2] - y[2]) ** 2) - x[3] - y[3]
+
+
+@njit(**EXACT)
+def least_between(a, ra, balls_a, groups_a, b, rb, balls_b, groups_b, best, floor=-np.inf):
+    """(C1, pruned) The least clearance between arm A at each of its poses ``a`` (Pa, La, 2, 3) and arm B at each
+    of ``b`` (Pb, Lb, 2, 3), radii ``ra``, ``rb``, their ``swept_balls`` over the pose groups ``groups_*``, if
+    less than ``best``: (clearance, link of A, link of B, pose of A, pose of B), or (best, -1, -1, -1, -1) when no
+    pair is closer than ``best``. Link pairs are visited in the order of their whole balls' bound, and a group of
+    poses, then a pair of groups, is skipped when its balls' bound is no better than the least found (each bound a
+    lower bound, so the answer is exact). With a ``floor``, the search stops at the first clearance below it (then
+    an upper bound of the least)."""
+    la, lb = a.shape[1], b.shape[1]
+    wa, wb = whole_balls(balls_a), whole_balls(balls_b)
+    bound = np.empty(la * lb)
+    for i in range(la):
+        for j in range(lb):
+            bound[i * lb + j] = _gap(wa[i], wb[j])
+    order = np.argsort(bound)
+    out = (-1, -1, -1, -1)
+    for o in order:
+        if bound[o] >= best:
+            break
+        i, j = o // lb, o % lb
+        for ga in range(groups_a.shape[0] - 1):
+            if _gap(balls_a[i, ga], wb[j]) >= best:
+                continue
+            for gb in range(groups_b.shape[0] - 1):
+                if _gap(balls_a[i, ga], balls_b[j, gb]) >= best:
+                    continue
+                for p in range(groups_a[ga], groups_a[ga + 1]):
+                    for s in range(groups_b[gb], groups_b[gb + 1]):
+                        c = segments_distance(a[p, i], b[s, j]) - ra[i] - rb[j]
+                        if c < best:
+                            best = c
+                            out = (i, j, p, s)
+                            if best < floor:
+                                return best, out[0], out[1], out[2], out[3]
+    return best, out[0], out[1], out[2], out[3]
+
+
+@njit(**EXACT)
+def pair_clearances(tasks, static_x, moving_x, r_sx, r_mx, balls_mx, static_y, moving_y, r_sy, r_my, balls_my,
+                    groups, start, start_code, floor):
+    """The least clearance between arm X at site i and arm Y at site j, cart pose p, for each task (i, j, p) of
+    ``tasks`` (T, 3): each arm is its links fixed at that pose (``static_*`` (sites, poses, Ls, 2, 3): the setup
+    joints' links, or all of an arm held docked) and its links that move over the target (``moving_*`` (sites,
+    P, Lm, 2, 3), ``balls_m*`` their ``swept_balls`` over the pose ``groups`` per site; Lm may be 0), the least of fixed to fixed, fixed
+    to moving and moving to fixed, below ``start`` (T,: moving to moving, which does not depend on the cart's
+    pose, given by the caller; the cap when none) with its ``start_code``, stopping at the first below ``floor``
+    (``least_between``). Returns the clearance (m) and the link pair, 16 * (X's link) + (Y's link), each arm's
+    links numbered fixed first, then moving (-1: none below the start).""" 
+    n_task = tasks.shape[0]
+    value = np.empty(n_task)
+    code = np.empty(n_task, dtype=np.int64)
+    fx, fy = static_x.shape[2], static_y.shape[2]
+    one = np.array([0, 1])
+    for t in range(n_task):
+        i, j, p = tasks[t, 0], tasks[t, 1], tasks[t, 2]
+        sx, sy = static_x[i, p:p + 1], static_y[j, p:p + 1]
+        bx, by = swept_balls(sx, r_sx, one), swept_balls(sy, r_sy, one)
+        best, c = start[t], start_code[t]
+        v, a, b, _, _ = least_between(sx, r_sx, bx, one, sy, r_sy, by, one, best, floor)
+        if a >= 0:
+            best, c = v, 16 * a + b
+        if moving_y.shape[2] > 0 and best >= floor:
+            v, a, b, _, _ = least_between(sx, r_sx, bx, one, moving_y[j], r_my, balls_my[j], groups, best, floor)
+            if a >= 0:
+                best, c = v, 16 * a + fy + b
+        if moving_x.shape[2] > 0 and best >= floor:
+            v, a, b, _, _ = least_between(moving_x[i], r_mx, balls_mx[i], groups, sy, r_sy, by, one, best, floor)
+            if a >= 0:
+                best, c = v, 16 * (fx + a) + b
+        value[t], code[t] = best, c
+    return value, code
+
+
+@njit(**EXACT)
+def moving_pairs(pairs, moving, radii, balls, groups, cap, floor):
+    """The least clearance between one arm's moving links at site i and another's at site j over every pair of
+    their poses (``least_between`` below ``cap``, stopping below ``floor``), for each (i, j) of ``pairs`` (U, 2):
+    (clearance m, link of i, link of j; -1 when none is below the cap)."""
+    n = pairs.shape[0]
+    value = np.empty(n)
+    links = np.empty((n, 2), dtype=np.int64)
+    for u in range(n):
+        i, j = pairs[u, 0], pairs[u, 1]
+        v, a, b, _, _ = least_between(moving[i], radii, balls[i], groups, moving[j], radii, balls[j], groups, cap,
+                                      floor)
+        value[u], links[u, 0], links[u, 1] = v, a, b
+    return value, links
+
+
+def skeleton_batch(frames, q: np.ndarray, base: np.ndarray, mount: np.ndarray | None = None) -> dict:
+    """(C4) ``skeleton`` for N arms at once: q (N, 3), base and mount (N, 4, 4); each frame (N, 4, 4)."""
+    out = {"base": np.asarray(base, float)}
+    if mount is not None:
+        out["mount"] = np.asarray(mount, float)
+    n = len(q)
+    for f in frames:
+        roll, pitch, yaw = f.rpy_rad
+        fixed = trans(*f.xyz_m) @ rot_z(yaw) @ rot_y(pitch) @ rot_x(roll)
+        t = out[f.parent] @ fixed
+        if f.joint >= 0:
+            v = f.multiplier * q[:, f.joint]
+            j = np.repeat(np.eye(4)[None], n, axis=0)
+            if f.prismatic:
+                j[:, 2, 3] = v
+            else:
+                c, s = np.cos(v), np.sin(v)
+                j[:, 0, 0], j[:, 0, 1], j[:, 1, 0], j[:, 1, 1] = c, -s, s, c
+            t = t @ j
+        out[f.name] = t
+    return out
+
+
+def capsules_batch(capsules, frames: dict) -> np.ndarray:
+    """(N, L, 2, 3) The capsules' segments from ``skeleton_batch``'s frames."""
+    n = len(next(iter(frames.values())))
+    seg = np.empty((n, len(capsules), 2, 3))
+    for i, c in enumerate(capsules):
+        for e, (name, point) in enumerate(((c.frame_a, c.point_a_m), (c.frame_b, c.point_b_m))):
+            t = frames[name]
+            seg[:, i, e] = t[:, :3, :3] @ np.asarray(point, float) + t[:, :3, 3]
+    return seg

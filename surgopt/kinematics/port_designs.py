@@ -36,6 +36,12 @@ class PortTables(NamedTuple):
     outside_camera: np.ndarray  # [instrument port, camera port]: the two arms' clearance outside the body
     dock: np.ndarray  # (3, sites, words) uint64: bit p set where PSM1's, PSM2's, PSM3's setup joints dock at cart pose p
     dock_camera: np.ndarray  # (sites, words) uint64: the ECM's
+    # the arms' links outside the body with the cart (``studies/port_place/link_tables``; none: 0 pairs), per arm
+    # pair (PSM1-PSM2, PSM1-ECM, PSM2-ECM, then with PSM3: PSM1-PSM3, PSM2-PSM3, PSM3-ECM), the first arm's site,
+    # the second's, and the cart pose: whether they clear (words), the least clearance (m) and its link pair
+    link_words: np.ndarray = np.ones((0, 1, 1, 1), np.uint64)
+    link_value: np.ndarray = np.zeros((0, 1, 1, 1), np.float32)
+    link_code: np.ndarray = np.zeros((0, 1, 1, 1), np.int16)
 
 
 def reach_bits(reach: np.ndarray) -> np.ndarray:
@@ -44,6 +50,14 @@ def reach_bits(reach: np.ndarray) -> np.ndarray:
     padded = np.zeros((n, -(-m // 64) * 64), dtype=np.bool_)
     padded[:, :m] = reach
     return np.packbits(padded, axis=1, bitorder="little").view("<u8").astype(np.uint64)
+
+
+def pack_bits(ok: np.ndarray) -> np.ndarray:
+    """ok[..., pose] (bool) as uint64 words, pose p in bit p % 64 of word p // 64."""
+    m = ok.shape[-1]
+    padded = np.zeros(ok.shape[:-1] + (-(-m // 64) * 64,), dtype=np.bool_)
+    padded[..., :m] = ok
+    return np.packbits(padded, axis=-1, bitorder="little").view("<u8").astype(np.uint64)
 
 
 def site_dexterity(reach: np.ndarray, dex: np.ndarray) -> np.ndarray:
@@ -121,7 +135,8 @@ def design_columns(t, crit, start, stop, instruments=2, feasible_only=False):
     pair's; with a third instrument the common reach is all three's, the shafts' clearance inside is the least
     of the three pairs', the arms' outside and the ports' spacing the least of every pair's, and the cost adds
     the third's isotropy shortfall. A design no cart pose docks (``first_dock``) fails on DOCKING. Returns (ids
-    [PSM1, PSM2, (PSM3,) ECM], columns, reason bits, cost, design numbers, (cart pose, PSM1 and PSM2 swapped))
+    [PSM1, PSM2, (PSM3,) ECM], columns, reason bits, cost, design numbers, (cart pose, PSM1 and PSM2 swapped,
+    the links' least pair or -1))
     of every design, or of the feasible ones only (``feasible_only``: the rows of the others are
     never written, so a chunk's memory is its feasible rows').
     (docs/port_placement.md, eq. P11: the cost and feasibility.)"""
@@ -133,7 +148,7 @@ def design_columns(t, crit, start, stop, instruments=2, feasible_only=False):
     bad = np.empty(size, dtype=np.int64)
     cost = np.empty(size)
     design = np.empty(size, dtype=np.int64)
-    dock = np.empty((size, 2), dtype=np.int64)
+    dock = np.empty((size, 3), dtype=np.int64)
     others = n - 3 if three else n - 2
     per_pair = (n - 2) * others if three else others
     i, j = pair_of(start // per_pair, n)
@@ -180,15 +195,28 @@ def design_columns(t, crit, start, stop, instruments=2, feasible_only=False):
             b |= SPACING
         if inside < crit.min_shaft_gap_m:
             b |= SHAFTS
-        if outside < crit.min_external_m:
+        links = t.link_words.shape[0] > 0
+        if outside < crit.min_external_m and not links:
             b |= OUTSIDE
         if not (crit.angle_lo_rad <= t.ang_centre[i, j] <= crit.angle_hi_rad):
             b |= ANGLE
         if t.side[i, k] * t.side[j, k] >= 0.0:
             b |= CAMERA_SIDE
         pose, swapped = first_dock(t.dock, t.dock_camera, i, j, l, k)
+        code = -1
+        if links:
+            outside = np.nan  # the links are not placed: no pose docks, or the design fails on another count
         if pose < 0:
             b |= DOCKING
+        elif links and b == 0:  # the first pose at which they dock and their links clear, else the docking that
+            # clears most (only for designs that pass every other check: the tables hold the entries they need)
+            clear, turned = first_clear(t, i, j, l, k)
+            if clear >= 0:
+                pose, swapped = clear, turned
+            else:
+                b |= OUTSIDE
+                pose, swapped = clearest_docking(t, i, j, l, k)
+            outside, code = links_at(t, i, j, l, k, pose, swapped)
         if b == 0 or not feasible_only:
             ids[out, 0], ids[out, 1], ids[out, ids.shape[1] - 1] = i, j, k
             f[out, 0] = t.reach_count[i] / t.n_points
@@ -215,7 +243,7 @@ def design_columns(t, crit, start, stop, instruments=2, feasible_only=False):
                 f[out, 15] = t.dex_site[l]
                 cost[out] += crit.w_dexterity * (1.0 - t.dex_site[l])
             design[out] = start + r
-            dock[out, 0], dock[out, 1] = pose, swapped
+            dock[out, 0], dock[out, 1], dock[out, 2] = pose, swapped, code
             out += 1
         k = next_other(k, i, j, l)  # the next camera port; then the next third port; then the next pair
         if k == n:
@@ -248,6 +276,70 @@ def first_dock(dock, dock_camera, i, j, l, k):
             bit = np.int64(popcount64(low - np.uint64(1)))
             return w * 64 + bit, 0 if (straight & low) != 0 else 1
     return -1, 0
+
+
+@njit(**EXACT)
+def _entries(i, j, l, k, swapped):
+    """The (arm pair, first site, second site) entries of the link tables a design reads: PSM1's setup joints on
+    i and PSM2's on j (swapped: the other way round), PSM3 on l (l < 0: none), the ECM on k."""
+    a, b = (j, i) if swapped else (i, j)
+    if l < 0:
+        return ((0, a, b), (1, a, k), (2, b, k), (0, a, b), (0, a, b), (0, a, b))
+    return ((0, a, b), (1, a, k), (2, b, k), (3, a, l), (4, b, l), (5, l, k))
+
+
+@njit(**EXACT)
+def first_clear(t, i, j, l, k):
+    """``first_dock`` with the links' words too: the first cart pose at which every arm docks and every pair of
+    arms' links clear (either way round, straight preferred), or -1."""
+    for w in range(t.dock.shape[2]):
+        both = t.dock_camera[k, w]
+        if l >= 0:
+            both &= t.dock[2, l, w]
+        straight = t.dock[0, i, w] & t.dock[1, j, w] & both
+        crossed = t.dock[0, j, w] & t.dock[1, i, w] & both
+        for e in _entries(i, j, l, k, False):
+            straight &= t.link_words[e[0], e[1], e[2], w]
+        for e in _entries(i, j, l, k, True):
+            crossed &= t.link_words[e[0], e[1], e[2], w]
+        either = straight | crossed
+        if either != 0:
+            low = either & (~either + np.uint64(1))
+            bit = np.int64(popcount64(low - np.uint64(1)))
+            return w * 64 + bit, 0 if (straight & low) != 0 else 1
+    return -1, 0
+
+
+@njit(**EXACT)
+def links_at(t, i, j, l, k, pose, swapped):
+    """The least link clearance (m) between the design's arms at a cart pose, and its pair's code (256 * arm pair
+    + the tables' link code; NaN and -1 where no entry was computed)."""
+    best, code = np.nan, -1
+    for e in _entries(i, j, l, k, swapped == 1):
+        v = np.float64(t.link_value[e[0], e[1], e[2], pose])
+        if v == v and not (best <= v):
+            c = np.int64(t.link_code[e[0], e[1], e[2], pose])
+            best, code = v, (256 * e[0] + c if c >= 0 else -1)
+    return best, code
+
+
+@njit(**EXACT)
+def clearest_docking(t, i, j, l, k):
+    """The cart pose (and way round) at which every arm docks and the least link clearance is largest (the
+    first such), for a design whose links clear at none."""
+    best, at, turned = -np.inf, -1, 0
+    for p in range(t.link_value.shape[3]):
+        w, bit = p // 64, np.uint64(1) << np.uint64(p % 64)
+        both = (t.dock_camera[k, w] & bit) != 0 and (l < 0 or (t.dock[2, l, w] & bit) != 0)
+        if not both:
+            continue
+        for swapped in range(2):
+            a, b = (j, i) if swapped else (i, j)
+            if (t.dock[0, a, w] & bit) != 0 and (t.dock[1, b, w] & bit) != 0:
+                v, _ = links_at(t, i, j, l, k, p, swapped)
+                if at < 0 or v > best:
+                    best, at, turned = v, p, swapped
+    return at, turned
 
 
 @njit(**EXACT)

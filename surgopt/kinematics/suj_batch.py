@@ -80,9 +80,10 @@ def least_margin(q, ranges):
 
 
 @njit(**EXACT)
-def planar_best(s, x, y, z, psi, q4, q5):
+def planar_best(s, x, y, z, psi, q4, q5, floor, q_best):
     """The best least margin of the (up to two) elbow solutions that put the planar chain's last frame at (x, y,
-    z) with yaw psi, the wrist at (q4, q5) (``suj._planar_ik``, ``suj._elbows``); -inf when out of reach."""
+    z) with yaw psi, the wrist at (q4, q5) (``suj._planar_ik``, ``suj._elbows``); -inf when out of reach. A
+    solution whose margin beats ``floor`` is written to ``q_best`` (6,)."""
     column = z - s.d[0] - (s.d[1] + s.d[2] + s.d[3])
     px, py, l1, l2 = x - s.a[0], y, s.a[2], s.a[3]
     c = (px * px + py * py - l1 * l1 - l2 * l2) / (2.0 * l1 * l2)
@@ -100,14 +101,18 @@ def planar_best(s, x, y, z, psi, q4, q5):
         q[0], q[1], q[2] = column, t1 - s.offset[1], t2 - s.offset[2]
         q[3] = wrap(psi - t1 - t2 - s.offset[3])
         q[4], q[5] = q4, q5
-        best = max(best, least_margin(q, s.ranges))
+        m = least_margin(q, s.ranges)
+        if m > max(best, floor):
+            q_best[:] = q
+        best = max(best, m)
     return best
 
 
 @njit(**EXACT)
-def classic_psm_margin(s, pose):
+def classic_psm_margin(s, pose, q_best):
     """(S2) The largest least range margin of the Classic PSM SUJ's solutions that put the arm's base frame at
-    ``pose`` (4x4, cart world); -inf when no joint values reach it (``suj.classic_psm_ik``)."""
+    ``pose`` (4x4, cart world); -inf when no joint values reach it (``suj.classic_psm_ik``). That solution's
+    joints (m, rad) are written to ``q_best`` (6,; untouched when none)."""
     t = s.world_inv @ pose @ s.tip_inv
     m = np.ascontiguousarray(t[:3, :3])
     rx4, rx5 = rx(s.alpha[4]), rx(s.alpha[5])
@@ -133,16 +138,40 @@ def classic_psm_margin(s, pose):
         rg_t, pg = np.ascontiguousarray(g[:3, :3].T), np.ascontiguousarray(g[:3, 3])
         rh = m @ rg_t  # h = t g^-1 = [m rg^T, p - m rg^T pg]
         ph = np.ascontiguousarray(t[:3, 3]) - rh @ pg
-        best = max(best, planar_best(s, ph[0], ph[1], ph[2], math.atan2(rh[1, 0], rh[0, 0]), q4, q5))
+        best = max(best, planar_best(s, ph[0], ph[1], ph[2], math.atan2(rh[1, 0], rh[0, 0]), q4, q5, best, q_best))
     return best
 
 
 @njit(**EXACT)
 def classic_psm_margins(s, poses):
     """``classic_psm_margin`` of each of ``poses`` (k, 4, 4)."""
+    return classic_psm_solutions(s, poses)[0]
+
+
+@njit(**EXACT)
+def classic_psm_solutions(s, poses):
+    """``classic_psm_margin`` of each of ``poses`` (k, 4, 4) and its best solution's joints (k, 6; NaN where
+    none reaches)."""
     out = np.empty(poses.shape[0])
+    joints = np.full((poses.shape[0], 6), np.nan)
     for i in range(poses.shape[0]):
-        out[i] = classic_psm_margin(s, np.ascontiguousarray(poses[i]))
+        out[i] = classic_psm_margin(s, np.ascontiguousarray(poses[i]), joints[i])
+    return out, joints
+
+
+@njit(**EXACT)
+def chain_points(world, alpha, a, d, offset, prismatic, q):
+    """(7, 3) The origins of a six-link modified-DH chain's frames at joints q (``suj.frames`` without the tool
+    transform, ``suj.link``): its base ``world`` (4, 4), then after each link."""
+    out = np.empty((7, 3))
+    t = world.copy()
+    out[0] = t[:3, 3]
+    for j in range(6):
+        if prismatic[j]:
+            t = t @ mdh(alpha[j], a[j], offset[j], d[j] + q[j])
+        else:
+            t = t @ mdh(alpha[j], a[j], q[j] + offset[j], d[j])
+        out[j + 1] = t[:3, 3]
     return out
 
 
@@ -283,3 +312,39 @@ def ecm_margins(s, origins, aims, psi_steps, aim_steps, q4_steps):
                     ecm[i, 0] = math.atan2(ux, -uz)
                     ecm[i, 1] = -math.asin(min(1.0, max(-1.0, uy)))
     return best, joints, ecm
+
+
+@njit(**EXACT)
+def link_segments(world, alpha, a, d, offset, prismatic, joints, to_frame, first):
+    """(k, 6 - first, 2, 3) A six-link chain's links from the ``first``-th on as segments between successive frame
+    origins (``chain_points``), at each of ``joints`` (k, 6; NaN rows give NaN), taken by ``to_frame`` (k, 4, 4)
+    into another frame (the patient's): the setup joints' links as ``clashes.arm_poses`` places them."""
+    k = joints.shape[0]
+    out = np.full((k, 6 - first, 2, 3), np.nan)
+    for n in range(k):
+        if np.isnan(joints[n, 0]):
+            continue
+        pts = chain_points(world, alpha, a, d, offset, prismatic, joints[n])
+        r, t = to_frame[n, :3, :3], to_frame[n, :3, 3]
+        for s in range(6 - first):
+            out[n, s, 0] = r @ pts[first + s] + t
+            out[n, s, 1] = r @ pts[first + s + 1] + t
+    return out
+
+
+@njit(**EXACT)
+def chain_ends(world, alpha, a, d, offset, prismatic, joints):
+    """(k, 4, 4) A six-link chain's last frame (``suj.frames``' before the tool transform) at each of ``joints``
+    (k, 6; NaN rows give NaN)."""
+    out = np.full((joints.shape[0], 4, 4), np.nan)
+    for n in range(joints.shape[0]):
+        if np.isnan(joints[n, 0]):
+            continue
+        t = world.copy()
+        for j in range(6):
+            if prismatic[j]:
+                t = t @ mdh(alpha[j], a[j], offset[j], d[j] + joints[n, j])
+            else:
+                t = t @ mdh(alpha[j], a[j], joints[n, j] + offset[j], d[j])
+        out[n] = t
+    return out

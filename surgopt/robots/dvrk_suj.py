@@ -64,6 +64,8 @@ ROT_Z_QUARTER = ((0.0, -1.0, 0.0), (1.0, 0.0, 0.0), (0.0, 0.0, 1.0))
 TIP_ROTATION = ((0.0, 1.0, 0.0), (-1.0, 0.0, 0.0), (0.0, 0.0, 1.0))
 
 DEG = math.pi / 180
+#: The instrument arms' setup joints, in the order of the rows' instrument ports when docked as enumerated.
+INSTRUMENT_SUJS = ("PSM1", "PSM2", "PSM3")
 QUOTED = "the dVRK documentation's quoted Classic PSM SUJ ranges (assumptions there, not measured)"
 ASSUMED = "assumed: each revolute joint a full turn, the column -0.10..0.70 m (not in the dVRK files)"
 COLUMN_M = (-0.10, 0.70)

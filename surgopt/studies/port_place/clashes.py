@@ -14,29 +14,12 @@ from typing import NamedTuple
 
 import numpy as np
 
+from surgopt.studies.port_place.link_tables import POSE_POINTS, spread_points
+
 SPACING_M = 0.01
 TABLE_THICKNESS_M = 0.10
 #: Against the patient, clearances are resolved up to this (mm); a link farther off reads as this much.
 PATIENT_CAP_MM = 150.0
-#: The arms' poses: docked, and reaching each of at most this many target points, spread by farthest-point
-#: sampling from the centre (the target's extremes come first; ``spread_points`` gives the covering radius).
-POSE_POINTS = 64
-
-
-def spread_points(points: np.ndarray, k: int, start: int = 0) -> tuple[np.ndarray, float]:
-    """Farthest-point sampling: k indices (all when fewer), each next the point farthest from those chosen, and
-    the covering radius (m): every point lies within it of a chosen one."""
-    if len(points) <= k:
-        return np.arange(len(points)), 0.0
-    chosen = [start]
-    d = np.linalg.norm(points - points[start], axis=1)
-    for _ in range(k - 1):
-        i = int(np.argmax(d))
-        chosen.append(i)
-        d = np.minimum(d, np.linalg.norm(points - points[i], axis=1))
-    return np.array(chosen), float(d.max())
-
-
 class Clearance(NamedTuple):
     """One least clearance: what against what, the value (mm, negative: they overlap), which links, and where
     (the pose of each arm: "docked" or the target point it reaches, mm in the patient frame)."""

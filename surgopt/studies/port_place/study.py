@@ -112,7 +112,8 @@ def schema(config=None):
     arms = arms_of(config)
     fields = [pa.field("design_id", pa.int64()), *[pa.field(f"{arm}_site", pa.int64()) for arm in arms]]
     fields += [pa.field(f"{arm}_{c}_mm", pa.float64()) for arm in arms for c in "xyz"]
-    fields += [pa.field(c, pa.float64()) for c in float_columns(config)]
+    fields += [pa.field(c, pa.float64(), metadata=LINK_MEANING if c == "external_clearance_mm" and links_of(config)
+                        else None) for c in float_columns(config)]
     fields += [pa.field("min_port_spacing_mm", pa.float64()), pa.field("psm_to_target_mm", pa.float64()),
                *[pa.field(f"{arm}_elevation_deg", pa.float64(), metadata={
                    "meaning": "the instrument's shaft (port to target centre) above the horizontal: Hanna et al. "
@@ -169,14 +170,35 @@ def cart_search_columns(config) -> tuple[str, ...]:
     return tuple(searched_pose_box(cart))
 
 
+def links_of(config) -> bool:
+    """Whether the arms' links decide feasible (``tables.links_decide``) in a config, validated or as stored."""
+    if cart_of(config) == "none":
+        return False
+    if isinstance(config, dict):
+        return (config.get("constraints") or {}).get("min_link_clearance_mm") is not None
+    return config.constraints.min_link_clearance_mm is not None
+
+
+#: ``external_clearance_mm`` when the links decide (``constraints.min_link_clearance_mm``).
+LINK_MEANING = {"meaning": "the least clearance between the arms' links outside the body (setup joints' and "
+                           "arms' own, capsules of assumed radii; docked and over the target) at the row's cart "
+                           "pose; resolved up to 100 mm above min_link_clearance_mm (reads as that beyond); below "
+                           "it, the first overlap found (an upper bound); NaN: no pose docks, or the layout fails "
+                           "on a count of its own and was not checked"}
+
+
 def cart_fields(config) -> list:
     import pyarrow as pa
 
     if cart_of(config) == "none":
         return []
+    links = [pa.field("external_link_pair", pa.int64(), metadata={
+        "meaning": "the two links of external_clearance_mm: 256 x arm pair (0 PSM1-PSM2, 1 PSM1-ECM, 2 PSM2-ECM, "
+                   "3 PSM1-PSM3, 4 PSM2-PSM3, 5 PSM3-ECM) + 16 x the first arm's link + the second's (each arm's "
+                   "setup-joint links 3-6, then its own: link_tables.link_names); -1: none"})] if links_of(config) else []
     return [pa.field("cart_pose", pa.int64(), metadata={"meaning": "the first pose of the cart's grid at which "
                                                                     "every arm's setup joints dock (-1: none)"}),
-            *[pa.field(c, pa.float64()) for c in CART_COLUMNS[1:]]]
+            *[pa.field(c, pa.float64()) for c in CART_COLUMNS[1:]], *links]
 
 
 def _stored_metadata(config) -> dict | None:
@@ -300,6 +322,8 @@ def design_rows(cfg, sites, t, ids, site_ids, f, bad, cost, design_ids, docking_
         where = np.where(pose[:, None] >= 0, floor[np.maximum(pose, 0)], np.nan)
         for c, name in enumerate(CART_COLUMNS[1:]):
             cols[name] = where[:, c]
+        if links_of(cfg):
+            cols["external_link_pair"] = dock[:, 2]
     for c, name in enumerate(cart_search_columns(cfg)):  # the searched pose, docked there or not
         cols[name] = np.asarray(cart_searched[:, c], float)
     cols["cost"] = cost
@@ -459,15 +483,18 @@ def searched_dock(model, site_ids: np.ndarray, pose: dict):
     """The dock tables of a design's own ports at its own searched cart pose (``pose``: the pose's dimensions,
     ``tables.searched_values``): one pose, at which no arm docks (nothing solved) when the cart's origin would
     stand within ``clear_of_table_mm`` of the table."""
-    from surgopt.studies.port_place.tables import DockTables, dock_at, floor_pose, off_table, pack_bits, poses_of
+    from surgopt.kinematics.port_designs import pack_bits
+    from surgopt.studies.port_place.tables import DockTables, dock_at, floor_pose, off_table, poses_of
 
     cfg = model.cfg
     floor = np.array([floor_pose(cfg, *pose.values())])
     poses = poses_of(cfg.cart, floor)
     if off_table(cfg.cart, floor[:, 0], floor[:, 1])[0]:
         return dock_at(model, site_ids, poses)
-    margin, camera = np.full((3, len(site_ids), 1), -np.inf), np.full((len(site_ids), 1), -np.inf)
-    return DockTables(pack_bits(margin >= 0.0), pack_bits(camera >= 0.0), margin, camera, poses)
+    n = len(site_ids)
+    margin, camera = np.full((3, n, 1), -np.inf), np.full((n, 1), -np.inf)
+    return DockTables(pack_bits(margin >= 0.0), pack_bits(camera >= 0.0), margin, camera, poses,
+                      np.full((3, n, 1, 6), np.nan), np.full((n, 1, 6), np.nan), np.full((n, 1, 2), np.nan))
 
 
 def searched_values(cart, given: dict) -> dict:
@@ -480,8 +507,10 @@ def searched_values(cart, given: dict) -> dict:
 
 def cart_of_sites(dock, site_ids: np.ndarray):
     """The cart's dock tables (``tables.DockTables``, every candidate site) of a design's own ports, in its order."""
+    pick = {"joints": (slice(None), site_ids), "camera_joints": (site_ids,), "camera_aim": (site_ids,)}
     return dock._replace(bits=dock.bits[:, site_ids], camera=dock.camera[site_ids], margin=dock.margin[:, site_ids],
-                         camera_margin=dock.camera_margin[site_ids])
+                         camera_margin=dock.camera_margin[site_ids],
+                         **{k: getattr(dock, k)[at] for k, at in pick.items() if getattr(dock, k) is not None})
 
 
 def warm_up(cfg) -> None:
@@ -544,6 +573,18 @@ NS_PER_PAIR_POINT = 300.0
 #: One Classic PSM setup joint's inverse kinematics (``kinematics.suj_batch.classic_psm_margins``, jitted): ~3.4 us
 #: measured (benchmarks/bench_cart.py; plain Python's classic_psm_ik: ~118 us).
 NS_PER_SUJ_SOLVE = 4_000.0
+#: The links' clearance tables (``link_tables``), per (arm pair, site, site, cart pose) entry of the dense tables
+#: (most are not computed: an arm does not dock there, or no design can need it): 15.6 s for the default's 3 x
+#: 164^2 x 150 entries on one core of the development machine (~1.3 us), rounded up.
+NS_PER_LINK_ENTRY = 1_500.0
+#: Bytes per dense entry while the link tables are built and kept: float32 value, int16 pair, the bool and float
+#: work arrays (the words are 1/64 of a bit per entry).
+LINK_ENTRY_BYTES = 16
+
+
+def link_pairs(instruments: int) -> int:
+    """The arm pairs whose links are checked: PSM1-PSM2 and each PSM with the ECM, and PSM3 with the others."""
+    return 3 if instruments == 2 else 6
 #: The ECM's setup joints at one site and cart pose (``kinematics.suj_batch.ecm_margins``' grid of 36 x 36 x 12,
 #: jitted): ~125 us measured (3.1 s for the default's 164 x 150; numpy over a pose's sites: ~300 us).
 NS_PER_ECM_DOCK = 130_000.0
@@ -586,9 +627,16 @@ def estimate(cfg) -> Estimate:
     if cfg.cart.model != "none":  # each instrument arm's setup joints at each site and cart pose
         from surgopt.studies.port_place.tables import cart_poses
 
-        seconds += n * len(cart_poses(cfg).floor) * (arms * NS_PER_SUJ_SOLVE + NS_PER_ECM_DOCK) * 1e-9
+        poses = len(cart_poses(cfg).floor)
+        seconds += n * poses * (arms * NS_PER_SUJ_SOLVE + NS_PER_ECM_DOCK) * 1e-9
+        if links_of(cfg):  # the links' clearance tables, each arm pair's (site, site, pose) entries
+            seconds += link_pairs(arms) * n * n * poses * NS_PER_LINK_ENTRY * 1e-9
     row = (ROW_BYTES if arms == 2 else ROW_BYTES_3) + (CART_ROW_BYTES if cfg.cart.model != "none" else 0)
     working = n * n * 8 * 12 + n * m * 9 + LIBRARY_BYTES + (CART_LIBRARY_BYTES if cfg.cart.model != "none" else 0)
+    if links_of(cfg):  # float32 values, int16 pairs and the float work arrays of each arm pair's dense tables
+        from surgopt.studies.port_place.tables import cart_poses
+
+        working += link_pairs(arms) * n * n * len(cart_poses(cfg).floor) * LINK_ENTRY_BYTES
     if cfg.rows_stored == "feasible":  # at most every design feasible: 8 bytes of each stored row in the parent
         # and, in flight, tasks of feasible rows only (2 per worker, ~4 on this scale of machine)
         return Estimate(d, "port designs (feasible rows stored)", d, seconds,
@@ -780,7 +828,15 @@ def docking_tables(best: dict, meta: dict) -> list:
                 else ""),
              ["arm", "port", "suj_joints", "least range margin", "note"], rows),
             ("best layout: least clearance outside the body (capsules, radii assumed; negative: the links overlap; "
-             "not yet part of feasible)", ["between", "clearance_mm", "link", "against", "where"], clear)]
+             + in_feasible(cfg) + ")", ["between", "clearance_mm", "link", "against", "where"], clear)]
+
+
+def in_feasible(cfg) -> str:
+    """What of the links' clearance feasible holds: between arms with ``constraints.min_link_clearance_mm``."""
+    if links_of(cfg):
+        return (f"between arms in feasible, at least {cfg.constraints.min_link_clearance_mm:g} mm; against the "
+                f"patient and the table not yet")
+    return "not yet part of feasible"
 
 
 #: The layouts of least cost among those feasible without the cart whose docking the closing report explains.
@@ -788,25 +844,28 @@ UNDOCKED_OF_BEST = 1000
 UNDOCKED_WHY = ("the ECM's setup joints reach its port at no cart pose",
                 "PSM1's and PSM2's setup joints take the pair's two ports at no cart pose, either way round",
                 "PSM3's setup joints reach its port at no cart pose",
-                "every arm docks at some cart pose of the grid, never all at one")
+                "every arm docks at some cart pose of the grid, never all at one",
+                "every arm docks at some cart pose, but at each the arms' links overlap (min_link_clearance_mm)")
 
 
 def undocked_table(parts, meta: dict) -> list:
     """How many of the UNDOCKED_OF_BEST layouts of least cost that are feasible without the cart (every reason
     but docking passes) the cart cannot dock, and why (``why_undocked``): the closing report's answer to "which
     of the previous best layouts are not dockable"."""
-    from surgopt.kinematics.port_reasons import DOCKING
+    from surgopt.kinematics.port_reasons import DOCKING, OUTSIDE
     from surgopt.studies.port_place.tables import model_of
 
     arms = [a for a in ("psm1", "psm2", "psm3", "ecm") if f"{a}_site" in parts.schema.names]
     cols = {c: [] for c in ["cost", "design_id", "infeasible", *(f"{a}_site" for a in arms)]}
+    links = "external_link_pair" in parts.schema.names  # the links decide: a clash is the cart's failure too
+    cart_only = (0, DOCKING, OUTSIDE) if links else (0, DOCKING)
     for t in parts.only(list(cols)):
-        keep = np.isin(t["infeasible"].to_numpy(), (0, DOCKING))
+        keep = np.isin(t["infeasible"].to_numpy(), cart_only)
         for c in cols:
             cols[c].append(t[c].to_numpy()[keep])
     got = {c: np.concatenate(v) if v else np.zeros(0) for c, v in cols.items()}
     best = np.lexsort((got["design_id"], got["cost"]))[:UNDOCKED_OF_BEST]
-    undocked = best[got["infeasible"][best] == DOCKING]
+    undocked = best[got["infeasible"][best] != 0]
     try:  # as stored: its files are not read and hashed again
         cfg = PortPlaceConfig.model_validate(json.loads(meta["config"]), context={"stored": True})
     except (ValueError, OSError, KeyError):
@@ -814,11 +873,12 @@ def undocked_table(parts, meta: dict) -> list:
     if cfg.cart.pose == "search":  # each trial docked at its own pose, not at the grid's
         return []
     sites = np.column_stack([got[f"{a}_site"][undocked] for a in arms]).astype(np.int64)
-    why = why_undocked(model_of(cfg).dock, sites)
+    why = np.where(got["infeasible"][undocked] == OUTSIDE, len(UNDOCKED_WHY) - 1, why_undocked(model_of(cfg).dock,
+                                                                                                sites))
     rows = [[w, f"{int(np.sum(why == k)):,}"] for k, w in enumerate(UNDOCKED_WHY) if np.any(why == k)]
     return [(f"the {len(best):,} layouts of least cost feasible without the cart: {len(undocked):,} the "
-             f"{cfg.cart.model} cart's setup joints cannot dock at any pose of its grid, because", ["why", "layouts"],
-             rows)]
+             f"{cfg.cart.model} cart's setup joints cannot dock at any pose of its grid"
+             + (" with the arms' links clear" if links else "") + ", because", ["why", "layouts"], rows)]
 
 
 def why_undocked(dock, sites: np.ndarray) -> np.ndarray:
@@ -886,10 +946,10 @@ def clearance_screen(rows: list[dict], meta: dict):
     else:
         worst = max(float(x[2]) for x in out)
         word = (f"none of the {n} best feasible layouts, at the run's docking roll or each PSM's own: their links "
-                f"overlap outside the body by {-worst:.0f} mm or more (link clearance is not yet part of feasible)")
+                f"overlap outside the body by {-worst:.0f} mm or more (link clearance: {in_feasible(cfg)})")
     title = (f"the best feasible layouts, {n} screened by cost until one clears (at most {SCREEN_LAYOUTS}): their "
              f"links' least clearance outside the body (capsules, radii "
-             f"assumed; negative: they overlap; not yet part of feasible), and each PSM's docking roll (deg, "
+             f"assumed; negative: they overlap; {in_feasible(cfg)}), and each PSM's docking roll (deg, "
              f"{ROLL_TEXT}) at which they clear")
     return word, (title, ["design_id", "cost", "least_clearance_mm", "between", "links", "with rolls"], out)
 

@@ -34,6 +34,7 @@ from typing import NamedTuple
 import numpy as np
 
 from surgopt.robots import dvrk
+from surgopt.robots.dvrk_suj import INSTRUMENT_SUJS
 from surgopt.robots.chain import rot_x, rot_y, rot_z
 from surgopt.studies.port_place.config import PortPlaceConfig, Target, camera_arm_of, instrument_of
 from surgopt.studies.port_place.geometry import sites_mm, target_points_mm
@@ -328,7 +329,26 @@ def port_tables(model: PortModel, sites: np.ndarray, rot: np.ndarray, outside=No
                           len(targets), D.reach_bits(reach), D.site_dexterity(reach, dex),
                           wrist_margin_deg(model, sites), outside_camera,
                           *((dock.bits, dock.camera) if dock is not None else no_cart(len(sites))))
+    if links_decide(cfg) and dock is not None and dock.joints is not None:
+        tables = with_links(model, tables, sites, instrument_frames(model, sites, rot), dock)
     return tables, reach, dex
+
+
+def links_decide(cfg: PortPlaceConfig) -> bool:
+    """Whether the arms' links outside the body are in the rows' feasible: with the cart and
+    ``constraints.min_link_clearance_mm`` given."""
+    return cfg.cart.model != "none" and cfg.constraints.min_link_clearance_mm is not None
+
+
+def with_links(model: PortModel, tables, sites: np.ndarray, rot: np.ndarray, dock):
+    """The design kernel's tables with the arms' link clearance tables (``link_tables``) of these sites."""
+    from surgopt.studies.port_place.link_tables import link_tables, wanted_of
+
+    got = link_tables(model, sites, rot, dock, wanted_of(tables, model.criteria))
+    pairs = sorted(got.value)
+    return tables._replace(link_words=np.stack([got.words[p] for p in pairs]),
+                           link_value=np.stack([got.value[p] for p in pairs]),
+                           link_code=np.stack([got.code[p] for p in pairs]))
 
 
 def no_cart(n: int) -> tuple[np.ndarray, np.ndarray]:
@@ -443,8 +463,6 @@ def poses_of(cart, floor: np.ndarray) -> CartPoses:
     return CartPoses(floor, np.array([patient_in_cart(cart, *f) for f in floor]).reshape(-1, 4, 4))
 
 
-#: The instrument arms' setup joints, in the order of the rows' instrument ports when docked as enumerated.
-INSTRUMENT_SUJS = ("PSM1", "PSM2", "PSM3")
 
 
 class DockTables(NamedTuple):
@@ -458,6 +476,9 @@ class DockTables(NamedTuple):
     margin: np.ndarray
     camera_margin: np.ndarray
     poses: CartPoses
+    joints: np.ndarray | None = None  # (arms, sites, poses, 6): that best solution's joints (NaN: none)
+    camera_joints: np.ndarray | None = None  # (sites, poses, 6): the ECM's
+    camera_aim: np.ndarray | None = None  # (sites, poses, 2): the ECM's own yaw and pitch there (rad)
 
 
 def base_pose(rot: np.ndarray, site_m: np.ndarray) -> np.ndarray:
@@ -465,14 +486,6 @@ def base_pose(rot: np.ndarray, site_m: np.ndarray) -> np.ndarray:
     t = np.eye(4)
     t[:3, :3], t[:3, 3] = rot, site_m
     return t
-
-
-def pack_bits(ok: np.ndarray) -> np.ndarray:
-    """ok[..., pose] (bool) as uint64 words, pose p in bit p % 64 of word p // 64."""
-    m = ok.shape[-1]
-    padded = np.zeros(ok.shape[:-1] + (-(-m // 64) * 64,), dtype=np.bool_)
-    padded[..., :m] = ok
-    return np.packbits(padded, axis=-1, bitorder="little").view("<u8").astype(np.uint64)
 
 
 def dock_tables(model: PortModel) -> DockTables:
@@ -492,7 +505,8 @@ def dock_tables(model: PortModel) -> DockTables:
 def dock_at(model: PortModel, site_ids: np.ndarray, poses: CartPoses) -> DockTables:
     """``dock_tables`` of some candidate sites (``site_ids``, in that order: a design's own ports) at some cart
     poses (a searched pose: one)."""
-    from surgopt.kinematics.suj_batch import classic_psm_margins, suj_arrays
+    from surgopt.kinematics.port_designs import pack_bits
+    from surgopt.kinematics.suj_batch import classic_psm_solutions, suj_arrays
     from surgopt.robots.dvrk_suj import CARTS
 
     cfg = model.cfg
@@ -500,13 +514,19 @@ def dock_at(model: PortModel, site_ids: np.ndarray, poses: CartPoses) -> DockTab
     n, m = len(site_ids), len(poses.floor)
     sites = model.sites_m[site_ids]
     margin = np.full((3, n, m), -np.inf)
+    joints = np.full((3, n, m, 6), np.nan)
     bases = np.zeros((n, 4, 4))
     bases[:, :3, :3], bases[:, :3, 3], bases[:, 3, 3] = model.instrument_rot[site_ids], sites, 1.0
     in_cart = np.ascontiguousarray(np.einsum("pij,njk->npik", poses.patient, bases).reshape(n * m, 4, 4))
     for a, arm in enumerate(arms):  # the best solution's least margin (suj_answer's first), every site and pose
-        margin[a] = classic_psm_margins(suj_arrays(CARTS[cfg.cart.model][arm]), in_cart).reshape(n, m)
-    camera = camera_dock(cfg, poses.patient, sites)[0].reshape(m, n).T
-    return DockTables(pack_bits(margin >= 0.0), pack_bits(camera >= 0.0), margin, camera, poses)
+        got, q = classic_psm_solutions(suj_arrays(CARTS[cfg.cart.model][arm]), in_cart)
+        margin[a], joints[a] = got.reshape(n, m), q.reshape(n, m, 6)
+    camera, camera_joints, aim = camera_dock(cfg, poses.patient, sites)
+    camera = camera.reshape(m, n).T
+    return DockTables(pack_bits(margin >= 0.0), pack_bits(camera >= 0.0), margin, camera, poses,
+                      np.where((margin >= 0.0)[..., None], joints, np.nan),
+                      np.where((camera >= 0.0)[..., None], camera_joints.reshape(m, n, 6).transpose(1, 0, 2), np.nan),
+                      aim.reshape(m, n, 2).transpose(1, 0, 2))
 
 
 def camera_shafts(camera, centre_m: np.ndarray, sites_m: np.ndarray) -> np.ndarray:

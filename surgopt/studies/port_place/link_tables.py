@@ -1,0 +1,263 @@
+"""The arms' links outside the body in every row (issue 40): for each pair of arms, at each pair of their sites and
+each cart pose at which both dock, the least clearance between their links (``clashes``' capsules: the setup
+joints' links and each arm's own), docked and over the target, factored as the issue asks:
+
+- per site, each PSM's own links at the poses that reach the target (``own_moving``: its docked frame at the port
+  does not depend on the cart's pose, so neither do they), bounded per link by a ball (``capsules.swept_balls``);
+- per (arm, site, pose), its setup joints' links from the dock tables' best solution (``suj_static``), and the
+  ECM held docked (its setup joints and its own links, ``ecm_static``);
+- per (site pair), the two PSMs' own links over every pair of their poses (``capsules.moving_pairs``), once
+  for every cart pose; per (site pair, pose) the rest (``capsules.pair_clearances``).
+
+All in the patient's frame (the cart's pose moves the setup joints only). The tables are dense over (site, site,
+pose) where both arms dock (NaN elsewhere), with each least's link pair, and packed as the design kernel's 64-pose
+words of where the clearance is at least ``constraints.min_link_clearance_mm``. Held to ``clashes``'s
+per-layout clearances (the same capsules placed by the plain forward kinematics) in tests/test_link_tables.py.
+"""
+from __future__ import annotations
+
+from typing import NamedTuple
+
+import numpy as np
+
+#: The arm pairs whose links are checked, in the order of the rows' ``external_link_pair`` code (256 * pair +
+#: 16 * link of the first + link of the second).
+ARM_PAIRS = (("PSM1", "PSM2"), ("PSM1", "ECM"), ("PSM2", "ECM"), ("PSM1", "PSM3"), ("PSM2", "PSM3"),
+             ("PSM3", "ECM"))
+#: Clearances are resolved up to this much above the config's least (m): a pair farther apart reads as that much
+#: ("at least"); below the least, the search stops at the first overlap it finds (an upper bound: the layout
+#: fails there whatever the exact least).
+CAP_M = 0.1
+#: The setup joints' links checked (``clashes.arm_poses``: the column and the arm's carriage on it are the cart).
+FIRST_SUJ_LINK = 2
+
+
+class LinkTables(NamedTuple):
+    """``value[pair]`` (sites, sites, poses) float32: the least clearance (m) between the pair's two arms (the
+    first at the first index's site); ``code[pair]`` int16: its link pair (16 * first's link + second's); ``words``
+    (sites, sites, pose words) uint64: where it is at least the config's least; ``names`` per arm its links."""
+
+    value: dict
+    code: dict
+    words: dict
+    names: dict
+
+
+def link_names(arm: str) -> tuple[str, ...]:
+    """An arm's links in the tables' numbering: its setup joints' (fixed), then its own."""
+    from surgopt.robots import dvrk_links as L
+
+    own = L.ECM_CLASSIC_CAPSULES if arm == "ECM" else L.PSM_CLASSIC_CAPSULES
+    return (tuple(f"{arm} setup joint link {k + 1}" for k in range(FIRST_SUJ_LINK, 6))
+            + tuple(f"{arm} {c.name}" for c in own))
+
+
+def pair_name(code: int) -> str:
+    """A row's ``external_link_pair`` code as "PSM1 setup joint link 6 / PSM2 mount" ("" for -1)."""
+    if code < 0:
+        return ""
+    a, b = ARM_PAIRS[code // 256]
+    return f"{link_names(a)[(code % 256) // 16]} / {link_names(b)[code % 16]}"
+
+
+#: The arms' poses: docked, and reaching each of at most this many target points, spread by farthest-point
+#: sampling from the centre (the target's extremes come first; ``spread_points`` gives the covering radius).
+POSE_POINTS = 64
+
+
+def spread_points(points: np.ndarray, k: int, start: int = 0) -> tuple[np.ndarray, float]:
+    """Farthest-point sampling: k indices (all when fewer), each next the point farthest from those chosen, and
+    the covering radius (m): every point lies within it of a chosen one."""
+    if len(points) <= k:
+        return np.arange(len(points)), 0.0
+    chosen = [start]
+    d = np.linalg.norm(points - points[start], axis=1)
+    for _ in range(k - 1):
+        i = int(np.argmax(d))
+        chosen.append(i)
+        d = np.minimum(d, np.linalg.norm(points - points[i], axis=1))
+    return np.array(chosen), float(d.max())
+
+
+#: The target points are checked in this many groups of neighbours (each bounded by its own balls).
+POSE_GROUPS = 8
+
+
+def pose_points(model) -> tuple[np.ndarray, np.ndarray]:
+    """The target points each PSM reaches in the check (``spread_points`` from the centre's nearest),
+    ordered into ``POSE_GROUPS`` groups of neighbours (each point with the nearest of the first POSE_GROUPS, the
+    target's extremes), and the groups' offsets among the arm's poses (the docked pose first, a group of its
+    own): (points (k, 3), offsets (G + 2,))."""
+    start = int(np.argmin(np.linalg.norm(model.targets_m - model.centre_m, axis=1)))
+    points = model.targets_m[spread_points(model.targets_m, POSE_POINTS, start)[0]]
+    seeds = points[:POSE_GROUPS]
+    group = np.argmin(np.linalg.norm(points[:, None, :] - seeds[None, :, :], axis=2), axis=1)
+    order = np.argsort(group, kind="stable")
+    counts = np.bincount(group, minlength=len(seeds))
+    return points[order], np.concatenate([[0, 1], 1 + np.cumsum(counts)]).astype(np.int64)
+
+
+def own_moving(model, sites: np.ndarray, rot: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(segments (n, P, 7, 2, 3) m in the patient frame, radii (7,), the poses' groups (``pose_points``)): a
+    Classic PSM's own links docked at each
+    port in its docking frame ``rot`` (n, 3, 3), with the mount where its setup joints' tip is
+    (SUJ_tip_to_tool_origin), docked (yaw = pitch = 0, the tip at the centre's depth) and reaching each of
+    ``pose_points`` (eq. P2), as ``clashes.arm_poses`` places them."""
+    from surgopt.kinematics import capsules as C
+    from surgopt.robots import dvrk_links as L
+    from surgopt.robots.dvrk_suj import CARTS
+
+    along = model.limits.along_shaft_m
+    points, groups = pose_points(model)
+    n, k = len(sites), len(points) + 1
+    base = np.zeros((n, 4, 4))
+    base[:, :3, :3], base[:, :3, 3], base[:, 3, 3] = rot, sites, 1.0
+    mount = base @ np.linalg.inv(np.asarray(CARTS["classic"]["PSM1"].tip_to_tool, float))
+    local = np.einsum("npi,nij->npj", points[None, :, :] - sites[:, None, :], rot)  # (n, P-1, 3), base frame
+    rho = np.linalg.norm(local, axis=2)
+    q = np.empty((n, k, 3))
+    q[:, 0] = (0.0, 0.0, 0.0)
+    q[:, 0, 2] = np.linalg.norm(model.centre_m - sites, axis=1) - along
+    q[:, 1:, 1] = -np.arcsin(np.clip(local[:, :, 1] / rho, -1.0, 1.0))
+    q[:, 1:, 0] = np.arctan2(local[:, :, 0], -local[:, :, 2])
+    q[:, 1:, 2] = rho - along
+    frames = C.skeleton_batch(L.PSM_CLASSIC_FRAMES, q.reshape(-1, 3), np.repeat(base, k, axis=0),
+                              np.repeat(mount, k, axis=0))
+    segs = C.capsules_batch(L.PSM_CLASSIC_CAPSULES, frames).reshape(n, k, -1, 2, 3)
+    return segs, np.array([c.radius_m for c in L.PSM_CLASSIC_CAPSULES]), groups
+
+
+def _chain(suj):
+    """A six-link SUJ's base and modified-DH rows as ``suj_batch.link_segments`` reads them."""
+    rows = suj.links
+    return (np.asarray(suj.world_to_suj, float), np.array([r.alpha_rad for r in rows]),
+            np.array([r.a_m for r in rows]), np.array([r.d_m for r in rows]),
+            np.array([r.theta_offset_rad for r in rows]), np.array([bool(r.prismatic) for r in rows]))
+
+
+def to_patient(dock) -> np.ndarray:
+    """(poses, 4, 4) The cart's world frame in the patient's frame at each pose."""
+    return np.linalg.inv(dock.poses.patient)
+
+
+def suj_static(cfg, arm: str, joints: np.ndarray, dock) -> np.ndarray:
+    """(n, m, 4, 2, 3) An arm's setup-joint links (``FIRST_SUJ_LINK`` on) at its joints (n, m, 6; NaN where it
+    does not dock) in the patient's frame."""
+    from surgopt.kinematics.suj_batch import link_segments
+    from surgopt.robots.dvrk_suj import CARTS
+
+    n, m = joints.shape[:2]
+    frame = np.broadcast_to(to_patient(dock)[None], (n, m, 4, 4)).reshape(-1, 4, 4)
+    segs = link_segments(*_chain(CARTS[cfg.cart.model][arm]), np.ascontiguousarray(joints.reshape(-1, 6)),
+                         np.ascontiguousarray(frame), FIRST_SUJ_LINK)
+    return segs.reshape(n, m, 6 - FIRST_SUJ_LINK, 2, 3)
+
+
+def ecm_static(cfg, dock) -> np.ndarray:
+    """(n, m, 7, 2, 3) The ECM docked at each site and pose: its setup joints' links and its own (``dvrk_links``'
+    ECM at the yaw and pitch that aim the scope, insertion 0), in the patient's frame (NaN where it does not
+    dock)."""
+    from surgopt.kinematics import capsules as C
+    from surgopt.kinematics.suj_batch import chain_ends
+    from surgopt.robots import dvrk_links as L
+    from surgopt.robots.dvrk_suj import CARTS
+
+    suj = CARTS[cfg.cart.model]["ECM"]
+    joints = dock.camera_joints
+    n, m = joints.shape[:2]
+    flat = np.ascontiguousarray(joints.reshape(-1, 6))
+    mount = chain_ends(*_chain(suj), flat)
+    base = mount @ np.asarray(suj.tip_to_tool, float)
+    aim = dock.camera_aim.reshape(-1, 2)
+    q = np.zeros((len(flat), 3))
+    q[:, :2] = np.nan_to_num(aim)
+    frames = C.skeleton_batch(L.ECM_CLASSIC_FRAMES, q, base, mount)
+    own = C.capsules_batch(L.ECM_CLASSIC_CAPSULES, frames)  # cart frame
+    frame = np.broadcast_to(to_patient(dock)[None], (n, m, 4, 4)).reshape(-1, 4, 4)
+    own = np.einsum("kij,klej->klei", frame[:, :3, :3], own) + frame[:, None, None, :3, 3]
+    return np.concatenate([suj_static(cfg, "ECM", joints, dock).reshape(n * m, -1, 2, 3), own],
+                          axis=1).reshape(n, m, -1, 2, 3)
+
+
+def ecm_radii() -> np.ndarray:
+    from surgopt.robots import dvrk_links as L
+
+    return np.array([L.SUJ_RADIUS_M] * (6 - FIRST_SUJ_LINK) + [c.radius_m for c in L.ECM_CLASSIC_CAPSULES])
+
+
+class Wanted(NamedTuple):
+    """Which entries a design can need (the others fail on a count of their own, whatever their links): ``pair``
+    (n, n) the working pair's two ports pass every per-pair check (reach, angle, shafts inside, spacing);
+    ``third`` (n,) a port PSM3 can take (it reaches every point); ``camera`` (n,) one the ECM can take (it sees
+    every point); ``spaced`` (n, n) ports far enough apart."""
+
+    pair: np.ndarray
+    third: np.ndarray
+    camera: np.ndarray
+    spaced: np.ndarray
+
+
+def wanted_of(t, crit) -> Wanted:
+    """``Wanted`` from a design kernel's ``PortTables`` (the checks ``design_columns`` makes, per pair)."""
+    count, ang, inside = (a + a.T for a in (t.count, t.ang_centre, t.inside))  # the kernel fills i < j
+    spaced = t.spacing >= crit.min_spacing_m
+    pair = ((count == t.n_points) & (ang >= crit.angle_lo_rad) & (ang <= crit.angle_hi_rad)
+            & (inside >= crit.min_shaft_gap_m) & spaced)
+    np.fill_diagonal(pair, False)
+    return Wanted(pair, t.reach_count == t.n_points, t.coverage >= 1.0, spaced)
+
+
+def link_tables(model, sites: np.ndarray, rot: np.ndarray, dock, wanted: Wanted) -> LinkTables:
+    """Every pair of arms' least link clearance at every pair of ``sites`` (m, the tables' sites) and cart pose of
+    ``dock`` (its ``joints``) where both dock and a design can need it (``wanted``; elsewhere NaN, and the words
+    set: the links do not decide there); ``rot``: the instrument arms' docking frames there."""
+    from surgopt.kinematics import capsules as C
+    from surgopt.robots import dvrk_links as L
+    from surgopt.kinematics.port_designs import pack_bits
+    from surgopt.robots.dvrk_suj import INSTRUMENT_SUJS
+
+    cfg = model.cfg
+    n, m = len(sites), dock.margin.shape[2]
+    psms = INSTRUMENT_SUJS[:cfg.robot.instrument_count]
+    own, r_own, groups = own_moving(model, sites, rot)
+    balls = (np.stack([C.swept_balls(own[i], r_own, groups) for i in range(n)]) if n
+             else np.zeros((0, len(r_own), len(groups) - 1, 4)))
+    r_suj = np.full(6 - FIRST_SUJ_LINK, L.SUJ_RADIUS_M)
+    static = {a: suj_static(cfg, a, dock.joints[k], dock) for k, a in enumerate(psms)}
+    docks = {a: dock.margin[k] >= 0.0 for k, a in enumerate(psms)}
+    static["ECM"], docks["ECM"] = ecm_static(cfg, dock), dock.camera_margin >= 0.0
+    none = np.zeros((n, 1, 0, 2, 3))
+    no_balls = np.zeros((n, 0, len(groups) - 1, 4))
+    least = cfg.constraints.min_link_clearance_mm / 1000
+    cap = least + CAP_M
+    value, code, words = {}, {}, {}
+    used = wanted.pair.any(axis=1)  # a port of some working pair that passes
+    need = {"PSM1": used, "PSM2": used, "PSM3": wanted.third, "ECM": wanted.camera}
+    for pair, (x, y) in enumerate(ARM_PAIRS):
+        if x not in static or y not in static:
+            continue
+        asked = wanted.pair if y == "PSM2" else need[x][:, None] & need[y][None, :] & wanted.spaced
+        np.fill_diagonal(asked, False)  # two arms on one port: never a layout
+        both = docks[x][:, None, :] & docks[y][None, :, :] & asked[:, :, None]
+        tasks = np.argwhere(both)
+        start, start_code = np.full(len(tasks), cap), np.full(len(tasks), -1, np.int64)
+        if y != "ECM" and len(tasks):  # two PSMs: their own links over every pair of poses, per site pair
+            lo, hi = np.minimum(tasks[:, 0], tasks[:, 1]), np.maximum(tasks[:, 0], tasks[:, 1])
+            uniq, back = np.unique(lo * n + hi, return_inverse=True)
+            got, links = C.moving_pairs(np.stack([uniq // n, uniq % n], axis=1), own, r_own, balls, groups, cap,
+                                          least)
+            start = got[back]
+            flip = tasks[:, 0] > tasks[:, 1]
+            la, lb = np.where(flip, links[back, 1], links[back, 0]), np.where(flip, links[back, 0], links[back, 1])
+            start_code = np.where(la >= 0, 16 * (la + len(r_suj)) + lb + len(r_suj), -1)
+        moving_y, r_my, balls_y = (none, np.zeros(0), no_balls) if y == "ECM" else (own, r_own, balls)
+        r_sy = ecm_radii() if y == "ECM" else r_suj
+        v, c = C.pair_clearances(tasks, static[x], own, r_suj, r_own, balls, static[y], moving_y, r_sy, r_my,
+                                 balls_y, groups, start, start_code, least)
+        dense = np.full((n, n, m), np.nan, np.float32)
+        dense_code = np.full((n, n, m), -1, np.int16)
+        dense[tasks[:, 0], tasks[:, 1], tasks[:, 2]] = v
+        dense_code[tasks[:, 0], tasks[:, 1], tasks[:, 2]] = c
+        value[pair], code[pair] = dense, dense_code
+        words[pair] = pack_bits(np.where(both, dense >= least, True))
+    return LinkTables(value, code, words, {a: link_names(a) for a in static})

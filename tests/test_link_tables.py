@@ -1,0 +1,173 @@
+"""The arms' links outside the body in every row (issue 40, ``constraints.min_link_clearance_mm``): the pruned least
+clearance against the exhaustive one, the segment distance's degenerate cases, the link tables against each
+layout's clearances placed apart from them (``clashes.layout_clearances``: the setup joints solved by the plain S2,
+the capsules by the per-pose skeleton), the rows' feasible against those clearances, and a design evaluated alone
+against its row."""
+import numpy as np
+import pytest
+
+from surgopt.kinematics import capsules as C
+from surgopt.kinematics.port_place import segment_distance
+from surgopt.kinematics.port_reasons import OUTSIDE
+from surgopt.studies.port_place import config as PC
+from surgopt.studies.port_place import study as S
+from surgopt.studies.port_place import tables as T
+from surgopt.studies.port_place.clashes import layout_clearances
+from surgopt.studies.port_place.link_tables import CAP_M, pair_name
+
+from reference import segment_distance_sampled
+
+SMALL = {"patient": {"port_region": {"site_spacing_mm": 36.0}}, "target": {"spacing_mm": 15.0}}
+LINKS = {**SMALL, "cart": {"model": "classic", "around_step_deg": 30.0, "distance_step_mm": 300.0},
+         "constraints": {"min_link_clearance_mm": 0.0}}
+
+
+def test_the_segment_distance_matches_the_closed_form_and_takes_points():
+    """``segments_distance`` (scalars, the link tables' inner loop) against ``port_place.segment_distance`` on
+    random segments (1e-12), and where either is a point (which that one divides by) against sampling."""
+    rng = np.random.default_rng(3)
+    for _ in range(200):
+        p, q = rng.uniform(-1, 1, (2, 3)), rng.uniform(-1, 1, (2, 3))
+        assert C.segments_distance(p, q) == pytest.approx(segment_distance(p[0], p[1], q[0], q[1]), abs=1e-12)
+    for _ in range(20):
+        p, q = rng.uniform(-1, 1, (2, 3)), rng.uniform(-1, 1, (2, 3))
+        point = np.array([p[0], p[0]])
+        want = segment_distance_sampled(*point, *q)
+        assert C.segments_distance(point, q) == pytest.approx(want, abs=1e-4)
+        assert C.segments_distance(q, point) == pytest.approx(want, abs=1e-4)
+        assert C.segments_distance(point, np.array([q[0], q[0]])) == pytest.approx(np.linalg.norm(p[0] - q[0]))
+
+
+def _groups(n, rng):
+    cuts = np.sort(rng.choice(np.arange(1, n), size=min(3, n - 1), replace=False))
+    return np.concatenate([[0], cuts, [n]]).astype(np.int64)
+
+
+def test_the_pruned_least_is_the_exhaustive_least():
+    """``least_between`` (balls per link and per group of poses, link pairs by bound) against ``least_over_poses``
+    (every pose pair, every link pair) on random arms, near and apart: the same least (1e-12) at a link pair and
+    poses that give it; below a start it cannot beat, nothing; with a floor, a value below the floor that is no
+    less than the least (an upper bound). The premises: overlapping and clear arms both occur."""
+    rng = np.random.default_rng(40)
+    seen = {"overlap": 0, "clear": 0}
+    for trial in range(30):
+        pa, pb, la, lb = rng.integers(1, 9), rng.integers(1, 9), rng.integers(1, 6), rng.integers(1, 6)
+        a = rng.uniform(-0.3, 0.3, (pa, la, 2, 3))
+        b = rng.uniform(-0.3, 0.3, (pb, lb, 2, 3)) + [rng.uniform(0.2, 1.0), 0.0, 0.0]
+        ra, rb = rng.uniform(0.005, 0.05, la), rng.uniform(0.005, 0.05, lb)
+        ga, gb = _groups(pa, rng), _groups(pb, rng)
+        want = C.least_over_poses(a, ra, b, rb)[0]
+        v, i, j, p, s = C.least_between(a, ra, C.swept_balls(a, ra, ga), ga, b, rb, C.swept_balls(b, rb, gb), gb,
+                                        np.inf)
+        assert v == pytest.approx(want, abs=1e-12)
+        assert C.segments_distance(a[p, i], b[s, j]) - ra[i] - rb[j] == pytest.approx(want, abs=1e-12)
+        assert C.least_between(a, ra, C.swept_balls(a, ra, ga), ga, b, rb, C.swept_balls(b, rb, gb), gb,
+                               want - 1e-9)[1] == -1
+        floored = C.least_between(a, ra, C.swept_balls(a, ra, ga), ga, b, rb, C.swept_balls(b, rb, gb), gb,
+                                  np.inf, want + 0.01)[0]
+        assert want - 1e-12 <= floored < want + 0.01
+        seen["overlap" if want < 0 else "clear"] += 1
+    assert min(seen.values()) > 0
+
+
+@pytest.fixture(scope="module")
+def links():
+    cfg = PC.PortPlaceConfig.model_validate(LINKS)
+    model = T.model_of(cfg)
+    return cfg, model, model.grid.tables
+
+
+def _row(cfg, model, sites: dict, pose: int) -> dict:
+    floor = model.dock.poses.floor[pose]
+    row = {"cart_x_mm": floor[0], "cart_y_mm": floor[1], "cart_heading_deg": floor[2]}
+    for arm, i in sites.items():
+        row[f"{arm}_site"] = int(i)
+        for c, axis in enumerate("xyz"):
+            row[f"{arm}_{axis}_mm"] = model.sites_m[i, c] * 1000
+    return row
+
+
+def test_the_link_tables_equal_each_layouts_clearances(links):
+    """Entries of the PSM1-PSM2 and PSM1-ECM tables (some overlapping, some clear, some at the cap) against the
+    least over the target of ``clashes.layout_clearances`` for the layout at that pose (setup joints by the plain
+    S2, capsules by the per-pose skeleton): equal below the cap (float32: 1e-6 m) with the same two links named,
+    at least the cap where the table reads the cap; below the least (0), the table's value is an overlap found,
+    no less than the least."""
+    cfg, model, t = links
+    assert t.link_words.shape[0] == 3  # the premise: the links decide in this config
+    rng = np.random.default_rng(5)
+    seen = {"overlap": 0, "clear": 0, "cap": 0}
+    for pair, (x, y) in ((0, ("psm1", "psm2")), (1, ("psm1", "ecm"))):
+        where = np.argwhere(np.isfinite(t.link_value[pair]))
+        for i, j, p in where[rng.choice(len(where), size=min(8, len(where)), replace=False)]:
+            other = "ecm" if y == "psm2" else "psm2"
+            spare = next(s for s in range(len(model.sites_m)) if s not in (i, j))
+            row = _row(cfg, model, {x: i, y: j, other: spare}, p)
+            name = f"{x.upper()} and {y.upper()}, over the target"
+            got = next(c for c in layout_clearances(cfg, row) if c.check == name)
+            v, code = float(t.link_value[pair, i, j, p]), int(t.link_code[pair, i, j, p])
+            if v >= CAP_M - 1e-6:
+                assert got.clearance_mm / 1000 >= CAP_M - 1e-6 and code == -1
+                seen["cap"] += 1
+            elif v < 0:
+                assert got.clearance_mm / 1000 <= v + 1e-6
+                seen["overlap"] += 1
+            else:
+                assert got.clearance_mm / 1000 == pytest.approx(v, abs=1e-6)
+                assert pair_name(256 * pair + code) == f"{got.link_a} / {got.link_b}"
+                seen["clear"] += 1
+    assert min(seen.values()) > 0, seen
+
+
+def test_feasible_rows_keep_their_links_clear_and_clashes_fail_on_them(links):
+    """The grid with the links deciding: every feasible row's least link clearance is at least the least (0) and,
+    for the best, equals ``clashes``' least between arms for that row, with the pair named; layouts that dock but
+    whose links overlap at every pose fail on OUTSIDE (the premise: some do), at the pose where they overlap least;
+    a design evaluated alone (a search's path: the tables of its own ports) equals its grid row in every column."""
+    cfg, model, t = links
+    cols = S.compute_task(cfg, S.n_total(cfg), 0)
+    feasible = cols["feasible"]
+    assert feasible.any() and np.all(cols["external_clearance_mm"][feasible] >= 0.0)
+    clash = cols["infeasible"] == OUTSIDE
+    assert clash.any() and np.all(cols["external_clearance_mm"][clash] < 0.0)
+    assert np.all(cols["cart_pose"][clash] >= 0)
+    best = int(np.flatnonzero(feasible)[np.argmin(cols["cost"][feasible])])
+    row = {c: (v[best].item() if hasattr(v[best], "item") else v[best]) for c, v in cols.items()}
+    arms = [c for c in layout_clearances(cfg, row) if " and " in c.check and "patient" not in c.check
+            and "table" not in c.check]
+    least = min(arms, key=lambda c: c.clearance_mm)
+    if row["external_clearance_mm"] < CAP_M * 1000 - 1e-3:
+        assert row["external_clearance_mm"] == pytest.approx(least.clearance_mm, abs=1e-3)
+        assert pair_name(int(row["external_link_pair"])) == f"{least.link_a} / {least.link_b}"
+    pick = np.unique(np.concatenate([np.arange(0, len(cols["design_id"]), 211), np.flatnonzero(feasible)[:8],
+                                     np.flatnonzero(clash)[:8]]))
+    x = np.column_stack([cols[f"{a}_site"][pick] for a in S.arms_of(cfg)]).astype(float)
+    x[:, :2] = np.sort(x[:, :2], axis=1)  # the enumeration's order (i < j): where both ways round clear at a pose,
+    # the straight one is taken, so a design given the other way round would be the other row
+    alone = S.evaluate_designs(cfg, x, cols["design_id"][pick], "t")
+    for c, v in cols.items():
+        np.testing.assert_allclose(np.asarray(alone[c], float), np.asarray(v, float)[pick], rtol=0, atol=1e-9,
+                                   err_msg=c)
+
+
+def test_the_batch_solver_keeps_the_best_solutions_joints():
+    """``suj_batch.classic_psm_solutions`` (the joints the link tables place the setup joints at): at poses made
+    from random in-range joints, its margins are ``classic_psm_margins``' and its joints, through the SUJ's forward
+    kinematics (S1), give the pose back (1e-9) with that least margin; where no solution reaches, NaN."""
+    from surgopt.kinematics import suj as K
+    from surgopt.kinematics import suj_batch as B
+    from surgopt.robots.dvrk_suj import CARTS
+
+    rng = np.random.default_rng(11)
+    suj = CARTS["classic"]["PSM2"]
+    ranges = np.asarray(suj.ranges, float)
+    poses = np.array([K.forward(suj, rng.uniform(ranges[:, 0], ranges[:, 1])) for _ in range(60)])
+    poses[::7, :2, 3] *= 4.0  # out of the planar chain's reach
+    s = B.suj_arrays(suj)
+    margin, joints = B.classic_psm_solutions(s, poses)
+    np.testing.assert_array_equal(margin, B.classic_psm_margins(s, poses))
+    found = np.isfinite(margin)
+    assert found.any() and (~found).any() and np.isnan(joints[~found]).all()
+    for q, m, pose in zip(joints[found], margin[found], poses[found]):
+        np.testing.assert_allclose(K.forward(suj, q), pose, atol=1e-9)
+        assert min(min(v - lo, hi - v) for v, (lo, hi) in zip(q, ranges)) == pytest.approx(m, abs=1e-12)
