@@ -325,7 +325,7 @@ def link_segments(world, alpha, a, d, offset, prismatic, joints, to_frame, first
         if np.isnan(joints[n, 0]):
             continue
         pts = chain_points(world, alpha, a, d, offset, prismatic, joints[n])
-        r, t = to_frame[n, :3, :3], to_frame[n, :3, 3]
+        r, t = np.ascontiguousarray(to_frame[n, :3, :3]), to_frame[n, :3, 3]
         for s in range(6 - first):
             out[n, s, 0] = r @ pts[first + s] + t
             out[n, s, 1] = r @ pts[first + s + 1] + t
