@@ -536,3 +536,28 @@ def test_the_report_says_why_the_best_layouts_without_the_cart_do_not_dock(tmp_p
                 e = ecm_docks(k)
                 assert any(e) and ((any(p1a) and any(p2b)) or (any(p1b) and any(p2a)))
                 assert not any(e[p] and ((p1a[p] and p2b[p]) or (p1b[p] and p2a[p])) for p in range(len(poses)))
+
+
+def test_the_rows_give_each_arms_setup_joint_margins_at_its_pose():
+    """The rows' per-arm setup-joint margins (revolute in deg, the column in mm, at the row's cart pose) against
+    the setup joints solved again for that row by the plain S2 and the S4 grid for its one port (``docked_arms``), their
+    margins computed here from the quoted and assumed ranges; undocked rows NaN. Premises: docked rows of both
+    ways round (PSM1 on the pair's first port and on its second) are among those checked."""
+    from surgopt.robots.dvrk_suj import CARTS
+
+    cfg = C.PortPlaceConfig.model_validate(GRID)
+    cols = S.compute_task(cfg, S.n_total(cfg), 0)
+    docked = np.flatnonzero(cols["cart_pose"] >= 0)
+    assert np.isnan(cols["psm1_suj_margin_deg"][cols["cart_pose"] < 0]).all()
+    swapped = cols["psm1_site"][docked] > cols["psm2_site"][docked]
+    pick = np.concatenate([docked[swapped][:4], docked[~swapped][:4]])
+    assert swapped.any() and (~swapped).any()
+    for r in pick:
+        row = {c: v[r].item() for c, v in cols.items()}
+        for arm in T.docked_arms(cfg, row):
+            ranges = np.asarray(CARTS["classic"][arm.arm].ranges, float)
+            q = np.asarray(arm.joints)
+            margin = np.minimum(q - ranges[:, 0], ranges[:, 1] - q)
+            name = arm.arm.lower()
+            assert row[f"{name}_suj_margin_deg"] == pytest.approx(math.degrees(margin[1:].min()), abs=1e-6)
+            assert row[f"{name}_suj_column_margin_mm"] == pytest.approx(margin[0] * 1000, abs=1e-6)

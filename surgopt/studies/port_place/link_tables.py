@@ -16,6 +16,7 @@ per-layout clearances (the same capsules placed by the plain forward kinematics)
 """
 from __future__ import annotations
 
+import os
 from typing import NamedTuple
 
 import numpy as np
@@ -41,6 +42,26 @@ class LinkTables(NamedTuple):
     code: dict
     words: dict
     names: dict
+
+
+#: Threads the tables' kernels run on (each ``nogil``): the machine's cores, at most 4; small batches run inline.
+TABLE_THREADS = min(4, len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count() or 1)
+INLINE_TASKS = 4096
+
+
+def in_threads(kernel, aligned: tuple, *rest) -> tuple:
+    """``kernel(*aligned, *rest)`` over ``TABLE_THREADS`` slices of the row-aligned arrays ``aligned``, the
+    outputs (row-aligned arrays) joined in order: the same answer as one call."""
+    n = len(aligned[0])
+    if TABLE_THREADS == 1 or n < INLINE_TASKS:
+        return kernel(*aligned, *rest)
+    from concurrent.futures import ThreadPoolExecutor
+
+    cuts = np.linspace(0, n, TABLE_THREADS + 1).astype(int)
+    with ThreadPoolExecutor(TABLE_THREADS) as pool:
+        outs = list(pool.map(lambda k: kernel(*(a[cuts[k]:cuts[k + 1]] for a in aligned), *rest),
+                             range(TABLE_THREADS)))
+    return tuple(np.concatenate(parts) for parts in zip(*outs))
 
 
 def link_names(arm: str) -> tuple[str, ...]:
@@ -244,16 +265,16 @@ def link_tables(model, sites: np.ndarray, rot: np.ndarray, dock, wanted: Wanted)
         if y != "ECM" and len(tasks):  # two PSMs: their own links over every pair of poses, per site pair
             lo, hi = np.minimum(tasks[:, 0], tasks[:, 1]), np.maximum(tasks[:, 0], tasks[:, 1])
             uniq, back = np.unique(lo * n + hi, return_inverse=True)
-            got, links = C.moving_pairs(np.stack([uniq // n, uniq % n], axis=1), own, r_own, balls, groups, cap,
-                                          least)
+            got, links = in_threads(C.moving_pairs, (np.stack([uniq // n, uniq % n], axis=1),), own, r_own, balls,
+                                    groups, cap, least)
             start = got[back]
             flip = tasks[:, 0] > tasks[:, 1]
             la, lb = np.where(flip, links[back, 1], links[back, 0]), np.where(flip, links[back, 0], links[back, 1])
             start_code = np.where(la >= 0, 16 * (la + len(r_suj)) + lb + len(r_suj), -1)
         moving_y, r_my, balls_y = (none, np.zeros(0), no_balls) if y == "ECM" else (own, r_own, balls)
         r_sy = ecm_radii() if y == "ECM" else r_suj
-        v, c = C.pair_clearances(tasks, static[x], own, r_suj, r_own, balls, static[y], moving_y, r_sy, r_my,
-                                 balls_y, groups, start, start_code, least)
+        v, c = in_threads(_pairs, (tasks, start, start_code), static[x], own, r_suj, r_own, balls, static[y],
+                          moving_y, r_sy, r_my, balls_y, groups, least)
         dense = np.full((n, n, m), np.nan, np.float32)
         dense_code = np.full((n, n, m), -1, np.int16)
         dense[tasks[:, 0], tasks[:, 1], tasks[:, 2]] = v
@@ -261,3 +282,12 @@ def link_tables(model, sites: np.ndarray, rot: np.ndarray, dock, wanted: Wanted)
         value[pair], code[pair] = dense, dense_code
         words[pair] = pack_bits(np.where(both, dense >= least, True))
     return LinkTables(value, code, words, {a: link_names(a) for a in static})
+
+
+def _pairs(tasks, start, start_code, *rest):
+    """``capsules.pair_clearances`` with its row-aligned arguments first (``in_threads``)."""
+    from surgopt.kinematics.capsules import pair_clearances
+
+    static_x, moving_x, r_sx, r_mx, balls_mx, static_y, moving_y, r_sy, r_my, balls_my, groups, floor = rest
+    return pair_clearances(tasks, static_x, moving_x, r_sx, r_mx, balls_mx, static_y, moving_y, r_sy, r_my, balls_my,
+                           groups, start, start_code, floor)

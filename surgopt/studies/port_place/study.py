@@ -196,9 +196,14 @@ def cart_fields(config) -> list:
         "meaning": "the two links of external_clearance_mm: 256 x arm pair (0 PSM1-PSM2, 1 PSM1-ECM, 2 PSM2-ECM, "
                    "3 PSM1-PSM3, 4 PSM2-PSM3, 5 PSM3-ECM) + 16 x the first arm's link + the second's (each arm's "
                    "setup-joint links 3-6, then its own: link_tables.link_names); -1: none"})] if links_of(config) else []
+    margins = [pa.field(f"{arm}_suj_{what}", pa.float64(), metadata={
+        "meaning": f"the {arm.upper()} setup joints' least margin to their ranges at the row's cart pose, "
+                   + ("over the revolute joints (deg)" if what.endswith("deg") else "of the column (mm)")
+                   + "; negative never (the best solution within the ranges); NaN: no pose docks"})
+        for arm in arms_of(config) for what in ("margin_deg", "column_margin_mm")]
     return [pa.field("cart_pose", pa.int64(), metadata={"meaning": "the first pose of the cart's grid at which "
                                                                     "every arm's setup joints dock (-1: none)"}),
-            *[pa.field(c, pa.float64()) for c in CART_COLUMNS[1:]], *links]
+            *[pa.field(c, pa.float64()) for c in CART_COLUMNS[1:]], *links, *margins]
 
 
 def _stored_metadata(config) -> dict | None:
@@ -274,16 +279,18 @@ def compute_task(cfg, chunk: int, index: int) -> dict:
                                                          cfg.rows_stored == "feasible")
     return design_rows(cfg, sites, t, ids, ids, f, bad, cost, design_ids,
                        np.zeros((len(design_ids), len(docking_columns(cfg)))), dock=dock,
-                       floor=model.dock.poses.floor if cfg.cart.model != "none" else None)
+                       floor=model.dock.poses.floor if cfg.cart.model != "none" else None,
+                       dock_tables=model.dock if cfg.cart.model != "none" else None)
 
 
 def design_rows(cfg, sites, t, ids, site_ids, f, bad, cost, design_ids, docking_deg, aim_mm=None,
-                stance_m=None, dock=None, floor=None, cart_searched=None) -> dict:
+                stance_m=None, dock=None, floor=None, cart_searched=None, dock_tables=None) -> dict:
     """The rows of designs: ``ids`` (a column per arm, ``arms_of``) index ``sites`` and ``t`` (the tables they
     were combined from), ``site_ids`` are the candidate sites' numbers reported; ``docking_deg`` (yaw, pitch of
     each instrument) per design. With the cart (``floor``: its poses, ``tables.CartPoses.floor``), ``dock``
     (cart pose, swapped) per design: where PSM1 docks on the pair's second port, PSM1's and PSM2's columns
-    are swapped, so that psm1_* is the arm on PSM1's setup joints."""
+    are swapped, so that psm1_* is the arm on PSM1's setup joints; ``dock_tables`` (``tables.DockTables`` of the
+    sites ``ids`` index) give each arm's setup joints' range margins at the row's pose."""
     arms = arms_of(cfg)
     if floor is not None:
         swap = dock[:, 1] == 1
@@ -324,6 +331,15 @@ def design_rows(cfg, sites, t, ids, site_ids, f, bad, cost, design_ids, docking_
             cols[name] = where[:, c]
         if links_of(cfg):
             cols["external_link_pair"] = dock[:, 2]
+        if dock_tables is not None and dock_tables.joints is not None:
+            from surgopt.studies.port_place.tables import suj_margins
+
+            revolute, column = suj_margins(cfg, dock_tables)
+            at = np.maximum(pose, 0)
+            for a, arm in enumerate(arms):
+                suj = 3 if arm == "ecm" else a  # the arm on PSM1's, PSM2's, PSM3's setup joints, or the ECM's
+                for name, table in ((f"{arm}_suj_margin_deg", revolute), (f"{arm}_suj_column_margin_mm", column)):
+                    cols[name] = np.where(pose >= 0, table[suj, ids[:, a], at], np.nan)
     for c, name in enumerate(cart_search_columns(cfg)):  # the searched pose, docked there or not
         cols[name] = np.asarray(cart_searched[:, c], float)
     cols["cost"] = cost
@@ -475,6 +491,7 @@ def evaluate_designs(cfg, x: np.ndarray, ids: np.ndarray, source: str) -> dict:
                                v[None, port_cols] if surface else None,
                                stance[None, :] if stances else None,
                                dock=dock if cart else None, floor=tables.poses.floor if cart else None,
+                               dock_tables=tables if cart else None,
                                cart_searched=np.array([[pose[c] for c in searched]]) if searched else None))
     return concat_rows(out)
 
@@ -562,6 +579,8 @@ NS_PER_DESIGN_3 = 70.0
 ROW_BYTES, ROW_BYTES_3 = 190, 230
 #: The cart's columns in a row: cart_pose (int64) and the pose's x, y and heading (float64).
 CART_ROW_BYTES = 32
+#: Each arm's setup-joint margins in a row (revolute deg, column mm: float64 each).
+SUJ_MARGIN_ROW_BYTES = 16
 IN_FLIGHT_TASKS = 4
 NS_PER_SITE_POINT = 60.0
 #: A serial instrument arm's per-port tables: ~3.4 us per site x target point (generic Newton IK by continuation,
@@ -606,9 +625,10 @@ FEASIBLE_SHARE_ASSUMED = 0.02
 LIBRARY_BYTES = 220 * 2 ** 20
 #: What the cart adds: the setup joints' and the capsules' kernels and, on a first run, LLVM compiling them (the
 #: default with the cart, measured: 526 MB warm, 608 MB compiling, 650 MB compiling in the test suite beside other
-#: compiles, against 577 MB estimated without this); 10 MB more since the design kernel holds the links' branches
-#: (issue 40: 700 MB measured in the suite against 698 MB estimated with 120 MB here).
-CART_LIBRARY_BYTES = 130 * 2 ** 20
+#: compiles, against 577 MB estimated without this); 30 MB more since the design kernel holds the links' branches
+#: and the rows each arm's setup-joint margins (issue 40: 700 MB measured in the suite against 698 MB estimated
+#: with 120 MB here before the margins, whose rows added 28 MB to the warm peak, 505 -> 533 MB).
+CART_LIBRARY_BYTES = 150 * 2 ** 20
 #: The dock tables per (site, cart pose): 3 PSMs' and the ECM's margins (float64) and best joints (6 float64),
 #: the ECM's aim (2), with the solver's copies of the joints (x2).
 DOCK_ENTRY_BYTES = (4 + 2 * 4 * 6 + 2) * 8
@@ -635,7 +655,8 @@ def estimate(cfg) -> Estimate:
         seconds += n * poses * (arms * NS_PER_SUJ_SOLVE + NS_PER_ECM_DOCK) * 1e-9
         if links_of(cfg):  # the links' clearance tables, each arm pair's (site, site, pose) entries
             seconds += link_pairs(arms) * n * n * poses * NS_PER_LINK_ENTRY * 1e-9
-    row = (ROW_BYTES if arms == 2 else ROW_BYTES_3) + (CART_ROW_BYTES if cfg.cart.model != "none" else 0)
+    row = (ROW_BYTES if arms == 2 else ROW_BYTES_3) + (
+        CART_ROW_BYTES + (arms + 1) * SUJ_MARGIN_ROW_BYTES if cfg.cart.model != "none" else 0)
     working = n * n * 8 * 12 + n * m * 9 + LIBRARY_BYTES + (CART_LIBRARY_BYTES if cfg.cart.model != "none" else 0)
     if cfg.cart.model != "none":  # the dock tables: each arm's margins, best joints and the ECM's aim per (site, pose)
         from surgopt.studies.port_place.tables import cart_poses

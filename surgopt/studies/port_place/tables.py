@@ -529,6 +529,19 @@ def dock_at(model: PortModel, site_ids: np.ndarray, poses: CartPoses) -> DockTab
                       aim.reshape(m, n, 2).transpose(1, 0, 2))
 
 
+def suj_margins(cfg: PortPlaceConfig, dock: DockTables) -> tuple[np.ndarray, np.ndarray]:
+    """(revolute deg, column mm), each (4, sites, poses): the least margin to their ranges of PSM1's, PSM2's,
+    PSM3's and the ECM's setup joints at the best solution the dock tables kept (NaN where the arm does not
+    dock): the revolute joints' in degrees and the column's in millimetres apart, not one number of two units."""
+    from surgopt.robots.dvrk_suj import CARTS
+
+    joints = np.concatenate([dock.joints, dock.camera_joints[None]])  # (4, n, m, 6)
+    ranges = np.stack([np.asarray(CARTS[cfg.cart.model][a].ranges, float) for a in (*INSTRUMENT_SUJS, "ECM")])
+    lo, hi = ranges[:, None, None, :, 0], ranges[:, None, None, :, 1]
+    margin = np.minimum(joints - lo, hi - joints)
+    return np.degrees(margin[..., 1:].min(axis=-1)), margin[..., 0] * 1000
+
+
 def camera_shafts(camera, centre_m: np.ndarray, sites_m: np.ndarray) -> np.ndarray:
     """(n, 3) The endoscope's shaft direction at each port (patient frame): toward the target's centre, or an
     angled scope's shaft (``camera_views``' tip)."""
