@@ -92,11 +92,12 @@ def test_the_link_tables_equal_each_layouts_clearances(links):
     least over the target of ``clashes.layout_clearances`` for the layout at that pose (setup joints by the plain
     S2, capsules by the per-pose skeleton): equal below the cap (float32: 1e-6 m) with the same two links named,
     at least the cap where the table reads the cap; below the least (0), the table's value is an overlap found,
-    no less than the least."""
+    no less than the least. Each arm's entry against its surroundings equals the least of its clearances to the
+    patient (the body distance by brute force there, by a k-d tree here) and the table, the same link named."""
     cfg, model, t = links
     assert t.link_words.shape[0] == 3  # the premise: the links decide in this config
     rng = np.random.default_rng(5)
-    seen = {"overlap": 0, "clear": 0, "cap": 0}
+    seen = {"overlap": 0, "clear": 0, "cap": 0, "around": 0}
     for pair, (x, y) in ((0, ("psm1", "psm2")), (1, ("psm1", "ecm"))):
         where = np.argwhere(np.isfinite(t.link_value[pair]))
         for i, j, p in where[rng.choice(len(where), size=min(8, len(where)), replace=False)]:
@@ -104,7 +105,15 @@ def test_the_link_tables_equal_each_layouts_clearances(links):
             spare = next(s for s in range(len(model.sites_m)) if s not in (i, j))
             row = _row(cfg, model, {x: i, y: j, other: spare}, p)
             name = f"{x.upper()} and {y.upper()}, over the target"
-            got = next(c for c in layout_clearances(cfg, row) if c.check == name)
+            found = layout_clearances(cfg, row)
+            got = next(c for c in found if c.check == name)
+            for arm, at in ((x.upper(), i), (y.upper(), j)):  # each arm against the patient and the table
+                around = min((c for c in found if c.check in (f"{arm} and the patient", f"{arm} and the table")),
+                             key=lambda c: c.clearance_mm)
+                a = ("PSM1", "PSM2", "PSM3", "ECM").index(arm)
+                assert float(t.arm_value[a, at, p]) == pytest.approx(around.clearance_mm / 1000, abs=1e-6)
+                assert pair_name(256 * (6 + a) + int(t.arm_code[a, at, p])) == f"{around.link_a} / {around.link_b}"
+                seen["around"] += 1
             v, code = float(t.link_value[pair, i, j, p]), int(t.link_code[pair, i, j, p])
             if v >= CAP_M - 1e-6:
                 assert got.clearance_mm / 1000 >= CAP_M - 1e-6 and code == -1
@@ -121,7 +130,8 @@ def test_the_link_tables_equal_each_layouts_clearances(links):
 
 def test_feasible_rows_keep_their_links_clear_and_clashes_fail_on_them(links):
     """The grid with the links deciding: every feasible row's least link clearance is at least the least (0) and,
-    for the best, equals ``clashes``' least between arms for that row, with the pair named; layouts that dock but
+    for the best, equals ``clashes``' least for that row (between arms, to the patient, to the table), with the
+    pair named; layouts that dock but
     whose links overlap at every pose fail on OUTSIDE (the premise: some do), at the pose where they overlap least;
     a design evaluated alone (a search's path: the tables of its own ports) equals its grid row in every column."""
     cfg, model, t = links
@@ -133,9 +143,7 @@ def test_feasible_rows_keep_their_links_clear_and_clashes_fail_on_them(links):
     assert np.all(cols["cart_pose"][clash] >= 0)
     best = int(np.flatnonzero(feasible)[np.argmin(cols["cost"][feasible])])
     row = {c: (v[best].item() if hasattr(v[best], "item") else v[best]) for c, v in cols.items()}
-    arms = [c for c in layout_clearances(cfg, row) if " and " in c.check and "patient" not in c.check
-            and "table" not in c.check]
-    least = min(arms, key=lambda c: c.clearance_mm)
+    least = min(layout_clearances(cfg, row), key=lambda c: c.clearance_mm)  # between arms, the patient, the table
     if row["external_clearance_mm"] < CAP_M * 1000 - 1e-3:
         assert row["external_clearance_mm"] == pytest.approx(least.clearance_mm, abs=1e-3)
         assert pair_name(int(row["external_link_pair"])) == f"{least.link_a} / {least.link_b}"

@@ -370,3 +370,57 @@ def capsules_batch(capsules, frames: dict) -> np.ndarray:
             t = frames[name]
             seg[:, i, e] = t[:, :3, :3] @ np.asarray(point, float) + t[:, :3, 3]
     return seg
+
+
+@njit(**EXACT)
+def along_many(segs, spacing_m):
+    """``along`` jitted: points along each of ``segs`` (k, 2, 3) at most ``spacing_m`` apart (both ends) and
+    each point's segment."""
+    k = segs.shape[0]
+    counts = np.empty(k, dtype=np.int64)
+    for i in range(k):
+        length = math.sqrt(((segs[i, 1] - segs[i, 0]) ** 2).sum())
+        counts[i] = max(2, int(math.ceil(length / spacing_m)) + 1)
+    pts = np.empty((counts.sum(), 3))
+    owner = np.empty(counts.sum(), dtype=np.int64)
+    o = 0
+    for i in range(k):
+        n = counts[i]
+        for s in range(n):
+            t = s / (n - 1)
+            pts[o] = segs[i, 0] + t * (segs[i, 1] - segs[i, 0])
+            owner[o] = i
+            o += 1
+    return pts, owner
+
+
+@njit(**EXACT)
+def _box_gap(x, lo, hi):
+    s = 0.0
+    for c in range(3):
+        d = max(max(lo[c] - x[c], x[c] - hi[c]), 0.0)
+        s += d * d
+    return math.sqrt(s)
+
+
+@njit(**EXACT)
+def segments_box_distance(segs, lo, hi):
+    """(C2) ``segment_box_distance`` of each of ``segs`` (k, 2, 3), jitted: golden-section search along the
+    segment (60 steps), the ends and the bracket's middle kept."""
+    out = np.empty(segs.shape[0])
+    for k in range(segs.shape[0]):
+        p0, d = segs[k, 0], segs[k, 1] - segs[k, 0]
+        a, b = 0.0, 1.0
+        c, e = b - GOLDEN * (b - a), a + GOLDEN * (b - a)
+        fc, fe = _box_gap(p0 + c * d, lo, hi), _box_gap(p0 + e * d, lo, hi)
+        for _ in range(60):
+            if fc <= fe:
+                b, e, fe = e, c, fc
+                c = b - GOLDEN * (b - a)
+                fc = _box_gap(p0 + c * d, lo, hi)
+            else:
+                a, c, fc = c, e, fe
+                e = a + GOLDEN * (b - a)
+                fe = _box_gap(p0 + e * d, lo, hi)
+        out[k] = min(_box_gap(p0, lo, hi), min(_box_gap(p0 + d, lo, hi), _box_gap(p0 + 0.5 * (a + b) * d, lo, hi)))
+    return out

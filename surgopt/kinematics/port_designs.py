@@ -42,6 +42,10 @@ class PortTables(NamedTuple):
     link_words: np.ndarray = np.ones((0, 1, 1, 1), np.uint64)
     link_value: np.ndarray = np.zeros((0, 1, 1, 1), np.float32)
     link_code: np.ndarray = np.zeros((0, 1, 1, 1), np.int16)
+    # each arm (PSM1, PSM2, PSM3, ECM) against the patient and the table at (site, pose), the same three ways
+    arm_words: np.ndarray = np.ones((0, 1, 1), np.uint64)
+    arm_value: np.ndarray = np.zeros((0, 1, 1), np.float32)
+    arm_code: np.ndarray = np.zeros((0, 1, 1), np.int16)
 
 
 def reach_bits(reach: np.ndarray) -> np.ndarray:
@@ -302,6 +306,10 @@ def first_clear(t, i, j, l, k):
             straight &= t.link_words[e[0], e[1], e[2], w]
         for e in _entries(i, j, l, k, True):
             crossed &= t.link_words[e[0], e[1], e[2], w]
+        if t.arm_words.shape[0] > 0:  # each arm clear of the patient and the table
+            around = t.arm_words[3, k, w] & (t.arm_words[2, l, w] if l >= 0 else ~np.uint64(0))
+            straight &= t.arm_words[0, i, w] & t.arm_words[1, j, w] & around
+            crossed &= t.arm_words[0, j, w] & t.arm_words[1, i, w] & around
         either = straight | crossed
         if either != 0:
             low = either & (~either + np.uint64(1))
@@ -320,6 +328,14 @@ def links_at(t, i, j, l, k, pose, swapped):
         if v == v and not (best <= v):
             c = np.int64(t.link_code[e[0], e[1], e[2], pose])
             best, code = v, (256 * e[0] + c if c >= 0 else -1)
+    if t.arm_words.shape[0] > 0:
+        a, b = (j, i) if swapped == 1 else (i, j)
+        for arm, site in ((0, a), (1, b), (2, l), (3, k)):
+            if site < 0:
+                continue
+            v = np.float64(t.arm_value[arm, site, pose])
+            if v == v and not (best <= v):
+                best, code = v, 256 * (6 + arm) + np.int64(t.arm_code[arm, site, pose])
     return best, code
 
 

@@ -201,10 +201,33 @@ def dome_samples_mm(semi_axes_mm: tuple, exponent: float) -> tuple[np.ndarray, f
     return points, float(diagonal.max()) / 2
 
 
-def body_distance_mm(p: np.ndarray, patient, cap_mm: float) -> np.ndarray:
+def body_box_mm(patient) -> tuple[np.ndarray, np.ndarray]:
+    """(lo, hi) mm: a box holding the body (the dome's semi-axes over its base; the mesh's bounds)."""
+    if patient.shape == "dome":
+        a = np.asarray(patient.semi_axes_mm, float)
+        return np.array([-a[0], -a[1], 0.0]), a.copy()
+    lo, hi = patient_mesh(patient).bounds
+    return np.asarray(lo, float), np.asarray(hi, float)
+
+
+@lru_cache(maxsize=4)
+def _dome_tree(semi_axes_mm: tuple, exponent: float):
+    """A k-d tree over ``dome_samples_mm`` (scipy's cKDTree) and the samples' gap."""
+    from scipy.spatial import cKDTree
+
+    samples, gap = dome_samples_mm(semi_axes_mm, exponent)
+    return cKDTree(samples), gap
+
+
+def body_distance_mm(p: np.ndarray, patient, cap_mm: float, many: bool = False) -> np.ndarray:
     """Per point (mm) outside the body: its distance to the body wall, capped at ``cap_mm`` (the mesh's by
     trimesh's closest point, exact; the dome's to the nearest of ``dome_samples_mm``, less their gap: a lower
-    bound within that gap of the true distance)."""
+    bound within that gap of the true distance). ``many``: the dome's nearest sample found by a k-d tree (the
+    same sample; for millions of points, where the brute-force loop takes ~30 us a point near the body)."""
+    if patient.shape == "dome" and many:
+        tree, gap = _dome_tree(tuple(patient.semi_axes_mm), patient.dome_exponent)
+        d, _ = tree.query(np.asarray(p, float), distance_upper_bound=cap_mm + gap)
+        return np.clip(np.where(np.isinf(d), cap_mm + gap, d) - gap, 0.0, cap_mm)
     if patient.shape == "dome":
         from surgopt.kinematics.port_serial import nearest_distances
 

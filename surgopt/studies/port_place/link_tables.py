@@ -42,6 +42,11 @@ class LinkTables(NamedTuple):
     code: dict
     words: dict
     names: dict
+    # each arm (PSM1, PSM2, PSM3, ECM) against its surroundings (the patient's body, the table) at (site, pose):
+    # the least clearance (m; NaN where it does not dock), 16 * link + (0 patient, 1 table), and the words
+    arm_value: np.ndarray | None = None
+    arm_code: np.ndarray | None = None
+    arm_words: np.ndarray | None = None
 
 
 #: Threads the tables' kernels run on (each ``nogil``): the machine's cores, at most 4; small batches run inline.
@@ -73,12 +78,67 @@ def link_names(arm: str) -> tuple[str, ...]:
             + tuple(f"{arm} {c.name}" for c in own))
 
 
+#: The arms checked against their surroundings, in the order of the rows' codes 256 * (6 + arm) + 16 * link +
+#: what (``SURROUNDINGS``).
+ARMS = ("PSM1", "PSM2", "PSM3", "ECM")
+SURROUNDINGS = ("patient's body", "table")
+
+
 def pair_name(code: int) -> str:
-    """A row's ``external_link_pair`` code as "PSM1 setup joint link 6 / PSM2 mount" ("" for -1)."""
+    """A row's ``external_link_pair`` code as "PSM1 setup joint link 6 / PSM2 mount" or "PSM2 mount / table"
+    ("" for -1)."""
     if code < 0:
         return ""
-    a, b = ARM_PAIRS[code // 256]
-    return f"{link_names(a)[(code % 256) // 16]} / {link_names(b)[code % 16]}"
+    pair, link, other = code // 256, (code % 256) // 16, code % 16
+    if pair >= len(ARM_PAIRS):
+        return f"{link_names(ARMS[pair - len(ARM_PAIRS)])[link]} / {SURROUNDINGS[other]}"
+    a, b = ARM_PAIRS[pair]
+    return f"{link_names(a)[link]} / {link_names(b)[other]}"
+
+
+def table_box(cfg) -> tuple[np.ndarray, np.ndarray]:
+    """The table as a slab under the patient frame's z = 0 (``clashes.against_table``'s): (lo, hi), m."""
+    from surgopt.studies.port_place.clashes import TABLE_THICKNESS_M
+
+    w = cfg.cart.table_half_width_mm / 1000
+    return (np.array([-w, cfg.cart.table_y_mm[0] / 1000, -TABLE_THICKNESS_M]),
+            np.array([w, cfg.cart.table_y_mm[1] / 1000, 0.0]))
+
+
+def surroundings(cfg, segs: np.ndarray, radii: np.ndarray, through: np.ndarray, valid: np.ndarray):
+    """(C2, C3) Per item of ``segs`` (K, L, 2, 3), patient frame, where ``valid``: the least clearance (m) of its
+    links to the patient's body (points along each link at most ``clashes.SPACING_M`` apart, the body distance
+    resolved to ``clashes.PATIENT_CAP_MM``; not the links that pass the port, ``through``) and to the table (the
+    slab, exact by golden-section search), and its code 16 * link + (0 patient, 1 table): (value (K,), code (K,)),
+    NaN and -1 elsewhere. As ``clashes.against_patient`` and ``against_table`` measure them."""
+    from surgopt.kinematics.capsules import along_many, segments_box_distance
+    from surgopt.studies.port_place.clashes import PATIENT_CAP_MM, SPACING_M
+    from surgopt.studies.port_place.geometry import body_box_mm, body_distance_mm, inside_body
+
+    n_item, n_link = segs.shape[:2]
+    value, code = np.full(n_item, np.nan), np.full(n_item, -1, np.int64)
+    idx = np.flatnonzero(valid)
+    if not len(idx):
+        return value, code
+    flat = np.ascontiguousarray(segs[idx].reshape(-1, 2, 3))
+    link = np.tile(np.arange(n_link), len(idx))
+    lo, hi = table_box(cfg)
+    table = segments_box_distance(flat, lo, hi) - radii[link]
+    keep = np.flatnonzero(~through[link])
+    pts, owner = along_many(np.ascontiguousarray(flat[keep]), SPACING_M)
+    local_mm = pts * 1000
+    d = np.full(len(pts), PATIENT_CAP_MM)
+    lo_mm, hi_mm = body_box_mm(cfg.patient)
+    near = np.flatnonzero(np.all((local_mm >= lo_mm - PATIENT_CAP_MM) & (local_mm <= hi_mm + PATIENT_CAP_MM), axis=1))
+    d[near] = np.where(inside_body(local_mm[near], cfg.patient), 0.0,
+                       body_distance_mm(local_mm[near], cfg.patient, PATIENT_CAP_MM, many=True))
+    patient = np.full(len(flat), np.inf)
+    np.minimum.at(patient, keep[owner], d / 1000 - radii[link[keep[owner]]])
+    both = np.stack([patient, table], axis=1).reshape(len(idx), n_link * 2)
+    best = np.argmin(both, axis=1)
+    value[idx] = both[np.arange(len(idx)), best]
+    code[idx] = 16 * (best // 2) + best % 2
+    return value, code
 
 
 #: The arms' poses: docked, and reaching each of at most this many target points, spread by farthest-point
@@ -252,6 +312,7 @@ def link_tables(model, sites: np.ndarray, rot: np.ndarray, dock, wanted: Wanted)
     least = cfg.constraints.min_link_clearance_mm / 1000
     cap = least + CAP_M
     value, code, words = {}, {}, {}
+    arm_value, arm_code = arm_surroundings(cfg, own, r_own, static, docks, len(psms))
     used = wanted.pair.any(axis=1)  # a port of some working pair that passes
     need = {"PSM1": used, "PSM2": used, "PSM3": wanted.third, "ECM": wanted.camera}
     for pair, (x, y) in enumerate(ARM_PAIRS):
@@ -281,7 +342,41 @@ def link_tables(model, sites: np.ndarray, rot: np.ndarray, dock, wanted: Wanted)
         dense_code[tasks[:, 0], tasks[:, 1], tasks[:, 2]] = c
         value[pair], code[pair] = dense, dense_code
         words[pair] = pack_bits(np.where(both, dense >= least, True))
-    return LinkTables(value, code, words, {a: link_names(a) for a in static})
+    arm_words = pack_bits(np.where(np.isnan(arm_value), True, arm_value >= least))
+    return LinkTables(value, code, words, {a: link_names(a) for a in static}, arm_value.astype(np.float32),
+                      arm_code.astype(np.int16), arm_words)
+
+
+def arm_surroundings(cfg, own, r_own, static, docks, n_psm: int):
+    """Each arm against the patient and the table at each (site, pose) where it docks (``surroundings``): a PSM's
+    own links once per site over its poses (its docked frame does not depend on the cart), the least of those
+    and its setup joints' at the pose; the ECM held docked. (value (4, n, m) m, NaN where it does not dock; code
+    (4, n, m): 16 * link + what, the links numbered as ``link_names``.)"""
+    from surgopt.robots import dvrk_links as L
+
+    n, m = static["ECM"].shape[:2]
+    value, code = np.full((4, n, m), np.nan), np.full((4, n, m), -1, np.int64)
+    n_suj = 6 - FIRST_SUJ_LINK
+    through_own = np.array(["base" in (c.frame_a, c.frame_b) for c in L.PSM_CLASSIC_CAPSULES])
+    k = own.shape[1]
+    own_v, own_c = surroundings(cfg, own.reshape(n, -1, 2, 3), np.tile(r_own, k), np.tile(through_own, k),
+                                np.ones(n, bool))
+    own_c = np.where(own_c >= 0, 16 * (n_suj + (own_c // 16) % len(r_own)) + own_c % 16, -1)
+    r_suj = np.full(n_suj, L.SUJ_RADIUS_M)
+    for a, arm in enumerate(ARMS):
+        if arm not in static:
+            continue
+        segs = static[arm].reshape(n * m, -1, 2, 3)
+        radii = ecm_radii() if arm == "ECM" else r_suj
+        through = np.array([False] * n_suj + ["base" in (c.frame_a, c.frame_b) for c in L.ECM_CLASSIC_CAPSULES]
+                           if arm == "ECM" else [False] * n_suj)
+        v, c = surroundings(cfg, segs, radii, through, docks[arm].reshape(-1))
+        v, c = v.reshape(n, m), c.reshape(n, m)
+        if arm != "ECM":  # the arm's own links, wherever its setup joints dock
+            worse = own_v[:, None] < v
+            v, c = np.where(worse, own_v[:, None], v), np.where(worse, own_c[:, None], c)
+        value[a], code[a] = v, c
+    return value, code
 
 
 def _pairs(tasks, start, start_code, *rest):

@@ -180,11 +180,12 @@ def links_of(config) -> bool:
 
 
 #: ``external_clearance_mm`` when the links decide (``constraints.min_link_clearance_mm``).
-LINK_MEANING = {"meaning": "the least clearance between the arms' links outside the body (setup joints' and "
-                           "arms' own, capsules of assumed radii; docked and over the target) at the row's cart "
-                           "pose; resolved up to 100 mm above min_link_clearance_mm (reads as that beyond); below "
-                           "it, the first overlap found (an upper bound); NaN: no pose docks, or the layout fails "
-                           "on a count of its own and was not checked"}
+LINK_MEANING = {"meaning": "the least clearance of the arms' links outside the body (setup joints' and arms' "
+                           "own, capsules of assumed radii; docked and over the target) to each other, the "
+                           "patient's body and the table, at the row's cart pose; between arms resolved up to 100 "
+                           "mm above min_link_clearance_mm (reads as that beyond; the patient's body up to 150 mm), "
+                           "below it the first overlap found (an upper bound); NaN: no pose docks, or the layout "
+                           "fails on a count of its own and was not checked"}
 
 
 def cart_fields(config) -> list:
@@ -194,8 +195,10 @@ def cart_fields(config) -> list:
         return []
     links = [pa.field("external_link_pair", pa.int64(), metadata={
         "meaning": "the two links of external_clearance_mm: 256 x arm pair (0 PSM1-PSM2, 1 PSM1-ECM, 2 PSM2-ECM, "
-                   "3 PSM1-PSM3, 4 PSM2-PSM3, 5 PSM3-ECM) + 16 x the first arm's link + the second's (each arm's "
-                   "setup-joint links 3-6, then its own: link_tables.link_names); -1: none"})] if links_of(config) else []
+                   "3 PSM1-PSM3, 4 PSM2-PSM3, 5 PSM3-ECM) + 16 x the first arm's link + the second's, or 256 x (6 + "
+                   "arm: PSM1, PSM2, PSM3, ECM) + 16 x its link + (0 the patient's body, 1 the table); each arm's "
+                   "links its setup joints' 3-6, then its own (link_tables.pair_name decodes it); -1: none"})] \
+        if links_of(config) else []
     margins = [pa.field(f"{arm}_suj_{what}", pa.float64(), metadata={
         "meaning": f"the {arm.upper()} setup joints' least margin to their ranges at the row's cart pose, "
                    + ("over the revolute joints (deg)" if what.endswith("deg") else "of the column (mm)")
@@ -863,8 +866,7 @@ def docking_tables(best: dict, meta: dict) -> list:
 def in_feasible(cfg) -> str:
     """What of the links' clearance feasible holds: between arms with ``constraints.min_link_clearance_mm``."""
     if links_of(cfg):
-        return (f"between arms in feasible, at least {cfg.constraints.min_link_clearance_mm:g} mm; against the "
-                f"patient and the table not yet")
+        return f"in feasible, at least {cfg.constraints.min_link_clearance_mm:g} mm"
     return "not yet part of feasible"
 
 
@@ -874,7 +876,8 @@ UNDOCKED_WHY = ("the ECM's setup joints reach its port at no cart pose",
                 "PSM1's and PSM2's setup joints take the pair's two ports at no cart pose, either way round",
                 "PSM3's setup joints reach its port at no cart pose",
                 "every arm docks at some cart pose of the grid, never all at one",
-                "every arm docks at some cart pose, but at each the arms' links overlap (min_link_clearance_mm)")
+                "every arm docks at some cart pose, but at each the arms' links overlap each other, the patient or "
+                "the table (min_link_clearance_mm)")
 
 
 def undocked_table(parts, meta: dict) -> list:

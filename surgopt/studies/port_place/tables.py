@@ -348,7 +348,8 @@ def with_links(model: PortModel, tables, sites: np.ndarray, rot: np.ndarray, doc
     pairs = sorted(got.value)
     return tables._replace(link_words=np.stack([got.words[p] for p in pairs]),
                            link_value=np.stack([got.value[p] for p in pairs]),
-                           link_code=np.stack([got.code[p] for p in pairs]))
+                           link_code=np.stack([got.code[p] for p in pairs]), arm_words=got.arm_words,
+                           arm_value=got.arm_value, arm_code=got.arm_code)
 
 
 def no_cart(n: int) -> tuple[np.ndarray, np.ndarray]:
