@@ -14,12 +14,9 @@ from typing import NamedTuple
 
 import numpy as np
 
-from surgopt.studies.port_place.link_tables import POSE_POINTS, spread_points
+from surgopt.studies.port_place.link_tables import (PATIENT_CAP_MM, POSE_POINTS, SPACING_M, TABLE_THICKNESS_M,
+                                                    spread_points)
 
-SPACING_M = 0.01
-TABLE_THICKNESS_M = 0.10
-#: Against the patient, clearances are resolved up to this (mm); a link farther off reads as this much.
-PATIENT_CAP_MM = 150.0
 class Clearance(NamedTuple):
     """One least clearance: what against what, the value (mm, negative: they overlap), which links, and where
     (the pose of each arm: "docked" or the target point it reaches, mm in the patient frame)."""

@@ -25,6 +25,12 @@ import numpy as np
 #: 16 * link of the first + link of the second).
 ARM_PAIRS = (("PSM1", "PSM2"), ("PSM1", "ECM"), ("PSM2", "ECM"), ("PSM1", "PSM3"), ("PSM2", "PSM3"),
              ("PSM3", "ECM"))
+#: Points along a link at most this far apart (m) where its clearance to the patient is measured, and the table's
+#: thickness as a slab under the patient frame's z = 0 (m, an assumption).
+SPACING_M = 0.01
+TABLE_THICKNESS_M = 0.10
+#: Against the patient, clearances are resolved up to this (mm); a link farther off reads as this much.
+PATIENT_CAP_MM = 150.0
 #: Clearances are resolved up to this much above the config's least (m): a pair farther apart reads as that much
 #: ("at least"); below the least, the search stops at the first overlap it finds (an upper bound: the layout
 #: fails there whatever the exact least).
@@ -98,8 +104,6 @@ def pair_name(code: int) -> str:
 
 def table_box(cfg) -> tuple[np.ndarray, np.ndarray]:
     """The table as a slab under the patient frame's z = 0 (``clashes.against_table``'s): (lo, hi), m."""
-    from surgopt.studies.port_place.clashes import TABLE_THICKNESS_M
-
     w = cfg.cart.table_half_width_mm / 1000
     return (np.array([-w, cfg.cart.table_y_mm[0] / 1000, -TABLE_THICKNESS_M]),
             np.array([w, cfg.cart.table_y_mm[1] / 1000, 0.0]))
@@ -107,12 +111,11 @@ def table_box(cfg) -> tuple[np.ndarray, np.ndarray]:
 
 def surroundings(cfg, segs: np.ndarray, radii: np.ndarray, through: np.ndarray, valid: np.ndarray):
     """(C2, C3) Per item of ``segs`` (K, L, 2, 3), patient frame, where ``valid``: the least clearance (m) of its
-    links to the patient's body (points along each link at most ``clashes.SPACING_M`` apart, the body distance
-    resolved to ``clashes.PATIENT_CAP_MM``; not the links that pass the port, ``through``) and to the table (the
+    links to the patient's body (points along each link at most ``SPACING_M`` apart, the body distance
+    resolved to ``PATIENT_CAP_MM``; not the links that pass the port, ``through``) and to the table (the
     slab, exact by golden-section search), and its code 16 * link + (0 patient, 1 table): (value (K,), code (K,)),
     NaN and -1 elsewhere. As ``clashes.against_patient`` and ``against_table`` measure them."""
     from surgopt.kinematics.capsules import along_many, segments_box_distance
-    from surgopt.studies.port_place.clashes import PATIENT_CAP_MM, SPACING_M
     from surgopt.studies.port_place.geometry import body_box_mm, body_distance_mm, inside_body
 
     n_item, n_link = segs.shape[:2]
