@@ -8,7 +8,11 @@ Prints, on the default config with the Classic cart on its grid of floor poses (
   over the sites (one cart pose at a time), checked equal;
 - `surgopt port-place cart.model=classic` end to end, warm, 2 threads: the (layout, cart pose) pairs it decides
   (every layout against every pose of the grid, 64 poses a word in the design kernel), pairs/s, and the estimate
-  the dry run printed beforehand against the time taken. Also with a finer grid of 300+ poses.
+  the dry run printed beforehand against the time taken. Also with a finer grid of 300+ poses, and with the links
+  deciding (``constraints.min_link_clearance_mm=0``: every arm's links clear of each other, the patient and the
+  table), its time against the same run without them;
+- the pruned least clearance between two arms (``capsules.least_between``, the link tables' kernel) against the
+  exhaustive ``least_over_poses`` on the default's PSM pairs (their own links over 65 poses each), checked equal.
 """
 from __future__ import annotations
 
@@ -88,11 +92,14 @@ def solvers() -> None:
 
 
 def end_to_end() -> None:
+    took_without = None
     for label, args in (("the default grid", ["cart.model=classic"]),
                         ("a finer grid", ["cart.model=classic", "cart.around_step_deg=7.5",
-                                          "cart.distance_step_mm=100"])):
+                                          "cart.distance_step_mm=100"]),
+                        ("the default grid, the links deciding", ["cart.model=classic",
+                                                                  "constraints.min_link_clearance_mm=0"])):
         cfg = C.PortPlaceConfig.model_validate({"cart": {"model": "classic", **{
-            a.split("=")[0].split(".")[1]: float(a.split("=")[1]) for a in args[1:]}}})
+            a.split("=")[0].split(".")[1]: float(a.split("=")[1]) for a in args[1:] if a.startswith("cart.")}}})
         poses = len(T.cart_poses(cfg).floor)
         layouts = S.n_total(cfg)
         dry = subprocess.run([sys.executable, "-m", "surgopt", "port-place", *args, "--dry-run"],
@@ -110,9 +117,32 @@ def end_to_end() -> None:
         pairs = layouts * poses
         print(f"surgopt port-place, {label} ({poses} cart poses), end to end (warm, 2 threads): {took:.1f} s for "
               f"{layouts:,} layouts x {poses} poses = {pairs:.3g} (layout, cart pose) pairs, {pairs / took:.3g} "
-              f"pairs/s; the dry run's estimate {est:.1f} s ({est / took:.2f}x the time)")
+              f"pairs/s; the dry run's estimate {est:.1f} s ({est / took:.2f}x the time)"
+              + (f"; {took / took_without:.2f}x the run without the links" if "links" in label else ""))
+        took_without = took if took_without is None else took_without
+
+
+def pruned_least() -> None:
+    from surgopt.kinematics import capsules as Cap
+    from surgopt.studies.port_place import link_tables as L
+
+    cfg = C.PortPlaceConfig.model_validate({"cart": {"model": "classic"}})
+    model = T.prepare(cfg)
+    own, radii, groups = L.own_moving(model, model.sites_m, model.instrument_rot)
+    balls = np.stack([Cap.swept_balls(own[i], radii, groups) for i in range(len(own))])
+    rng = np.random.default_rng(0)
+    pairs = np.array([p for p in rng.integers(0, len(own), (400, 2)) if p[0] != p[1]][:300])
+    Cap.moving_pairs(pairs[:2], own, radii, balls, groups, np.inf, -np.inf)  # compiled or loaded
+    Cap.least_over_poses(own[0], radii, own[1], radii)
+    tp, (got, _) = best_of(lambda: Cap.moving_pairs(pairs, own, radii, balls, groups, np.inf, -np.inf))
+    te, want = best_of(lambda: np.array([Cap.least_over_poses(own[i], radii, own[j], radii)[0] for i, j in pairs]),
+                       repeat=1)
+    print(f"least clearance between two PSMs' own links over 65 x 65 poses, {len(pairs)} site pairs: pruned "
+          f"{tp * 1e6 / len(pairs):.0f} us a pair, exhaustive {te * 1e6 / len(pairs):.0f} us: {te / tp:.1f}x; "
+          f"equal: {bool(np.allclose(got, want, rtol=0, atol=1e-12))}")
 
 
 if __name__ == "__main__":
     solvers()
+    pruned_least()
     end_to_end()

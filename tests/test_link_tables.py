@@ -179,3 +179,31 @@ def test_the_batch_solver_keeps_the_best_solutions_joints():
     for q, m, pose in zip(joints[found], margin[found], poses[found]):
         np.testing.assert_allclose(K.forward(suj, q), pose, atol=1e-9)
         assert min(min(v - lo, hi - v) for v, (lo, hi) in zip(q, ranges)) == pytest.approx(m, abs=1e-12)
+
+
+def test_three_psms_keep_every_pair_of_links_clear():
+    """Three PSMs and the ECM with the links deciding: the tables hold all six arm pairs and PSM3 against its
+    surroundings. At a least of 0 no layout of this small config keeps its links clear (PSM1's, PSM2's and PSM3's
+    setup joints crowd one another, as the closing report's roll search found on the default); with 25 mm of
+    overlap allowed (the most the config allows), the best feasible row's least clearance and pair equal ``clashes``' least for that layout
+    (there PSM3's setup joints and the ECM's mount), every feasible row keeps the least, and some fail on the links alone."""
+    cfg = PC.PortPlaceConfig.model_validate({**LINKS, "robot": {"instrument_count": 3}})
+    assert not S.compute_task(cfg, S.n_total(cfg), 0)["feasible"].any()
+    cfg = PC.PortPlaceConfig.model_validate({**LINKS, "robot": {"instrument_count": 3},
+                                             "constraints": {"min_link_clearance_mm": -25.0}})
+    t = T.model_of(cfg).grid.tables
+    assert t.link_words.shape[0] == 6 and np.isfinite(t.link_value[3:]).any()
+    cols = S.compute_task(cfg, S.n_total(cfg), 0)
+    feasible = cols["feasible"]
+    assert feasible.any() and np.all(cols["external_clearance_mm"][feasible] >= -25.0)
+    assert np.any(cols["infeasible"] == OUTSIDE)
+    best = int(np.flatnonzero(feasible)[np.argmin(cols["cost"][feasible])])
+    row = {c: v[best].item() for c, v in cols.items()}
+    found = layout_clearances(cfg, row)
+    assert any("PSM3" in c.check for c in found)
+    least = min(found, key=lambda c: c.clearance_mm)
+    if row["external_clearance_mm"] < CAP_M * 1000 - 25.0 - 1e-3:
+        assert row["external_clearance_mm"] == pytest.approx(least.clearance_mm, abs=1e-3)
+        assert pair_name(int(row["external_link_pair"])) == f"{least.link_a} / {least.link_b}"
+    else:
+        assert least.clearance_mm >= CAP_M * 1000 - 25.0 - 1e-3

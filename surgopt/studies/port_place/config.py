@@ -320,13 +320,15 @@ class Constraints(StrictModel):
     min_external_clearance_mm: float = Field(60.0, ge=0, description="between arm axes outside the body, along "
                                                                      "the 0.4318 m behind each port (without "
                                                                      "the cart: with it the links decide)")
-    min_link_clearance_mm: float | None = Field(None, ge=-100.0, le=500.0,
+    min_link_clearance_mm: float | None = Field(None, ge=-25.0, le=500.0,
                                                 description="with the cart: the least clearance between the arms' "
                                                             "links outside the body (setup joints and the arms' "
                                                             "own, capsules), docked and over the target, that a "
                                                             "feasible layout keeps at its cart pose (replaces the "
                                                             "shaft lines' min_external_clearance_mm); unset: the "
-                                                            "links are checked for the best layouts only")
+                                                            "links are checked for the best layouts only; at least "
+                                                            "-25 (an overlap under the thinnest link's 30 mm "
+                                                            "radius: a link inside the body reads as its radius)")
     manipulation_angle_deg: list[float] = Field([45.0, 75.0], min_length=2, max_length=2)
     dexterity_length_m: float = Field(0.1, gt=0, description="characteristic length L of the isotropy")
 
