@@ -207,3 +207,24 @@ def test_three_psms_keep_every_pair_of_links_clear():
         assert pair_name(int(row["external_link_pair"])) == f"{least.link_a} / {least.link_b}"
     else:
         assert least.clearance_mm >= CAP_M * 1000 - 25.0 - 1e-3
+
+
+def test_the_tables_and_the_report_dock_each_arm_with_the_same_joints():
+    """The dock tables' best setup joints (the batch S2, what the link tables place) are the plain S2's first
+    solution (what the report, the export and ``clashes`` place) at every docked (site, pose) of every PSM, where
+    solutions' margins tie too (``suj.MARGIN_TIE``: the first in the solver's order). The premise: ties occur
+    (PSM3's assumed full-turn ranges leave the column's margin, shared by both elbows, deciding)."""
+    from surgopt.kinematics import suj as K
+    from surgopt.robots.dvrk_suj import CARTS
+
+    cfg = PC.PortPlaceConfig.model_validate({**LINKS, "robot": {"instrument_count": 3}})
+    model = T.model_of(cfg)
+    dock = model.dock
+    ties = 0
+    for a, arm in enumerate(("PSM1", "PSM2", "PSM3")):
+        for site, pose in np.argwhere(dock.margin[a] >= 0)[::7]:
+            base = dock.poses.patient[pose] @ T.base_pose(model.instrument_rot[site], model.sites_m[site])
+            answer = K.classic_psm_ik(CARTS["classic"][arm], base)
+            np.testing.assert_allclose(dock.joints[a, site, pose], answer.within[0].joints, rtol=0, atol=1e-9)
+            ties += len(answer.within) > 1 and answer.within[1].margin >= answer.within[0].margin - 1e-9
+    assert ties > 0

@@ -110,8 +110,26 @@ def _solution(suj, q) -> SujSolution:
     return SujSolution(q, *_margin(suj, q))
 
 
+#: Solutions whose least margins differ by less than this (rad or m) are equally good: the first of them in the
+#: solver's order (q4 ascending, then the elbow of positive sine) is the best, here and in the batch solver
+#: (``suj_batch``), so both dock an arm with the same joints where margins tie (the column's margin, shared by
+#: both elbows, often decides under the assumed full-turn ranges).
+MARGIN_TIE = 1e-9
+
+
+def best_first(sols: list) -> list:
+    """Solutions best first: the head the first that no later one beats by MARGIN_TIE, the rest by margin."""
+    if not sols:
+        return []
+    head = sols[0]
+    for s in sols[1:]:
+        if s.margin > head.margin + MARGIN_TIE:
+            head = s
+    return [head] + sorted((s for s in sols if s is not head), key=lambda s: -s.margin)
+
+
 def _answer(suj, candidates) -> SujAnswer:
-    sols = sorted((_solution(suj, q) for q in candidates), key=lambda s: -s.margin)
+    sols = best_first([_solution(suj, q) for q in candidates])
     within = tuple(s for s in sols if s.margin >= 0)
     outside = tuple(s for s in sols if s.margin < 0)
     if within:

@@ -15,6 +15,7 @@ from typing import NamedTuple
 import numpy as np
 
 from surgopt.jit import EXACT, njit
+from surgopt.kinematics.suj import MARGIN_TIE
 
 
 class SujArrays(NamedTuple):
@@ -80,20 +81,20 @@ def least_margin(q, ranges):
 
 
 @njit(**EXACT)
-def planar_best(s, x, y, z, psi, q4, q5, floor, q_best):
-    """The best least margin of the (up to two) elbow solutions that put the planar chain's last frame at (x, y,
-    z) with yaw psi, the wrist at (q4, q5) (``suj._planar_ik``, ``suj._elbows``); -inf when out of reach. A
-    solution whose margin beats ``floor`` is written to ``q_best`` (6,)."""
+def planar_best(s, x, y, z, psi, q4, q5, head, q_best):
+    """The (up to two) elbow solutions that put the planar chain's last frame at (x, y, z) with yaw psi, the wrist
+    at (q4, q5) (``suj._planar_ik``, ``suj._elbows``), after the best so far (its least margin ``head``, -inf:
+    none; its joints in ``q_best``): one replaces it only when better by ``suj.MARGIN_TIE`` (``suj.best_first``'s
+    rule, in the same order). Returns the best's margin."""
     column = z - s.d[0] - (s.d[1] + s.d[2] + s.d[3])
     px, py, l1, l2 = x - s.a[0], y, s.a[2], s.a[3]
     c = (px * px + py * py - l1 * l1 - l2 * l2) / (2.0 * l1 * l2)
     if c > 1.0 + 1e-12 or c < -1.0 - 1e-12:
-        return -math.inf
+        return head
     c = min(1.0, max(-1.0, c))
-    best = -math.inf
     q = np.empty(6)
     root = math.sqrt(1.0 - c * c)
-    for k in range(2):
+    for k in range(2 if root != 0.0 else 1):  # one elbow when both coincide (``suj._elbows``)
         sn = root if k == 0 else -root
         t2 = math.atan2(sn, c)
         t1 = wrap(math.atan2(py, px) - math.atan2(l2 * sn, l1 + l2 * c))
@@ -102,10 +103,10 @@ def planar_best(s, x, y, z, psi, q4, q5, floor, q_best):
         q[3] = wrap(psi - t1 - t2 - s.offset[3])
         q[4], q[5] = q4, q5
         m = least_margin(q, s.ranges)
-        if m > max(best, floor):
+        if m > head + MARGIN_TIE:
+            head = m
             q_best[:] = q
-        best = max(best, m)
-    return best
+    return head
 
 
 @njit(**EXACT)
@@ -126,6 +127,7 @@ def classic_psm_margin(s, pose, q_best):
     phase = math.atan2(sa, ca)
     spread = math.acos(max(-1.0, min(1.0, target / amp)))
     first, second = wrap(phase + spread), wrap(phase - spread)
+    first, second = min(first, second), max(first, second)  # ascending, as ``suj.classic_psm_ik`` takes them
     best = -math.inf
     for n in range(2 if second != first else 1):
         th4 = first if n == 0 else second
@@ -138,7 +140,7 @@ def classic_psm_margin(s, pose, q_best):
         rg_t, pg = np.ascontiguousarray(g[:3, :3].T), np.ascontiguousarray(g[:3, 3])
         rh = m @ rg_t  # h = t g^-1 = [m rg^T, p - m rg^T pg]
         ph = np.ascontiguousarray(t[:3, 3]) - rh @ pg
-        best = max(best, planar_best(s, ph[0], ph[1], ph[2], math.atan2(rh[1, 0], rh[0, 0]), q4, q5, best, q_best))
+        best = planar_best(s, ph[0], ph[1], ph[2], math.atan2(rh[1, 0], rh[0, 0]), q4, q5, best, q_best)
     return best
 
 
