@@ -269,17 +269,29 @@ def first_dock(dock, dock_camera, i, j, l, k):
     round), PSM3 on l (l < 0: no third) and the ECM on k, or -1; 1 when PSM1 docks on j and PSM2 on i there,
     else 0): the lowest bit of their words ANDed, the straight assignment preferred at that pose."""
     for w in range(dock.shape[2]):
-        both = dock_camera[k, w]
-        if l >= 0:
-            both &= dock[2, l, w]
-        straight = dock[0, i, w] & dock[1, j, w] & both
-        crossed = dock[0, j, w] & dock[1, i, w] & both
-        either = straight | crossed
-        if either != 0:
-            low = either & (~either + np.uint64(1))
-            bit = np.int64(popcount64(low - np.uint64(1)))
-            return w * 64 + bit, 0 if (straight & low) != 0 else 1
+        straight, crossed = docking_words(dock, dock_camera, i, j, l, k, w)
+        if (straight | crossed) != 0:
+            return lowest_pose(w, straight, crossed)
     return -1, 0
+
+
+@njit(**EXACT)
+def docking_words(dock, dock_camera, i, j, l, k, w):
+    """Word w of the cart poses at which every arm docks, PSM1 on i and PSM2 on j (straight) or the other way
+    round (crossed)."""
+    both = dock_camera[k, w]
+    if l >= 0:
+        both &= dock[2, l, w]
+    return dock[0, i, w] & dock[1, j, w] & both, dock[0, j, w] & dock[1, i, w] & both
+
+
+@njit(**EXACT)
+def lowest_pose(w, straight, crossed):
+    """(the pose of the lowest bit set in word w of either, 1 when only the crossed assignment has it)."""
+    either = straight | crossed
+    low = either & (~either + np.uint64(1))
+    bit = np.int64(popcount64(low - np.uint64(1)))
+    return w * 64 + bit, 0 if (straight & low) != 0 else 1
 
 
 @njit(**EXACT)
@@ -297,11 +309,7 @@ def first_clear(t, i, j, l, k):
     """``first_dock`` with the links' words too: the first cart pose at which every arm docks and every pair of
     arms' links clear (either way round, straight preferred), or -1."""
     for w in range(t.dock.shape[2]):
-        both = t.dock_camera[k, w]
-        if l >= 0:
-            both &= t.dock[2, l, w]
-        straight = t.dock[0, i, w] & t.dock[1, j, w] & both
-        crossed = t.dock[0, j, w] & t.dock[1, i, w] & both
+        straight, crossed = docking_words(t.dock, t.dock_camera, i, j, l, k, w)
         for e in _entries(i, j, l, k, False):
             straight &= t.link_words[e[0], e[1], e[2], w]
         for e in _entries(i, j, l, k, True):
@@ -310,11 +318,8 @@ def first_clear(t, i, j, l, k):
             around = t.arm_words[3, k, w] & (t.arm_words[2, l, w] if l >= 0 else ~np.uint64(0))
             straight &= t.arm_words[0, i, w] & t.arm_words[1, j, w] & around
             crossed &= t.arm_words[0, j, w] & t.arm_words[1, i, w] & around
-        either = straight | crossed
-        if either != 0:
-            low = either & (~either + np.uint64(1))
-            bit = np.int64(popcount64(low - np.uint64(1)))
-            return w * 64 + bit, 0 if (straight & low) != 0 else 1
+        if (straight | crossed) != 0:
+            return lowest_pose(w, straight, crossed)
     return -1, 0
 
 
