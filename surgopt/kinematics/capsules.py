@@ -8,8 +8,13 @@ capsules at joint values q come from its skeleton (``robots/dvrk_links.py``): ea
 parent, origin, roll-pitch-yaw and joint (C4).
 
 The segment distance is ``kinematics.port_place.segment_distance`` (Ericson, Real-Time Collision Detection,
-5.1.9). The least clearance between two arms over every pair of their poses (each arm at each of its own
-target points: the instruments move independently) is one jitted loop (``least_over_poses``).
+5.1.9; ``segments_distance`` with its degenerate cases for the tables). The least clearance between two arms over
+every pair of their poses (each arm at each of its own target points: the instruments move independently) is one
+jitted loop (``least_over_poses``), and pruned by bounding balls for the rows' tables (``least_between``,
+``pair_clearances``; ``studies/port_place/link_tables.py``), with their batch forms of C2-C4.
+
+One module of ~430 lines: the exhaustive and the pruned least, the capsules' placement and their batch forms are
+one geometry (the pruned kernels are held to the exhaustive one), and every caller reads them together.
 """
 from __future__ import annotations
 

@@ -7,7 +7,9 @@ joints' links and each arm's own), docked and over the target, factored as the i
 - per (arm, site, pose), its setup joints' links from the dock tables' best solution (``suj_static``), and the
   ECM held docked (its setup joints and its own links, ``ecm_static``);
 - per (site pair), the two PSMs' own links over every pair of their poses (``capsules.moving_pairs``), once
-  for every cart pose; per (site pair, pose) the rest (``capsules.pair_clearances``).
+  for every cart pose; per (site pair, pose) the rest (``capsules.pair_clearances``);
+- per (arm, site, pose), each arm against the patient's body and the table (``arm_surroundings``: a PSM's own
+  links once per site).
 
 All in the patient's frame (the cart's pose moves the setup joints only). The tables are dense over (site, site,
 pose) where both arms dock (NaN elsewhere), with each least's link pair, and packed as the design kernel's 64-pose
@@ -20,6 +22,9 @@ import os
 from typing import NamedTuple
 
 import numpy as np
+
+from surgopt.robots.dvrk_links import SUJ_ON_COLUMN as FIRST_SUJ_LINK  # the setup joints' links checked: after
+# the column and the arm's carriage on it, which are the cart's (``clashes.arm_poses``)
 
 #: The arm pairs whose links are checked, in the order of the rows' ``external_link_pair`` code (256 * pair +
 #: 16 * link of the first + link of the second).
@@ -35,8 +40,6 @@ PATIENT_CAP_MM = 150.0
 #: ("at least"); below the least, the search stops at the first overlap it finds (an upper bound: the layout
 #: fails there whatever the exact least).
 CAP_M = 0.1
-#: The setup joints' links checked (``clashes.arm_poses``: the column and the arm's carriage on it are the cart).
-FIRST_SUJ_LINK = 2
 
 
 class LinkTables(NamedTuple):
