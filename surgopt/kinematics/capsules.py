@@ -350,9 +350,7 @@ def skeleton_batch(frames, q: np.ndarray, base: np.ndarray, mount: np.ndarray | 
         out["mount"] = np.asarray(mount, float)
     n = len(q)
     for f in frames:
-        roll, pitch, yaw = f.rpy_rad
-        fixed = trans(*f.xyz_m) @ rot_z(yaw) @ rot_y(pitch) @ rot_x(roll)
-        t = out[f.parent] @ fixed
+        t = out[f.parent] @ frame_transform(f._replace(joint=-1), None)  # the origin; the joint per arm below
         if f.joint >= 0:
             v = f.multiplier * q[:, f.joint]
             j = np.repeat(np.eye(4)[None], n, axis=0)

@@ -165,6 +165,12 @@ def classic_psm_solutions(s, poses):
 def chain_points(world, alpha, a, d, offset, prismatic, q):
     """(7, 3) The origins of a six-link modified-DH chain's frames at joints q (``suj.frames`` without the tool
     transform, ``suj.link``): its base ``world`` (4, 4), then after each link."""
+    return chain_frames(world, alpha, a, d, offset, prismatic, q)[0]
+
+
+@njit(**EXACT)
+def chain_frames(world, alpha, a, d, offset, prismatic, q):
+    """``chain_points`` and the chain's last frame (4, 4)."""
     out = np.empty((7, 3))
     t = world.copy()
     out[0] = t[:3, 3]
@@ -174,7 +180,7 @@ def chain_points(world, alpha, a, d, offset, prismatic, q):
         else:
             t = t @ mdh(alpha[j], a[j], q[j] + offset[j], d[j])
         out[j + 1] = t[:3, 3]
-    return out
+    return out, t
 
 
 class EcmArrays(NamedTuple):
@@ -342,11 +348,5 @@ def chain_ends(world, alpha, a, d, offset, prismatic, joints):
     for n in range(joints.shape[0]):
         if np.isnan(joints[n, 0]):
             continue
-        t = world.copy()
-        for j in range(6):
-            if prismatic[j]:
-                t = t @ mdh(alpha[j], a[j], offset[j], d[j] + joints[n, j])
-            else:
-                t = t @ mdh(alpha[j], a[j], joints[n, j] + offset[j], d[j])
-        out[n] = t
+        out[n] = chain_frames(world, alpha, a, d, offset, prismatic, joints[n])[1]
     return out

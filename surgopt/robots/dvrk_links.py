@@ -104,4 +104,10 @@ ECM_CLASSIC_CAPSULES = (
 #: The setup joints' links: the segments between successive frames of ``kinematics.suj.frames``; the first two
 #: (the cart's column and the arm's carriage on it) are part of the cart and not checked between arms.
 SUJ_RADIUS_M = 0.05
+
+
+def through_port(capsules) -> list[bool]:
+    """Which of an arm's capsules pass through its port (they end at the base frame, the RCM): the shaft or the
+    scope outside the port, left out of the check against the patient's body."""
+    return ["base" in (c.frame_a, c.frame_b) for c in capsules]
 SUJ_ON_COLUMN = 2

@@ -14,8 +14,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from surgopt.studies.port_place.link_tables import (PATIENT_CAP_MM, POSE_POINTS, SPACING_M, TABLE_THICKNESS_M,
-                                                    spread_points)
+from surgopt.studies.port_place.link_tables import PATIENT_CAP_MM, SPACING_M, TABLE_THICKNESS_M, pose_points
 
 class Clearance(NamedTuple):
     """One least clearance: what against what, the value (mm, negative: they overlap), which links, and where
@@ -73,7 +72,7 @@ def arm_poses(cfg, arm, patient: np.ndarray, targets_m: np.ndarray, along_shaft_
     for q in qs:
         own = C.capsules_at(capsules, C.skeleton(skeleton, np.asarray(q, float), base, mount))
         segs.append(C.join(suj, own._replace(names=tuple(f"{arm.arm} {n}" for n in own.names))))
-    through = np.array([False] * len(suj.names) + ["base" in (c.frame_a, c.frame_b) for c in capsules])
+    through = np.array([False] * len(suj.names) + L.through_port(capsules))
     return ArmPoses(arm.arm, np.stack([s.segments for s in segs]), segs[0].radii, segs[0].names, through,
                     labels)
 
@@ -160,8 +159,7 @@ def layout_clearances(cfg, row: dict, docked=None) -> list[Clearance]:
         return list(_memoised("clearances", cfg, row, lambda: layout_clearances(cfg, row, docked_arms(cfg, row))))
     patient = patient_in_cart(cfg.cart, row["cart_x_mm"], row["cart_y_mm"], row["cart_heading_deg"])
     model = model_of(cfg)
-    start = int(np.argmin(np.linalg.norm(model.targets_m - model.centre_m, axis=1)))
-    points = model.targets_m[spread_points(model.targets_m, POSE_POINTS, start)[0]]
+    points = pose_points(model)[0]
     arms = [arm_poses(cfg, a, patient, points, model.limits.along_shaft_m) for a in docked if a.joints]
     out = []
     for i in range(len(arms)):

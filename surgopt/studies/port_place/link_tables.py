@@ -318,7 +318,7 @@ def link_tables(model, sites: np.ndarray, rot: np.ndarray, dock, wanted: Wanted)
     least = cfg.constraints.min_link_clearance_mm / 1000
     cap = least + CAP_M
     value, code, words = {}, {}, {}
-    arm_value, arm_code = arm_surroundings(cfg, own, r_own, static, docks, len(psms))
+    arm_value, arm_code = arm_surroundings(cfg, own, r_own, static, docks)
     used = wanted.pair.any(axis=1)  # a port of some working pair that passes
     need = {"PSM1": used, "PSM2": used, "PSM3": wanted.third, "ECM": wanted.camera}
     for pair, (x, y) in enumerate(ARM_PAIRS):
@@ -353,7 +353,7 @@ def link_tables(model, sites: np.ndarray, rot: np.ndarray, dock, wanted: Wanted)
                       arm_code.astype(np.int16), arm_words)
 
 
-def arm_surroundings(cfg, own, r_own, static, docks, n_psm: int):
+def arm_surroundings(cfg, own, r_own, static, docks):
     """Each arm against the patient and the table at each (site, pose) where it docks (``surroundings``): a PSM's
     own links once per site over its poses (its docked frame does not depend on the cart), the least of those
     and its setup joints' at the pose; the ECM held docked. (value (4, n, m) m, NaN where it does not dock; code
@@ -363,7 +363,7 @@ def arm_surroundings(cfg, own, r_own, static, docks, n_psm: int):
     n, m = static["ECM"].shape[:2]
     value, code = np.full((4, n, m), np.nan), np.full((4, n, m), -1, np.int64)
     n_suj = 6 - FIRST_SUJ_LINK
-    through_own = np.array(["base" in (c.frame_a, c.frame_b) for c in L.PSM_CLASSIC_CAPSULES])
+    through_own = np.array(L.through_port(L.PSM_CLASSIC_CAPSULES))
     k = own.shape[1]
     own_v, own_c = surroundings(cfg, own.reshape(n, -1, 2, 3), np.tile(r_own, k), np.tile(through_own, k),
                                 np.ones(n, bool))
@@ -374,8 +374,7 @@ def arm_surroundings(cfg, own, r_own, static, docks, n_psm: int):
             continue
         segs = static[arm].reshape(n * m, -1, 2, 3)
         radii = ecm_radii() if arm == "ECM" else r_suj
-        through = np.array([False] * n_suj + ["base" in (c.frame_a, c.frame_b) for c in L.ECM_CLASSIC_CAPSULES]
-                           if arm == "ECM" else [False] * n_suj)
+        through = np.array([False] * n_suj + (L.through_port(L.ECM_CLASSIC_CAPSULES) if arm == "ECM" else []))
         v, c = surroundings(cfg, segs, radii, through, docks[arm].reshape(-1))
         v, c = v.reshape(n, m), c.reshape(n, m)
         if arm != "ECM":  # the arm's own links, wherever its setup joints dock

@@ -176,7 +176,9 @@ def links_of(config) -> bool:
         return False
     if isinstance(config, dict):
         return (config.get("constraints") or {}).get("min_link_clearance_mm") is not None
-    return config.constraints.min_link_clearance_mm is not None
+    from surgopt.studies.port_place.tables import links_decide
+
+    return links_decide(config)
 
 
 #: ``external_clearance_mm`` when the links decide (``constraints.min_link_clearance_mm``).
@@ -662,13 +664,9 @@ def estimate(cfg) -> Estimate:
         CART_ROW_BYTES + (arms + 1) * SUJ_MARGIN_ROW_BYTES if cfg.cart.model != "none" else 0)
     working = n * n * 8 * 12 + n * m * 9 + LIBRARY_BYTES + (CART_LIBRARY_BYTES if cfg.cart.model != "none" else 0)
     if cfg.cart.model != "none":  # the dock tables: each arm's margins, best joints and the ECM's aim per (site, pose)
-        from surgopt.studies.port_place.tables import cart_poses
-
-        working += n * len(cart_poses(cfg).floor) * DOCK_ENTRY_BYTES
+        working += n * poses * DOCK_ENTRY_BYTES
     if links_of(cfg):  # float32 values, int16 pairs and the float work arrays of each arm pair's dense tables
-        from surgopt.studies.port_place.tables import cart_poses
-
-        working += link_pairs(arms) * n * n * len(cart_poses(cfg).floor) * LINK_ENTRY_BYTES
+        working += link_pairs(arms) * n * n * poses * LINK_ENTRY_BYTES
     if cfg.rows_stored == "feasible":  # at most every design feasible: 8 bytes of each stored row in the parent
         # and, in flight, tasks of feasible rows only (2 per worker, ~4 on this scale of machine)
         return Estimate(d, "port designs (feasible rows stored)", d, seconds,
