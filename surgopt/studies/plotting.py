@@ -59,8 +59,9 @@ def stamped(text: str):
 
 def save(fig, path: Path) -> Path:
     path = path.with_suffix(f".{_format[0]}")
-    if _stamp:
-        fig.text(0.995, 0.003, _stamp[-1], ha="right", va="bottom", fontsize=6, color="0.45")
+    if _stamp:  # under everything drawn (an axis label at the bottom edge would sit under a stamp inside it)
+        low = fig.get_tightbbox(fig.canvas.get_renderer()).y0 / fig.get_figheight()
+        fig.text(0.995, min(low, 0.0) - 0.005, _stamp[-1], ha="right", va="top", fontsize=6, color="0.45")
     fig.savefig(path, dpi=110, bbox_inches="tight")
     pyplot().close(fig)
     return path
