@@ -421,6 +421,8 @@ def test_the_closing_report_searches_each_layouts_rolls_once(tmp_path, monkeypat
     shown = rolled.clearances or clashes.layout_clearances(cfg, row)  # docked to clear where a roll clears it
     assert [r[1] for r in clear[2]] == [f"{c.clearance_mm:.0f}" for c in shown]
     assert calls["rolls"].count(best) == 1
+    # issue 40's "done means": the closing report names what the model leaves out
+    assert all(w in summary.headline["not_modelled"] for w in ("Xi", "tissue", "assistant's port", "rails"))
 
 
 def test_a_searched_cart_pose_docks_each_design_at_its_own_pose(tmp_path):
@@ -539,9 +541,10 @@ def test_the_report_says_why_the_best_layouts_without_the_cart_do_not_dock(tmp_p
 
 
 def test_the_rows_give_each_arms_setup_joint_margins_at_its_pose():
-    """The rows' per-arm setup-joint margins (revolute in deg, the column in mm, at the row's cart pose) against
+    """The rows' per-arm setup joints and their margins (revolute in deg, the column in mm, at the row's cart pose) against
     the setup joints solved again for that row by the plain S2 and the S4 grid for its one port (``docked_arms``), their
-    margins computed here from the quoted and assumed ranges; undocked rows NaN. Premises: docked rows of both
+    margins computed here from the quoted and assumed ranges; the rows' joints through the reference forward
+    kinematics land each arm's base where that solution does; undocked rows NaN. Premises: docked rows of both
     ways round (PSM1 on the pair's first port and on its second) are among those checked."""
     from surgopt.robots.dvrk_suj import CARTS
 
@@ -561,3 +564,12 @@ def test_the_rows_give_each_arms_setup_joint_margins_at_its_pose():
             name = arm.arm.lower()
             assert row[f"{name}_suj_margin_deg"] == pytest.approx(math.degrees(margin[1:].min()), abs=1e-6)
             assert row[f"{name}_suj_column_margin_mm"] == pytest.approx(margin[0] * 1000, abs=1e-6)
+            # the row's joints (mm, deg) are that solution's, and carry the arm's base (its RCM) onto the port
+            names = ("column_mm", "j1_deg", "j2_deg", "j3_deg", "j4_deg", "j5_deg")
+            got = np.array([row[f"{name}_suj_{c}"] for c in names])
+            np.testing.assert_allclose(got, np.concatenate([[q[0] * 1000], np.degrees(q[1:])]), atol=1e-6)
+            q_row = np.concatenate([[got[0] / 1000], np.radians(got[1:])])
+            np.testing.assert_allclose(suj_forward_reference("classic", arm.arm, q_row)[:3, 3], arm.base[:3, 3],
+                                       atol=1e-6)
+    undocked = cols["cart_pose"] < 0
+    assert undocked.any() and all(np.isnan(cols[f"{a}_suj_j1_deg"][undocked]).all() for a in ("psm1", "psm2", "ecm"))

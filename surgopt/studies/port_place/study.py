@@ -206,9 +206,28 @@ def cart_fields(config) -> list:
                    + ("over the revolute joints (deg)" if what.endswith("deg") else "of the column (mm)")
                    + "; negative never (the best solution within the ranges); NaN: no pose docks"})
         for arm in arms_of(config) for what in ("margin_deg", "column_margin_mm")]
+    joints = [pa.field(name, pa.float64(), metadata={
+        "meaning": f"the {arm.upper()} setup joint {joint} at the row's cart pose ("
+                   + ("the column's height, mm" if name.endswith("_mm") else "deg")
+                   + "; the dVRK's simulated_position in m and rad is export --format dvrk's); the solution with "
+                     "the largest least margin; NaN: no pose docks"})
+        for arm, names in suj_joint_columns(config).items() for joint, name in names]
     return [pa.field("cart_pose", pa.int64(), metadata={"meaning": "the first pose of the cart's grid at which "
                                                                     "every arm's setup joints dock (-1: none)"}),
-            *[pa.field(c, pa.float64()) for c in CART_COLUMNS[1:]], *links, *margins]
+            *[pa.field(c, pa.float64()) for c in CART_COLUMNS[1:]], *links, *margins, *joints]
+
+
+def suj_joint_columns(config) -> dict[str, tuple[tuple[str, str], ...]]:
+    """Per arm (its column prefix), its setup joints' names in the cart's data and their row columns, in the
+    order of the dVRK's ``simulated_position``: the column (prismatic, mm) first, then the revolute joints (deg)."""
+    from surgopt.robots.dvrk_suj import CARTS, INSTRUMENT_SUJS
+
+    cart = CARTS[cart_of(config)]
+    out = {}
+    for a, arm in enumerate(arms_of(config)):
+        suj = cart["ECM" if arm == "ecm" else INSTRUMENT_SUJS[a]]
+        out[arm] = tuple((row.name, f"{arm}_suj_{row.name}_{'mm' if row.prismatic else 'deg'}") for row in suj.links)
+    return out
 
 
 def _stored_metadata(config) -> dict | None:
@@ -345,6 +364,12 @@ def design_rows(cfg, sites, t, ids, site_ids, f, bad, cost, design_ids, docking_
                 suj = 3 if arm == "ecm" else a  # the arm on PSM1's, PSM2's, PSM3's setup joints, or the ECM's
                 for name, table in ((f"{arm}_suj_margin_deg", revolute), (f"{arm}_suj_column_margin_mm", column)):
                     cols[name] = np.where(pose >= 0, table[suj, ids[:, a], at], np.nan)
+            joints = np.concatenate([dock_tables.joints[:len(arms) - 1], dock_tables.camera_joints[None]])
+            for a, (arm, names) in enumerate(suj_joint_columns(cfg).items()):
+                q = joints[a, ids[:, a], at]  # (designs, joints): m and rad; NaN where the arm does not dock there
+                for j, (_, name) in enumerate(names):
+                    value = q[:, j] * 1000 if name.endswith("_mm") else np.degrees(q[:, j])
+                    cols[name] = np.where(pose >= 0, value, np.nan)
     for c, name in enumerate(cart_search_columns(cfg)):  # the searched pose, docked there or not
         cols[name] = np.asarray(cart_searched[:, c], float)
     cols["cost"] = cost
@@ -584,8 +609,9 @@ NS_PER_DESIGN_3 = 70.0
 ROW_BYTES, ROW_BYTES_3 = 190, 230
 #: The cart's columns in a row: cart_pose (int64) and the pose's x, y and heading (float64).
 CART_ROW_BYTES = 32
-#: Each arm's setup-joint margins in a row (revolute deg, column mm: float64 each).
+#: Each arm's setup-joint margins and its six setup joints in a row (float64 each).
 SUJ_MARGIN_ROW_BYTES = 16
+SUJ_JOINTS_ROW_BYTES = 6 * 8
 IN_FLIGHT_TASKS = 4
 NS_PER_SITE_POINT = 60.0
 #: A serial instrument arm's per-port tables: ~3.4 us per site x target point (generic Newton IK by continuation,
@@ -661,7 +687,7 @@ def estimate(cfg) -> Estimate:
         if links_of(cfg):  # the links' clearance tables, each arm pair's (site, site, pose) entries
             seconds += link_pairs(arms) * n * n * poses * NS_PER_LINK_ENTRY * 1e-9
     row = (ROW_BYTES if arms == 2 else ROW_BYTES_3) + (
-        CART_ROW_BYTES + (arms + 1) * SUJ_MARGIN_ROW_BYTES if cfg.cart.model != "none" else 0)
+        CART_ROW_BYTES + (arms + 1) * (SUJ_MARGIN_ROW_BYTES + SUJ_JOINTS_ROW_BYTES) if cfg.cart.model != "none" else 0)
     working = n * n * 8 * 12 + n * m * 9 + LIBRARY_BYTES + (CART_LIBRARY_BYTES if cfg.cart.model != "none" else 0)
     if cfg.cart.model != "none":  # the dock tables: each arm's margins, best joints and the ECM's aim per (site, pose)
         working += n * poses * DOCK_ENTRY_BYTES
@@ -721,6 +747,12 @@ def within_band(values, band) -> str:
     if band is None:
         return ""
     return "yes" if all(band[0] <= v <= band[1] for v in values) else "OUTSIDE"
+
+
+#: What every answer leaves out (docs/port_placement.md, "What the model leaves out"), said in the closing report.
+NOT_MODELLED = ("the Si cart's and the Xi's setup joints, tissue and the body wall's thickness (a port is a point), "
+                "the assistant's port, the table's rails and arm boards and the patient's arms; every link radius is "
+                "an assumption (docs/port_placement.md, what the model leaves out)")
 
 
 def summary(parts) -> Summary:
@@ -792,6 +824,7 @@ def summary(parts) -> Summary:
         headline["best"] = "none: no design is feasible (see the reasons' counts)"
     if "cart" in meta:
         headline["cart"] = meta["cart"]
+    headline["not_modelled"] = NOT_MODELLED
     if "cart_pose" in parts.schema.names and meta.get("rows_stored") != "feasible":
         counts["infeasible only for docking (feasible without the cart)"] = only_docking
     return Summary(headline, counts, tables)
