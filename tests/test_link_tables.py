@@ -225,3 +225,29 @@ def test_the_tables_and_the_report_dock_each_arm_with_the_same_joints():
             np.testing.assert_allclose(dock.joints[a, site, pose], answer.within[0].joints, rtol=0, atol=1e-9)
             ties += len(answer.within) > 1 and answer.within[1].margin >= answer.within[0].margin - 1e-9
     assert ties > 0
+
+
+def test_the_report_screens_the_cheaper_layouts_that_fail_only_on_their_links(tmp_path):
+    """With the links in feasible, the closing report's screen takes, before the feasible layouts, those cheaper
+    than the best feasible one that fail only on their links (reason 16: docked, overlapping at the run's roll),
+    by cost: each PSM's roll may clear them (``study.with_cheaper_overlapping``). Premise: such layouts exist."""
+    from surgopt.runner import run_study
+    from surgopt.store import Store
+
+    store = Store(tmp_path / "s")
+    cfg = PC.PortPlaceConfig.model_validate(LINKS)
+    run_study(S.STUDY, cfg, config_name="links", store=store, jobs=1, quiet=True)
+    (run,) = store.runs("port-place")
+    parts = run.parts(S.STUDY.schema_for(run.manifest["config"]))
+    feasible = S.least_cost_layouts(parts, S.SCREEN_LAYOUTS).to_pylist()
+    merged = S.with_cheaper_overlapping(parts, feasible)
+    first = (feasible[0]["cost"], feasible[0]["design_id"])
+    cheaper = [r for r in merged if not r["feasible"]]
+    assert cheaper and merged[0] is cheaper[0]  # the premise, and they come first
+    assert all(r["infeasible"] == OUTSIDE and (r["cost"], r["design_id"]) < first for r in cheaper)
+    assert [r for r in merged if r["feasible"]] == feasible
+    assert [(r["cost"], r["design_id"]) for r in merged] == sorted((r["cost"], r["design_id"]) for r in merged)
+    table = run.read_table(S.STUDY.schema_for(run.manifest["config"]),
+                           columns=["design_id", "cost", "infeasible"]).to_pandas()
+    below = table[(table.infeasible == OUTSIDE) & (table.cost < first[0])].sort_values(["cost", "design_id"])
+    assert [r["design_id"] for r in cheaper] == below.design_id.tolist()[:len(cheaper)]  # the cheapest of them

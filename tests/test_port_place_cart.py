@@ -253,7 +253,7 @@ def test_the_best_layouts_are_screened_for_their_links_clearance(monkeypatch):
 
     from surgopt.studies.port_place import clashes
 
-    rows = [{"design_id": i, "cost": 0.3 + i / 100} for i in range(S.SCREEN_LAYOUTS + 3)]
+    rows = [{"design_id": i, "cost": 0.3 + i / 100, "feasible": True} for i in range(S.SCREEN_LAYOUTS + 3)]
     least_mm = {0: -100.0, 1: -20.0, 2: 5.0, 3: 40.0}
     seen = []
 
@@ -268,7 +268,8 @@ def test_the_best_layouts_are_screened_for_their_links_clearance(monkeypatch):
     def fake_rolls(cfg, row):
         if row["design_id"] in rolled:
             rolls, mm = rolled[row["design_id"]]
-            return clashes.RollsThatClear(rolls, clashes.Clearance("PSM2 and ECM", mm, "p", "q", "x"), 9)
+            return clashes.RollsThatClear(rolls, clashes.Clearance("PSM2 and ECM", mm, "p", "q", "x"), 9,
+                                          dexterity=0.5, cost=row["cost"] + 0.01)
         return clashes.RollsThatClear({}, None, 9)
 
     monkeypatch.setattr(clashes, "layout_clearances", fake)
@@ -283,7 +284,14 @@ def test_the_best_layouts_are_screened_for_their_links_clearance(monkeypatch):
     rolled[3] = ({"PSM1": 0.0, "PSM2": -60.0}, 12.0)
     word, (_, _, table) = S.clearance_screen(rows, meta)
     assert word.startswith("design 3 with its PSMs' docking rolled (PSM2 -60 deg") and "12 mm" in word
-    assert table[3][-1].startswith("PSM1 +0, PSM2 -60: 12 mm")
+    assert table[3][-1].startswith("PSM1 +0, PSM2 -60: 12 mm") and table[3][-1].endswith("cost 0.34")
+    assert "so docked its cost is 0.3400 (at the run's roll 0.3300" in word
+    assert "its row fails on its links" not in word and title.startswith("the best feasible layouts")
+    rows[3]["feasible"] = False  # with the links in feasible: a cheaper layout failing only on them, screened first
+    word, (title, _, _) = S.clearance_screen(rows, meta)
+    assert "its row fails on its links at the run's roll (reason 16)" in word
+    assert title.startswith("the best layouts (the feasible ones and, as the links are in feasible")
+    rows[3]["feasible"] = True
     rolled.clear()
     seen.clear()
     word, (_, _, table) = S.clearance_screen(rows, meta)
@@ -330,6 +338,13 @@ def test_a_layout_whose_links_overlap_clears_with_a_psm_rolled_about_its_shaft(t
             assert lim.insertion_lo <= q[2] <= lim.insertion_hi
             np.testing.assert_allclose(K.rcm_point(*q, lim.along_shaft_m), p, atol=1e-12)
         arms.append(arm)
+    # its cost so docked: the dexterity at those rolls written out (P5), the other terms the row's
+    iso = [_isotropy_reference(_rolled(_docking_frame(np.array([row[f"{n.lower()}_{c}_mm"] for c in "xyz"]) / 1000,
+                                                      centre), deg),
+                               np.array([row[f"{n.lower()}_{c}_mm"] for c in "xyz"]) / 1000, model.targets_m,
+                               cfg.constraints.dexterity_length_m) for n, deg in got.rolls.items()]
+    assert got.dexterity == pytest.approx(np.minimum(*iso).mean(), abs=1e-12)
+    assert got.cost == pytest.approx(row["cost"] + row["dexterity_mean"] - got.dexterity, abs=1e-12)
     ecm = [a for a in T.docked_arms(cfg, row) if a.arm == "ECM"]
     again = layout_clearances(cfg, row, arms + ecm)
     assert min(c.clearance_mm for c in again) == got.least.clearance_mm >= 0
@@ -357,6 +372,48 @@ def test_a_layout_whose_links_overlap_clears_with_a_psm_rolled_about_its_shaft(t
         want = patient @ np.vstack([np.column_stack([_rolled(_docking_frame(port, centre), arm["docking_roll_deg"]),
                                                      port]), [0, 0, 0, 1]])
         np.testing.assert_allclose(suj_forward_reference("classic", arm["name"], arm["suj_joints"]), want, atol=1e-9)
+
+
+def _isotropy_reference(frame, port, points, length_m):
+    """Each point's isotropy (eq. P5) for an RCM arm docked at ``port`` in ``frame``, written out: the point in
+    the base frame, rho and the pitch q2 = -asin(y / rho), then sigma_min / sigma_max of (rho cos q2 / L, rho / L,
+    1)."""
+    local = (points - port) @ frame
+    rho = np.linalg.norm(local, axis=1)
+    q2 = -np.arcsin(local[:, 1] / rho)
+    norms = np.stack([rho * np.cos(q2) / length_m, rho / length_m, np.ones(len(rho))])
+    return norms.min(axis=0) / norms.max(axis=0)
+
+
+def test_a_rolled_layouts_cost_takes_the_dexterity_at_its_rolls():
+    """``clashes.rolled_cost``: at the neutral roll it is the row's own dexterity_mean and cost (the design
+    kernel's pair tables, 1e-12); at other rolls the pair's dexterity is the mean of the smaller isotropy written
+    out here from the rolled docking frame (P3 turned, P5), and the cost the row's with that term replaced. With
+    L = 0.2 m (longer than the ports' distances, so that the pitch matters) the premise holds: the dexterity
+    changes with the roll (with the default 0.1 m it mostly does not: where rho cos q2 >= L the isotropy is
+    L / rho, whatever the roll)."""
+    from surgopt.studies.port_place.clashes import ROLL_GRID_DEG, rolled_cost, rolled_reach
+
+    cfg = C.PortPlaceConfig.model_validate({**SMALL, "constraints": {"dexterity_length_m": 0.2}})
+    cols = S.compute_task(cfg, S.n_total(cfg), 0)
+    r = int(np.flatnonzero(cols["feasible"])[0])
+    row = {c: v[r].item() for c, v in cols.items()}
+    centre = np.asarray(cfg.target.centre_mm, float) / 1000
+    points = T.model_of(cfg).targets_m
+    iso = {a: rolled_reach(cfg, row, a)[2] for a in ("psm1", "psm2")}
+    zero = ROLL_GRID_DEG.index(0)
+    dexterity, cost = rolled_cost(cfg, row, {a: iso[a][zero] for a in iso})
+    assert dexterity == pytest.approx(row["dexterity_mean"], abs=1e-12) and cost == pytest.approx(row["cost"], abs=1e-12)
+    a, b = ROLL_GRID_DEG.index(45), ROLL_GRID_DEG.index(-30)
+    want = []
+    for arm, k in (("psm1", a), ("psm2", b)):
+        port = np.array([row[f"{arm}_{c}_mm"] for c in "xyz"]) / 1000
+        want.append(_isotropy_reference(_rolled(_docking_frame(port, centre), ROLL_GRID_DEG[k]), port, points, 0.2))
+        np.testing.assert_allclose(iso[arm][k], want[-1], atol=1e-12)  # every point reached: full reach kept
+    dexterity, cost = rolled_cost(cfg, row, {"psm1": iso["psm1"][a], "psm2": iso["psm2"][b]})
+    assert dexterity == pytest.approx(np.minimum(*want).mean(), abs=1e-12)
+    assert abs(dexterity - row["dexterity_mean"]) > 1e-3  # the premise: the roll moves the dexterity here
+    assert cost == pytest.approx(row["cost"] + cfg.objective.dexterity * (row["dexterity_mean"] - dexterity), abs=1e-12)
 
 
 def test_a_search_docks_on_the_cart_as_the_grid_does(tmp_path):

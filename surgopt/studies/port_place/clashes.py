@@ -177,29 +177,40 @@ def least(clearances: list[Clearance]) -> Clearance | None:
 #: Docking rolls (deg) each PSM may take about its neutral shaft when a layout's links do not clear at the run's
 #: own roll (the docking frame's x turned toward its y; issue 40's "docking roll searched per arm").
 ROLL_GRID_DEG = tuple(range(-90, 91, 15))
-#: Roll combinations whose docked links clear that are then checked over the target too, best docked first.
+#: Roll combinations whose docked links clear that are then checked over the target too: this many of least cost,
+#: then this many that clear docked by the most.
 ROLL_FULL_CHECKS = 4
 
 
-def rolled_docks(cfg, row: dict, arm: str, patient: np.ndarray) -> list[tuple[float, object]]:
-    """(roll in deg, ``tables.DockedArm``) for each roll of ROLL_GRID_DEG at which PSM ``arm`` (``psm1`` ...)
-    still reaches every target point from its port (the kernel's own reach test in the rolled frame) and its
-    setup joints dock the rolled frame within their ranges (S2)."""
+def rolled_reach(cfg, row: dict, arm: str) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """PSM ``arm``'s (``psm1`` ...) port of a layout's row docked at each roll of ROLL_GRID_DEG about its neutral
+    shaft: (its frames (R, 3, 3), full reach (R,), the isotropy at each target point (R, points; eq. P5, 0 where
+    it does not reach), the port (3,) m), by the kernel's own tables in the rolled frames."""
     from surgopt.kinematics import port_place as K
-    from surgopt.kinematics import suj as S
-    from surgopt.robots.dvrk_suj import CARTS
-    from surgopt.studies.port_place.tables import LATERAL, DockedArm, base_pose, model_of, rolled
+    from surgopt.studies.port_place.tables import LATERAL, model_of, rolled
 
     model = model_of(cfg)
     site = np.array([row[f"{arm}_{c}_mm"] for c in "xyz"]) / 1000
     rolls = np.radians(np.array(ROLL_GRID_DEG, float))
     neutral = K.docking_frames(site[None], np.asarray(cfg.target.centre_mm, float) / 1000, LATERAL)
     frames = rolled(np.repeat(neutral, len(rolls), axis=0), rolls)
-    reach, _ = K.instrument_tables(np.repeat(site[None], len(rolls), axis=0), frames, model.targets_m, model.limits,
-                                   model.criteria.dexterity_length_m, model.cone)
+    reach, dex = K.instrument_tables(np.repeat(site[None], len(rolls), axis=0), frames, model.targets_m,
+                                     model.limits, model.criteria.dexterity_length_m, model.cone)
+    return frames, reach.all(axis=1), dex, site
+
+
+def rolled_docks(cfg, row: dict, arm: str, patient: np.ndarray) -> list[tuple[float, object]]:
+    """(roll in deg, ``tables.DockedArm``) for each roll of ROLL_GRID_DEG at which PSM ``arm`` (``psm1`` ...)
+    still reaches every target point from its port (``rolled_reach``) and its setup joints dock the rolled frame
+    within their ranges (S2)."""
+    from surgopt.kinematics import suj as S
+    from surgopt.robots.dvrk_suj import CARTS
+    from surgopt.studies.port_place.tables import DockedArm, base_pose
+
+    frames, full, _, site = rolled_reach(cfg, row, arm)
     out = []
-    for deg, rot, full in zip(ROLL_GRID_DEG, frames, reach.all(axis=1)):
-        if not full:
+    for deg, rot, ok in zip(ROLL_GRID_DEG, frames, full):
+        if not ok:
             continue
         base = patient @ base_pose(rot, site)
         answer = S.classic_psm_ik(CARTS[cfg.cart.model][arm.upper()], base)
@@ -208,6 +219,19 @@ def rolled_docks(cfg, row: dict, arm: str, patient: np.ndarray) -> list[tuple[fl
             out.append((float(deg), DockedArm(arm.upper(), str(row[f"{arm}_site"]), best.joints, best.margin,
                                               best.tightest, "", tuple(site), base, ())))
     return out
+
+
+def rolled_cost(cfg, row: dict, dex: dict) -> tuple[float, float]:
+    """(dexterity_mean, cost) of a layout's row with its PSMs docked at other rolls, ``dex`` each PSM's isotropy
+    at every target point so docked (by ``psm1`` ...; full reach, as a roll is only taken with it): the pair's
+    dexterity is the mean over the points of the smaller of PSM1's and PSM2's (eq. P5), PSM3's its own mean, and
+    the cost (P11) the row's with those dexterity terms replaced (the other terms do not depend on the roll)."""
+    w = cfg.objective.dexterity
+    pair = float(np.mean(np.minimum(dex["psm1"], dex["psm2"])))
+    cost = row["cost"] + w * (row["dexterity_mean"] - pair)
+    if "psm3" in dex:
+        cost += w * (row["psm3_dexterity_mean"] - float(np.mean(dex["psm3"])))
+    return pair, cost
 
 
 class RollsThatClear(NamedTuple):
@@ -220,6 +244,8 @@ class RollsThatClear(NamedTuple):
     tried: int
     clearances: tuple = ()
     arms: tuple = ()  # ``tables.DockedArm`` of each arm so docked (the PSMs rolled, then the ECM)
+    dexterity: float | None = None  # the layout's dexterity_mean so docked (``rolled_cost``)
+    cost: float | None = None  # and its cost
 
 
 def rolls_that_clear(cfg, row: dict) -> RollsThatClear:
@@ -229,9 +255,11 @@ def rolls_that_clear(cfg, row: dict) -> RollsThatClear:
 
 def _rolls_that_clear(cfg, row: dict) -> RollsThatClear:
     """A layout's PSMs docked at every combination of ROLL_GRID_DEG (each PSM's own roll; the ECM as it docks):
-    the combinations are ranked by their docked arms' least clearance to each other (fast: one pose each), and the
-    ROLL_FULL_CHECKS best of those that clear docked are checked in full, in that order (``layout_clearances``:
-    over the target, the patient, the table). The first whose least clearance is >= 0, or ``least`` None."""
+    each combination's docked arms' least clearance to each other (fast: one pose each) and its cost so docked
+    (``rolled_cost``: the dexterity changes with the roll). Of those that clear docked, the ROLL_FULL_CHECKS of
+    least cost are checked in full (``layout_clearances``: over the target, the patient, the table), cheapest
+    first, then the ROLL_FULL_CHECKS that clear docked by the most; the first whose least clearance is >= 0, or
+    ``least`` None."""
     import itertools
 
     from surgopt.kinematics.capsules import least_pair_clearance
@@ -241,6 +269,7 @@ def _rolls_that_clear(cfg, row: dict) -> RollsThatClear:
     ecm = [a for a in docked_arms(cfg, row) if a.arm == "ECM" and a.joints]
     psms = [a for a in ("psm1", "psm2", "psm3") if f"{a}_site" in row]
     options = {a: rolled_docks(cfg, row, a, patient) for a in psms}
+    isotropy = {a: dict(zip(ROLL_GRID_DEG, rolled_reach(cfg, row, a)[2])) for a in psms}
     along = model_of(cfg).limits.along_shaft_m
     none = np.zeros((0, 3))
     docked_pose = {(a, deg): arm_poses(cfg, d, patient, none, along) for a in psms for deg, d in options[a]}
@@ -260,15 +289,18 @@ def _rolls_that_clear(cfg, row: dict) -> RollsThatClear:
     combos = []
     for choice in itertools.product(*([(a, deg) for deg, _ in options[a]] for a in psms)):
         c = min([with_ecm[k] for k in choice] + [psms_pair(x, y) for x, y in itertools.combinations(choice, 2)])
-        combos.append((c, choice))
-    combos.sort(key=lambda t: -t[0])
-    for c, choice in [t for t in combos if t[0] >= 0][:ROLL_FULL_CHECKS]:
+        dexterity, cost = rolled_cost(cfg, row, {a: isotropy[a][int(deg)] for a, deg in choice})
+        combos.append((c, cost, dexterity, choice))
+    docked_clear = [t for t in combos if t[0] >= 0]
+    cheapest = sorted(docked_clear, key=lambda t: t[1])[:ROLL_FULL_CHECKS]
+    clearest = [t for t in sorted(docked_clear, key=lambda t: -t[0]) if t not in cheapest][:ROLL_FULL_CHECKS]
+    for c, cost, dexterity, choice in cheapest + clearest:
         arms = [dict(options[a])[deg] for a, deg in choice] + ecm
         found = layout_clearances(cfg, row, arms)
         worst = least(found)
-        if worst is not None and worst.clearance_mm >= 0:  # the first that clears, best docked first
+        if worst is not None and worst.clearance_mm >= 0:  # the first that clears, cheapest first
             return RollsThatClear({a.upper(): deg for a, deg in choice}, worst, len(combos), tuple(found),
-                                  tuple(arms))
+                                  tuple(arms), dexterity, cost)
     return RollsThatClear({}, None, len(combos))
 
 
@@ -315,7 +347,8 @@ def docking_that_clears(cfg, row: dict):
             f"each PSM's docking frame turned about its neutral shaft by docking_roll_deg (x toward y) so that the "
             f"links clear outside the body (least {found.least.clearance_mm:.0f} mm: {found.least.link_a} / "
             f"{found.least.link_b}); at the run's own docking they overlap by {-worst.clearance_mm:.0f} mm "
-            f"({worst.link_a} / {worst.link_b}); the run's rows and cost are at its own docking"
+            f"({worst.link_a} / {worst.link_b}); the run's rows are at its own docking (cost {row['cost']:.4f}), so "
+            f"docked its dexterity_mean is {found.dexterity:.4f} and its cost {found.cost:.4f}"
             + below_table_note(cfg, row, arms), list(found.clearances))
 
 

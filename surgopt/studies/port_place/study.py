@@ -783,6 +783,8 @@ def summary(parts) -> Summary:
         headline = {"designs": n, "feasible": feasible}
     best = least_cost_layouts(parts, max(5, SCREEN_LAYOUTS))
     screened = best.to_pylist()
+    if screened and "cart_pose" in parts.schema.names and links_of(json.loads(meta.get("config", "{}"))):
+        screened = with_cheaper_overlapping(parts, screened)
     best = best.slice(0, 5)
     tables = []
     if best.num_rows:
@@ -964,6 +966,17 @@ SCREEN_LAYOUTS = 10
 ROLL_TEXT = "a 15-degree grid over +-90 about the neutral shaft"
 
 
+def with_cheaper_overlapping(parts, feasible: list[dict]) -> list[dict]:
+    """With the links in feasible: the layouts cheaper than the best feasible one that fail only on the links
+    (reason 16: they dock, and their links overlap at the run's docking roll at every pose) before the feasible
+    ones, by cost, for the screen to try with each PSM's roll (``clearance_screen``)."""
+    from surgopt.kinematics.port_reasons import OUTSIDE
+
+    cheaper = [r for r in least_cost_layouts(parts, SCREEN_LAYOUTS, False, only_reasons=OUTSIDE).to_pylist()
+               if (r["cost"], r["design_id"]) < (feasible[0]["cost"], feasible[0]["design_id"])]
+    return sorted(cheaper + feasible, key=lambda r: (r["cost"], r["design_id"]))
+
+
 def clearance_screen(rows: list[dict], meta: dict):
     """The best layouts (``rows``, distinct, by cost) screened for their links' clearance outside the body, which
     feasible does not yet include (issue 40): (the headline's word, the table), or None when the run's config
@@ -988,17 +1001,21 @@ def clearance_screen(rows: list[dict], meta: dict):
             with_rolls = f"none of {rolled.tried} that reach and dock"
         else:
             with_rolls = (", ".join(f"{a} {d:+.0f}" for a, d in rolled.rolls.items()) + f": {rolled.least.clearance_mm:.0f} "
-                          f"mm ({rolled.least.link_a} / {rolled.least.link_b})")
+                          f"mm ({rolled.least.link_a} / {rolled.least.link_b}); cost {rolled.cost:.4g}")
         out.append([str(r["design_id"]), f"{r['cost']:.4g}", f"{c.clearance_mm:.0f}", c.check,
                     f"{c.link_a} / {c.link_b}", with_rolls])
         if clear is None and c.clearance_mm >= 0:
-            clear = f"design {r['design_id']} (the best feasible layout whose links clear; {{n}} screened)"
+            clear = (f"design {r['design_id']} (the best {'feasible ' if r['feasible'] else ''}layout whose links "
+                     f"clear; {{n}} screened)")
         elif clear is None and rolled is not None and rolled.least is not None:
             turned = ", ".join(f"{a} {d:+.0f}" for a, d in rolled.rolls.items() if d)
             clear = (f"design {r['design_id']} with its PSMs' docking rolled ({turned} deg about the shaft): least "
                      f"clearance {rolled.least.clearance_mm:.0f} mm ({rolled.least.link_a} / {rolled.least.link_b}); "
-                     f"its cost is at the run's roll; `surgopt export --format dvrk` docks it so"
-                     + _below_table(cfg, r, rolled))
+                     f"so docked its cost is {rolled.cost:.4f} (at the run's roll {r['cost']:.4f}: of the cost only "
+                     f"the dexterity depends on the roll)"
+                     + ("" if r["feasible"] else "; its row fails on its links at the run's roll (reason 16), and it "
+                        "is cheaper than every feasible layout")
+                     + "; `surgopt export --format dvrk` docks it so" + _below_table(cfg, r, rolled))
         if clear is not None:  # what the headline needs: the best layout that clears (each costs ~0.5-2 s)
             break
     if not out:
@@ -1010,7 +1027,10 @@ def clearance_screen(rows: list[dict], meta: dict):
         worst = max(float(x[2]) for x in out)
         word = (f"none of the {n} best feasible layouts, at the run's docking roll or each PSM's own: their links "
                 f"overlap outside the body by {-worst:.0f} mm or more (link clearance: {in_feasible(cfg)})")
-    title = (f"the best feasible layouts, {n} screened by cost until one clears (at most {SCREEN_LAYOUTS}): their "
+    which = ("the best feasible layouts" if all(r["feasible"] for r in rows[:n]) else
+             "the best layouts (the feasible ones and, as the links are in feasible, those cheaper that fail only on "
+             "them at the run's roll)")
+    title = (f"{which}, {n} screened by cost until one clears (at most {SCREEN_LAYOUTS}): their "
              f"links' least clearance outside the body (capsules, radii "
              f"assumed; negative: they overlap; {in_feasible(cfg)}), and each PSM's docking roll (deg, "
              f"{ROLL_TEXT}) at which they clear")
@@ -1044,8 +1064,10 @@ def first_of_each_layout(t, key: list[str]):
                                               t["design_id"].to_numpy()[dropped]], axis=1)
 
 
-def least_cost_layouts(parts, k: int, feasible: bool = True, columns: list[str] | None = None):
-    """The k layouts of least cost (ties by design id) among the feasible (or the infeasible) ones, read part by
+def least_cost_layouts(parts, k: int, feasible: bool = True, columns: list[str] | None = None,
+                       only_reasons: int | None = None):
+    """The k layouts of least cost (ties by design id) among the feasible (or the infeasible) ones (with
+    ``only_reasons``, the infeasible whose ``infeasible`` mask is exactly that), read part by
     part, each layout once (``first_of_each_layout``: a search's repeats collapsed, their count among the rows
     ranked up to the last listed in the table's metadata, ``repeats_collapsed``); only ``columns`` (with feasible,
     cost, design_id and the layout's) when given: the closing report and the HTML page."""
@@ -1054,10 +1076,11 @@ def least_cost_layouts(parts, k: int, feasible: bool = True, columns: list[str] 
 
     key = layout_columns(parts.schema.names)
     if columns is not None:
-        columns = sorted({*columns, "feasible", "cost", "design_id", *key} & set(parts.schema.names))
+        columns = sorted({*columns, "feasible", "cost", "design_id", "infeasible", *key} & set(parts.schema.names))
     kept, dropped = [], []
     for t in parts.only(columns):
-        t = t.filter(t["feasible"] if feasible else pc.invert(t["feasible"]))
+        t = t.filter(t["feasible"] if feasible else pc.invert(t["feasible"]) if only_reasons is None
+                     else pc.equal(t["infeasible"], only_reasons))
         if t.num_rows:
             order = np.lexsort((t["design_id"].to_numpy(), t["cost"].to_numpy()))
             window = 4 * k + 16  # the best rows first; more only while repeats leave fewer than k layouts
