@@ -10,6 +10,7 @@ from surgopt.kinematics import capsules as C
 from surgopt.kinematics.port_place import segment_distance
 from surgopt.kinematics.port_reasons import OUTSIDE
 from surgopt.studies.port_place import config as PC
+from surgopt.studies.port_place import report as R
 from surgopt.studies.port_place import study as S
 from surgopt.studies.port_place import tables as T
 from surgopt.studies.port_place.clashes import layout_clearances
@@ -239,8 +240,8 @@ def test_the_report_screens_the_cheaper_layouts_that_fail_only_on_their_links(tm
     run_study(S.STUDY, cfg, config_name="links", store=store, jobs=1, quiet=True)
     (run,) = store.runs("port-place")
     parts = run.parts(S.STUDY.schema_for(run.manifest["config"]))
-    feasible = S.least_cost_layouts(parts, S.SCREEN_LAYOUTS).to_pylist()
-    merged = S.with_cheaper_overlapping(parts, feasible)
+    feasible = R.least_cost_layouts(parts, R.SCREEN_LAYOUTS).to_pylist()
+    merged = R.with_cheaper_overlapping(parts, feasible)
     first = (feasible[0]["cost"], feasible[0]["design_id"])
     cheaper = [r for r in merged if not r["feasible"]]
     assert cheaper and merged[0] is cheaper[0]  # the premise, and they come first

@@ -12,6 +12,7 @@ from surgopt.kinematics import port_designs as D
 from surgopt.kinematics.port_place import DOCKING
 from surgopt.robots.models import get_model
 from surgopt.studies.port_place import config as C
+from surgopt.studies.port_place import report as R
 from surgopt.studies.port_place import study as S
 from surgopt.studies.port_place import tables as T
 
@@ -211,10 +212,10 @@ def test_diff_of_two_port_place_runs_matches_layouts_by_their_ports(tmp_path):
 def test_a_clinical_check_outside_its_band_is_marked():
     """#42 item 11: the closing report's clinical checks mark a value outside the literature's band (any of
     two values: the manipulation angle's range over the target), and leave checks without a band unmarked."""
-    assert S.within_band([62.3], (45.0, 75.0)) == "yes"
-    assert S.within_band([49.1, 82.4], (45.0, 75.0)) == "OUTSIDE"
-    assert S.within_band([82.0], (80.0, math.inf)) == "yes" and S.within_band([1.0], None) == ""
-    bands = {label: band for label, *_, band in S.CLINICAL_CHECKS}
+    assert R.within_band([62.3], (45.0, 75.0)) == "yes"
+    assert R.within_band([49.1, 82.4], (45.0, 75.0)) == "OUTSIDE"
+    assert R.within_band([82.0], (80.0, math.inf)) == "yes" and R.within_band([1.0], None) == ""
+    bands = {label: band for label, *_, band in R.CLINICAL_CHECKS}
     assert bands["manipulation angle over the target (deg)"] == (45.0, 75.0)
 
 
@@ -253,7 +254,7 @@ def test_the_best_layouts_are_screened_for_their_links_clearance(monkeypatch):
 
     from surgopt.studies.port_place import clashes
 
-    rows = [{"design_id": i, "cost": 0.3 + i / 100, "feasible": True} for i in range(S.SCREEN_LAYOUTS + 3)]
+    rows = [{"design_id": i, "cost": 0.3 + i / 100, "feasible": True} for i in range(R.SCREEN_LAYOUTS + 3)]
     least_mm = {0: -100.0, 1: -20.0, 2: 5.0, 3: 40.0}
     seen = []
 
@@ -274,29 +275,29 @@ def test_the_best_layouts_are_screened_for_their_links_clearance(monkeypatch):
 
     monkeypatch.setattr(clashes, "layout_clearances", fake)
     monkeypatch.setattr(clashes, "rolls_that_clear", fake_rolls)
-    monkeypatch.setattr(S, "_below_table", lambda cfg, row, rolls: "")  # these rows have no cart pose to dock at
+    monkeypatch.setattr(R, "_below_table", lambda cfg, row, rolls: "")  # these rows have no cart pose to dock at
     meta = {"config": json.dumps(C.PortPlaceConfig.model_validate(SMALL).model_dump(mode="json"))}
-    word, (title, header, table) = S.clearance_screen(rows, meta)
+    word, (title, header, table) = R.clearance_screen(rows, meta)
     assert seen == [0, 1, 2] and len(table) == 3  # screened by cost until one clears
     assert word.startswith("design 2 (") and [r[2] for r in table] == ["-100", "-20", "5"]
     assert table[0][-1] == "none of 9 that reach and dock" and table[2][-1] == "-"  # tried only where it overlaps
     least_mm.update({2: -5.0, 3: -8.0})
     rolled[3] = ({"PSM1": 0.0, "PSM2": -60.0}, 12.0)
-    word, (_, _, table) = S.clearance_screen(rows, meta)
+    word, (_, _, table) = R.clearance_screen(rows, meta)
     assert word.startswith("design 3 with its PSMs' docking rolled (PSM2 -60 deg") and "12 mm" in word
     assert table[3][-1].startswith("PSM1 +0, PSM2 -60: 12 mm") and table[3][-1].endswith("cost 0.34")
     assert "so docked its cost is 0.3400 (at the run's roll 0.3300" in word
     assert "its row fails on its links" not in word and title.startswith("the best feasible layouts")
     rows[3]["feasible"] = False  # with the links in feasible: a cheaper layout failing only on them, screened first
-    word, (title, _, _) = S.clearance_screen(rows, meta)
+    word, (title, _, _) = R.clearance_screen(rows, meta)
     assert "its row fails on its links at the run's roll (reason 16)" in word
     assert title.startswith("the best layouts (the feasible ones and, as the links are in feasible")
     rows[3]["feasible"] = True
     rolled.clear()
     seen.clear()
-    word, (_, _, table) = S.clearance_screen(rows, meta)
-    assert word.startswith(f"none of the {S.SCREEN_LAYOUTS} best") and "by 5 mm or more" in word
-    assert seen == list(range(S.SCREEN_LAYOUTS)) and len(table) == S.SCREEN_LAYOUTS  # at most SCREEN_LAYOUTS
+    word, (_, _, table) = R.clearance_screen(rows, meta)
+    assert word.startswith(f"none of the {R.SCREEN_LAYOUTS} best") and "by 5 mm or more" in word
+    assert seen == list(range(R.SCREEN_LAYOUTS)) and len(table) == R.SCREEN_LAYOUTS  # at most SCREEN_LAYOUTS
 
 
 def test_a_layout_whose_links_overlap_clears_with_a_psm_rolled_about_its_shaft(tmp_path):
@@ -315,7 +316,7 @@ def test_a_layout_whose_links_overlap_clears_with_a_psm_rolled_about_its_shaft(t
     cfg = C.PortPlaceConfig.model_validate(GRID)
     run_study(S.STUDY, cfg, config_name="grid", store=store, jobs=1, quiet=True)
     (run,) = store.runs("port-place")
-    rows = S.least_cost_layouts(run.parts(S.STUDY.schema_for(run.manifest["config"])), 10).to_pylist()
+    rows = R.least_cost_layouts(run.parts(S.STUDY.schema_for(run.manifest["config"])), 10).to_pylist()
     found = [(r, rolls_that_clear(cfg, r)) for r in rows]
     row, got = next((r, g) for r, g in found if g.least is not None)
     assert least(layout_clearances(cfg, row)).clearance_mm < 0  # the premise: it overlaps at the run's roll
@@ -468,12 +469,12 @@ def test_the_closing_report_searches_each_layouts_rolls_once(tmp_path, monkeypat
 
     monkeypatch.setattr(clashes, "_rolls_that_clear", counted_search)
     monkeypatch.setattr(clashes, "_memo", {})
-    summary = S.summary(run.parts(S.STUDY.schema_for(run.manifest["config"])))
+    summary = R.summary(run.parts(S.STUDY.schema_for(run.manifest["config"])))
     best = summary.headline["best_design_id"]
     assert best in calls["rolls"]  # the premise: the best layout overlaps at the run's roll
     assert len(calls["rolls"]) == len(set(calls["rolls"]))  # each layout's rolls searched once
     (clear,) = [t for t in summary.tables if t[0].startswith("best layout: least clearance")]
-    row = next(r for r in S.least_cost_layouts(run.parts(S.STUDY.schema_for(run.manifest["config"])), 1).to_pylist())
+    row = next(r for r in R.least_cost_layouts(run.parts(S.STUDY.schema_for(run.manifest["config"])), 1).to_pylist())
     rolled = clashes.rolls_that_clear(cfg, row)  # kept: not searched again
     shown = rolled.clearances or clashes.layout_clearances(cfg, row)  # docked to clear where a roll clears it
     assert [r[1] for r in clear[2]] == [f"{c.clearance_mm:.0f}" for c in shown]
@@ -561,14 +562,14 @@ def test_the_report_says_why_the_best_layouts_without_the_cart_do_not_dock(tmp_p
     (run,) = Store(tmp_path / "s").runs("port-place")
     parts = run.parts(S.STUDY.schema_for(run.manifest["config"]))
     meta = {k.decode(): v.decode() for k, v in parts.schema.metadata.items()}
-    ((title, _, rows),) = S.undocked_table(parts, meta)
+    ((title, _, rows),) = R.undocked_table(parts, meta)
     df = parts.table().to_pandas()
-    best = df[df["infeasible"].isin([0, DOCKING])].sort_values(["cost", "design_id"]).head(S.UNDOCKED_OF_BEST)
+    best = df[df["infeasible"].isin([0, DOCKING])].sort_values(["cost", "design_id"]).head(R.UNDOCKED_OF_BEST)
     undocked = best[best["infeasible"] == DOCKING]
     assert f": {len(undocked):,} the classic cart" in title and len(undocked) > 0
     assert sum(int(r[1].replace(",", "")) for r in rows) == len(undocked)
     model = T.model_of(cfg)
-    why = S.why_undocked(model.dock, undocked[["psm1_site", "psm2_site", "ecm_site"]].to_numpy())
+    why = R.why_undocked(model.dock, undocked[["psm1_site", "psm2_site", "ecm_site"]].to_numpy())
     assert {1, 3} <= set(why.tolist())  # the premise: both kinds occur here
     poses = model.dock.poses.patient
     centre = np.asarray(cfg.target.centre_mm, float) / 1000

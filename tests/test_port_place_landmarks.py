@@ -12,6 +12,7 @@ import pytest
 
 from surgopt.studies.port_place import config as C
 from surgopt.studies.port_place import geometry as G
+from surgopt.studies.port_place import report as R
 from surgopt.studies.port_place import study as S
 
 COARSE = {"patient": {"port_region": {"site_spacing_mm": 72.0}}, "target": {"spacing_mm": 20.0}}
@@ -74,14 +75,14 @@ def test_the_closing_report_gives_each_listed_layouts_ports_from_the_umbilicus(t
     cfg = C.PortPlaceConfig.model_validate(COARSE)
     run_study(S.STUDY, cfg, config_name="c", store=Store(tmp_path), jobs=1, quiet=True)
     run = single_run(tmp_path)
-    summary = S.summary(run.parts(S.schema(cfg)))
+    summary = R.summary(run.parts(S.schema(cfg)))
     tables = {title.split(" (")[0]: (names, rows) for title, names, rows in summary.tables}
     names, rows = tables["best layout: ports"]
     assert names[-1] == "from the umbilicus (mm, top view)"
     for r in rows:
         assert r[-1] == G.from_landmark(float(r[2]), float(r[3]), (0.0, 0.0))
     names, rows = tables["best feasible designs: ports from the umbilicus"]
-    best = S.least_cost_layouts(run.parts(S.schema(cfg)), 5).to_pylist()
+    best = R.least_cost_layouts(run.parts(S.schema(cfg)), 5).to_pylist()
     assert names == ["design_id", "psm1", "psm2", "ecm"] and len(rows) == len(best) == 5
     for r, b in zip(rows, best):
         assert r == [str(b["design_id"]), *(G.from_landmark(b[f"{a}_x_mm"], b[f"{a}_y_mm"], (0.0, 0.0))
@@ -108,7 +109,7 @@ def test_a_searchs_repeated_layouts_are_listed_once_and_counted():
               pa.concat_tables([grid.slice(grid.num_rows // 2), again.slice(15)])]
     parts = Parts(lambda columns=None: [t if columns is None else t.select(columns) for t in halves],
                   grid.num_rows + 30, grid.schema)
-    listed = S.least_cost_layouts(parts, 5)
+    listed = R.least_cost_layouts(parts, 5)
     df = pa.concat_tables(halves).to_pandas()
     ranked = df[df["feasible"]].sort_values(["cost", "design_id"])
     firsts = ranked.drop_duplicates(["psm1_site", "psm2_site", "ecm_site"])
@@ -116,6 +117,6 @@ def test_a_searchs_repeated_layouts_are_listed_once_and_counted():
     last = ranked.index.get_loc(firsts.index[4])
     repeats = int(ranked.iloc[:last + 1].duplicated(["psm1_site", "psm2_site", "ecm_site"]).sum())
     assert repeats > 0 and listed.schema.metadata[b"repeats_collapsed"] == str(repeats).encode()
-    plain = S.least_cost_layouts(Parts.of_table(grid), 5)  # the grid alone: no repeats, the five best rows
+    plain = R.least_cost_layouts(Parts.of_table(grid), 5)  # the grid alone: no repeats, the five best rows
     assert plain["design_id"].to_pylist() == grid.take(pa.array(best[:5]))["design_id"].to_pylist()
     assert plain.schema.metadata[b"repeats_collapsed"] == b"0"

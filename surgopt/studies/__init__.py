@@ -205,6 +205,16 @@ def figures_in(module: str) -> Callable:
     return figures
 
 
+def summary_in(module: str) -> Callable:
+    """``Study.summary`` for the ``summary`` of the module of that dotted name (a study's closing report),
+    imported on the first call."""
+
+    def summary(parts) -> "Summary":
+        return importlib.import_module(module).summary(parts)
+
+    return summary
+
+
 def html_views_in(module: str) -> Callable:
     """``Study.html_views`` for the ``views`` of the module of that dotted name (a study's ``html.py``), imported
     on the first call."""

@@ -131,7 +131,7 @@ def against_table(cfg, a: ArmPoses, patient: np.ndarray) -> Clearance:
 
 
 #: Answers (a layout's clearances, or its roll search) a process keeps: the closing report screens up to
-#: ``study.SCREEN_LAYOUTS`` (10) layouts, two answers each, and then its tables, the figure and the export ask again
+#: ``report.SCREEN_LAYOUTS`` (10) layouts, two answers each, and then its tables, the figure and the export ask again
 #: for the best layout's (~0.5-1.5 s each time otherwise).
 MEMO_ENTRIES = 32
 _memo: dict = {}

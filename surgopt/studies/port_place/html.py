@@ -60,7 +60,8 @@ def _body(cfg) -> dict:
 
 def views(run, cfg, parts) -> list[View]:
     """The run's sections (``cfg``: its validated config), aggregates streamed from ``parts``."""
-    from surgopt.studies.port_place.study import CLINICAL_CHECKS, arms_of, least_cost_layouts
+    from surgopt.studies.port_place.report import CLINICAL_CHECKS, least_cost_layouts
+    from surgopt.studies.port_place.study import arms_of
     from surgopt.studies.port_place.tables import camera_lines, model_of
 
     arms = list(arms_of(cfg))

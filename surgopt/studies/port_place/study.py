@@ -12,26 +12,26 @@ the arms' outside, a cost and the reasons a design is infeasible. Every assignme
 ports (unordered: the PSMs are the same arm), the third's when there is one, and a distinct camera port is
 evaluated; docs/port_placement.md has the model, its sources and assumptions.
 
-The config models are in ``port_place_config``, the geometry they imply (patient, sites, target) in
-``port_place_geometry``, the design kernels in ``kinematics.port_designs``, a serial arm's tables in
-``port_place_serial``. One module of ~790 lines: the memoised tables, the rows and their columns, the design's
-dimensions (ports, docking, stance) that both the rows and the search read, the evaluator, the estimate and the
-summary are one declaration, read together; split, the study's declaration and its search would import each
+The config models are in ``config``, the geometry they imply (patient, sites, target) in ``geometry``, the
+per-port and per-pair tables and the cart's in ``tables`` and ``link_tables``, the design kernels in
+``kinematics.port_designs``, a serial arm's tables in ``serial_arms``, the closing report in ``report`` (named
+here by module, imported when a report is made). One module of ~760 lines: the rows and their columns, the
+design's dimensions (ports, docking, stance) that both the rows and the search read, the evaluator and the
+estimate are one declaration, read together; split, the study's declaration and its search would import each
 other.
 """
 from __future__ import annotations
 
-import json
 import math
 
 import numpy as np
 
 from surgopt.robots import dvrk
 from surgopt.studies.port_place import HELP  # the command's help, read by the CLI without importing this module
-from surgopt.studies import Estimate, Study, Summary, figures_in, html_views_in, peak_bytes
+from surgopt.studies import Estimate, Study, figures_in, html_views_in, peak_bytes, summary_in
 from surgopt.parts import concat_rows
 from surgopt.studies.port_place.config import OBJECTIVE, PortPlaceConfig, camera_arm_of, instrument_of
-from surgopt.studies.port_place.geometry import FRAME_TEXT, from_landmark, sites_mm, target_points_mm
+from surgopt.studies.port_place.geometry import sites_mm, target_points_mm
 from surgopt.studies.port_place.tables import LATERAL, model_of, port_tables
 
 NAME = "port-place"
@@ -721,117 +721,6 @@ def feasible_mask(table):
     return table["feasible"].to_numpy(zero_copy_only=False)
 
 
-#: A layout's clinical checks beside their literature values: (quantity, row fields, decimals, how the fields'
-#: values are joined, the clinical number and its source). The closing report and the HTML page read it.
-#: The best layout's checks against the literature: (quantity, columns, digits, joiner, the clinical number, its
-#: band (lo, hi) where the literature gives one: a value outside it is marked).
-CLINICAL_CHECKS = (
-    ("port spacing (mm)", ("min_port_spacing_mm",), 0, "", ">= 80 (assumption: 8 cm)", (80.0, math.inf)),
-    ("instrument port to target centre, 3-D (mm)", ("psm_to_target_mm",), 0, "",
-     "<= 180 (J Endourol 2004: port to pubis)", (0.0, 180.0)),
-    ("manipulation angle at the centre (deg)", ("manipulation_angle_centre_deg",), 1, "",
-     "45-75, 60 best (Hanna 1997)", (45.0, 75.0)),
-    ("manipulation angle over the target (deg)", ("manipulation_angle_min_deg", "manipulation_angle_max_deg"), 1,
-     " - ", "45-75", (45.0, 75.0)),
-    ("azimuth imbalance (deg)", ("azimuth_imbalance_deg",), 1, "", "0: equal azimuths (Hanna 1997)", None),
-    ("instrument elevation at the centre (deg)", ("psm1_elevation_deg", "psm2_elevation_deg"), 1, " / ",
-     "60 with a 60-deg manipulation angle (Hanna 1997)", None),
-    ("optical axis off the instruments' arc (deg)", ("camera_off_arc_deg",), 1, "", "0: camera between them", None),
-    ("common reach", ("common_reach",), 3, "", "1", (1.0, 1.0)),
-    ("camera coverage", ("camera_coverage",), 3, "", "1", (1.0, 1.0)),
-)
-
-
-def within_band(values, band) -> str:
-    """"yes", "OUTSIDE" (any value out of the band) or "" (the literature gives no band)."""
-    if band is None:
-        return ""
-    return "yes" if all(band[0] <= v <= band[1] for v in values) else "OUTSIDE"
-
-
-#: What every answer leaves out (docs/port_placement.md, "What the model leaves out"), said in the closing report.
-NOT_MODELLED = ("the Si cart's and the Xi's setup joints, tissue and the body wall's thickness (a port is a point), "
-                "the assistant's port, the table's rails and arm boards and the patient's arms; every link radius is "
-                "an assumption (docs/port_placement.md, what the model leaves out)")
-
-
-def summary(parts) -> Summary:
-    """Feasible count, each reason's count, the best feasible design by cost with its clinical checks."""
-    from surgopt.kinematics.port_reasons import REASONS
-
-    from surgopt.kinematics.port_reasons import DOCKING
-
-    n = parts.num_rows
-    by_bit = dict.fromkeys(REASONS, 0)
-    feasible = only_docking = 0
-    for t in parts.only(["infeasible"]):  # one pass over one column: every count at once
-        bad = t["infeasible"].to_numpy()
-        feasible += int(np.count_nonzero(bad == 0))
-        only_docking += int(np.count_nonzero(bad == DOCKING))
-        for bit in by_bit:
-            by_bit[bit] += int(np.count_nonzero(bad & bit))
-    meta = {k.decode(): v.decode() for k, v in (parts.schema.metadata or {}).items()}
-    if meta.get("rows_stored") == "feasible":  # the infeasible designs were counted out, their reasons not kept
-        headline = {"designs": int(meta["designs_enumerated"]) if "designs_enumerated" in meta else "not known",
-                    "rows_stored": "feasible only", "feasible": feasible}
-        counts = {"feasible": feasible}
-        if "designs_enumerated" in meta:
-            counts["infeasible (rows not stored)"] = int(meta["designs_enumerated"]) - feasible
-    else:
-        counts = {"feasible": feasible, "infeasible": n - feasible}
-        counts.update({f"infeasible: {why}": by_bit[bit] for bit, why in REASONS.items()})
-        headline = {"designs": n, "feasible": feasible}
-    best = least_cost_layouts(parts, max(5, SCREEN_LAYOUTS))
-    screened = best.to_pylist()
-    if screened and "cart_pose" in parts.schema.names and links_of(json.loads(meta.get("config", "{}"))):
-        screened = with_cheaper_overlapping(parts, screened)
-    best = best.slice(0, 5)
-    tables = []
-    if best.num_rows:
-        b = best.to_pylist()[0]
-        headline.update({"best_design_id": b["design_id"], "best_cost": b["cost"]})
-        checks = [[label + (" (all three instruments)" if fields == ("common_reach",) and "psm3_reach" in b else ""),
-                   joiner.join(f"{b[f]:.{digits}f}" for f in fields), clinical,
-                   within_band([b[f] for f in fields], band)]
-                  for label, fields, digits, joiner, clinical, band in CLINICAL_CHECKS]
-        tables.append(("best layout: clinical checks", ["quantity", "value", "clinical number", "within"], checks))
-        mark = json.loads(meta["landmark"]) if "landmark" in meta else None
-        ports = [[arm, str(b[f"{arm}_site"]), f"{b[f'{arm}_x_mm']:.0f}", f"{b[f'{arm}_y_mm']:.0f}",
-                  f"{b[f'{arm}_z_mm']:.0f}"] + ([from_landmark(b[f"{arm}_x_mm"], b[f"{arm}_y_mm"], mark[1:])]
-                                                if mark else [])
-                 for arm in ("psm1", "psm2", "psm3", "ecm") if f"{arm}_site" in b]
-        tables.append((f"best layout: ports ({FRAME_TEXT})", ["arm", "site", "x_mm", "y_mm", "z_mm"]
-                       + ([f"from the {mark[0]} (mm, top view)"] if mark else []), ports))
-        if "cart_pose" in b:  # the screen first: the best layout's clearances and rolls are then known
-            screen = clearance_screen(screened, meta)
-            tables += docking_tables(b, meta)
-            if meta.get("rows_stored") != "feasible":
-                tables += undocked_table(parts, meta)
-            if screen is not None:
-                headline["links_clear"], table = screen
-                tables.append(table)
-        cols = ["design_id", "cost", "common_reach", "dexterity_mean", "manipulation_angle_mean_deg",
-                "azimuth_imbalance_deg", "camera_coverage"]
-        repeats = best.schema.metadata.get(b"repeats_collapsed", b"0").decode() if best.schema.metadata else "0"
-        tables.append(("best feasible designs by cost" + (f" ({repeats} repeats of a listed layout collapsed)"
-                                                          if repeats != "0" else ""), cols,
-                       [[f"{r[c]:.4g}" if isinstance(r[c], float) else str(r[c]) for c in cols] for r in best.to_pylist()]))
-        if mark:
-            arms = [a for a in ("psm1", "psm2", "psm3", "ecm") if f"{a}_x_mm" in b]
-            tables.append((f"best feasible designs: ports from the {mark[0]} (mm, top view: the patient's left or "
-                           f"right, cranial or caudal)", ["design_id", *arms],
-                           [[str(r["design_id"]), *(from_landmark(r[f"{a}_x_mm"], r[f"{a}_y_mm"], mark[1:])
-                                                    for a in arms)] for r in best.to_pylist()]))
-    else:
-        headline["best"] = "none: no design is feasible (see the reasons' counts)"
-    if "cart" in meta:
-        headline["cart"] = meta["cart"]
-    headline["not_modelled"] = NOT_MODELLED
-    if "cart_pose" in parts.schema.names and meta.get("rows_stored") != "feasible":
-        counts["infeasible only for docking (feasible without the cart)"] = only_docking
-    return Summary(headline, counts, tables)
-
-
 def no_cart_note(config) -> str:
     """What a run without the cart says of it (validated or as stored): docking assumed, and why the cart is not
     in (the arms it cannot carry, or cart.model = "none")."""
@@ -860,253 +749,10 @@ def dvrk_export(cfg, row: dict) -> str:
     return dvrk_setup(cfg, row)
 
 
-def docking_tables(best: dict, meta: dict) -> list:
-    """The best layout's cart pose and each arm's setup joints there (solved again from the row's ports and
-    pose, and the run's config in the rows' metadata), docked as the dvrk export docks it (``docking_that_clears``:
-    where the links overlap at the run's own docking and a roll of each PSM about its shaft clears them, so),
-    and the links' clearances so docked."""
-    import json
-
-    from surgopt.studies.port_place.clashes import docking_that_clears
-
-    try:  # as stored: its files are not read and hashed again
-        cfg = PortPlaceConfig.model_validate(json.loads(meta["config"]), context={"stored": True})
-    except (ValueError, OSError, KeyError) as exc:
-        return [("best layout: the cart", ["note"], [[f"the run's config cannot be read again ({exc}); the cart "
-                                                       f"pose is in the row's cart_* columns"]])]
-    docked, rolls, _, clearances = docking_that_clears(cfg, best)  # as the export docks it
-    turned = {arm: deg for arm, deg in rolls.items() if deg}
-    pose = [[f"{best['cart_x_mm']:.0f}", f"{best['cart_y_mm']:.0f}", f"{best['cart_heading_deg']:.1f}",
-             str(best["cart_pose"]) if cfg.cart.pose != "search" else
-             f"searched: {best['cart_around_deg']:.1f} deg around, {best['cart_distance_mm']:.0f} mm"]]
-    rows = [[a.arm, a.site, " ".join(f"{v:.4f}" for v in a.joints) if a.joints else "-",
-             "-" if a.margin is None else f"{a.margin:.3f}" + (f" ({a.tightest})" if a.tightest else ""),
-             a.note or (f"ECM yaw {math.degrees(a.ecm[0]):.1f}, pitch {math.degrees(a.ecm[1]):.1f} deg" if a.ecm
-                        else f"docking rolled {turned[a.arm]:+.0f} deg about the shaft" if a.arm in turned
-                        else "")] for a in docked]
-    clear = [[c.check, f"{c.clearance_mm:.0f}", c.link_a, c.link_b, c.where]
-             for c in clearances]
-    return [(f"best layout: the {cfg.cart.model} cart (origin on the floor, patient frame; heading from +y toward +x)",
-             ["x_mm", "y_mm", "heading_deg", "pose (of the grid, or searched)"], pose),
-            ("best layout: setup joints (column m, then rad, the dVRK's simulated_position order)"
-             + (" as `export --format dvrk` docks it: each PSM's docking turned so that the links clear" if turned
-                else ""),
-             ["arm", "port", "suj_joints", "least range margin", "note"], rows),
-            ("best layout: least clearance outside the body (capsules, radii assumed; negative: the links overlap; "
-             + in_feasible(cfg) + ")", ["between", "clearance_mm", "link", "against", "where"], clear)]
-
-
-def in_feasible(cfg) -> str:
-    """What of the links' clearance feasible holds: between arms with ``constraints.min_link_clearance_mm``."""
-    if links_of(cfg):
-        return f"in feasible, at least {cfg.constraints.min_link_clearance_mm:g} mm"
-    return "not yet part of feasible"
-
-
-#: The layouts of least cost among those feasible without the cart whose docking the closing report explains.
-UNDOCKED_OF_BEST = 1000
-UNDOCKED_WHY = ("the ECM's setup joints reach its port at no cart pose",
-                "PSM1's and PSM2's setup joints take the pair's two ports at no cart pose, either way round",
-                "PSM3's setup joints reach its port at no cart pose",
-                "every arm docks at some cart pose of the grid, never all at one",
-                "every arm docks at some cart pose, but at each the arms' links overlap each other, the patient or "
-                "the table (min_link_clearance_mm)")
-
-
-def undocked_table(parts, meta: dict) -> list:
-    """How many of the UNDOCKED_OF_BEST layouts of least cost that are feasible without the cart (every reason
-    but docking passes) the cart cannot dock, and why (``why_undocked``): the closing report's answer to "which
-    of the previous best layouts are not dockable"."""
-    from surgopt.kinematics.port_reasons import DOCKING, OUTSIDE
-    from surgopt.studies.port_place.tables import model_of
-
-    arms = [a for a in ("psm1", "psm2", "psm3", "ecm") if f"{a}_site" in parts.schema.names]
-    cols = {c: [] for c in ["cost", "design_id", "infeasible", *(f"{a}_site" for a in arms)]}
-    links = "external_link_pair" in parts.schema.names  # the links decide: a clash is the cart's failure too
-    cart_only = (0, DOCKING, OUTSIDE) if links else (0, DOCKING)
-    for t in parts.only(list(cols)):
-        keep = np.isin(t["infeasible"].to_numpy(), cart_only)
-        for c in cols:
-            cols[c].append(t[c].to_numpy()[keep])
-    got = {c: np.concatenate(v) if v else np.zeros(0) for c, v in cols.items()}
-    best = np.lexsort((got["design_id"], got["cost"]))[:UNDOCKED_OF_BEST]
-    undocked = best[got["infeasible"][best] != 0]
-    try:  # as stored: its files are not read and hashed again
-        cfg = PortPlaceConfig.model_validate(json.loads(meta["config"]), context={"stored": True})
-    except (ValueError, OSError, KeyError):
-        return []
-    if cfg.cart.pose == "search":  # each trial docked at its own pose, not at the grid's
-        return []
-    sites = np.column_stack([got[f"{a}_site"][undocked] for a in arms]).astype(np.int64)
-    why = np.where(got["infeasible"][undocked] == OUTSIDE, len(UNDOCKED_WHY) - 1, why_undocked(model_of(cfg).dock,
-                                                                                                sites))
-    rows = [[w, f"{int(np.sum(why == k)):,}"] for k, w in enumerate(UNDOCKED_WHY) if np.any(why == k)]
-    return [(f"the {len(best):,} layouts of least cost feasible without the cart: {len(undocked):,} the "
-             f"{cfg.cart.model} cart's setup joints cannot dock at any pose of its grid"
-             + (" with the arms' links clear" if links else "") + ", because", ["why", "layouts"], rows)]
-
-
-def why_undocked(dock, sites: np.ndarray) -> np.ndarray:
-    """For layouts the cart docks at no pose (``sites``: each arm's site, PSM1, PSM2[, PSM3], ECM), why, as an
-    index into UNDOCKED_WHY, from the best solutions' margins at each pose (``DockTables.margin``, >= 0 where
-    an arm docks): the first that holds of the ECM docking nowhere, the working pair's PSMs taking its two ports
-    at no pose either way round, PSM3 docking nowhere, else no pose common to all."""
-    some = (dock.margin >= 0.0).any(axis=2)  # (arms, sites): the arm docks there at some pose
-    camera = (dock.camera_margin >= 0.0).any(axis=1)
-    a, b, k = sites[:, 0], sites[:, 1], sites[:, -1]
-    pair = (some[0, a] & some[1, b]) | (some[0, b] & some[1, a])
-    third = some[2, sites[:, 2]] if sites.shape[1] == 4 else np.ones(len(sites), bool)
-    return np.select([~camera[k], ~pair, ~third], [0, 1, 2], default=3)
-
-
-#: The best distinct feasible layouts whose links the closing report checks for clearance outside the body (each
-#: ~0.2 s: its setup joints solved again, its arms' capsules docked and over the target, against each other, the
-#: patient and the table; ``clashes.layout_clearances``).
-SCREEN_LAYOUTS = 10
-ROLL_TEXT = "a 15-degree grid over +-90 about the neutral shaft"
-
-
-def with_cheaper_overlapping(parts, feasible: list[dict]) -> list[dict]:
-    """With the links in feasible: the layouts cheaper than the best feasible one that fail only on the links
-    (reason 16: they dock, and their links overlap at the run's docking roll at every pose) before the feasible
-    ones, by cost, for the screen to try with each PSM's roll (``clearance_screen``)."""
-    from surgopt.kinematics.port_reasons import OUTSIDE
-
-    cheaper = [r for r in least_cost_layouts(parts, SCREEN_LAYOUTS, False, only_reasons=OUTSIDE).to_pylist()
-               if (r["cost"], r["design_id"]) < (feasible[0]["cost"], feasible[0]["design_id"])]
-    return sorted(cheaper + feasible, key=lambda r: (r["cost"], r["design_id"]))
-
-
-def clearance_screen(rows: list[dict], meta: dict):
-    """The best layouts (``rows``, distinct, by cost) screened for their links' clearance outside the body, which
-    feasible does not yet include (issue 40): (the headline's word, the table), or None when the run's config
-    cannot be read again. A layout whose links overlap at the run's docking roll is tried with each PSM's own
-    roll (``clashes.rolls_that_clear``: full reach and the setup joints' ranges kept). The headline names the
-    first layout that clears, at the run's roll or with rolls; else how much the least of them overlaps."""
-    from surgopt.studies.port_place.clashes import layout_clearances, least, rolls_that_clear
-
-    try:  # as stored: its files are not read and hashed again
-        cfg = PortPlaceConfig.model_validate(json.loads(meta["config"]), context={"stored": True})
-    except (ValueError, OSError, KeyError):
-        return None
-    out, clear = [], None
-    for r in rows[:SCREEN_LAYOUTS]:
-        c = least(layout_clearances(cfg, r))
-        if c is None:
-            continue
-        rolled = rolls_that_clear(cfg, r) if c.clearance_mm < 0 else None
-        if rolled is None:
-            with_rolls = "-"
-        elif rolled.least is None:
-            with_rolls = f"none of {rolled.tried} that reach and dock"
-        else:
-            with_rolls = (", ".join(f"{a} {d:+.0f}" for a, d in rolled.rolls.items()) + f": {rolled.least.clearance_mm:.0f} "
-                          f"mm ({rolled.least.link_a} / {rolled.least.link_b}); cost {rolled.cost:.4g}")
-        out.append([str(r["design_id"]), f"{r['cost']:.4g}", f"{c.clearance_mm:.0f}", c.check,
-                    f"{c.link_a} / {c.link_b}", with_rolls])
-        if clear is None and c.clearance_mm >= 0:
-            clear = (f"design {r['design_id']} (the best {'feasible ' if r['feasible'] else ''}layout whose links "
-                     f"clear; {{n}} screened)")
-        elif clear is None and rolled is not None and rolled.least is not None:
-            turned = ", ".join(f"{a} {d:+.0f}" for a, d in rolled.rolls.items() if d)
-            clear = (f"design {r['design_id']} with its PSMs' docking rolled ({turned} deg about the shaft): least "
-                     f"clearance {rolled.least.clearance_mm:.0f} mm ({rolled.least.link_a} / {rolled.least.link_b}); "
-                     f"so docked its cost is {rolled.cost:.4f} (at the run's roll {r['cost']:.4f}: of the cost only "
-                     f"the dexterity depends on the roll)"
-                     + ("" if r["feasible"] else "; its row fails on its links at the run's roll (reason 16), and it "
-                        "is cheaper than every feasible layout")
-                     + "; `surgopt export --format dvrk` docks it so" + _below_table(cfg, r, rolled))
-        if clear is not None:  # what the headline needs: the best layout that clears (each costs ~0.5-2 s)
-            break
-    if not out:
-        return None
-    n = len(out)
-    if clear is not None:
-        word = clear.replace("{n}", str(n))
-    else:
-        worst = max(float(x[2]) for x in out)
-        word = (f"none of the {n} best feasible layouts, at the run's docking roll or each PSM's own: their links "
-                f"overlap outside the body by {-worst:.0f} mm or more (link clearance: {in_feasible(cfg)})")
-    which = ("the best feasible layouts" if all(r["feasible"] for r in rows[:n]) else
-             "the best layouts (the feasible ones and, as the links are in feasible, those cheaper that fail only on "
-             "them at the run's roll)")
-    title = (f"{which}, {n} screened by cost until one clears (at most {SCREEN_LAYOUTS}): their "
-             f"links' least clearance outside the body (capsules, radii "
-             f"assumed; negative: they overlap; {in_feasible(cfg)}), and each PSM's docking roll (deg, "
-             f"{ROLL_TEXT}) at which they clear")
-    return word, (title, ["design_id", "cost", "least_clearance_mm", "between", "links", "with rolls"], out)
-
-
-def _below_table(cfg, row: dict, rolled) -> str:
-    """``clashes.below_table_note`` of a layout docked as the roll search (``rolled``, ``RollsThatClear``) found."""
-    from surgopt.studies.port_place.clashes import below_table_note
-
-    return below_table_note(cfg, row, rolled.arms)
-
-
-def layout_columns(names) -> list[str]:
-    """The columns that make two rows the same layout: each arm's site, and a search's docking and stance (a
-    search evaluates a layout again when its optimiser asks again; its rows repeat one layout)."""
-    return [c for c in names if c.endswith("_site") or "_docking_" in c or "_stance_" in c]
-
-
-def first_of_each_layout(t, key: list[str]):
-    """``t`` (ordered) with each layout's first row only: (the rows, the (cost, design_id) of the rows dropped)."""
-    if not key or t.num_rows < 2:
-        return t, np.zeros((0, 2))
-    import pyarrow as pa
-
-    keys = np.stack([t[c].to_numpy().astype(np.float64) for c in key], axis=1)
-    _, first = np.unique(keys, axis=0, return_index=True)
-    first = np.sort(first)
-    dropped = np.setdiff1d(np.arange(t.num_rows), first)
-    return t.take(pa.array(first)), np.stack([t["cost"].to_numpy()[dropped],
-                                              t["design_id"].to_numpy()[dropped]], axis=1)
-
-
-def least_cost_layouts(parts, k: int, feasible: bool = True, columns: list[str] | None = None,
-                       only_reasons: int | None = None):
-    """The k layouts of least cost (ties by design id) among the feasible (or the infeasible) ones (with
-    ``only_reasons``, the infeasible whose ``infeasible`` mask is exactly that), read part by
-    part, each layout once (``first_of_each_layout``: a search's repeats collapsed, their count among the rows
-    ranked up to the last listed in the table's metadata, ``repeats_collapsed``); only ``columns`` (with feasible,
-    cost, design_id and the layout's) when given: the closing report and the HTML page."""
-    import pyarrow as pa
-    import pyarrow.compute as pc
-
-    key = layout_columns(parts.schema.names)
-    if columns is not None:
-        columns = sorted({*columns, "feasible", "cost", "design_id", "infeasible", *key} & set(parts.schema.names))
-    kept, dropped = [], []
-    for t in parts.only(columns):
-        t = t.filter(t["feasible"] if feasible else pc.invert(t["feasible"]) if only_reasons is None
-                     else pc.equal(t["infeasible"], only_reasons))
-        if t.num_rows:
-            order = np.lexsort((t["design_id"].to_numpy(), t["cost"].to_numpy()))
-            window = 4 * k + 16  # the best rows first; more only while repeats leave fewer than k layouts
-            while True:
-                top, gone = first_of_each_layout(t.take(pa.array(order[:window])), key)
-                if top.num_rows >= k or window >= len(order):
-                    break
-                window *= 4
-            kept.append(top.slice(0, k))
-            dropped.append(gone)
-    if not kept:
-        return parts.schema.empty_table() if columns is None else parts.schema.empty_table().select(columns)
-    t = pa.concat_tables(kept)
-    t = t.take(pa.array(np.lexsort((t["design_id"].to_numpy(), t["cost"].to_numpy()))))
-    t, gone = first_of_each_layout(t, key)
-    t = t.slice(0, k)
-    gone = np.concatenate([*dropped, gone])
-    last = (t["cost"][-1].as_py(), t["design_id"][-1].as_py())
-    repeats = int(np.count_nonzero((gone[:, 0] < last[0]) | ((gone[:, 0] == last[0]) & (gone[:, 1] <= last[1]))))
-    return t.replace_schema_metadata({**(t.schema.metadata or {}), b"repeats_collapsed": str(repeats).encode()})
-
-
 STUDY = Study(
     name=NAME, kernel_version=KERNEL_VERSION, config_model=PortPlaceConfig, default_config=DEFAULT_CONFIG,
     help=HELP, config_help=CONFIG_HELP, schema=schema, key_columns=("design_id",), objective=OBJECTIVE,
-    auto_chunk=auto_chunk, n_tasks=n_tasks, warm_up=warm_up, compute_task=compute_task, summary=summary,
+    auto_chunk=auto_chunk, n_tasks=n_tasks, warm_up=warm_up, compute_task=compute_task, summary=summary_in("surgopt.studies.port_place.report"),
     feasible_mask=feasible_mask, feasible_columns=("feasible",), figures=figures_in("surgopt.studies.port_place.figures"), estimate=estimate, search_plan=search_plan,
     html_views=html_views_in("surgopt.studies.port_place.html"), reported_objective=("cost", "minimize"),
     exports={"dvrk": dvrk_export, "ports": ports_export},
