@@ -8,7 +8,7 @@ capsules at joint values q come from its skeleton (``robots/dvrk_links.py``): ea
 parent, origin, roll-pitch-yaw and joint (C4).
 
 The segment distance is ``kinematics.port_place.segment_distance`` (Ericson, Real-Time Collision Detection,
-5.1.9; ``segments_distance`` with its degenerate cases for the tables). The least clearance between two arms over
+5.1.9, with its degenerate cases; ``segments_distance`` takes the segments as (2, 3) arrays). The least clearance between two arms over
 every pair of their poses (each arm at each of its own target points: the instruments move independently) is one
 jitted loop (``least_over_poses``), and pruned by bounding balls for the rows' tables (``least_between``,
 ``pair_clearances``; ``studies/port_place/link_tables.py``), with their batch forms of C2-C4.
@@ -24,7 +24,7 @@ from typing import NamedTuple
 import numpy as np
 
 from surgopt.jit import EXACT, njit
-from surgopt.kinematics.port_place import segment_distance
+from surgopt.kinematics.port_place import segment_distance, segment_distance_xyz
 from surgopt.robots.chain import rot_x, rot_y, rot_z, trans
 
 GOLDEN = (math.sqrt(5.0) - 1.0) / 2.0
@@ -215,36 +215,10 @@ def point_segment_distance(x, p0, p1):
 
 @njit(**EXACT)
 def segments_distance(p, q):
-    """The shortest distance between segments p (2, 3) and q (2, 3), either possibly of zero length (Ericson,
-    Real-Time Collision Detection, 5.1.9, with its degenerate cases), in scalars."""
-    d1x, d1y, d1z = p[1, 0] - p[0, 0], p[1, 1] - p[0, 1], p[1, 2] - p[0, 2]
-    d2x, d2y, d2z = q[1, 0] - q[0, 0], q[1, 1] - q[0, 1], q[1, 2] - q[0, 2]
-    rx, ry, rz = p[0, 0] - q[0, 0], p[0, 1] - q[0, 1], p[0, 2] - q[0, 2]
-    a = d1x * d1x + d1y * d1y + d1z * d1z
-    e = d2x * d2x + d2y * d2y + d2z * d2z
-    f = d2x * rx + d2y * ry + d2z * rz
-    eps = 1e-18
-    if a <= eps and e <= eps:
-        s = t = 0.0
-    elif a <= eps:
-        s, t = 0.0, min(1.0, max(0.0, f / e))
-    else:
-        c = d1x * rx + d1y * ry + d1z * rz
-        if e <= eps:
-            t, s = 0.0, min(1.0, max(0.0, -c / a))
-        else:
-            b = d1x * d2x + d1y * d2y + d1z * d2z
-            denom = a * e - b * b
-            s = min(1.0, max(0.0, (b * f - c * e) / denom)) if denom > eps else 0.0
-            t = (b * s + f) / e
-            if t < 0.0:
-                t, s = 0.0, min(1.0, max(0.0, -c / a))
-            elif t > 1.0:
-                t, s = 1.0, min(1.0, max(0.0, (b - c) / a))
-    wx = rx + s * d1x - t * d2x
-    wy = ry + s * d1y - t * d2y
-    wz = rz + s * d1z - t * d2z
-    return math.sqrt(wx * wx + wy * wy + wz * wz)
+    """The shortest distance between segments p (2, 3) and q (2, 3), either possibly of zero length
+    (``port_place.segment_distance_xyz``)."""
+    return segment_distance_xyz(p[0, 0], p[0, 1], p[0, 2], p[1, 0], p[1, 1], p[1, 2],
+                                q[0, 0], q[0, 1], q[0, 2], q[1, 0], q[1, 1], q[1, 2])
 
 
 @njit(**EXACT)

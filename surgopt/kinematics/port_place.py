@@ -401,23 +401,44 @@ def camera_coverage(sites, rot, targets, centre, camera):
 
 @njit(**EXACT)
 def segment_distance(p0, p1, q0, q1):
-    """The shortest distance between segments [p0, p1] and [q0, q1] (Ericson, Real-Time Collision Detection,
-    Sec. 5.1.9: the closest points of the lines, clamped to the segments)."""
-    d1, d2, r = p1 - p0, q1 - q0, p0 - q0
-    a = d1[0] ** 2 + d1[1] ** 2 + d1[2] ** 2
-    e = d2[0] ** 2 + d2[1] ** 2 + d2[2] ** 2
-    f = d2[0] * r[0] + d2[1] * r[1] + d2[2] * r[2]
-    c = d1[0] * r[0] + d1[1] * r[1] + d1[2] * r[2]
-    b = d1[0] * d2[0] + d1[1] * d2[1] + d1[2] * d2[2]
-    denom = a * e - b * b
-    s = min(1.0, max(0.0, (b * f - c * e) / denom)) if denom > 1e-18 else 0.0
-    t = (b * s + f) / e
-    if t < 0.0:
-        t, s = 0.0, min(1.0, max(0.0, -c / a))
-    elif t > 1.0:
-        t, s = 1.0, min(1.0, max(0.0, (b - c) / a))
-    w = p0 + s * d1 - (q0 + t * d2)
-    return math.sqrt(w[0] ** 2 + w[1] ** 2 + w[2] ** 2)
+    """The shortest distance between segments [p0, p1] and [q0, q1] (``segment_distance_xyz``)."""
+    return segment_distance_xyz(p0[0], p0[1], p0[2], p1[0], p1[1], p1[2], q0[0], q0[1], q0[2], q1[0], q1[1], q1[2])
+
+
+@njit(**EXACT)
+def segment_distance_xyz(p0x, p0y, p0z, p1x, p1y, p1z, q0x, q0y, q0z, q1x, q1y, q1z):
+    """The shortest distance between segments [p0, p1] and [q0, q1] given by their coordinates, either possibly
+    of zero length (Ericson, Real-Time Collision Detection, Sec. 5.1.9: the closest points of the lines, clamped
+    to the segments, with its degenerate cases). Scalars only: it runs in the capsules' innermost loops, where an
+    array view per call costs a third of the link tables' time."""
+    d1x, d1y, d1z = p1x - p0x, p1y - p0y, p1z - p0z
+    d2x, d2y, d2z = q1x - q0x, q1y - q0y, q1z - q0z
+    rx, ry, rz = p0x - q0x, p0y - q0y, p0z - q0z
+    a = d1x * d1x + d1y * d1y + d1z * d1z
+    e = d2x * d2x + d2y * d2y + d2z * d2z
+    f = d2x * rx + d2y * ry + d2z * rz
+    eps = 1e-18
+    if a <= eps and e <= eps:
+        s = t = 0.0
+    elif a <= eps:
+        s, t = 0.0, min(1.0, max(0.0, f / e))
+    else:
+        c = d1x * rx + d1y * ry + d1z * rz
+        if e <= eps:
+            t, s = 0.0, min(1.0, max(0.0, -c / a))
+        else:
+            b = d1x * d2x + d1y * d2y + d1z * d2z
+            denom = a * e - b * b
+            s = min(1.0, max(0.0, (b * f - c * e) / denom)) if denom > eps else 0.0
+            t = (b * s + f) / e
+            if t < 0.0:
+                t, s = 0.0, min(1.0, max(0.0, -c / a))
+            elif t > 1.0:
+                t, s = 1.0, min(1.0, max(0.0, (b - c) / a))
+    wx = rx + s * d1x - t * d2x
+    wy = ry + s * d1y - t * d2y
+    wz = rz + s * d1z - t * d2z
+    return math.sqrt(wx * wx + wy * wy + wz * wz)
 
 
 @njit(**EXACT)
