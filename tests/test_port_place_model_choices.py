@@ -89,6 +89,10 @@ def test_a_rolled_frame_keeps_its_shaft_and_turns_its_yaw_axis_by_the_roll_mirro
     assert left.any() and (~left).any()
     np.testing.assert_allclose(toward_y[left], 0.5, atol=1e-14)
     np.testing.assert_allclose(toward_y[~left], -0.5, atol=1e-14)
+    back = model(SMALL, docking_roll_deg=-30.0).instrument_rot  # a negative roll: each side the other way
+    toward_y = np.einsum("ni,ni->n", back[:, :, 0], rot[:, :, 1])
+    np.testing.assert_allclose(toward_y[left], -0.5, atol=1e-14)
+    np.testing.assert_allclose(toward_y[~left], 0.5, atol=1e-14)
 
 
 def mirror_of(sites: np.ndarray) -> np.ndarray:

@@ -271,10 +271,10 @@ class Robot(StrictModel):
         "RCM (the port), at every target point; none: the arm's own controller limit (the dVRK PSM refuses "
         "Cartesian control within 45 mm, SafeDistanceFromRCM; 0 for an arm from a file)")
     docking_roll_deg: float = Field(
-        0.0, ge=0.0, le=90.0, description="each instrument arm's base turned about its neutral shaft by this "
+        0.0, ge=-90.0, le=90.0, description="each instrument arm's base turned about its neutral shaft by this "
         "angle after docking: 0, its yaw swings the shaft across the patient; 90, head to foot. Ports on the "
         "patient's left (x >= 0) turn the frame's x toward the head, on the right toward the feet (mirror "
-        "images, so a symmetric patient gives a symmetric answer)")
+        "images, so a symmetric patient gives a symmetric answer); a negative angle turns each the other way")
     docking_roll: Literal["given", "most_reach"] = Field(
         "given", description="'given': docking_roll_deg at every port; 'most_reach': at each port the roll of "
                              "0, 15, ..., 90 deg (mirrored as docking_roll_deg) that reaches the most target "
