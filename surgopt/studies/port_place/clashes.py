@@ -180,6 +180,8 @@ ROLL_GRID_DEG = tuple(range(-90, 91, 15))
 #: Roll combinations whose docked links clear that are then checked over the target too: this many of least cost,
 #: then this many that clear docked by the most.
 ROLL_FULL_CHECKS = 4
+#: Costs of two roll combinations within this are a tie (broken by the docked clearance).
+COST_TIE = 1e-9
 
 
 def rolled_reach(cfg, row: dict, arm: str) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
@@ -199,15 +201,15 @@ def rolled_reach(cfg, row: dict, arm: str) -> tuple[np.ndarray, np.ndarray, np.n
     return frames, reach.all(axis=1), dex, site
 
 
-def rolled_docks(cfg, row: dict, arm: str, patient: np.ndarray) -> list[tuple[float, object]]:
+def rolled_docks(cfg, row: dict, arm: str, patient: np.ndarray, reached=None) -> list[tuple[float, object]]:
     """(roll in deg, ``tables.DockedArm``) for each roll of ROLL_GRID_DEG at which PSM ``arm`` (``psm1`` ...)
-    still reaches every target point from its port (``rolled_reach``) and its setup joints dock the rolled frame
-    within their ranges (S2)."""
+    still reaches every target point from its port (``rolled_reach``, or ``reached``: its answer already had)
+    and its setup joints dock the rolled frame within their ranges (S2)."""
     from surgopt.kinematics import suj as S
     from surgopt.robots.dvrk_suj import CARTS
     from surgopt.studies.port_place.tables import DockedArm, base_pose
 
-    frames, full, _, site = rolled_reach(cfg, row, arm)
+    frames, full, _, site = rolled_reach(cfg, row, arm) if reached is None else reached
     out = []
     for deg, rot, ok in zip(ROLL_GRID_DEG, frames, full):
         if not ok:
@@ -258,8 +260,8 @@ def _rolls_that_clear(cfg, row: dict) -> RollsThatClear:
     each combination's docked arms' least clearance to each other (fast: one pose each) and its cost so docked
     (``rolled_cost``: the dexterity changes with the roll). Of those that clear docked, the ROLL_FULL_CHECKS of
     least cost are checked in full (``layout_clearances``: over the target, the patient, the table), cheapest
-    first, then the ROLL_FULL_CHECKS that clear docked by the most; the first whose least clearance is >= 0, or
-    ``least`` None."""
+    first (ties within COST_TIE: the most docked clearance first), then the ROLL_FULL_CHECKS that clear docked by
+    the most; the first whose least clearance is >= 0, or ``least`` None."""
     import itertools
 
     from surgopt.kinematics.capsules import least_pair_clearance
@@ -268,8 +270,9 @@ def _rolls_that_clear(cfg, row: dict) -> RollsThatClear:
     patient = patient_in_cart(cfg.cart, row["cart_x_mm"], row["cart_y_mm"], row["cart_heading_deg"])
     ecm = [a for a in docked_arms(cfg, row) if a.arm == "ECM" and a.joints]
     psms = [a for a in ("psm1", "psm2", "psm3") if f"{a}_site" in row]
-    options = {a: rolled_docks(cfg, row, a, patient) for a in psms}
-    isotropy = {a: dict(zip(ROLL_GRID_DEG, rolled_reach(cfg, row, a)[2])) for a in psms}
+    reached = {a: rolled_reach(cfg, row, a) for a in psms}
+    options = {a: rolled_docks(cfg, row, a, patient, reached[a]) for a in psms}
+    isotropy = {a: dict(zip(ROLL_GRID_DEG, reached[a][2])) for a in psms}
     along = model_of(cfg).limits.along_shaft_m
     none = np.zeros((0, 3))
     docked_pose = {(a, deg): arm_poses(cfg, d, patient, none, along) for a in psms for deg, d in options[a]}
@@ -292,7 +295,9 @@ def _rolls_that_clear(cfg, row: dict) -> RollsThatClear:
         dexterity, cost = rolled_cost(cfg, row, {a: isotropy[a][int(deg)] for a, deg in choice})
         combos.append((c, cost, dexterity, choice))
     docked_clear = [t for t in combos if t[0] >= 0]
-    cheapest = sorted(docked_clear, key=lambda t: t[1])[:ROLL_FULL_CHECKS]
+    # costs equal to COST_TIE (the default's: the roll moves no isotropy there) taken by docked clearance, not
+    # by rounding
+    cheapest = sorted(docked_clear, key=lambda t: (round(t[1] / COST_TIE), -t[0]))[:ROLL_FULL_CHECKS]
     clearest = [t for t in sorted(docked_clear, key=lambda t: -t[0]) if t not in cheapest][:ROLL_FULL_CHECKS]
     for c, cost, dexterity, choice in cheapest + clearest:
         arms = [dict(options[a])[deg] for a, deg in choice] + ecm
