@@ -163,6 +163,28 @@ def test_the_dvrk_export_puts_each_psm_rcm_on_its_port_by_the_reference_kinemati
     assert bad.returncode == 2 and "no cart" in bad.stderr
 
 
+def test_the_dvrk_export_names_the_runs_own_docking_roll():
+    """With ``robot.docking_roll_deg = 30`` each PSM's exported ``docking_roll_deg`` is the run's roll at its port
+    (+30 on the patient's left, -30 on the right; it was left null, the base rolled all the same), or the roll the
+    clearance search turned it to, and its setup joints through the reference forward kinematics land exactly the
+    docking frame written from its definition turned by that roll. Premise: some arm keeps the run's roll."""
+    cfg = C.PortPlaceConfig.model_validate({**GRID, "robot": {"docking_roll_deg": 30.0}})
+    cols = S.compute_task(cfg, S.n_total(cfg), 0)
+    r = int(np.flatnonzero(cols["feasible"] & (cols["cart_pose"] >= 0))[0])
+    row = {c: v[r].item() for c, v in cols.items()}
+    setup = json.loads(S.dvrk_export(cfg, row))
+    patient = np.array(setup["cart_to_patient"])
+    centre = np.asarray(cfg.target.centre_mm, float) / 1000
+    kept = 0
+    for arm in setup["arms"][:2]:
+        port = np.array(arm["port_mm"]) / 1000
+        roll = arm["docking_roll_deg"]
+        kept += roll == (30.0 if port[0] >= 0 else -30.0)
+        want = patient @ np.vstack([np.column_stack([_rolled(_docking_frame(port, centre), roll), port]), [0, 0, 0, 1]])
+        np.testing.assert_allclose(suj_forward_reference("classic", arm["name"], arm["suj_joints"]), want, atol=1e-9)
+    assert kept > 0 and setup["arms"][2]["docking_roll_deg"] is None  # the ECM aims with its own joints
+
+
 def test_diff_of_two_port_place_runs_matches_layouts_by_their_ports(tmp_path):
     """Issue 42 item 1: a run on the whole abdomen and one on a marked region number their sites, so their
     designs, differently; ``diff`` joins them on each arm's port, so every layout of the region's run is found

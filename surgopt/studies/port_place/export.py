@@ -43,6 +43,17 @@ def clearances_of(checks: list) -> dict:
                         "against": c.link_b, "where": c.where} for c in checks]}
 
 
+def run_roll_deg(cfg: PortPlaceConfig, port_m: np.ndarray) -> float:
+    """The run's own docking roll at an instrument port (deg, about the neutral shaft, x toward y:
+    ``robot.docking_roll_deg`` signed by the port's side, or the port's ``most_reach`` choice; 0 by default)."""
+    from surgopt.kinematics import port_place as K
+    from surgopt.studies.port_place.tables import LATERAL, instrument_rolls_rad, model_of
+
+    site = np.asarray(port_m, float)[None]
+    neutral = K.docking_frames(site, np.asarray(cfg.target.centre_mm, float) / 1000, LATERAL)
+    return round(float(np.degrees(instrument_rolls_rad(model_of(cfg), site, neutral)[0])), 9)  # 30, not 29.99..96
+
+
 def dvrk_setup(cfg: PortPlaceConfig, row: dict) -> str:
     """The layout of ``row`` (a design of a run with the cart) as JSON: ``cart_to_patient`` (the patient's frame
     in the cart's world frame, 4x4, m) and one entry per arm (PSM1, PSM2, PSM3, ECM): its cart ("classic"), SUJ
@@ -78,7 +89,7 @@ def dvrk_setup(cfg: PortPlaceConfig, row: dict) -> str:
             "world_origin_to_suj": _matrix(suj.world_to_suj), "suj_tip_to_tool_origin": _matrix(suj.tip_to_tool),
             "port_mm": [float(v) * 1000 for v in port],
             "base_in_cart": None if a.base is None else _matrix(a.base),
-            "docking_roll_deg": rolls.get(a.arm),
+            "docking_roll_deg": None if a.arm == "ECM" else rolls.get(a.arm, run_roll_deg(cfg, port)),
             "arm": holder.name,
             "arm_joints_at_target_centre": joints,
         })
