@@ -13,6 +13,7 @@ from surgopt.robots import dvrk
 from surgopt.robots.models import get_model
 from surgopt.studies.port_place import config as C
 from surgopt.studies.port_place import geometry as G
+from surgopt.studies.port_place import study as S
 from surgopt.studies.port_place import tables as T
 
 from reference import PSM_CLASSIC_MDH, mdh_chain
@@ -89,6 +90,10 @@ def test_a_rolled_frame_keeps_its_shaft_and_turns_its_yaw_axis_by_the_roll_mirro
     assert left.any() and (~left).any()
     np.testing.assert_allclose(toward_y[left], 0.5, atol=1e-14)
     np.testing.assert_allclose(toward_y[~left], -0.5, atol=1e-14)
+    cfg = C.PortPlaceConfig.model_validate({**SMALL, "robot": {"docking_roll_deg": 30.0}})
+    cols = S.compute_task(cfg, S.n_total(cfg), 0)  # the rows say each port's roll: +30 on the left, -30 on the right
+    for arm in ("psm1", "psm2"):
+        np.testing.assert_array_equal(cols[f"{arm}_roll_deg"], np.where(cols[f"{arm}_x_mm"] >= 0, 30.0, -30.0))
     back = model(SMALL, docking_roll_deg=-30.0).instrument_rot  # a negative roll: each side the other way
     toward_y = np.einsum("ni,ni->n", back[:, :, 0], rot[:, :, 1])
     np.testing.assert_allclose(toward_y[left], -0.5, atol=1e-14)

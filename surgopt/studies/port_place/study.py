@@ -122,6 +122,11 @@ def schema(config=None):
                    "meaning": "the wrist's bend left at the worst target point for the approach cone (its whole "
                               "bend when no approach is asked; negative: short by that much)"}) for arm in arms[:-1]],
                *[pa.field(c, pa.float64()) for c in docking_columns(config)],
+               *[pa.field(c, pa.float64(), metadata={"meaning": "the instrument arm's docking frame turned about "
+                                                                 "its neutral shaft (deg, x toward y): "
+                                                                 "robot.docking_roll_deg by the port's side, or the "
+                                                                 "port's most_reach choice"})
+                 for c in roll_columns(config)],
                *[pa.field(c, pa.float64(), metadata={"meaning": "the top-view point a surface search placed the "
                                                                  "port at, taken to the nearest candidate site"})
                  for c in aim_columns(config)],
@@ -343,6 +348,12 @@ def design_rows(cfg, sites, t, ids, site_ids, f, bad, cost, design_ids, docking_
         cols[f"{arm}_wrist_margin_deg"] = t.wrist_margin_deg[ids[:, a]]
     for c, name in enumerate(docking_columns(cfg)):
         cols[name] = np.asarray(docking_deg[:, c], dtype=np.float64)
+    if roll_columns(cfg):
+        from surgopt.studies.port_place.tables import instrument_rolls_deg
+
+        rolls = instrument_rolls_deg(model_of(cfg), sites)
+        for a, name in enumerate(roll_columns(cfg)):
+            cols[name] = rolls[ids[:, a]]
     for c, name in enumerate(aim_columns(cfg)):  # the sites themselves, unless a surface search aimed elsewhere
         cols[name] = sites[ids[:, c // 2], c % 2] * 1000 if aim_mm is None else np.asarray(aim_mm[:, c], float)
     for c, name in enumerate(stance_columns(cfg)):  # 0 on the grid: the configured stance
@@ -378,6 +389,18 @@ def design_rows(cfg, sites, t, ids, site_ids, f, bad, cost, design_ids, docking_
     cols["feasible"] = bad == 0
     cols["infeasible"] = bad
     return cols
+
+
+def roll_columns(config=None) -> tuple[str, ...]:
+    """Each RCM instrument arm's docking roll at its port (none for serial arms, which keep the RCM in
+    software and have no docking frame to turn)."""
+    if config is None:
+        serial = None
+    elif isinstance(config, dict):
+        serial = (config.get("robot") or {}).get("instrument_serial")
+    else:
+        serial = config.robot.instrument_serial
+    return () if serial is not None else tuple(f"{arm}_roll_deg" for arm in arms_of(config)[:-1])
 
 
 def docking_columns(config=None) -> tuple[str, ...]:
@@ -686,7 +709,7 @@ def estimate(cfg) -> Estimate:
         seconds += n * poses * (arms * NS_PER_SUJ_SOLVE + NS_PER_ECM_DOCK) * 1e-9
         if links_of(cfg):  # the links' clearance tables, each arm pair's (site, site, pose) entries
             seconds += link_pairs(arms) * n * n * poses * NS_PER_LINK_ENTRY * 1e-9
-    row = (ROW_BYTES if arms == 2 else ROW_BYTES_3) + (
+    row = (ROW_BYTES if arms == 2 else ROW_BYTES_3) + 8 * len(roll_columns(cfg)) + (
         CART_ROW_BYTES + (arms + 1) * (SUJ_MARGIN_ROW_BYTES + SUJ_JOINTS_ROW_BYTES) if cfg.cart.model != "none" else 0)
     working = n * n * 8 * 12 + n * m * 9 + LIBRARY_BYTES + (CART_LIBRARY_BYTES if cfg.cart.model != "none" else 0)
     if cfg.cart.model != "none":  # the dock tables: each arm's margins, best joints and the ECM's aim per (site, pose)

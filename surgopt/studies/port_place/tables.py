@@ -94,6 +94,11 @@ class PortModel:
         return instrument_frames(self, self.sites_m, self.rot)
 
     @cached_property
+    def rolls_deg(self) -> np.ndarray:
+        """(n,) Each site's docking roll (deg) for an instrument arm (``instrument_rolls_deg``)."""
+        return np.round(np.degrees(instrument_rolls_rad(self, self.sites_m, self.rot)), 9) + 0.0  # no -0
+
+    @cached_property
     def dock(self) -> "DockTables":
         """Which of the cart's setup joints dock which arm at which site and cart pose (``dock_tables``)."""
         return dock_tables(self)
@@ -224,6 +229,17 @@ def instrument_rolls_rad(model: PortModel, sites: np.ndarray, rot: np.ndarray) -
                        for c in choices], axis=1)
     order = np.argsort(np.abs(choices - r.docking_roll_deg), kind="stable")
     return np.radians(choices[order[np.argmax(counts[:, order], axis=1)]]) * side
+
+
+def instrument_rolls_deg(model: PortModel, sites: np.ndarray) -> np.ndarray:
+    """Each port's docking roll about its neutral shaft (deg, x toward y; ``instrument_rolls_rad`` of the frames
+    toward the centre, to 1e-9 deg: 30, not 29.99..96), the model's own sites' kept (``PortModel.rolls_deg``)."""
+    from surgopt.kinematics import port_place as K
+
+    if sites is model.sites_m:
+        return model.rolls_deg
+    rot = K.docking_frames(sites, model.centre_m, LATERAL)
+    return np.round(np.degrees(instrument_rolls_rad(model, sites, rot)), 9) + 0.0
 
 
 def instrument_frames(model: PortModel, sites: np.ndarray, rot: np.ndarray) -> np.ndarray:
