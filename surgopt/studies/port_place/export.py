@@ -45,13 +45,11 @@ def clearances_of(checks: list) -> dict:
 
 def run_roll_deg(cfg: PortPlaceConfig, port_m: np.ndarray) -> float:
     """The run's own docking roll at an instrument port (deg, about the neutral shaft, x toward y:
-    ``robot.docking_roll_deg`` signed by the port's side, or the port's ``most_reach`` choice; 0 by default)."""
-    from surgopt.kinematics import port_place as K
-    from surgopt.studies.port_place.tables import LATERAL, instrument_rolls_rad, model_of
+    ``robot.docking_roll_deg`` signed by the port's side, or the port's ``most_reach`` choice; 0 by default), as
+    the rows' ``psm1_roll_deg`` give it (``tables.instrument_rolls_deg``)."""
+    from surgopt.studies.port_place.tables import instrument_rolls_deg, model_of
 
-    site = np.asarray(port_m, float)[None]
-    neutral = K.docking_frames(site, np.asarray(cfg.target.centre_mm, float) / 1000, LATERAL)
-    return round(float(np.degrees(instrument_rolls_rad(model_of(cfg), site, neutral)[0])), 9)  # 30, not 29.99..96
+    return float(instrument_rolls_deg(model_of(cfg), np.asarray(port_m, float)[None])[0])
 
 
 def dvrk_setup(cfg: PortPlaceConfig, row: dict) -> str:
