@@ -4,7 +4,7 @@ why the best layouts without the cart do not dock, the links' screen of the best
 where they overlap), and the least-cost layouts the report and the page list (one of each layout).
 
 Read from the stored rows and the run's config in their metadata (a report of an old run is the run's); the
-study (``study.STUDY``) names ``summary`` here by module, imported when a report is made. One module of ~390
+study (``study.STUDY``) names ``summary`` here by module, imported when a report is made. One module of ~380
 lines: the tables of one report, which read one another's rows (the screen's rows are the least-cost layouts',
 the docking tables show the screen's docking).
 """
