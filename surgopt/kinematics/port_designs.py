@@ -46,6 +46,8 @@ class PortTables(NamedTuple):
     arm_words: np.ndarray = np.ones((0, 1, 1), np.uint64)
     arm_value: np.ndarray = np.zeros((0, 1, 1), np.float32)
     arm_code: np.ndarray = np.zeros((0, 1, 1), np.int16)
+    # per site: the instrument's docking roll about its neutral shaft, deg (the study's, for its rows)
+    roll_deg: np.ndarray = np.zeros(0)
 
 
 def reach_bits(reach: np.ndarray) -> np.ndarray:

@@ -219,7 +219,7 @@ def rolled_docks(cfg, row: dict, arm: str, patient: np.ndarray, reached=None) ->
         if answer.within:
             best = answer.within[0]
             out.append((float(deg), DockedArm(arm.upper(), str(row[f"{arm}_site"]), best.joints, best.margin,
-                                              best.tightest, "", tuple(site), base, ())))
+                                              best.tightest, "", tuple(site), base, (), float(deg))))
     return out
 
 

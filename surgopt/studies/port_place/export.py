@@ -43,15 +43,6 @@ def clearances_of(checks: list) -> dict:
                         "against": c.link_b, "where": c.where} for c in checks]}
 
 
-def run_roll_deg(cfg: PortPlaceConfig, port_m: np.ndarray) -> float:
-    """The run's own docking roll at an instrument port (deg, about the neutral shaft, x toward y:
-    ``robot.docking_roll_deg`` signed by the port's side, or the port's ``most_reach`` choice; 0 by default), as
-    the rows' ``psm1_roll_deg`` give it (``tables.instrument_rolls_deg``)."""
-    from surgopt.studies.port_place.tables import instrument_rolls_deg, model_of
-
-    return float(instrument_rolls_deg(model_of(cfg), np.asarray(port_m, float)[None])[0])
-
-
 def dvrk_setup(cfg: PortPlaceConfig, row: dict) -> str:
     """The layout of ``row`` (a design of a run with the cart) as JSON: ``cart_to_patient`` (the patient's frame
     in the cart's world frame, 4x4, m) and one entry per arm (PSM1, PSM2, PSM3, ECM): its cart ("classic"), SUJ
@@ -70,7 +61,7 @@ def dvrk_setup(cfg: PortPlaceConfig, row: dict) -> str:
     centre = np.asarray(cfg.target.centre_mm, float) / 1000
     patient = patient_in_cart(cfg.cart, row["cart_x_mm"], row["cart_y_mm"], row["cart_heading_deg"])
     arms = []
-    docked, rolls, docking, clearances = docking_that_clears(cfg, row)
+    docked, _, docking, clearances = docking_that_clears(cfg, row)
     for a in docked:
         suj = CARTS[cfg.cart.model][a.arm]
         holder = camera_arm_of(cfg) if a.arm == "ECM" else instrument_of(cfg)
@@ -87,7 +78,7 @@ def dvrk_setup(cfg: PortPlaceConfig, row: dict) -> str:
             "world_origin_to_suj": _matrix(suj.world_to_suj), "suj_tip_to_tool_origin": _matrix(suj.tip_to_tool),
             "port_mm": [float(v) * 1000 for v in port],
             "base_in_cart": None if a.base is None else _matrix(a.base),
-            "docking_roll_deg": None if a.arm == "ECM" else rolls.get(a.arm, run_roll_deg(cfg, port)),
+            "docking_roll_deg": a.roll_deg,
             "arm": holder.name,
             "arm_joints_at_target_centre": joints,
         })

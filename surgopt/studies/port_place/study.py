@@ -348,12 +348,8 @@ def design_rows(cfg, sites, t, ids, site_ids, f, bad, cost, design_ids, docking_
         cols[f"{arm}_wrist_margin_deg"] = t.wrist_margin_deg[ids[:, a]]
     for c, name in enumerate(docking_columns(cfg)):
         cols[name] = np.asarray(docking_deg[:, c], dtype=np.float64)
-    if roll_columns(cfg):
-        from surgopt.studies.port_place.tables import instrument_rolls_deg
-
-        rolls = instrument_rolls_deg(model_of(cfg), sites)
-        for a, name in enumerate(roll_columns(cfg)):
-            cols[name] = rolls[ids[:, a]]
+    for a, name in enumerate(roll_columns(cfg)):  # the rolls the tables docked each port at
+        cols[name] = t.roll_deg[ids[:, a]]
     for c, name in enumerate(aim_columns(cfg)):  # the sites themselves, unless a surface search aimed elsewhere
         cols[name] = sites[ids[:, c // 2], c % 2] * 1000 if aim_mm is None else np.asarray(aim_mm[:, c], float)
     for c, name in enumerate(stance_columns(cfg)):  # 0 on the grid: the configured stance

@@ -94,11 +94,6 @@ class PortModel:
         return instrument_frames(self, self.sites_m, self.rot)
 
     @cached_property
-    def rolls_deg(self) -> np.ndarray:
-        """(n,) Each site's docking roll (deg) for an instrument arm (``instrument_rolls_deg``)."""
-        return np.round(np.degrees(instrument_rolls_rad(self, self.sites_m, self.rot)), 9) + 0.0  # no -0
-
-    @cached_property
     def dock(self) -> "DockTables":
         """Which of the cart's setup joints dock which arm at which site and cart pose (``dock_tables``)."""
         return dock_tables(self)
@@ -231,15 +226,9 @@ def instrument_rolls_rad(model: PortModel, sites: np.ndarray, rot: np.ndarray) -
     return np.radians(choices[order[np.argmax(counts[:, order], axis=1)]]) * side
 
 
-def instrument_rolls_deg(model: PortModel, sites: np.ndarray) -> np.ndarray:
-    """Each port's docking roll about its neutral shaft (deg, x toward y; ``instrument_rolls_rad`` of the frames
-    toward the centre, to 1e-9 deg: 30, not 29.99..96), the model's own sites' kept (``PortModel.rolls_deg``)."""
-    from surgopt.kinematics import port_place as K
-
-    if sites is model.sites_m:
-        return model.rolls_deg
-    rot = K.docking_frames(sites, model.centre_m, LATERAL)
-    return np.round(np.degrees(instrument_rolls_rad(model, sites, rot)), 9) + 0.0
+def in_degrees(rolls_rad: np.ndarray) -> np.ndarray:
+    """Docking rolls as the rows and the export give them: deg to 1e-9 (30, not 29.99..96), never -0."""
+    return np.round(np.degrees(rolls_rad), 9) + 0.0
 
 
 def instrument_frames(model: PortModel, sites: np.ndarray, rot: np.ndarray) -> np.ndarray:
@@ -319,14 +308,15 @@ def port_tables(model: PortModel, sites: np.ndarray, rot: np.ndarray, outside=No
     cfg, targets, centre, crit, camera = model.cfg, model.targets_m, model.centre_m, model.criteria, model.camera
     r = cfg.robot
     serial = held = None
+    rolls = instrument_rolls_rad(model, sites, rot)  # the instruments' frames (``instrument_frames``), once
+    frames = rolled(rot, rolls)
     if r.instrument_serial is not None:  # a serial arm: its own IK, and its links' clearance outside
         serial = serial_arms.serial_tables(model, sites, base_yaw_rad)
         reach = serial.reach & approach_mask(sites, targets, model.cone)
         dex = np.where(reach, serial.dexterity, 0.0)
         outside = serial.outside_m
     else:
-        reach, dex = K.instrument_tables(sites, instrument_frames(model, sites, rot), targets, model.limits,
-                                         crit.dexterity_length_m, model.cone)
+        reach, dex = K.instrument_tables(sites, frames, targets, model.limits, crit.dexterity_length_m, model.cone)
     coverage = K.camera_coverage(sites, rot, targets, centre, camera)
     views = K.camera_views(sites, rot, centre, camera) if (r.camera_serial or camera.scope_angle_rad) else None
     if r.camera_serial is not None:  # the endoscope held by a serial arm: placed by its IK
@@ -344,9 +334,10 @@ def port_tables(model: PortModel, sites: np.ndarray, rot: np.ndarray, outside=No
     tables = D.PortTables(reach.sum(axis=1).astype(np.int64), coverage, *pairs, spacing, azimuth, side,
                           len(targets), D.reach_bits(reach), D.site_dexterity(reach, dex),
                           wrist_margin_deg(model, sites), outside_camera,
-                          *((dock.bits, dock.camera) if dock is not None else no_cart(len(sites))))
+                          *((dock.bits, dock.camera) if dock is not None else no_cart(len(sites))),
+                          roll_deg=in_degrees(rolls))
     if links_decide(cfg) and dock is not None and dock.joints is not None:
-        tables = with_links(model, tables, sites, instrument_frames(model, sites, rot), dock)
+        tables = with_links(model, tables, sites, frames, dock)
     return tables, reach, dex
 
 
@@ -603,6 +594,7 @@ class DockedArm(NamedTuple):
     port_m: tuple
     base: np.ndarray | None  # the arm's base (RCM) frame in the cart's world frame
     ecm: tuple  # the ECM's yaw and pitch aiming the scope (empty for an instrument arm)
+    roll_deg: float | None = None  # an instrument arm's docking roll about its neutral shaft (deg, x toward y)
 
 
 def docked_arms(cfg: PortPlaceConfig, row: dict) -> list[DockedArm]:
@@ -631,14 +623,15 @@ def docked_arms(cfg: PortPlaceConfig, row: dict) -> list[DockedArm]:
                 out.append(DockedArm("ECM", str(row["ecm_site"]), (), None, "", "no grid point of the ECM's setup "
                                      "joints docks it", tuple(site), None, ()))
             continue
-        rot = instrument_frames(model_of(cfg), site[None], K.docking_frames(site[None], centre, LATERAL))[0]
-        base = patient @ base_pose(rot, site)
+        neutral = K.docking_frames(site[None], centre, LATERAL)
+        roll = instrument_rolls_rad(model_of(cfg), site[None], neutral)  # as the tables (``instrument_frames``)
+        base = patient @ base_pose(rolled(neutral, roll)[0], site)
         answer = S.classic_psm_ik(CARTS[cart.model][arm.upper()], base)
         if answer.within:
             best = answer.within[0]
             out.append(DockedArm(arm.upper(), str(row[f"{arm}_site"]), best.joints, best.margin, best.tightest, "",
-                                 tuple(site), base, ()))
+                                 tuple(site), base, (), float(in_degrees(roll)[0])))
         else:
             out.append(DockedArm(arm.upper(), str(row[f"{arm}_site"]), (), None, "", answer.reason, tuple(site),
-                                 base, ()))
+                                 base, (), float(in_degrees(roll)[0])))
     return out
