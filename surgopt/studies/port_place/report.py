@@ -42,6 +42,15 @@ CLINICAL_CHECKS = (
 )
 
 
+#: What reading a run's config again from its rows' metadata can raise (an older run's fields, a missing key).
+STORED_ERRORS = (ValueError, OSError, KeyError)
+
+
+def stored_config(meta: dict) -> PortPlaceConfig:
+    """The run's config as its rows' metadata keep it (its files are not read and hashed again)."""
+    return PortPlaceConfig.model_validate(json.loads(meta["config"]), context={"stored": True})
+
+
 def within_band(values, band) -> str:
     """"yes", "OUTSIDE" (any value out of the band) or "" (the literature gives no band)."""
     if band is None:
@@ -57,9 +66,7 @@ NOT_MODELLED = ("the Si cart's and the Xi's setup joints, tissue and the body wa
 
 def summary(parts) -> Summary:
     """Feasible count, each reason's count, the best feasible design by cost with its clinical checks."""
-    from surgopt.kinematics.port_reasons import REASONS
-
-    from surgopt.kinematics.port_reasons import DOCKING
+    from surgopt.kinematics.port_reasons import DOCKING, REASONS
 
     n = parts.num_rows
     by_bit = dict.fromkeys(REASONS, 0)
@@ -137,13 +144,11 @@ def docking_tables(best: dict, meta: dict) -> list:
     pose, and the run's config in the rows' metadata), docked as the dvrk export docks it (``docking_that_clears``:
     where the links overlap at the run's own docking and a roll of each PSM about its shaft clears them, so),
     and the links' clearances so docked."""
-    import json
-
     from surgopt.studies.port_place.clashes import docking_that_clears
 
-    try:  # as stored: its files are not read and hashed again
-        cfg = PortPlaceConfig.model_validate(json.loads(meta["config"]), context={"stored": True})
-    except (ValueError, OSError, KeyError) as exc:
+    try:
+        cfg = stored_config(meta)
+    except STORED_ERRORS as exc:
         return [("best layout: the cart", ["note"], [[f"the run's config cannot be read again ({exc}); the cart "
                                                        f"pose is in the row's cart_* columns"]])]
     docked, rolls, _, clearances = docking_that_clears(cfg, best)  # as the export docks it
@@ -203,9 +208,9 @@ def undocked_table(parts, meta: dict) -> list:
     got = {c: np.concatenate(v) if v else np.zeros(0) for c, v in cols.items()}
     best = np.lexsort((got["design_id"], got["cost"]))[:UNDOCKED_OF_BEST]
     undocked = best[got["infeasible"][best] != 0]
-    try:  # as stored: its files are not read and hashed again
-        cfg = PortPlaceConfig.model_validate(json.loads(meta["config"]), context={"stored": True})
-    except (ValueError, OSError, KeyError):
+    try:
+        cfg = stored_config(meta)
+    except STORED_ERRORS:
         return []
     if cfg.cart.pose == "search":  # each trial docked at its own pose, not at the grid's
         return []
@@ -257,9 +262,9 @@ def clearance_screen(rows: list[dict], meta: dict):
     first layout that clears, at the run's roll or with rolls; else how much the least of them overlaps."""
     from surgopt.studies.port_place.clashes import layout_clearances, least, rolls_that_clear
 
-    try:  # as stored: its files are not read and hashed again
-        cfg = PortPlaceConfig.model_validate(json.loads(meta["config"]), context={"stored": True})
-    except (ValueError, OSError, KeyError):
+    try:
+        cfg = stored_config(meta)
+    except STORED_ERRORS:
         return None
     out, clear = [], None
     for r in rows[:SCREEN_LAYOUTS]:
