@@ -231,7 +231,7 @@ def test_the_tables_and_the_report_dock_each_arm_with_the_same_joints():
 def test_the_report_screens_the_cheaper_layouts_that_fail_only_on_their_links(tmp_path):
     """With the links in feasible, the closing report's screen takes, before the feasible layouts, those cheaper
     than the best feasible one that fail only on their links (reason 16: docked, overlapping at the run's roll),
-    by cost: each PSM's roll may clear them (``study.with_cheaper_overlapping``). Premise: such layouts exist."""
+    by cost: each PSM's roll may clear them (``report.with_cheaper_overlapping``). Premise: such layouts exist."""
     from surgopt.runner import run_study
     from surgopt.store import Store
 
