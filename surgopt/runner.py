@@ -502,9 +502,10 @@ def _warm_up(study, cfg, say=None) -> tuple[float, bool]:
 
         def notice():
             told.append(compiling.is_set())
+            builds = f" and building {study.warm_up_builds}" if study.warm_up_builds else ""
             say(f"compiling the {study.name} kernels (the first run after an install or an update; later runs load "
-                f"them from {numba_cache_dir()}) ..." if told[0] else
-                f"loading the {study.name} kernels from {numba_cache_dir()} ...")
+                f"them from {numba_cache_dir()}){builds} ..." if told[0] else
+                f"loading the {study.name} kernels from {numba_cache_dir()}{builds} ...")
 
         timer = None
         if say is not None:
@@ -519,5 +520,6 @@ def _warm_up(study, cfg, say=None) -> tuple[float, bool]:
                 timer.cancel()
         took = time.perf_counter() - t0
         if told and say is not None:
-            say(f"kernels {'compiled' if compiling.is_set() else 'loaded'} in {took:.0f} s")
+            say(f"kernels {'compiled' if compiling.is_set() else 'loaded'}"
+                f"{', tables built' if study.warm_up_builds else ''} in {took:.0f} s")
         return took, compiling.is_set()

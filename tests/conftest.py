@@ -28,7 +28,7 @@ configure_numba()
 #: The notes a run prints while it compiles the kernels or waits for another process compiling them into the
 #: shared cache (surgopt.runner._warm_up): under two test workers they can come before a fault's one line.
 COMPILE_NOTES = ("waiting for another surgopt process compiling", "waited ", "compiling the ", "loading the ",
-                 "kernels compiled in", "kernels loaded in")
+                 "kernels compiled", "kernels loaded")
 
 
 def fault_lines(text: str) -> list[str]:

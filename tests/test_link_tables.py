@@ -231,7 +231,8 @@ def test_the_tables_and_the_report_dock_each_arm_with_the_same_joints():
 def test_the_report_screens_the_cheaper_layouts_that_fail_only_on_their_links(tmp_path):
     """With the links in feasible, the closing report's screen takes, before the feasible layouts, those cheaper
     than the best feasible one that fail only on their links (reason 16: docked, overlapping at the run's roll),
-    by cost: each PSM's roll may clear them (``report.with_cheaper_overlapping``). Premise: such layouts exist."""
+    by cost: each PSM's roll may clear them (``report.with_cheaper_overlapping``); the headline and the figures
+    then name the first that clears, cheaper than every feasible row. Premise: such layouts exist."""
     from surgopt.runner import run_study
     from surgopt.store import Store
 
@@ -252,3 +253,39 @@ def test_the_report_screens_the_cheaper_layouts_that_fail_only_on_their_links(tm
                            columns=["design_id", "cost", "infeasible"]).to_pandas()
     below = table[(table.infeasible == OUTSIDE) & (table.cost < first[0])].sort_values(["cost", "design_id"])
     assert [r["design_id"] for r in cheaper] == below.design_id.tolist()[:len(cheaper)]  # the cheapest of them
+    # the headline and the figures name the same layout: the first of those screened that clears, here with
+    # its PSMs rolled (the roll search faked: test_port_place_cart holds the real one; it costs ~1 s a layout)
+    from surgopt.studies.plotting import columns
+    from surgopt.studies.port_place import clashes, figures
+
+    clears = cheaper[min(2, len(cheaper) - 1)]["design_id"]
+    asked = []
+
+    def fake_clearances(cfg, row, docked=None):
+        v = 5.0 if row["feasible"] or docked else -10.0
+        return [clashes.Clearance("PSM1 and PSM2, docked", v, "a", "b", "docked")]
+
+    def fake_rolls(cfg, row):
+        asked.append(row["design_id"])
+        if row["design_id"] != clears:
+            return clashes.RollsThatClear({}, None, 4)
+        return clashes.RollsThatClear({"PSM1": 0.0, "PSM2": -75.0}, clashes.Clearance("x", 3.0, "p", "q", "w"), 4,
+                                      dexterity=row["dexterity_mean"], cost=row["cost"])
+
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setattr(clashes, "layout_clearances", fake_clearances)
+        mp.setattr(clashes, "rolls_that_clear", fake_rolls)
+        summary = R.summary(parts)
+        head = summary.headline
+        assert head["best_design_id"] == clears and "best_at_run_roll" in head  # cheaper than every feasible row
+        assert head["best_at_run_roll"].startswith(f"design {feasible[0]['design_id']}, ")
+        assert asked[0] == cheaper[0]["design_id"] and clears in asked  # screened by cost until one clears
+        (checks,) = [t for t in summary.tables if t[0] == "best layout: clinical checks"]
+        ports = [t for t in summary.tables if t[0].startswith("best layout: ports")][0][2]
+        assert [int(p[1]) for p in ports] == [next(r for r in cheaper if r["design_id"] == clears)[f"{a}_site"]
+                                             for a in ("psm1", "psm2", "ecm")]
+        table = run.read_table(S.STUDY.schema_for(run.manifest["config"]),
+                               columns=S.figure_columns(run.manifest["config"]))
+        c = columns(table)
+        assert c["design_id"][figures.chosen(c, None, cfg)] == clears  # the figures draw the headline's layout
+        assert c["design_id"][figures.chosen(c, None, None)] == feasible[0]["design_id"]  # without: the rows'

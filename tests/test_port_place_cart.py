@@ -20,8 +20,13 @@ from conftest import cli
 from reference import suj_forward_reference
 
 SMALL = {"patient": {"port_region": {"site_spacing_mm": 36.0}}, "target": {"spacing_mm": 15.0}}
-MIDLINE = {**SMALL, "cart": {"model": "classic", "pose": "given", "x_mm": 0.0, "y_mm": -1500.0, "heading_deg": 0.0}}
-GRID = {**SMALL, "cart": {"model": "classic", "around_step_deg": 30.0, "distance_step_mm": 300.0}}
+#: The links outside the body are the default's (min_link_clearance_mm = 0) but off here: these tests are about
+#: docking alone (tests/test_link_tables.py checks the links; the ECM's one-handed setup joints are no mirror
+#: image of themselves, so its links would break the mirror twins).
+NO_LINKS = {"constraints": {"min_link_clearance_mm": "off"}}
+MIDLINE = {**SMALL, **NO_LINKS,
+           "cart": {"model": "classic", "pose": "given", "x_mm": 0.0, "y_mm": -1500.0, "heading_deg": 0.0}}
+GRID = {**SMALL, **NO_LINKS, "cart": {"model": "classic", "around_step_deg": 30.0, "distance_step_mm": 300.0}}
 #: The dVRK documentation's quoted Classic PSM SUJ ranges (deg; the column's in m is an assumption): j1 .. j5.
 QUOTED = {"PSM1": [(-90, 90), (-135, 0), (-90, 90), (-135, 135), (-135, 135)],
           "PSM2": [(-90, 90), (0, 135), (-90, 90), (-135, 135), (-135, 135)]}
@@ -299,25 +304,26 @@ def test_the_best_layouts_are_screened_for_their_links_clearance(monkeypatch):
     monkeypatch.setattr(clashes, "rolls_that_clear", fake_rolls)
     monkeypatch.setattr(R, "_below_table", lambda cfg, row, rolls: "")  # these rows have no cart pose to dock at
     meta = {"config": json.dumps(C.PortPlaceConfig.model_validate(SMALL).model_dump(mode="json"))}
-    word, (title, header, table) = R.clearance_screen(rows, meta)
-    assert seen == [0, 1, 2] and len(table) == 3  # screened by cost until one clears
+    word, (title, header, table), chosen = R.clearance_screen(rows, meta)
+    assert seen == [0, 1, 2] and len(table) == 3 and chosen is None  # screened by cost until one clears
     assert word.startswith("design 2 (") and [r[2] for r in table] == ["-100", "-20", "5"]
     assert table[0][-1] == "none of 9 that reach and dock" and table[2][-1] == "-"  # tried only where it overlaps
     least_mm.update({2: -5.0, 3: -8.0})
     rolled[3] = ({"PSM1": 0.0, "PSM2": -60.0}, 12.0)
-    word, (_, _, table) = R.clearance_screen(rows, meta)
+    word, (_, _, table), chosen = R.clearance_screen(rows, meta)
     assert word.startswith("design 3 with its PSMs' docking rolled (PSM2 -60 deg") and "12 mm" in word
+    assert chosen[0]["design_id"] == 3 and chosen[1].rolls == {"PSM1": 0.0, "PSM2": -60.0}  # the headline's
     assert table[3][-1].startswith("PSM1 +0, PSM2 -60: 12 mm") and table[3][-1].endswith("cost 0.34")
     assert "so docked its cost is 0.3400 (at the run's roll 0.3300" in word
     assert "its row fails on its links" not in word and title.startswith("the best feasible layouts")
     rows[3]["feasible"] = False  # with the links in feasible: a cheaper layout failing only on them, screened first
-    word, (title, _, _) = R.clearance_screen(rows, meta)
+    word, (title, _, _), _ = R.clearance_screen(rows, meta)
     assert "its row fails on its links at the run's roll (reason 16)" in word
     assert title.startswith("the best layouts (the feasible ones and, as the links are in feasible")
     rows[3]["feasible"] = True
     rolled.clear()
     seen.clear()
-    word, (_, _, table) = R.clearance_screen(rows, meta)
+    word, (_, _, table), _ = R.clearance_screen(rows, meta)
     assert word.startswith(f"none of the {R.SCREEN_LAYOUTS} best") and "by 5 mm or more" in word
     assert seen == list(range(R.SCREEN_LAYOUTS)) and len(table) == R.SCREEN_LAYOUTS  # at most SCREEN_LAYOUTS
 
@@ -526,7 +532,7 @@ def test_a_searched_cart_pose_docks_each_design_at_its_own_pose(tmp_path):
     for around, distance, offset in ((-60.0, 900.0, 20.0), (60.0, 1200.0, -20.0), (0.0, 1500.0, 0.0)):
         x_mm, y_mm, heading = T.floor_pose(cfg, around, distance, offset)
         assert T.off_table(cfg.cart, np.array([x_mm]), np.array([y_mm]))[0]  # the cart can stand there
-        given = validate({**SMALL, "cart": {"model": "classic", "pose": "given", "x_mm": x_mm, "y_mm": y_mm,
+        given = validate({**SMALL, **NO_LINKS, "cart": {"model": "classic", "pose": "given", "x_mm": x_mm, "y_mm": y_mm,
                                             "heading_deg": heading}}, C.Config, "x")
         grid = S.compute_task(given, 10 ** 6, 0)
         pick = np.arange(0, len(grid["design_id"]), 211)

@@ -56,9 +56,9 @@ def test_three_psm_port_placement_on_dask_equals_threads_and_its_feasible_rows(t
     table (the premises: some are feasible, most are not, and some fail on docking alone)."""
     study = get_study("port-place")
     small = {"patient": {"port_region": {"site_spacing_mm": 50.0}}, "target": {"spacing_mm": 15.0},
-             "robot": {"instrument_count": 3},
-             "cart": {"model": "classic", "around_step_deg": 30.0, "distance_step_mm": 300.0}}
-    cfg = study.config_model.model_validate(small)
+             "robot": {"instrument_count": 3}, "constraints": {"min_link_clearance_mm": "off"},  # docking alone:
+             "cart": {"model": "classic", "around_step_deg": 30.0, "distance_step_mm": 300.0}}  # with the links
+    cfg = study.config_model.model_validate(small)  # no 3-PSM layout of this size clears (test_link_tables)
 
     def run(tag, cfg, **kw):
         return run_study(study, cfg, config_name=tag, store=Store(tmp_path / tag), quiet=True, **kw).table

@@ -153,6 +153,9 @@ class Study:
     #: Override sets (KEY=VALUE strings) whose kernels the embedded default does not compile: ``surgopt warm``
     #: compiles them too (another metric, a generic arm, a serial arm in port-place)
     warm_variants: tuple[tuple[str, ...], ...] = ()
+    #: What ``warm_up(cfg)`` builds besides loading the kernels, for the word the runner says while it runs (e.g.
+    #: "the per-port tables"); "": the kernels alone
+    warm_up_builds: str = ""
     search_plan: Callable[[Any], Any] | None = None  # a SearchPlan when the config asks for an optimiser
     #: ``evaluate(cfg, x, ids, source)``: rows of any designs (rows of x in ``search_plan``'s dimension order),
     #: what the optimiser and refine plans evaluate; None: the study is explored by its grid alone

@@ -320,15 +320,20 @@ class Constraints(StrictModel):
     min_external_clearance_mm: float = Field(60.0, ge=0, description="between arm axes outside the body, along "
                                                                      "the 0.4318 m behind each port (without "
                                                                      "the cart: with it the links decide)")
-    min_link_clearance_mm: float | None = Field(None, ge=-25.0, le=500.0,
-                                                description="with the cart: the least clearance between the arms' "
-                                                            "links outside the body (setup joints and the arms' "
-                                                            "own, capsules), docked and over the target, that a "
-                                                            "feasible layout keeps at its cart pose (replaces the "
-                                                            "shaft lines' min_external_clearance_mm); unset: the "
-                                                            "links are checked for the best layouts only; at least "
-                                                            "-25 (an overlap under the thinnest link's 30 mm "
-                                                            "radius: a link inside the body reads as its radius)")
+    min_link_clearance_mm: Annotated[float, Field(ge=-25.0, le=500.0)] | Literal["off"] = Field(
+        0.0, description="with the cart: the least clearance (mm) between the arms' links outside the body (setup "
+                         "joints and the arms' own, capsules), docked and over the target, that a feasible layout "
+                         "keeps at its cart pose, and of each arm to the patient's body and the table (replaces "
+                         "the shaft lines' min_external_clearance_mm); 'off': feasible leaves the links out and "
+                         "the closing report checks the best layouts' only; at least -25 (an overlap under the "
+                         "thinnest link's 30 mm radius: a link inside the body reads as its radius)")
+
+    @property
+    def link_least_mm(self) -> float | None:
+        """``min_link_clearance_mm`` as a number, None when 'off'."""
+        v = self.min_link_clearance_mm
+        return None if v == "off" else float(v)
+
     manipulation_angle_deg: list[float] = Field([45.0, 75.0], min_length=2, max_length=2)
     dexterity_length_m: float = Field(0.1, gt=0, description="characteristic length L of the isotropy")
 

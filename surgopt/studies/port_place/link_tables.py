@@ -315,7 +315,7 @@ def link_tables(model, sites: np.ndarray, rot: np.ndarray, dock, wanted: Wanted)
     static["ECM"], docks["ECM"] = ecm_static(cfg, dock), dock.camera_margin >= 0.0
     none = np.zeros((n, 1, 0, 2, 3))
     no_balls = np.zeros((n, 0, len(groups) - 1, 4))
-    least = cfg.constraints.min_link_clearance_mm / 1000
+    least = cfg.constraints.link_least_mm / 1000
     cap = least + CAP_M
     value, code, words = {}, {}, {}
     arm_value, arm_code = arm_surroundings(cfg, own, r_own, static, docks)

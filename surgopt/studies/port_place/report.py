@@ -96,7 +96,16 @@ def summary(parts) -> Summary:
     tables = []
     if best.num_rows:
         b = best.to_pylist()[0]
-        headline.update({"best_design_id": b["design_id"], "best_cost": b["cost"]})
+        screen = clearance_screen(screened, meta) if "cart_pose" in b else None
+        rolled_best = screen[2] if screen is not None else None
+        if rolled_best is not None and not rolled_best[0]["feasible"]:
+            # cheaper than every row that clears at the run's roll, and clear with its PSMs rolled: the answer
+            headline.update({"best_design_id": rolled_best[0]["design_id"], "best_cost": rolled_best[1].cost,
+                             "best_at_run_roll": f"design {b['design_id']}, cost {b['cost']:.6f} (the rows' "
+                                                 f"best feasible: its links clear at the run's docking roll)"})
+            b = rolled_best[0]
+        else:
+            headline.update({"best_design_id": b["design_id"], "best_cost": b["cost"]})
         checks = [[label + (" (all three instruments)" if fields == ("common_reach",) and "psm3_reach" in b else ""),
                    joiner.join(f"{b[f]:.{digits}f}" for f in fields), clinical,
                    within_band([b[f] for f in fields], band)]
@@ -109,19 +118,19 @@ def summary(parts) -> Summary:
                  for arm in ("psm1", "psm2", "psm3", "ecm") if f"{arm}_site" in b]
         tables.append((f"best layout: ports ({FRAME_TEXT})", ["arm", "site", "x_mm", "y_mm", "z_mm"]
                        + ([f"from the {mark[0]} (mm, top view)"] if mark else []), ports))
-        if "cart_pose" in b:  # the screen first: the best layout's clearances and rolls are then known
-            screen = clearance_screen(screened, meta)
+        if "cart_pose" in b:  # after the screen: the best layout's clearances and rolls are then known
             tables += docking_tables(b, meta)
             if meta.get("rows_stored") != "feasible":
                 tables += undocked_table(parts, meta)
             if screen is not None:
-                headline["links_clear"], table = screen
+                headline["links_clear"], table, _ = screen
                 tables.append(table)
         cols = ["design_id", "cost", "common_reach", "dexterity_mean", "manipulation_angle_mean_deg",
                 "azimuth_imbalance_deg", "camera_coverage"]
         repeats = best.schema.metadata.get(b"repeats_collapsed", b"0").decode() if best.schema.metadata else "0"
-        tables.append(("best feasible designs by cost" + (f" ({repeats} repeats of a listed layout collapsed)"
-                                                          if repeats != "0" else ""), cols,
+        at_roll = " (their links clear at the run's docking roll)" if "best_at_run_roll" in headline else ""
+        tables.append(("best feasible designs by cost" + at_roll + (f" ({repeats} repeats of a listed layout "
+                                                                   f"collapsed)" if repeats != "0" else ""), cols,
                        [[f"{r[c]:.4g}" if isinstance(r[c], float) else str(r[c]) for c in cols] for r in best.to_pylist()]))
         if mark:
             arms = [a for a in ("psm1", "psm2", "psm3", "ecm") if f"{a}_x_mm" in b]
@@ -176,7 +185,7 @@ def docking_tables(best: dict, meta: dict) -> list:
 def in_feasible(cfg) -> str:
     """What of the links' clearance feasible holds: between arms with ``constraints.min_link_clearance_mm``."""
     if links_of(cfg):
-        return f"in feasible, at least {cfg.constraints.min_link_clearance_mm:g} mm"
+        return f"in feasible, at least {cfg.constraints.link_least_mm:g} mm"
     return "not yet part of feasible"
 
 
@@ -256,8 +265,9 @@ def with_cheaper_overlapping(parts, feasible: list[dict]) -> list[dict]:
 
 def clearance_screen(rows: list[dict], meta: dict):
     """The best layouts (``rows``, distinct, by cost) screened for their links' clearance outside the body, which
-    feasible does not yet include (issue 40): (the headline's word, the table), or None when the run's config
-    cannot be read again. A layout whose links overlap at the run's docking roll is tried with each PSM's own
+    feasible may leave out (issue 40; the rows' feasible has them at the run's docking roll only): (the
+    headline's word, the table, (the row, its ``RollsThatClear``) when the first that clears does so only with
+    its PSMs rolled, else None), or None when the run's config cannot be read again. A layout whose links overlap at the run's docking roll is tried with each PSM's own
     roll (``clashes.rolls_that_clear``: full reach and the setup joints' ranges kept). The headline names the
     first layout that clears, at the run's roll or with rolls; else how much the least of them overlaps."""
     from surgopt.studies.port_place.clashes import layout_clearances, least, rolls_that_clear
@@ -266,7 +276,7 @@ def clearance_screen(rows: list[dict], meta: dict):
         cfg = stored_config(meta)
     except STORED_ERRORS:
         return None
-    out, clear = [], None
+    out, clear, chosen = [], None, None
     for r in rows[:SCREEN_LAYOUTS]:
         c = least(layout_clearances(cfg, r))
         if c is None:
@@ -293,6 +303,7 @@ def clearance_screen(rows: list[dict], meta: dict):
                      + ("" if r["feasible"] else "; its row fails on its links at the run's roll (reason 16), and it "
                         "is cheaper than every feasible layout")
                      + "; `surgopt export --format dvrk` docks it so" + _below_table(cfg, r, rolled))
+            chosen = (r, rolled)
         if clear is not None:  # what the headline needs: the best layout that clears (each costs ~0.5-2 s)
             break
     if not out:
@@ -311,7 +322,7 @@ def clearance_screen(rows: list[dict], meta: dict):
              f"links' least clearance outside the body (capsules, radii "
              f"assumed; negative: they overlap; {in_feasible(cfg)}), and each PSM's docking roll (deg, "
              f"{ROLL_TEXT}) at which they clear")
-    return word, (title, ["design_id", "cost", "least_clearance_mm", "between", "links", "with rolls"], out)
+    return word, (title, ["design_id", "cost", "least_clearance_mm", "between", "links", "with rolls"], out), chosen
 
 
 def _below_table(cfg, row: dict, rolled) -> str:

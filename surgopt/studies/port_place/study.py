@@ -180,7 +180,9 @@ def links_of(config) -> bool:
     if cart_of(config) == "none":
         return False
     if isinstance(config, dict):
-        return (config.get("constraints") or {}).get("min_link_clearance_mm") is not None
+        # as stored: the field's value; absent, its default (0: on); None, a run from before it was the default
+        least = (config.get("constraints") or {}).get("min_link_clearance_mm", 0.0)
+        return least is not None and least != "off"
     from surgopt.studies.port_place.tables import links_decide
 
     return links_decide(config)
@@ -733,7 +735,10 @@ def figure_columns(config) -> list[str]:
     cart, its pose and the ports' positions (the cart figure solves the setup joints again from them)."""
     arms = arms_of(config)
     cart = [*CART_COLUMNS, *(f"{arm}_{c}_mm" for arm in arms for c in "xyz")] if cart_of(config) != "none" else []
-    return ["design_id", *(f"{arm}_site" for arm in arms), "cost", "feasible", "infeasible", *cart]
+    # with the links in feasible, the figures draw the report's best layout: its PSMs' rolls searched, whose cost
+    # so docked reads the row's dexterity (``clashes.rolled_cost``)
+    rolled = ["dexterity_mean", *(["psm3_dexterity_mean"] if "psm3" in arms else [])] if links_of(config) else []
+    return ["design_id", *(f"{arm}_site" for arm in arms), "cost", "feasible", "infeasible", *cart, *rolled]
 
 
 def feasible_mask(table):
@@ -777,5 +782,6 @@ STUDY = Study(
     exports={"dvrk": dvrk_export, "ports": ports_export},
     warm_variants=(('robot.instrument_serial={model = "pa10_7c", rcm_in_base_m = [0.65, 0.0, 0.5]}',
                     "constraints.min_external_clearance_mm=150.0"),),
+    warm_up_builds="the per-port tables (with the cart: its setup joints at every site and pose, the arms' links)",
     evaluate=evaluate_designs, figure_columns=figure_columns, preflight=preflight, top_columns=top_columns,
     design_identity=design_identity)

@@ -343,8 +343,8 @@ def port_tables(model: PortModel, sites: np.ndarray, rot: np.ndarray, outside=No
 
 def links_decide(cfg: PortPlaceConfig) -> bool:
     """Whether the arms' links outside the body are in the rows' feasible: with the cart and
-    ``constraints.min_link_clearance_mm`` given."""
-    return cfg.cart.model != "none" and cfg.constraints.min_link_clearance_mm is not None
+    ``constraints.min_link_clearance_mm`` not 'off' (a run stored before it was the default: None)."""
+    return cfg.cart.model != "none" and cfg.constraints.link_least_mm is not None
 
 
 def with_links(model: PortModel, tables, sites: np.ndarray, rot: np.ndarray, dock):
