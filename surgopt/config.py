@@ -191,8 +191,29 @@ def _error_text(err: dict, model: type[BaseModel] | None = None) -> str:
 
 
 def _loc(err: dict) -> tuple:
-    """The error's location without the union-form tags of a discriminated field ('<span>', '<list>')."""
-    return tuple(p for p in err["loc"] if not (isinstance(p, str) and p.startswith("<")))
+    """The error's location without the union-form tags of a discriminated field ('<span>', '<list>') or of a
+    plain union's members ('constrained-float', "literal['off']", 'float')."""
+    return tuple(p for p in err["loc"] if not _union_tag(p))
+
+
+def _union_tag(part) -> bool:
+    return isinstance(part, str) and (part.startswith(("<", "constrained-", "function-")) or "[" in part
+                                      or part in ("float", "int", "str", "bool"))
+
+
+def _one_per_field(errors: list[dict]) -> list[dict]:
+    """A field's errors from each member of a union (``float | Literal['off']``: "should be >= -25", "should be
+    'off'") as one: "Input should be greater than or equal to -25, or be 'off'"."""
+    out, at = [], {}
+    for e in errors:
+        loc = _loc(e)
+        if loc in at and len(loc) < len(e["loc"]):
+            first = out[at[loc]]
+            out[at[loc]] = {**first, "msg": f"{first['msg']}, or {e['msg'].removeprefix('Input should ')}"}
+        else:
+            at[loc] = len(out)
+            out.append(e)
+    return out
 
 
 def validate(data: Any, model: type[M], source: str, context: dict | None = None) -> M:
@@ -207,7 +228,7 @@ def validate(data: Any, model: type[M], source: str, context: dict | None = None
     try:
         return model.model_validate(data, context=context)
     except ValidationError as exc:
-        errors = exc.errors()
+        errors = _one_per_field(exc.errors())
         first = errors[0]
         msg = _error_text(first, model)
         others = [f"{_field_path(_loc(e))}: {_error_text(e, model)}" for e in errors[1:MAX_ERRORS_LISTED]]

@@ -91,3 +91,20 @@ def test_cli_missing_config_exits_2(tmp_path):
                         "--store", str(tmp_path / "s")], capture_output=True, text=True)
     assert r.returncode == 2 and "file not found" in r.stderr
     assert not (tmp_path / "s").exists()
+
+
+@pytest.mark.parametrize("value, says", [(-30.0, "Input should be greater than or equal to -25, or be 'off' (got -30"),
+                                         ("offf", "Input should be a valid number, or be 'off' (got 'offf')")])
+def test_a_field_of_a_number_or_a_word_says_both_in_one_error(value, says):
+    """A field that takes a number or a word (port-place's ``min_link_clearance_mm``: mm, or 'off') refused in one
+    error naming the field, not once per member of its union with pydantic's tags ('constrained-float',
+    "literal['off']") in the field's path."""
+    from surgopt.config import validate
+    from surgopt.studies.port_place.config import Config
+
+    with pytest.raises(ConfigError) as info:
+        validate({"constraints": {"min_link_clearance_mm": value}}, Config, "my.toml")
+    text = str(info.value)
+    assert "constraints.min_link_clearance_mm: " + says in text and "also" not in text
+    assert "constrained-float" not in text and "literal[" not in text
+    assert validate({"constraints": {"min_link_clearance_mm": "off"}}, Config, "x").constraints.link_least_mm is None
