@@ -14,9 +14,10 @@ HELP = """Port placement for the da Vinci Research Kit on a patient: two or thre
     clearances, cost, and why a design is infeasible (a bit mask). With the patient cart ([cart]; the Classic
     cart by default for the dVRK's arms) each arm's setup joints are solved at every site and cart pose of a
     grid around the table (or one given, or searched), and a design is feasible only where one pose docks every
-    arm; constraints.min_link_clearance_mm=0 also keeps every arm's links (setup joints' and its own, capsules)
-    clear of each other, the patient and the table; `surgopt export KEY --design ID --format dvrk` writes the
-    set-up a dVRK loads. Rows: one per
+    arm with every arm's links (setup joints' and its own, capsules) clear of each other, the patient and the
+    table (constraints.min_link_clearance_mm, mm, 0 by default; off: docking alone); the closing report's best
+    layout may turn a PSM's docking about its shaft to clear them; `surgopt export KEY --design ID --format dvrk`
+    writes the set-up a dVRK loads. Rows: one per
     design. The summary ranks feasible designs by cost and checks the best against the clinical numbers.
     A 3-PSM enumeration runs to 10^8 designs and more: rows_stored=feasible keeps only the feasible designs'
     rows. Any RCM arm from a DH table or URDF ([robot.instrument_file], [robot.camera_file]), or a serial arm
