@@ -289,3 +289,44 @@ def test_the_report_screens_the_cheaper_layouts_that_fail_only_on_their_links(tm
         c = columns(table)
         assert c["design_id"][figures.chosen(c, None, cfg)] == clears  # the figures draw the headline's layout
         assert c["design_id"][figures.chosen(c, None, None)] == feasible[0]["design_id"]  # without: the rows'
+        from surgopt.studies.port_place.html import rolled_note
+
+        assert f"best layout, {clears} (cost" in rolled_note(cfg, parts) and "PSM2 -75 deg" in rolled_note(cfg, parts)
+
+
+def test_with_no_row_feasible_the_headline_names_a_layout_a_roll_clears_or_says_none_does(tmp_path):
+    """No row feasible at the run's roll (every link kept 400 mm apart: the premise, every layout that docks
+    fails on its links): the screen takes the cheapest layouts failing only on their links, and the headline
+    names the first a roll clears (``best_at_run_roll`` says none is feasible at the run's roll), or says that none
+    of them clears. The roll search is faked (``test_port_place_cart`` holds the real one)."""
+    from surgopt.runner import run_study
+    from surgopt.store import Store
+    from surgopt.studies.port_place import clashes
+
+    store = Store(tmp_path / "s")
+    cfg = PC.PortPlaceConfig.model_validate({**LINKS, "constraints": {"min_link_clearance_mm": 400.0}})
+    run_study(S.STUDY, cfg, config_name="far", store=store, jobs=1, quiet=True)
+    (run,) = store.runs("port-place")
+    parts = run.parts(S.STUDY.schema_for(run.manifest["config"]))
+    bad = parts.table().column("infeasible").to_numpy()
+    assert not np.any(bad == 0) and np.count_nonzero(bad == OUTSIDE) > R.SCREEN_LAYOUTS  # the premise
+    cheapest = R.least_cost_layouts(parts, R.SCREEN_LAYOUTS, False, only_reasons=OUTSIDE).to_pylist()
+    clears = {cheapest[3]["design_id"]}
+
+    def fake_rolls(cfg, row):
+        if row["design_id"] not in clears:
+            return clashes.RollsThatClear({}, None, 4)
+        return clashes.RollsThatClear({"PSM1": 30.0, "PSM2": 0.0}, clashes.Clearance("x", 1.0, "p", "q", "w"), 4,
+                                      dexterity=row["dexterity_mean"], cost=row["cost"])
+
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setattr(clashes, "layout_clearances",
+                   lambda cfg, row, docked=None: [clashes.Clearance("PSM1 and PSM2, docked", -5.0, "a", "b", "d")])
+        mp.setattr(clashes, "rolls_that_clear", fake_rolls)
+        head = R.summary(parts).headline
+        assert head["best_design_id"] == cheapest[3]["design_id"] and head["best_at_run_roll"].startswith("none")
+        assert "best" not in head
+        clears.clear()
+        head = R.summary(parts).headline
+        assert head["best"].startswith("none") and "best_design_id" not in head
+        assert head["links_clear"].startswith(f"none of the {R.SCREEN_LAYOUTS} best layouts failing only on their links")

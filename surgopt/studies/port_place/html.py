@@ -135,7 +135,8 @@ def views(run, cfg, parts) -> list[View]:
             f'<th>from the {mark_name} (mm)</th></tr></thead><tbody></tbody></table></div></div>'
             f"<h3>Top layouts: the {feasible.num_rows} feasible of least cost"
             + (f" and the {infeasible.num_rows} infeasible of least cost" if infeasible is not None else "")
-            + f" (of {parts.num_rows:,} rows)</h3>{filters}<div class=\"scroll\">{table}</div>",
+            + f" (of {parts.num_rows:,} rows)</h3>{rolled_note(cfg, parts)}{filters}"
+            + f"<div class=\"scroll\">{table}</div>",
         data, "pp-data", SCENE_SCRIPT)]
     if reasons:
         views_out.append(View("Why layouts fail", "Counts of layouts failing each check (a layout can fail several).",
@@ -155,6 +156,27 @@ def views(run, cfg, parts) -> list[View]:
                                                                   "colorscale": "Viridis", "reversescale": True}}],
                                                "layout": {"height": 460, "margin": {"l": 80, "r": 80}}}}))
     return views_out
+
+
+def rolled_note(cfg, parts) -> str:
+    """A line saying that the headline's best layout is not in the table as feasible: its row fails on its links
+    at the run's docking roll and it clears with its PSMs rolled (``report.headline_layout``); "" otherwise."""
+    from surgopt.studies.port_place.report import headline_layout
+    from surgopt.studies.port_place.study import links_of
+
+    if not links_of(cfg):
+        return ""
+    meta = {k.decode(): v.decode() for k, v in (parts.schema.metadata or {}).items()}
+    found = headline_layout(parts, meta)
+    if found is None:
+        return ""
+    row, rolled = found
+    turned = ", ".join(f"{a} {d:+.0f} deg" for a, d in rolled.rolls.items() if d)
+    return (f'<p class="note" id="pp-rolled">The headline\'s best layout, {row["design_id"]} (cost '
+            f'{rolled.cost:.4f}), clears its links only with its PSMs docked rolled about their shafts ({turned}); '
+            f"the rows, and so this table's feasible, hold at the run's docking roll, where its links overlap: "
+            f"it is listed here as infeasible (reason 16) when it is among the least-cost infeasible layouts. "
+            f"The summary's tables below give it docked so.</p>")
 
 
 SCENE_SCRIPT = r"""

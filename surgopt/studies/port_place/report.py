@@ -89,21 +89,19 @@ def summary(parts) -> Summary:
         counts.update({f"infeasible: {why}": by_bit[bit] for bit, why in REASONS.items()})
         headline = {"designs": n, "feasible": feasible}
     best = least_cost_layouts(parts, max(5, SCREEN_LAYOUTS))
-    screened = best.to_pylist()
-    if screened and "cart_pose" in parts.schema.names and links_of(json.loads(meta.get("config", "{}"))):
-        screened = with_cheaper_overlapping(parts, screened)
+    screen = screen_of(parts, meta, best.to_pylist())
+    rolled = rolled_of(screen)
+    first = best.to_pylist()[0] if best.num_rows else None
     best = best.slice(0, 5)
     tables = []
-    if best.num_rows:
-        b = best.to_pylist()[0]
-        screen = clearance_screen(screened, meta) if "cart_pose" in b else None
-        rolled_best = screen[2] if screen is not None else None
-        if rolled_best is not None and not rolled_best[0]["feasible"]:
-            # cheaper than every row that clears at the run's roll, and clear with its PSMs rolled: the answer
-            headline.update({"best_design_id": rolled_best[0]["design_id"], "best_cost": rolled_best[1].cost,
-                             "best_at_run_roll": f"design {b['design_id']}, cost {b['cost']:.6f} (the rows' "
-                                                 f"best feasible: its links clear at the run's docking roll)"})
-            b = rolled_best[0]
+    if first is not None or rolled is not None:
+        b = first
+        if rolled is not None:  # cheaper than every row that clears at the run's roll, clear with its PSMs rolled
+            headline.update({"best_design_id": rolled[0]["design_id"], "best_cost": rolled[1].cost,
+                             "best_at_run_roll": "none: no row is feasible at the run's docking roll" if b is None
+                             else f"design {b['design_id']}, cost {b['cost']:.6f} (the rows' best feasible: its "
+                                  f"links clear at the run's docking roll)"})
+            b = rolled[0]
         else:
             headline.update({"best_design_id": b["design_id"], "best_cost": b["cost"]})
         checks = [[label + (" (all three instruments)" if fields == ("common_reach",) and "psm3_reach" in b else ""),
@@ -125,6 +123,7 @@ def summary(parts) -> Summary:
             if screen is not None:
                 headline["links_clear"], table, _ = screen
                 tables.append(table)
+    if best.num_rows:
         cols = ["design_id", "cost", "common_reach", "dexterity_mean", "manipulation_angle_mean_deg",
                 "azimuth_imbalance_deg", "camera_coverage"]
         repeats = best.schema.metadata.get(b"repeats_collapsed", b"0").decode() if best.schema.metadata else "0"
@@ -138,8 +137,11 @@ def summary(parts) -> Summary:
                            f"right, cranial or caudal)", ["design_id", *arms],
                            [[str(r["design_id"]), *(from_landmark(r[f"{a}_x_mm"], r[f"{a}_y_mm"], mark[1:])
                                                     for a in arms)] for r in best.to_pylist()]))
-    else:
+    if first is None and rolled is None:
         headline["best"] = "none: no design is feasible (see the reasons' counts)"
+        if screen is not None:  # the layouts failing only on their links, none of which a roll cleared
+            headline["links_clear"], table, _ = screen
+            tables.append(table)
     if "cart" in meta:
         headline["cart"] = meta["cart"]
     headline["not_modelled"] = NOT_MODELLED
@@ -252,6 +254,30 @@ SCREEN_LAYOUTS = 10
 ROLL_TEXT = "a 15-degree grid over +-90 about the neutral shaft"
 
 
+def screen_of(parts, meta: dict, best: list[dict]):
+    """``clearance_screen`` of the best feasible layouts ``best`` (by cost), with the links in feasible the cheaper
+    ones that fail only on them first (``with_cheaper_overlapping``); None without the cart."""
+    if "cart_pose" not in parts.schema.names:
+        return None
+    if links_of(json.loads(meta.get("config", "{}"))):
+        best = with_cheaper_overlapping(parts, best)
+    return clearance_screen(best, meta) if best else None
+
+
+def rolled_of(screen) -> tuple | None:
+    """(row, ``RollsThatClear``) of the headline's best layout when it is one whose row is not feasible: it fails
+    only on its links at the run's docking roll, is cheaper than every feasible row, and clears with its PSMs
+    rolled (``screen_of``); else None (the best feasible row is the best)."""
+    chosen = screen[2] if screen is not None else None
+    return chosen if chosen is not None and not chosen[0]["feasible"] else None
+
+
+def headline_layout(parts, meta: dict) -> tuple | None:
+    """``rolled_of`` the run's screen, as the summary finds it (the roll searches memoised in the process: the
+    page asks after the summary)."""
+    return rolled_of(screen_of(parts, meta, least_cost_layouts(parts, max(5, SCREEN_LAYOUTS)).to_pylist()))
+
+
 def with_cheaper_overlapping(parts, feasible: list[dict]) -> list[dict]:
     """With the links in feasible: the layouts cheaper than the best feasible one that fail only on the links
     (reason 16: they dock, and their links overlap at the run's docking roll at every pose) before the feasible
@@ -259,7 +285,7 @@ def with_cheaper_overlapping(parts, feasible: list[dict]) -> list[dict]:
     from surgopt.kinematics.port_reasons import OUTSIDE
 
     cheaper = [r for r in least_cost_layouts(parts, SCREEN_LAYOUTS, False, only_reasons=OUTSIDE).to_pylist()
-               if (r["cost"], r["design_id"]) < (feasible[0]["cost"], feasible[0]["design_id"])]
+               if not feasible or (r["cost"], r["design_id"]) < (feasible[0]["cost"], feasible[0]["design_id"])]
     return sorted(cheaper + feasible, key=lambda r: (r["cost"], r["design_id"]))
 
 
@@ -313,7 +339,8 @@ def clearance_screen(rows: list[dict], meta: dict):
         word = clear.replace("{n}", str(n))
     else:
         worst = max(float(x[2]) for x in out)
-        word = (f"none of the {n} best feasible layouts, at the run's docking roll or each PSM's own: their links "
+        kind = "feasible layouts" if all(r["feasible"] for r in rows[:n]) else "layouts failing only on their links"
+        word = (f"none of the {n} best {kind}, at the run's docking roll or each PSM's own: their links "
                 f"overlap outside the body by {-worst:.0f} mm or more (link clearance: {in_feasible(cfg)})")
     which = ("the best feasible layouts" if all(r["feasible"] for r in rows[:n]) else
              "the best layouts (the feasible ones and, as the links are in feasible, those cheaper that fail only on "
