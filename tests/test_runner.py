@@ -53,7 +53,8 @@ def test_three_psm_port_placement_on_dask_equals_threads_and_its_feasible_rows(t
     """port-place's 3-PSM + ECM enumeration (issue #29) with the Classic cart on a grid of floor poses (issue 40)
     at reduced size (18 sites: 36,720 designs) on a local Dask cluster, chunk by chunk, gives the threads' rows
     (each worker solves the setup joints itself); storing only the feasible rows stores exactly those of the full
-    table (the premises: some are feasible, most are not, and some fail on docking alone)."""
+    table (the premises: some are feasible, most are not, and some fail on docking alone); two PSMs with the arms'
+    links in feasible (the default) likewise, each worker building the link tables itself."""
     study = get_study("port-place")
     small = {"patient": {"port_region": {"site_spacing_mm": 50.0}}, "target": {"spacing_mm": 15.0},
              "robot": {"instrument_count": 3}, "constraints": {"min_link_clearance_mm": "off"},  # docking alone:
@@ -73,6 +74,14 @@ def test_three_psm_port_placement_on_dask_equals_threads_and_its_feasible_rows(t
     assert 0 < expected.num_rows < threads.num_rows // 2
     assert (threads["infeasible"].to_numpy() == 128).any() and (threads["cart_pose"].to_numpy() > 0).any()
     assert feasible.select(expected.column_names).to_pandas().equals(expected.to_pandas())
+    # two PSMs with the arms' links in feasible (the default's 0 mm): each worker builds the link tables itself
+    links = study.config_model.model_validate({**small, "robot": {"instrument_count": 2}, "constraints": {},
+                                               "patient": {"port_region": {"site_spacing_mm": 36.0}}})
+    threads = run("links-threads", links, jobs=2, chunk=20_000)
+    dask = run("links-dask", links, jobs=2, backend="dask", scheduler=dask_cluster.scheduler_address, chunk=20_000)
+    bad = threads["infeasible"].to_numpy()
+    assert (bad == 0).any() and (bad == 16).any()  # the premise: some clear, some fail on their links alone
+    assert threads.to_pandas().equals(dask.to_pandas())
 
 
 def test_cli_dask_backend_with_its_own_local_cluster(tmp_path):
