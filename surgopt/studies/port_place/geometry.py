@@ -11,6 +11,7 @@ extent) sit side by side, so that a new body shape is added in one place.
 from __future__ import annotations
 
 import math
+import os
 from functools import lru_cache
 from pathlib import Path
 
@@ -219,6 +220,11 @@ def _dome_tree(semi_axes_mm: tuple, exponent: float):
     return cKDTree(samples), gap
 
 
+#: Threads the per-port tables' work runs on (a k-d tree's query here, the link tables' kernels): the machine's
+#: cores, at most 4; the same answer on any number.
+TABLE_THREADS = min(4, len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count() or 1)
+
+
 def body_distance_mm(p: np.ndarray, patient, cap_mm: float, many: bool = False) -> np.ndarray:
     """Per point (mm) outside the body: its distance to the body wall, capped at ``cap_mm`` (the mesh's by
     trimesh's closest point, exact; the dome's to the nearest of ``dome_samples_mm``, less their gap: a lower
@@ -226,7 +232,7 @@ def body_distance_mm(p: np.ndarray, patient, cap_mm: float, many: bool = False) 
     same sample; for millions of points, where the brute-force loop takes ~30 us a point near the body)."""
     if patient.shape == "dome" and many:
         tree, gap = _dome_tree(tuple(patient.semi_axes_mm), patient.dome_exponent)
-        d, _ = tree.query(np.asarray(p, float), distance_upper_bound=cap_mm + gap)
+        d, _ = tree.query(np.asarray(p, float), distance_upper_bound=cap_mm + gap, workers=TABLE_THREADS)
         return np.clip(np.where(np.isinf(d), cap_mm + gap, d) - gap, 0.0, cap_mm)
     if patient.shape == "dome":
         from surgopt.kinematics.port_serial import nearest_distances

@@ -18,13 +18,13 @@ per-layout clearances (the same capsules placed by the plain forward kinematics)
 """
 from __future__ import annotations
 
-import os
 from typing import NamedTuple
 
 import numpy as np
 
 from surgopt.robots.dvrk_links import SUJ_ON_COLUMN as FIRST_SUJ_LINK  # the setup joints' links checked: after
 # the column and the arm's carriage on it, which are the cart's (``clashes.arm_poses``)
+from surgopt.studies.port_place.geometry import TABLE_THREADS
 
 #: The arm pairs whose links are checked, in the order of the rows' ``external_link_pair`` code (256 * pair +
 #: 16 * link of the first + link of the second).
@@ -58,16 +58,18 @@ class LinkTables(NamedTuple):
     arm_words: np.ndarray | None = None
 
 
-#: Threads the tables' kernels run on (each ``nogil``): the machine's cores, at most 4; small batches run inline.
-TABLE_THREADS = min(4, len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count() or 1)
+#: The tables' kernels (each ``nogil``) run on ``geometry.TABLE_THREADS``; batches of fewer tasks than this
+#: run inline (a task of ``capsules.pair_clearances`` takes microseconds; of ``moving_pairs``, ~0.5-1 ms: see its
+#: call).
 INLINE_TASKS = 4096
 
 
-def in_threads(kernel, aligned: tuple, *rest) -> tuple:
-    """``kernel(*aligned, *rest)`` over ``TABLE_THREADS`` slices of the row-aligned arrays ``aligned``, the
-    outputs (row-aligned arrays) joined in order: the same answer as one call."""
+def in_threads(kernel, aligned: tuple, *rest, inline: int = INLINE_TASKS) -> tuple:
+    """``kernel(*aligned, *rest)`` over ``TABLE_THREADS`` slices of the row-aligned arrays ``aligned`` (fewer
+    than ``inline`` rows: one call), the outputs (row-aligned arrays) joined in order: the same answer as one
+    call."""
     n = len(aligned[0])
-    if TABLE_THREADS == 1 or n < INLINE_TASKS:
+    if TABLE_THREADS == 1 or n < inline:
         return kernel(*aligned, *rest)
     from concurrent.futures import ThreadPoolExecutor
 
@@ -333,7 +335,7 @@ def link_tables(model, sites: np.ndarray, rot: np.ndarray, dock, wanted: Wanted)
             lo, hi = np.minimum(tasks[:, 0], tasks[:, 1]), np.maximum(tasks[:, 0], tasks[:, 1])
             uniq, back = np.unique(lo * n + hi, return_inverse=True)
             got, links = in_threads(C.moving_pairs, (np.stack([uniq // n, uniq % n], axis=1),), own, r_own, balls,
-                                    groups, cap, least)
+                                    groups, cap, least, inline=2 * TABLE_THREADS)  # ~1 ms a task
             start = got[back]
             flip = tasks[:, 0] > tasks[:, 1]
             la, lb = np.where(flip, links[back, 1], links[back, 0]), np.where(flip, links[back, 0], links[back, 1])
