@@ -1,12 +1,14 @@
 """port-place's closing report: the feasible count and each reason's, the best layout's clinical checks beside
 the literature, its ports (and from a landmark), its cart pose and setup joints docked as the export docks it,
 why the best layouts without the cart do not dock, the links' screen of the best layouts (with each PSM's roll
-where they overlap), and the least-cost layouts the report and the page list (one of each layout).
+where they overlap; with the links in feasible, the headline's best is the first it clears, rolled where that is
+cheaper than every feasible row), and the least-cost layouts the report and the page list (one of each layout).
 
 Read from the stored rows and the run's config in their metadata (a report of an old run is the run's); the
-study (``study.STUDY``) names ``summary`` here by module, imported when a report is made. One module of ~380
+study (``study.STUDY``) names ``summary`` here by module, imported when a report is made. One module of ~420
 lines: the tables of one report, which read one another's rows (the screen's rows are the least-cost layouts',
-the docking tables show the screen's docking).
+the headline's layout is the screen's, the docking tables show its docking; the page and the figures ask the
+same screen, ``headline_layout``).
 """
 from __future__ import annotations
 
