@@ -95,7 +95,8 @@ def test_the_budget_refuses_before_anything_runs(tmp_path):
 def test_a_slow_warm_up_is_announced_with_its_time(toy, tmp_path, monkeypatch):
     """Compiling the kernels on a first run takes a minute: the runner says so (and how long it took) once
     the warm-up takes longer than COMPILE_NOTICE_S, "compiling" only when numba compiles (its compile events)
-    and "loading" otherwise; a fast one says nothing."""
+    and "loading" otherwise, and what else it builds where the study says (``Study.warm_up_builds``); a fast one
+    says nothing."""
     import time
 
     from numba import njit
@@ -125,6 +126,13 @@ def test_a_slow_warm_up_is_announced_with_its_time(toy, tmp_path, monkeypatch):
               say=said.append)
     assert any(m.startswith("loading the toy kernels") for m in said), said
     assert said[-1].startswith("kernels loaded in") and not any("compiling" in m for m in said)
+    said.clear()
+    # a study whose warm-up also builds its tables (port-place: the cart's setup joints, the links) says so
+    slow = toy.__class__(**{**toy.__dict__, "warm_up": lambda cfg: time.sleep(0.3), "warm_up_builds": "its tables"})
+    run_study(slow, slow.config_model(n=5), config_name="t", store=Store(tmp_path / "d"), jobs=1, quiet=True,
+              say=said.append)
+    assert any(m.startswith("loading the toy kernels") and m.endswith(" and building its tables ...") for m in said)
+    assert said[-1].startswith("kernels loaded, tables built in"), said
     said.clear()
     run_study(toy, toy.config_model(n=5), config_name="t", store=Store(tmp_path / "b"), jobs=1, quiet=True,
               say=said.append)
