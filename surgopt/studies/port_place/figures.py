@@ -136,7 +136,10 @@ def figures(cfg, table, out, design_id=None):
             p = sites[c[f"{arm}_site"][row]]
             ax.plot(*np.stack([p, centre]).T, color=colour, lw=2)
             ax.scatter(*p, color=colour, s=60, label=f"{label} site {c[f'{arm}_site'][row]}")
-        rolled = "" if c["feasible"][row] else ", its PSMs rolled so that the links clear (the cart figure)"
+        # the report's best layout, not a feasible row, only where a roll clears it (``chosen``); a design asked for
+        # by its id is drawn as its row says
+        rolled = ("" if design_id is not None or c["feasible"][row] else
+                  ", its PSMs rolled so that the links clear (the cart figure)")
         ax.set_title(f"port-place: design {c['design_id'][row]} (cost {c['cost'][row]:.3f}{rolled}); target "
                      f"points by the smaller isotropy", fontsize=9)
         if cfg.robot.instrument_serial is not None:  # the serial arms themselves, at their docked poses
