@@ -219,3 +219,62 @@ def test_the_jitted_ecm_dock_picks_the_numpy_grids_point():
     np.testing.assert_allclose(got[0][finite], want[0][finite], rtol=0, atol=1e-12)
     np.testing.assert_allclose(got[1][finite], want[1][finite], rtol=0, atol=1e-9)
     np.testing.assert_allclose(got[2][finite], want[2][finite], rtol=0, atol=1e-9)
+
+
+@pytest.mark.parametrize("arm", ["PSM1", "PSM2"])
+def test_an_si_docking_points_the_shaft_with_the_arms_own_joints(arm):
+    """(S5, S6) The Si sets only its arm's yaw about the vertical; the arm's own yaw and pitch absorb the rest.
+    For random aims from the sample pose's port: each docking's setup joints through the reference forward
+    kinematics (typed apart, tests/reference.py) give its base, whose origin is the port; the shaft written out
+    from q1, q2 in that base, (sin q1 cos q2, -sin q2, -cos q1 cos q2), is the aim; q1, q2 within the Si PSM's
+    ranges; the absorbed angle is the neutral shaft's to the aim and never below the closed form's least, which
+    a brute-force sweep of the yaw (3,600 steps) reaches within its step and psi* exactly; where the SUJ reaches
+    the port at psi* the first docking absorbs just that (the premise: it does for some aims)."""
+    from surgopt.kinematics import si_docking as SD
+    from surgopt.robots.models import get_model
+    from surgopt.studies.port_place.tables import arm_limits
+
+    suj, limits = D.SI[arm], arm_limits(get_model("dvrk_psm_si"))
+    port = K.forward(suj, D.SAMPLE_JOINTS[("si", arm)])[:3, 3]
+    rng = np.random.default_rng(41)
+    at_best = 0
+    for _ in range(6):
+        aim = rng.normal(size=3) * [0.5, 0.5, 0.3] - [0.0, 0.0, 1.0]
+        aim /= np.linalg.norm(aim)
+        psi, least = SD.least_absorbed(suj, aim)
+        sweep = [math.acos(np.clip(K.si_orientation(suj, p) @ [0, 0, -1.0] @ aim, -1, 1))
+                 for p in np.linspace(-math.pi, math.pi, 3600, endpoint=False)]
+        assert least <= min(sweep) + 1e-12 and min(sweep) - least < math.radians(0.1)
+        assert math.acos(np.clip(K.si_orientation(suj, psi) @ [0, 0, -1.0] @ aim, -1, 1)) == pytest.approx(least,
+                                                                                                        abs=1e-9)
+        answer = SD.si_docking(suj, port, aim, limits)
+        assert answer.dockings and not answer.reason
+        for d in answer.dockings[:20]:
+            np.testing.assert_allclose(suj_forward_reference("si", arm, d.suj.joints), d.base, atol=1e-9)
+            np.testing.assert_allclose(d.base[:3, 3], port, atol=1e-12)
+            shaft = [math.sin(d.q1) * math.cos(d.q2), -math.sin(d.q2), -math.cos(d.q1) * math.cos(d.q2)]
+            np.testing.assert_allclose(d.base[:3, :3] @ shaft, aim, atol=1e-12)
+            assert limits.yaw_lo <= d.q1 <= limits.yaw_hi and limits.pitch_lo <= d.q2 <= limits.pitch_hi
+            assert d.absorbed_rad == pytest.approx(math.acos(np.clip(d.base[:3, :3] @ [0, 0, -1.0] @ aim, -1, 1)),
+                                                   abs=1e-9)
+            assert d.absorbed_rad >= least - 1e-9 and d.suj.margin >= 0
+        if K.si_ik(suj, answer.dockings[0].base).within and abs(K.wrap(answer.dockings[0].yaw_rad - psi)) < 1e-12:
+            assert answer.dockings[0].absorbed_rad == pytest.approx(least, abs=1e-9)
+            at_best += 1
+    assert at_best > 0
+
+
+def test_an_si_docking_that_cannot_be_made_says_why():
+    """A port the Si's planar chain reaches at no yaw, and an aim the arm's own pitch cannot absorb at any yaw
+    where it does (the pitch's range narrowed to +-1 deg, the aim 45 deg off the family), each refused in words."""
+    from surgopt.kinematics import si_docking as SD
+    from surgopt.robots.models import get_model
+    from surgopt.studies.port_place.tables import arm_limits
+
+    suj, limits = D.SI["PSM1"], arm_limits(get_model("dvrk_psm_si"))
+    port = K.forward(suj, D.SAMPLE_JOINTS[("si", "PSM1")])[:3, 3]
+    far = SD.si_docking(suj, port + [3.0, 0.0, 0.0], np.array([0.0, 0.0, -1.0]), limits)
+    assert not far.dockings and "reaches the port at no yaw" in far.reason
+    narrow = limits._replace(pitch_lo=-math.radians(1.0), pitch_hi=math.radians(1.0))
+    stiff = SD.si_docking(suj, port, np.array([0.0, 0.0, -1.0]), narrow)
+    assert not stiff.dockings and "cannot point the shaft" in stiff.reason and "pitch" in stiff.reason

@@ -1,0 +1,110 @@
+"""Docking an arm on the Si cart (issue 40: "where the SUJ cannot give every orientation (Si), the reachable docking
+orientations follow from the SUJ and the PSM's own joints must absorb the rest").
+
+The Si's setup joints set only the yaw psi of the arm's base about the vertical (S3, ``suj.si_orientation``):
+
+    R(psi) = R_W Rz(psi) R_G R_tip,                                                             (S5)
+
+so with the RCM on the port, the arm's neutral shaft -z_base points along R(psi) (0, 0, -1) and cannot be aimed
+at the target's centre in general. The arm's own yaw q1 and pitch q2 absorb the rest: in the base frame the
+aim a (a unit vector from the port toward the centre) is a_b = R(psi)^T a, and (P2, ``port_place.rcm_inverse``)
+q2 = -asin(a_b,y), q1 = atan2(a_b,x, -a_b,z). The angle they absorb, between the neutral shaft and the aim, is
+least at the yaw that brings the neutral shaft's horizontal part onto the aim's (S6):
+
+    v = R_G R_tip (0, 0, -1),  e = R_W^T a,  psi* = atan2(e_y, e_x) - atan2(v_y, v_x),
+    least absorbed angle = |asin(v_z) - asin(e_z)|  (the two directions' elevations).
+
+Where the SUJ's planar chain does not reach the port at psi* (its end's position turns with psi), other yaws are
+tried on a grid; each docking kept is one where the SUJ solves within its ranges (S3) and q1, q2 are within the
+arm's. All in the cart's world frame, metres and radians.
+"""
+from __future__ import annotations
+
+import math
+from typing import NamedTuple
+
+import numpy as np
+
+from surgopt.kinematics import suj as S
+
+#: The yaws tried besides psi*: a grid of this step over a whole turn (rad).
+YAW_STEP_RAD = math.radians(1.0)
+
+
+class SiDocking(NamedTuple):
+    """One way the Si docks an arm on a port: the planar chain's yaw ``yaw_rad`` (S5), the base frame there
+    (4x4, cart world, its origin the port), the SUJ's best solution (``suj.SujSolution``), the arm's own yaw
+    and pitch that point its shaft along the aim (rad), and the angle they absorb (rad)."""
+
+    yaw_rad: float
+    base: np.ndarray
+    suj: S.SujSolution
+    q1: float
+    q2: float
+    absorbed_rad: float
+
+
+class SiAnswer(NamedTuple):
+    """Every docking found (least absorbed angle first, then the SUJ's margin), and why there is none."""
+
+    dockings: tuple
+    reason: str
+
+
+def neutral_shaft(suj) -> np.ndarray:
+    """v = R_G R_tip (0, 0, -1): the arm's neutral shaft in the frame after the planar chain's yaw (S6)."""
+    g = np.eye(4)
+    for row in suj.fixed:
+        g = g @ S.link(row, 0.0)
+    return g[:3, :3] @ np.asarray(suj.tip_to_tool, float)[:3, :3] @ np.array([0.0, 0.0, -1.0])
+
+
+def least_absorbed(suj, aim: np.ndarray) -> tuple[float, float]:
+    """(psi*, the least angle the arm's own joints absorb) for a unit ``aim`` in the cart's world (S6)."""
+    v = neutral_shaft(suj)
+    e = np.asarray(suj.world_to_suj, float)[:3, :3].T @ (aim / np.linalg.norm(aim))
+    psi = math.atan2(e[1], e[0]) - math.atan2(v[1], v[0])
+    return S.wrap(psi), abs(math.asin(max(-1.0, min(1.0, v[2]))) - math.asin(max(-1.0, min(1.0, e[2]))))
+
+
+def own_joints(base_rot: np.ndarray, aim: np.ndarray) -> tuple[float, float, float]:
+    """(q1, q2, the absorbed angle) that point the shaft along ``aim`` from a base of rotation ``base_rot`` (P2)."""
+    a = base_rot.T @ (aim / np.linalg.norm(aim))
+    q2 = -math.asin(max(-1.0, min(1.0, a[1])))
+    q1 = math.atan2(a[0], -a[2])
+    return q1, q2, math.acos(max(-1.0, min(1.0, -a[2])))
+
+
+def si_docking(suj, port: np.ndarray, aim: np.ndarray, limits) -> SiAnswer:
+    """Every Si docking of an arm on ``port`` (m, cart world) whose own yaw and pitch (``limits``: ``yaw_lo``,
+    ``yaw_hi``, ``pitch_lo``, ``pitch_hi``, rad) point its shaft along ``aim``: psi* (S6) and a whole turn of
+    yaws at ``YAW_STEP_RAD``, each where the SUJ solves within its ranges (S3). None: the reason (the SUJ
+    reaches the port at no yaw; or where it does, the arm's yaw or pitch would leave its range, by how much)."""
+    port = np.asarray(port, float)
+    best_psi, _ = least_absorbed(suj, aim)
+    yaws = [best_psi] + [S.wrap(best_psi + k * YAW_STEP_RAD) for k in range(1, round(2 * math.pi / YAW_STEP_RAD))]
+    found, reached, nearest = [], 0, (math.inf, "")
+    for psi in yaws:
+        base = np.eye(4)
+        base[:3, :3], base[:3, 3] = S.si_orientation(suj, psi), port
+        answer = S.si_ik(suj, base)
+        if not answer.within:
+            continue
+        reached += 1
+        q1, q2, absorbed = own_joints(base[:3, :3], aim)
+        over = max(limits.yaw_lo - q1, q1 - limits.yaw_hi, limits.pitch_lo - q2, q2 - limits.pitch_hi)
+        if over > 0:
+            if over < nearest[0]:
+                nearest = (over, f"yaw {math.degrees(q1):.1f} deg" if max(limits.yaw_lo - q1, q1 - limits.yaw_hi) == over
+                           else f"pitch {math.degrees(q2):.1f} deg")
+            continue
+        found.append(SiDocking(psi, base, answer.within[0], q1, q2, absorbed))
+    found.sort(key=lambda d: (round(d.absorbed_rad, 12), -d.suj.margin))
+    if found:
+        return SiAnswer(tuple(found), "")
+    if not reached:
+        return SiAnswer((), f"{suj.cart} {suj.arm} SUJ: reaches the port at no yaw of its planar chain (within its "
+                            f"ranges)")
+    return SiAnswer((), f"{suj.cart} {suj.arm}: at every yaw where its SUJ reaches the port ({reached} of "
+                        f"{len(yaws)} tried) the arm's own joints cannot point the shaft along the aim (nearest: "
+                        f"{nearest[1]}, {math.degrees(nearest[0]):.1f} deg past its range)")
