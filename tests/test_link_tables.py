@@ -289,9 +289,16 @@ def test_the_report_screens_the_cheaper_layouts_that_fail_only_on_their_links(tm
         c = columns(table)
         assert c["design_id"][figures.chosen(c, None, cfg)] == clears  # the figures draw the headline's layout
         assert c["design_id"][figures.chosen(c, None, None)] == feasible[0]["design_id"]  # without: the rows'
-        from surgopt.studies.port_place.html import rolled_note
+        from surgopt.studies.port_place.html import headline_rolled, rolled_note
 
-        assert f"best layout, {clears} (cost" in rolled_note(cfg, parts) and "PSM2 -75 deg" in rolled_note(cfg, parts)
+        note = rolled_note(headline_rolled(cfg, parts))
+        assert f"best layout, {clears} (cost" in note and "PSM2 -75 deg, clear by 3 mm" in note
+        from surgopt.studies.port_place.html import views
+
+        scene = views(run, cfg, parts)[0]  # the page's table and scene: the headline's layout first, once
+        assert scene.data["layouts"]["design_id"][0] == clears and list(scene.data["layouts"]["design_id"]).count(clears) == 1
+        assert scene.data["layouts"]["rolled"][0] == "PSM2 -75 deg, clear by 3 mm"
+        assert not any(scene.data["layouts"]["rolled"][1:]) and "rolled: PSM2 -75 deg" in scene.html
 
 
 def test_with_no_row_feasible_the_headline_names_a_layout_a_roll_clears_or_says_none_does(tmp_path):

@@ -80,7 +80,16 @@ def views(run, cfg, parts) -> list[View]:
 
     top = pa.concat_tables([t for t in (feasible, infeasible) if t is not None and t.num_rows]) \
         if (feasible.num_rows or (infeasible is not None and infeasible.num_rows)) else feasible
+    found = headline_rolled(cfg, parts)
+    if found is not None:  # the headline's best layout first (once): it clears only with its PSMs rolled
+        import pyarrow.compute as pc
+
+        top = pa.concat_tables([pa.Table.from_pylist([{c: found[0][c] for c in top.column_names}], schema=top.schema),
+                                top.filter(pc.not_equal(top["design_id"], found[0]["design_id"]))])
     layouts = {c: top[c].to_numpy(zero_copy_only=False) for c in wanted}
+    layouts["rolled"] = np.array([""] * top.num_rows, dtype=object)
+    if found is not None:
+        layouts["rolled"][0] = rolled_words(found[1])
     mark_name, mark = reference_landmark(cfg.patient)
     for a in arms:  # each port from the reference landmark, in words (the closing report's)
         layouts[f"{a}_from"] = np.array([from_landmark(x, y, mark) for x, y in zip(layouts[f"{a}_x_mm"],
@@ -107,7 +116,8 @@ def views(run, cfg, parts) -> list[View]:
         "reasons": [[int(bit), why] for bit, why in REASONS.items()],
         "axes": [X_LABEL, Y_LABEL, Z_LABEL],
     }
-    rows = [[layouts[c][i] for c in LAYOUT_COLUMNS if c in layouts]
+    rows = [[(f"rolled: {layouts['rolled'][i]}" if c == "feasible" and layouts["rolled"][i] else layouts[c][i])
+             for c in LAYOUT_COLUMNS if c in layouts]
             + [", ".join(str(layouts[f"{a}_site"][i]) for a in arms)] for i in range(top.num_rows)]
     header = [c for c in LAYOUT_COLUMNS if c in layouts] + ["sites (" + ", ".join(arms) + ")"]
     table = table_html(header, rows, "pp-layouts", row_attrs=lambda i: f' data-i="{i}"')
@@ -135,7 +145,7 @@ def views(run, cfg, parts) -> list[View]:
             f'<th>from the {mark_name} (mm)</th></tr></thead><tbody></tbody></table></div></div>'
             f"<h3>Top layouts: the {feasible.num_rows} feasible of least cost"
             + (f" and the {infeasible.num_rows} infeasible of least cost" if infeasible is not None else "")
-            + f" (of {parts.num_rows:,} rows)</h3>{rolled_note(cfg, parts)}{filters}"
+            + f" (of {parts.num_rows:,} rows)</h3>{rolled_note(found)}{filters}"
             + f"<div class=\"scroll\">{table}</div>",
         data, "pp-data", SCENE_SCRIPT)]
     if reasons:
@@ -158,25 +168,33 @@ def views(run, cfg, parts) -> list[View]:
     return views_out
 
 
-def rolled_note(cfg, parts) -> str:
-    """A line saying that the headline's best layout is not in the table as feasible: its row fails on its links
-    at the run's docking roll and it clears with its PSMs rolled (``report.headline_layout``); "" otherwise."""
+def headline_rolled(cfg, parts):
+    """(row, ``RollsThatClear``) of the headline's best layout when it clears only with its PSMs rolled
+    (``report.headline_layout``: the summary's screen, memoised), else None."""
     from surgopt.studies.port_place.report import headline_layout
     from surgopt.studies.port_place.study import links_of
 
     if not links_of(cfg):
-        return ""
-    meta = {k.decode(): v.decode() for k, v in (parts.schema.metadata or {}).items()}
-    found = headline_layout(parts, meta)
+        return None
+    return headline_layout(parts, {k.decode(): v.decode() for k, v in (parts.schema.metadata or {}).items()})
+
+
+def rolled_words(rolled) -> str:
+    """"PSM2 -75 deg, clear by 14 mm": each PSM's roll that clears a layout's links, and by how much."""
+    turned = ", ".join(f"{a} {d:+.0f} deg" for a, d in rolled.rolls.items() if d)
+    return f"{turned}, clear by {rolled.least.clearance_mm:.0f} mm"
+
+
+def rolled_note(found) -> str:
+    """A line saying that the headline's best layout, first in the table, clears only with its PSMs rolled
+    (``headline_rolled``); "" otherwise."""
     if found is None:
         return ""
     row, rolled = found
-    turned = ", ".join(f"{a} {d:+.0f} deg" for a, d in rolled.rolls.items() if d)
-    return (f'<p class="note" id="pp-rolled">The headline\'s best layout, {row["design_id"]} (cost '
-            f'{rolled.cost:.4f}), clears its links only with its PSMs docked rolled about their shafts ({turned}); '
-            f"the rows, and so this table's feasible, hold at the run's docking roll, where its links overlap: "
-            f"it is listed here as infeasible (reason 16) when it is among the least-cost infeasible layouts. "
-            f"The summary's tables below give it docked so.</p>")
+    return (f'<p class="note" id="pp-rolled">First: the headline\'s best layout, {row["design_id"]} (cost '
+            f'{rolled.cost:.4f}), whose links clear only with its PSMs docked rolled about their shafts '
+            f"({rolled_words(rolled)}); its row, at the run's docking roll, fails on them (reason 16), so it shows "
+            f"as rolled, not feasible. The summary's tables below give it docked so.</p>")
 
 
 SCENE_SCRIPT = r"""
@@ -243,12 +261,13 @@ function sceneTraces(i){
 }
 function sceneLayout(i){
   return {uirevision:'keep', height:620, margin:{l:0, r:0, t:30, b:0}, showlegend:true, legend:{orientation:'h', x:0, y:0, bgcolor:'rgba(255,255,255,0.7)'},
-    title:{text:'layout '+col('design_id', i)+' · cost '+fmt(col('cost', i), 4)+(col('feasible', i)?'':' · INFEASIBLE'), font:{size:13}},
+    title:{text:'layout '+col('design_id', i)+' · cost '+fmt(col('cost', i), 4)+(col('rolled', i)?' · PSMs rolled: '+col('rolled', i):col('feasible', i)?'':' · INFEASIBLE'), font:{size:13}},
     scene:{aspectmode:'data', xaxis:{title:{text:D.axes[0]}}, yaxis:{title:{text:D.axes[1]}},
            zaxis:{title:{text:D.axes[2]}}, camera:{eye:{x:-1.2, y:-1.6, z:1.0}}}};
 }
 function showLayout(i){
-  document.getElementById('pp-title').textContent = 'Layout ' + col('design_id', i) + (col('feasible', i) ? '' : ' (infeasible)');
+  document.getElementById('pp-title').textContent = 'Layout ' + col('design_id', i) + (col('rolled', i) ?
+    ' (docked with its PSMs rolled: ' + col('rolled', i) + ')' : col('feasible', i) ? '' : ' (infeasible)');
   const body = document.querySelector('#pp-checks tbody'); body.innerHTML = '';
   D.checks.forEach(c => { const tr = document.createElement('tr');
     const v = c[1].map(f => fmt(col(f, i), c[2])).join(c[3]);
@@ -256,7 +275,7 @@ function showLayout(i){
     if (out) tr.className = 'flag';
     [c[0], v, c[4], c[5] ? (out ? 'OUTSIDE' : 'yes') : ''].forEach(t => { const td = document.createElement('td'); td.textContent = t; tr.appendChild(td); });
     body.appendChild(tr); });
-  const bad = col('infeasible', i);
+  const bad = col('rolled', i) ? 0 : col('infeasible', i);  // a rolled layout's links clear so docked
   if (bad) { D.reasons.forEach(r => { if (bad & r[0]) { const tr = document.createElement('tr'); tr.className = 'flag';
     tr.innerHTML = '<td colspan="4"></td>'; tr.firstChild.textContent = 'fails: ' + r[1]; body.appendChild(tr); } }); }
   const ports = document.querySelector('#pp-ports tbody'); ports.innerHTML = '';
@@ -274,7 +293,7 @@ function filter(){
   const clear = parseFloat(document.getElementById('pp-clear').value);
   let shown = 0;
   document.querySelectorAll('#pp-layouts tbody tr').forEach(tr => { const i = +tr.dataset.i;
-    let ok = !feas || col('feasible', i);
+    let ok = !feas || col('feasible', i) || !!col('rolled', i);
     if (!isNaN(elev)) ok = ok && Math.min.apply(null, arms.slice(0, -1).map(a => col(a+'_elevation_deg', i))) >= elev;
     if (!isNaN(clear)) ok = ok && col('external_clearance_mm', i) >= clear;
     tr.style.display = ok ? '' : 'none'; shown += ok ? 1 : 0; });
