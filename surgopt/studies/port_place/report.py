@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import json
 import math
+import weakref
 
 import numpy as np
 
@@ -91,9 +92,11 @@ def summary(parts) -> Summary:
         counts.update({f"infeasible: {why}": by_bit[bit] for bit, why in REASONS.items()})
         headline = {"designs": n, "feasible": feasible}
     best = least_cost_layouts(parts, max(5, SCREEN_LAYOUTS))
-    screen = screen_of(parts, meta, best.to_pylist())
+    rows = best.to_pylist()
+    screen = screen_of(parts, meta, rows)
     rolled = rolled_of(screen)
-    first = best.to_pylist()[0] if best.num_rows else None
+    _headlines[parts] = rolled  # the page asks for it next (``headline_layout``): not screened again
+    first = rows[0] if rows else None
     best = best.slice(0, 5)
     tables = []
     if first is not None or rolled is not None:
@@ -274,10 +277,17 @@ def rolled_of(screen) -> tuple | None:
     return chosen if chosen is not None and not chosen[0]["feasible"] else None
 
 
+#: The headline's layout (``rolled_of``) of each run's rows the summary has screened in this process, by its
+#: ``Parts``: the page asks for it after the summary, which would read the rows twice more (~2.5 s on the default).
+_headlines: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
+
+
 def headline_layout(parts, meta: dict) -> tuple | None:
-    """``rolled_of`` the run's screen, as the summary finds it (the roll searches memoised in the process: the
-    page asks after the summary)."""
-    return rolled_of(screen_of(parts, meta, least_cost_layouts(parts, max(5, SCREEN_LAYOUTS)).to_pylist()))
+    """``rolled_of`` the run's screen, as the summary found it (kept), or screened now."""
+    if parts not in _headlines:
+        rows = least_cost_layouts(parts, max(5, SCREEN_LAYOUTS)).to_pylist()
+        _headlines[parts] = rolled_of(screen_of(parts, meta, rows))
+    return _headlines[parts]
 
 
 def with_cheaper_overlapping(parts, feasible: list[dict]) -> list[dict]:
@@ -295,8 +305,9 @@ def clearance_screen(rows: list[dict], meta: dict):
     """The best layouts (``rows``, distinct, by cost) screened for their links' clearance outside the body, which
     feasible may leave out (issue 40; the rows' feasible has them at the run's docking roll only): (the
     headline's word, the table, (the row, its ``RollsThatClear``) when the first that clears does so only with
-    its PSMs rolled, else None), or None when the run's config cannot be read again. A layout whose links overlap at the run's docking roll is tried with each PSM's own
-    roll (``clashes.rolls_that_clear``: full reach and the setup joints' ranges kept). The headline names the
+    its PSMs rolled, else None), or None when the run's config cannot be read again. A layout whose links
+    overlap at the run's docking roll is tried with each PSM's own roll (``clashes.rolls_that_clear``: full
+    reach and the setup joints' ranges kept). The headline names the
     first layout that clears, at the run's roll or with rolls; else how much the least of them overlaps."""
     from surgopt.studies.port_place.clashes import layout_clearances, least, rolls_that_clear
 
