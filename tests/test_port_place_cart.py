@@ -112,7 +112,7 @@ def test_the_dvrk_export_puts_each_psm_rcm_on_its_port_by_the_reference_kinemati
         "[patient.port_region]\nsite_spacing_mm = 36.0\n[target]\nspacing_mm = 15.0\n"
         "[cart]\nmodel = \"classic\"\naround_step_deg = 30.0\ndistance_step_mm = 300.0\n")
     r = cli("port-place", "c.toml", "--store", tmp_path / "s", cwd=tmp_path)
-    assert "classic cart" in r.stdout and "setup joints" in r.stdout and "PSM1" in r.stdout
+    assert "Classic cart" in r.stdout and "setup joints" in r.stdout and "PSM1" in r.stdout
     assert "least clearance outside the body" in r.stdout and "PSM1 and PSM2, over the target" in r.stdout
     checks = r.stdout.split("best layout: clinical checks")[1].split("best layout: ports")[0]
     assert "within" in checks and ("yes" in checks or "OUTSIDE" in checks)
@@ -594,7 +594,7 @@ def test_the_report_says_why_the_best_layouts_without_the_cart_do_not_dock(tmp_p
     df = parts.table().to_pandas()
     best = df[df["infeasible"].isin([0, DOCKING])].sort_values(["cost", "design_id"]).head(R.UNDOCKED_OF_BEST)
     undocked = best[best["infeasible"] == DOCKING]
-    assert f": {len(undocked):,} the classic cart" in title and len(undocked) > 0
+    assert f": {len(undocked):,} the Classic cart" in title and len(undocked) > 0
     assert sum(int(r[1].replace(",", "")) for r in rows) == len(undocked)
     model = T.model_of(cfg)
     why = R.why_undocked(model.dock, undocked[["psm1_site", "psm2_site", "ecm_site"]].to_numpy())

@@ -108,3 +108,50 @@ def si_docking(suj, port: np.ndarray, aim: np.ndarray, limits) -> SiAnswer:
     return SiAnswer((), f"{suj.cart} {suj.arm}: at every yaw where its SUJ reaches the port ({reached} of "
                         f"{len(yaws)} tried) the arm's own joints cannot point the shaft along the aim (nearest: "
                         f"{nearest[1]}, {math.degrees(nearest[0]):.1f} deg past its range)")
+
+
+def si_frame(suj, aim: np.ndarray) -> np.ndarray:
+    """(3, 3) The base's rotation (cart world) at psi* (S6) for a unit ``aim`` in the cart's world: the Si docking
+    that leaves the arm's own joints the least to absorb. Turning the cart about the vertical turns psi* with it,
+    so in the patient's frame this frame depends on the table's tilt, not on the cart's pose on the floor."""
+    return S.si_orientation(suj, least_absorbed(suj, aim)[0])
+
+
+def _wrap(a: np.ndarray) -> np.ndarray:
+    """``suj.wrap`` of each angle: into (-pi, pi] (within an ulp of math.remainder)."""
+    out = a - np.rint(a / (2 * math.pi)) * (2 * math.pi)
+    return np.where(out <= -math.pi, math.pi, out)
+
+
+def si_solutions(suj, poses: np.ndarray, tolerance_rad: float = 1e-9) -> tuple[np.ndarray, np.ndarray]:
+    """(S3) ``suj.si_ik`` over many poses (N, 4, 4, the base in the cart's world) at once, as a dock table needs it:
+    per pose the best solution's least range margin (m for the column, rad otherwise; -inf: no solution, or the pose
+    off the orientations the Si gives by more than ``tolerance_rad``) and its joints (N, 4; the column first). The
+    best: the first elbow (positive sine) unless the other beats it by ``suj.MARGIN_TIE``, as ``suj.best_first``."""
+    if len(suj.links) != 4:
+        raise ValueError(f"{suj.cart} {suj.arm}: {len(suj.links) - 1} planar joints; si_solutions solves three")
+    g = np.eye(4)
+    for row in suj.fixed:
+        g = g @ S.link(row, 0.0)
+    h = (np.linalg.inv(np.asarray(suj.world_to_suj, float)) @ poses
+         @ np.linalg.inv(np.asarray(suj.tip_to_tool, float)) @ np.linalg.inv(g))  # Trans(x, y, z) Rz(psi) on the family
+    on = np.arctan2(np.hypot(h[:, 0, 2], h[:, 1, 2]), h[:, 2, 2]) <= tolerance_rad  # as si_ik: not acos
+    a_c, d_c, a, d, off = S._planar(suj, 3)
+    x, y = h[:, 0, 3] - a_c, h[:, 1, 3]
+    psi = np.arctan2(h[:, 1, 0], h[:, 0, 0])
+    column = h[:, 2, 3] - d_c - sum(d)
+    l1, l2 = a[1], a[2]
+    c = (x * x + y * y - l1 * l1 - l2 * l2) / (2 * l1 * l2)
+    ok = on & (np.abs(c) <= 1 + 1e-12)
+    c = np.clip(c, -1.0, 1.0)
+    lo, hi = np.asarray(suj.ranges, float).T
+    best, joints = np.full(len(poses), -np.inf), np.full((len(poses), 4), np.nan)
+    for sign in (1.0, -1.0):
+        s = sign * np.sqrt(1 - c * c)
+        t1 = _wrap(np.arctan2(y, x) - np.arctan2(l2 * s, l1 + l2 * c))
+        t2 = _wrap(np.arctan2(s, c))
+        q = np.stack([column, t1 - off[0], t2 - off[1], _wrap(psi - t1 - t2 - off[2])], axis=1)
+        margin = np.where(ok, np.minimum(q - lo, hi - q).min(axis=1), -np.inf)
+        take = margin > (best + S.MARGIN_TIE if sign < 0 else best)
+        best, joints = np.where(take, margin, best), np.where(take[:, None], q, joints)
+    return best, joints

@@ -242,7 +242,7 @@ def si_ik(suj, pose: np.ndarray, tolerance_rad: float = 1e-9) -> SujAnswer:
     for row in suj.fixed:
         g = g @ link(row, 0.0)
     h = t @ np.linalg.inv(g)  # must be Trans(x, y, z) Rz(psi)
-    off = math.degrees(math.acos(max(-1.0, min(1.0, h[2, 2]))))
+    off = math.degrees(math.atan2(math.hypot(h[0, 2], h[1, 2]), h[2, 2]))  # not acos: exact near 0 (1e-16, not 1e-8)
     if off > math.degrees(tolerance_rad):
         return SujAnswer((), (), f"{suj.cart} {suj.arm} SUJ: the Si sets only the base's yaw; this docking is "
                                  f"tilted {off:.2f} deg off the orientations it can give")

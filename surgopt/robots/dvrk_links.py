@@ -20,6 +20,10 @@ from __future__ import annotations
 import math
 from typing import NamedTuple
 
+#: The carts whose arms' links are modelled here (``cart.model``): the Classic's. The Si's arms and setup joints
+#: are other shapes, not in this file.
+CARTS_MODELLED = ("classic",)
+
 
 class LinkFrame(NamedTuple):
     """One frame of the arm's skeleton: T_parent_frame = Trans(xyz) RPY(rpy) then the joint, a turn about z by

@@ -148,6 +148,28 @@ def _memoised(what: str, cfg, row: dict, compute):
     return _memo[key]
 
 
+def links_modelled(cfg) -> bool:
+    """Whether the arms' links are modelled on a config's cart (validated or as stored; ``dvrk_links.CARTS_MODELLED``:
+    the Classic's): where not, no clearance outside the body is measured, none is reported."""
+    from surgopt.robots.dvrk_links import CARTS_MODELLED
+    from surgopt.studies.port_place.config import cart_of
+
+    return cart_of(cfg) in CARTS_MODELLED
+
+
+def in_feasible(cfg) -> str:
+    """What of the links' clearance feasible holds (a validated config): between arms with
+    ``constraints.min_link_clearance_mm``; or that the links are not modelled on its cart, or not asked for."""
+    from surgopt.studies.port_place.config import CART_NAMES
+    from surgopt.studies.port_place.tables import links_decide
+
+    if links_decide(cfg):
+        return f"in feasible, at least {cfg.constraints.link_least_mm:g} mm"
+    if cfg.cart.model in CART_NAMES and not links_modelled(cfg):
+        return f"not modelled on the {CART_NAMES[cfg.cart.model]} cart"
+    return "not part of feasible (constraints.min_link_clearance_mm = 'off')"
+
+
 def layout_clearances(cfg, row: dict, docked=None) -> list[Clearance]:
     """Every least clearance of a layout's row on the cart (its ports and cart pose): each pair of docked arms
     (docked and over the target), each arm against the patient and the table. Arms that do not dock are left
@@ -155,6 +177,8 @@ def layout_clearances(cfg, row: dict, docked=None) -> list[Clearance]:
     row's own docking (rolled); without it the answer is kept for the process (``_memoised``)."""
     from surgopt.studies.port_place.tables import docked_arms, model_of, patient_in_cart
 
+    if not links_modelled(cfg):
+        return []
     if docked is None:
         return list(_memoised("clearances", cfg, row, lambda: layout_clearances(cfg, row, docked_arms(cfg, row))))
     patient = patient_in_cart(cfg.cart, row["cart_x_mm"], row["cart_y_mm"], row["cart_heading_deg"])
@@ -337,6 +361,9 @@ def docking_that_clears(cfg, row: dict):
     from surgopt.studies.port_place.tables import docked_arms
 
     docked = docked_arms(cfg, row)
+    if not links_modelled(cfg):
+        return (docked, {}, f"the {cfg.cart.model} cart's docking frames (the arms' links are not modelled on "
+                            f"it: no clearance outside the body checked)", [])
     clearances = layout_clearances(cfg, row)
     worst = least(clearances)
     if worst is None or worst.clearance_mm >= 0:

@@ -368,8 +368,11 @@ class Cart(StrictModel):
     patient's frame is on the table top (``table_height_mm`` above the floor), tilted head down by
     ``trendelenburg_deg`` and left side up by ``lateral_tilt_deg``."""
 
-    model: Literal["none", "classic", "auto"] = Field(
-        "none", description="'none': docking assumed; 'classic': the Classic cart's setup joints solved; 'auto' "
+    model: Literal["none", "classic", "si", "auto"] = Field(
+        "none", description="'none': docking assumed; 'classic': the Classic cart's setup joints solved; 'si': the "
+                            "Si cart's (its PSM1, PSM2 and ECM, robot.instrument_arm = 'dvrk_psm_si', camera_arm = "
+                            "'dvrk_ecm_si'; each arm docked at the one orientation its setup joints give nearest "
+                            "the aim, its own yaw and pitch absorbing the rest; the links not modelled); 'auto' "
                             "(the embedded default's): 'classic' where its arms are the Classic PSMs and ECM on "
                             "the grid of layouts, 'none' otherwise (a note says why); resolved when the config is "
                             "read, so the stored config names the one used")
@@ -441,9 +444,12 @@ class PortPlaceConfig(StrictModel):
         if self.cart.pose == "search" and self.search == "grid":
             raise ValueError("cart.pose: 'search' makes the cart's pose a dimension of a [search]: give a [search] "
                              "table, or pose = 'grid' (every pose of the grid) or 'given'")
-        why = cart_does_not_carry(self)
+        why = cart_does_not_carry(self, self.cart.model)
         if why and self.search == "grid":
-            raise ValueError(f"cart.model: 'classic' carries the Classic PSMs and ECM, {why}")
+            raise ValueError(f"cart.model: '{self.cart.model}' carries the {CART_NAMES[self.cart.model]} PSMs and "
+                             f"ECM, {why}")
+        if self.cart.model == "si":
+            si_cart_fits(self)
         if self.search != "grid" and self.robot.docking_range_deg > 0:
             raise ValueError("cart.model: the setup joints are solved for the docking frames toward the target's "
                              "centre; a [search] that also tilts the docking (robot.docking_range_deg > 0) with the "
@@ -514,19 +520,52 @@ class PortPlaceConfig(StrictModel):
 Config = PortPlaceConfig
 
 
-def cart_does_not_carry(cfg: PortPlaceConfig) -> str:
-    """Why the Classic cart cannot dock this config's arms ("" when it can): it carries the Classic PSMs and the
-    Classic ECM, and is enumerated with the grid of layouts."""
+def cart_of(config) -> str:
+    """The cart a config models: validated, as stored (a dict), or none ("none")."""
+    if isinstance(config, dict):
+        return (config.get("cart") or {}).get("model", "none")
+    return "none" if config is None else config.cart.model
+
+
+#: Each cart's name in words (``cart.model``).
+CART_NAMES = {"classic": "Classic", "si": "Si"}
+
+
+def cart_does_not_carry(cfg: PortPlaceConfig, model: str = "classic") -> str:
+    """Why the ``model`` cart cannot dock this config's arms ("" when it can): it carries its own PSMs and ECM
+    (``dvrk_psm_<model>``, ``dvrk_ecm_<model>``), and is enumerated with the grid of layouts."""
     r = cfg.robot
-    if r.instrument_serial or r.instrument_file or r.instrument_arm != "dvrk_psm_classic":
+    psm, ecm = f"dvrk_psm_{model}", f"dvrk_ecm_{model}"
+    if r.instrument_serial or r.instrument_file or r.instrument_arm != psm:
         return (f"not {'a serial arm' if r.instrument_serial else 'an arm from a file' if r.instrument_file else r.instrument_arm} "
-                f"(robot.instrument_arm = 'dvrk_psm_classic', no instrument_file or instrument_serial)")
-    if r.camera_serial or r.camera_file or r.camera_arm != "dvrk_ecm_classic":
+                f"(robot.instrument_arm = '{psm}', no instrument_file or instrument_serial)")
+    if r.camera_serial or r.camera_file or r.camera_arm != ecm:
         return (f"not {'a serial arm' if r.camera_serial else 'an arm from a file' if r.camera_file else r.camera_arm}"
-                f" (robot.camera_arm = 'dvrk_ecm_classic', no camera_file or camera_serial)")
+                f" (robot.camera_arm = '{ecm}', no camera_file or camera_serial)")
     if cfg.search != "grid" and cfg.cart.pose != "search":
-        return "with the grid of layouts, not a [search] (give cart.model = 'classic', or cart.pose = 'search')"
+        return f"with the grid of layouts, not a [search] (give cart.model = '{model}', or cart.pose = 'search')"
     return ""
+
+
+def si_cart_fits(cfg: PortPlaceConfig) -> None:
+    """What the Si cart does not do, refused by name (``cart.model = 'si'``): its PSM3's setup joints (four planar
+    joints, redundant) have no inverse here; its setup joints fix each arm's roll about its shaft; the capsules of
+    the links are the Classic's (``robots/dvrk_links.py``), so the links cannot decide feasible: left out unless
+    asked for (then refused)."""
+    r, c = cfg.robot, cfg.constraints
+    if r.instrument_count != 2:
+        raise ValueError("robot.instrument_count: the Si cart docks PSM1 and PSM2 here; its PSM3's setup joints (four "
+                         "planar joints for three degrees of freedom) have no inverse yet (instrument_count = 2, or "
+                         "cart.model = 'classic')")
+    if r.docking_roll != "given" or r.docking_roll_deg != 0.0:
+        raise ValueError("robot.docking_roll_deg: the Si's setup joints give each arm one orientation at each yaw "
+                         "(no roll about the shaft to choose): docking_roll = 'given', docking_roll_deg = 0")
+    if c.min_link_clearance_mm != "off":
+        if "min_link_clearance_mm" in c.model_fields_set:
+            raise ValueError(f"constraints.min_link_clearance_mm: the links' capsules are the Classic cart's; on the "
+                             f"Si they are not modelled, so they cannot decide feasible (set 'off', not "
+                             f"{c.min_link_clearance_mm:g})")
+        object.__setattr__(c, "min_link_clearance_mm", "off")
 
 
 def _arm_of(cfg: PortPlaceConfig, role: str):

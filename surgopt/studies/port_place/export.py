@@ -30,22 +30,25 @@ def arm_joints_at_centre(limits, base_in_patient: np.ndarray, centre_m: np.ndarr
     return [float(v) for v in rcm_inverse(p, limits.along_shaft_m)]
 
 
-def clearances_of(checks: list) -> dict:
+def clearances_of(checks: list, cfg: PortPlaceConfig) -> dict:
     """The layout's least clearances outside the body (``clashes``): each check's value (mm), links and where,
-    and the least of them; the model's radii are assumptions (``robots/dvrk_links.py``)."""
-    from surgopt.studies.port_place.clashes import least
+    and the least of them; the model's radii are assumptions (``robots/dvrk_links.py``); on a cart whose links are
+    not modelled, none, saying so."""
+    from surgopt.studies.port_place.clashes import in_feasible, least, links_modelled
 
     worst = least(checks)
+    model = ("capsules about the setup joints' frames and the arms' links (robots/dvrk_links.py; radii assumed); "
+             + in_feasible(cfg)) if links_modelled(cfg) else \
+        f"not modelled: the arms' links are modelled for the Classic cart only, not the {cfg.cart.model}'s"
     return {"least_mm": None if worst is None else round(worst.clearance_mm, 1),
-            "model": "capsules about the setup joints' frames and the arms' links (robots/dvrk_links.py; radii "
-                     "assumed); not part of the rows' feasible",
+            "model": model,
             "checks": [{"check": c.check, "clearance_mm": round(c.clearance_mm, 1), "link": c.link_a,
                         "against": c.link_b, "where": c.where} for c in checks]}
 
 
 def dvrk_setup(cfg: PortPlaceConfig, row: dict) -> str:
     """The layout of ``row`` (a design of a run with the cart) as JSON: ``cart_to_patient`` (the patient's frame
-    in the cart's world frame, 4x4, m) and one entry per arm (PSM1, PSM2, PSM3, ECM): its cart ("classic"), SUJ
+    in the cart's world frame, 4x4, m) and one entry per arm (PSM1, PSM2, PSM3, ECM): its cart ("classic" or "si"), SUJ
     joints, ``world_origin_to_suj`` and ``suj_tip_to_tool_origin`` as used, its port (mm, patient frame), its base
     (RCM) frame in the cart's world frame, and its own joints at the target's centre."""
     from surgopt.robots.dvrk_suj import CARTS
@@ -54,7 +57,7 @@ def dvrk_setup(cfg: PortPlaceConfig, row: dict) -> str:
 
     if cfg.cart.model == "none":
         raise UsageError("--format dvrk: this run has no cart (cart.model = 'none'): run it with [cart] model = "
-                         "'classic' to solve the setup joints")
+                         "'classic' (or 'si') to solve the setup joints")
     if row.get("cart_pose", -1) < 0:
         raise UsageError(f"--format dvrk: design {row['design_id']} is not dockable (no cart pose of the grid "
                          f"docks every arm); export a design whose cart_pose >= 0")
@@ -88,7 +91,7 @@ def dvrk_setup(cfg: PortPlaceConfig, row: dict) -> str:
                     "heading_deg": row["cart_heading_deg"], "table_height_mm": cfg.cart.table_height_mm,
                     "trendelenburg_deg": cfg.cart.trendelenburg_deg, "lateral_tilt_deg": cfg.cart.lateral_tilt_deg},
            "cart_to_patient": _matrix(patient), "docking": docking, "arms": arms,
-           "clearances_outside_body": clearances_of(clearances)}
+           "clearances_outside_body": clearances_of(clearances, cfg)}
     return json.dumps(out, indent=1) + "\n"
 
 

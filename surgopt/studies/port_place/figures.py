@@ -265,6 +265,7 @@ def cart_figure(plt, cfg, row: dict, out):
     export docks it (``clashes.docking_that_clears``: each PSM rolled about its shaft where that clears the links)."""
     from surgopt.kinematics import suj as S
     from surgopt.robots.dvrk_suj import CARTS
+    from surgopt.studies.port_place.config import CART_NAMES
     from surgopt.studies.port_place.geometry import body_extent_mm, dome_surface_mm
     from surgopt.studies.port_place.clashes import arm_poses
     from surgopt.studies.port_place.tables import model_of, patient_in_cart
@@ -287,6 +288,9 @@ def cart_figure(plt, cfg, row: dict, out):
     model = model_of(cfg)
     from surgopt.studies.port_place.clashes import docking_that_clears
 
+    from surgopt.studies.port_place.clashes import links_modelled
+
+    modelled = links_modelled(cfg)  # the Classic's links: on another cart only its setup joints are drawn
     docked, rolls, _, _ = docking_that_clears(cfg, row)  # as the dvrk export docks it
     turned = ", ".join(f"{a} rolled {d:+.0f} deg" for a, d in rolls.items() if d)
     for arm, colour in zip(docked, ("C0", "C1", "C2", "C3")):
@@ -294,20 +298,27 @@ def cart_figure(plt, cfg, row: dict, out):
             continue
         f = S.frames(CARTS[cfg.cart.model][arm.arm], arm.joints)
         ax.plot(*f[:-1, :3, 3].T, color=colour, lw=2.5, marker="o", ms=3, label=f"{arm.arm} setup joints")
-        links = arm_poses(cfg, arm, patient, model.targets_m[:0], model.limits.along_shaft_m)
-        own = [i for i, n in enumerate(links.names) if "setup joint" not in n]
+        links = arm_poses(cfg, arm, patient, model.targets_m[:0], model.limits.along_shaft_m) if modelled else None
+        own = [i for i, n in enumerate(links.names) if "setup joint" not in n] if modelled else []
         for k, i in enumerate(own):  # the arm's own links, docked (clashes.py's capsules)
             ax.plot(*links.segments[0, i].T, color=colour, lw=1.2, alpha=0.8,
                     label=f"{arm.arm} links (capsule axes)" if k == 0 else None)
+        if not modelled:  # the SUJ's last frame straight to the arm's base (RCM): SUJ_tip_to_tool_origin
+            ax.plot(*f[-2:, :3, 3].T, color=colour, lw=1.2, ls=":",
+                    label=f"{arm.arm} mount to RCM (its links not modelled)")
         ax.plot(*np.stack([f[-1, :3, 3], centre]).T, color=colour, lw=0.8, ls="--")
-    ax.plot([0], [0], [0], "ks", ms=8, label="cart origin")
+    from surgopt.robots.dvrk_suj import WORLD_ABOVE_FLOOR_M
+
+    above = WORLD_ABOVE_FLOOR_M[cfg.cart.model]
+    ax.plot([0], [0], [0], "ks", ms=8, label="cart origin" + (f" ({above:.2f} m above the floor: chosen)" if above
+                                                               else " (on the floor)"))
     ax.set_xlabel("x (m)")
     ax.set_ylabel("y, the cart's forward (m)")
     ax.set_zlabel("z up (m)")
     lims = np.array([ax.get_xlim3d(), ax.get_ylim3d(), ax.get_zlim3d()])
     ax.set_box_aspect(lims[:, 1] - lims[:, 0])
     ax.view_init(elev=22, azim=-60)
-    ax.set_title(f"design {row['design_id']} on the {cfg.cart.model} cart: origin ({row['cart_x_mm']:.0f}, "
+    ax.set_title(f"design {row['design_id']} on the {CART_NAMES[cfg.cart.model]} cart: origin ({row['cart_x_mm']:.0f}, "
                  f"{row['cart_y_mm']:.0f}) mm, heading {row['cart_heading_deg']:.0f} deg (patient frame)"
                  + (f"\ndocked as the dvrk export docks it so that the links clear: {turned}" if turned else ""),
                  fontsize=9)

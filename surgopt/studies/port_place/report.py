@@ -19,7 +19,8 @@ import weakref
 import numpy as np
 
 from surgopt.studies import Summary
-from surgopt.studies.port_place.config import PortPlaceConfig
+from surgopt.studies.port_place.clashes import in_feasible
+from surgopt.studies.port_place.config import CART_NAMES, PortPlaceConfig
 from surgopt.studies.port_place.geometry import FRAME_TEXT, from_landmark
 from surgopt.studies.port_place.study import links_of
 
@@ -62,7 +63,7 @@ def within_band(values, band) -> str:
 
 
 #: What every answer leaves out (docs/port_placement.md, "What the model leaves out"), said in the closing report.
-NOT_MODELLED = ("the Si cart's and the Xi's setup joints, tissue and the body wall's thickness (a port is a point), "
+NOT_MODELLED = ("the Xi's setup joints, the Si cart's links and its PSM3, tissue and the body wall's thickness (a port is a point), "
                 "the assistant's port, the table's rails and arm boards and the patient's arms; every link radius is "
                 "an assumption (docs/port_placement.md, what the model leaves out)")
 
@@ -179,7 +180,12 @@ def docking_tables(best: dict, meta: dict) -> list:
                         else "")] for a in docked]
     clear = [[c.check, f"{c.clearance_mm:.0f}", c.link_a, c.link_b, c.where]
              for c in clearances]
-    return [(f"best layout: the {cfg.cart.model} cart (origin on the floor, patient frame; heading from +y toward +x)",
+    from surgopt.studies.port_place.clashes import links_modelled
+
+    if not links_modelled(cfg):
+        clear = [["-", "-", "-", "-", f"not measured: the arms' links are modelled for the Classic cart only "
+                                      f"(robots/dvrk_links.py), not the {CART_NAMES[cfg.cart.model]}'s"]]
+    return [(f"best layout: the {CART_NAMES[cfg.cart.model]} cart (origin on the floor, patient frame; heading from +y toward +x)",
              ["x_mm", "y_mm", "heading_deg", "pose (of the grid, or searched)"], pose),
             ("best layout: setup joints (column m, then rad, the dVRK's simulated_position order)"
              + (" as `export --format dvrk` docks it: each PSM's docking turned so that the links clear" if turned
@@ -187,13 +193,6 @@ def docking_tables(best: dict, meta: dict) -> list:
              ["arm", "port", "suj_joints", "least range margin", "note"], rows),
             ("best layout: least clearance outside the body (capsules, radii assumed; negative: the links overlap; "
              + in_feasible(cfg) + ")", ["between", "clearance_mm", "link", "against", "where"], clear)]
-
-
-def in_feasible(cfg) -> str:
-    """What of the links' clearance feasible holds: between arms with ``constraints.min_link_clearance_mm``."""
-    if links_of(cfg):
-        return f"in feasible, at least {cfg.constraints.link_least_mm:g} mm"
-    return "not yet part of feasible"
 
 
 #: The layouts of least cost among those feasible without the cart whose docking the closing report explains.
@@ -235,7 +234,7 @@ def undocked_table(parts, meta: dict) -> list:
                                                                                                 sites))
     rows = [[w, f"{int(np.sum(why == k)):,}"] for k, w in enumerate(UNDOCKED_WHY) if np.any(why == k)]
     return [(f"the {len(best):,} layouts of least cost feasible without the cart: {len(undocked):,} the "
-             f"{cfg.cart.model} cart's setup joints cannot dock at any pose of its grid"
+             f"{CART_NAMES[cfg.cart.model]} cart's setup joints cannot dock at any pose of its grid"
              + (" with the arms' links clear" if links else "") + ", because", ["why", "layouts"], rows)]
 
 
@@ -262,7 +261,9 @@ ROLL_TEXT = "a 15-degree grid over +-90 about the neutral shaft"
 def screen_of(parts, meta: dict, best: list[dict]):
     """``clearance_screen`` of the best feasible layouts ``best`` (by cost), with the links in feasible the cheaper
     ones that fail only on them first (``with_cheaper_overlapping``); None without the cart."""
-    if "cart_pose" not in parts.schema.names:
+    from surgopt.studies.port_place.clashes import links_modelled
+
+    if "cart_pose" not in parts.schema.names or not links_modelled(json.loads(meta.get("config", "{}"))):
         return None
     if links_of(json.loads(meta.get("config", "{}"))):
         best = with_cheaper_overlapping(parts, best)

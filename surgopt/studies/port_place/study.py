@@ -30,7 +30,7 @@ from surgopt.robots import dvrk
 from surgopt.studies.port_place import HELP  # the command's help, read by the CLI without importing this module
 from surgopt.studies import Estimate, Study, figures_in, html_views_in, peak_bytes, summary_in
 from surgopt.parts import concat_rows
-from surgopt.studies.port_place.config import OBJECTIVE, PortPlaceConfig, camera_arm_of, instrument_of
+from surgopt.studies.port_place.config import OBJECTIVE, PortPlaceConfig, camera_arm_of, cart_of, instrument_of
 from surgopt.studies.port_place.geometry import sites_mm, target_points_mm
 from surgopt.studies.port_place.tables import LATERAL, model_of, port_tables
 
@@ -150,13 +150,6 @@ def schema(config=None):
 #: The cart's columns (with ``cart.model`` other than "none"): the first pose of its grid at which every arm
 #: docks (-1: none), that pose's origin on the floor and heading (the patient's floor frame).
 CART_COLUMNS = ("cart_pose", "cart_x_mm", "cart_y_mm", "cart_heading_deg")
-
-
-def cart_of(config) -> str:
-    """The cart a config models: validated, as stored (a dict), or none ("none")."""
-    if isinstance(config, dict):
-        return (config.get("cart") or {}).get("model", "none")
-    return "none" if config is None else config.cart.model
 
 
 def cart_search_columns(config) -> tuple[str, ...]:
@@ -756,6 +749,8 @@ def no_cart_note(config) -> str:
     except (ValueError, OSError):
         return "none: docking assumed"
     why = cart_does_not_carry(cfg)
+    if why and not cart_does_not_carry(cfg, "si"):  # the Si's arms: its cart is asked for by name
+        return "none: docking assumed (the Si PSMs and ECM: cart.model = 'si' docks them on the Si cart)"
     return f"none: docking assumed ({'the Classic cart carries the Classic PSMs and ECM, ' + why if why else 'cart.model = none'})"
 
 

@@ -216,6 +216,8 @@ def instrument_rolls_rad(model: PortModel, sites: np.ndarray, rot: np.ndarray) -
 
     r = model.cfg.robot
     side = roll_sides(sites)
+    if model.cfg.cart.model == "si":  # the Si's setup joints give each arm one orientation (S5): no roll to choose
+        return np.zeros(len(sites))
     if r.docking_roll == "given" or model.limits is None:
         return np.radians(r.docking_roll_deg) * side
     choices = np.array(ROLL_CHOICES_DEG)
@@ -231,9 +233,27 @@ def in_degrees(rolls_rad: np.ndarray) -> np.ndarray:
     return np.round(np.degrees(rolls_rad), 9) + 0.0
 
 
-def instrument_frames(model: PortModel, sites: np.ndarray, rot: np.ndarray) -> np.ndarray:
-    """The instrument arms' docking frames at ``sites``: the frames ``rot`` turned by each port's roll."""
-    return rolled(rot, instrument_rolls_rad(model, sites, rot))
+def instrument_frames(model: PortModel, sites: np.ndarray, rot: np.ndarray, rolls_rad=None) -> np.ndarray:
+    """The instrument arms' docking frames at ``sites``: the frames ``rot`` turned by each port's roll
+    (``rolls_rad``, else ``instrument_rolls_rad``); on the Si cart, its PSMs' frames (``si_frames``)."""
+    if model.cfg.cart.model == "si":
+        from surgopt.robots.dvrk_suj import CARTS
+
+        aims = model.centre_m - sites
+        return si_frames(model.cfg, CARTS["si"]["PSM1"], sites, aims / np.linalg.norm(aims, axis=1)[:, None])
+    return rolled(rot, instrument_rolls_rad(model, sites, rot) if rolls_rad is None else rolls_rad)
+
+
+def si_frames(cfg: PortPlaceConfig, suj, sites: np.ndarray, aims: np.ndarray) -> np.ndarray:
+    """(n, 3, 3) Each port's docking rotation on the Si cart, in the patient's frame: the orientation its setup
+    joints give at psi*, the yaw that leaves the arm's own yaw and pitch the least to absorb to point the shaft
+    along ``aims`` (n, 3, unit, patient frame; ``si_docking.si_frame``, S5-S6). Independent of the cart's pose on
+    the floor (turning the cart turns psi* with it), so one frame per port serves every pose of the grid. The Si's
+    PSM1 and PSM2 give the same frames (their bases differ by a half turn about the vertical)."""
+    from surgopt.kinematics.si_docking import si_frame
+
+    p = patient_in_cart(cfg.cart, 0.0, 0.0, 0.0)[:3, :3]
+    return np.array([p.T @ si_frame(suj, p @ a) for a in aims]).reshape(len(sites), 3, 3)
 
 
 def approach(target: Target, wrist_bend_rad: float):
@@ -309,7 +329,7 @@ def port_tables(model: PortModel, sites: np.ndarray, rot: np.ndarray, outside=No
     r = cfg.robot
     serial = held = None
     rolls = instrument_rolls_rad(model, sites, rot)  # the instruments' frames (``instrument_frames``), once
-    frames = rolled(rot, rolls)
+    frames = instrument_frames(model, sites, rot, rolls)
     if r.instrument_serial is not None:  # a serial arm: its own IK, and its links' clearance outside
         serial = serial_arms.serial_tables(model, sites, base_yaw_rad)
         reach = serial.reach & approach_mask(sites, targets, model.cone)
@@ -409,10 +429,12 @@ def patient_in_cart(cart, x_mm: float, y_mm: float, heading_deg: float) -> np.nd
     patient's untilted frame F, heading ``heading_deg`` (its +y toward F's +y turned toward +x), the patient tilted
     in F about the table top under the frame's origin: T_cart_patient = T_F_cart^-1 T_F_patient with
     T_F_patient = Rx(-trendelenburg) Ry(-lateral tilt) (head down, left side up) and T_F_cart =
-    [Rz(-heading), (x, y, -table height)]."""
+    [Rz(-heading), (x, y, the cart's world above the floor - table height)] (``dvrk_suj.WORLD_ABOVE_FLOOR_M``)."""
+    from surgopt.robots.dvrk_suj import WORLD_ABOVE_FLOOR_M
+
     f_cart = np.eye(4)
     f_cart[:3, :3] = rot_z(-math.radians(heading_deg))[:3, :3]
-    f_cart[:3, 3] = (x_mm / 1000, y_mm / 1000, -cart.table_height_mm / 1000)
+    f_cart[:3, 3] = (x_mm / 1000, y_mm / 1000, WORLD_ABOVE_FLOOR_M.get(cart.model, 0.0) - cart.table_height_mm / 1000)
     f_patient = np.eye(4)
     f_patient[:3, :3] = (rot_x(-math.radians(cart.trendelenburg_deg))
                          @ rot_y(-math.radians(cart.lateral_tilt_deg)))[:3, :3]
@@ -514,6 +536,7 @@ def dock_at(model: PortModel, site_ids: np.ndarray, poses: CartPoses) -> DockTab
     """``dock_tables`` of some candidate sites (``site_ids``, in that order: a design's own ports) at some cart
     poses (a searched pose: one)."""
     from surgopt.kinematics.port_designs import pack_bits
+    from surgopt.kinematics.si_docking import si_solutions
     from surgopt.kinematics.suj_batch import classic_psm_solutions, suj_arrays
     from surgopt.robots.dvrk_suj import CARTS
 
@@ -527,7 +550,12 @@ def dock_at(model: PortModel, site_ids: np.ndarray, poses: CartPoses) -> DockTab
     bases[:, :3, :3], bases[:, :3, 3], bases[:, 3, 3] = model.instrument_rot[site_ids], sites, 1.0
     in_cart = np.ascontiguousarray(np.einsum("pij,njk->npik", poses.patient, bases).reshape(n * m, 4, 4))
     for a, arm in enumerate(arms):  # the best solution's least margin (suj_answer's first), every site and pose
-        got, q = classic_psm_solutions(suj_arrays(CARTS[cfg.cart.model][arm]), in_cart)
+        suj = CARTS[cfg.cart.model][arm]
+        if cfg.cart.model == "si":  # S3: a column and three planar joints (the last two joint values NaN)
+            got, q = si_solutions(suj, in_cart)
+            q = np.concatenate([q, np.full((len(q), 2), np.nan)], axis=1)
+        else:
+            got, q = classic_psm_solutions(suj_arrays(suj), in_cart)
         margin[a], joints[a] = got.reshape(n, m), q.reshape(n, m, 6)
     camera, camera_joints, aim = camera_dock(cfg, poses.patient, sites)
     camera = camera.reshape(m, n).T
@@ -544,9 +572,12 @@ def suj_margins(cfg: PortPlaceConfig, dock: DockTables) -> tuple[np.ndarray, np.
     from surgopt.robots.dvrk_suj import CARTS
 
     joints = np.concatenate([dock.joints, dock.camera_joints[None]])  # (4, n, m, 6)
-    ranges = np.stack([np.asarray(CARTS[cfg.cart.model][a].ranges, float) for a in (*INSTRUMENT_SUJS, "ECM")])
+    sujs = [CARTS[cfg.cart.model][a] for a in (*INSTRUMENT_SUJS, "ECM")]
+    ranges = np.stack([np.asarray(s.ranges + ((-np.inf, np.inf),) * (6 - len(s.ranges)), float) for s in sujs])
     lo, hi = ranges[:, None, None, :, 0], ranges[:, None, None, :, 1]
     margin = np.minimum(joints - lo, hi - joints)
+    jointed = np.arange(6) < np.array([len(s.links) for s in sujs])[:, None]  # (4, 6): the Si has four joints
+    margin = np.where(jointed[:, None, None, :], margin, np.inf)
     return np.degrees(margin[..., 1:].min(axis=-1)), margin[..., 0] * 1000
 
 
@@ -575,10 +606,34 @@ def camera_dock(cfg: PortPlaceConfig, patient: np.ndarray, sites_m: np.ndarray):
     centre = np.asarray(cfg.target.centre_mm, float) / 1000
     patients = patient.reshape(-1, 4, 4)
     shafts = camera_shafts(camera_of(cfg), centre, sites_m)
+    if cfg.cart.model == "si":
+        return si_camera_dock(cfg, arm, patients, sites_m, shafts)
     origins = np.concatenate([sites_m @ p[:3, :3].T + p[:3, 3] for p in patients])
     aims = np.concatenate([shafts @ p[:3, :3].T for p in patients])
     s = ecm_arrays(CARTS[cfg.cart.model]["ECM"], arm.yaw_limits_rad, arm.pitch_limits_rad)
     return ecm_margins(s, np.ascontiguousarray(origins), np.ascontiguousarray(aims), *ECM_GRID_STEPS)
+
+
+def si_camera_dock(cfg: PortPlaceConfig, arm, patients: np.ndarray, sites_m: np.ndarray, shafts: np.ndarray):
+    """``camera_dock`` on the Si cart: each port's ECM base at psi* (``si_frames``), the ECM's own yaw and pitch
+    that point the scope along its shaft (``si_docking.own_joints``, the same at every cart pose) within the ECM's
+    ranges, and its setup joints at each pose (S3, ``si_docking.si_solutions``). The margin, as the Classic's
+    (S4): the least of the setup joints' and the own yaw's and pitch's margins (rad; the column's in m)."""
+    from surgopt.kinematics.si_docking import own_joints, si_solutions
+    from surgopt.robots.dvrk_suj import CARTS
+
+    suj = CARTS["si"]["ECM"]
+    n, m = len(sites_m), len(patients)
+    rot = si_frames(cfg, suj, sites_m, shafts)
+    own = np.array([own_joints(r, a)[:2] for r, a in zip(rot, shafts)]).reshape(n, 2)
+    (ylo, yhi), (plo, phi) = arm.yaw_limits_rad, arm.pitch_limits_rad
+    own_margin = np.minimum.reduce([own[:, 0] - ylo, yhi - own[:, 0], own[:, 1] - plo, phi - own[:, 1]])
+    bases = np.zeros((n, 4, 4))
+    bases[:, :3, :3], bases[:, :3, 3], bases[:, 3, 3] = rot, sites_m, 1.0
+    in_cart = np.einsum("pij,njk->pnik", patients, bases).reshape(m * n, 4, 4)  # per pose, then port
+    margin, q = si_solutions(suj, in_cart)
+    margin = np.minimum(margin, np.tile(own_margin, m))
+    return margin, np.concatenate([q, np.full((m * n, 2), np.nan)], axis=1), np.tile(own, (m, 1))
 
 
 class DockedArm(NamedTuple):
@@ -616,7 +671,9 @@ def docked_arms(cfg: PortPlaceConfig, row: dict) -> list[DockedArm]:
         if arm == "ecm":
             margin, joints, aim = camera_dock(cfg, patient, site[None])
             if margin[0] >= 0:
-                base = S.forward(CARTS[cart.model]["ECM"], joints[0])
+                suj = CARTS[cart.model]["ECM"]
+                joints = joints[:, :len(suj.links)]
+                base = S.forward(suj, joints[0])
                 out.append(DockedArm("ECM", str(row["ecm_site"]), tuple(float(v) for v in joints[0]),
                                      float(margin[0]), "", "", tuple(site), base, tuple(float(v) for v in aim[0])))
             else:
@@ -624,9 +681,11 @@ def docked_arms(cfg: PortPlaceConfig, row: dict) -> list[DockedArm]:
                                      "joints docks it", tuple(site), None, ()))
             continue
         neutral = K.docking_frames(site[None], centre, LATERAL)
-        roll = instrument_rolls_rad(model_of(cfg), site[None], neutral)  # as the tables (``instrument_frames``)
-        base = patient @ base_pose(rolled(neutral, roll)[0], site)
-        answer = S.classic_psm_ik(CARTS[cart.model][arm.upper()], base)
+        model = model_of(cfg)
+        roll = instrument_rolls_rad(model, site[None], neutral)  # as the tables (``instrument_frames``)
+        base = patient @ base_pose(instrument_frames(model, site[None], neutral, roll)[0], site)
+        ik = S.si_ik if cart.model == "si" else S.classic_psm_ik
+        answer = ik(CARTS[cart.model][arm.upper()], base)
         if answer.within:
             best = answer.within[0]
             out.append(DockedArm(arm.upper(), str(row[f"{arm}_site"]), best.joints, best.margin, best.tightest, "",
