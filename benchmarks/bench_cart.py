@@ -11,6 +11,9 @@ Prints, on the default config with the Classic cart on its grid of floor poses (
   the dry run printed beforehand against the time taken, docking alone (``constraints.min_link_clearance_mm=off``),
   also with a finer grid of 300+ poses; and with the links deciding (the default: every arm's links clear of each
   other, the patient and the table), its time against the same run without them;
+- the Si's setup joints (S3) over every (site, pose) of the default's grid with the Si arms: the numpy batch
+  (``si_docking.si_solutions``) against the plain ``suj.si_ik`` pose by pose, checked equal, and
+  `surgopt port-place cart.model=si` end to end (the Si arms; the links not modelled) with its dry run's estimate;
 - the pruned least clearance between two arms (``capsules.least_between``, the link tables' kernel) against the
   exhaustive ``least_over_poses`` on the default's PSM pairs (their own links over 65 poses each), checked equal;
   and as the link tables take it (resolved up to CAP_M above the least) against a decision alone (clear or not).
@@ -92,15 +95,52 @@ def solvers() -> None:
           f"equal: {same}")
 
 
+SI_ARGS = ["cart.model=si", "robot.instrument_arm=dvrk_psm_si", "robot.camera_arm=dvrk_ecm_si"]
+
+
+def si_solver() -> None:
+    from surgopt.kinematics.si_docking import si_solutions
+
+    cfg = C.PortPlaceConfig.model_validate({"cart": {"model": "si"}, "robot": {
+        "instrument_arm": "dvrk_psm_si", "camera_arm": "dvrk_ecm_si"}})
+    model = T.prepare(cfg)
+    poses = T.cart_poses(cfg)
+    n, m = len(model.sites_m), len(poses.floor)
+    bases = np.zeros((n, 4, 4))
+    bases[:, :3, :3], bases[:, :3, 3], bases[:, 3, 3] = model.instrument_rot, model.sites_m, 1.0
+    in_cart = np.einsum("pij,njk->npik", poses.patient, bases).reshape(n * m, 4, 4)
+    suj = CARTS["si"]["PSM1"]
+    tb, (got, _) = best_of(lambda: si_solutions(suj, in_cart))
+    step = max(1, len(in_cart) // 2000)
+
+    def plain():
+        out = []
+        for pose in in_cart[::step]:
+            a = K.si_ik(suj, pose)
+            sols = a.within + a.outside
+            out.append(sols[0].margin if sols else -math.inf)
+        return np.array(out)
+
+    tp, want = best_of(plain, repeat=1)
+    same = np.array_equal(np.isinf(want), np.isinf(got[::step])) and np.allclose(
+        want[np.isfinite(want)], got[::step][np.isfinite(want)], atol=1e-12)
+    print(f"Si PSM SUJ (S3), {n * m:,} (site, pose) cells at psi*: numpy batch {n * m / tb / 1e6:.2f} M solves/s "
+          f"({tb * 1e6 / (n * m):.2f} us), plain Python {len(want) / tp / 1e3:.1f} k solves/s "
+          f"({tp * 1e6 / len(want):.0f} us): {(tp / len(want)) / (tb / (n * m)):.0f}x; equal: {same}")
+
+
 def end_to_end() -> None:
     took_without = None
     alone = "constraints.min_link_clearance_mm=off"  # docking alone: the links are in feasible by default
     for label, args in (("the default grid, docking alone", ["cart.model=classic", alone]),
                         ("a finer grid, docking alone", ["cart.model=classic", "cart.around_step_deg=7.5",
                                                          "cart.distance_step_mm=100", alone]),
-                        ("the default grid, the links deciding (the default)", ["cart.model=classic"])):
-        cfg = C.PortPlaceConfig.model_validate({"cart": {"model": "classic", **{
-            a.split("=")[0].split(".")[1]: float(a.split("=")[1]) for a in args[1:] if a.startswith("cart.")}}})
+                        ("the default grid, the links deciding (the default)", ["cart.model=classic"]),
+                        ("the Si cart and arms, the default grid (docking alone: its links not modelled)", SI_ARGS)):
+        si = "cart.model=si" in args
+        cfg = C.PortPlaceConfig.model_validate({"cart": {"model": "si" if si else "classic", **{
+            a.split("=")[0].split(".")[1]: float(a.split("=")[1]) for a in args[1:] if a.startswith("cart.")}},
+            "robot": {"instrument_arm": "dvrk_psm_si", "camera_arm": "dvrk_ecm_si"} if si else {}})
         poses = len(T.cart_poses(cfg).floor)
         layouts = S.n_total(cfg)
         dry = subprocess.run([sys.executable, "-m", "surgopt", "port-place", *args, "--dry-run"],
@@ -119,7 +159,7 @@ def end_to_end() -> None:
         print(f"surgopt port-place, {label} ({poses} cart poses), end to end (warm, 2 threads): {took:.1f} s for "
               f"{layouts:,} layouts x {poses} poses = {pairs:.3g} (layout, cart pose) pairs, {pairs / took:.3g} "
               f"pairs/s; the dry run's estimate {est:.1f} s ({est / took:.2f}x the time)"
-              + (f"; {took / took_without:.2f}x the run without the links" if "links" in label else ""))
+              + (f"; {took / took_without:.2f}x the run without the links" if "links deciding" in label else ""))
         took_without = took if took_without is None else took_without
 
 
@@ -152,5 +192,6 @@ def pruned_least() -> None:
 
 if __name__ == "__main__":
     solvers()
+    si_solver()
     pruned_least()
     end_to_end()
