@@ -333,7 +333,9 @@ def _dry_run(study, todo, store, options) -> None:
             verdict = f"REFUSED: {str(exc).split(';')[0]}"
         rows.append([v.config_name, f"{est.items:,} {est.what}" if est else "?", plan.n_parts(study, v.config, chunk),
                      key[:12], state, duration_text(wall_seconds(est, jobs, overhead=not rows)) if est else "?",
-                     f"{run_bytes(est, backend, jobs, scheduler) / 2 ** 20:,.0f} MB" if est else "?", verdict])
+                     (f"{run_bytes(est, backend, jobs, scheduler) / 2 ** 20:,.0f} MB"
+                      + (f" (at most {(run_bytes(est, backend, jobs, scheduler) - est.peak_bytes + est.peak_bytes_bound) / 2 ** 20:,.0f} MB were every row stored)"
+                         if est.peak_bytes_bound else "")) if est else "?", verdict])
     print_table(wide_console(), f"{study.name} --dry-run (nothing computed or written)",
                  ["config", "size", "parts", "key", "store", f"time on {jobs} core(s)", "peak memory", "budget"], rows)
 

@@ -909,3 +909,20 @@ def test_an_angled_scope_on_a_spherical_arm_is_held_to_that_arms_pointing():
             p = wrist([home[0] + q1, home[1] + q2, 0.0, 0.1])
             np.testing.assert_allclose(p / np.linalg.norm(p), shaft, atol=1e-9)
     assert (ok_wide & ~ok).any()  # the premise: the narrow pitch refuses sites the full range accepts
+
+
+def test_a_feasible_rows_run_is_budgeted_at_its_likely_peak_and_shows_the_bound(tmp_path):
+    """``rows_stored = "feasible"`` (three PSMs, the README's line): the estimate's peak allows for
+    FEASIBLE_SHARE_MEMORY of the designs feasible, and the bound were every design feasible is shown beside it
+    (it was the only number: 7.5 GB against 0.69 GB measured, which an 8 GB machine's budget refused); a budget
+    between the two lets the run through, one below the likely peak refuses it. Premise: the two differ."""
+    cfg = C.PortPlaceConfig.model_validate({"robot": {"instrument_count": 3}, "rows_stored": "feasible"})
+    est = S.estimate(cfg)
+    assert est.peak_bytes_bound is not None and est.peak_bytes < est.peak_bytes_bound / 3
+    between = (est.peak_bytes + est.peak_bytes_bound) / 2 / 2 ** 30
+    r = cli("port-place", "robot.instrument_count=3", "rows_stored=feasible", "--dry-run", "--max-memory-gb",
+            f"{between:.2f}", "--store", tmp_path / "s", env={**os.environ, "COLUMNS": "300"})
+    assert "within budget" in r.stdout and "were every row stored" in r.stdout
+    r = cli("port-place", "robot.instrument_count=3", "rows_stored=feasible", "--dry-run", "--max-memory-gb",
+            f"{est.peak_bytes / 2 ** 30 / 2:.2f}", "--store", tmp_path / "s", env={**os.environ, "COLUMNS": "300"})
+    assert "REFUSED" in r.stdout

@@ -49,6 +49,9 @@ class Estimate:
     smaller: str = "make it smaller"  # how to make the config cheaper, said when a budget refuses it
     #: rows the store will likely hold, when fewer than ``rows`` (an upper bound): port-place's feasible rows only
     stored_rows: int | None = None
+    #: the parent's peak were every row stored (``peak_bytes`` then allows for the share ``stored_rows`` assumes, and
+    #: more): what the dry run shows beside it; None when ``peak_bytes`` is already that
+    peak_bytes_bound: int | None = None
 
 
 #: Resident memory of a study process before any work: Python, numpy, numba, pyarrow (measured: 270 MB).
