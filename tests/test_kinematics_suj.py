@@ -81,6 +81,29 @@ def test_si_ik_round_trips_and_its_orientations_are_one_family(arm):
         np.testing.assert_allclose(K.si_orientation(suj, sum(q[1:])), pose[:3, :3], atol=1e-12)
 
 
+def test_the_si_psm3s_redundant_inverse_round_trips_and_recovers_its_joints_on_its_grid():
+    """(S7) The Si PSM3: four planar joints for three planar degrees of freedom. Every solution's forward
+    kinematics (the reference's, typed apart from the package) is the pose (1e-9); random joints whose first
+    planar joint lies on the inverse's grid are among the solutions; the base's orientation is si_orientation at
+    the chain's yaw; a pose the chain cannot reach at any value of its first joint is refused. Premise: several
+    solutions per pose (the redundancy), every one in range under the assumed full turns."""
+    suj = D.SI["PSM3"]
+    steps = 72
+    for q in _random_joints(suj, 20):
+        q[1] = -math.pi + 2 * math.pi * RNG.integers(steps) / steps
+        pose = suj_forward_reference("si", "PSM3", q)
+        answer = K.si_ik(suj, pose, steps=steps)
+        assert len(answer.within) > 2 and not answer.outside
+        assert any(_same_joints(s.joints, q) for s in answer.within)
+        for s in answer.within:
+            assert np.abs(suj_forward_reference("si", "PSM3", s.joints) - pose).max() < 1e-9
+        np.testing.assert_allclose(K.si_orientation(suj, sum(q[1:])), pose[:3, :3], atol=1e-12)
+    far = K.forward(suj, [0.3, 0.0, 0.0, 0.0, 0.0])
+    far[:2, 3] += 3.0  # 3 m further than its links reach
+    answer = K.si_ik(suj, far, steps=steps)
+    assert not answer.within and "out of reach" in answer.reason
+
+
 def test_poses_the_suj_cannot_reach_are_refused_with_the_reason():
     """Out of the planar chain's reach; inside its reach only with a joint out of its range (the joint and the
     range named); an Si docking tilted off its family (the angle named)."""
@@ -221,7 +244,7 @@ def test_the_jitted_ecm_dock_picks_the_numpy_grids_point():
     np.testing.assert_allclose(got[2][finite], want[2][finite], rtol=0, atol=1e-9)
 
 
-@pytest.mark.parametrize("arm", ["PSM1", "PSM2"])
+@pytest.mark.parametrize("arm", ["PSM1", "PSM2", "PSM3"])
 def test_an_si_docking_points_the_shaft_with_the_arms_own_joints(arm):
     """(S5, S6) The Si sets only its arm's yaw about the vertical; the arm's own yaw and pitch absorb the rest.
     For random aims from the sample pose's port: each docking's setup joints through the reference forward

@@ -159,7 +159,7 @@ def test_the_si_export_lands_each_rcm_on_its_port_and_its_own_joints_aim_the_sha
 
 
 @pytest.mark.parametrize("change, words", [
-    ({"robot": {**SI_ARMS, "instrument_count": 3}}, "PSM3's setup joints"),
+    ({"robot": {**SI_ARMS, "instrument_count": 3}}, "its PSM3 hangs 15 deg"),
     ({"robot": {**SI_ARMS, "docking_roll_deg": 30.0}}, "no roll about the shaft"),
     ({"robot": SI_ARMS, "constraints": {"min_link_clearance_mm": 0.0}}, "not modelled"),
     ({"robot": {}}, "carries the Si PSMs and ECM"),

@@ -18,7 +18,8 @@ two joints (the law of cosines) and the third closes the yaw; the column closes 
 
 Si PSM1, PSM2, ECM (S3): G is constant, so the base's orientation can only turn about the vertical: the
 reachable docking orientations are R = Rz(psi) R_0, a one-parameter family (``si_orientation``); a pose off
-the family is refused with the angle it is off by; on it, two elbow solutions.
+the family is refused with the angle it is off by; on it, two elbow solutions. The Si PSM3 (S7) has four planar
+joints for the same three degrees of freedom: its first is free, taken on a grid, the rest solved as above.
 
 All in metres and radians. Plain numpy, pose by pose; ``kinematics.suj_batch`` jits S2 and S4 over every
 (site, cart pose) for the dock tables and is held to these.
@@ -232,11 +233,35 @@ def si_orientation(suj, yaw_rad: float) -> np.ndarray:
     return r @ np.asarray(suj.tip_to_tool, float)[:3, :3]
 
 
-def si_ik(suj, pose: np.ndarray, tolerance_rad: float = 1e-9) -> SujAnswer:
+#: The Si PSM3's first planar joint, free (S7): its inverse takes it on a grid of this many values over a turn.
+SI_REDUNDANT_STEPS = 360
+
+
+def _redundant_planar_ik(suj, x: float, y: float, z: float, psi: float, steps: int) -> list[tuple]:
+    """(S7) The Si PSM3's column and four planar joints that put the chain's last frame at (x, y, z) with yaw psi:
+    four revolute joints for three planar degrees of freedom, so the first, theta1, is free; at each of ``steps``
+    values of it over a turn the rest is the three-joint chain's inverse (two elbows) from the end of the first
+    link, A_2 u(theta1)."""
+    a_c, d_c, a, d, off = _planar(suj, 4)
+    column = z - d_c - sum(d)
+    out = []
+    for k in range(steps):
+        t1 = -math.pi + 2 * math.pi * k / steps  # the first link's heading, its offset included
+        px, py = x - a_c - a[1] * math.cos(t1), y - a[1] * math.sin(t1)
+        c, s = math.cos(t1), math.sin(t1)
+        for h2, t3 in _elbows(c * px + s * py, -s * px + c * py, a[2], a[3]):  # in the first link's frame
+            t4 = wrap(psi - t1 - h2 - t3 - off[3])
+            out.append((column, wrap(t1 - off[0]), wrap(h2 - off[1]), wrap(t3 - off[2]), t4))
+    return out
+
+
+def si_ik(suj, pose: np.ndarray, tolerance_rad: float = 1e-9, steps: int = SI_REDUNDANT_STEPS) -> SujAnswer:
     """(S3) Every Si SUJ solution (PSM1, PSM2, ECM: a column and three planar joints) that puts the base at
-    ``pose``; refused when its orientation is off the reachable family by more than ``tolerance_rad``."""
-    if len(suj.links) != 4:
-        raise ValueError(f"{suj.cart} {suj.arm}: {len(suj.links) - 1} planar joints; si_ik solves three")
+    ``pose``; refused when its orientation is off the reachable family by more than ``tolerance_rad``. The Si
+    PSM3 (four planar joints, redundant: S7): its solutions on a grid of ``steps`` values of its first planar
+    joint, the best (the largest least range margin) first."""
+    if len(suj.links) not in (4, 5):
+        raise ValueError(f"{suj.cart} {suj.arm}: {len(suj.links) - 1} planar joints; si_ik solves three or four")
     t = _to_suj(suj, pose)
     g = np.eye(4)
     for row in suj.fixed:
@@ -246,7 +271,10 @@ def si_ik(suj, pose: np.ndarray, tolerance_rad: float = 1e-9) -> SujAnswer:
     if off > math.degrees(tolerance_rad):
         return SujAnswer((), (), f"{suj.cart} {suj.arm} SUJ: the Si sets only the base's yaw; this docking is "
                                  f"tilted {off:.2f} deg off the orientations it can give")
-    return _answer(suj, _planar_ik(suj, h[0, 3], h[1, 3], h[2, 3], math.atan2(h[1, 0], h[0, 0])))
+    psi = math.atan2(h[1, 0], h[0, 0])
+    if len(suj.links) == 5:
+        return _answer(suj, _redundant_planar_ik(suj, h[0, 3], h[1, 3], h[2, 3], psi, steps))
+    return _answer(suj, _planar_ik(suj, h[0, 3], h[1, 3], h[2, 3], psi))
 
 
 def _rz(a: np.ndarray) -> np.ndarray:

@@ -548,14 +548,15 @@ def cart_does_not_carry(cfg: PortPlaceConfig, model: str = "classic") -> str:
 
 
 def si_cart_fits(cfg: PortPlaceConfig) -> None:
-    """What the Si cart does not do, refused by name (``cart.model = 'si'``): its PSM3's setup joints (four planar
-    joints, redundant) have no inverse here; its setup joints fix each arm's roll about its shaft; the capsules of
+    """What the Si cart does not do, refused by name (``cart.model = 'si'``): its PSM3 (its docking frame is not
+    PSM1's and PSM2's, and the tables hold one per port); its setup joints fix each arm's roll about its shaft; the capsules of
     the links are the Classic's (``robots/dvrk_links.py``), so the links cannot decide feasible: left out unless
     asked for (then refused)."""
     r, c = cfg.robot, cfg.constraints
     if r.instrument_count != 2:
-        raise ValueError("robot.instrument_count: the Si cart docks PSM1 and PSM2 here; its PSM3's setup joints (four "
-                         "planar joints for three degrees of freedom) have no inverse yet (instrument_count = 2, or "
+        raise ValueError("robot.instrument_count: the Si cart docks PSM1 and PSM2 here; its PSM3 hangs 15 deg off "
+                         "the vertical (its own fixed links), not 45 deg as they do, so its reach at a port differs "
+                         "from theirs, and the tables hold one instrument frame per port (instrument_count = 2, or "
                          "cart.model = 'classic')")
     if r.docking_roll != "given" or r.docking_roll_deg != 0.0:
         raise ValueError("robot.docking_roll_deg: the Si's setup joints give each arm one orientation at each yaw "
