@@ -1,7 +1,7 @@
 """Config models of the ``port-place`` study: the patient (a dome or a mesh), the port
 region and its candidate sites, the target and its points, the robot, the constraints and the objective.
 
-One module of ~520 lines: the sections validate against each other (the cart against the arms and the search,
+One module of ~590 lines: the sections validate against each other (the cart against the arms and the search,
 the target against the patient, the wrist's depth against the insertion), so they are declared together.
 
 A config is resolved once, at validation (a mesh file read, checked and hashed; the sites counted against the
