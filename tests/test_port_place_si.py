@@ -74,12 +74,16 @@ def test_each_ports_si_frame_is_the_yaw_that_leaves_the_least_to_absorb_at_every
             np.testing.assert_allclose(p[:3, :3].T @ SJ.si_orientation(CARTS["si"]["PSM1"], best), frame, atol=2e-4)
 
 
+def _arms(row):
+    return [a for a in ("psm1", "psm2", "psm3", "ecm") if f"{a}_site" in row]
+
+
 def _plain_docks(cfg, row, patient):
     """Whether every arm of ``row`` docks with the cart at ``patient`` (4x4) by the plain inverse (``suj.si_ik``)
     and, for the ECM, its own yaw and pitch aiming the scope at the centre within its ranges."""
     centre = np.asarray(cfg.target.centre_mm, float) / 1000
     ecm = get_model("dvrk_ecm_si")
-    for arm in ("psm1", "psm2", "ecm"):
+    for arm in _arms(row):
         port = np.array([row[f"{arm}_{c}_mm"] for c in "xyz"]) / 1000
         aim = (centre - port) / np.linalg.norm(centre - port)
         suj = CARTS["si"][arm.upper()]
@@ -126,6 +130,46 @@ def test_the_rows_dock_on_the_si_cart_at_the_first_pose_the_plain_inverse_docks_
             assert row[f"{arm}_suj_margin_deg"] >= 0 and row[f"{arm}_suj_column_margin_mm"] >= 0
 
 
+def test_three_psms_on_the_si_cart_dock_the_third_in_its_own_frame():
+    """Three PSMs on the Si cart (S7: its PSM3 hangs 15 deg off the vertical, PSM1 and PSM2 45): a chunk of a
+    small run's rows. Each row's cart pose is the first at which the plain inverse docks all four arms, PSM3 in its
+    own Si frame (-1 where none does); its five setup joints through the reference forward kinematics put its base
+    on its port; its reach is the share of the target it reaches in that frame (``instrument_tables`` on frames
+    the tables do not share), not in PSM1's. Premises: the two frames reach differently at some of the rows'
+    third ports; docked and undocked rows both checked."""
+    from surgopt.kinematics import port_place as K
+
+    cfg = C.PortPlaceConfig.model_validate({**SI, "robot": {**SI_ARMS, "instrument_count": 3}})
+    model = T.model_of(cfg)
+    cols = S.compute_task(cfg, 60_000, 3)
+    third = np.unique(cols["psm3_site"])
+    aims = model.centre_m - model.sites_m[third]
+    aims /= np.linalg.norm(aims, axis=1)[:, None]
+    own = T.si_frames(cfg, CARTS["si"]["PSM3"], model.sites_m[third], aims)
+    theirs = T.si_frames(cfg, CARTS["si"]["PSM1"], model.sites_m[third], aims)
+    reach = {}
+    for frames, key in ((own, "own"), (theirs, "theirs")):
+        got, _ = K.instrument_tables(model.sites_m[third], frames, model.targets_m, model.limits,
+                                     model.criteria.dexterity_length_m, model.cone)
+        reach[key] = dict(zip(third.tolist(), got.sum(axis=1) / len(model.targets_m)))
+    assert any(reach["own"][s] != reach["theirs"][s] for s in third.tolist())
+    np.testing.assert_allclose(cols["psm3_reach"], [reach["own"][s] for s in cols["psm3_site"].tolist()], atol=1e-12)
+    poses = T.cart_poses(cfg)
+    docked, undocked = np.flatnonzero(cols["cart_pose"] >= 0), np.flatnonzero(cols["cart_pose"] < 0)
+    assert len(docked) and len(undocked)
+    rng = np.random.default_rng(5)
+    for r in np.concatenate([rng.choice(docked, 4, replace=False), rng.choice(undocked, 2, replace=False)]):
+        row = {c: v[r].item() for c, v in cols.items()}
+        assert row["cart_pose"] == next((k for k, p in enumerate(poses.patient) if _plain_docks(cfg, row, p)), -1)
+        if row["cart_pose"] < 0:
+            continue
+        patient = poses.patient[row["cart_pose"]]
+        q = [row["psm3_suj_column_mm"] / 1000] + [math.radians(row[f"psm3_suj_j{j}_deg"]) for j in (1, 2, 3, 4)]
+        port = np.array([row[f"psm3_{c}_mm"] for c in "xyz"]) / 1000
+        np.testing.assert_allclose(suj_forward_reference("si", "PSM3", q)[:3, 3], patient[:3, :3] @ port
+                                   + patient[:3, 3], atol=1e-9)
+
+
 def test_the_si_export_lands_each_rcm_on_its_port_and_its_own_joints_aim_the_shaft(tmp_path):
     """The CLI on a small Si config: the report names the Si cart and says the links are not measured; the best
     layout's ``--format dvrk`` export: ``suj`` "si", four joint values per arm, which the reference forward
@@ -159,13 +203,58 @@ def test_the_si_export_lands_each_rcm_on_its_port_and_its_own_joints_aim_the_sha
 
 
 @pytest.mark.parametrize("change, words", [
-    ({"robot": {**SI_ARMS, "instrument_count": 3}}, "its PSM3 hangs 15 deg"),
     ({"robot": {**SI_ARMS, "docking_roll_deg": 30.0}}, "no roll about the shaft"),
     ({"robot": SI_ARMS, "constraints": {"min_link_clearance_mm": 0.0}}, "not modelled"),
     ({"robot": {}}, "carries the Si PSMs and ECM"),
 ])
 def test_what_the_si_cart_does_not_do_is_refused_by_name(change, words):
-    """A config asking the Si cart for what it does not do here is refused, naming the field: a third PSM, a
-    docking roll, the links deciding feasible (asked for; left out unasked), the Classic's arms."""
+    """A config asking the Si cart for what it does not do here is refused, naming the field: a docking roll, the links deciding feasible (asked for; left out unasked), the Classic's arms."""
     with pytest.raises(ValueError, match=words):
         C.PortPlaceConfig.model_validate({**SI, **change, "cart": SI["cart"]})
+
+
+def test_the_page_colours_the_target_by_the_si_psm3s_own_isotropy(tmp_path, page):
+    """The HTML page of a three-PSM run on the Si cart opens in chromium without errors, embeds the third
+    instrument's own reach and isotropy (PSM3's Si frames: ``instrument_tables`` on them here), and colours each
+    target point of the first layout by the least isotropy of the three instruments, PSM3's in its own frame.
+    Premise: the first layout's PSM3 isotropy in its own frame differs from PSM1's frame's at some point."""
+    from surgopt.kinematics import port_place as K
+
+    (tmp_path / "si3.toml").write_text(
+        "rows_stored = \"feasible\"\n[patient.port_region]\nsite_spacing_mm = 36.0\n[target]\nspacing_mm = 15.0\n"
+        "[robot]\ninstrument_arm = \"dvrk_psm_si\"\ncamera_arm = \"dvrk_ecm_si\"\ninstrument_count = 3\n"
+        "[cart]\nmodel = \"si\"\naround_step_deg = 30.0\ndistance_step_mm = 300.0\n")
+    cli("port-place", "si3.toml", "--store", tmp_path / "s", "--quiet", cwd=tmp_path)
+    cli("report", "latest", "--store", tmp_path / "s", "--out", tmp_path / "si3.html", cwd=tmp_path)
+    errors = []
+    page.on("pageerror", lambda e: errors.append(str(e)))
+    page.on("console", lambda m: errors.append(m.text) if m.type == "error" else None)
+    page.goto((tmp_path / "si3.html").as_uri())
+    page.wait_for_selector("body[data-ready]", timeout=120_000)
+    assert not errors, errors
+    page.wait_for_function("document.getElementById('pp-scene').dataset.layout !== undefined", timeout=60_000)
+    data = json.loads(page.evaluate("document.getElementById('pp-data').textContent"))
+    first = page.evaluate("document.getElementById('pp-scene').dataset.layout")
+    row = data["layouts"]["design_id"].index(int(first))
+    sites = [data["layouts"][f"psm{a}_site"][row] for a in (1, 2, 3)]
+    assert data["reach3"] is not None and data["dex3"] is not None
+    iso = page.evaluate("document.getElementById('pp-scene').data.find(t => t.name === 'target (isotropy)')"
+                        ".marker.color")
+    cfg = C.PortPlaceConfig.model_validate({"rows_stored": "feasible", "patient": SI["patient"],
+                                            "target": SI["target"], "robot": {**SI_ARMS, "instrument_count": 3},
+                                            "cart": {k: v for k, v in SI["cart"].items() if k != "trendelenburg_deg"}})
+    model = T.model_of(cfg)
+    at = model.sites_m[sites]
+    aims = model.centre_m - at
+    aims /= np.linalg.norm(aims, axis=1)[:, None]
+    frames = [T.si_frames(cfg, CARTS["si"][arm], at[a:a + 1], aims[a:a + 1])[0]
+              for a, arm in enumerate(("PSM1", "PSM2", "PSM3"))]
+    reach, dex = K.instrument_tables(at, np.array(frames), model.targets_m, model.limits,
+                                     model.criteria.dexterity_length_m, model.cone)
+    _, dex_theirs = K.instrument_tables(at[2:], np.array(frames[:1]), model.targets_m, model.limits,
+                                        model.criteria.dexterity_length_m, model.cone)
+    assert np.abs(dex_theirs[0] - dex[2]).max() > 1e-3
+    want = np.where(reach.all(axis=0), dex.min(axis=0), np.nan)
+    got = np.array([np.nan if v is None else v for v in iso], float)
+    np.testing.assert_array_equal(np.isnan(got), np.isnan(want))
+    np.testing.assert_allclose(got[~np.isnan(got)], want[~np.isnan(want)], atol=1e-4)  # the page rounds to 1e-4

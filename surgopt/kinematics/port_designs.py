@@ -48,6 +48,11 @@ class PortTables(NamedTuple):
     arm_code: np.ndarray = np.zeros((0, 1, 1), np.int16)
     # per site: the instrument's docking roll about its neutral shaft, deg (the study's, for its rows)
     roll_deg: np.ndarray = np.zeros(0)
+    # per site, the third instrument's own reach and mean isotropy where it docks in a frame of its own (the Si
+    # PSM3: ``studies/port_place/tables.si_frames``); none (0 sites): the third's are the first two's, above
+    third_reach_count: np.ndarray = np.zeros(0, np.int64)
+    third_reach_bits: np.ndarray = np.zeros((0, 1), np.uint64)
+    third_dex_site: np.ndarray = np.zeros(0)
 
 
 def reach_bits(reach: np.ndarray) -> np.ndarray:
@@ -148,6 +153,10 @@ def design_columns(t, crit, start, stop, instruments=2, feasible_only=False):
     (docs/port_placement.md, eq. P11: the cost and feasibility.)"""
     n = t.reach_count.shape[0]
     three = instruments == 3
+    own = t.third_reach_count.shape[0] > 0  # the third docks in frames of its own
+    reach3 = t.third_reach_count if own else t.reach_count
+    bits3 = t.third_reach_bits if own else t.reach_bits
+    dex3 = t.third_dex_site if own else t.dex_site
     size = stop - start
     ids = np.empty((size, 4 if three else 3), dtype=np.int64)
     f = np.empty((size, 14 + (THIRD_COLUMNS if three else 0)))
@@ -175,14 +184,14 @@ def design_columns(t, crit, start, stop, instruments=2, feasible_only=False):
             # the points all three reach: the pair's count when the third reaches every point, the third's
             # when the pair does, else the set bits of the three sites' reach_bits ANDed (written out here:
             # a call taking the tables' arrays pays a reference count for each, ~60 ns a design)
-            if t.reach_count[l] == t.n_points:
+            if reach3[l] == t.n_points:
                 c3 = t.count[i, j]
             elif t.count[i, j] == t.n_points:
-                c3 = t.reach_count[l]
+                c3 = reach3[l]
             else:
                 c3 = 0
                 for w in range(t.reach_bits.shape[1]):
-                    c3 += np.int64(popcount64(t.reach_bits[i, w] & t.reach_bits[j, w] & t.reach_bits[l, w]))
+                    c3 += np.int64(popcount64(t.reach_bits[i, w] & t.reach_bits[j, w] & bits3[l, w]))
             common = c3 / t.n_points
             spacing = min(spacing, min(t.spacing[i, l], min(t.spacing[j, l], t.spacing[l, k])))
             outside = min(outside, min(at(t.outside, i, l), min(at(t.outside, j, l), t.outside_camera[l, k])))
@@ -245,9 +254,9 @@ def design_columns(t, crit, start, stop, instruments=2, feasible_only=False):
                          + crit.w_dexterity * (1.0 - t.dex_mean[i, j]))
             if three:
                 ids[out, 2] = l
-                f[out, 14] = t.reach_count[l] / t.n_points
-                f[out, 15] = t.dex_site[l]
-                cost[out] += crit.w_dexterity * (1.0 - t.dex_site[l])
+                f[out, 14] = reach3[l] / t.n_points
+                f[out, 15] = dex3[l]
+                cost[out] += crit.w_dexterity * (1.0 - dex3[l])
             design[out] = start + r
             dock[out, 0], dock[out, 1], dock[out, 2] = pose, swapped, code
             out += 1

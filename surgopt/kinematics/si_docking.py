@@ -123,35 +123,51 @@ def _wrap(a: np.ndarray) -> np.ndarray:
     return np.where(out <= -math.pi, math.pi, out)
 
 
-def si_solutions(suj, poses: np.ndarray, tolerance_rad: float = 1e-9) -> tuple[np.ndarray, np.ndarray]:
-    """(S3) ``suj.si_ik`` over many poses (N, 4, 4, the base in the cart's world) at once, as a dock table needs it:
-    per pose the best solution's least range margin (m for the column, rad otherwise; -inf: no solution, or the pose
-    off the orientations the Si gives by more than ``tolerance_rad``) and its joints (N, 4; the column first). The
-    best: the first elbow (positive sine) unless the other beats it by ``suj.MARGIN_TIE``, as ``suj.best_first``."""
-    if len(suj.links) != 4:
-        raise ValueError(f"{suj.cart} {suj.arm}: {len(suj.links) - 1} planar joints; si_solutions solves three")
+def si_solutions(suj, poses: np.ndarray, tolerance_rad: float = 1e-9,
+                 steps: int = S.SI_REDUNDANT_STEPS) -> tuple[np.ndarray, np.ndarray]:
+    """(S3, S7) ``suj.si_ik`` over many poses (N, 4, 4, the base in the cart's world) at once, as a dock table needs
+    it: per pose the best solution's least range margin (m for the column, rad otherwise; -inf: no solution, or the
+    pose off the orientations the Si gives by more than ``tolerance_rad``) and its joints (N, the SUJ's joints; the
+    column first). The best: the first in ``si_ik``'s order (the first planar joint's grid of ``steps`` on the
+    redundant PSM3, then the elbow of positive sine) unless a later one beats it by ``suj.MARGIN_TIE``, as
+    ``suj.best_first``."""
+    planar = len(suj.links) - 1
+    if planar not in (3, 4):
+        raise ValueError(f"{suj.cart} {suj.arm}: {planar} planar joints; si_solutions solves three or four")
     g = np.eye(4)
     for row in suj.fixed:
         g = g @ S.link(row, 0.0)
     h = (np.linalg.inv(np.asarray(suj.world_to_suj, float)) @ poses
          @ np.linalg.inv(np.asarray(suj.tip_to_tool, float)) @ np.linalg.inv(g))  # Trans(x, y, z) Rz(psi) on the family
     on = np.arctan2(np.hypot(h[:, 0, 2], h[:, 1, 2]), h[:, 2, 2]) <= tolerance_rad  # as si_ik: not acos
-    a_c, d_c, a, d, off = S._planar(suj, 3)
+    a_c, d_c, a, d, off = S._planar(suj, planar)
     x, y = h[:, 0, 3] - a_c, h[:, 1, 3]
     psi = np.arctan2(h[:, 1, 0], h[:, 0, 0])
     column = h[:, 2, 3] - d_c - sum(d)
-    l1, l2 = a[1], a[2]
-    c = (x * x + y * y - l1 * l1 - l2 * l2) / (2 * l1 * l2)
-    ok = on & (np.abs(c) <= 1 + 1e-12)
-    c = np.clip(c, -1.0, 1.0)
     lo, hi = np.asarray(suj.ranges, float).T
-    best, joints = np.full(len(poses), -np.inf), np.full((len(poses), 4), np.nan)
-    for sign in (1.0, -1.0):
-        s = sign * np.sqrt(1 - c * c)
-        t1 = _wrap(np.arctan2(y, x) - np.arctan2(l2 * s, l1 + l2 * c))
-        t2 = _wrap(np.arctan2(s, c))
-        q = np.stack([column, t1 - off[0], t2 - off[1], _wrap(psi - t1 - t2 - off[2])], axis=1)
-        margin = np.where(ok, np.minimum(q - lo, hi - q).min(axis=1), -np.inf)
-        take = margin > (best + S.MARGIN_TIE if sign < 0 else best)
-        best, joints = np.where(take, margin, best), np.where(take[:, None], q, joints)
+    best, joints = np.full(len(poses), -np.inf), np.full((len(poses), planar + 1), np.nan)
+    firsts = [None] if planar == 3 else [-math.pi + 2 * math.pi * k / steps for k in range(steps)]
+    for t1 in firsts:  # the redundant PSM3's first joint (S7): the rest from its link's end, in its frame
+        if t1 is None:
+            px, py, l1, l2 = x, y, a[1], a[2]
+        else:
+            ex, ey = x - a[1] * math.cos(t1), y - a[1] * math.sin(t1)
+            px, py = math.cos(t1) * ex + math.sin(t1) * ey, -math.sin(t1) * ex + math.cos(t1) * ey
+            l1, l2 = a[2], a[3]
+        c = (px * px + py * py - l1 * l1 - l2 * l2) / (2 * l1 * l2)
+        ok = on & (np.abs(c) <= 1 + 1e-12)
+        c = np.clip(c, -1.0, 1.0)
+        for sign in (1.0, -1.0):
+            s = sign * np.sqrt(1 - c * c)
+            u = _wrap(np.arctan2(py, px) - np.arctan2(l2 * s, l1 + l2 * c))
+            v = _wrap(np.arctan2(s, c))
+            if t1 is None:
+                q = [column, u - off[0], v - off[1], _wrap(psi - u - v - off[2])]
+            else:
+                q = [column, np.full_like(u, S.wrap(t1 - off[0])), _wrap(u - off[1]), _wrap(v - off[2]),
+                     _wrap(psi - t1 - u - v - off[3])]
+            q = np.stack(q, axis=1)
+            margin = np.where(ok, np.minimum(q - lo, hi - q).min(axis=1), -np.inf)
+            take = margin > best + S.MARGIN_TIE  # -inf + tie is -inf: the first candidate is taken where it solves
+            best, joints = np.where(take, margin, best), np.where(take[:, None], q, joints)
     return best, joints

@@ -16,8 +16,8 @@ HELP = """Port placement for the da Vinci Research Kit on a patient: two or thre
     grid around the table (or one given, or searched), and a design is feasible only where one pose docks every
     arm with every arm's links (setup joints' and its own, capsules) clear of each other, the patient and the
     table (constraints.min_link_clearance_mm, mm, 0 by default; off: docking alone); the closing report's best
-    layout may turn a PSM's docking about its shaft to clear them. cart.model=si docks the Si's PSM1, PSM2 and
-    ECM (robot.instrument_arm=dvrk_psm_si, robot.camera_arm=dvrk_ecm_si) at the one orientation its setup joints
+    layout may turn a PSM's docking about its shaft to clear them. cart.model=si docks the Si's PSMs and ECM
+    (robot.instrument_arm=dvrk_psm_si, robot.camera_arm=dvrk_ecm_si) at the one orientation its setup joints
     give nearest the aim, the arms' own yaw and pitch absorbing the rest (its links not modelled). `surgopt export KEY --design ID --format dvrk`
     writes the set-up a dVRK loads. Rows: one per
     design. The summary ranks feasible designs by cost and checks the best against the clinical numbers.

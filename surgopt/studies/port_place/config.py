@@ -370,7 +370,7 @@ class Cart(StrictModel):
 
     model: Literal["none", "classic", "si", "auto"] = Field(
         "none", description="'none': docking assumed; 'classic': the Classic cart's setup joints solved; 'si': the "
-                            "Si cart's (its PSM1, PSM2 and ECM, robot.instrument_arm = 'dvrk_psm_si', camera_arm = "
+                            "Si cart's (its PSM1, PSM2, PSM3 and ECM, robot.instrument_arm = 'dvrk_psm_si', camera_arm = "
                             "'dvrk_ecm_si'; each arm docked at the one orientation its setup joints give nearest "
                             "the aim, its own yaw and pitch absorbing the rest; the links not modelled); 'auto' "
                             "(the embedded default's): 'classic' where its arms are the Classic PSMs and ECM on "
@@ -548,16 +548,10 @@ def cart_does_not_carry(cfg: PortPlaceConfig, model: str = "classic") -> str:
 
 
 def si_cart_fits(cfg: PortPlaceConfig) -> None:
-    """What the Si cart does not do, refused by name (``cart.model = 'si'``): its PSM3 (its docking frame is not
-    PSM1's and PSM2's, and the tables hold one per port); its setup joints fix each arm's roll about its shaft; the capsules of
+    """What the Si cart does not do, refused by name (``cart.model = 'si'``): its setup joints fix each arm's roll about its shaft; the capsules of
     the links are the Classic's (``robots/dvrk_links.py``), so the links cannot decide feasible: left out unless
     asked for (then refused)."""
     r, c = cfg.robot, cfg.constraints
-    if r.instrument_count != 2:
-        raise ValueError("robot.instrument_count: the Si cart docks PSM1 and PSM2 here; its PSM3 hangs 15 deg off "
-                         "the vertical (its own fixed links), not 45 deg as they do, so its reach at a port differs "
-                         "from theirs, and the tables hold one instrument frame per port (instrument_count = 2, or "
-                         "cart.model = 'classic')")
     if r.docking_roll != "given" or r.docking_roll_deg != 0.0:
         raise ValueError("robot.docking_roll_deg: the Si's setup joints give each arm one orientation at each yaw "
                          "(no roll about the shaft to choose): docking_roll = 'given', docking_roll_deg = 0")

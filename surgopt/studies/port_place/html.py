@@ -104,11 +104,19 @@ def views(run, cfg, parts) -> list[View]:
         arm_lines = serial_tables(model, sites_m).links * 1000
     if cfg.robot.camera_serial is not None:
         cam_lines = camera_lines(model, sites_m) * 1000
+    reach3 = dex3 = None
+    if model.third_rot is not None:  # the third instrument docks in frames of its own (the Si PSM3)
+        from surgopt.kinematics import port_place as K
+
+        reach3, dex3 = K.instrument_tables(sites_m, model.third_rot, model.targets_m, model.limits,
+                                           model.criteria.dexterity_length_m, model.cone)
+        reach3, dex3 = np.asarray(reach3, bool).astype(np.int8), np.round(np.asarray(dex3, float), 4)
     data = {
         "arm_lines": arm_lines, "cam_lines": cam_lines, "outside_mm": dvrk.OUTSIDE_LENGTH_M * 1000,
         "arms": arms, "colours": [COLOURS[a] for a in arms], "sites": sites, "site_best": site_best,
         "targets": targets, "centre": np.asarray(cfg.target.centre_mm, float),
         "reach": np.asarray(reach, bool).astype(np.int8), "dex": np.round(np.asarray(dex, float), 4),
+        "reach3": reach3, "dex3": dex3,
         "layouts": layouts, "n_layouts": top.num_rows, "body": _body(cfg),
         "checks": [[label, list(fields), digits, joiner, clinical,
                     None if band is None else [band[0], band[1] if math.isfinite(band[1]) else None]]
@@ -232,8 +240,11 @@ function draw(i){
 function sceneTraces(i){
   const traces = base();
   const ins = arms.slice(0, -1).map(a => col(a+'_site', i));
-  const reachAll = D.targets.map((p, k) => ins.every(s => D.reach[s][k] === 1));
-  const iso = D.targets.map((p, k) => reachAll[k] ? Math.min.apply(null, ins.map(s => D.dex[s][k])) : null);
+  // the third instrument's own tables where it docks in frames of its own (the Si PSM3), else the shared ones
+  const R = ins.map((s, a) => (a === 2 && D.reach3) ? D.reach3[s] : D.reach[s]);
+  const X = ins.map((s, a) => (a === 2 && D.dex3) ? D.dex3[s] : D.dex[s]);
+  const reachAll = D.targets.map((p, k) => R.every(r => r[k] === 1));
+  const iso = D.targets.map((p, k) => reachAll[k] ? Math.min.apply(null, X.map(x => x[k])) : null);
   traces.push({type:'scatter3d', mode:'markers', x:D.targets.map(p=>p[0]), y:D.targets.map(p=>p[1]), z:D.targets.map(p=>p[2]),
     marker:{size:2.5, color:iso.map(v=>v===null?NaN:v), colorscale:'Magma', showscale:true,
             colorbar:{title:{text:'isotropy'}, x:1.0, len:0.55}}, name:'target (isotropy)',

@@ -63,7 +63,7 @@ def within_band(values, band) -> str:
 
 
 #: What every answer leaves out (docs/port_placement.md, "What the model leaves out"), said in the closing report.
-NOT_MODELLED = ("the Xi's setup joints, the Si cart's links and its PSM3, tissue and the body wall's thickness (a port is a point), "
+NOT_MODELLED = ("the Xi's setup joints, the Si cart's links, tissue and the body wall's thickness (a port is a point), "
                 "the assistant's port, the table's rails and arm boards and the patient's arms; every link radius is "
                 "an assumption (docs/port_placement.md, what the model leaves out)")
 

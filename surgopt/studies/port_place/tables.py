@@ -94,6 +94,12 @@ class PortModel:
         return instrument_frames(self, self.sites_m, self.rot)
 
     @cached_property
+    def third_rot(self) -> np.ndarray | None:
+        """(n, 3, 3) The third instrument's docking frames where they are its own (the Si PSM3, ``third_frames``),
+        else None (the first two's, ``instrument_rot``)."""
+        return third_frames(self, self.sites_m)
+
+    @cached_property
     def dock(self) -> "DockTables":
         """Which of the cart's setup joints dock which arm at which site and cart pose (``dock_tables``)."""
         return dock_tables(self)
@@ -244,6 +250,17 @@ def instrument_frames(model: PortModel, sites: np.ndarray, rot: np.ndarray, roll
     return rolled(rot, instrument_rolls_rad(model, sites, rot) if rolls_rad is None else rolls_rad)
 
 
+def third_frames(model: PortModel, sites: np.ndarray) -> np.ndarray | None:
+    """The third instrument's docking frames at ``sites`` where they are not PSM1's and PSM2's: on the Si cart,
+    its PSM3's (``si_frames``: it hangs 15 deg off the vertical, they 45); else None."""
+    if model.cfg.cart.model != "si" or model.cfg.robot.instrument_count != 3:
+        return None
+    from surgopt.robots.dvrk_suj import CARTS
+
+    aims = model.centre_m - sites
+    return si_frames(model.cfg, CARTS["si"]["PSM3"], sites, aims / np.linalg.norm(aims, axis=1)[:, None])
+
+
 def si_frames(cfg: PortPlaceConfig, suj, sites: np.ndarray, aims: np.ndarray) -> np.ndarray:
     """(n, 3, 3) Each port's docking rotation on the Si cart, in the patient's frame: the orientation its setup
     joints give at psi*, the yaw that leaves the arm's own yaw and pitch the least to absorb to point the shaft
@@ -356,6 +373,11 @@ def port_tables(model: PortModel, sites: np.ndarray, rot: np.ndarray, outside=No
                           wrist_margin_deg(model, sites), outside_camera,
                           *((dock.bits, dock.camera) if dock is not None else no_cart(len(sites))),
                           roll_deg=in_degrees(rolls))
+    third = third_frames(model, sites)
+    if third is not None:  # the third instrument's reach in frames of its own (the Si PSM3)
+        reach3, dex3 = K.instrument_tables(sites, third, targets, model.limits, crit.dexterity_length_m, model.cone)
+        tables = tables._replace(third_reach_count=reach3.sum(axis=1).astype(np.int64),
+                                 third_reach_bits=D.reach_bits(reach3), third_dex_site=D.site_dexterity(reach3, dex3))
     if links_decide(cfg) and dock is not None and dock.joints is not None:
         tables = with_links(model, tables, sites, frames, dock)
     return tables, reach, dex
@@ -546,16 +568,19 @@ def dock_at(model: PortModel, site_ids: np.ndarray, poses: CartPoses) -> DockTab
     sites = model.sites_m[site_ids]
     margin = np.full((3, n, m), -np.inf)
     joints = np.full((3, n, m, 6), np.nan)
-    bases = np.zeros((n, 4, 4))
-    bases[:, :3, :3], bases[:, :3, 3], bases[:, 3, 3] = model.instrument_rot[site_ids], sites, 1.0
-    in_cart = np.ascontiguousarray(np.einsum("pij,njk->npik", poses.patient, bases).reshape(n * m, 4, 4))
+    def in_cart(rot):
+        bases = np.zeros((n, 4, 4))
+        bases[:, :3, :3], bases[:, :3, 3], bases[:, 3, 3] = rot[site_ids], sites, 1.0
+        return np.ascontiguousarray(np.einsum("pij,njk->npik", poses.patient, bases).reshape(n * m, 4, 4))
+
+    shared = in_cart(model.instrument_rot)
     for a, arm in enumerate(arms):  # the best solution's least margin (suj_answer's first), every site and pose
         suj = CARTS[cfg.cart.model][arm]
-        if cfg.cart.model == "si":  # S3: a column and three planar joints (the last two joint values NaN)
-            got, q = si_solutions(suj, in_cart)
-            q = np.concatenate([q, np.full((len(q), 2), np.nan)], axis=1)
+        if cfg.cart.model == "si":  # S3, S7: a column and three (PSM3: four) planar joints; the rest NaN
+            got, q = si_solutions(suj, in_cart(model.third_rot) if a == 2 else shared)
+            q = np.concatenate([q, np.full((len(q), 6 - q.shape[1]), np.nan)], axis=1)
         else:
-            got, q = classic_psm_solutions(suj_arrays(suj), in_cart)
+            got, q = classic_psm_solutions(suj_arrays(suj), shared)
         margin[a], joints[a] = got.reshape(n, m), q.reshape(n, m, 6)
     camera, camera_joints, aim = camera_dock(cfg, poses.patient, sites)
     camera = camera.reshape(m, n).T
@@ -683,7 +708,9 @@ def docked_arms(cfg: PortPlaceConfig, row: dict) -> list[DockedArm]:
         neutral = K.docking_frames(site[None], centre, LATERAL)
         model = model_of(cfg)
         roll = instrument_rolls_rad(model, site[None], neutral)  # as the tables (``instrument_frames``)
-        base = patient @ base_pose(instrument_frames(model, site[None], neutral, roll)[0], site)
+        third = third_frames(model, site[None]) if arm == "psm3" else None  # the Si PSM3's frame is its own
+        frame = instrument_frames(model, site[None], neutral, roll)[0] if third is None else third[0]
+        base = patient @ base_pose(frame, site)
         ik = S.si_ik if cart.model == "si" else S.classic_psm_ik
         answer = ik(CARTS[cart.model][arm.upper()], base)
         if answer.within:
