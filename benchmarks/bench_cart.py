@@ -13,7 +13,7 @@ Prints, on the default config with the Classic cart on its grid of floor poses (
   other, the patient and the table), its time against the same run without them;
 - the Si's setup joints (S3) over every (site, pose) of the default's grid with the Si arms: the numpy batch
   (``si_docking.si_solutions``) against the plain ``suj.si_ik`` pose by pose, checked equal, and
-  `surgopt port-place cart.model=si` end to end (the Si arms; the links not modelled) with its dry run's estimate;
+  `surgopt port-place cart.model=si` end to end (the Si arms; its links not in feasible) with its dry run's estimate;
 - the pruned least clearance between two arms (``capsules.least_between``, the link tables' kernel) against the
   exhaustive ``least_over_poses`` on the default's PSM pairs (their own links over 65 poses each), checked equal;
   and as the link tables take it (resolved up to CAP_M above the least) against a decision alone (clear or not).
@@ -136,7 +136,7 @@ def end_to_end() -> None:
                         ("a finer grid, docking alone", ["cart.model=classic", "cart.around_step_deg=7.5",
                                                          "cart.distance_step_mm=100", alone]),
                         ("the default grid, the links deciding (the default)", ["cart.model=classic"]),
-                        ("the Si cart and arms, the default grid (docking alone: its links not modelled)", SI_ARGS)):
+                        ("the Si cart and arms, the default grid (docking alone: its links not in feasible)", SI_ARGS)):
         si = "cart.model=si" in args
         cfg = C.PortPlaceConfig.model_validate({"cart": {"model": "si" if si else "classic", **{
             a.split("=")[0].split(".")[1]: float(a.split("=")[1]) for a in args[1:] if a.startswith("cart.")}},

@@ -106,6 +106,30 @@ def test_psm_skeleton_agrees_with_the_dh_model(q):
         assert -p[1] == pytest.approx(along_yaw_m, abs=1e-12) and math.hypot(p[0], p[2]) == pytest.approx(0.0295)
 
 
+@pytest.mark.parametrize("q", [(0.0, 0.0, 0.0), (0.7, -0.4, 0.12), (-1.2, 0.8, 0.24), (0.3, 0.2, 0.05)])
+def test_the_si_psm_skeleton_agrees_with_the_dh_model_and_the_si_setup_joints(q):
+    """The Si PSM's skeleton (the dVRK's Si URDF, its pitch zero SI_PITCH_OFFSET_RAD off PSM_Si.json's) at (yaw,
+    pitch, insertion): the carriage's insertion axis is the DH model's shaft (tests/reference.py's modified-DH
+    chain, the Si's offsets) to 2e-5, the carriage on that line within 4 mm of the RCM, 0.4826 - q3 behind it
+    (4 mm); and the arm's base, where the URDF puts it, is the Si setup joints' last frame at the files' sample
+    joints within 1 cm (two descriptions of one arm: the URDF's 0.843 m from the RCM, suj-si-simulated.json's
+    tip transform 0.834 m)."""
+    from surgopt.kinematics import suj as S
+    from surgopt.robots.dvrk_suj import CARTS, SAMPLE_JOINTS
+
+    si = [(math.pi / 2, 0.0, 0.0, False, math.pi / 2), (-math.pi / 2, 0.0, 0.0, False, -math.pi / 2),
+          (math.pi / 2, 0.0, 0.0, True, -0.4826)]  # PSM_Si.json's yaw, pitch, insertion (dvrk-kinematics.md)
+    f = C.skeleton(L.PSM_SI_FRAMES, np.array(q), np.eye(4))
+    carriage = f["carriage"]
+    shaft = mdh_chain(si, q)[:3, 2]  # the insertion joint's axis: the shaft, into the body
+    np.testing.assert_allclose(carriage[:3, 2], shaft, atol=2e-5)
+    np.testing.assert_allclose(carriage[:3, 3], -(0.4826 - q[2]) * shaft, atol=4e-3)
+    for arm in ("PSM1", "PSM2", "PSM3"):
+        frames = S.frames(CARTS["si"][arm], SAMPLE_JOINTS[("si", arm)])
+        docked = C.skeleton(L.PSM_SI_FRAMES, np.zeros(3), frames[-1], frames[-2])
+        assert np.linalg.norm(docked["arm base"][:3, 3] - docked["mount"][:3, 3]) < 0.01
+
+
 def test_crossed_setup_joints_are_refused_with_the_pair_named():
     """The cart at the patient's feet on the midline; two mirror-image ports where both PSM1's and PSM2's setup
     joints dock: on the straight assignment (each arm to the port on its own side) the two arms' links clear

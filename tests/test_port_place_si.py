@@ -171,21 +171,25 @@ def test_three_psms_on_the_si_cart_dock_the_third_in_its_own_frame():
 
 
 def test_the_si_export_lands_each_rcm_on_its_port_and_its_own_joints_aim_the_shaft(tmp_path):
-    """The CLI on a small Si config: the report names the Si cart and says the links are not measured; the best
+    """The CLI on a small Si config: the report names the Si cart and measures its links (the Si PSM's own, from
+    the dVRK's Si description), saying they are not in feasible; the best
     layout's ``--format dvrk`` export: ``suj`` "si", four joint values per arm, which the reference forward
     kinematics carry onto each port (1e-9 m); each arm's own yaw and pitch at the target's centre (within the Si
-    arm's ranges) point its shaft through the centre from the base so docked; no clearances claimed."""
+    arm's ranges) point its shaft through the centre from the base so docked; its clearances, the Si arms' links
+    named, the least the least of them."""
     (tmp_path / "si.toml").write_text(
         "[patient.port_region]\nsite_spacing_mm = 36.0\n[target]\nspacing_mm = 15.0\n"
         "[robot]\ninstrument_arm = \"dvrk_psm_si\"\ncamera_arm = \"dvrk_ecm_si\"\n"
         "[cart]\nmodel = \"si\"\naround_step_deg = 30.0\ndistance_step_mm = 300.0\n")
     r = cli("port-place", "si.toml", "--store", tmp_path / "s", cwd=tmp_path)
-    assert "Si cart" in r.stdout and "not measured" in r.stdout
+    assert "Si cart" in r.stdout and "not in feasible on the Si cart" in r.stdout
     best = int(r.stdout.split("best_design_id")[1].split()[1])
     cli("export", "latest", "--store", tmp_path / "s", "--design", str(best), "--format", "dvrk", "--out",
         tmp_path / "setup.json", cwd=tmp_path)
     setup = json.loads((tmp_path / "setup.json").read_text())
-    assert setup["clearances_outside_body"]["checks"] == [] and "not modelled" in setup["clearances_outside_body"]["model"]
+    clear = setup["clearances_outside_body"]
+    assert len(clear["checks"]) == 3 * 2 + 3 * 2 and clear["least_mm"] == min(c["clearance_mm"] for c in clear["checks"])
+    assert any("parallelogram" in c["link"] for c in clear["checks"]) and "not in feasible" in clear["model"]
     patient = np.array(setup["cart_to_patient"])
     centre = patient[:3, :3] @ (np.array(C.Target().centre_mm) / 1000) + patient[:3, 3]
     for arm in setup["arms"]:
@@ -204,7 +208,7 @@ def test_the_si_export_lands_each_rcm_on_its_port_and_its_own_joints_aim_the_sha
 
 @pytest.mark.parametrize("change, words", [
     ({"robot": {**SI_ARMS, "docking_roll_deg": 30.0}}, "no roll about the shaft"),
-    ({"robot": SI_ARMS, "constraints": {"min_link_clearance_mm": 0.0}}, "not modelled"),
+    ({"robot": SI_ARMS, "constraints": {"min_link_clearance_mm": 0.0}}, "on the Classic cart only"),
     ({"robot": {}}, "carries the Si PSMs and ECM"),
 ])
 def test_what_the_si_cart_does_not_do_is_refused_by_name(change, words):

@@ -38,14 +38,28 @@ class Capsules(NamedTuple):
     names: tuple
 
 
+def joint_motion(axis, v: np.ndarray, prismatic: bool) -> np.ndarray:
+    """(..., 4, 4) A joint's motion by each of ``v``: a slide along the unit ``axis`` (prismatic), or a turn about
+    it, Rodrigues' R = I + sin v K + (1 - cos v) K^2 (K the axis's cross-product matrix)."""
+    v = np.asarray(v, float)
+    a = np.asarray(axis, float) / np.linalg.norm(axis)
+    out = np.broadcast_to(np.eye(4), v.shape + (4, 4)).copy()
+    if prismatic:
+        out[..., :3, 3] = v[..., None] * a
+        return out
+    k = np.array([[0.0, -a[2], a[1]], [a[2], 0.0, -a[0]], [-a[1], a[0], 0.0]])
+    out[..., :3, :3] = np.eye(3) + np.sin(v)[..., None, None] * k + (1.0 - np.cos(v))[..., None, None] * (k @ k)
+    return out
+
+
 def frame_transform(frame, q) -> np.ndarray:
-    """(C4) T_parent_frame = Trans(xyz) Rz(yaw) Ry(pitch) Rx(roll) (URDF's origin) then Rz(m q_j) (revolute) or
-    Tz(m q_j) (prismatic)."""
+    """(C4) T_parent_frame = Trans(xyz) Rz(yaw) Ry(pitch) Rx(roll) (URDF's origin) then the joint's motion by
+    v = m (q_j + offset) about or along its axis (z unless given; ``joint_motion``)."""
     roll, pitch, yaw = frame.rpy_rad
     t = trans(*frame.xyz_m) @ rot_z(yaw) @ rot_y(pitch) @ rot_x(roll)
     if frame.joint >= 0:
-        v = frame.multiplier * q[frame.joint]
-        t = t @ (trans(0.0, 0.0, v) if frame.prismatic else rot_z(v))
+        v = frame.multiplier * (q[frame.joint] + frame.offset_rad)
+        t = t @ joint_motion(frame.axis, np.float64(v), frame.prismatic)
     return t
 
 
@@ -322,18 +336,10 @@ def skeleton_batch(frames, q: np.ndarray, base: np.ndarray, mount: np.ndarray | 
     out = {"base": np.asarray(base, float)}
     if mount is not None:
         out["mount"] = np.asarray(mount, float)
-    n = len(q)
     for f in frames:
         t = out[f.parent] @ frame_transform(f._replace(joint=-1), None)  # the origin; the joint per arm below
         if f.joint >= 0:
-            v = f.multiplier * q[:, f.joint]
-            j = np.repeat(np.eye(4)[None], n, axis=0)
-            if f.prismatic:
-                j[:, 2, 3] = v
-            else:
-                c, s = np.cos(v), np.sin(v)
-                j[:, 0, 0], j[:, 0, 1], j[:, 1, 0], j[:, 1, 1] = c, -s, s, c
-            t = t @ j
+            t = t @ joint_motion(f.axis, f.multiplier * (q[:, f.joint] + f.offset_rad), f.prismatic)
         out[f.name] = t
     return out
 

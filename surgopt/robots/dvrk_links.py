@@ -20,14 +20,17 @@ from __future__ import annotations
 import math
 from typing import NamedTuple
 
-#: The carts whose arms' links are modelled here (``cart.model``): the Classic's. The Si's arms and setup joints
-#: are other shapes, not in this file.
-CARTS_MODELLED = ("classic",)
+#: The carts whose arms' links are modelled here (``cart.model``; ``ARM_LINKS``, below).
+CARTS_MODELLED = ("classic", "si")
+#: The carts whose links the rows' feasible holds (``studies/port_place/link_tables``, the Classic's kernels); on
+#: the others the closing report measures the best layouts' clearance (``clashes``).
+CARTS_IN_FEASIBLE = ("classic",)
 
 
 class LinkFrame(NamedTuple):
-    """One frame of the arm's skeleton: T_parent_frame = Trans(xyz) RPY(rpy) then the joint, a turn about z by
-    ``multiplier * q[joint]`` (revolute) or a slide along z by it (``prismatic``); joint -1: fixed."""
+    """One frame of the arm's skeleton: T_parent_frame = Trans(xyz) RPY(rpy) then the joint, a turn about ``axis``
+    (z unless given) by ``multiplier * (q[joint] + offset_rad)`` (revolute) or a slide along it (``prismatic``);
+    joint -1: fixed."""
 
     name: str
     parent: str
@@ -36,6 +39,8 @@ class LinkFrame(NamedTuple):
     joint: int  # 0 yaw, 1 pitch, 2 insertion, -1 none
     multiplier: float = 1.0
     prismatic: bool = False
+    axis: tuple = (0.0, 0.0, 1.0)
+    offset_rad: float = 0.0  # the file's joint zero less the DH model's (added to q before the multiplier)
 
 
 class Capsule(NamedTuple):
@@ -104,6 +109,52 @@ ECM_CLASSIC_CAPSULES = (
     Capsule("carriage and camera", "pitch", (0.0, 0.2822, 0.0), "pitch", (0.0, 0.4822, 0.0), 0.04,
             f"ECM.json insertion offset; {ASSUMED}"),
 )
+
+#: The Si PSM's skeleton (jhu-dvrk/dvrk_model urdf/Si/PSM_base.urdf.xacro): the arm's base 0.843 m from the RCM
+#: (its mount: the Si's SUJ tip is 0.834 m from it), the yaw about the RCM frame's -y, the pitch and its
+#: parallelogram's two mimic links (-1, +1), the adaptor (the carriage) sliding along the shaft 0.4826 m behind the
+#: RCM at q3 = 0. The file's pitch zero is PSM_Si.json's less SI_PITCH_OFFSET_RAD = 0.16292 rad (9.3 deg): with it
+#: the adaptor's insertion axis is the DH shaft u(q1, q2) to 1.2e-5 over yaw +-1.2, pitch +-1.0 rad, passing within
+#: 3.9 mm of the RCM (the parallelogram's rounded numbers); ``tests/test_capsules.py`` holds this.
+SI_PITCH_OFFSET_RAD = 0.16292
+SI_URDF = "jhu-dvrk/dvrk_model urdf/Si/PSM_base.urdf.xacro"
+PSM_SI_FRAMES = (
+    LinkFrame("arm base", "base", (0.0, -0.84316314, 0.0), (0.0, 0.0, HALF_PI), -1),
+    LinkFrame("yaw", "arm base", (0.158, 0.0, 0.0), (0.0, 0.0, 0.0), 0, axis=(-1.0, 0.0, 0.0)),
+    LinkFrame("pitch", "yaw", (0.2987, 0.0, -0.071222), (0.0, -1.1345, -3.1416), 1, axis=(0.0, -1.0, 0.0),
+              offset_rad=-SI_PITCH_OFFSET_RAD),
+    LinkFrame("pitch 2", "pitch", (0.2032, 0.0, 0.0), (0.0, -0.90761, -3.1416), 1, -1.0, axis=(0.0, 1.0, 0.0),
+              offset_rad=-SI_PITCH_OFFSET_RAD),
+    LinkFrame("pitch 3", "pitch 2", (0.35966, 0.0, 0.16013), (0.0, -0.063963, 0.0), 1, axis=(0.0, 1.0, 0.0),
+              offset_rad=-SI_PITCH_OFFSET_RAD),
+    LinkFrame("carriage", "pitch 3", (0.11523752, 0.0, 0.31095531), (math.pi, 0.0, -math.pi), 2, 1.0, True),
+)
+
+#: The Si PSM's links outside the body, each between two of its frames' points (radii as the Classic's: assumed).
+PSM_SI_CAPSULES = (
+    Capsule("mount", "mount", (0.0, 0.0, 0.0), "arm base", (0.0, 0.0, 0.0), 0.045, f"{SI_URDF}, suj-si-simulated"
+            f".json; {ASSUMED}"),
+    Capsule("yaw link", "arm base", (0.0, 0.0, 0.0), "pitch", (0.0, 0.0, 0.0), 0.045, f"{SI_URDF}; {ASSUMED}"),
+    Capsule("parallelogram first link", "pitch", (0.0, 0.0, 0.0), "pitch 2", (0.0, 0.0, 0.0), 0.03,
+            f"{SI_URDF}; {ASSUMED}"),
+    Capsule("parallelogram second link", "pitch 2", (0.0, 0.0, 0.0), "pitch 3", (0.0, 0.0, 0.0), 0.03,
+            f"{SI_URDF}; {ASSUMED}"),
+    Capsule("parallelogram third link", "pitch 3", (0.0, 0.0, 0.0), "pitch 3", (0.11523752, 0.0, 0.31095531), 0.03,
+            f"{SI_URDF}; {ASSUMED}"),
+    # the stage the adaptor slides on: along the shaft from its q3 = 0 place over the Si's 0.29 m travel
+    Capsule("insertion stage", "pitch 3", (0.11523752, 0.0, 0.31095531), "pitch 3", (0.11523752, 0.0, 0.02095531),
+            0.03, f"{SI_URDF}, PSM_Si.json travel; {ASSUMED}"),
+    Capsule("instrument housing", "carriage", (0.0, 0.0, 0.0), "carriage", (0.0, 0.0, -0.08), 0.04,
+            f"{SI_URDF}; length and {ASSUMED}"),
+    Capsule("shaft outside the port", "carriage", (0.0, 0.0, 0.0), "base", (0.0, 0.0, 0.0), 0.004,
+            "dvrk-kinematics.md: 8 mm shaft"),
+)
+
+#: Each cart's arms' skeletons and capsules: (PSM frames, PSM capsules, ECM frames, ECM capsules). The Si's ECM
+#: beyond its setup joints is the Classic's line behind the RCM (its DH yaw, pitch and insertion offset are the
+#: same; an assumption, the Si ECM's own description not transcribed).
+ARM_LINKS = {"classic": (PSM_CLASSIC_FRAMES, PSM_CLASSIC_CAPSULES, ECM_CLASSIC_FRAMES, ECM_CLASSIC_CAPSULES),
+             "si": (PSM_SI_FRAMES, PSM_SI_CAPSULES, ECM_CLASSIC_FRAMES, ECM_CLASSIC_CAPSULES)}
 
 #: The setup joints' links: the segments between successive frames of ``kinematics.suj.frames``; the first two
 #: (the cart's column and the arm's carriage on it) are part of the cart and not checked between arms.

@@ -18,8 +18,8 @@ HELP = """Port placement for the da Vinci Research Kit on a patient: two or thre
     table (constraints.min_link_clearance_mm, mm, 0 by default; off: docking alone); the closing report's best
     layout may turn a PSM's docking about its shaft to clear them. cart.model=si docks the Si's PSMs and ECM
     (robot.instrument_arm=dvrk_psm_si, robot.camera_arm=dvrk_ecm_si) at the one orientation its setup joints
-    give nearest the aim, the arms' own yaw and pitch absorbing the rest (its links not modelled). `surgopt export KEY --design ID --format dvrk`
-    writes the set-up a dVRK loads. Rows: one per
+    give nearest the aim, the arms' own yaw and pitch absorbing the rest (its links measured by the report, not
+    in feasible). `surgopt export KEY --design ID --format dvrk` writes the set-up a dVRK loads. Rows: one per
     design. The summary ranks feasible designs by cost and checks the best against the clinical numbers.
     A 3-PSM enumeration runs to 10^8 designs and more: rows_stored=feasible keeps only the feasible designs'
     rows. Any RCM arm from a DH table or URDF ([robot.instrument_file], [robot.camera_file]), or a serial arm

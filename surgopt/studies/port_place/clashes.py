@@ -56,12 +56,13 @@ def arm_poses(cfg, arm, patient: np.ndarray, targets_m: np.ndarray, along_shaft_
     suj = C.polyline_capsules(frames[:-1, :3, 3], L.SUJ_RADIUS_M, f"{arm.arm} setup joint", L.SUJ_ON_COLUMN)
     mount = frames[-2]
     base = arm.base
+    psm_frames, psm_capsules, ecm_frames, ecm_capsules = L.ARM_LINKS[cfg.cart.model]
     if arm.arm == "ECM":
-        skeleton, capsules = L.ECM_CLASSIC_FRAMES, L.ECM_CLASSIC_CAPSULES
+        skeleton, capsules = ecm_frames, ecm_capsules
         qs = [(arm.ecm[0], arm.ecm[1], 0.0)]
         labels = ("docked",)
     else:
-        skeleton, capsules = L.PSM_CLASSIC_FRAMES, L.PSM_CLASSIC_CAPSULES
+        skeleton, capsules = psm_frames, psm_capsules
         world = targets_m @ patient[:3, :3].T + patient[:3, 3]
         local = (world - base[:3, 3]) @ base[:3, :3]
         centre = np.asarray(cfg.target.centre_mm, float) / 1000 @ patient[:3, :3].T + patient[:3, 3]
@@ -159,14 +160,15 @@ def links_modelled(cfg) -> bool:
 
 def in_feasible(cfg) -> str:
     """What of the links' clearance feasible holds (a validated config): between arms with
-    ``constraints.min_link_clearance_mm``; or that the links are not modelled on its cart, or not asked for."""
+    ``constraints.min_link_clearance_mm``; or that its cart's links are not in feasible, or not asked for."""
+    from surgopt.robots.dvrk_links import CARTS_IN_FEASIBLE
     from surgopt.studies.port_place.config import CART_NAMES
     from surgopt.studies.port_place.tables import links_decide
 
     if links_decide(cfg):
         return f"in feasible, at least {cfg.constraints.link_least_mm:g} mm"
-    if cfg.cart.model in CART_NAMES and not links_modelled(cfg):
-        return f"not modelled on the {CART_NAMES[cfg.cart.model]} cart"
+    if cfg.cart.model in CART_NAMES and cfg.cart.model not in CARTS_IN_FEASIBLE:
+        return f"not in feasible on the {CART_NAMES[cfg.cart.model]} cart (the link tables are the Classic's)"
     return "not part of feasible (constraints.min_link_clearance_mm = 'off')"
 
 
@@ -274,6 +276,12 @@ class RollsThatClear(NamedTuple):
     cost: float | None = None  # and its cost
 
 
+def rolls_free(cfg) -> bool:
+    """Whether each PSM's docking roll about its shaft is free on the config's cart (the Classic's setup joints give
+    any orientation; the Si's one per yaw, S5): where not, no roll is searched."""
+    return cfg.cart.model != "si"
+
+
 def rolls_that_clear(cfg, row: dict) -> RollsThatClear:
     """``_rolls_that_clear``, kept for the process (``_memoised``)."""
     return _memoised("rolls", cfg, row, lambda: _rolls_that_clear(cfg, row))
@@ -361,13 +369,15 @@ def docking_that_clears(cfg, row: dict):
     from surgopt.studies.port_place.tables import docked_arms
 
     docked = docked_arms(cfg, row)
-    if not links_modelled(cfg):
-        return (docked, {}, f"the {cfg.cart.model} cart's docking frames (the arms' links are not modelled on "
-                            f"it: no clearance outside the body checked)", [])
     clearances = layout_clearances(cfg, row)
     worst = least(clearances)
+    own = "the run's docking frames (robot.docking_roll)" if rolls_free(cfg) else \
+        "the Si's docking frames (psi*: its setup joints fix each arm's roll)"
     if worst is None or worst.clearance_mm >= 0:
-        return docked, {}, "the run's docking frames (robot.docking_roll)", clearances
+        return docked, {}, own, clearances
+    if not rolls_free(cfg):
+        return docked, {}, (f"{own}; their links overlap outside the body by {-worst.clearance_mm:.0f} mm "
+                            f"({worst.link_a} / {worst.link_b})" + below_table_note(cfg, row, docked)), clearances
     found = rolls_that_clear(cfg, row)
     if found.least is None:
         return docked, {}, (f"the run's docking frames (robot.docking_roll); their links overlap outside the body by "

@@ -32,14 +32,12 @@ def arm_joints_at_centre(limits, base_in_patient: np.ndarray, centre_m: np.ndarr
 
 def clearances_of(checks: list, cfg: PortPlaceConfig) -> dict:
     """The layout's least clearances outside the body (``clashes``): each check's value (mm), links and where,
-    and the least of them; the model's radii are assumptions (``robots/dvrk_links.py``); on a cart whose links are
-    not modelled, none, saying so."""
-    from surgopt.studies.port_place.clashes import in_feasible, least, links_modelled
+    and the least of them; the model's radii are assumptions (``robots/dvrk_links.py``)."""
+    from surgopt.studies.port_place.clashes import in_feasible, least
 
     worst = least(checks)
     model = ("capsules about the setup joints' frames and the arms' links (robots/dvrk_links.py; radii assumed); "
-             + in_feasible(cfg)) if links_modelled(cfg) else \
-        f"not modelled: the arms' links are modelled for the Classic cart only, not the {cfg.cart.model}'s"
+             + in_feasible(cfg))
     return {"least_mm": None if worst is None else round(worst.clearance_mm, 1),
             "model": model,
             "checks": [{"check": c.check, "clearance_mm": round(c.clearance_mm, 1), "link": c.link_a,

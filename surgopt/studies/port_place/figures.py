@@ -288,9 +288,6 @@ def cart_figure(plt, cfg, row: dict, out):
     model = model_of(cfg)
     from surgopt.studies.port_place.clashes import docking_that_clears
 
-    from surgopt.studies.port_place.clashes import links_modelled
-
-    modelled = links_modelled(cfg)  # the Classic's links: on another cart only its setup joints are drawn
     docked, rolls, _, _ = docking_that_clears(cfg, row)  # as the dvrk export docks it
     turned = ", ".join(f"{a} rolled {d:+.0f} deg" for a, d in rolls.items() if d)
     for arm, colour in zip(docked, ("C0", "C1", "C2", "C3")):
@@ -298,14 +295,11 @@ def cart_figure(plt, cfg, row: dict, out):
             continue
         f = S.frames(CARTS[cfg.cart.model][arm.arm], arm.joints)
         ax.plot(*f[:-1, :3, 3].T, color=colour, lw=2.5, marker="o", ms=3, label=f"{arm.arm} setup joints")
-        links = arm_poses(cfg, arm, patient, model.targets_m[:0], model.limits.along_shaft_m) if modelled else None
-        own = [i for i, n in enumerate(links.names) if "setup joint" not in n] if modelled else []
+        links = arm_poses(cfg, arm, patient, model.targets_m[:0], model.limits.along_shaft_m)
+        own = [i for i, n in enumerate(links.names) if "setup joint" not in n]
         for k, i in enumerate(own):  # the arm's own links, docked (clashes.py's capsules)
             ax.plot(*links.segments[0, i].T, color=colour, lw=1.2, alpha=0.8,
                     label=f"{arm.arm} links (capsule axes)" if k == 0 else None)
-        if not modelled:  # the SUJ's last frame straight to the arm's base (RCM): SUJ_tip_to_tool_origin
-            ax.plot(*f[-2:, :3, 3].T, color=colour, lw=1.2, ls=":",
-                    label=f"{arm.arm} mount to RCM (its links not modelled)")
         ax.plot(*np.stack([f[-1, :3, 3], centre]).T, color=colour, lw=0.8, ls="--")
     from surgopt.robots.dvrk_suj import WORLD_ABOVE_FLOOR_M
 

@@ -63,9 +63,10 @@ def within_band(values, band) -> str:
 
 
 #: What every answer leaves out (docs/port_placement.md, "What the model leaves out"), said in the closing report.
-NOT_MODELLED = ("the Xi's setup joints, the Si cart's links, tissue and the body wall's thickness (a port is a point), "
-                "the assistant's port, the table's rails and arm boards and the patient's arms; every link radius is "
-                "an assumption (docs/port_placement.md, what the model leaves out)")
+NOT_MODELLED = ("the Xi's setup joints, the Si cart's links in feasible (the report measures its best layouts'), "
+                "tissue and the body wall's thickness (a port is a point), the assistant's port, the table's rails "
+                "and arm boards and the patient's arms; every link radius is an assumption (docs/port_placement.md, "
+                "what the model leaves out)")
 
 
 def summary(parts) -> Summary:
@@ -180,11 +181,6 @@ def docking_tables(best: dict, meta: dict) -> list:
                         else "")] for a in docked]
     clear = [[c.check, f"{c.clearance_mm:.0f}", c.link_a, c.link_b, c.where]
              for c in clearances]
-    from surgopt.studies.port_place.clashes import links_modelled
-
-    if not links_modelled(cfg):
-        clear = [["-", "-", "-", "-", f"not measured: the arms' links are modelled for the Classic cart only "
-                                      f"(robots/dvrk_links.py), not the {CART_NAMES[cfg.cart.model]}'s"]]
     return [(f"best layout: the {CART_NAMES[cfg.cart.model]} cart (origin on the floor, patient frame; heading from +y toward +x)",
              ["x_mm", "y_mm", "heading_deg", "pose (of the grid, or searched)"], pose),
             ("best layout: setup joints (column m, then rad, the dVRK's simulated_position order)"
@@ -261,9 +257,7 @@ ROLL_TEXT = "a 15-degree grid over +-90 about the neutral shaft"
 def screen_of(parts, meta: dict, best: list[dict]):
     """``clearance_screen`` of the best feasible layouts ``best`` (by cost), with the links in feasible the cheaper
     ones that fail only on them first (``with_cheaper_overlapping``); None without the cart."""
-    from surgopt.studies.port_place.clashes import links_modelled
-
-    if "cart_pose" not in parts.schema.names or not links_modelled(json.loads(meta.get("config", "{}"))):
+    if "cart_pose" not in parts.schema.names:
         return None
     if links_of(json.loads(meta.get("config", "{}"))):
         best = with_cheaper_overlapping(parts, best)
@@ -310,7 +304,7 @@ def clearance_screen(rows: list[dict], meta: dict):
     overlap at the run's docking roll is tried with each PSM's own roll (``clashes.rolls_that_clear``: full
     reach and the setup joints' ranges kept). The headline names the
     first layout that clears, at the run's roll or with rolls; else how much the least of them overlaps."""
-    from surgopt.studies.port_place.clashes import layout_clearances, least, rolls_that_clear
+    from surgopt.studies.port_place.clashes import layout_clearances, least, rolls_free, rolls_that_clear
 
     try:
         cfg = stored_config(meta)
@@ -321,9 +315,9 @@ def clearance_screen(rows: list[dict], meta: dict):
         c = least(layout_clearances(cfg, r))
         if c is None:
             continue
-        rolled = rolls_that_clear(cfg, r) if c.clearance_mm < 0 else None
+        rolled = rolls_that_clear(cfg, r) if c.clearance_mm < 0 and rolls_free(cfg) else None
         if rolled is None:
-            with_rolls = "-"
+            with_rolls = "-" if rolls_free(cfg) else "- (the Si's setup joints fix each arm's roll)"
         elif rolled.least is None:
             with_rolls = f"none of {rolled.tried} that reach and dock"
         else:
