@@ -348,15 +348,16 @@ def clearance_screen(rows: list[dict], meta: dict):
     else:
         worst = max(float(x[2]) for x in out)
         kind = "feasible layouts" if all(r["feasible"] for r in rows[:n]) else "layouts failing only on their links"
-        word = (f"none of the {n} best {kind}, at the run's docking roll or each PSM's own: their links "
+        docking = "at the run's docking roll or each PSM's own" if rolls_free(cfg) else "docked at psi* (the Si)"
+        word = (f"none of the {n} best {kind}, {docking}: their links "
                 f"overlap outside the body by {-worst:.0f} mm or more (link clearance: {in_feasible(cfg)})")
     which = ("the best feasible layouts" if all(r["feasible"] for r in rows[:n]) else
              "the best layouts (the feasible ones and, as the links are in feasible, those cheaper that fail only on "
              "them at the run's roll)")
     title = (f"{which}, {n} screened by cost until one clears (at most {SCREEN_LAYOUTS}): their "
              f"links' least clearance outside the body (capsules, radii "
-             f"assumed; negative: they overlap; {in_feasible(cfg)}), and each PSM's docking roll (deg, "
-             f"{ROLL_TEXT}) at which they clear")
+             f"assumed; negative: they overlap; {in_feasible(cfg)})"
+             + (f", and each PSM's docking roll (deg, {ROLL_TEXT}) at which they clear" if rolls_free(cfg) else ""))
     return word, (title, ["design_id", "cost", "least_clearance_mm", "between", "links", "with rolls"], out), chosen
 
 
