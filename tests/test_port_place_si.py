@@ -262,3 +262,41 @@ def test_the_page_colours_the_target_by_the_si_psm3s_own_isotropy(tmp_path, page
     got = np.array([np.nan if v is None else v for v in iso], float)
     np.testing.assert_array_equal(np.isnan(got), np.isnan(want))
     np.testing.assert_allclose(got[~np.isnan(got)], want[~np.isnan(want)], atol=1e-4)  # the page rounds to 1e-4
+
+
+def test_an_si_psm_yawed_off_psi_star_docks_on_the_si_family_and_still_reaches():
+    """The Si's counterpart of the Classic's roll search (``clashes.rolled_docks``): each PSM yawed off psi* by a
+    turn of the grid is docked by setup joints that, through the reference forward kinematics, put its base
+    there (1e-9); that base's neutral shaft heads the aim's heading turned by exactly that turn (the Si turns the
+    base about the vertical only: 1e-9 deg), tilted as at psi*; every target point is reached from it within the
+    Si PSM's ranges (the RCM inverse written out here). Premise: several turns dock, 0 among them."""
+    from surgopt.studies.port_place import clashes as CL
+
+    cfg = C.PortPlaceConfig.model_validate(SI)
+    cols = S.compute_task(cfg, S.n_total(cfg), 0)
+    r = int(np.flatnonzero(cols["feasible"])[0])
+    row = {c: v[r].item() for c, v in cols.items()}
+    patient = T.patient_in_cart(cfg.cart, row["cart_x_mm"], row["cart_y_mm"], row["cart_heading_deg"])
+    model = T.model_of(cfg)
+    psm = get_model("dvrk_psm_si")
+    lim = model.limits
+    for arm in ("psm1", "psm2"):
+        port = np.array([row[f"{arm}_{c}_mm"] for c in "xyz"]) / 1000
+        docks = CL.rolled_docks(cfg, row, arm, patient)
+        assert len(docks) > 2 and 0.0 in [d for d, _ in docks]
+        aim = patient[:3, :3] @ (model.centre_m - port)
+        shaft0 = None
+        for deg, docked in docks:
+            np.testing.assert_allclose(suj_forward_reference("si", arm.upper(), docked.joints), docked.base, atol=1e-9)
+            shaft = -docked.base[:3, 2]
+            turn = math.degrees(math.atan2(shaft[1], shaft[0]) - math.atan2(aim[1], aim[0]))
+            assert (turn - deg + 180) % 360 - 180 == pytest.approx(0.0, abs=1e-9)
+            shaft0 = shaft[2] if shaft0 is None else shaft0
+            assert shaft[2] == pytest.approx(shaft0, abs=1e-12)  # the same tilt at every yaw
+            local = (model.targets_m @ patient[:3, :3].T + patient[:3, 3] - docked.base[:3, 3]) @ docked.base[:3, :3]
+            rho = np.linalg.norm(local, axis=1)
+            q2, q1 = -np.arcsin(local[:, 1] / rho), np.arctan2(local[:, 0], -local[:, 2])
+            q3 = rho - lim.along_shaft_m
+            assert np.all((psm.yaw_limits_rad[0] <= q1) & (q1 <= psm.yaw_limits_rad[1])
+                          & (psm.pitch_limits_rad[0] <= q2) & (q2 <= psm.pitch_limits_rad[1])
+                          & (lim.insertion_lo <= q3) & (q3 <= lim.insertion_hi))

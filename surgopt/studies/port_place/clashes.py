@@ -210,27 +210,58 @@ ROLL_FULL_CHECKS = 4
 COST_TIE = 1e-9
 
 
-def rolled_reach(cfg, row: dict, arm: str) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """PSM ``arm``'s (``psm1`` ...) port of a layout's row docked at each roll of ROLL_GRID_DEG about its neutral
-    shaft: (its frames (R, 3, 3), full reach (R,), the isotropy at each target point (R, points; eq. P5, 0 where
-    it does not reach), the port (3,) m), by the kernel's own tables in the rolled frames."""
+def turn_words(cfg) -> tuple[str, str]:
+    """(what a PSM's docking turn is, its participle): on the Classic the roll about the neutral shaft; on the Si,
+    whose setup joints fix the roll, the yaw of its planar chain off psi* (S5, S6), the arm's own yaw and pitch
+    absorbing more."""
+    if cfg.cart.model == "si":
+        return "yaw off psi*", "yawed"
+    return "roll about the shaft", "rolled"
+
+
+def turned_frames(cfg, site: np.ndarray, arm: str, turns_rad: np.ndarray) -> np.ndarray:
+    """(R, 3, 3) PSM ``arm``'s docking frames at ``site`` (m, patient frame) turned by each of ``turns_rad``
+    (``turn_words``): the default frame rolled about its shaft (Classic), or the Si's at psi* + the turn (its arm's
+    own setup joints: ``si_docking.si_frame``'s yaw moved, in the patient's frame as ``tables.si_frames``)."""
     from surgopt.kinematics import port_place as K
-    from surgopt.studies.port_place.tables import LATERAL, model_of, rolled
+    from surgopt.studies.port_place.tables import LATERAL, patient_in_cart, rolled
+
+    centre = np.asarray(cfg.target.centre_mm, float) / 1000
+    if cfg.cart.model != "si":
+        neutral = K.docking_frames(site[None], centre, LATERAL)
+        return rolled(np.repeat(neutral, len(turns_rad), axis=0), turns_rad)
+    from surgopt.kinematics import suj as S
+    from surgopt.kinematics.si_docking import least_absorbed
+    from surgopt.robots.dvrk_suj import CARTS
+
+    suj = CARTS["si"][arm.upper()]
+    p = patient_in_cart(cfg.cart, 0.0, 0.0, 0.0)[:3, :3]
+    psi, _ = least_absorbed(suj, p @ (centre - site))
+    return np.array([p.T @ S.si_orientation(suj, psi + t) for t in turns_rad])
+
+
+def rolled_reach(cfg, row: dict, arm: str) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """PSM ``arm``'s (``psm1`` ...) port of a layout's row docked at each turn of ROLL_GRID_DEG (``turn_words``:
+    a roll about its neutral shaft, or on the Si a yaw off psi*): (its frames (R, 3, 3), full reach (R,), the
+    isotropy at each target point (R, points; eq. P5, 0 where it does not reach), the port (3,) m), by the
+    kernel's own tables in the turned frames."""
+    from surgopt.kinematics import port_place as K
+    from surgopt.studies.port_place.tables import model_of
 
     model = model_of(cfg)
     site = np.array([row[f"{arm}_{c}_mm"] for c in "xyz"]) / 1000
     rolls = np.radians(np.array(ROLL_GRID_DEG, float))
-    neutral = K.docking_frames(site[None], np.asarray(cfg.target.centre_mm, float) / 1000, LATERAL)
-    frames = rolled(np.repeat(neutral, len(rolls), axis=0), rolls)
+    frames = turned_frames(cfg, site, arm, rolls)
     reach, dex = K.instrument_tables(np.repeat(site[None], len(rolls), axis=0), frames, model.targets_m,
                                      model.limits, model.criteria.dexterity_length_m, model.cone)
     return frames, reach.all(axis=1), dex, site
 
 
 def rolled_docks(cfg, row: dict, arm: str, patient: np.ndarray, reached=None) -> list[tuple[float, object]]:
-    """(roll in deg, ``tables.DockedArm``) for each roll of ROLL_GRID_DEG at which PSM ``arm`` (``psm1`` ...)
+    """(turn in deg, ``tables.DockedArm``) for each turn of ROLL_GRID_DEG at which PSM ``arm`` (``psm1`` ...)
     still reaches every target point from its port (``rolled_reach``, or ``reached``: its answer already had)
-    and its setup joints dock the rolled frame within their ranges (S2)."""
+    and its setup joints dock the turned frame within their ranges (S2; the Si's S3, S7). A DockedArm's
+    ``roll_deg`` is the Classic's roll; on the Si, 0 (the turn is a yaw, in the returned degrees)."""
     from surgopt.kinematics import suj as S
     from surgopt.robots.dvrk_suj import CARTS
     from surgopt.studies.port_place.tables import DockedArm, base_pose
@@ -241,11 +272,13 @@ def rolled_docks(cfg, row: dict, arm: str, patient: np.ndarray, reached=None) ->
         if not ok:
             continue
         base = patient @ base_pose(rot, site)
-        answer = S.classic_psm_ik(CARTS[cfg.cart.model][arm.upper()], base)
+        ik = S.si_ik if cfg.cart.model == "si" else S.classic_psm_ik
+        answer = ik(CARTS[cfg.cart.model][arm.upper()], base)
         if answer.within:
             best = answer.within[0]
             out.append((float(deg), DockedArm(arm.upper(), str(row[f"{arm}_site"]), best.joints, best.margin,
-                                              best.tightest, "", tuple(site), base, (), float(deg))))
+                                              best.tightest, "", tuple(site), base, (),
+                                              0.0 if cfg.cart.model == "si" else float(deg))))
     return out
 
 
@@ -274,12 +307,6 @@ class RollsThatClear(NamedTuple):
     arms: tuple = ()  # ``tables.DockedArm`` of each arm so docked (the PSMs rolled, then the ECM)
     dexterity: float | None = None  # the layout's dexterity_mean so docked (``rolled_cost``)
     cost: float | None = None  # and its cost
-
-
-def rolls_free(cfg) -> bool:
-    """Whether each PSM's docking roll about its shaft is free on the config's cart (the Classic's setup joints give
-    any orientation; the Si's one per yaw, S5): where not, no roll is searched."""
-    return cfg.cart.model != "si"
 
 
 def rolls_that_clear(cfg, row: dict) -> RollsThatClear:
@@ -371,23 +398,24 @@ def docking_that_clears(cfg, row: dict):
     docked = docked_arms(cfg, row)
     clearances = layout_clearances(cfg, row)
     worst = least(clearances)
-    own = "the run's docking frames (robot.docking_roll)" if rolls_free(cfg) else \
-        "the Si's docking frames (psi*: its setup joints fix each arm's roll)"
+    own = "the run's docking frames (robot.docking_roll)" if cfg.cart.model != "si" else \
+        "the Si's docking frames (each PSM at psi*, S6)"
+    turn, _ = turn_words(cfg)
     if worst is None or worst.clearance_mm >= 0:
         return docked, {}, own, clearances
-    if not rolls_free(cfg):
-        return docked, {}, (f"{own}; their links overlap outside the body by {-worst.clearance_mm:.0f} mm "
-                            f"({worst.link_a} / {worst.link_b})" + below_table_note(cfg, row, docked)), clearances
     found = rolls_that_clear(cfg, row)
     if found.least is None:
-        return docked, {}, (f"the run's docking frames (robot.docking_roll); their links overlap outside the body by "
-                            f"{-worst.clearance_mm:.0f} mm ({worst.link_a} / {worst.link_b}) and no roll of each PSM "
-                            f"about its shaft (of {found.tried} that reach and dock) clears them"), clearances
+        return docked, {}, (f"{own}; their links overlap outside the body by {-worst.clearance_mm:.0f} mm "
+                            f"({worst.link_a} / {worst.link_b}) and no {turn} of each PSM (of {found.tried} that "
+                            f"reach and dock) clears them"), clearances
     turned = {a.arm: a for a in found.arms if a.arm in found.rolls}  # as the roll search docked them
     arms = [turned.get(a.arm, a) for a in docked]
+    how = ("each PSM's docking frame turned about its neutral shaft by docking_roll_deg (x toward y)"
+           if cfg.cart.model != "si" else
+           "each PSM's Si setup joints yawed off psi* by " + ", ".join(f"{a} {d:+.0f} deg" for a, d in found.rolls.items())
+           + " (its own yaw and pitch absorbing the rest)")
     return (arms, found.rolls,
-            f"each PSM's docking frame turned about its neutral shaft by docking_roll_deg (x toward y) so that the "
-            f"links clear outside the body (least {found.least.clearance_mm:.0f} mm: {found.least.link_a} / "
+            f"{how} so that the links clear outside the body (least {found.least.clearance_mm:.0f} mm: {found.least.link_a} / "
             f"{found.least.link_b}); at the run's own docking they overlap by {-worst.clearance_mm:.0f} mm "
             f"({worst.link_a} / {worst.link_b}); the run's rows are at its own docking (cost {row['cost']:.4f}), so "
             f"docked its dexterity_mean is {found.dexterity:.4f} and its cost {found.cost:.4f}"

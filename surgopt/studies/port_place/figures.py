@@ -289,7 +289,9 @@ def cart_figure(plt, cfg, row: dict, out):
     from surgopt.studies.port_place.clashes import docking_that_clears
 
     docked, rolls, _, _ = docking_that_clears(cfg, row)  # as the dvrk export docks it
-    turned = ", ".join(f"{a} rolled {d:+.0f} deg" for a, d in rolls.items() if d)
+    from surgopt.studies.port_place.clashes import turn_words
+
+    turned = ", ".join(f"{a} {turn_words(cfg)[1]} {d:+.0f} deg" for a, d in rolls.items() if d)
     for arm, colour in zip(docked, ("C0", "C1", "C2", "C3")):
         if not arm.joints:
             continue

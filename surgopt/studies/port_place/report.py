@@ -162,7 +162,7 @@ def docking_tables(best: dict, meta: dict) -> list:
     pose, and the run's config in the rows' metadata), docked as the dvrk export docks it (``docking_that_clears``:
     where the links overlap at the run's own docking and a roll of each PSM about its shaft clears them, so),
     and the links' clearances so docked."""
-    from surgopt.studies.port_place.clashes import docking_that_clears
+    from surgopt.studies.port_place.clashes import docking_that_clears, turn_words
 
     try:
         cfg = stored_config(meta)
@@ -177,7 +177,8 @@ def docking_tables(best: dict, meta: dict) -> list:
     rows = [[a.arm, a.site, " ".join(f"{v:.4f}" for v in a.joints) if a.joints else "-",
              "-" if a.margin is None else f"{a.margin:.3f}" + (f" ({a.tightest})" if a.tightest else ""),
              a.note or (f"ECM yaw {math.degrees(a.ecm[0]):.1f}, pitch {math.degrees(a.ecm[1]):.1f} deg" if a.ecm
-                        else f"docking rolled {turned[a.arm]:+.0f} deg about the shaft" if a.arm in turned
+                        else f"docking {turn_words(cfg)[1]} {turned[a.arm]:+.0f} deg ({turn_words(cfg)[0]})"
+                        if a.arm in turned
                         else "")] for a in docked]
     clear = [[c.check, f"{c.clearance_mm:.0f}", c.link_a, c.link_b, c.where]
              for c in clearances]
@@ -251,7 +252,7 @@ def why_undocked(dock, sites: np.ndarray) -> np.ndarray:
 #: ~0.2 s: its setup joints solved again, its arms' capsules docked and over the target, against each other, the
 #: patient and the table; ``clashes.layout_clearances``).
 SCREEN_LAYOUTS = 10
-ROLL_TEXT = "a 15-degree grid over +-90 about the neutral shaft"
+ROLL_TEXT = "a 15-degree grid over +-90"
 
 
 def screen_of(parts, meta: dict, best: list[dict]):
@@ -304,7 +305,7 @@ def clearance_screen(rows: list[dict], meta: dict):
     overlap at the run's docking roll is tried with each PSM's own roll (``clashes.rolls_that_clear``: full
     reach and the setup joints' ranges kept). The headline names the
     first layout that clears, at the run's roll or with rolls; else how much the least of them overlaps."""
-    from surgopt.studies.port_place.clashes import layout_clearances, least, rolls_free, rolls_that_clear
+    from surgopt.studies.port_place.clashes import layout_clearances, least, rolls_that_clear, turn_words
 
     try:
         cfg = stored_config(meta)
@@ -315,9 +316,9 @@ def clearance_screen(rows: list[dict], meta: dict):
         c = least(layout_clearances(cfg, r))
         if c is None:
             continue
-        rolled = rolls_that_clear(cfg, r) if c.clearance_mm < 0 and rolls_free(cfg) else None
+        rolled = rolls_that_clear(cfg, r) if c.clearance_mm < 0 else None
         if rolled is None:
-            with_rolls = "-" if rolls_free(cfg) else "- (the Si's setup joints fix each arm's roll)"
+            with_rolls = "-"
         elif rolled.least is None:
             with_rolls = f"none of {rolled.tried} that reach and dock"
         else:
@@ -330,10 +331,12 @@ def clearance_screen(rows: list[dict], meta: dict):
                      f"clear; {{n}} screened)")
         elif clear is None and rolled is not None and rolled.least is not None:
             turned = ", ".join(f"{a} {d:+.0f}" for a, d in rolled.rolls.items() if d)
-            clear = (f"design {r['design_id']} with its PSMs' docking rolled ({turned} deg about the shaft): least "
+            turn, participle = turn_words(cfg)
+            kind, where = turn.split(" ", 1)  # "roll", "about the shaft"; "yaw", "off psi*"
+            clear = (f"design {r['design_id']} with its PSMs' docking {participle} ({turned} deg {where}): least "
                      f"clearance {rolled.least.clearance_mm:.0f} mm ({rolled.least.link_a} / {rolled.least.link_b}); "
-                     f"so docked its cost is {rolled.cost:.4f} (at the run's roll {r['cost']:.4f}: of the cost only "
-                     f"the dexterity depends on the roll)"
+                     f"so docked its cost is {rolled.cost:.4f} (at the run's {'roll' if kind == 'roll' else 'psi*'} "
+                     f"{r['cost']:.4f}: of the cost only the dexterity depends on the {kind})"
                      + ("" if r["feasible"] else "; its row fails on its links at the run's roll (reason 16), and it "
                         "is cheaper than every feasible layout")
                      + "; `surgopt export --format dvrk` docks it so" + _below_table(cfg, r, rolled))
@@ -348,8 +351,7 @@ def clearance_screen(rows: list[dict], meta: dict):
     else:
         worst = max(float(x[2]) for x in out)
         kind = "feasible layouts" if all(r["feasible"] for r in rows[:n]) else "layouts failing only on their links"
-        docking = "at the run's docking roll or each PSM's own" if rolls_free(cfg) else "docked at psi* (the Si)"
-        word = (f"none of the {n} best {kind}, {docking}: their links "
+        word = (f"none of the {n} best {kind}, at the run's docking or each PSM's own {turn_words(cfg)[0]}: their links "
                 f"overlap outside the body by {-worst:.0f} mm or more (link clearance: {in_feasible(cfg)})")
     which = ("the best feasible layouts" if all(r["feasible"] for r in rows[:n]) else
              "the best layouts (the feasible ones and, as the links are in feasible, those cheaper that fail only on "
@@ -357,7 +359,7 @@ def clearance_screen(rows: list[dict], meta: dict):
     title = (f"{which}, {n} screened by cost until one clears (at most {SCREEN_LAYOUTS}): their "
              f"links' least clearance outside the body (capsules, radii "
              f"assumed; negative: they overlap; {in_feasible(cfg)})"
-             + (f", and each PSM's docking roll (deg, {ROLL_TEXT}) at which they clear" if rolls_free(cfg) else ""))
+             + f", and each PSM's docking {turn_words(cfg)[0]} (deg, {ROLL_TEXT}) at which they clear")
     return word, (title, ["design_id", "cost", "least_clearance_mm", "between", "links", "with rolls"], out), chosen
 
 
