@@ -110,11 +110,12 @@ def si_docking(suj, port: np.ndarray, aim: np.ndarray, limits) -> SiAnswer:
                         f"{nearest[1]}, {math.degrees(nearest[0]):.1f} deg past its range)")
 
 
-def si_frame(suj, aim: np.ndarray) -> np.ndarray:
+def si_frame(suj, aim: np.ndarray, turn_rad: float = 0.0) -> np.ndarray:
     """(3, 3) The base's rotation (cart world) at psi* (S6) for a unit ``aim`` in the cart's world: the Si docking
-    that leaves the arm's own joints the least to absorb. Turning the cart about the vertical turns psi* with it,
-    so in the patient's frame this frame depends on the table's tilt, not on the cart's pose on the floor."""
-    return S.si_orientation(suj, least_absorbed(suj, aim)[0])
+    that leaves the arm's own joints the least to absorb; ``turn_rad``: yawed that much off psi* (the arm's own
+    joints absorbing more). Turning the cart about the vertical turns psi* with it, so in the patient's frame this
+    frame depends on the table's tilt, not on the cart's pose on the floor."""
+    return S.si_orientation(suj, least_absorbed(suj, aim)[0] + turn_rad)
 
 
 def _wrap(a: np.ndarray) -> np.ndarray:

@@ -221,23 +221,19 @@ def turn_words(cfg) -> tuple[str, str]:
 
 def turned_frames(cfg, site: np.ndarray, arm: str, turns_rad: np.ndarray) -> np.ndarray:
     """(R, 3, 3) PSM ``arm``'s docking frames at ``site`` (m, patient frame) turned by each of ``turns_rad``
-    (``turn_words``): the default frame rolled about its shaft (Classic), or the Si's at psi* + the turn (its arm's
-    own setup joints: ``si_docking.si_frame``'s yaw moved, in the patient's frame as ``tables.si_frames``)."""
+    (``turn_words``): the default frame rolled about its shaft (Classic), or the Si's at psi* + the turn, by its
+    arm's own setup joints (``tables.si_frames``)."""
     from surgopt.kinematics import port_place as K
-    from surgopt.studies.port_place.tables import LATERAL, patient_in_cart, rolled
+    from surgopt.studies.port_place.tables import LATERAL, rolled, si_frames
 
     centre = np.asarray(cfg.target.centre_mm, float) / 1000
     if cfg.cart.model != "si":
         neutral = K.docking_frames(site[None], centre, LATERAL)
         return rolled(np.repeat(neutral, len(turns_rad), axis=0), turns_rad)
-    from surgopt.kinematics import suj as S
-    from surgopt.kinematics.si_docking import least_absorbed
     from surgopt.robots.dvrk_suj import CARTS
 
-    suj = CARTS["si"][arm.upper()]
-    p = patient_in_cart(cfg.cart, 0.0, 0.0, 0.0)[:3, :3]
-    psi, _ = least_absorbed(suj, p @ (centre - site))
-    return np.array([p.T @ S.si_orientation(suj, psi + t) for t in turns_rad])
+    aim = (centre - site) / np.linalg.norm(centre - site)
+    return np.concatenate([si_frames(cfg, CARTS["si"][arm.upper()], site[None], aim[None], t) for t in turns_rad])
 
 
 def rolled_reach(cfg, row: dict, arm: str) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:

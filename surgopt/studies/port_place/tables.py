@@ -261,16 +261,17 @@ def third_frames(model: PortModel, sites: np.ndarray) -> np.ndarray | None:
     return si_frames(model.cfg, CARTS["si"]["PSM3"], sites, aims / np.linalg.norm(aims, axis=1)[:, None])
 
 
-def si_frames(cfg: PortPlaceConfig, suj, sites: np.ndarray, aims: np.ndarray) -> np.ndarray:
+def si_frames(cfg: PortPlaceConfig, suj, sites: np.ndarray, aims: np.ndarray, turn_rad: float = 0.0) -> np.ndarray:
     """(n, 3, 3) Each port's docking rotation on the Si cart, in the patient's frame: the orientation its setup
     joints give at psi*, the yaw that leaves the arm's own yaw and pitch the least to absorb to point the shaft
     along ``aims`` (n, 3, unit, patient frame; ``si_docking.si_frame``, S5-S6). Independent of the cart's pose on
     the floor (turning the cart turns psi* with it), so one frame per port serves every pose of the grid. The Si's
-    PSM1 and PSM2 give the same frames (their bases differ by a half turn about the vertical)."""
+    PSM1 and PSM2 give the same frames (their bases differ by a half turn about the vertical). ``turn_rad``: each
+    yawed that much off psi* (the report's search for clear links, ``clashes.turned_frames``)."""
     from surgopt.kinematics.si_docking import si_frame
 
     p = patient_in_cart(cfg.cart, 0.0, 0.0, 0.0)[:3, :3]
-    return np.array([p.T @ si_frame(suj, p @ a) for a in aims]).reshape(len(sites), 3, 3)
+    return np.array([p.T @ si_frame(suj, p @ a, turn_rad) for a in aims]).reshape(len(sites), 3, 3)
 
 
 def approach(target: Target, wrist_bend_rad: float):
