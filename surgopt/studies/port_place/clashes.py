@@ -408,11 +408,12 @@ def docking_that_clears(cfg, row: dict):
     arms = [turned.get(a.arm, a) for a in docked]
     how = ("each PSM's docking frame turned about its neutral shaft by docking_roll_deg (x toward y)"
            if cfg.cart.model != "si" else
-           "each PSM's Si setup joints yawed off psi* by " + ", ".join(f"{a} {d:+.0f} deg" for a, d in found.rolls.items())
+           "each PSM's Si setup joints yawed off psi* by "
+           + ", ".join(f"{a} {d:+.0f} deg" for a, d in found.rolls.items())
            + " (its own yaw and pitch absorbing the rest)")
     return (arms, found.rolls,
-            f"{how} so that the links clear outside the body (least {found.least.clearance_mm:.0f} mm: {found.least.link_a} / "
-            f"{found.least.link_b}); at the run's own docking they overlap by {-worst.clearance_mm:.0f} mm "
+            f"{how} so that the links clear outside the body (least {found.least.clearance_mm:.0f} mm: "
+            f"{found.least.link_a} / {found.least.link_b}); at the run's own docking they overlap by {-worst.clearance_mm:.0f} mm "
             f"({worst.link_a} / {worst.link_b}); the run's rows are at its own docking (cost {row['cost']:.4f}), so "
             f"docked its dexterity_mean is {found.dexterity:.4f} and its cost {found.cost:.4f}"
             + below_table_note(cfg, row, arms), list(found.clearances))
