@@ -3,7 +3,8 @@ conventional exit code (130, 143, 129); whatever was stored stays stored and the
 
 The handlers raise ``Stopped`` (a ``KeyboardInterrupt``) in the main thread and remember the signal: a
 handler's exception can be swallowed when the signal lands inside a callback that ignores exceptions (a
-garbage-collection callback of dask's ``distributed``, a ``__del__``), so the runner asks
+garbage-collection callback of dask's ``distributed``, a ``__del__``) or printed by C code that catches it
+(``PyErr_Print``: both hooks stay quiet about a stop), so the runner asks
 ``raise_if_stopped()`` between chunks and the CLI once more at the end. Nothing here runs on import.
 
 A Python handler runs only when the main thread is between two bytecodes; a thread that is inside a compiled
@@ -113,6 +114,18 @@ def install(watchdog: bool = True) -> None:
         previous(unraisable)
 
     sys.unraisablehook = quiet_about_stops
+    previous_excepthook = sys.excepthook
+
+    def quiet_excepthook(exc_type, exc, tb):
+        """C code that calls Python and prints what it raises (``PyErr_Print``; Cython's unraisable path with
+        a full traceback prints through here before the unraisable hook) would print a stop's traceback: a
+        seeded random SIGINT in CI landed on an import that such code made. The stop is remembered and acted
+        on all the same; the one line is ours."""
+        if _received or (exc_type is not None and issubclass(exc_type, Stopped)):
+            return
+        previous_excepthook(exc_type, exc, tb)
+
+    sys.excepthook = quiet_excepthook
 
 
 def _start_watchdog() -> None:

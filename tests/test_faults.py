@@ -170,7 +170,7 @@ def test_a_stop_inside_a_deferred_region_is_raised_where_the_region_ends():
     from surgopt import interrupts
 
     saved = {s: signal.getsignal(s) for s in interrupts.STOP_SIGNALS}
-    hook = sys.unraisablehook
+    hook, excepthook = sys.unraisablehook, sys.excepthook
     try:
         interrupts.install(watchdog=False)
         reached = []
@@ -192,9 +192,36 @@ def test_a_stop_inside_a_deferred_region_is_raised_where_the_region_ends():
     finally:  # this process goes on running tests: no handler of ours, no stop remembered
         for s, h in saved.items():
             signal.signal(s, h)
-        sys.unraisablehook = hook
+        sys.unraisablehook, sys.excepthook = hook, excepthook
         interrupts._received.clear()
         interrupts._reported.clear()
+
+
+PRINTED_BY_C = """
+import ctypes, signal, sys
+from surgopt import interrupts
+interrupts.install(watchdog=False)
+ctypes.pythonapi.PyRun_SimpleString({code!r}.encode())
+print("received", interrupts.received())
+"""
+
+
+@pytest.mark.parametrize("code, printed", [
+    ("import signal; signal.raise_signal(signal.SIGINT); import json", False),
+    ("raise ValueError('a real fault')", True),
+])
+def test_a_stop_that_c_code_catches_and_prints_prints_nothing(code, printed):
+    """A seeded random SIGINT in CI landed on the entry of an import made by C code that prints what it catches
+    (PyErr_Print, as Cython's unraisable path does): the stop's traceback came out above the one line.
+    PyRun_SimpleString is such C code: it runs Python and prints its exception through sys.excepthook. After
+    install() a stop's is not printed (and the stop is remembered); any other exception still is."""
+    r = subprocess.run([sys.executable, "-c", PRINTED_BY_C.format(code=code)], capture_output=True, text=True,
+                       timeout=60)
+    assert r.returncode == 0, r.stderr
+    if printed:
+        assert "ValueError: a real fault" in r.stderr and "received None" in r.stdout
+    else:
+        assert r.stderr == "" and f"received {int(signal.SIGINT)}" in r.stdout
 
 
 @pytest.mark.parametrize("backend", ["threads", "loky", "dask"])
