@@ -173,9 +173,9 @@ def pruned_least() -> None:
     balls = np.stack([Cap.swept_balls(own[i], radii, groups) for i in range(len(own))])
     rng = np.random.default_rng(0)
     pairs = np.array([p for p in rng.integers(0, len(own), (400, 2)) if p[0] != p[1]][:300])
-    Cap.moving_pairs(pairs[:2], own, radii, balls, groups, np.inf, -np.inf)  # compiled or loaded
+    Cap.moving_pairs(pairs[:2], own, balls, own, balls, radii, groups, np.inf, -np.inf)  # compiled or loaded
     Cap.least_over_poses(own[0], radii, own[1], radii)
-    tp, (got, _) = best_of(lambda: Cap.moving_pairs(pairs, own, radii, balls, groups, np.inf, -np.inf))
+    tp, (got, _) = best_of(lambda: Cap.moving_pairs(pairs, own, balls, own, balls, radii, groups, np.inf, -np.inf))
     te, want = best_of(lambda: np.array([Cap.least_over_poses(own[i], radii, own[j], radii)[0] for i, j in pairs]),
                        repeat=1)
     print(f"least clearance between two PSMs' own links over 65 x 65 poses, {len(pairs)} site pairs: pruned "
@@ -183,8 +183,8 @@ def pruned_least() -> None:
           f"equal: {bool(np.allclose(got, want, rtol=0, atol=1e-12))}")
     # what the tables do (resolved up to 100 mm above the least, stopped at the first overlap) against a decision
     # alone (clear of 0 or not: every ball pair farther than 0 pruned), the measure for a roll search in the tables
-    tr, (resolved, _) = best_of(lambda: Cap.moving_pairs(pairs, own, radii, balls, groups, L.CAP_M, 0.0))
-    td, (decided, _) = best_of(lambda: Cap.moving_pairs(pairs, own, radii, balls, groups, 1e-12, 0.0))
+    tr, (resolved, _) = best_of(lambda: Cap.moving_pairs(pairs, own, balls, own, balls, radii, groups, L.CAP_M, 0.0))
+    td, (decided, _) = best_of(lambda: Cap.moving_pairs(pairs, own, balls, own, balls, radii, groups, 1e-12, 0.0))
     print(f"the same pairs as the link tables take them (up to {L.CAP_M * 1000:.0f} mm above 0, stopped at an "
           f"overlap) {tr * 1e6 / len(pairs):.0f} us a pair, deciding clear or not alone {td * 1e6 / len(pairs):.0f} "
           f"us: {tr / td:.1f}x; the same decisions: {bool(np.array_equal(resolved >= 0, decided >= 0))}")

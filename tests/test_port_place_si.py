@@ -22,7 +22,8 @@ from reference import suj_forward_reference
 
 SI_ARMS = {"instrument_arm": "dvrk_psm_si", "camera_arm": "dvrk_ecm_si"}
 SI = {"patient": {"port_region": {"site_spacing_mm": 36.0}}, "target": {"spacing_mm": 15.0}, "robot": SI_ARMS,
-      "cart": {"model": "si", "around_step_deg": 30.0, "distance_step_mm": 300.0, "trendelenburg_deg": 10.0}}
+      "cart": {"model": "si", "around_step_deg": 30.0, "distance_step_mm": 300.0, "trendelenburg_deg": 10.0},
+      "constraints": {"min_link_clearance_mm": "off"}}  # the docking's tests (the links': tests/test_link_tables.py)
 
 
 def test_the_batch_si_inverse_equals_the_plain_one():
@@ -107,7 +108,6 @@ def test_the_rows_dock_on_the_si_cart_at_the_first_pose_the_plain_inverse_docks_
     each arm's base on its port; each PSM's roll is 0 (the Si fixes it). Premises: docked and undocked rows both
     checked, and rows feasible."""
     cfg = C.PortPlaceConfig.model_validate(SI)
-    assert cfg.constraints.min_link_clearance_mm == "off"  # the links are the Classic's: left out on the Si
     cols = S.compute_task(cfg, S.n_total(cfg), 0)
     assert "psm1_suj_j3_deg" in cols and "psm1_suj_j4_deg" not in cols and "psm1_roll_deg" in cols
     assert np.all(cols["psm1_roll_deg"] == 0) and np.all(cols["psm2_roll_deg"] == 0)
@@ -171,8 +171,8 @@ def test_three_psms_on_the_si_cart_dock_the_third_in_its_own_frame():
 
 
 def test_the_si_export_lands_each_rcm_on_its_port_and_its_own_joints_aim_the_shaft(tmp_path):
-    """The CLI on a small Si config: the report names the Si cart and measures its links (the Si PSM's own, from
-    the dVRK's Si description), saying they are not in feasible; the best
+    """The CLI on a small Si config with the links out of feasible (asked): the report names the Si cart and
+    measures its links (the Si PSM's own, from the dVRK's Si description), saying they are not in feasible; the best
     layout's ``--format dvrk`` export: ``suj`` "si", four joint values per arm, which the reference forward
     kinematics carry onto each port (1e-9 m); each arm's own yaw and pitch at the target's centre (within the Si
     arm's ranges) point its shaft through the centre from the base so docked; its clearances, the Si arms' links
@@ -180,16 +180,17 @@ def test_the_si_export_lands_each_rcm_on_its_port_and_its_own_joints_aim_the_sha
     (tmp_path / "si.toml").write_text(
         "[patient.port_region]\nsite_spacing_mm = 36.0\n[target]\nspacing_mm = 15.0\n"
         "[robot]\ninstrument_arm = \"dvrk_psm_si\"\ncamera_arm = \"dvrk_ecm_si\"\n"
-        "[cart]\nmodel = \"si\"\naround_step_deg = 30.0\ndistance_step_mm = 300.0\n")
+        "[cart]\nmodel = \"si\"\naround_step_deg = 30.0\ndistance_step_mm = 300.0\n"
+        "[constraints]\nmin_link_clearance_mm = \"off\"\n")  # the links: tests/test_link_tables.py
     r = cli("port-place", "si.toml", "--store", tmp_path / "s", cwd=tmp_path)
-    assert "Si cart" in r.stdout and "not in feasible on the Si cart" in r.stdout
+    assert "Si cart" in r.stdout and "not part of feasible" in r.stdout
     best = int(r.stdout.split("best_design_id")[1].split()[1])
     cli("export", "latest", "--store", tmp_path / "s", "--design", str(best), "--format", "dvrk", "--out",
         tmp_path / "setup.json", cwd=tmp_path)
     setup = json.loads((tmp_path / "setup.json").read_text())
     clear = setup["clearances_outside_body"]
     assert len(clear["checks"]) == 3 * 2 + 3 * 2 and clear["least_mm"] == min(c["clearance_mm"] for c in clear["checks"])
-    assert any("parallelogram" in c["link"] for c in clear["checks"]) and "not in feasible" in clear["model"]
+    assert any("parallelogram" in c["link"] for c in clear["checks"]) and "not part of feasible" in clear["model"]
     patient = np.array(setup["cart_to_patient"])
     centre = patient[:3, :3] @ (np.array(C.Target().centre_mm) / 1000) + patient[:3, 3]
     for arm in setup["arms"]:
@@ -208,11 +209,11 @@ def test_the_si_export_lands_each_rcm_on_its_port_and_its_own_joints_aim_the_sha
 
 @pytest.mark.parametrize("change, words", [
     ({"robot": {**SI_ARMS, "docking_roll_deg": 30.0}}, "no roll about the shaft"),
-    ({"robot": SI_ARMS, "constraints": {"min_link_clearance_mm": 0.0}}, "on the Classic cart only"),
     ({"robot": {}}, "carries the Si PSMs and ECM"),
 ])
 def test_what_the_si_cart_does_not_do_is_refused_by_name(change, words):
-    """A config asking the Si cart for what it does not do here is refused, naming the field: a docking roll, the links deciding feasible (asked for; left out unasked), the Classic's arms."""
+    """A config asking the Si cart for what it does not do here is refused, naming the field: a docking roll, the
+    Classic's arms."""
     with pytest.raises(ValueError, match=words):
         C.PortPlaceConfig.model_validate({**SI, **change, "cart": SI["cart"]})
 
@@ -227,7 +228,8 @@ def test_the_page_colours_the_target_by_the_si_psm3s_own_isotropy(tmp_path, page
     (tmp_path / "si3.toml").write_text(
         "rows_stored = \"feasible\"\n[patient.port_region]\nsite_spacing_mm = 36.0\n[target]\nspacing_mm = 15.0\n"
         "[robot]\ninstrument_arm = \"dvrk_psm_si\"\ncamera_arm = \"dvrk_ecm_si\"\ninstrument_count = 3\n"
-        "[cart]\nmodel = \"si\"\naround_step_deg = 30.0\ndistance_step_mm = 300.0\n")
+        "[cart]\nmodel = \"si\"\naround_step_deg = 30.0\ndistance_step_mm = 300.0\n"
+        "[constraints]\nmin_link_clearance_mm = \"off\"\n")  # the links: tests/test_link_tables.py
     cli("port-place", "si3.toml", "--store", tmp_path / "s", "--quiet", cwd=tmp_path)
     cli("report", "latest", "--store", tmp_path / "s", "--out", tmp_path / "si3.html", cwd=tmp_path)
     errors = []

@@ -316,17 +316,18 @@ def pair_clearances(tasks, static_x, moving_x, r_sx, r_mx, balls_mx, static_y, m
 
 
 @njit(**EXACT)
-def moving_pairs(pairs, moving, radii, balls, groups, cap, floor):
-    """The least clearance between one arm's moving links at site i and another's at site j over every pair of
-    their poses (``least_between`` below ``cap``, stopping below ``floor``), for each (i, j) of ``pairs`` (U, 2):
+def moving_pairs(pairs, moving_a, balls_a, moving_b, balls_b, radii, groups, cap, floor):
+    """The least clearance between one arm's moving links at site i (``moving_a``, its ``balls_a``) and another's
+    at site j (``moving_b``: the same arrays when both arms dock in the same frames) over every pair of their
+    poses (``least_between`` below ``cap``, stopping below ``floor``), for each (i, j) of ``pairs`` (U, 2):
     (clearance m, link of i, link of j; -1 when none is below the cap)."""
     n = pairs.shape[0]
     value = np.empty(n)
     links = np.empty((n, 2), dtype=np.int64)
     for u in range(n):
         i, j = pairs[u, 0], pairs[u, 1]
-        v, a, b, _, _ = least_between(moving[i], radii, balls[i], groups, moving[j], radii, balls[j], groups, cap,
-                                      floor)
+        v, a, b, _, _ = least_between(moving_a[i], radii, balls_a[i], groups, moving_b[j], radii, balls_b[j], groups,
+                                      cap, floor)
         value[u], links[u, 0], links[u, 1] = v, a, b
     return value, links
 

@@ -162,23 +162,26 @@ def classic_psm_solutions(s, poses):
 
 
 @njit(**EXACT)
-def chain_points(world, alpha, a, d, offset, prismatic, q):
-    """(7, 3) The origins of a six-link modified-DH chain's frames at joints q (``suj.frames`` without the tool
-    transform, ``suj.link``): its base ``world`` (4, 4), then after each link."""
-    return chain_frames(world, alpha, a, d, offset, prismatic, q)[0]
+def chain_points(world, alpha, a, d, offset, prismatic, jointed, q):
+    """(L + 1, 3) The origins of a modified-DH chain's frames (L rows: the ``jointed`` first turned or slid by q,
+    the rest fixed links at their offsets, as the Si's two after its joints) (``suj.frames`` without the tool
+    transform, ``suj.link``): its base ``world`` (4, 4), then after each row."""
+    return chain_frames(world, alpha, a, d, offset, prismatic, jointed, q)[0]
 
 
 @njit(**EXACT)
-def chain_frames(world, alpha, a, d, offset, prismatic, q):
+def chain_frames(world, alpha, a, d, offset, prismatic, jointed, q):
     """``chain_points`` and the chain's last frame (4, 4)."""
-    out = np.empty((7, 3))
+    rows = alpha.shape[0]
+    out = np.empty((rows + 1, 3))
     t = world.copy()
     out[0] = t[:3, 3]
-    for j in range(6):
+    for j in range(rows):
+        v = q[j] if j < jointed else 0.0
         if prismatic[j]:
-            t = t @ mdh(alpha[j], a[j], offset[j], d[j] + q[j])
+            t = t @ mdh(alpha[j], a[j], offset[j], d[j] + v)
         else:
-            t = t @ mdh(alpha[j], a[j], q[j] + offset[j], d[j])
+            t = t @ mdh(alpha[j], a[j], v + offset[j], d[j])
         out[j + 1] = t[:3, 3]
     return out, t
 
@@ -323,30 +326,30 @@ def ecm_margins(s, origins, aims, psi_steps, aim_steps, q4_steps):
 
 
 @njit(**EXACT)
-def link_segments(world, alpha, a, d, offset, prismatic, joints, to_frame, first):
-    """(k, 6 - first, 2, 3) A six-link chain's links from the ``first``-th on as segments between successive frame
-    origins (``chain_points``), at each of ``joints`` (k, 6; NaN rows give NaN), taken by ``to_frame`` (k, 4, 4)
-    into another frame (the patient's): the setup joints' links as ``clashes.arm_poses`` places them."""
-    k = joints.shape[0]
-    out = np.full((k, 6 - first, 2, 3), np.nan)
+def link_segments(world, alpha, a, d, offset, prismatic, jointed, joints, to_frame, first):
+    """(k, L - first, 2, 3) A chain's links (L rows, ``chain_points``) from the ``first``-th on as segments between
+    successive frame origins, at each of ``joints`` (k, >= jointed; NaN rows give NaN), taken by ``to_frame``
+    (k, 4, 4) into another frame (the patient's): the setup joints' links as ``clashes.arm_poses`` places them."""
+    k, rows = joints.shape[0], alpha.shape[0]
+    out = np.full((k, rows - first, 2, 3), np.nan)
     for n in range(k):
         if np.isnan(joints[n, 0]):
             continue
-        pts = chain_points(world, alpha, a, d, offset, prismatic, joints[n])
+        pts = chain_points(world, alpha, a, d, offset, prismatic, jointed, joints[n])
         r, t = np.ascontiguousarray(to_frame[n, :3, :3]), to_frame[n, :3, 3]
-        for s in range(6 - first):
+        for s in range(rows - first):
             out[n, s, 0] = r @ pts[first + s] + t
             out[n, s, 1] = r @ pts[first + s + 1] + t
     return out
 
 
 @njit(**EXACT)
-def chain_ends(world, alpha, a, d, offset, prismatic, joints):
-    """(k, 4, 4) A six-link chain's last frame (``suj.frames``' before the tool transform) at each of ``joints``
-    (k, 6; NaN rows give NaN)."""
+def chain_ends(world, alpha, a, d, offset, prismatic, jointed, joints):
+    """(k, 4, 4) A chain's last frame (``suj.frames``' before the tool transform) at each of ``joints`` (k,
+    >= jointed; NaN rows give NaN)."""
     out = np.full((joints.shape[0], 4, 4), np.nan)
     for n in range(joints.shape[0]):
         if np.isnan(joints[n, 0]):
             continue
-        out[n] = chain_frames(world, alpha, a, d, offset, prismatic, joints[n])[1]
+        out[n] = chain_frames(world, alpha, a, d, offset, prismatic, jointed, joints[n])[1]
     return out

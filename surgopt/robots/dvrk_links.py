@@ -20,11 +20,9 @@ from __future__ import annotations
 import math
 from typing import NamedTuple
 
-#: The carts whose arms' links are modelled here (``cart.model``; ``ARM_LINKS``, below).
+#: The carts whose arms' links are modelled here (``cart.model``; ``ARM_LINKS``, below), in the rows' feasible
+#: (``studies/port_place/link_tables``) and the closing report (``clashes``).
 CARTS_MODELLED = ("classic", "si")
-#: The carts whose links the rows' feasible holds (``studies/port_place/link_tables``, the Classic's kernels); on
-#: the others the closing report measures the best layouts' clearance (``clashes``).
-CARTS_IN_FEASIBLE = ("classic",)
 
 
 class LinkFrame(NamedTuple):

@@ -160,15 +160,11 @@ def links_modelled(cfg) -> bool:
 
 def in_feasible(cfg) -> str:
     """What of the links' clearance feasible holds (a validated config): between arms with
-    ``constraints.min_link_clearance_mm``; or that its cart's links are not in feasible, or not asked for."""
-    from surgopt.robots.dvrk_links import CARTS_IN_FEASIBLE
-    from surgopt.studies.port_place.config import CART_NAMES
+    ``constraints.min_link_clearance_mm``, or that it is not asked for."""
     from surgopt.studies.port_place.tables import links_decide
 
     if links_decide(cfg):
         return f"in feasible, at least {cfg.constraints.link_least_mm:g} mm"
-    if cfg.cart.model in CART_NAMES and cfg.cart.model not in CARTS_IN_FEASIBLE:
-        return f"not in feasible on the {CART_NAMES[cfg.cart.model]} cart (the link tables are the Classic's)"
     return "not part of feasible (constraints.min_link_clearance_mm = 'off')"
 
 

@@ -372,8 +372,8 @@ class Cart(StrictModel):
         "none", description="'none': docking assumed; 'classic': the Classic cart's setup joints solved; 'si': the "
                             "Si cart's (its PSMs and ECM, robot.instrument_arm = 'dvrk_psm_si', camera_arm = "
                             "'dvrk_ecm_si'; each arm docked at the one orientation its setup joints give nearest "
-                            "the aim, its own yaw and pitch absorbing the rest; its links measured by the report, "
-                            "not in feasible); 'auto' "
+                            "the aim, its own yaw and pitch absorbing the rest; its links from the dVRK's Si "
+                            "description); 'auto' "
                             "(the embedded default's): 'classic' where its arms are the Classic PSMs and ECM on "
                             "the grid of layouts, 'none' otherwise (a note says why); resolved when the config is "
                             "read, so the stored config names the one used")
@@ -550,18 +550,11 @@ def cart_does_not_carry(cfg: PortPlaceConfig, model: str = "classic") -> str:
 
 def si_cart_fits(cfg: PortPlaceConfig) -> None:
     """What the Si cart does not do, refused by name (``cart.model = 'si'``): its setup joints fix each arm's roll
-    about its shaft; the link tables that put the links in feasible are the Classic's (``link_tables``), so on the
-    Si the links are left out of feasible unless asked for (then refused); the report measures them."""
-    r, c = cfg.robot, cfg.constraints
+    about its shaft."""
+    r = cfg.robot
     if r.docking_roll != "given" or r.docking_roll_deg != 0.0:
         raise ValueError("robot.docking_roll_deg: the Si's setup joints give each arm one orientation at each yaw "
                          "(no roll about the shaft to choose): docking_roll = 'given', docking_roll_deg = 0")
-    if c.min_link_clearance_mm != "off":
-        if "min_link_clearance_mm" in c.model_fields_set:
-            raise ValueError(f"constraints.min_link_clearance_mm: the links decide feasible on the Classic cart only "
-                             f"(its link tables); on the Si the closing report measures the best layouts' clearance "
-                             f"(set 'off', not {c.min_link_clearance_mm:g})")
-        object.__setattr__(c, "min_link_clearance_mm", "off")
 
 
 def _arm_of(cfg: PortPlaceConfig, role: str):

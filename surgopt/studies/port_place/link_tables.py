@@ -22,8 +22,9 @@ from typing import NamedTuple
 
 import numpy as np
 
-from surgopt.robots.dvrk_links import SUJ_ON_COLUMN as FIRST_SUJ_LINK  # the setup joints' links checked: after
-# the column and the arm's carriage on it, which are the cart's (``clashes.arm_poses``)
+# the setup joints' links checked: after the column and the arm's carriage on it, which are the cart's
+# (``clashes.arm_poses``)
+from surgopt.robots.dvrk_links import SUJ_ON_COLUMN as FIRST_SUJ_LINK, through_port
 from surgopt.studies.port_place.geometry import TABLE_THREADS
 
 #: The arm pairs whose links are checked, in the order of the rows' ``external_link_pair`` code (256 * pair +
@@ -80,13 +81,28 @@ def in_threads(kernel, aligned: tuple, *rest, inline: int = INLINE_TASKS) -> tup
     return tuple(np.concatenate(parts) for parts in zip(*outs))
 
 
-def link_names(arm: str) -> tuple[str, ...]:
-    """An arm's links in the tables' numbering: its setup joints' (fixed), then its own."""
-    from surgopt.robots import dvrk_links as L
+def own_links(cart: str, arm: str) -> tuple:
+    """(skeleton, capsules) of an arm's own links on ``cart`` (``dvrk_links.ARM_LINKS``)."""
+    from surgopt.robots.dvrk_links import ARM_LINKS
 
-    own = L.ECM_CLASSIC_CAPSULES if arm == "ECM" else L.PSM_CLASSIC_CAPSULES
-    return (tuple(f"{arm} setup joint link {k + 1}" for k in range(FIRST_SUJ_LINK, 6))
-            + tuple(f"{arm} {c.name}" for c in own))
+    psm_frames, psm_capsules, ecm_frames, ecm_capsules = ARM_LINKS[cart]
+    return (ecm_frames, ecm_capsules) if arm == "ECM" else (psm_frames, psm_capsules)
+
+
+def suj_link_count(cart: str, arm: str) -> int:
+    """How many of an arm's setup-joint links the tables check: its chain's rows (jointed, then the Si's fixed
+    ones) from ``FIRST_SUJ_LINK`` on (the Classic's 4; the Si's 4, its PSM3's 5)."""
+    from surgopt.robots.dvrk_suj import CARTS
+
+    suj = CARTS[cart][arm]
+    return len(suj.links) + len(suj.fixed) - FIRST_SUJ_LINK
+
+
+def link_names(arm: str, cart: str = "classic") -> tuple[str, ...]:
+    """An arm's links in the tables' numbering: its setup joints' (fixed), then its own."""
+    n_suj = suj_link_count(cart, arm)
+    return (tuple(f"{arm} setup joint link {k + 1}" for k in range(FIRST_SUJ_LINK, FIRST_SUJ_LINK + n_suj))
+            + tuple(f"{arm} {c.name}" for c in own_links(cart, arm)[1]))
 
 
 #: The arms checked against their surroundings, in the order of the rows' codes 256 * (6 + arm) + 16 * link +
@@ -95,16 +111,16 @@ ARMS = ("PSM1", "PSM2", "PSM3", "ECM")
 SURROUNDINGS = ("patient's body", "table")
 
 
-def pair_name(code: int) -> str:
+def pair_name(code: int, cart: str = "classic") -> str:
     """A row's ``external_link_pair`` code as "PSM1 setup joint link 6 / PSM2 mount" or "PSM2 mount / table"
     ("" for -1)."""
     if code < 0:
         return ""
     pair, link, other = code // 256, (code % 256) // 16, code % 16
     if pair >= len(ARM_PAIRS):
-        return f"{link_names(ARMS[pair - len(ARM_PAIRS)])[link]} / {SURROUNDINGS[other]}"
+        return f"{link_names(ARMS[pair - len(ARM_PAIRS)], cart)[link]} / {SURROUNDINGS[other]}"
     a, b = ARM_PAIRS[pair]
-    return f"{link_names(a)[link]} / {link_names(b)[other]}"
+    return f"{link_names(a, cart)[link]} / {link_names(b, cart)[other]}"
 
 
 def table_box(cfg) -> tuple[np.ndarray, np.ndarray]:
@@ -186,14 +202,13 @@ def pose_points(model) -> tuple[np.ndarray, np.ndarray]:
     return points[order], np.concatenate([[0, 1], 1 + np.cumsum(counts)]).astype(np.int64)
 
 
-def own_moving(model, sites: np.ndarray, rot: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """(segments (n, P, 7, 2, 3) m in the patient frame, radii (7,), the poses' groups (``pose_points``)): a
-    Classic PSM's own links docked at each
-    port in its docking frame ``rot`` (n, 3, 3), with the mount where its setup joints' tip is
-    (SUJ_tip_to_tool_origin), docked (yaw = pitch = 0, the tip at the centre's depth) and reaching each of
-    ``pose_points`` (eq. P2), as ``clashes.arm_poses`` places them."""
+def own_moving(model, sites: np.ndarray, rot: np.ndarray, arm: str = "PSM1"
+               ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(segments (n, P, L, 2, 3) m in the patient frame, radii (L,), the poses' groups (``pose_points``)): a
+    PSM's own links (its cart's, ``own_links``) docked at each port in its docking frame ``rot`` (n, 3, 3), with
+    the mount where its setup joints' tip is (SUJ_tip_to_tool_origin), docked (yaw = pitch = 0, the tip at the
+    centre's depth) and reaching each of ``pose_points`` (eq. P2), as ``clashes.arm_poses`` places them."""
     from surgopt.kinematics import capsules as C
-    from surgopt.robots import dvrk_links as L
     from surgopt.robots.dvrk_suj import CARTS
 
     along = model.limits.along_shaft_m
@@ -201,7 +216,9 @@ def own_moving(model, sites: np.ndarray, rot: np.ndarray) -> tuple[np.ndarray, n
     n, k = len(sites), len(points) + 1
     base = np.zeros((n, 4, 4))
     base[:, :3, :3], base[:, :3, 3], base[:, 3, 3] = rot, sites, 1.0
-    mount = base @ np.linalg.inv(np.asarray(CARTS["classic"]["PSM1"].tip_to_tool, float))
+    cart = model.cfg.cart.model
+    mount = base @ np.linalg.inv(np.asarray(CARTS[cart][arm].tip_to_tool, float))
+    skeleton, capsules = own_links(cart, arm)
     local = np.einsum("npi,nij->npj", points[None, :, :] - sites[:, None, :], rot)  # (n, P-1, 3), base frame
     rho = np.linalg.norm(local, axis=2)
     q = np.empty((n, k, 3))
@@ -210,18 +227,19 @@ def own_moving(model, sites: np.ndarray, rot: np.ndarray) -> tuple[np.ndarray, n
     q[:, 1:, 1] = -np.arcsin(np.clip(local[:, :, 1] / rho, -1.0, 1.0))
     q[:, 1:, 0] = np.arctan2(local[:, :, 0], -local[:, :, 2])
     q[:, 1:, 2] = rho - along
-    frames = C.skeleton_batch(L.PSM_CLASSIC_FRAMES, q.reshape(-1, 3), np.repeat(base, k, axis=0),
-                              np.repeat(mount, k, axis=0))
-    segs = C.capsules_batch(L.PSM_CLASSIC_CAPSULES, frames).reshape(n, k, -1, 2, 3)
-    return segs, np.array([c.radius_m for c in L.PSM_CLASSIC_CAPSULES]), groups
+    frames = C.skeleton_batch(skeleton, q.reshape(-1, 3), np.repeat(base, k, axis=0), np.repeat(mount, k, axis=0))
+    segs = C.capsules_batch(capsules, frames).reshape(n, k, -1, 2, 3)
+    return segs, np.array([c.radius_m for c in capsules]), groups
 
 
 def _chain(suj):
-    """A six-link SUJ's base and modified-DH rows as ``suj_batch.link_segments`` reads them."""
-    rows = suj.links
+    """A SUJ's base and modified-DH rows (its jointed links, then its fixed ones: the Si's two) and how many are
+    jointed, as ``suj_batch.link_segments`` reads them."""
+    rows = tuple(suj.links) + tuple(suj.fixed)
     return (np.asarray(suj.world_to_suj, float), np.array([r.alpha_rad for r in rows]),
             np.array([r.a_m for r in rows]), np.array([r.d_m for r in rows]),
-            np.array([r.theta_offset_rad for r in rows]), np.array([bool(r.prismatic) for r in rows]))
+            np.array([r.theta_offset_rad for r in rows]), np.array([bool(r.prismatic) for r in rows]),
+            len(suj.links))
 
 
 def to_patient(dock) -> np.ndarray:
@@ -230,25 +248,25 @@ def to_patient(dock) -> np.ndarray:
 
 
 def suj_static(cfg, arm: str, joints: np.ndarray, dock) -> np.ndarray:
-    """(n, m, 4, 2, 3) An arm's setup-joint links (``FIRST_SUJ_LINK`` on) at its joints (n, m, 6; NaN where it
-    does not dock) in the patient's frame."""
+    """(n, m, S, 2, 3) An arm's setup-joint links (``FIRST_SUJ_LINK`` on, ``suj_link_count``) at its joints (n, m,
+    6: the jointed first; NaN where it does not dock) in the patient's frame."""
     from surgopt.kinematics.suj_batch import link_segments
     from surgopt.robots.dvrk_suj import CARTS
 
     n, m = joints.shape[:2]
     frame = np.broadcast_to(to_patient(dock)[None], (n, m, 4, 4)).reshape(-1, 4, 4)
-    segs = link_segments(*_chain(CARTS[cfg.cart.model][arm]), np.ascontiguousarray(joints.reshape(-1, 6)),
-                         np.ascontiguousarray(frame), FIRST_SUJ_LINK)
-    return segs.reshape(n, m, 6 - FIRST_SUJ_LINK, 2, 3)
+    segs = link_segments(*_chain(CARTS[cfg.cart.model][arm]),
+                         np.ascontiguousarray(joints.reshape(-1, joints.shape[-1])), np.ascontiguousarray(frame),
+                         FIRST_SUJ_LINK)
+    return segs.reshape(n, m, -1, 2, 3)
 
 
 def ecm_static(cfg, dock) -> np.ndarray:
-    """(n, m, 7, 2, 3) The ECM docked at each site and pose: its setup joints' links and its own (``dvrk_links``'
-    ECM at the yaw and pitch that aim the scope, insertion 0), in the patient's frame (NaN where it does not
-    dock)."""
+    """(n, m, S + 3, 2, 3) The ECM docked at each site and pose: its setup joints' links and its own
+    (``own_links``: at the yaw and pitch that aim the scope, insertion 0), in the patient's frame (NaN where it
+    does not dock)."""
     from surgopt.kinematics import capsules as C
     from surgopt.kinematics.suj_batch import chain_ends
-    from surgopt.robots import dvrk_links as L
     from surgopt.robots.dvrk_suj import CARTS
 
     suj = CARTS[cfg.cart.model]["ECM"]
@@ -260,18 +278,24 @@ def ecm_static(cfg, dock) -> np.ndarray:
     aim = dock.camera_aim.reshape(-1, 2)
     q = np.zeros((len(flat), 3))
     q[:, :2] = np.nan_to_num(aim)
-    frames = C.skeleton_batch(L.ECM_CLASSIC_FRAMES, q, base, mount)
-    own = C.capsules_batch(L.ECM_CLASSIC_CAPSULES, frames)  # cart frame
+    skeleton, capsules = own_links(cfg.cart.model, "ECM")
+    own = C.capsules_batch(capsules, C.skeleton_batch(skeleton, q, base, mount))  # cart frame
     frame = np.broadcast_to(to_patient(dock)[None], (n, m, 4, 4)).reshape(-1, 4, 4)
     own = np.einsum("kij,klej->klei", frame[:, :3, :3], own) + frame[:, None, None, :3, 3]
     return np.concatenate([suj_static(cfg, "ECM", joints, dock).reshape(n * m, -1, 2, 3), own],
                           axis=1).reshape(n, m, -1, 2, 3)
 
 
-def ecm_radii() -> np.ndarray:
-    from surgopt.robots import dvrk_links as L
+def suj_radii(cart: str, arm: str) -> np.ndarray:
+    """An arm's setup-joint links' radii (m)."""
+    from surgopt.robots.dvrk_links import SUJ_RADIUS_M
 
-    return np.array([L.SUJ_RADIUS_M] * (6 - FIRST_SUJ_LINK) + [c.radius_m for c in L.ECM_CLASSIC_CAPSULES])
+    return np.full(suj_link_count(cart, arm), SUJ_RADIUS_M)
+
+
+def ecm_radii(cart: str = "classic") -> np.ndarray:
+    """The ECM's links' radii (m) as ``ecm_static`` lists them."""
+    return np.concatenate([suj_radii(cart, "ECM"), [c.radius_m for c in own_links(cart, "ECM")[1]]])
 
 
 class Wanted(NamedTuple):
@@ -293,34 +317,45 @@ def wanted_of(t, crit) -> Wanted:
     pair = ((count == t.n_points) & (ang >= crit.angle_lo_rad) & (ang <= crit.angle_hi_rad)
             & (inside >= crit.min_shaft_gap_m) & spaced)
     np.fill_diagonal(pair, False)
-    return Wanted(pair, t.reach_count == t.n_points, t.coverage >= 1.0, spaced)
+    third = t.third_reach_count if len(t.third_reach_count) else t.reach_count  # the Si PSM3's own, when given
+    return Wanted(pair, third == t.n_points, t.coverage >= 1.0, spaced)
 
 
-def link_tables(model, sites: np.ndarray, rot: np.ndarray, dock, wanted: Wanted) -> LinkTables:
+def link_tables(model, sites: np.ndarray, rot: np.ndarray, dock, wanted: Wanted,
+                third_rot: np.ndarray | None = None) -> LinkTables:
     """Every pair of arms' least link clearance at every pair of ``sites`` (m, the tables' sites) and cart pose of
     ``dock`` (its ``joints``) where both dock and a design can need it (``wanted``; elsewhere NaN, and the words
-    set: the links do not decide there); ``rot``: the instrument arms' docking frames there."""
+    set: the links do not decide there); ``rot``: the instrument arms' docking frames there, ``third_rot`` the
+    third's where they are its own (the Si's PSM3, ``tables.third_frames``)."""
     from surgopt.kinematics import capsules as C
-    from surgopt.robots import dvrk_links as L
     from surgopt.kinematics.port_designs import pack_bits
     from surgopt.robots.dvrk_suj import INSTRUMENT_SUJS
 
     cfg = model.cfg
+    cart = cfg.cart.model
     n, m = len(sites), dock.margin.shape[2]
     psms = INSTRUMENT_SUJS[:cfg.robot.instrument_count]
     own, r_own, groups = own_moving(model, sites, rot)
-    balls = (np.stack([C.swept_balls(own[i], r_own, groups) for i in range(n)]) if n
-             else np.zeros((0, len(r_own), len(groups) - 1, 4)))
-    r_suj = np.full(6 - FIRST_SUJ_LINK, L.SUJ_RADIUS_M)
+
+    def balls_of(segs):
+        return (np.stack([C.swept_balls(segs[i], r_own, groups) for i in range(n)]) if n
+                else np.zeros((0, len(r_own), len(groups) - 1, 4)))
+
+    moving = {a: own for a in psms}
+    if third_rot is not None and "PSM3" in psms:
+        moving["PSM3"] = own_moving(model, sites, third_rot, "PSM3")[0]
+    balls = {a: balls_of(own) for a in psms[:1]}
+    balls.update({a: balls["PSM1"] if moving[a] is own else balls_of(moving[a]) for a in psms[1:]})
     static = {a: suj_static(cfg, a, dock.joints[k], dock) for k, a in enumerate(psms)}
     docks = {a: dock.margin[k] >= 0.0 for k, a in enumerate(psms)}
     static["ECM"], docks["ECM"] = ecm_static(cfg, dock), dock.camera_margin >= 0.0
+    r_static = {a: ecm_radii(cart) if a == "ECM" else suj_radii(cart, a) for a in static}
     none = np.zeros((n, 1, 0, 2, 3))
     no_balls = np.zeros((n, 0, len(groups) - 1, 4))
     least = cfg.constraints.link_least_mm / 1000
     cap = least + CAP_M
     value, code, words = {}, {}, {}
-    arm_value, arm_code = arm_surroundings(cfg, own, r_own, static, docks)
+    arm_value, arm_code = arm_surroundings(cfg, moving, r_own, static, docks)
     used = wanted.pair.any(axis=1)  # a port of some working pair that passes
     need = {"PSM1": used, "PSM2": used, "PSM3": wanted.third, "ECM": wanted.camera}
     for pair, (x, y) in enumerate(ARM_PAIRS):
@@ -332,18 +367,13 @@ def link_tables(model, sites: np.ndarray, rot: np.ndarray, dock, wanted: Wanted)
         tasks = np.argwhere(both)
         start, start_code = np.full(len(tasks), cap), np.full(len(tasks), -1, np.int64)
         if y != "ECM" and len(tasks):  # two PSMs: their own links over every pair of poses, per site pair
-            lo, hi = np.minimum(tasks[:, 0], tasks[:, 1]), np.maximum(tasks[:, 0], tasks[:, 1])
-            uniq, back = np.unique(lo * n + hi, return_inverse=True)
-            got, links = in_threads(C.moving_pairs, (np.stack([uniq // n, uniq % n], axis=1),), own, r_own, balls,
-                                    groups, cap, least, inline=2 * TABLE_THREADS)  # ~1 ms a task
-            start = got[back]
-            flip = tasks[:, 0] > tasks[:, 1]
-            la, lb = np.where(flip, links[back, 1], links[back, 0]), np.where(flip, links[back, 0], links[back, 1])
-            start_code = np.where(la >= 0, 16 * (la + len(r_suj)) + lb + len(r_suj), -1)
-        moving_y, r_my, balls_y = (none, np.zeros(0), no_balls) if y == "ECM" else (own, r_own, balls)
-        r_sy = ecm_radii() if y == "ECM" else r_suj
-        v, c = in_threads(_pairs, (tasks, start, start_code), static[x], own, r_suj, r_own, balls, static[y],
-                          moving_y, r_sy, r_my, balls_y, groups, least)
+            start, la, lb = moving_starts(tasks, n, moving[x], balls[x], moving[y], balls[y], r_own, groups, cap,
+                                          least)
+            fx, fy = len(r_static[x]), len(r_static[y])
+            start_code = np.where(la >= 0, 16 * (la + fx) + lb + fy, -1)
+        moving_y, r_my, balls_y = (none, np.zeros(0), no_balls) if y == "ECM" else (moving[y], r_own, balls[y])
+        v, c = in_threads(_pairs, (tasks, start, start_code), static[x], moving[x], r_static[x], r_own, balls[x],
+                          static[y], moving_y, r_static[y], r_my, balls_y, groups, least)
         dense = np.full((n, n, m), np.nan, np.float32)
         dense_code = np.full((n, n, m), -1, np.int16)
         dense[tasks[:, 0], tasks[:, 1], tasks[:, 2]] = v
@@ -351,35 +381,57 @@ def link_tables(model, sites: np.ndarray, rot: np.ndarray, dock, wanted: Wanted)
         value[pair], code[pair] = dense, dense_code
         words[pair] = pack_bits(np.where(both, dense >= least, True))
     arm_words = pack_bits(np.where(np.isnan(arm_value), True, arm_value >= least))
-    return LinkTables(value, code, words, {a: link_names(a) for a in static}, arm_value.astype(np.float32),
+    return LinkTables(value, code, words, {a: link_names(a, cart) for a in static}, arm_value.astype(np.float32),
                       arm_code.astype(np.int16), arm_words)
 
 
-def arm_surroundings(cfg, own, r_own, static, docks):
-    """Each arm against the patient and the table at each (site, pose) where it docks (``surroundings``): a PSM's
-    own links once per site over its poses (its docked frame does not depend on the cart), the least of those
-    and its setup joints' at the pose; the ECM held docked. (value (4, n, m) m, NaN where it does not dock; code
-    (4, n, m): 16 * link + what, the links numbered as ``link_names``.)"""
-    from surgopt.robots import dvrk_links as L
+def moving_starts(tasks, n, moving_x, balls_x, moving_y, balls_y, radii, groups, cap, least):
+    """Two PSMs' own links over every pair of their poses (``capsules.moving_pairs``), once per site pair of
+    ``tasks`` (T, 3: site of X, site of Y, cart pose), whatever the pose: (least (T,), X's link, Y's link). Two arms
+    in the same frames (``moving_x is moving_y``) are one problem per unordered pair."""
+    from surgopt.kinematics import capsules as C
 
+    if moving_x is moving_y:
+        lo, hi = np.minimum(tasks[:, 0], tasks[:, 1]), np.maximum(tasks[:, 0], tasks[:, 1])
+        uniq, back = np.unique(lo * n + hi, return_inverse=True)
+    else:
+        uniq, back = np.unique(tasks[:, 0] * n + tasks[:, 1], return_inverse=True)
+    got, links = in_threads(C.moving_pairs, (np.stack([uniq // n, uniq % n], axis=1),), moving_x, balls_x,
+                            moving_y, balls_y, radii, groups, cap, least, inline=2 * TABLE_THREADS)  # ~1 ms a task
+    la, lb = links[back, 0], links[back, 1]
+    if moving_x is moving_y:
+        flip = tasks[:, 0] > tasks[:, 1]
+        la, lb = np.where(flip, lb, la), np.where(flip, la, lb)
+    return got[back], la, lb
+
+
+def arm_surroundings(cfg, moving, r_own, static, docks):
+    """Each arm against the patient and the table at each (site, pose) where it docks (``surroundings``): a PSM's
+    own links (``moving``, per PSM) once per site over its poses (its docked frame does not depend on the cart),
+    the least of those and its setup joints' at the pose; the ECM held docked. (value (4, n, m) m, NaN where it
+    does not dock; code (4, n, m): 16 * link + what, the links numbered as ``link_names``.)"""
+    cart = cfg.cart.model
     n, m = static["ECM"].shape[:2]
     value, code = np.full((4, n, m), np.nan), np.full((4, n, m), -1, np.int64)
-    n_suj = 6 - FIRST_SUJ_LINK
-    through_own = np.array(L.through_port(L.PSM_CLASSIC_CAPSULES))
-    k = own.shape[1]
-    own_v, own_c = surroundings(cfg, own.reshape(n, -1, 2, 3), np.tile(r_own, k), np.tile(through_own, k),
-                                np.ones(n, bool))
-    own_c = np.where(own_c >= 0, 16 * (n_suj + (own_c // 16) % len(r_own)) + own_c % 16, -1)
-    r_suj = np.full(n_suj, L.SUJ_RADIUS_M)
+    through_own = np.array(through_port(own_links(cart, "PSM1")[1]))
+    measured = {}  # per set of own links (PSM1's and PSM2's are one on either cart)
     for a, arm in enumerate(ARMS):
         if arm not in static:
             continue
+        n_suj = suj_link_count(cart, arm)
         segs = static[arm].reshape(n * m, -1, 2, 3)
-        radii = ecm_radii() if arm == "ECM" else r_suj
-        through = np.array([False] * n_suj + (L.through_port(L.ECM_CLASSIC_CAPSULES) if arm == "ECM" else []))
+        radii = ecm_radii(cart) if arm == "ECM" else suj_radii(cart, arm)
+        through = np.array([False] * n_suj + (through_port(own_links(cart, "ECM")[1]) if arm == "ECM" else []))
         v, c = surroundings(cfg, segs, radii, through, docks[arm].reshape(-1))
         v, c = v.reshape(n, m), c.reshape(n, m)
         if arm != "ECM":  # the arm's own links, wherever its setup joints dock
+            own = moving[arm]
+            if id(own) not in measured:
+                k = own.shape[1]
+                measured[id(own)] = surroundings(cfg, own.reshape(n, -1, 2, 3), np.tile(r_own, k),
+                                                 np.tile(through_own, k), np.ones(n, bool))
+            own_v, own_c = measured[id(own)]
+            own_c = np.where(own_c >= 0, 16 * (n_suj + (own_c // 16) % len(r_own)) + own_c % 16, -1)
             worse = own_v[:, None] < v
             v, c = np.where(worse, own_v[:, None], v), np.where(worse, own_c[:, None], c)
         value[a], code[a] = v, c

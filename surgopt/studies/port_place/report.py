@@ -63,10 +63,11 @@ def within_band(values, band) -> str:
 
 
 #: What every answer leaves out (docs/port_placement.md, "What the model leaves out"), said in the closing report.
-NOT_MODELLED = ("the Xi's setup joints, the Si cart's links in feasible (the report measures its best layouts'), "
-                "tissue and the body wall's thickness (a port is a point), the assistant's port, the table's rails "
-                "and arm boards and the patient's arms; every link radius is an assumption (docs/port_placement.md, "
-                "what the model leaves out)")
+NOT_MODELLED = ("the Xi's setup joints, each PSM's docking turn as a dimension of the rows (the Classic's roll, the "
+                "Si's yaw off psi*: the rows take the run's; the report turns them for its best layouts), tissue "
+                "and the body wall's thickness (a port is a point), the assistant's port, the table's rails and arm "
+                "boards and the patient's arms; every link radius is an assumption (docs/port_placement.md, what "
+                "the model leaves out)")
 
 
 def summary(parts) -> Summary:

@@ -380,7 +380,7 @@ def port_tables(model: PortModel, sites: np.ndarray, rot: np.ndarray, outside=No
         tables = tables._replace(third_reach_count=reach3.sum(axis=1).astype(np.int64),
                                  third_reach_bits=D.reach_bits(reach3), third_dex_site=D.site_dexterity(reach3, dex3))
     if links_decide(cfg) and dock is not None and dock.joints is not None:
-        tables = with_links(model, tables, sites, frames, dock)
+        tables = with_links(model, tables, sites, frames, dock, third)
     return tables, reach, dex
 
 
@@ -390,11 +390,12 @@ def links_decide(cfg: PortPlaceConfig) -> bool:
     return cfg.cart.model != "none" and cfg.constraints.link_least_mm is not None
 
 
-def with_links(model: PortModel, tables, sites: np.ndarray, rot: np.ndarray, dock):
-    """The design kernel's tables with the arms' link clearance tables (``link_tables``) of these sites."""
+def with_links(model: PortModel, tables, sites: np.ndarray, rot: np.ndarray, dock, third_rot=None):
+    """The design kernel's tables with the arms' link clearance tables (``link_tables``) of these sites
+    (``third_rot``: the third PSM's frames where they are its own, ``third_frames``)."""
     from surgopt.studies.port_place.link_tables import link_tables, wanted_of
 
-    got = link_tables(model, sites, rot, dock, wanted_of(tables, model.criteria))
+    got = link_tables(model, sites, rot, dock, wanted_of(tables, model.criteria), third_rot)
     pairs = sorted(got.value)
     return tables._replace(link_words=np.stack([got.words[p] for p in pairs]),
                            link_value=np.stack([got.value[p] for p in pairs]),
