@@ -399,3 +399,38 @@ def test_with_no_row_feasible_the_headline_names_a_layout_a_roll_clears_or_says_
         head = R.summary(parts).headline
         assert head["best"].startswith("none") and "best_design_id" not in head
         assert head["links_clear"].startswith(f"none of the {R.SCREEN_LAYOUTS} best layouts failing only on their links")
+
+
+def test_with_no_layout_clear_the_cart_figure_draws_the_cheapest_that_fails_on_its_links(tmp_path):
+    """The Si cart with its links deciding, a small config where no layout keeps its links clear (the premise:
+    none feasible, some failing on the links alone): the figures still draw the cart, with the cheapest of those
+    (by cost, then design_id, ``cheapest_clash``, held to a sort of the rows here), its title saying why it is
+    drawn and naming the overlapping pair as ``clashes.layout_clearances``' least names it."""
+    import pyarrow as pa
+
+    from surgopt.kinematics.port_reasons import OUTSIDE
+    from surgopt.studies.port_place import figures as F
+
+    cfg = PC.PortPlaceConfig.model_validate({
+        **SMALL, "robot": {"instrument_arm": "dvrk_psm_si", "camera_arm": "dvrk_ecm_si"},
+        "cart": {"model": "si", "around_step_deg": 30.0, "distance_step_mm": 300.0},
+        "constraints": {"min_link_clearance_mm": 0.0}})
+    cols = S.compute_task(cfg, S.n_total(cfg), 0)
+    only = np.flatnonzero(cols["infeasible"] == OUTSIDE)
+    assert not cols["feasible"].any() and len(only)  # the premise
+    want = min(only, key=lambda r: (cols["cost"][r], cols["design_id"][r]))
+    assert F.cheapest_clash(cols) == want
+    titles = {}
+
+    def keep_title(fig, path):
+        titles[path.name] = fig.axes[0].get_title()
+        return path
+
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setattr(F, "save", keep_title)
+        F.figures(cfg, pa.table(cols), tmp_path)
+    title = titles["port_place_cart_3d.png"]
+    row = F.row_of(cols, int(want))
+    least = min(layout_clearances(cfg, row), key=lambda c: c.clearance_mm)
+    assert f"design {row['design_id']} on the Si cart" in title and "no layout's links clear" in title
+    assert least.clearance_mm < 0 and f"{least.link_a} / {least.link_b} by {-least.clearance_mm:.0f} mm" in title

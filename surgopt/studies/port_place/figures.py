@@ -58,6 +58,15 @@ def chosen(c: dict, design_id: int | None, cfg=None) -> int | None:
     return best
 
 
+def cheapest_clash(c: dict) -> int | None:
+    """The cheapest row (then the lowest design_id) that docks and fails on its links alone (reason 16), or None:
+    with no layout to draw, the cart figure shows where the cheapest overlaps."""
+    from surgopt.kinematics.port_reasons import OUTSIDE
+
+    cand = np.flatnonzero((c["infeasible"] == OUTSIDE) & (c["cart_pose"] >= 0)) if "cart_pose" in c else []
+    return int(cand[np.lexsort((c["design_id"][cand], c["cost"][cand]))[0]]) if len(cand) else None
+
+
 def row_of(c: dict, r: int) -> dict:
     """Row ``r`` of the columns ``c`` as a dict of Python values."""
     return {k: (v[r].item() if hasattr(v[r], "item") else v[r]) for k, v in c.items()}
@@ -188,6 +197,9 @@ def figures(cfg, table, out, design_id=None):
     paths.append(reach_maps(plt, cfg, sites, port_tables, dex, out))
     if cfg.cart.model != "none" and row is not None and c["cart_pose"][row] >= 0:
         paths.append(cart_figure(plt, cfg, row_of(c, row), out))
+    elif cfg.cart.model != "none" and design_id is None and (clash := cheapest_clash(c)) is not None:
+        paths.append(cart_figure(plt, cfg, row_of(c, clash), out, "no layout's links clear: the cheapest that "
+                                 "fails on them alone"))
 
     # why designs fail
     from surgopt.kinematics.port_reasons import REASONS
@@ -257,12 +269,14 @@ def reach_maps(plt, cfg, sites, t, dex, out):
     return save(fig, out / "port_place_reach_top.png")
 
 
-def cart_figure(plt, cfg, row: dict, out):
+def cart_figure(plt, cfg, row: dict, out, note: str = ""):
     """The layout on the cart, in the cart's world frame (m; the floor at z = 0): the patient's surface and the
     table, each arm's setup joints as the polyline of their frames (base, each link, the SUJ's tip), the arm's
     own links docked (the axes of ``clashes``' capsules: mount, yaw link, parallelogram, insertion stage,
     housing, the shaft outside the port) and a line from the RCM in to the target's centre; docked as the dvrk
-    export docks it (``clashes.docking_that_clears``: each PSM rolled about its shaft where that clears the links)."""
+    export docks it (``clashes.docking_that_clears``: each PSM rolled about its shaft where that clears the links).
+    Where its links overlap however docked, the two links of the least clearance are drawn red and named;
+    ``note``: why this layout is drawn, when it is not the best."""
     from surgopt.kinematics import suj as S
     from surgopt.robots.dvrk_suj import CARTS
     from surgopt.studies.port_place.config import CART_NAMES
@@ -288,8 +302,11 @@ def cart_figure(plt, cfg, row: dict, out):
     model = model_of(cfg)
     from surgopt.studies.port_place.clashes import docking_that_clears
 
-    docked, rolls, _, _ = docking_that_clears(cfg, row)  # as the dvrk export docks it
-    from surgopt.studies.port_place.clashes import turn_words
+    docked, rolls, _, clearances = docking_that_clears(cfg, row)  # as the dvrk export docks it
+    from surgopt.studies.port_place.clashes import least, turn_words
+
+    worst = least(clearances)
+    overlap = worst if worst is not None and worst.clearance_mm < 0 else None
 
     turned = ", ".join(f"{a} {turn_words(cfg)[1]} {d:+.0f} deg" for a, d in rolls.items() if d)
     for arm, colour in zip(docked, ("C0", "C1", "C2", "C3")):
@@ -303,6 +320,10 @@ def cart_figure(plt, cfg, row: dict, out):
             ax.plot(*links.segments[0, i].T, color=colour, lw=1.2, alpha=0.8,
                     label=f"{arm.arm} links (capsule axes)" if k == 0 else None)
         ax.plot(*np.stack([f[-1, :3, 3], centre]).T, color=colour, lw=0.8, ls="--")
+        for i, n in enumerate(links.names):  # the overlapping pair, docked (it may overlap at another pose)
+            if overlap is not None and n in (overlap.link_a, overlap.link_b):
+                ax.plot(*links.segments[0, i].T, color="red", lw=4, alpha=0.7,
+                        label="the overlapping links (docked)" if n == overlap.link_a else None)
     from surgopt.robots.dvrk_suj import WORLD_ABOVE_FLOOR_M
 
     above = WORLD_ABOVE_FLOOR_M[cfg.cart.model]
@@ -316,7 +337,10 @@ def cart_figure(plt, cfg, row: dict, out):
     ax.view_init(elev=22, azim=-60)
     ax.set_title(f"design {row['design_id']} on the {CART_NAMES[cfg.cart.model]} cart: origin ({row['cart_x_mm']:.0f}, "
                  f"{row['cart_y_mm']:.0f}) mm, heading {row['cart_heading_deg']:.0f} deg (patient frame)"
-                 + (f"\ndocked as the dvrk export docks it so that the links clear: {turned}" if turned else ""),
+                 + (f"\ndocked as the dvrk export docks it so that the links clear: {turned}" if turned else "")
+                 + (f"\n{note}" if note else "")
+                 + (f"\nits links overlap however docked: {overlap.link_a} / {overlap.link_b} by "
+                    f"{-overlap.clearance_mm:.0f} mm\n({overlap.where})" if overlap is not None else ""),
                  fontsize=9)
     ax.legend(fontsize=7, loc="upper left")
     return save(fig, out / "port_place_cart_3d.png")
