@@ -412,7 +412,9 @@ def export(
             if design is None or len(runs_) != 1:
                 fail(f"--format {fmt}: a study's own format writes one design of one run: give one RUN and --design",
                      2)
-            text = export_design(Store(store), runs_[0], design, fmt, study)
+            text, notes = export_design(Store(store), runs_[0], design, fmt, study)
+            for note in notes:
+                typer.echo(note, err=True)
             if out is None:
                 sys.stdout.write(text)
             else:

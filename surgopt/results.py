@@ -384,8 +384,10 @@ def grid_best(store: Store, study, cfg, column: str, direction: str, feasible_on
             float(values.max() if direction == "maximize" else values.min()))
 
 
-def export_design(store: Store, ref: str, design: int, fmt: str, study_name: str | None = None) -> str:
-    """One design's row of a run in a format its study declares (``Study.exports``): the text to write. A
+def export_design(store: Store, ref: str, design: int, fmt: str, study_name: str | None = None
+                  ) -> tuple[str, list[str]]:
+    """One design's row of a run in a format its study declares (``Study.exports``): the text to write, and the
+    notes to say beside it (a design whose row is not feasible: written as computed, not a layout to use). A
     UsageError naming what is wrong: a study without that format, a design not among the rows."""
     import pyarrow.compute as pc
 
@@ -399,4 +401,7 @@ def export_design(store: Store, ref: str, design: int, fmt: str, study_name: str
     rows = [t for t in rows if t.num_rows]
     if not rows:
         raise UsageError(f"--design {design}: no row of run {r.key[:12]} has {key} = {design}")
-    return st.exports[fmt](config_of(st, r), {**rows[0].to_pylist()[0], "run_key": r.key})
+    row = rows[0].to_pylist()[0]
+    notes = ([f"note: design {design} is not feasible in run {r.key[:12]} (its row's feasible is false); the file "
+              f"describes it as computed, not as a layout to use"] if row.get("feasible") is False else [])
+    return st.exports[fmt](config_of(st, r), {**row, "run_key": r.key}), notes

@@ -185,9 +185,11 @@ def test_the_si_export_lands_each_rcm_on_its_port_and_its_own_joints_aim_the_sha
     r = cli("port-place", "si.toml", "--store", tmp_path / "s", cwd=tmp_path)
     assert "Si cart" in r.stdout and "not part of feasible" in r.stdout
     best = int(r.stdout.split("best_design_id")[1].split()[1])
-    cli("export", "latest", "--store", tmp_path / "s", "--design", str(best), "--format", "dvrk", "--out",
-        tmp_path / "setup.json", cwd=tmp_path)
+    r = cli("export", "latest", "--store", tmp_path / "s", "--design", str(best), "--format", "dvrk", "--out",
+            tmp_path / "setup.json", cwd=tmp_path)
     setup = json.loads((tmp_path / "setup.json").read_text())
+    assert setup["feasible"] is True and setup["fails_on"] == [] and "not feasible" not in r.stderr
+    _a_docked_infeasible_design_is_written_with_its_reasons_and_a_note(tmp_path)
     clear = setup["clearances_outside_body"]
     assert len(clear["checks"]) == 3 * 2 + 3 * 2 and clear["least_mm"] == min(c["clearance_mm"] for c in clear["checks"])
     assert any("parallelogram" in c["link"] for c in clear["checks"]) and "not part of feasible" in clear["model"]
@@ -205,6 +207,26 @@ def test_the_si_export_lands_each_rcm_on_its_port_and_its_own_joints_aim_the_sha
         shaft = np.array([math.sin(q1) * math.cos(q2), -math.sin(q2), -math.cos(q1) * math.cos(q2)])  # P2's inverse
         toward = (centre - port) / np.linalg.norm(centre - port)
         np.testing.assert_allclose(base[:3, :3] @ shaft, toward, atol=1e-9)
+
+
+def _a_docked_infeasible_design_is_written_with_its_reasons_and_a_note(tmp_path):
+    """The dvrk export of a design that docks but fails another check: ``feasible`` false, ``fails_on`` its
+    row's reasons in words (``port_reasons.REASONS``), and a note on stderr that it is not a layout to use."""
+    import pyarrow.compute as pc
+
+    from surgopt.kinematics.port_reasons import REASONS
+    from surgopt.store import Store
+
+    (run,) = Store(tmp_path / "s").runs("port-place")
+    t = run.parts(S.STUDY.schema_for(run.manifest["config"])).table()
+    t = t.filter(pc.and_(pc.greater_equal(t["cart_pose"], 0), pc.invert(t["feasible"])))
+    row = t.slice(0, 1).to_pylist()[0]
+    r = cli("export", "latest", "--store", tmp_path / "s", "--design", str(row["design_id"]), "--format", "dvrk",
+            "--out", tmp_path / "bad.json", cwd=tmp_path)
+    bad = json.loads((tmp_path / "bad.json").read_text())
+    assert bad["feasible"] is False and bad["fails_on"]
+    assert bad["fails_on"] == [text for bit, text in REASONS.items() if row["infeasible"] & bit]
+    assert f"design {row['design_id']} is not feasible" in r.stderr
 
 
 @pytest.mark.parametrize("change, words", [

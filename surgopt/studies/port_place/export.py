@@ -44,11 +44,19 @@ def clearances_of(checks: list, cfg: PortPlaceConfig) -> dict:
                         "against": c.link_b, "where": c.where} for c in checks]}
 
 
+def fails_on(bits: int) -> list[str]:
+    """What a row fails on (``port_reasons.REASONS``, in their order); empty for a feasible row."""
+    from surgopt.kinematics.port_reasons import REASONS
+
+    return [text for bit, text in REASONS.items() if bits & bit]
+
+
 def dvrk_setup(cfg: PortPlaceConfig, row: dict) -> str:
     """The layout of ``row`` (a design of a run with the cart) as JSON: ``cart_to_patient`` (the patient's frame
-    in the cart's world frame, 4x4, m) and one entry per arm (PSM1, PSM2, PSM3, ECM): its cart ("classic" or "si"), SUJ
-    joints, ``world_origin_to_suj`` and ``suj_tip_to_tool_origin`` as used, its port (mm, patient frame), its base
-    (RCM) frame in the cart's world frame, and its own joints at the target's centre."""
+    in the cart's world frame, 4x4, m), whether the row is feasible (and what it fails on), and one entry per arm
+    (PSM1, PSM2, PSM3, ECM): its cart ("classic" or "si"), SUJ joints, ``world_origin_to_suj`` and
+    ``suj_tip_to_tool_origin`` as used, its port (mm, patient frame), its base (RCM) frame in the cart's world
+    frame, and its own joints at the target's centre."""
     from surgopt.robots.dvrk_suj import CARTS
     from surgopt.studies.port_place.clashes import docking_that_clears
     from surgopt.studies.port_place.tables import model_of, patient_in_cart
@@ -88,6 +96,7 @@ def dvrk_setup(cfg: PortPlaceConfig, row: dict) -> str:
            "cart": {"model": cfg.cart.model, "x_mm": row["cart_x_mm"], "y_mm": row["cart_y_mm"],
                     "heading_deg": row["cart_heading_deg"], "table_height_mm": cfg.cart.table_height_mm,
                     "trendelenburg_deg": cfg.cart.trendelenburg_deg, "lateral_tilt_deg": cfg.cart.lateral_tilt_deg},
+           "feasible": bool(row["feasible"]), "fails_on": fails_on(row["infeasible"]),
            "cart_to_patient": _matrix(patient), "docking": docking, "arms": arms,
            "clearances_outside_body": clearances_of(clearances, cfg)}
     return json.dumps(out, indent=1) + "\n"
