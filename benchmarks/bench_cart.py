@@ -13,7 +13,8 @@ Prints, on the default config with the Classic cart on its grid of floor poses (
   other, the patient and the table), its time against the same run without them;
 - the Si's setup joints (S3) over every (site, pose) of the default's grid with the Si arms: the numpy batch
   (``si_docking.si_solutions``) against the plain ``suj.si_ik`` pose by pose, checked equal, and
-  `surgopt port-place cart.model=si` end to end (the Si arms; its links not in feasible) with its dry run's estimate;
+  `surgopt port-place cart.model=si` end to end (the Si arms), docking alone and with the links deciding, with
+  the dry run's estimates;
 - the pruned least clearance between two arms (``capsules.least_between``, the link tables' kernel) against the
   exhaustive ``least_over_poses`` on the default's PSM pairs (their own links over 65 poses each), checked equal;
   and as the link tables take it (resolved up to CAP_M above the least) against a decision alone (clear or not).
@@ -130,13 +131,14 @@ def si_solver() -> None:
 
 
 def end_to_end() -> None:
-    took_without = None
+    took_without = {}  # per cart: the default grid's time with docking alone
     alone = "constraints.min_link_clearance_mm=off"  # docking alone: the links are in feasible by default
     for label, args in (("the default grid, docking alone", ["cart.model=classic", alone]),
                         ("a finer grid, docking alone", ["cart.model=classic", "cart.around_step_deg=7.5",
                                                          "cart.distance_step_mm=100", alone]),
                         ("the default grid, the links deciding (the default)", ["cart.model=classic"]),
-                        ("the Si cart and arms, the default grid (docking alone: its links not in feasible)", SI_ARGS)):
+                        ("the Si cart and arms, the default grid, docking alone", SI_ARGS + [alone]),
+                        ("the Si cart and arms, the default grid, the links deciding", SI_ARGS)):
         si = "cart.model=si" in args
         cfg = C.PortPlaceConfig.model_validate({"cart": {"model": "si" if si else "classic", **{
             a.split("=")[0].split(".")[1]: float(a.split("=")[1]) for a in args[1:] if a.startswith("cart.")}},
@@ -159,8 +161,8 @@ def end_to_end() -> None:
         print(f"surgopt port-place, {label} ({poses} cart poses), end to end (warm, 2 threads): {took:.1f} s for "
               f"{layouts:,} layouts x {poses} poses = {pairs:.3g} (layout, cart pose) pairs, {pairs / took:.3g} "
               f"pairs/s; the dry run's estimate {est:.1f} s ({est / took:.2f}x the time)"
-              + (f"; {took / took_without:.2f}x the run without the links" if "links deciding" in label else ""))
-        took_without = took if took_without is None else took_without
+              + (f"; {took / took_without[si]:.2f}x the run without the links" if "links deciding" in label else ""))
+        took_without.setdefault(si, took)
 
 
 def pruned_least() -> None:

@@ -1,4 +1,4 @@
-"""The dVRK Classic arms' links outside the body, as capsules (a segment and a radius) for the clash check of
+"""The dVRK Classic and Si arms' links outside the body, as capsules (a segment and a radius) for the clash check of
 issue 40: where the links are is data (sourced), how thick they are is an assumption (labelled).
 
 Where the links are: the Classic PSM's skeleton as the dVRK's own robot description writes it,
