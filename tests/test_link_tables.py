@@ -434,3 +434,40 @@ def test_with_no_layout_clear_the_cart_figure_draws_the_cheapest_that_fails_on_i
     least = min(layout_clearances(cfg, row), key=lambda c: c.clearance_mm)
     assert f"design {row['design_id']} on the Si cart" in title and "no layout's links clear" in title
     assert least.clearance_mm < 0 and f"{least.link_a} / {least.link_b} by {-least.clearance_mm:.0f} mm" in title
+
+
+def test_a_searched_roll_docks_and_clears_each_trial_as_the_grid_at_that_roll(tmp_path):
+    """``robot.docking_roll = 'search'``: each PSM's roll about its shaft is a dimension of a [search] (the rows'
+    own roll columns), its setup joints and its links docked in each trial's rolled frames. A design evaluated
+    with each PSM's roll the grid's at docking_roll_deg = 30 (+30 at a port on the patient's left, -30 on the
+    right: the grid's mirror convention) equals its row of that grid in every column, the links deciding; the
+    premise: some of the designs picked are feasible, some fail on their links alone. A short TPE search runs
+    with the rolls varying from trial to trial, each within +-90 deg; without a [search] it is refused naming the
+    field."""
+    from surgopt.config import validate
+    from surgopt.errors import ConfigError
+    from surgopt.runner import run_study
+    from surgopt.store import Store
+
+    grid_cfg = PC.PortPlaceConfig.model_validate({**LINKS, "robot": {"docking_roll_deg": 30.0}})
+    cols = S.compute_task(grid_cfg, S.n_total(grid_cfg), 0)
+    clash = np.flatnonzero(cols["infeasible"] == OUTSIDE)
+    pick = np.unique(np.concatenate([np.arange(0, len(cols["design_id"]), 2999), np.flatnonzero(cols["feasible"])[:6],
+                                     clash[:: max(1, len(clash) // 6)][:6]]))
+    assert cols["feasible"][pick].any() and (cols["infeasible"][pick] == OUTSIDE).any()  # the premise
+    searched = validate({**LINKS, "robot": {"docking_roll": "search"},
+                         "search": {"method": "tpe", "trials": 16, "batch": 8, "seed": 2}}, PC.Config, "x")
+    assert list(S.design_dims(searched))[-2:] == ["psm1_roll_deg", "psm2_roll_deg"]
+    x = np.column_stack([cols[f"{a}_site"][pick] for a in S.arms_of(grid_cfg)]).astype(float)
+    x[:, :2] = np.sort(x[:, :2], axis=1)  # the enumeration's order (i < j), as the roll-free test
+    sites_x_mm = T.model_of(grid_cfg).sites_m[x[:, :2].astype(int), 0]
+    x = np.column_stack([x, np.where(sites_x_mm >= 0, 30.0, -30.0)])  # each port's roll, by its side
+    alone = S.evaluate_designs(searched, x, cols["design_id"][pick], "t")
+    for c, v in cols.items():
+        np.testing.assert_allclose(np.asarray(alone[c], float), np.asarray(v, float)[pick], rtol=0, atol=1e-9,
+                                   err_msg=c)
+    rows = run_study(S.STUDY, searched, config_name="s", store=Store(tmp_path / "s"), jobs=1, quiet=True).table
+    rolls = np.asarray(rows["psm1_roll_deg"].to_pylist() + rows["psm2_roll_deg"].to_pylist())
+    assert len(rows) == 16 and len(np.unique(np.round(rolls, 6))) > 4 and np.all(np.abs(rolls) <= 90.0)
+    with pytest.raises(ConfigError, match="robot.docking_roll"):
+        validate({**LINKS, "robot": {"docking_roll": "search"}}, PC.Config, "x")

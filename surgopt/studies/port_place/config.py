@@ -275,10 +275,12 @@ class Robot(StrictModel):
         "angle after docking: 0, its yaw swings the shaft across the patient; 90, head to foot. Ports on the "
         "patient's left (x >= 0) turn the frame's x toward the head, on the right toward the feet (mirror "
         "images, so a symmetric patient gives a symmetric answer); a negative angle turns each the other way")
-    docking_roll: Literal["given", "most_reach"] = Field(
+    docking_roll: Literal["given", "most_reach", "search"] = Field(
         "given", description="'given': docking_roll_deg at every port; 'most_reach': at each port the roll of "
                              "0, 15, ..., 90 deg (mirrored as docking_roll_deg) that reaches the most target "
-                             "points (ties: the one nearest docking_roll_deg)")
+                             "points (ties: the one nearest docking_roll_deg); 'search': each PSM's roll a "
+                             "dimension of a [search] (psm1_roll_deg ..., -90 to 90 deg, x toward y at its own port, "
+                             "not mirrored), its setup joints and links docked so in each trial")
 
     @model_validator(mode="after")
     def _rcm_instrument_choices(self):
@@ -455,6 +457,14 @@ class PortPlaceConfig(StrictModel):
             raise ValueError("cart.model: the setup joints are solved for the docking frames toward the target's "
                              "centre; a [search] that also tilts the docking (robot.docking_range_deg > 0) with the "
                              "cart is not in yet (set robot.docking_range_deg = 0, or cart.model = 'none')")
+        return self
+
+    @model_validator(mode="after")
+    def _a_searched_roll_has_a_search(self):
+        if self.robot.docking_roll == "search" and self.search == "grid":
+            raise ValueError("robot.docking_roll: 'search' makes each PSM's roll a dimension of a [search]: give a "
+                             "[search] table, or docking_roll = 'given' (docking_roll_deg at every port) or "
+                             "'most_reach' (per port, on the grid)")
         return self
 
     @model_validator(mode="after")

@@ -32,7 +32,7 @@ from surgopt.studies import Estimate, Study, figures_in, html_views_in, peak_byt
 from surgopt.parts import concat_rows
 from surgopt.studies.port_place.config import OBJECTIVE, PortPlaceConfig, camera_arm_of, cart_of, instrument_of
 from surgopt.studies.port_place.geometry import sites_mm, target_points_mm
-from surgopt.studies.port_place.tables import LATERAL, model_of, port_tables
+from surgopt.studies.port_place.tables import LATERAL, model_of, port_tables, redocked, rolled
 
 NAME = "port-place"
 KERNEL_VERSION = "port-place-1"
@@ -433,10 +433,21 @@ def with_stance(cfg: PortPlaceConfig, moves: dict) -> PortPlaceConfig:
     return cfg.model_copy(update={"robot": cfg.robot.model_copy(update=update)})
 
 
+#: A searched docking roll's range (deg): each PSM's frame turned about its neutral shaft, x toward y.
+ROLL_RANGE_DEG = (-90.0, 90.0)
+
+
+def searched_roll_columns(cfg: PortPlaceConfig) -> tuple[str, ...]:
+    """Each PSM's docking roll as a search's dimension (``robot.docking_roll = 'search'``): the rows' own roll
+    columns, whose value is the trial's."""
+    return roll_columns(cfg) if cfg.robot.docking_roll == "search" else ()
+
+
 def design_dims(cfg: PortPlaceConfig) -> dict:
     """The dimensions a design of this config has, in order, with their domains: every arm's port (a site, or a
     top-view point with ``search_ports = "surface"``), each instrument's docking when ``robot.docking_range_deg``
-    > 0 (a serial arm's yaw only), each serial arm's stance when its ``stance_range_m`` > 0."""
+    > 0 (a serial arm's yaw only), each serial arm's stance when its ``stance_range_m`` > 0, each PSM's docking
+    roll with ``robot.docking_roll = 'search'``, the cart's pose when searched."""
     sites = sites_mm(cfg)
     if cfg.search_ports == "surface":  # a box around the candidate sites, top view
         lo, hi = sites[:, :2].min(axis=0), sites[:, :2].max(axis=0)
@@ -450,6 +461,7 @@ def design_dims(cfg: PortPlaceConfig) -> dict:
     for c in stance_columns(cfg):
         reach = getattr(cfg.robot, f"{c.split('_')[0]}_serial").stance_range_m
         dims[c] = (-reach, reach)
+    dims.update({c: ROLL_RANGE_DEG for c in searched_roll_columns(cfg)})
     if cart_search_columns(cfg):
         from surgopt.studies.port_place.tables import searched_pose_box
 
@@ -505,6 +517,7 @@ def evaluate_designs(cfg, x: np.ndarray, ids: np.ndarray, source: str) -> dict:
     stances = [c for c in stance_columns(cfg) if c in col]
     port_cols = [col[c] for c in (aim_columns(cfg) if surface else [f"{arm}_site" for arm in arms_of(cfg)])]
     docking_cols = [col.get(c) for c in docking_columns(cfg)]  # None: not free, 0
+    roll_cols = [col[c] for c in searched_roll_columns(cfg) if c in col]  # a trial's rolls (deg, per PSM)
     cart = cfg.cart.model != "none"  # the grid's dock tables (every site, every cart pose), each design's sites
     searched = cart_search_columns(cfg)  # or, searched, each design's own pose's (of sites alone: the box's middle)
     out = []
@@ -526,9 +539,12 @@ def evaluate_designs(cfg, x: np.ndarray, ids: np.ndarray, source: str) -> dict:
             rot = K.tilted_frames(K.docking_frames(sites, centre, LATERAL), np.radians([*docking[0::2], 0.0]),
                                   np.radians([*docking[1::2], 0.0]))
             outside = K.external_clearances(sites, np.ascontiguousarray(rot[:, :, 2]), dvrk.OUTSIDE_LENGTH_M)
-            tables = (None if not cart else cart_of_sites(model.dock, site_ids) if pose is None
-                      else searched_dock(model, site_ids, pose))
-            t, _, _ = port_tables(model_r, sites, rot, outside, dock=tables)
+            rolls = np.radians([*v[roll_cols], 0.0]) if roll_cols else None  # each port's, the ECM's 0
+            frames = rolled(rot, rolls) if roll_cols else None
+            tables = (None if not cart else searched_dock(model, site_ids, pose, frames) if pose is not None
+                      else cart_of_sites(model.dock, site_ids) if frames is None
+                      else redocked(model, cart_of_sites(model.dock, site_ids), site_ids, frames))
+            t, _, _ = port_tables(model_r, sites, rot, outside, dock=tables, rolls_rad=rolls)
         local, f, bad, cost, _, dock = design_columns(t, crit, 0, 1, ports - 1)
         out.append(design_rows(cfg, sites, t, local, site_ids[None, :], f, bad, cost,
                                np.asarray(ids[r:r + 1], dtype=np.int64), docking[None, :],
@@ -540,10 +556,11 @@ def evaluate_designs(cfg, x: np.ndarray, ids: np.ndarray, source: str) -> dict:
     return concat_rows(out)
 
 
-def searched_dock(model, site_ids: np.ndarray, pose: dict):
+def searched_dock(model, site_ids: np.ndarray, pose: dict, rot=None):
     """The dock tables of a design's own ports at its own searched cart pose (``pose``: the pose's dimensions,
     ``tables.searched_values``): one pose, at which no arm docks (nothing solved) when the cart's origin would
-    stand within ``clear_of_table_mm`` of the table."""
+    stand within ``clear_of_table_mm`` of the table; ``rot``: the instruments' frames at the ports when not the
+    model's (a search's rolls)."""
     from surgopt.kinematics.port_designs import pack_bits
     from surgopt.studies.port_place.tables import DockTables, dock_at, floor_pose, off_table, poses_of
 
@@ -551,7 +568,7 @@ def searched_dock(model, site_ids: np.ndarray, pose: dict):
     floor = np.array([floor_pose(cfg, *pose.values())])
     poses = poses_of(cfg.cart, floor)
     if off_table(cfg.cart, floor[:, 0], floor[:, 1])[0]:
-        return dock_at(model, site_ids, poses)
+        return dock_at(model, site_ids, poses, rot)
     n = len(site_ids)
     margin, camera = np.full((3, n, 1), -np.inf), np.full((n, 1), -np.inf)
     return DockTables(pack_bits(margin >= 0.0), pack_bits(camera >= 0.0), margin, camera, poses,

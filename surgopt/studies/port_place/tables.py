@@ -224,7 +224,7 @@ def instrument_rolls_rad(model: PortModel, sites: np.ndarray, rot: np.ndarray) -
     side = roll_sides(sites)
     if model.cfg.cart.model == "si":  # the Si's setup joints give each arm one orientation (S5): no roll to choose
         return np.zeros(len(sites))
-    if r.docking_roll == "given" or model.limits is None:
+    if r.docking_roll in ("given", "search") or model.limits is None:  # a search's trials give their own
         return np.radians(r.docking_roll_deg) * side
     choices = np.array(ROLL_CHOICES_DEG)
     counts = np.stack([K.instrument_tables(sites, rolled(rot, np.radians(c) * side), model.targets_m, model.limits,
@@ -334,11 +334,13 @@ def wrist_margin_deg(model: PortModel, sites: np.ndarray) -> np.ndarray:
     return bend - t.approach_half_angle_deg - np.degrees(np.arccos(cos)).max(axis=1)
 
 
-def port_tables(model: PortModel, sites: np.ndarray, rot: np.ndarray, outside=None, base_yaw_rad=None, dock=None):
+def port_tables(model: PortModel, sites: np.ndarray, rot: np.ndarray, outside=None, base_yaw_rad=None, dock=None,
+                rolls_rad=None):
     """(``PortTables``, reach, isotropy) of ports ``sites`` (m) docked in frames ``rot``; ``outside``: the arms'
     external clearances when the docking is not the default (``external_clearances``); ``base_yaw_rad``: a serial
     instrument arm's base turned further at each port (a search's free docking); ``dock``: the cart's
-    ``DockTables`` of these sites (None: no cart, every arm docks)."""
+    ``DockTables`` of these sites (None: no cart, every arm docks); ``rolls_rad``: each port's roll about its
+    shaft (a search's, ``docking_roll = 'search'``; else the config's, ``instrument_rolls_rad``)."""
     from surgopt.kinematics import port_designs as D
     from surgopt.kinematics import port_place as K
     from surgopt.studies.port_place import serial_arms
@@ -346,7 +348,8 @@ def port_tables(model: PortModel, sites: np.ndarray, rot: np.ndarray, outside=No
     cfg, targets, centre, crit, camera = model.cfg, model.targets_m, model.centre_m, model.criteria, model.camera
     r = cfg.robot
     serial = held = None
-    rolls = instrument_rolls_rad(model, sites, rot)  # the instruments' frames (``instrument_frames``), once
+    rolls = instrument_rolls_rad(model, sites, rot) if rolls_rad is None else rolls_rad  # the instruments'
+    # frames (``instrument_frames``), once
     frames = instrument_frames(model, sites, rot, rolls)
     if r.instrument_serial is not None:  # a serial arm: its own IK, and its links' clearance outside
         serial = serial_arms.serial_tables(model, sites, base_yaw_rad)
@@ -556,10 +559,26 @@ def dock_tables(model: PortModel) -> DockTables:
     return dock_at(model, np.arange(n), cart_poses(cfg))
 
 
-def dock_at(model: PortModel, site_ids: np.ndarray, poses: CartPoses) -> DockTables:
+def dock_at(model: PortModel, site_ids: np.ndarray, poses: CartPoses, rot=None) -> DockTables:
     """``dock_tables`` of some candidate sites (``site_ids``, in that order: a design's own ports) at some cart
-    poses (a searched pose: one)."""
+    poses (a searched pose: one); ``rot``: the instruments' frames at those sites when not the model's (a
+    search's rolls)."""
     from surgopt.kinematics.port_designs import pack_bits
+
+    m, n = len(poses.floor), len(site_ids)
+    margin, joints = psm_docks(model, site_ids, poses, rot)
+    camera, camera_joints, aim = camera_dock(model.cfg, poses.patient, model.sites_m[site_ids])
+    camera = camera.reshape(m, n).T
+    return DockTables(pack_bits(margin >= 0.0), pack_bits(camera >= 0.0), margin, camera, poses,
+                      np.where((margin >= 0.0)[..., None], joints, np.nan),
+                      np.where((camera >= 0.0)[..., None], camera_joints.reshape(m, n, 6).transpose(1, 0, 2), np.nan),
+                      aim.reshape(m, n, 2).transpose(1, 0, 2))
+
+
+def psm_docks(model: PortModel, site_ids: np.ndarray, poses: CartPoses, rot=None) -> tuple[np.ndarray, np.ndarray]:
+    """Each instrument arm's setup joints at each of ``site_ids`` and ``poses``, docked in the model's frames there
+    or ``rot`` (one per site): (the best solution's least margin (3, n, m), -inf where none; its joints (3, n, m,
+    6), the Si's four or five then NaN)."""
     from surgopt.kinematics.si_docking import si_solutions
     from surgopt.kinematics.suj_batch import classic_psm_solutions, suj_arrays
     from surgopt.robots.dvrk_suj import CARTS
@@ -570,26 +589,32 @@ def dock_at(model: PortModel, site_ids: np.ndarray, poses: CartPoses) -> DockTab
     sites = model.sites_m[site_ids]
     margin = np.full((3, n, m), -np.inf)
     joints = np.full((3, n, m, 6), np.nan)
-    def in_cart(rot):
+
+    def in_cart(frames):
         bases = np.zeros((n, 4, 4))
-        bases[:, :3, :3], bases[:, :3, 3], bases[:, 3, 3] = rot[site_ids], sites, 1.0
+        bases[:, :3, :3], bases[:, :3, 3], bases[:, 3, 3] = frames, sites, 1.0
         return np.ascontiguousarray(np.einsum("pij,njk->npik", poses.patient, bases).reshape(n * m, 4, 4))
 
-    shared = in_cart(model.instrument_rot)
+    shared = in_cart(model.instrument_rot[site_ids] if rot is None else rot)
     for a, arm in enumerate(arms):  # the best solution's least margin (suj_answer's first), every site and pose
         suj = CARTS[cfg.cart.model][arm]
         if cfg.cart.model == "si":  # S3, S7: a column and three (PSM3: four) planar joints; the rest NaN
-            got, q = si_solutions(suj, in_cart(model.third_rot) if a == 2 else shared)
+            got, q = si_solutions(suj, in_cart(model.third_rot[site_ids]) if a == 2 else shared)
             q = np.concatenate([q, np.full((len(q), 6 - q.shape[1]), np.nan)], axis=1)
         else:
             got, q = classic_psm_solutions(suj_arrays(suj), shared)
         margin[a], joints[a] = got.reshape(n, m), q.reshape(n, m, 6)
-    camera, camera_joints, aim = camera_dock(cfg, poses.patient, sites)
-    camera = camera.reshape(m, n).T
-    return DockTables(pack_bits(margin >= 0.0), pack_bits(camera >= 0.0), margin, camera, poses,
-                      np.where((margin >= 0.0)[..., None], joints, np.nan),
-                      np.where((camera >= 0.0)[..., None], camera_joints.reshape(m, n, 6).transpose(1, 0, 2), np.nan),
-                      aim.reshape(m, n, 2).transpose(1, 0, 2))
+    return margin, joints
+
+
+def redocked(model: PortModel, dock: DockTables, site_ids: np.ndarray, rot: np.ndarray) -> DockTables:
+    """``dock`` (the dock tables of ``site_ids``) with the instruments' setup joints solved again in frames ``rot``
+    (a search's rolls, one per site); the ECM's, which do not depend on them, kept."""
+    from surgopt.kinematics.port_designs import pack_bits
+
+    margin, joints = psm_docks(model, site_ids, dock.poses, rot)
+    return dock._replace(bits=pack_bits(margin >= 0.0), margin=margin,
+                         joints=np.where((margin >= 0.0)[..., None], joints, np.nan))
 
 
 def suj_margins(cfg: PortPlaceConfig, dock: DockTables) -> tuple[np.ndarray, np.ndarray]:
@@ -709,7 +734,8 @@ def docked_arms(cfg: PortPlaceConfig, row: dict) -> list[DockedArm]:
             continue
         neutral = K.docking_frames(site[None], centre, LATERAL)
         model = model_of(cfg)
-        roll = instrument_rolls_rad(model, site[None], neutral)  # as the tables (``instrument_frames``)
+        roll = (np.radians([row[f"{arm}_roll_deg"]]) if cfg.robot.docking_roll == "search"  # the trial's
+                else instrument_rolls_rad(model, site[None], neutral))  # as the tables (``instrument_frames``)
         third = third_frames(model, site[None]) if arm == "psm3" else None  # the Si PSM3's frame is its own
         frame = instrument_frames(model, site[None], neutral, roll)[0] if third is None else third[0]
         base = patient @ base_pose(frame, site)
