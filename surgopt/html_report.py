@@ -232,8 +232,10 @@ def run_sections(study, run, parts) -> tuple[list[str], list[str], dict[str, str
     from surgopt.config import to_toml
     from surgopt.report import best_edges
 
+    from surgopt.report import run_summary
+
     sections, scripts, data = [], [], {}
-    summary = study.summary(parts) if parts.num_rows else None
+    summary = run_summary(study, run, parts) if parts.num_rows else None  # the closing report's, kept
     headline = dict(summary.headline) if summary else {}
     complete = len(run.manifest["parts"]) == run.manifest["n_tasks"]
     state = ("complete" if complete else
@@ -282,11 +284,12 @@ def run_page(study, run, parts) -> str:
 def comparison_page(items) -> str:
     """Several runs (``items``: (study, run, parts)): their headlines side by side, their config differences, then
     each run's first view, side by side where they share a study."""
+    from surgopt.report import run_summary
     from surgopt.results import flat_config
 
     heads, configs = [], []
     for study, run, parts in items:
-        s = study.summary(parts) if parts.num_rows else None
+        s = run_summary(study, run, parts) if parts.num_rows else None  # each run's closing report, kept
         heads.append(dict(s.headline) if s else {})
         configs.append(flat_config(run.manifest["config"]))
     labels = [run.manifest.get("name") or f"{run.key[:8]} {run.manifest.get('config_name', '')}" for _, run, _ in items]

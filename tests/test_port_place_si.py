@@ -270,7 +270,8 @@ def test_the_page_colours_the_target_by_the_si_psm3s_own_isotropy(tmp_path, page
                         ".marker.color")
     cfg = C.PortPlaceConfig.model_validate({"rows_stored": "feasible", "patient": SI["patient"],
                                             "target": SI["target"], "robot": {**SI_ARMS, "instrument_count": 3},
-                                            "cart": {k: v for k, v in SI["cart"].items() if k != "trendelenburg_deg"}})
+                                            "cart": {k: v for k, v in SI["cart"].items() if k != "trendelenburg_deg"},
+                                            "constraints": SI["constraints"]})  # the run's: no link tables
     model = T.model_of(cfg)
     at = model.sites_m[sites]
     aims = model.centre_m - at
