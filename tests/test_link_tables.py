@@ -187,7 +187,7 @@ def test_the_si_link_tables_equal_each_layouts_clearances():
     theirs = T.si_frames(cfg, CARTS["si"]["PSM1"], model.sites_m[sites], aims)
     assert np.abs(own - theirs).max() > 0.1
     pairs = tuple((k, (x.lower(), y.lower())) for k, (x, y) in enumerate(ARM_PAIRS))
-    seen = _tables_equal_layouts(cfg, model, t, pairs, per_pair=4)
+    seen = _tables_equal_layouts(cfg, model, t, pairs, per_pair=2)  # one clear, one overlapping per pair
     assert seen["overlap"] > 0 and seen["clear"] > 0 and seen["around"] > 0, seen
 
 
