@@ -245,3 +245,62 @@ def test_embedded_data_is_json_with_null_for_nan_and_infinity():
     text = to_json({"a": np.array([1.0, np.nan, np.inf]), "b": [np.float64("nan"), 2.5], "c": np.float32("inf"),
                     "d": np.array([[np.nan, 1.0]])})
     assert json.loads(text) == {"a": [1.0, None, None], "b": [None, 2.5], "c": None, "d": [[None, 1.0]]}
+
+
+def test_a_searched_dockings_page_and_figure_colour_the_target_by_the_trials_own_frames(page, tmp_path):
+    """A [search] that docks each PSM in frames of its own (its docking yaw and pitch, ``robot.docking_range_deg``,
+    and its roll, ``robot.docking_roll = 'search'``; no cart): the page colours the shown layout's target by the
+    isotropy in those frames (``study.layout_isotropy``), not by the grid's at its sites, and so does the layout
+    figure. Held to the design kernel: where the layout reaches the whole
+    target, the mean of the pair's smaller isotropy is its row's dexterity_mean (eq. P5, computed apart, from the
+    trial's own tables); premise: the grid's colours at those sites differ there."""
+    import json
+
+    import numpy as np
+    import pyarrow as pa
+
+    from surgopt.studies.port_place import config as C
+    from surgopt.studies.port_place import figures as F
+    from surgopt.studies.port_place import study as S
+    from surgopt.studies.port_place.tables import model_of
+
+    (tmp_path / "r.toml").write_text(
+        "[patient.port_region]\nsite_spacing_mm = 36.0\n[target]\nspacing_mm = 15.0\n[robot]\n"
+        "docking_roll = \"search\"\ndocking_range_deg = 30.0\n[search]\nmethod = \"tpe\"\ntrials = 24\nbatch = 12\n"
+        "seed = 4\n")
+    cli("port-place", "r.toml", "--store", tmp_path / "s", "--quiet", cwd=tmp_path)
+    cli("report", "latest", "--store", tmp_path / "s", "--out", tmp_path / "r.html", cwd=tmp_path)
+    errors, requests = _open(page, tmp_path / "r.html", tmp_path)
+    assert not errors and not requests, (errors, requests)
+    page.wait_for_function("document.getElementById('pp-scene').dataset.layout !== undefined", timeout=60_000)
+    data = json.loads(page.evaluate("document.getElementById('pp-data').textContent"))
+    first = int(page.evaluate("document.getElementById('pp-scene').dataset.layout"))
+    shown = page.evaluate("document.getElementById('pp-scene').data.find(t => t.name === 'target (isotropy)')"
+                          ".marker.color")
+    cfg = C.PortPlaceConfig.model_validate(tomllib_load(tmp_path / "r.toml"))
+    (run,) = Store(tmp_path / "s").runs("port-place")
+    rows = run.parts(S.STUDY.schema_for(run.manifest["config"])).table().to_pylist()
+    row = next(r for r in rows if r["design_id"] == first)
+    own = S.layout_isotropy(cfg, row)
+    got = np.array([np.nan if v is None else v for v in shown], float)
+    np.testing.assert_array_equal(np.isnan(got), np.isnan(own))
+    np.testing.assert_allclose(got[~np.isnan(got)], own[~np.isnan(own)], atol=1e-4)  # the page rounds to 1e-4
+    grid = np.min([model_of(cfg).grid[2][row[f"{a}_site"]] for a in ("psm1", "psm2")], axis=0)
+    reached = [r for r in rows if r["common_reach"] == 1.0 and abs(r["psm1_docking_yaw_deg"]) > 1]
+    assert reached  # the premise: a trial reaching the whole target docked in frames of its own
+    for r in reached:
+        assert np.nanmean(S.layout_isotropy(cfg, r)) == pytest.approx(r["dexterity_mean"], abs=1e-9)
+    assert data["layout_iso"] is not None and np.nanmax(np.abs(np.nan_to_num(grid) - np.nan_to_num(own))) > 1e-3
+    seen = {}
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setattr(F, "save", lambda fig, path: seen.setdefault(path.name, fig) and path)
+        F.figures(cfg, pa.Table.from_pylist(rows), tmp_path, design_id=first)
+    scatter = [c for c in seen["port_place_layout_3d.png"].axes[0].collections if c.get_array() is not None]
+    colours = np.ma.filled(scatter[-1].get_array(), np.nan).astype(float)  # the target points, drawn last
+    np.testing.assert_allclose(colours[~np.isnan(own)], own[~np.isnan(own)], atol=1e-12)
+
+
+def tomllib_load(path):
+    import tomllib
+
+    return tomllib.loads(path.read_text())

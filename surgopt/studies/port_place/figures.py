@@ -136,7 +136,10 @@ def figures(cfg, table, out, design_id=None):
     sc = ax.scatter(*sites.T, c=per_site, cmap="viridis_r", s=14, depthshade=False)
     fig.colorbar(sc, ax=ax, shrink=0.6, pad=0.1, label="least cost of a feasible design using the site")
     if row is not None:
-        iso = np.min([dex[c[f"{arm}_site"][row]] for arm, _, _ in arms(c)[:-1]], axis=0)  # the instruments
+        from surgopt.studies.port_place.study import layout_isotropy, searched_docking
+
+        iso = (layout_isotropy(cfg, row_of(c, row)) if searched_docking(cfg)  # the trial's own docking
+               else np.min([dex[c[f"{arm}_site"][row]] for arm, _, _ in arms(c)[:-1]], axis=0))  # the instruments
         tp = ax.scatter(*targets.T, c=iso, cmap="magma", s=3, depthshade=False)
         # a palette and a colour bar of their own: the points' isotropy is not the sites' cost (#42 item 7)
         fig.colorbar(tp, ax=ax, shrink=0.6, pad=0.02, label="target point: the instruments' smaller isotropy")

@@ -61,7 +61,7 @@ def _body(cfg) -> dict:
 def views(run, cfg, parts) -> list[View]:
     """The run's sections (``cfg``: its validated config), aggregates streamed from ``parts``."""
     from surgopt.studies.port_place.report import CLINICAL_CHECKS, least_cost_layouts
-    from surgopt.studies.port_place.study import arms_of
+    from surgopt.studies.port_place.study import arms_of, docking_columns, roll_columns
     from surgopt.studies.port_place.tables import camera_lines, model_of
 
     arms = list(arms_of(cfg))
@@ -72,7 +72,8 @@ def views(run, cfg, parts) -> list[View]:
     site_best = _site_best(parts, arms, len(sites))
     wanted = sorted({*LAYOUT_COLUMNS, *[f"{a}_{s}" for a in arms for s in ("site", "x_mm", "y_mm", "z_mm")],
                      *[f for _, fields, *_ in CLINICAL_CHECKS for f in fields], "infeasible",
-                     *[f"{a}_elevation_deg" for a in arms[:-1]], *PARALLEL_COLUMNS} & set(parts.schema.names))
+                     *[f"{a}_elevation_deg" for a in arms[:-1]], *PARALLEL_COLUMNS,
+                     *roll_columns(cfg), *docking_columns(cfg)} & set(parts.schema.names))
     best = least_cost_layouts(parts, max(PARALLEL, TOP_FEASIBLE), True, wanted)  # the table's and the lines'
     feasible = best.slice(0, TOP_FEASIBLE)
     infeasible = least_cost_layouts(parts, TOP_INFEASIBLE, False, wanted) if cfg.rows_stored == "all" else None
@@ -111,7 +112,14 @@ def views(run, cfg, parts) -> list[View]:
         reach3, dex3 = K.instrument_tables(sites_m, model.third_rot, model.targets_m, model.limits,
                                            model.criteria.dexterity_length_m, model.cone)
         reach3, dex3 = np.asarray(reach3, bool).astype(np.int8), np.round(np.asarray(dex3, float), 4)
+    from surgopt.studies.port_place.study import layout_isotropy, searched_docking
+
+    layout_iso = None  # a search's trials docked in frames of their own: each layout's target colours, its own
+    if searched_docking(cfg):
+        rows = top.to_pylist()
+        layout_iso = [[None if np.isnan(v) else round(float(v), 4) for v in layout_isotropy(cfg, r)] for r in rows]
     data = {
+        "layout_iso": layout_iso,
         "arm_lines": arm_lines, "cam_lines": cam_lines, "outside_mm": dvrk.OUTSIDE_LENGTH_M * 1000,
         "arms": arms, "colours": [COLOURS[a] for a in arms], "sites": sites, "site_best": site_best,
         "targets": targets, "centre": np.asarray(cfg.target.centre_mm, float),
@@ -244,7 +252,8 @@ function sceneTraces(i){
   const R = ins.map((s, a) => (a === 2 && D.reach3) ? D.reach3[s] : D.reach[s]);
   const X = ins.map((s, a) => (a === 2 && D.dex3) ? D.dex3[s] : D.dex[s]);
   const reachAll = D.targets.map((p, k) => R.every(r => r[k] === 1));
-  const iso = D.targets.map((p, k) => reachAll[k] ? Math.min.apply(null, X.map(x => x[k])) : null);
+  const iso = D.layout_iso ? D.layout_iso[i]  // a searched trial's own docking
+    : D.targets.map((p, k) => reachAll[k] ? Math.min.apply(null, X.map(x => x[k])) : null);
   traces.push({type:'scatter3d', mode:'markers', x:D.targets.map(p=>p[0]), y:D.targets.map(p=>p[1]), z:D.targets.map(p=>p[2]),
     marker:{size:2.5, color:iso.map(v=>v===null?NaN:v), colorscale:'Magma', showscale:true,
             colorbar:{title:{text:'isotropy'}, x:1.0, len:0.55}}, name:'target (isotropy)',

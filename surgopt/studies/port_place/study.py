@@ -556,6 +556,30 @@ def evaluate_designs(cfg, x: np.ndarray, ids: np.ndarray, source: str) -> dict:
     return concat_rows(out)
 
 
+def searched_docking(cfg: PortPlaceConfig) -> bool:
+    """Whether a run's trials dock each RCM instrument in frames of their own (a [search]'s docking yaw and pitch,
+    ``robot.docking_range_deg`` > 0, or its rolls, ``docking_roll = 'search'``), not the grid's at its sites."""
+    r = cfg.robot
+    return r.instrument_serial is None and (r.docking_roll == "search" or r.docking_range_deg > 0)
+
+
+def layout_isotropy(cfg: PortPlaceConfig, row: dict) -> np.ndarray:
+    """(target points,) The instruments' smaller isotropy (eq. P5) at each target point, docked as the layout's
+    row says (its docking yaw and pitch, eq. P3, then its rolls: a searched trial's own frames), NaN where one of
+    them does not reach it: what the figures and the page colour a searched layout's target by."""
+    from surgopt.kinematics import port_place as K
+
+    model = model_of(cfg)
+    arms = arms_of(cfg)[:-1]
+    sites = np.array([[row[f"{a}_{c}_mm"] for c in "xyz"] for a in arms]) / 1000
+    turn = {angle: np.radians([row.get(f"{a}_docking_{angle}_deg", 0.0) for a in arms]) for angle in ("yaw", "pitch")}
+    rot = K.tilted_frames(K.docking_frames(sites, model.centre_m, LATERAL), turn["yaw"], turn["pitch"])
+    frames = rolled(rot, np.radians([row[f"{a}_roll_deg"] for a in arms]))
+    reach, dex = K.instrument_tables(sites, frames, model.targets_m, model.limits, model.criteria.dexterity_length_m,
+                                     model.cone)
+    return np.where(reach.all(axis=0), dex.min(axis=0), np.nan)
+
+
 def searched_dock(model, site_ids: np.ndarray, pose: dict, rot=None):
     """The dock tables of a design's own ports at its own searched cart pose (``pose``: the pose's dimensions,
     ``tables.searched_values``): one pose, at which no arm docks (nothing solved) when the cart's origin would
