@@ -15,6 +15,9 @@ All in the patient's frame (the cart's pose moves the setup joints only). The ta
 pose) where both arms dock (NaN elsewhere), with each least's link pair, and packed as the design kernel's 64-pose
 words of where the clearance is at least ``constraints.min_link_clearance_mm``. Held to ``clashes``'s
 per-layout clearances (the same capsules placed by the plain forward kinematics) in tests/test_link_tables.py.
+
+One module of ~450 lines: each arm's links placed (static, moving), the pairs' and the surroundings' tables and
+their packing are one computation read together, for either cart; its kernels are ``kinematics.capsules``'.
 """
 from __future__ import annotations
 

@@ -15,7 +15,7 @@ evaluated; docs/port_placement.md has the model, its sources and assumptions.
 The config models are in ``config``, the geometry they imply (patient, sites, target) in ``geometry``, the
 per-port and per-pair tables and the cart's in ``tables`` and ``link_tables``, the design kernels in
 ``kinematics.port_designs``, a serial arm's tables in ``serial_arms``, the closing report in ``report`` (named
-here by module, imported when a report is made). One module of ~790 lines: the rows and their columns, the
+here by module, imported when a report is made). One module of ~830 lines: the rows and their columns, the
 design's dimensions (ports, docking, stance) that both the rows and the search read, the evaluator and the
 estimate are one declaration, read together; split, the study's declaration and its search would import each
 other.
