@@ -154,6 +154,12 @@ PSM_SI_CAPSULES = (
 ARM_LINKS = {"classic": (PSM_CLASSIC_FRAMES, PSM_CLASSIC_CAPSULES, ECM_CLASSIC_FRAMES, ECM_CLASSIC_CAPSULES),
              "si": (PSM_SI_FRAMES, PSM_SI_CAPSULES, ECM_CLASSIC_FRAMES, ECM_CLASSIC_CAPSULES)}
 
+
+def own_links(cart: str, arm: str) -> tuple:
+    """(skeleton, capsules) of an arm's own links (``arm``: "PSM1" ... or "ECM") on ``cart`` (``ARM_LINKS``)."""
+    psm_frames, psm_capsules, ecm_frames, ecm_capsules = ARM_LINKS[cart]
+    return (ecm_frames, ecm_capsules) if arm == "ECM" else (psm_frames, psm_capsules)
+
 #: The setup joints' links: the segments between successive frames of ``kinematics.suj.frames``; the first two
 #: (the cart's column and the arm's carriage on it) are part of the cart and not checked between arms.
 SUJ_RADIUS_M = 0.05

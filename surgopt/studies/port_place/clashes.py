@@ -56,13 +56,11 @@ def arm_poses(cfg, arm, patient: np.ndarray, targets_m: np.ndarray, along_shaft_
     suj = C.polyline_capsules(frames[:-1, :3, 3], L.SUJ_RADIUS_M, f"{arm.arm} setup joint", L.SUJ_ON_COLUMN)
     mount = frames[-2]
     base = arm.base
-    psm_frames, psm_capsules, ecm_frames, ecm_capsules = L.ARM_LINKS[cfg.cart.model]
+    skeleton, capsules = L.own_links(cfg.cart.model, arm.arm)
     if arm.arm == "ECM":
-        skeleton, capsules = ecm_frames, ecm_capsules
         qs = [(arm.ecm[0], arm.ecm[1], 0.0)]
         labels = ("docked",)
     else:
-        skeleton, capsules = psm_frames, psm_capsules
         world = targets_m @ patient[:3, :3].T + patient[:3, 3]
         local = (world - base[:3, 3]) @ base[:3, :3]
         centre = np.asarray(cfg.target.centre_mm, float) / 1000 @ patient[:3, :3].T + patient[:3, 3]

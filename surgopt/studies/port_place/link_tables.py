@@ -27,7 +27,7 @@ import numpy as np
 
 # the setup joints' links checked: after the column and the arm's carriage on it, which are the cart's
 # (``clashes.arm_poses``)
-from surgopt.robots.dvrk_links import SUJ_ON_COLUMN as FIRST_SUJ_LINK, through_port
+from surgopt.robots.dvrk_links import SUJ_ON_COLUMN as FIRST_SUJ_LINK, own_links, through_port
 from surgopt.studies.port_place.geometry import TABLE_THREADS
 
 #: The arm pairs whose links are checked, in the order of the rows' ``external_link_pair`` code (256 * pair +
@@ -82,14 +82,6 @@ def in_threads(kernel, aligned: tuple, *rest, inline: int = INLINE_TASKS) -> tup
         outs = list(pool.map(lambda k: kernel(*(a[cuts[k]:cuts[k + 1]] for a in aligned), *rest),
                              range(TABLE_THREADS)))
     return tuple(np.concatenate(parts) for parts in zip(*outs))
-
-
-def own_links(cart: str, arm: str) -> tuple:
-    """(skeleton, capsules) of an arm's own links on ``cart`` (``dvrk_links.ARM_LINKS``)."""
-    from surgopt.robots.dvrk_links import ARM_LINKS
-
-    psm_frames, psm_capsules, ecm_frames, ecm_capsules = ARM_LINKS[cart]
-    return (ecm_frames, ecm_capsules) if arm == "ECM" else (psm_frames, psm_capsules)
 
 
 def suj_link_count(cart: str, arm: str) -> int:
@@ -296,7 +288,7 @@ def suj_radii(cart: str, arm: str) -> np.ndarray:
     return np.full(suj_link_count(cart, arm), SUJ_RADIUS_M)
 
 
-def ecm_radii(cart: str = "classic") -> np.ndarray:
+def ecm_radii(cart: str) -> np.ndarray:
     """The ECM's links' radii (m) as ``ecm_static`` lists them."""
     return np.concatenate([suj_radii(cart, "ECM"), [c.radius_m for c in own_links(cart, "ECM")[1]]])
 
