@@ -31,7 +31,7 @@ import numpy as np
 
 from surgopt.kinematics import suj as K
 from surgopt.kinematics import suj_batch as B
-from surgopt.robots.dvrk_suj import CARTS
+from surgopt.robots.platforms import PLATFORMS
 from surgopt.studies.port_place import config as C
 from surgopt.studies.port_place import study as S
 from surgopt.studies.port_place import tables as T
@@ -54,7 +54,7 @@ def solvers() -> None:
     bases = np.zeros((n, 4, 4))
     bases[:, :3, :3], bases[:, :3, 3], bases[:, 3, 3] = model.instrument_rot, model.sites_m, 1.0
     in_cart = np.ascontiguousarray(np.einsum("pij,njk->npik", poses.patient, bases).reshape(n * m, 4, 4))
-    suj = CARTS["classic"]["PSM1"]
+    suj = PLATFORMS["classic"].suj("PSM1")
     s = B.suj_arrays(suj)
     B.classic_psm_margins(s, in_cart[:2])  # compiled or loaded
     tj, got = best_of(lambda: B.classic_psm_margins(s, in_cart))
@@ -81,7 +81,7 @@ def solvers() -> None:
     some = poses.patient[:: max(1, m // 10)]
 
     def numpy_ecm():
-        return [K.ecm_classic_dock(CARTS["classic"]["ECM"], ecm.yaw_limits_rad, ecm.pitch_limits_rad,
+        return [K.ecm_classic_dock(PLATFORMS["classic"].suj("ECM"), ecm.yaw_limits_rad, ecm.pitch_limits_rad,
                                    model.sites_m @ p[:3, :3].T + p[:3, 3], shafts @ p[:3, :3].T)[0] for p in some]
 
     T.camera_dock(cfg, some[:1], model.sites_m[:2])  # compiled or loaded
@@ -110,7 +110,7 @@ def si_solver() -> None:
     bases = np.zeros((n, 4, 4))
     bases[:, :3, :3], bases[:, :3, 3], bases[:, 3, 3] = model.instrument_rot, model.sites_m, 1.0
     in_cart = np.einsum("pij,njk->npik", poses.patient, bases).reshape(n * m, 4, 4)
-    suj = CARTS["si"]["PSM1"]
+    suj = PLATFORMS["si"].suj("PSM1")
     tb, (got, _) = best_of(lambda: si_solutions(suj, in_cart))
     step = max(1, len(in_cart) // 2000)
 

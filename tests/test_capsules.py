@@ -115,7 +115,8 @@ def test_the_si_psm_skeleton_agrees_with_the_dh_model_and_the_si_setup_joints(q)
     joints within 1 cm (two descriptions of one arm: the URDF's 0.843 m from the RCM, suj-si-simulated.json's
     tip transform 0.834 m)."""
     from surgopt.kinematics import suj as S
-    from surgopt.robots.dvrk_suj import CARTS, SAMPLE_JOINTS
+    from surgopt.robots.dvrk_suj import SAMPLE_JOINTS
+    from surgopt.robots.platforms import PLATFORMS
 
     si = [(math.pi / 2, 0.0, 0.0, False, math.pi / 2), (-math.pi / 2, 0.0, 0.0, False, -math.pi / 2),
           (math.pi / 2, 0.0, 0.0, True, -0.4826)]  # PSM_Si.json's yaw, pitch, insertion (dvrk-kinematics.md)
@@ -125,7 +126,7 @@ def test_the_si_psm_skeleton_agrees_with_the_dh_model_and_the_si_setup_joints(q)
     np.testing.assert_allclose(carriage[:3, 2], shaft, atol=2e-5)
     np.testing.assert_allclose(carriage[:3, 3], -(0.4826 - q[2]) * shaft, atol=4e-3)
     for arm in ("PSM1", "PSM2", "PSM3"):
-        frames = S.frames(CARTS["si"][arm], SAMPLE_JOINTS[("si", arm)])
+        frames = S.frames(PLATFORMS["si"].suj(arm), SAMPLE_JOINTS[("si", arm)])
         docked = C.skeleton(L.PSM_SI_FRAMES, np.zeros(3), frames[-1], frames[-2])
         assert np.linalg.norm(docked["arm base"][:3, 3] - docked["mount"][:3, 3]) < 0.01
 

@@ -10,6 +10,7 @@ import pytest
 
 from surgopt.kinematics import suj as K
 from surgopt.robots import dvrk_suj as D
+from surgopt.robots.platforms import PLATFORMS
 
 from reference import SUJ_REFERENCE, suj_forward_reference
 
@@ -30,7 +31,7 @@ def _same_joints(a, b, tol=1e-8):
 
 @pytest.mark.parametrize("cart, arm", ALL)
 def test_forward_kinematics_is_the_textbook_product_at_the_sample_and_random_joints(cart, arm):
-    suj = D.CARTS[cart][arm]
+    suj = PLATFORMS[cart].suj(arm)
     for q in [D.SAMPLE_JOINTS[(cart, arm)], *_random_joints(suj, 20)]:
         np.testing.assert_allclose(K.forward(suj, q), suj_forward_reference(cart, arm, q), atol=1e-12)
 
@@ -40,7 +41,7 @@ def test_the_sample_positions_put_every_arms_rcm_over_one_patient(cart):
     """The files' sample joints dock the four arms around one patient: their RCMs within 0.6 m of each other,
     0.3-1.3 m in front of the cart and 0.35-1.1 m above its floor frame (a sanity check of the data as typed:
     a sign or a swapped row puts an arm metres away)."""
-    rcms = np.array([K.forward(D.CARTS[cart][a], D.SAMPLE_JOINTS[(cart, a)])[:3, 3] for a in D.CARTS[cart]])
+    rcms = np.array([K.forward(PLATFORMS[cart].suj(a), D.SAMPLE_JOINTS[(cart, a)])[:3, 3] for a in PLATFORMS[cart].sujs])
     spread = np.max(np.linalg.norm(rcms[:, None] - rcms[None], axis=2))
     assert spread < 0.6, rcms
     assert np.all((0.3 < rcms[:, 1]) & (rcms[:, 1] < 1.3) & (0.35 < rcms[:, 2]) & (rcms[:, 2] < 1.1)), rcms

@@ -170,7 +170,7 @@ def test_the_si_link_tables_equal_each_layouts_clearances():
     from them (``_tables_equal_layouts``: the plain Si inverse, the Si skeleton per pose). Premises: the tables
     hold all six pairs, PSM3's frames are not PSM1's at the sites checked, and entries overlapping and clear are
     both checked."""
-    from surgopt.robots.dvrk_suj import CARTS
+    from surgopt.robots.platforms import PLATFORMS
     from surgopt.studies.port_place.link_tables import ARM_PAIRS
 
     cfg = PC.PortPlaceConfig.model_validate({
@@ -183,8 +183,8 @@ def test_the_si_link_tables_equal_each_layouts_clearances():
     sites = np.unique(np.argwhere(np.isfinite(t.link_value[3]))[:, 1])
     aims = model.centre_m - model.sites_m[sites]
     aims /= np.linalg.norm(aims, axis=1)[:, None]
-    own = T.si_frames(cfg, CARTS["si"]["PSM3"], model.sites_m[sites], aims)
-    theirs = T.si_frames(cfg, CARTS["si"]["PSM1"], model.sites_m[sites], aims)
+    own = T.si_frames(cfg, PLATFORMS["si"].suj("PSM3"), model.sites_m[sites], aims)
+    theirs = T.si_frames(cfg, PLATFORMS["si"].suj("PSM1"), model.sites_m[sites], aims)
     assert np.abs(own - theirs).max() > 0.1
     pairs = tuple((k, (x.lower(), y.lower())) for k, (x, y) in enumerate(ARM_PAIRS))
     seen = _tables_equal_layouts(cfg, model, t, pairs, per_pair=2)  # one clear, one overlapping per pair
@@ -227,10 +227,10 @@ def test_the_batch_solver_keeps_the_best_solutions_joints():
     kinematics (S1), give the pose back (1e-9) with that least margin; where no solution reaches, NaN."""
     from surgopt.kinematics import suj as K
     from surgopt.kinematics import suj_batch as B
-    from surgopt.robots.dvrk_suj import CARTS
+    from surgopt.robots.platforms import PLATFORMS
 
     rng = np.random.default_rng(11)
-    suj = CARTS["classic"]["PSM2"]
+    suj = PLATFORMS["classic"].suj("PSM2")
     ranges = np.asarray(suj.ranges, float)
     poses = np.array([K.forward(suj, rng.uniform(ranges[:, 0], ranges[:, 1])) for _ in range(60)])
     poses[::7, :2, 3] *= 4.0  # out of the planar chain's reach
@@ -275,7 +275,7 @@ def test_the_tables_and_the_report_dock_each_arm_with_the_same_joints():
     solutions' margins tie too (``suj.MARGIN_TIE``: the first in the solver's order). The premise: ties occur
     (PSM3's assumed full-turn ranges leave the column's margin, shared by both elbows, deciding)."""
     from surgopt.kinematics import suj as K
-    from surgopt.robots.dvrk_suj import CARTS
+    from surgopt.robots.platforms import PLATFORMS
 
     cfg = PC.PortPlaceConfig.model_validate({**LINKS, "robot": {"instrument_count": 3}})
     model = T.model_of(cfg)
@@ -284,7 +284,7 @@ def test_the_tables_and_the_report_dock_each_arm_with_the_same_joints():
     for a, arm in enumerate(("PSM1", "PSM2", "PSM3")):
         for site, pose in np.argwhere(dock.margin[a] >= 0)[::7]:
             base = dock.poses.patient[pose] @ T.base_pose(model.instrument_rot[site], model.sites_m[site])
-            answer = K.classic_psm_ik(CARTS["classic"][arm], base)
+            answer = K.classic_psm_ik(PLATFORMS["classic"].suj(arm), base)
             np.testing.assert_allclose(dock.joints[a, site, pose], answer.within[0].joints, rtol=0, atol=1e-9)
             ties += len(answer.within) > 1 and answer.within[1].margin >= answer.within[0].margin - 1e-9
     assert ties > 0

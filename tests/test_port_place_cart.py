@@ -381,13 +381,13 @@ def test_a_layout_whose_links_overlap_clears_with_a_psm_rolled_about_its_shaft(t
     assert rolls_that_clear(cfg, row) is got  # kept for the process: the report, the figure, the export share it
     # an arm whose mount (the SUJ's tip) lies below the table top is named with its depth: the tip from the
     # reference FK of the tool origin and the cart data's tip-to-tool transform
-    from surgopt.robots.dvrk_suj import CARTS
+    from surgopt.robots.platforms import PLATFORMS
     from surgopt.studies.port_place.clashes import mounts_below_table_top
 
     low = mounts_below_table_top(cfg, row, arms + ecm)
     assert low  # the premise here: the rolled PSM2 comes in from below the table top (the default's does too)
     for arm in arms + ecm:
-        tip = suj_forward_reference("classic", arm.arm, arm.joints) @ np.linalg.inv(CARTS["classic"][arm.arm].tip_to_tool)
+        tip = suj_forward_reference("classic", arm.arm, arm.joints) @ np.linalg.inv(PLATFORMS["classic"].suj(arm.arm).tip_to_tool)
         height_mm = float((tip[:3, 3] - patient[:3, 3]) @ patient[:3, 2]) * 1000
         assert (arm.arm in low) == (height_mm < 0) and low.get(arm.arm, -height_mm) == pytest.approx(-height_mm, abs=1e-6)
     # the robot's file docks it so: each PSM's roll, its SUJ joints landing the rolled frame, its links clear
@@ -581,7 +581,7 @@ def test_the_report_says_why_the_best_layouts_without_the_cart_do_not_dock(tmp_p
     way round, or arms each docking somewhere but never all at one pose (the premise: some layouts of a reason)."""
     from surgopt.kinematics import suj as SUJ
     from surgopt.kinematics.port_reasons import DOCKING
-    from surgopt.robots.dvrk_suj import CARTS
+    from surgopt.robots.platforms import PLATFORMS
     from surgopt.runner import run_study
     from surgopt.store import Store
 
@@ -604,7 +604,7 @@ def test_the_report_says_why_the_best_layouts_without_the_cart_do_not_dock(tmp_p
     arm = T.camera_arm_of(cfg)
 
     def psm_docks(name, site):
-        return [bool(SUJ.classic_psm_ik(CARTS["classic"][name], p @ T.base_pose(model.instrument_rot[site],
+        return [bool(SUJ.classic_psm_ik(PLATFORMS["classic"].suj(name), p @ T.base_pose(model.instrument_rot[site],
                                                                                  model.sites_m[site])).within)
                 for p in poses]
 
@@ -612,7 +612,7 @@ def test_the_report_says_why_the_best_layouts_without_the_cart_do_not_dock(tmp_p
         shaft = (centre - model.sites_m[site]) / np.linalg.norm(centre - model.sites_m[site])
         origins = np.array([p[:3, :3] @ model.sites_m[site] + p[:3, 3] for p in poses])
         aims = np.array([p[:3, :3] @ shaft for p in poses])
-        return list(SUJ.ecm_classic_dock(CARTS["classic"]["ECM"], arm.yaw_limits_rad, arm.pitch_limits_rad,
+        return list(SUJ.ecm_classic_dock(PLATFORMS["classic"].suj("ECM"), arm.yaw_limits_rad, arm.pitch_limits_rad,
                                          origins, aims)[0] >= 0)
 
     for kind in (1, 3):
@@ -632,7 +632,7 @@ def test_the_rows_give_each_arms_setup_joint_margins_at_its_pose():
     margins computed here from the quoted and assumed ranges; the rows' joints through the reference forward
     kinematics land each arm's base where that solution does; undocked rows NaN. Premises: docked rows of both
     ways round (PSM1 on the pair's first port and on its second) are among those checked."""
-    from surgopt.robots.dvrk_suj import CARTS
+    from surgopt.robots.platforms import PLATFORMS
 
     cfg = C.PortPlaceConfig.model_validate(GRID)
     cols = S.compute_task(cfg, S.n_total(cfg), 0)
@@ -644,7 +644,7 @@ def test_the_rows_give_each_arms_setup_joint_margins_at_its_pose():
     for r in pick:
         row = {c: v[r].item() for c, v in cols.items()}
         for arm in T.docked_arms(cfg, row):
-            ranges = np.asarray(CARTS["classic"][arm.arm].ranges, float)
+            ranges = np.asarray(PLATFORMS["classic"].suj(arm.arm).ranges, float)
             q = np.asarray(arm.joints)
             margin = np.minimum(q - ranges[:, 0], ranges[:, 1] - q)
             name = arm.arm.lower()

@@ -11,7 +11,7 @@ import pytest
 
 from surgopt.kinematics import suj as SJ
 from surgopt.kinematics.si_docking import own_joints, si_solutions
-from surgopt.robots.dvrk_suj import CARTS
+from surgopt.robots.platforms import PLATFORMS
 from surgopt.robots.models import get_model
 from surgopt.studies.port_place import config as C
 from surgopt.studies.port_place import study as S
@@ -33,7 +33,7 @@ def test_the_batch_si_inverse_equals_the_plain_one():
     solve only outside the ranges."""
     rng = np.random.default_rng(7)
     for arm in ("PSM1", "PSM2", "ECM"):
-        suj = CARTS["si"][arm]
+        suj = PLATFORMS["si"].suj(arm)
         qs = np.column_stack([rng.uniform(-0.3, 0.9, 300), rng.uniform(-3.4, 3.4, (300, 3))])
         poses = np.array([suj_forward_reference("si", arm, q) for q in qs])
         tilt = SJ.mdh(0.2, 0, 0, 0)
@@ -61,18 +61,18 @@ def test_each_ports_si_frame_is_the_yaw_that_leaves_the_least_to_absorb_at_every
     sites = model.sites_m[::17]
     aims = model.centre_m - sites
     aims /= np.linalg.norm(aims, axis=1)[:, None]
-    frames = T.si_frames(cfg, CARTS["si"]["PSM1"], sites, aims)
-    np.testing.assert_allclose(frames, T.si_frames(cfg, CARTS["si"]["PSM2"], sites, aims), atol=1e-12)
+    frames = T.si_frames(cfg, PLATFORMS["si"].suj("PSM1"), sites, aims)
+    np.testing.assert_allclose(frames, T.si_frames(cfg, PLATFORMS["si"].suj("PSM2"), sites, aims), atol=1e-12)
     poses = T.cart_poses(cfg)
     yaws = np.radians(np.arange(-180.0, 180.0, 0.01))
     for p in poses.patient[:: max(1, len(poses.patient) // 4)]:
         for site, aim, frame in zip(sites, aims, frames):
             w = p[:3, :3] @ aim
-            shafts = np.array([SJ.si_orientation(CARTS["si"]["PSM1"], y)[:, 2] for y in yaws[::100]]) * -1
+            shafts = np.array([SJ.si_orientation(PLATFORMS["si"].suj("PSM1"), y)[:, 2] for y in yaws[::100]]) * -1
             coarse = yaws[::100][np.argmax(shafts @ w)]
             fine = coarse + np.radians(np.arange(-1.0, 1.0, 0.01))
-            best = max(fine, key=lambda y: -SJ.si_orientation(CARTS["si"]["PSM1"], y)[:, 2] @ w)
-            np.testing.assert_allclose(p[:3, :3].T @ SJ.si_orientation(CARTS["si"]["PSM1"], best), frame, atol=2e-4)
+            best = max(fine, key=lambda y: -SJ.si_orientation(PLATFORMS["si"].suj("PSM1"), y)[:, 2] @ w)
+            np.testing.assert_allclose(p[:3, :3].T @ SJ.si_orientation(PLATFORMS["si"].suj("PSM1"), best), frame, atol=2e-4)
 
 
 def _arms(row):
@@ -87,7 +87,7 @@ def _plain_docks(cfg, row, patient):
     for arm in _arms(row):
         port = np.array([row[f"{arm}_{c}_mm"] for c in "xyz"]) / 1000
         aim = (centre - port) / np.linalg.norm(centre - port)
-        suj = CARTS["si"][arm.upper()]
+        suj = PLATFORMS["si"].suj(arm.upper())
         frame = T.si_frames(cfg, suj, port[None], aim[None])[0]
         base = np.eye(4)
         base[:3, :3], base[:3, 3] = frame, port
@@ -145,8 +145,8 @@ def test_three_psms_on_the_si_cart_dock_the_third_in_its_own_frame():
     third = np.unique(cols["psm3_site"])
     aims = model.centre_m - model.sites_m[third]
     aims /= np.linalg.norm(aims, axis=1)[:, None]
-    own = T.si_frames(cfg, CARTS["si"]["PSM3"], model.sites_m[third], aims)
-    theirs = T.si_frames(cfg, CARTS["si"]["PSM1"], model.sites_m[third], aims)
+    own = T.si_frames(cfg, PLATFORMS["si"].suj("PSM3"), model.sites_m[third], aims)
+    theirs = T.si_frames(cfg, PLATFORMS["si"].suj("PSM1"), model.sites_m[third], aims)
     reach = {}
     for frames, key in ((own, "own"), (theirs, "theirs")):
         got, _ = K.instrument_tables(model.sites_m[third], frames, model.targets_m, model.limits,
@@ -276,7 +276,7 @@ def test_the_page_colours_the_target_by_the_si_psm3s_own_isotropy(tmp_path, page
     at = model.sites_m[sites]
     aims = model.centre_m - at
     aims /= np.linalg.norm(aims, axis=1)[:, None]
-    frames = [T.si_frames(cfg, CARTS["si"][arm], at[a:a + 1], aims[a:a + 1])[0]
+    frames = [T.si_frames(cfg, PLATFORMS["si"].suj(arm), at[a:a + 1], aims[a:a + 1])[0]
               for a, arm in enumerate(("PSM1", "PSM2", "PSM3"))]
     reach, dex = K.instrument_tables(at, np.array(frames), model.targets_m, model.limits,
                                      model.criteria.dexterity_length_m, model.cone)

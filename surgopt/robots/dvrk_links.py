@@ -20,10 +20,6 @@ from __future__ import annotations
 import math
 from typing import NamedTuple
 
-#: The carts whose arms' links are modelled here (``cart.model``; ``ARM_LINKS``, below), in the rows' feasible
-#: (``studies/port_place/link_tables``) and the closing report (``clashes``).
-CARTS_MODELLED = ("classic", "si")
-
 
 class LinkFrame(NamedTuple):
     """One frame of the arm's skeleton: T_parent_frame = Trans(xyz) RPY(rpy) then the joint, a turn about ``axis``
@@ -147,18 +143,6 @@ PSM_SI_CAPSULES = (
     Capsule("shaft outside the port", "carriage", (0.0, 0.0, 0.0), "base", (0.0, 0.0, 0.0), 0.004,
             "dvrk-kinematics.md: 8 mm shaft"),
 )
-
-#: Each cart's arms' skeletons and capsules: (PSM frames, PSM capsules, ECM frames, ECM capsules). The Si's ECM
-#: beyond its setup joints is the Classic's line behind the RCM (its DH yaw, pitch and insertion offset are the
-#: same; an assumption, the Si ECM's own description not transcribed).
-ARM_LINKS = {"classic": (PSM_CLASSIC_FRAMES, PSM_CLASSIC_CAPSULES, ECM_CLASSIC_FRAMES, ECM_CLASSIC_CAPSULES),
-             "si": (PSM_SI_FRAMES, PSM_SI_CAPSULES, ECM_CLASSIC_FRAMES, ECM_CLASSIC_CAPSULES)}
-
-
-def own_links(cart: str, arm: str) -> tuple:
-    """(skeleton, capsules) of an arm's own links (``arm``: "PSM1" ... or "ECM") on ``cart`` (``ARM_LINKS``)."""
-    psm_frames, psm_capsules, ecm_frames, ecm_capsules = ARM_LINKS[cart]
-    return (ecm_frames, ecm_capsules) if arm == "ECM" else (psm_frames, psm_capsules)
 
 #: The setup joints' links: the segments between successive frames of ``kinematics.suj.frames``; the first two
 #: (the cart's column and the arm's carriage on it) are part of the cart and not checked between arms.

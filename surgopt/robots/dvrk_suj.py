@@ -129,16 +129,6 @@ SI = {
                _si_fixed(0.1352, -1.2217), _SI_TIP, (COLUMN_M,) + (TURN,) * 3, ASSUMED),
 }
 
-#: Cart -> arm -> its SUJ.
-CARTS = {"classic": CLASSIC, "si": SI}
-
-#: Each cart's world frame above the floor (m). The files give no floor. The Classic's world is taken on the
-#: floor: its files' sample dockings put the RCMs 0.91-0.99 m above it, a port on an abdomen over a 0.8 m table.
-#: The Si's samples put them 0.39-0.45 m above its world frame, so a floor there would dock nothing over a table;
-#: 0.53 m is *chosen* so that the Si's four sample RCMs sit at the Classic's samples' mean height (0.531 m apart;
-#: an assumption, not a measurement of the Si cart).
-WORLD_ABOVE_FLOOR_M = {"classic": 0.0, "si": 0.53}
-
 #: The files' ``simulated_position`` of each SUJ (the column in m, then rad): the poses tests reproduce.
 SAMPLE_JOINTS = {
     ("classic", "PSM1"): (0.0007, -0.5892, -0.8590, -0.6241, -0.2479, -0.4422),

@@ -14,6 +14,8 @@ from typing import NamedTuple
 
 import numpy as np
 
+from surgopt.robots.platforms import PLATFORMS
+
 from surgopt.studies.port_place.link_tables import PATIENT_CAP_MM, SPACING_M, TABLE_THICKNESS_M, pose_points
 
 class Clearance(NamedTuple):
@@ -50,13 +52,12 @@ def arm_poses(cfg, arm, patient: np.ndarray, targets_m: np.ndarray, along_shaft_
     from surgopt.kinematics import suj as S
     from surgopt.kinematics.port_place import rcm_inverse
     from surgopt.robots import dvrk_links as L
-    from surgopt.robots.dvrk_suj import CARTS
 
-    frames = S.frames(CARTS[cfg.cart.model][arm.arm], arm.joints)
+    frames = S.frames(PLATFORMS[cfg.cart.model].suj(arm.arm), arm.joints)
     suj = C.polyline_capsules(frames[:-1, :3, 3], L.SUJ_RADIUS_M, f"{arm.arm} setup joint", L.SUJ_ON_COLUMN)
     mount = frames[-2]
     base = arm.base
-    skeleton, capsules = L.own_links(cfg.cart.model, arm.arm)
+    skeleton, capsules = PLATFORMS[cfg.cart.model].own_links(arm.arm)
     if arm.arm == "ECM":
         qs = [(arm.ecm[0], arm.ecm[1], 0.0)]
         labels = ("docked",)
@@ -148,12 +149,12 @@ def _memoised(what: str, cfg, row: dict, compute):
 
 
 def links_modelled(cfg) -> bool:
-    """Whether the arms' links are modelled on a config's cart (validated or as stored; ``dvrk_links.CARTS_MODELLED``:
-    the Classic's): where not, no clearance outside the body is measured, none is reported."""
-    from surgopt.robots.dvrk_links import CARTS_MODELLED
+    """Whether the arms' links are modelled on a config's cart (validated or as stored: every platform of
+    ``PLATFORMS`` has its arms' links): where not (no cart), no clearance outside the body is measured, none is
+    reported."""
     from surgopt.studies.port_place.config import cart_of
 
-    return cart_of(cfg) in CARTS_MODELLED
+    return cart_of(cfg) in PLATFORMS
 
 
 def in_feasible(cfg) -> str:
@@ -224,10 +225,9 @@ def turned_frames(cfg, site: np.ndarray, arm: str, turns_rad: np.ndarray) -> np.
     if cfg.cart.model != "si":
         neutral = K.docking_frames(site[None], centre, LATERAL)
         return rolled(np.repeat(neutral, len(turns_rad), axis=0), turns_rad)
-    from surgopt.robots.dvrk_suj import CARTS
 
     aim = (centre - site) / np.linalg.norm(centre - site)
-    return np.concatenate([si_frames(cfg, CARTS["si"][arm.upper()], site[None], aim[None], t) for t in turns_rad])
+    return np.concatenate([si_frames(cfg, PLATFORMS["si"].suj(arm.upper()), site[None], aim[None], t) for t in turns_rad])
 
 
 def rolled_reach(cfg, row: dict, arm: str) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
@@ -253,7 +253,6 @@ def rolled_docks(cfg, row: dict, arm: str, patient: np.ndarray, reached=None) ->
     and its setup joints dock the turned frame within their ranges (S2; the Si's S3, S7). A DockedArm's
     ``roll_deg`` is the Classic's roll; on the Si, 0 (the turn is a yaw, in the returned degrees)."""
     from surgopt.kinematics import suj as S
-    from surgopt.robots.dvrk_suj import CARTS
     from surgopt.studies.port_place.tables import DockedArm, base_pose
 
     frames, full, _, site = rolled_reach(cfg, row, arm) if reached is None else reached
@@ -263,7 +262,7 @@ def rolled_docks(cfg, row: dict, arm: str, patient: np.ndarray, reached=None) ->
             continue
         base = patient @ base_pose(rot, site)
         ik = S.si_ik if cfg.cart.model == "si" else S.classic_psm_ik
-        answer = ik(CARTS[cfg.cart.model][arm.upper()], base)
+        answer = ik(PLATFORMS[cfg.cart.model].suj(arm.upper()), base)
         if answer.within:
             best = answer.within[0]
             out.append((float(deg), DockedArm(arm.upper(), str(row[f"{arm}_site"]), best.joints, best.margin,
@@ -363,14 +362,13 @@ def mounts_below_table_top(cfg, row: dict, docked) -> dict:
     table top: its depth there (mm). Clear of the table slab the model has, such an arm still rises from beside the
     table, where the patient's arms, the arm boards and the rails stand (not modelled): a docking to check."""
     from surgopt.kinematics import suj as S
-    from surgopt.robots.dvrk_suj import CARTS
     from surgopt.studies.port_place.tables import patient_in_cart
 
     patient = patient_in_cart(cfg.cart, row["cart_x_mm"], row["cart_y_mm"], row["cart_heading_deg"])
     out = {}
     for a in docked:
         if a.joints:
-            mount = S.frames(CARTS[cfg.cart.model][a.arm], a.joints)[-2, :3, 3]
+            mount = S.frames(PLATFORMS[cfg.cart.model].suj(a.arm), a.joints)[-2, :3, 3]
             z = float((mount - patient[:3, 3]) @ patient[:3, 2]) * 1000  # height over the table top
             if z < 0:
                 out[a.arm] = -z

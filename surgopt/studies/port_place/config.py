@@ -19,6 +19,7 @@ from pydantic import Field, ValidationInfo, model_validator
 from surgopt.config import NOT_IN_KEY, StrictModel
 from surgopt.robots import dvrk
 from surgopt.robots.models import CAMERA_ARMS, INSTRUMENT_ARMS, get_model
+from surgopt.robots.platforms import AUTO_PLATFORM, CART_MODELS, PLATFORMS
 from surgopt.studies.port_place.geometry import (
     MAX_MESH_BYTES,
     MAX_POINTS_BYTES,
@@ -370,7 +371,7 @@ class Cart(StrictModel):
     patient's frame is on the table top (``table_height_mm`` above the floor), tilted head down by
     ``trendelenburg_deg`` and left side up by ``lateral_tilt_deg``."""
 
-    model: Literal["none", "classic", "si", "auto"] = Field(
+    model: Literal[CART_MODELS] = Field(
         "none", description="'none': docking assumed; 'classic': the Classic cart's setup joints solved; 'si': the "
                             "Si cart's (its PSMs and ECM, robot.instrument_arm = 'dvrk_psm_si', camera_arm = "
                             "'dvrk_ecm_si'; each arm docked at the one orientation its setup joints give nearest "
@@ -441,7 +442,7 @@ class PortPlaceConfig(StrictModel):
     @model_validator(mode="after")
     def _the_cart_carries_its_arms(self):
         if self.cart.model == "auto":
-            object.__setattr__(self.cart, "model", "none" if cart_does_not_carry(self) else "classic")
+            object.__setattr__(self.cart, "model", "none" if cart_does_not_carry(self, AUTO_PLATFORM) else AUTO_PLATFORM)
         if self.cart.model == "none":
             return self
         if self.cart.pose == "search" and self.search == "grid":
@@ -449,7 +450,7 @@ class PortPlaceConfig(StrictModel):
                              "table, or pose = 'grid' (every pose of the grid) or 'given'")
         why = cart_does_not_carry(self, self.cart.model)
         if why and self.search == "grid":
-            raise ValueError(f"cart.model: '{self.cart.model}' carries the {CART_NAMES[self.cart.model]} PSMs and "
+            raise ValueError(f"cart.model: '{self.cart.model}' carries the {PLATFORMS[self.cart.model].title} PSMs and "
                              f"ECM, {why}")
         if self.cart.model == "si":
             si_cart_fits(self)
@@ -538,15 +539,11 @@ def cart_of(config) -> str:
     return "none" if config is None else config.cart.model
 
 
-#: Each cart's name in words (``cart.model``).
-CART_NAMES = {"classic": "Classic", "si": "Si"}
-
-
-def cart_does_not_carry(cfg: PortPlaceConfig, model: str = "classic") -> str:
+def cart_does_not_carry(cfg: PortPlaceConfig, model: str) -> str:
     """Why the ``model`` cart cannot dock this config's arms ("" when it can): it carries its own PSMs and ECM
-    (``dvrk_psm_<model>``, ``dvrk_ecm_<model>``), and is enumerated with the grid of layouts."""
+    (its platform's ``instrument_arm`` and ``camera_arm``), and is enumerated with the grid of layouts."""
     r = cfg.robot
-    psm, ecm = f"dvrk_psm_{model}", f"dvrk_ecm_{model}"
+    psm, ecm = PLATFORMS[model].instrument_arm, PLATFORMS[model].camera_arm
     if r.instrument_serial or r.instrument_file or r.instrument_arm != psm:
         return (f"not {'a serial arm' if r.instrument_serial else 'an arm from a file' if r.instrument_file else r.instrument_arm} "
                 f"(robot.instrument_arm = '{psm}', no instrument_file or instrument_serial)")

@@ -8,6 +8,8 @@ import json
 
 import numpy as np
 
+from surgopt.robots.platforms import PLATFORMS
+
 from surgopt.errors import UsageError
 from surgopt.studies.port_place.config import PortPlaceConfig, camera_arm_of, instrument_of
 from surgopt.studies.port_place.geometry import FRAME_TEXT
@@ -57,7 +59,6 @@ def dvrk_setup(cfg: PortPlaceConfig, row: dict) -> str:
     (PSM1, PSM2, PSM3, ECM): its cart ("classic" or "si"), SUJ joints, ``world_origin_to_suj`` and
     ``suj_tip_to_tool_origin`` as used, its port (mm, patient frame), its base (RCM) frame in the cart's world
     frame, and its own joints at the target's centre."""
-    from surgopt.robots.dvrk_suj import CARTS
     from surgopt.studies.port_place.clashes import docking_that_clears
     from surgopt.studies.port_place.tables import model_of, patient_in_cart
 
@@ -72,7 +73,7 @@ def dvrk_setup(cfg: PortPlaceConfig, row: dict) -> str:
     arms = []
     docked, _, docking, clearances = docking_that_clears(cfg, row)
     for a in docked:
-        suj = CARTS[cfg.cart.model][a.arm]
+        suj = PLATFORMS[cfg.cart.model].suj(a.arm)
         holder = camera_arm_of(cfg) if a.arm == "ECM" else instrument_of(cfg)
         port = np.asarray(a.port_m)
         if a.arm == "ECM":  # its own yaw and pitch aim the scope; inserted to the standoff before the centre

@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from surgopt.robots.platforms import PLATFORMS
+
 from surgopt.studies.plotting import columns, pyplot, save
 from surgopt.studies.port_place.geometry import X_LABEL, Y_LABEL, Z_LABEL
 
@@ -281,8 +283,6 @@ def cart_figure(plt, cfg, row: dict, out, note: str = ""):
     Where its links overlap however docked, the two links of the least clearance are drawn red and named;
     ``note``: why this layout is drawn, when it is not the best."""
     from surgopt.kinematics import suj as S
-    from surgopt.robots.dvrk_suj import CARTS
-    from surgopt.studies.port_place.config import CART_NAMES
     from surgopt.studies.port_place.geometry import body_extent_mm, dome_surface_mm
     from surgopt.studies.port_place.clashes import arm_poses
     from surgopt.studies.port_place.tables import model_of, patient_in_cart
@@ -315,7 +315,7 @@ def cart_figure(plt, cfg, row: dict, out, note: str = ""):
     for arm, colour in zip(docked, ("C0", "C1", "C2", "C3")):
         if not arm.joints:
             continue
-        f = S.frames(CARTS[cfg.cart.model][arm.arm], arm.joints)
+        f = S.frames(PLATFORMS[cfg.cart.model].suj(arm.arm), arm.joints)
         ax.plot(*f[:-1, :3, 3].T, color=colour, lw=2.5, marker="o", ms=3, label=f"{arm.arm} setup joints")
         links = arm_poses(cfg, arm, patient, model.targets_m[:0], model.limits.along_shaft_m)
         own = [i for i, n in enumerate(links.names) if "setup joint" not in n]
@@ -327,9 +327,8 @@ def cart_figure(plt, cfg, row: dict, out, note: str = ""):
             if overlap is not None and n in (overlap.link_a, overlap.link_b):
                 ax.plot(*links.segments[0, i].T, color="red", lw=4, alpha=0.7,
                         label="the overlapping links (docked)" if n == overlap.link_a else None)
-    from surgopt.robots.dvrk_suj import WORLD_ABOVE_FLOOR_M
 
-    above = WORLD_ABOVE_FLOOR_M[cfg.cart.model]
+    above = PLATFORMS[cfg.cart.model].world_above_floor_m
     ax.plot([0], [0], [0], "ks", ms=8, label="cart origin" + (f" ({above:.2f} m above the floor: chosen)" if above
                                                                else " (on the floor)"))
     ax.set_xlabel("x (m)")
@@ -338,7 +337,7 @@ def cart_figure(plt, cfg, row: dict, out, note: str = ""):
     lims = np.array([ax.get_xlim3d(), ax.get_ylim3d(), ax.get_zlim3d()])
     ax.set_box_aspect(lims[:, 1] - lims[:, 0])
     ax.view_init(elev=22, azim=-60)
-    ax.set_title(f"design {row['design_id']} on the {CART_NAMES[cfg.cart.model]} cart: origin ({row['cart_x_mm']:.0f}, "
+    ax.set_title(f"design {row['design_id']} on the {PLATFORMS[cfg.cart.model].title} cart: origin ({row['cart_x_mm']:.0f}, "
                  f"{row['cart_y_mm']:.0f}) mm, heading {row['cart_heading_deg']:.0f} deg (patient frame)"
                  + (f"\ndocked as the dvrk export docks it so that the links clear: {turned}" if turned else "")
                  + (f"\n{note}" if note else "")

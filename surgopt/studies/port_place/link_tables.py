@@ -27,7 +27,8 @@ import numpy as np
 
 # the setup joints' links checked: after the column and the arm's carriage on it, which are the cart's
 # (``clashes.arm_poses``)
-from surgopt.robots.dvrk_links import SUJ_ON_COLUMN as FIRST_SUJ_LINK, own_links, through_port
+from surgopt.robots.dvrk_links import SUJ_ON_COLUMN as FIRST_SUJ_LINK, through_port
+from surgopt.robots.platforms import PLATFORMS
 from surgopt.studies.port_place.geometry import TABLE_THREADS
 
 #: The arm pairs whose links are checked, in the order of the rows' ``external_link_pair`` code (256 * pair +
@@ -87,9 +88,8 @@ def in_threads(kernel, aligned: tuple, *rest, inline: int = INLINE_TASKS) -> tup
 def suj_link_count(cart: str, arm: str) -> int:
     """How many of an arm's setup-joint links the tables check: its chain's rows (jointed, then the Si's fixed
     ones) from ``FIRST_SUJ_LINK`` on (the Classic's 4; the Si's 4, its PSM3's 5)."""
-    from surgopt.robots.dvrk_suj import CARTS
 
-    suj = CARTS[cart][arm]
+    suj = PLATFORMS[cart].suj(arm)
     return len(suj.links) + len(suj.fixed) - FIRST_SUJ_LINK
 
 
@@ -97,7 +97,7 @@ def link_names(arm: str, cart: str = "classic") -> tuple[str, ...]:
     """An arm's links in the tables' numbering: its setup joints' (fixed), then its own."""
     n_suj = suj_link_count(cart, arm)
     return (tuple(f"{arm} setup joint link {k + 1}" for k in range(FIRST_SUJ_LINK, FIRST_SUJ_LINK + n_suj))
-            + tuple(f"{arm} {c.name}" for c in own_links(cart, arm)[1]))
+            + tuple(f"{arm} {c.name}" for c in PLATFORMS[cart].own_links(arm)[1]))
 
 
 #: The arms checked against their surroundings, in the order of the rows' codes 256 * (6 + arm) + 16 * link +
@@ -200,11 +200,10 @@ def pose_points(model) -> tuple[np.ndarray, np.ndarray]:
 def own_moving(model, sites: np.ndarray, rot: np.ndarray, arm: str = "PSM1"
                ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """(segments (n, P, L, 2, 3) m in the patient frame, radii (L,), the poses' groups (``pose_points``)): a
-    PSM's own links (its cart's, ``own_links``) docked at each port in its docking frame ``rot`` (n, 3, 3), with
+    PSM's own links (its cart's, ``Platform.own_links``) docked at each port in its docking frame ``rot`` (n, 3, 3), with
     the mount where its setup joints' tip is (SUJ_tip_to_tool_origin), docked (yaw = pitch = 0, the tip at the
     centre's depth) and reaching each of ``pose_points`` (eq. P2), as ``clashes.arm_poses`` places them."""
     from surgopt.kinematics import capsules as C
-    from surgopt.robots.dvrk_suj import CARTS
 
     along = model.limits.along_shaft_m
     points, groups = pose_points(model)
@@ -212,8 +211,8 @@ def own_moving(model, sites: np.ndarray, rot: np.ndarray, arm: str = "PSM1"
     base = np.zeros((n, 4, 4))
     base[:, :3, :3], base[:, :3, 3], base[:, 3, 3] = rot, sites, 1.0
     cart = model.cfg.cart.model
-    mount = base @ np.linalg.inv(np.asarray(CARTS[cart][arm].tip_to_tool, float))
-    skeleton, capsules = own_links(cart, arm)
+    mount = base @ np.linalg.inv(np.asarray(PLATFORMS[cart].suj(arm).tip_to_tool, float))
+    skeleton, capsules = PLATFORMS[cart].own_links(arm)
     local = np.einsum("npi,nij->npj", points[None, :, :] - sites[:, None, :], rot)  # (n, P-1, 3), base frame
     rho = np.linalg.norm(local, axis=2)
     q = np.empty((n, k, 3))
@@ -246,11 +245,10 @@ def suj_static(cfg, arm: str, joints: np.ndarray, dock) -> np.ndarray:
     """(n, m, S, 2, 3) An arm's setup-joint links (``FIRST_SUJ_LINK`` on, ``suj_link_count``) at its joints (n, m,
     6: the jointed first; NaN where it does not dock) in the patient's frame."""
     from surgopt.kinematics.suj_batch import link_segments
-    from surgopt.robots.dvrk_suj import CARTS
 
     n, m = joints.shape[:2]
     frame = np.broadcast_to(to_patient(dock)[None], (n, m, 4, 4)).reshape(-1, 4, 4)
-    segs = link_segments(*_chain(CARTS[cfg.cart.model][arm]),
+    segs = link_segments(*_chain(PLATFORMS[cfg.cart.model].suj(arm)),
                          np.ascontiguousarray(joints.reshape(-1, joints.shape[-1])), np.ascontiguousarray(frame),
                          FIRST_SUJ_LINK)
     return segs.reshape(n, m, -1, 2, 3)
@@ -258,13 +256,12 @@ def suj_static(cfg, arm: str, joints: np.ndarray, dock) -> np.ndarray:
 
 def ecm_static(cfg, dock) -> np.ndarray:
     """(n, m, S + 3, 2, 3) The ECM docked at each site and pose: its setup joints' links and its own
-    (``own_links``: at the yaw and pitch that aim the scope, insertion 0), in the patient's frame (NaN where it
+    (``Platform.own_links``: at the yaw and pitch that aim the scope, insertion 0), in the patient's frame (NaN where it
     does not dock)."""
     from surgopt.kinematics import capsules as C
     from surgopt.kinematics.suj_batch import chain_ends
-    from surgopt.robots.dvrk_suj import CARTS
 
-    suj = CARTS[cfg.cart.model]["ECM"]
+    suj = PLATFORMS[cfg.cart.model].suj("ECM")
     joints = dock.camera_joints
     n, m = joints.shape[:2]
     flat = np.ascontiguousarray(joints.reshape(-1, 6))
@@ -273,7 +270,7 @@ def ecm_static(cfg, dock) -> np.ndarray:
     aim = dock.camera_aim.reshape(-1, 2)
     q = np.zeros((len(flat), 3))
     q[:, :2] = np.nan_to_num(aim)
-    skeleton, capsules = own_links(cfg.cart.model, "ECM")
+    skeleton, capsules = PLATFORMS[cfg.cart.model].own_links("ECM")
     own = C.capsules_batch(capsules, C.skeleton_batch(skeleton, q, base, mount))  # cart frame
     frame = np.broadcast_to(to_patient(dock)[None], (n, m, 4, 4)).reshape(-1, 4, 4)
     own = np.einsum("kij,klej->klei", frame[:, :3, :3], own) + frame[:, None, None, :3, 3]
@@ -290,7 +287,7 @@ def suj_radii(cart: str, arm: str) -> np.ndarray:
 
 def ecm_radii(cart: str) -> np.ndarray:
     """The ECM's links' radii (m) as ``ecm_static`` lists them."""
-    return np.concatenate([suj_radii(cart, "ECM"), [c.radius_m for c in own_links(cart, "ECM")[1]]])
+    return np.concatenate([suj_radii(cart, "ECM"), [c.radius_m for c in PLATFORMS[cart].own_links("ECM")[1]]])
 
 
 class Wanted(NamedTuple):
@@ -408,7 +405,7 @@ def arm_surroundings(cfg, moving, r_own, static, docks):
     cart = cfg.cart.model
     n, m = static["ECM"].shape[:2]
     value, code = np.full((4, n, m), np.nan), np.full((4, n, m), -1, np.int64)
-    through_own = np.array(through_port(own_links(cart, "PSM1")[1]))
+    through_own = np.array(through_port(PLATFORMS[cart].own_links("PSM1")[1]))
     measured = {}  # per set of own links (PSM1's and PSM2's are one on either cart)
     for a, arm in enumerate(ARMS):
         if arm not in static:
@@ -416,7 +413,7 @@ def arm_surroundings(cfg, moving, r_own, static, docks):
         n_suj = suj_link_count(cart, arm)
         segs = static[arm].reshape(n * m, -1, 2, 3)
         radii = ecm_radii(cart) if arm == "ECM" else suj_radii(cart, arm)
-        through = np.array([False] * n_suj + (through_port(own_links(cart, "ECM")[1]) if arm == "ECM" else []))
+        through = np.array([False] * n_suj + (through_port(PLATFORMS[cart].own_links("ECM")[1]) if arm == "ECM" else []))
         v, c = surroundings(cfg, segs, radii, through, docks[arm].reshape(-1))
         v, c = v.reshape(n, m), c.reshape(n, m)
         if arm != "ECM":  # the arm's own links, wherever its setup joints dock

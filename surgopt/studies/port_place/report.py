@@ -20,7 +20,8 @@ import numpy as np
 
 from surgopt.studies import Summary
 from surgopt.studies.port_place.clashes import in_feasible
-from surgopt.studies.port_place.config import CART_NAMES, PortPlaceConfig
+from surgopt.robots.platforms import PLATFORMS
+from surgopt.studies.port_place.config import PortPlaceConfig
 from surgopt.studies.port_place.geometry import FRAME_TEXT, from_landmark
 from surgopt.studies.port_place.study import links_of
 
@@ -183,7 +184,7 @@ def docking_tables(best: dict, meta: dict) -> list:
                         else "")] for a in docked]
     clear = [[c.check, f"{c.clearance_mm:.0f}", c.link_a, c.link_b, c.where]
              for c in clearances]
-    return [(f"best layout: the {CART_NAMES[cfg.cart.model]} cart (origin on the floor, patient frame; heading from +y toward +x)",
+    return [(f"best layout: the {PLATFORMS[cfg.cart.model].title} cart (origin on the floor, patient frame; heading from +y toward +x)",
              ["x_mm", "y_mm", "heading_deg", "pose (of the grid, or searched)"], pose),
             ("best layout: setup joints (column m, then rad, the dVRK's simulated_position order)"
              + (" as `export --format dvrk` docks it: each PSM's docking turned so that the links clear" if turned
@@ -232,7 +233,7 @@ def undocked_table(parts, meta: dict) -> list:
                                                                                                 sites))
     rows = [[w, f"{int(np.sum(why == k)):,}"] for k, w in enumerate(UNDOCKED_WHY) if np.any(why == k)]
     return [(f"the {len(best):,} layouts of least cost feasible without the cart: {len(undocked):,} the "
-             f"{CART_NAMES[cfg.cart.model]} cart's setup joints cannot dock at any pose of its grid"
+             f"{PLATFORMS[cfg.cart.model].title} cart's setup joints cannot dock at any pose of its grid"
              + (" with the arms' links clear" if links else "") + ", because", ["why", "layouts"], rows)]
 
 

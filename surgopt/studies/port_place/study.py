@@ -26,6 +26,8 @@ import math
 
 import numpy as np
 
+from surgopt.robots.platforms import AUTO_PLATFORM, PLATFORMS
+
 from surgopt.robots import dvrk
 from surgopt.studies.port_place import HELP  # the command's help, read by the CLI without importing this module
 from surgopt.studies import Estimate, Study, figures_in, html_views_in, peak_bytes, summary_in
@@ -220,12 +222,12 @@ def cart_fields(config) -> list:
 def suj_joint_columns(config) -> dict[str, tuple[tuple[str, str], ...]]:
     """Per arm (its column prefix), its setup joints' names in the cart's data and their row columns, in the
     order of the dVRK's ``simulated_position``: the column (prismatic, mm) first, then the revolute joints (deg)."""
-    from surgopt.robots.dvrk_suj import CARTS, INSTRUMENT_SUJS
+    from surgopt.robots.dvrk_suj import INSTRUMENT_SUJS
 
-    cart = CARTS[cart_of(config)]
+    cart = PLATFORMS[cart_of(config)]
     out = {}
     for a, arm in enumerate(arms_of(config)):
-        suj = cart["ECM" if arm == "ecm" else INSTRUMENT_SUJS[a]]
+        suj = cart.suj("ECM" if arm == "ecm" else INSTRUMENT_SUJS[a])
         out[arm] = tuple((row.name, f"{arm}_suj_{row.name}_{'mm' if row.prismatic else 'deg'}") for row in suj.links)
     return out
 
@@ -798,10 +800,13 @@ def no_cart_note(config) -> str:
                else PortPlaceConfig.model_validate(config, context={"stored": True}))
     except (ValueError, OSError):
         return "none: docking assumed"
-    why = cart_does_not_carry(cfg)
-    if why and not cart_does_not_carry(cfg, "si"):  # the Si's arms: its cart is asked for by name
-        return "none: docking assumed (the Si PSMs and ECM: cart.model = 'si' docks them on the Si cart)"
-    return f"none: docking assumed ({'the Classic cart carries the Classic PSMs and ECM, ' + why if why else 'cart.model = none'})"
+    why = cart_does_not_carry(cfg, AUTO_PLATFORM)
+    other = next((p for p in PLATFORMS.values() if p.name != AUTO_PLATFORM and not cart_does_not_carry(cfg, p.name)), None)
+    if why and other:  # another platform's arms: its cart is asked for by name
+        return (f"none: docking assumed (the {other.title} PSMs and ECM: cart.model = '{other.name}' docks them on "
+                f"the {other.title} cart)")
+    auto = PLATFORMS[AUTO_PLATFORM].title
+    return f"none: docking assumed ({f'the {auto} cart carries the {auto} PSMs and ECM, ' + why if why else 'cart.model = none'})"
 
 
 def ports_export(cfg, row: dict) -> str:

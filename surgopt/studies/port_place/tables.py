@@ -33,6 +33,8 @@ from typing import NamedTuple
 
 import numpy as np
 
+from surgopt.robots.platforms import PLATFORMS
+
 from surgopt.robots import dvrk
 from surgopt.robots.dvrk_suj import INSTRUMENT_SUJS
 from surgopt.robots.chain import rot_x, rot_y, rot_z
@@ -243,10 +245,9 @@ def instrument_frames(model: PortModel, sites: np.ndarray, rot: np.ndarray, roll
     """The instrument arms' docking frames at ``sites``: the frames ``rot`` turned by each port's roll
     (``rolls_rad``, else ``instrument_rolls_rad``); on the Si cart, its PSMs' frames (``si_frames``)."""
     if model.cfg.cart.model == "si":
-        from surgopt.robots.dvrk_suj import CARTS
-
+    
         aims = model.centre_m - sites
-        return si_frames(model.cfg, CARTS["si"]["PSM1"], sites, aims / np.linalg.norm(aims, axis=1)[:, None])
+        return si_frames(model.cfg, PLATFORMS["si"].suj("PSM1"), sites, aims / np.linalg.norm(aims, axis=1)[:, None])
     return rolled(rot, instrument_rolls_rad(model, sites, rot) if rolls_rad is None else rolls_rad)
 
 
@@ -255,10 +256,9 @@ def third_frames(model: PortModel, sites: np.ndarray) -> np.ndarray | None:
     its PSM3's (``si_frames``: it hangs 15 deg off the vertical, they 45); else None."""
     if model.cfg.cart.model != "si" or model.cfg.robot.instrument_count != 3:
         return None
-    from surgopt.robots.dvrk_suj import CARTS
 
     aims = model.centre_m - sites
-    return si_frames(model.cfg, CARTS["si"]["PSM3"], sites, aims / np.linalg.norm(aims, axis=1)[:, None])
+    return si_frames(model.cfg, PLATFORMS["si"].suj("PSM3"), sites, aims / np.linalg.norm(aims, axis=1)[:, None])
 
 
 def si_frames(cfg: PortPlaceConfig, suj, sites: np.ndarray, aims: np.ndarray, turn_rad: float = 0.0) -> np.ndarray:
@@ -456,12 +456,14 @@ def patient_in_cart(cart, x_mm: float, y_mm: float, heading_deg: float) -> np.nd
     patient's untilted frame F, heading ``heading_deg`` (its +y toward F's +y turned toward +x), the patient tilted
     in F about the table top under the frame's origin: T_cart_patient = T_F_cart^-1 T_F_patient with
     T_F_patient = Rx(-trendelenburg) Ry(-lateral tilt) (head down, left side up) and T_F_cart =
-    [Rz(-heading), (x, y, the cart's world above the floor - table height)] (``dvrk_suj.WORLD_ABOVE_FLOOR_M``)."""
-    from surgopt.robots.dvrk_suj import WORLD_ABOVE_FLOOR_M
+    [Rz(-heading), (x, y, the cart's world above the floor - table height)]
+    (``Platform.world_above_floor_m``; 0 with no cart)."""
+    from surgopt.robots.platforms import platform_of
 
+    platform = platform_of(cart.model)
     f_cart = np.eye(4)
     f_cart[:3, :3] = rot_z(-math.radians(heading_deg))[:3, :3]
-    f_cart[:3, 3] = (x_mm / 1000, y_mm / 1000, WORLD_ABOVE_FLOOR_M.get(cart.model, 0.0) - cart.table_height_mm / 1000)
+    f_cart[:3, 3] = (x_mm / 1000, y_mm / 1000, (platform.world_above_floor_m if platform else 0.0) - cart.table_height_mm / 1000)
     f_patient = np.eye(4)
     f_patient[:3, :3] = (rot_x(-math.radians(cart.trendelenburg_deg))
                          @ rot_y(-math.radians(cart.lateral_tilt_deg)))[:3, :3]
@@ -581,7 +583,6 @@ def psm_docks(model: PortModel, site_ids: np.ndarray, poses: CartPoses, rot=None
     6), the Si's four or five then NaN)."""
     from surgopt.kinematics.si_docking import si_solutions
     from surgopt.kinematics.suj_batch import classic_psm_solutions, suj_arrays
-    from surgopt.robots.dvrk_suj import CARTS
 
     cfg = model.cfg
     arms = INSTRUMENT_SUJS[:cfg.robot.instrument_count]
@@ -597,7 +598,7 @@ def psm_docks(model: PortModel, site_ids: np.ndarray, poses: CartPoses, rot=None
 
     shared = in_cart(model.instrument_rot[site_ids] if rot is None else rot)
     for a, arm in enumerate(arms):  # the best solution's least margin (suj_answer's first), every site and pose
-        suj = CARTS[cfg.cart.model][arm]
+        suj = PLATFORMS[cfg.cart.model].suj(arm)
         if cfg.cart.model == "si":  # S3, S7: a column and three (PSM3: four) planar joints; the rest NaN
             got, q = si_solutions(suj, in_cart(model.third_rot[site_ids]) if a == 2 else shared)
             q = np.concatenate([q, np.full((len(q), 6 - q.shape[1]), np.nan)], axis=1)
@@ -621,10 +622,9 @@ def suj_margins(cfg: PortPlaceConfig, dock: DockTables) -> tuple[np.ndarray, np.
     """(revolute deg, column mm), each (4, sites, poses): the least margin to their ranges of PSM1's, PSM2's,
     PSM3's and the ECM's setup joints at the best solution the dock tables kept (NaN where the arm does not
     dock): the revolute joints' in degrees and the column's in millimetres apart, not one number of two units."""
-    from surgopt.robots.dvrk_suj import CARTS
 
     joints = np.concatenate([dock.joints, dock.camera_joints[None]])  # (4, n, m, 6)
-    sujs = [CARTS[cfg.cart.model][a] for a in (*INSTRUMENT_SUJS, "ECM")]
+    sujs = [PLATFORMS[cfg.cart.model].suj(a) for a in (*INSTRUMENT_SUJS, "ECM")]
     ranges = np.stack([np.asarray(s.ranges + ((-np.inf, np.inf),) * (6 - len(s.ranges)), float) for s in sujs])
     lo, hi = ranges[:, None, None, :, 0], ranges[:, None, None, :, 1]
     margin = np.minimum(joints - lo, hi - joints)
@@ -652,7 +652,6 @@ def camera_dock(cfg: PortPlaceConfig, patient: np.ndarray, sites_m: np.ndarray):
     aim the scope's shaft): (margin, SUJ joints, ECM yaw and pitch) per port (per pose, then port)."""
     from surgopt.kinematics.suj import ECM_GRID_STEPS
     from surgopt.kinematics.suj_batch import ecm_arrays, ecm_margins
-    from surgopt.robots.dvrk_suj import CARTS
 
     arm = camera_arm_of(cfg)
     centre = np.asarray(cfg.target.centre_mm, float) / 1000
@@ -662,7 +661,7 @@ def camera_dock(cfg: PortPlaceConfig, patient: np.ndarray, sites_m: np.ndarray):
         return si_camera_dock(cfg, arm, patients, sites_m, shafts)
     origins = np.concatenate([sites_m @ p[:3, :3].T + p[:3, 3] for p in patients])
     aims = np.concatenate([shafts @ p[:3, :3].T for p in patients])
-    s = ecm_arrays(CARTS[cfg.cart.model]["ECM"], arm.yaw_limits_rad, arm.pitch_limits_rad)
+    s = ecm_arrays(PLATFORMS[cfg.cart.model].suj("ECM"), arm.yaw_limits_rad, arm.pitch_limits_rad)
     return ecm_margins(s, np.ascontiguousarray(origins), np.ascontiguousarray(aims), *ECM_GRID_STEPS)
 
 
@@ -672,9 +671,8 @@ def si_camera_dock(cfg: PortPlaceConfig, arm, patients: np.ndarray, sites_m: np.
     ranges, and its setup joints at each pose (S3, ``si_docking.si_solutions``). The margin, as the Classic's
     (S4): the least of the setup joints' and the own yaw's and pitch's margins (rad; the column's in m)."""
     from surgopt.kinematics.si_docking import own_joints, si_solutions
-    from surgopt.robots.dvrk_suj import CARTS
 
-    suj = CARTS["si"]["ECM"]
+    suj = PLATFORMS["si"].suj("ECM")
     n, m = len(sites_m), len(patients)
     rot = si_frames(cfg, suj, sites_m, shafts)
     own = np.array([own_joints(r, a)[:2] for r, a in zip(rot, shafts)]).reshape(n, 2)
@@ -710,7 +708,6 @@ def docked_arms(cfg: PortPlaceConfig, row: dict) -> list[DockedArm]:
     own yaw and pitch aiming the scope (``camera_dock``), in ``ecm``."""
     from surgopt.kinematics import port_place as K
     from surgopt.kinematics import suj as S
-    from surgopt.robots.dvrk_suj import CARTS
 
     cart = cfg.cart
     centre = np.asarray(cfg.target.centre_mm, float) / 1000
@@ -723,7 +720,7 @@ def docked_arms(cfg: PortPlaceConfig, row: dict) -> list[DockedArm]:
         if arm == "ecm":
             margin, joints, aim = camera_dock(cfg, patient, site[None])
             if margin[0] >= 0:
-                suj = CARTS[cart.model]["ECM"]
+                suj = PLATFORMS[cart.model].suj("ECM")
                 joints = joints[:, :len(suj.links)]
                 base = S.forward(suj, joints[0])
                 out.append(DockedArm("ECM", str(row["ecm_site"]), tuple(float(v) for v in joints[0]),
@@ -740,7 +737,7 @@ def docked_arms(cfg: PortPlaceConfig, row: dict) -> list[DockedArm]:
         frame = instrument_frames(model, site[None], neutral, roll)[0] if third is None else third[0]
         base = patient @ base_pose(frame, site)
         ik = S.si_ik if cart.model == "si" else S.classic_psm_ik
-        answer = ik(CARTS[cart.model][arm.upper()], base)
+        answer = ik(PLATFORMS[cart.model].suj(arm.upper()), base)
         if answer.within:
             best = answer.within[0]
             out.append(DockedArm(arm.upper(), str(row[f"{arm}_site"]), best.joints, best.margin, best.tightest, "",
