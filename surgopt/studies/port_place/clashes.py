@@ -16,6 +16,7 @@ import numpy as np
 
 from surgopt.robots.platforms import PLATFORMS
 
+from surgopt.studies.port_place.carts import cart_for
 from surgopt.studies.port_place.link_tables import PATIENT_CAP_MM, SPACING_M, TABLE_THICKNESS_M, pose_points
 
 class Clearance(NamedTuple):
@@ -172,13 +173,13 @@ def layout_clearances(cfg, row: dict, docked=None) -> list[Clearance]:
     (docked and over the target), each arm against the patient and the table. Arms that do not dock are left
     out (their setup joints have no solution to place links at). ``docked``: the arms docked otherwise than the
     row's own docking (rolled); without it the answer is kept for the process (``_memoised``)."""
-    from surgopt.studies.port_place.tables import docked_arms, model_of, patient_in_cart
+    from surgopt.studies.port_place.tables import docked_arms, model_of, row_patient_in_cart
 
     if not links_modelled(cfg):
         return []
     if docked is None:
         return list(_memoised("clearances", cfg, row, lambda: layout_clearances(cfg, row, docked_arms(cfg, row))))
-    patient = patient_in_cart(cfg.cart, row["cart_x_mm"], row["cart_y_mm"], row["cart_heading_deg"])
+    patient = row_patient_in_cart(cfg, row)
     model = model_of(cfg)
     points = pose_points(model)[0]
     arms = [arm_poses(cfg, a, patient, points, model.limits.along_shaft_m) for a in docked if a.joints]
@@ -209,25 +210,14 @@ def turn_words(cfg) -> tuple[str, str]:
     """(what a PSM's docking turn is, its participle): on the Classic the roll about the neutral shaft; on the Si,
     whose setup joints fix the roll, the yaw of its planar chain off psi* (S5, S6), the arm's own yaw and pitch
     absorbing more."""
-    if cfg.cart.model == "si":
-        return "yaw off psi*", "yawed"
-    return "roll about the shaft", "rolled"
+    return cart_for(cfg).turn
 
 
 def turned_frames(cfg, site: np.ndarray, arm: str, turns_rad: np.ndarray) -> np.ndarray:
     """(R, 3, 3) PSM ``arm``'s docking frames at ``site`` (m, patient frame) turned by each of ``turns_rad``
     (``turn_words``): the default frame rolled about its shaft (Classic), or the Si's at psi* + the turn, by its
     arm's own setup joints (``tables.si_frames``)."""
-    from surgopt.kinematics import port_place as K
-    from surgopt.studies.port_place.tables import LATERAL, rolled, si_frames
-
-    centre = np.asarray(cfg.target.centre_mm, float) / 1000
-    if cfg.cart.model != "si":
-        neutral = K.docking_frames(site[None], centre, LATERAL)
-        return rolled(np.repeat(neutral, len(turns_rad), axis=0), turns_rad)
-
-    aim = (centre - site) / np.linalg.norm(centre - site)
-    return np.concatenate([si_frames(cfg, PLATFORMS["si"].suj(arm.upper()), site[None], aim[None], t) for t in turns_rad])
+    return cart_for(cfg).turned_frames(cfg, site, arm.upper(), turns_rad)
 
 
 def rolled_reach(cfg, row: dict, arm: str) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
@@ -252,7 +242,6 @@ def rolled_docks(cfg, row: dict, arm: str, patient: np.ndarray, reached=None) ->
     still reaches every target point from its port (``rolled_reach``, or ``reached``: its answer already had)
     and its setup joints dock the turned frame within their ranges (S2; the Si's S3, S7). A DockedArm's
     ``roll_deg`` is the Classic's roll; on the Si, 0 (the turn is a yaw, in the returned degrees)."""
-    from surgopt.kinematics import suj as S
     from surgopt.studies.port_place.tables import DockedArm, base_pose
 
     frames, full, _, site = rolled_reach(cfg, row, arm) if reached is None else reached
@@ -261,13 +250,12 @@ def rolled_docks(cfg, row: dict, arm: str, patient: np.ndarray, reached=None) ->
         if not ok:
             continue
         base = patient @ base_pose(rot, site)
-        ik = S.si_ik if cfg.cart.model == "si" else S.classic_psm_ik
-        answer = ik(PLATFORMS[cfg.cart.model].suj(arm.upper()), base)
+        answer = cart_for(cfg).psm_ik(arm.upper(), base)
         if answer.within:
             best = answer.within[0]
             out.append((float(deg), DockedArm(arm.upper(), str(row[f"{arm}_site"]), best.joints, best.margin,
                                               best.tightest, "", tuple(site), base, (),
-                                              0.0 if cfg.cart.model == "si" else float(deg))))
+                                              cart_for(cfg).docked_roll_deg(deg))))
     return out
 
 
@@ -313,9 +301,9 @@ def _rolls_that_clear(cfg, row: dict) -> RollsThatClear:
     import itertools
 
     from surgopt.kinematics.capsules import least_pair_clearance
-    from surgopt.studies.port_place.tables import docked_arms, model_of, patient_in_cart
+    from surgopt.studies.port_place.tables import docked_arms, model_of, row_patient_in_cart
 
-    patient = patient_in_cart(cfg.cart, row["cart_x_mm"], row["cart_y_mm"], row["cart_heading_deg"])
+    patient = row_patient_in_cart(cfg, row)
     ecm = [a for a in docked_arms(cfg, row) if a.arm == "ECM" and a.joints]
     psms = [a for a in ("psm1", "psm2", "psm3") if f"{a}_site" in row]
     reached = {a: rolled_reach(cfg, row, a) for a in psms}
@@ -362,9 +350,9 @@ def mounts_below_table_top(cfg, row: dict, docked) -> dict:
     table top: its depth there (mm). Clear of the table slab the model has, such an arm still rises from beside the
     table, where the patient's arms, the arm boards and the rails stand (not modelled): a docking to check."""
     from surgopt.kinematics import suj as S
-    from surgopt.studies.port_place.tables import patient_in_cart
+    from surgopt.studies.port_place.tables import row_patient_in_cart
 
-    patient = patient_in_cart(cfg.cart, row["cart_x_mm"], row["cart_y_mm"], row["cart_heading_deg"])
+    patient = row_patient_in_cart(cfg, row)
     out = {}
     for a in docked:
         if a.joints:
@@ -386,8 +374,7 @@ def docking_that_clears(cfg, row: dict):
     docked = docked_arms(cfg, row)
     clearances = layout_clearances(cfg, row)
     worst = least(clearances)
-    own = "the run's docking frames (robot.docking_roll)" if cfg.cart.model != "si" else \
-        "the Si's docking frames (each PSM at psi*, S6)"
+    own = cart_for(cfg).own_docking
     turn, _ = turn_words(cfg)
     if worst is None or worst.clearance_mm >= 0:
         return docked, {}, own, clearances
@@ -398,11 +385,7 @@ def docking_that_clears(cfg, row: dict):
                             f"reach and dock) clears them"), clearances
     turned = {a.arm: a for a in found.arms if a.arm in found.rolls}  # as the roll search docked them
     arms = [turned.get(a.arm, a) for a in docked]
-    how = ("each PSM's docking frame turned about its neutral shaft by docking_roll_deg (x toward y)"
-           if cfg.cart.model != "si" else
-           "each PSM's Si setup joints yawed off psi* by "
-           + ", ".join(f"{a} {d:+.0f} deg" for a, d in found.rolls.items())
-           + " (its own yaw and pitch absorbing the rest)")
+    how = cart_for(cfg).turned_how(found.rolls)
     return (arms, found.rolls,
             f"{how} so that the links clear outside the body (least {found.least.clearance_mm:.0f} mm: "
             f"{found.least.link_a} / {found.least.link_b}); at the run's own docking they overlap by {-worst.clearance_mm:.0f} mm "

@@ -33,6 +33,7 @@ from surgopt.studies.port_place.geometry import (
     target_points_mm,
 )
 from surgopt.studies.port_place.arm_config import RcmArmFile, SerialInstrumentArm
+from surgopt.studies.port_place.carts import cart_named
 from surgopt.plans.search import check_objectives, search_field
 
 #: A 3-vector of a patient-sized quantity: finite and within 10 m (mm) of the patient frame's origin.
@@ -452,8 +453,7 @@ class PortPlaceConfig(StrictModel):
         if why and self.search == "grid":
             raise ValueError(f"cart.model: '{self.cart.model}' carries the {PLATFORMS[self.cart.model].title} PSMs and "
                              f"ECM, {why}")
-        if self.cart.model == "si":
-            si_cart_fits(self)
+        cart_named(self.cart.model).check(self)
         if self.search != "grid" and self.robot.docking_range_deg > 0:
             raise ValueError("cart.model: the setup joints are solved for the docking frames toward the target's "
                              "centre; a [search] that also tilts the docking (robot.docking_range_deg > 0) with the "
@@ -553,15 +553,6 @@ def cart_does_not_carry(cfg: PortPlaceConfig, model: str) -> str:
     if cfg.search != "grid" and cfg.cart.pose != "search":
         return f"with the grid of layouts, not a [search] (give cart.model = '{model}', or cart.pose = 'search')"
     return ""
-
-
-def si_cart_fits(cfg: PortPlaceConfig) -> None:
-    """What the Si cart does not do, refused by name (``cart.model = 'si'``): its setup joints fix each arm's roll
-    about its shaft."""
-    r = cfg.robot
-    if r.docking_roll != "given" or r.docking_roll_deg != 0.0:
-        raise ValueError("robot.docking_roll_deg: the Si's setup joints give each arm one orientation at each yaw "
-                         "(no roll about the shaft to choose): docking_roll = 'given', docking_roll_deg = 0")
 
 
 def _arm_of(cfg: PortPlaceConfig, role: str):

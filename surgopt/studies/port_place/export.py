@@ -60,7 +60,7 @@ def dvrk_setup(cfg: PortPlaceConfig, row: dict) -> str:
     ``suj_tip_to_tool_origin`` as used, its port (mm, patient frame), its base (RCM) frame in the cart's world
     frame, and its own joints at the target's centre."""
     from surgopt.studies.port_place.clashes import docking_that_clears
-    from surgopt.studies.port_place.tables import model_of, patient_in_cart
+    from surgopt.studies.port_place.tables import model_of, row_patient_in_cart
 
     if cfg.cart.model == "none":
         raise UsageError("--format dvrk: this run has no cart (cart.model = 'none'): run it with [cart] model = "
@@ -69,7 +69,7 @@ def dvrk_setup(cfg: PortPlaceConfig, row: dict) -> str:
         raise UsageError(f"--format dvrk: design {row['design_id']} is not dockable (no cart pose of the grid "
                          f"docks every arm); export a design whose cart_pose >= 0")
     centre = np.asarray(cfg.target.centre_mm, float) / 1000
-    patient = patient_in_cart(cfg.cart, row["cart_x_mm"], row["cart_y_mm"], row["cart_heading_deg"])
+    patient = row_patient_in_cart(cfg, row)
     arms = []
     docked, _, docking, clearances = docking_that_clears(cfg, row)
     for a in docked:

@@ -285,9 +285,9 @@ def cart_figure(plt, cfg, row: dict, out, note: str = ""):
     from surgopt.kinematics import suj as S
     from surgopt.studies.port_place.geometry import body_extent_mm, dome_surface_mm
     from surgopt.studies.port_place.clashes import arm_poses
-    from surgopt.studies.port_place.tables import model_of, patient_in_cart
+    from surgopt.studies.port_place.tables import model_of, row_patient_in_cart
 
-    patient = patient_in_cart(cfg.cart, row["cart_x_mm"], row["cart_y_mm"], row["cart_heading_deg"])
+    patient = row_patient_in_cart(cfg, row)
     to_cart = lambda p: p @ patient[:3, :3].T + patient[:3, 3]  # noqa: E731 - patient (m) -> cart world (m)
     fig = plt.figure(figsize=(8.0, 6.6))
     ax = fig.add_subplot(projection="3d")

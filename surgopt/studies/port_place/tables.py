@@ -37,12 +37,12 @@ from surgopt.robots.platforms import PLATFORMS
 
 from surgopt.robots import dvrk
 from surgopt.robots.dvrk_suj import INSTRUMENT_SUJS
-from surgopt.robots.chain import rot_x, rot_y, rot_z
+from surgopt.studies.port_place.carts import (LATERAL, cart_for, patient_in_cart, rolled,  # noqa: F401 (theirs)
+                                              row_patient_in_cart, si_frames)
 from surgopt.studies.port_place.config import PortPlaceConfig, Target, camera_arm_of, instrument_of
 from surgopt.studies.port_place.geometry import sites_mm, target_points_mm
 
 #: The patient's lateral axis (x): each docking frame's x is turned as near it as the shaft allows.
-LATERAL = np.array([1.0, 0.0, 0.0])
 
 
 class SerialKernel(NamedTuple):
@@ -206,16 +206,6 @@ def roll_sides(sites: np.ndarray) -> np.ndarray:
     return np.where(sites[:, 0] >= 0.0, 1.0, -1.0)
 
 
-def rolled(rot: np.ndarray, roll_rad: np.ndarray) -> np.ndarray:
-    """rot[i] Rz(roll_i): each base frame turned about its own z (the neutral shaft's line), its x toward its y
-    for a positive roll."""
-    c, s = np.cos(roll_rad)[:, None], np.sin(roll_rad)[:, None]
-    out = np.array(rot, dtype=np.float64, copy=True)
-    out[:, :, 0] = c * rot[:, :, 0] + s * rot[:, :, 1]
-    out[:, :, 1] = c * rot[:, :, 1] - s * rot[:, :, 0]
-    return out
-
-
 def instrument_rolls_rad(model: PortModel, sites: np.ndarray, rot: np.ndarray) -> np.ndarray:
     """Each port's docking roll (rad, signed by ``roll_sides``): ``robot.docking_roll_deg``, or with
     ``docking_roll = 'most_reach'`` the one of ``ROLL_CHOICES_DEG`` whose frame reaches the most target points
@@ -224,7 +214,7 @@ def instrument_rolls_rad(model: PortModel, sites: np.ndarray, rot: np.ndarray) -
 
     r = model.cfg.robot
     side = roll_sides(sites)
-    if model.cfg.cart.model == "si":  # the Si's setup joints give each arm one orientation (S5): no roll to choose
+    if not cart_for(model.cfg).roll_is_free:  # the Si's setup joints give each arm one orientation (S5)
         return np.zeros(len(sites))
     if r.docking_roll in ("given", "search") or model.limits is None:  # a search's trials give their own
         return np.radians(r.docking_roll_deg) * side
@@ -243,35 +233,15 @@ def in_degrees(rolls_rad: np.ndarray) -> np.ndarray:
 
 def instrument_frames(model: PortModel, sites: np.ndarray, rot: np.ndarray, rolls_rad=None) -> np.ndarray:
     """The instrument arms' docking frames at ``sites``: the frames ``rot`` turned by each port's roll
-    (``rolls_rad``, else ``instrument_rolls_rad``); on the Si cart, its PSMs' frames (``si_frames``)."""
-    if model.cfg.cart.model == "si":
-    
-        aims = model.centre_m - sites
-        return si_frames(model.cfg, PLATFORMS["si"].suj("PSM1"), sites, aims / np.linalg.norm(aims, axis=1)[:, None])
-    return rolled(rot, instrument_rolls_rad(model, sites, rot) if rolls_rad is None else rolls_rad)
+    (``rolls_rad``, else ``instrument_rolls_rad``), or the cart's own (``carts``: the Si's at psi*)."""
+    rolls = instrument_rolls_rad(model, sites, rot) if rolls_rad is None else rolls_rad
+    return cart_for(model.cfg).instrument_frames(model, sites, rot, rolls)
 
 
 def third_frames(model: PortModel, sites: np.ndarray) -> np.ndarray | None:
-    """The third instrument's docking frames at ``sites`` where they are not PSM1's and PSM2's: on the Si cart,
-    its PSM3's (``si_frames``: it hangs 15 deg off the vertical, they 45); else None."""
-    if model.cfg.cart.model != "si" or model.cfg.robot.instrument_count != 3:
-        return None
-
-    aims = model.centre_m - sites
-    return si_frames(model.cfg, PLATFORMS["si"].suj("PSM3"), sites, aims / np.linalg.norm(aims, axis=1)[:, None])
-
-
-def si_frames(cfg: PortPlaceConfig, suj, sites: np.ndarray, aims: np.ndarray, turn_rad: float = 0.0) -> np.ndarray:
-    """(n, 3, 3) Each port's docking rotation on the Si cart, in the patient's frame: the orientation its setup
-    joints give at psi*, the yaw that leaves the arm's own yaw and pitch the least to absorb to point the shaft
-    along ``aims`` (n, 3, unit, patient frame; ``si_docking.si_frame``, S5-S6). Independent of the cart's pose on
-    the floor (turning the cart turns psi* with it), so one frame per port serves every pose of the grid. The Si's
-    PSM1 and PSM2 give the same frames (their bases differ by a half turn about the vertical). ``turn_rad``: each
-    yawed that much off psi* (the report's search for clear links, ``clashes.turned_frames``)."""
-    from surgopt.kinematics.si_docking import si_frame
-
-    p = patient_in_cart(cfg.cart, 0.0, 0.0, 0.0)[:3, :3]
-    return np.array([p.T @ si_frame(suj, p @ a, turn_rad) for a in aims]).reshape(len(sites), 3, 3)
+    """The third instrument's docking frames at ``sites`` where they are not PSM1's and PSM2's (the cart's:
+    the Si PSM3 hangs 15 deg off the vertical, they 45); else None."""
+    return cart_for(model.cfg).third_frames(model, sites)
 
 
 def approach(target: Target, wrist_bend_rad: float):
@@ -390,7 +360,7 @@ def port_tables(model: PortModel, sites: np.ndarray, rot: np.ndarray, outside=No
 def links_decide(cfg: PortPlaceConfig) -> bool:
     """Whether the arms' links outside the body are in the rows' feasible: with the cart and
     ``constraints.min_link_clearance_mm`` not 'off' (a run stored before it was the default: None)."""
-    return cfg.cart.model != "none" and cfg.constraints.link_least_mm is not None
+    return cart_for(cfg).docks and cfg.constraints.link_least_mm is not None
 
 
 def with_links(model: PortModel, tables, sites: np.ndarray, rot: np.ndarray, dock, third_rot=None):
@@ -450,24 +420,6 @@ class CartPoses(NamedTuple):
     floor: np.ndarray
     patient: np.ndarray
 
-
-def patient_in_cart(cart, x_mm: float, y_mm: float, heading_deg: float) -> np.ndarray:
-    """(4, 4) The patient's frame in the cart's world frame (m), the cart's origin at (x, y) on the floor of the
-    patient's untilted frame F, heading ``heading_deg`` (its +y toward F's +y turned toward +x), the patient tilted
-    in F about the table top under the frame's origin: T_cart_patient = T_F_cart^-1 T_F_patient with
-    T_F_patient = Rx(-trendelenburg) Ry(-lateral tilt) (head down, left side up) and T_F_cart =
-    [Rz(-heading), (x, y, the cart's world above the floor - table height)]
-    (``Platform.world_above_floor_m``; 0 with no cart)."""
-    from surgopt.robots.platforms import platform_of
-
-    platform = platform_of(cart.model)
-    f_cart = np.eye(4)
-    f_cart[:3, :3] = rot_z(-math.radians(heading_deg))[:3, :3]
-    f_cart[:3, 3] = (x_mm / 1000, y_mm / 1000, (platform.world_above_floor_m if platform else 0.0) - cart.table_height_mm / 1000)
-    f_patient = np.eye(4)
-    f_patient[:3, :3] = (rot_x(-math.radians(cart.trendelenburg_deg))
-                         @ rot_y(-math.radians(cart.lateral_tilt_deg)))[:3, :3]
-    return np.linalg.inv(f_cart) @ f_patient
 
 
 def off_table(cart, x_mm: np.ndarray, y_mm: np.ndarray) -> np.ndarray:
@@ -554,7 +506,7 @@ def dock_tables(model: PortModel) -> DockTables:
     everything docks."""
     cfg = model.cfg
     n = len(model.sites_m)
-    if cfg.cart.model == "none":
+    if not cart_for(cfg).docks:
         bits, camera = no_cart(n)
         return DockTables(bits, camera, np.zeros((3, n, 1)), np.zeros((n, 1)), CartPoses(np.zeros((1, 3)),
                                                                                         np.eye(4)[None]))
@@ -581,10 +533,8 @@ def psm_docks(model: PortModel, site_ids: np.ndarray, poses: CartPoses, rot=None
     """Each instrument arm's setup joints at each of ``site_ids`` and ``poses``, docked in the model's frames there
     or ``rot`` (one per site): (the best solution's least margin (3, n, m), -inf where none; its joints (3, n, m,
     6), the Si's four or five then NaN)."""
-    from surgopt.kinematics.si_docking import si_solutions
-    from surgopt.kinematics.suj_batch import classic_psm_solutions, suj_arrays
-
     cfg = model.cfg
+    cart = cart_for(cfg)
     arms = INSTRUMENT_SUJS[:cfg.robot.instrument_count]
     n, m = len(site_ids), len(poses.floor)
     sites = model.sites_m[site_ids]
@@ -598,12 +548,8 @@ def psm_docks(model: PortModel, site_ids: np.ndarray, poses: CartPoses, rot=None
 
     shared = in_cart(model.instrument_rot[site_ids] if rot is None else rot)
     for a, arm in enumerate(arms):  # the best solution's least margin (suj_answer's first), every site and pose
-        suj = PLATFORMS[cfg.cart.model].suj(arm)
-        if cfg.cart.model == "si":  # S3, S7: a column and three (PSM3: four) planar joints; the rest NaN
-            got, q = si_solutions(suj, in_cart(model.third_rot[site_ids]) if a == 2 else shared)
-            q = np.concatenate([q, np.full((len(q), 6 - q.shape[1]), np.nan)], axis=1)
-        else:
-            got, q = classic_psm_solutions(suj_arrays(suj), shared)
+        third = in_cart(model.third_rot[site_ids]) if a == 2 and model.third_rot is not None else None
+        got, q = cart.psm_solutions(arm, shared, third)
         margin[a], joints[a] = got.reshape(n, m), q.reshape(n, m, 6)
     return margin, joints
 
@@ -650,40 +596,11 @@ def camera_dock(cfg: PortPlaceConfig, patient: np.ndarray, sites_m: np.ndarray):
     """The ECM's setup joints at ports ``sites_m`` (n, 3) with the patient at ``patient`` (4, 4, or (m, 4, 4):
     each cart pose) in the cart's world frame (``kinematics.suj_batch.ecm_margins``, S4: its own yaw and pitch
     aim the scope's shaft): (margin, SUJ joints, ECM yaw and pitch) per port (per pose, then port)."""
-    from surgopt.kinematics.suj import ECM_GRID_STEPS
-    from surgopt.kinematics.suj_batch import ecm_arrays, ecm_margins
-
     arm = camera_arm_of(cfg)
     centre = np.asarray(cfg.target.centre_mm, float) / 1000
     patients = patient.reshape(-1, 4, 4)
     shafts = camera_shafts(camera_of(cfg), centre, sites_m)
-    if cfg.cart.model == "si":
-        return si_camera_dock(cfg, arm, patients, sites_m, shafts)
-    origins = np.concatenate([sites_m @ p[:3, :3].T + p[:3, 3] for p in patients])
-    aims = np.concatenate([shafts @ p[:3, :3].T for p in patients])
-    s = ecm_arrays(PLATFORMS[cfg.cart.model].suj("ECM"), arm.yaw_limits_rad, arm.pitch_limits_rad)
-    return ecm_margins(s, np.ascontiguousarray(origins), np.ascontiguousarray(aims), *ECM_GRID_STEPS)
-
-
-def si_camera_dock(cfg: PortPlaceConfig, arm, patients: np.ndarray, sites_m: np.ndarray, shafts: np.ndarray):
-    """``camera_dock`` on the Si cart: each port's ECM base at psi* (``si_frames``), the ECM's own yaw and pitch
-    that point the scope along its shaft (``si_docking.own_joints``, the same at every cart pose) within the ECM's
-    ranges, and its setup joints at each pose (S3, ``si_docking.si_solutions``). The margin, as the Classic's
-    (S4): the least of the setup joints' and the own yaw's and pitch's margins (rad; the column's in m)."""
-    from surgopt.kinematics.si_docking import own_joints, si_solutions
-
-    suj = PLATFORMS["si"].suj("ECM")
-    n, m = len(sites_m), len(patients)
-    rot = si_frames(cfg, suj, sites_m, shafts)
-    own = np.array([own_joints(r, a)[:2] for r, a in zip(rot, shafts)]).reshape(n, 2)
-    (ylo, yhi), (plo, phi) = arm.yaw_limits_rad, arm.pitch_limits_rad
-    own_margin = np.minimum.reduce([own[:, 0] - ylo, yhi - own[:, 0], own[:, 1] - plo, phi - own[:, 1]])
-    bases = np.zeros((n, 4, 4))
-    bases[:, :3, :3], bases[:, :3, 3], bases[:, 3, 3] = rot, sites_m, 1.0
-    in_cart = np.einsum("pij,njk->pnik", patients, bases).reshape(m * n, 4, 4)  # per pose, then port
-    margin, q = si_solutions(suj, in_cart)
-    margin = np.minimum(margin, np.tile(own_margin, m))
-    return margin, np.concatenate([q, np.full((m * n, 2), np.nan)], axis=1), np.tile(own, (m, 1))
+    return cart_for(cfg).camera_dock(cfg, arm, patients, sites_m, shafts)
 
 
 class DockedArm(NamedTuple):
@@ -709,9 +626,9 @@ def docked_arms(cfg: PortPlaceConfig, row: dict) -> list[DockedArm]:
     from surgopt.kinematics import port_place as K
     from surgopt.kinematics import suj as S
 
-    cart = cfg.cart
+    cart = cart_for(cfg)
     centre = np.asarray(cfg.target.centre_mm, float) / 1000
-    patient = patient_in_cart(cart, row["cart_x_mm"], row["cart_y_mm"], row["cart_heading_deg"])
+    patient = row_patient_in_cart(cfg, row)
     out = []
     for arm in ("psm1", "psm2", "psm3", "ecm"):
         if f"{arm}_site" not in row:
@@ -720,7 +637,7 @@ def docked_arms(cfg: PortPlaceConfig, row: dict) -> list[DockedArm]:
         if arm == "ecm":
             margin, joints, aim = camera_dock(cfg, patient, site[None])
             if margin[0] >= 0:
-                suj = PLATFORMS[cart.model].suj("ECM")
+                suj = cart.platform.suj("ECM")
                 joints = joints[:, :len(suj.links)]
                 base = S.forward(suj, joints[0])
                 out.append(DockedArm("ECM", str(row["ecm_site"]), tuple(float(v) for v in joints[0]),
@@ -736,8 +653,7 @@ def docked_arms(cfg: PortPlaceConfig, row: dict) -> list[DockedArm]:
         third = third_frames(model, site[None]) if arm == "psm3" else None  # the Si PSM3's frame is its own
         frame = instrument_frames(model, site[None], neutral, roll)[0] if third is None else third[0]
         base = patient @ base_pose(frame, site)
-        ik = S.si_ik if cart.model == "si" else S.classic_psm_ik
-        answer = ik(PLATFORMS[cart.model].suj(arm.upper()), base)
+        answer = cart_for(cfg).psm_ik(arm.upper(), base)
         if answer.within:
             best = answer.within[0]
             out.append(DockedArm(arm.upper(), str(row[f"{arm}_site"]), best.joints, best.margin, best.tightest, "",
