@@ -175,3 +175,34 @@ def test_every_file_a_config_names_is_a_file_field_that_layered_configs_resolve(
         named |= set(re.findall(r'resolve_and_hash\(\w+, "(\w+)"', text))
         named |= set(re.findall(r'_resolved\("(\w+)"', text))
     assert named and named <= set(FILE_FIELDS), sorted(named - set(FILE_FIELDS))
+
+
+#: Where a cart's kind may be compared with a name (issue 53): the platform registry and the cart classes (and the
+#: config's own "auto", which the registry resolves).
+CART_KIND_HOMES = {"surgopt.robots.platforms", "surgopt.studies.port_place.carts"}
+CART_KINDS = {"none", "classic", "si"}
+
+
+def _cart_kind_comparisons(tree: ast.AST) -> list[int]:
+    """Lines comparing something that reads a cart's kind (``.cart.model``, ``cart_of(...)``, ``suj_family``) with
+    one of the carts' names, by ==, != or in."""
+    def reads_kind(node) -> bool:
+        if isinstance(node, ast.Attribute):
+            return node.attr in ("suj_family",) or (node.attr == "model" and isinstance(node.value, ast.Attribute)
+                                                    and node.value.attr == "cart")
+        return isinstance(node, ast.Call) and isinstance(node.func, ast.Name) and node.func.id == "cart_of"
+
+    def names_kind(node) -> bool:
+        consts = [node] if isinstance(node, ast.Constant) else getattr(node, "elts", [])
+        return any(isinstance(c, ast.Constant) and c.value in CART_KINDS for c in consts)
+
+    return [n.lineno for n in ast.walk(tree) if isinstance(n, ast.Compare)
+            and any(reads_kind(x) for x in (n.left, *n.comparators))
+            and any(names_kind(x) for x in (n.left, *n.comparators))]
+
+
+def test_no_module_branches_on_a_carts_name_outside_the_registry_and_the_cart_classes():
+    found = {m: _cart_kind_comparisons(ast.parse(p.read_text())) for m, p in MODULES.items() if m not in CART_KIND_HOMES}
+    assert not {m: lines for m, lines in found.items() if lines}
+    probe = ast.parse('if cfg.cart.model == "si": pass\nif cart_of(c) != "none": pass\nif x.model == "si": pass')
+    assert _cart_kind_comparisons(probe) == [1, 2]  # the premise: the finder finds them

@@ -103,8 +103,13 @@ PLATFORMS: dict[str, Platform] = {
 
 #: The platform ``cart.model = "auto"`` resolves to where the config's arms are its own.
 AUTO_PLATFORM = "classic"
-#: ``cart.model``'s values: no cart (docking assumed), each platform, or "auto".
-CART_MODELS = ("none", *PLATFORMS, "auto")
+def cart_models() -> tuple[str, ...]:
+    """``cart.model``'s values: no cart (docking assumed), each platform of ``PLATFORMS``, or "auto"."""
+    return ("none", *PLATFORMS, "auto")
+
+
+#: ``cart_models()`` of the shipped platforms (the config's schema).
+CART_MODELS = cart_models()
 
 
 def platform_of(model: str) -> Platform | None:

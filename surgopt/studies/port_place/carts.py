@@ -224,15 +224,30 @@ class SiCart(ClassicCart):
 
 #: Each family of setup joints (``Platform.suj_family``) and the class that docks its arms.
 FAMILIES = {"classic": ClassicCart, "si": SiCart}
-_CARTS = {name: FAMILIES[p.suj_family](p) for name, p in PLATFORMS.items()}
 NO_CART = NoCart()
 
 
 def cart_named(model: str) -> NoCart:
-    """The cart a ``cart.model`` names (``NO_CART`` for "none")."""
-    return NO_CART if model == "none" else _CARTS[model]
+    """The cart a ``cart.model`` names (``NO_CART`` for "none"): its platform's family's class on its platform,
+    read from the registry when asked (a few attributes: nothing to keep)."""
+    if model == "none":
+        return NO_CART
+    platform = PLATFORMS[model]
+    return FAMILIES[platform.suj_family](platform)
 
 
 def cart_for(cfg) -> NoCart:
     """The cart a validated config models."""
     return cart_named(cfg.cart.model)
+
+
+def cart_of(config) -> str:
+    """The ``cart.model`` a config names: validated, as stored (a dict), or none ("none")."""
+    if isinstance(config, dict):
+        return (config.get("cart") or {}).get("model", "none")
+    return "none" if config is None else config.cart.model
+
+
+def has_cart(config) -> bool:
+    """Whether a config (validated, as stored, or None) docks its arms by a cart's setup joints."""
+    return cart_named(cart_of(config)).docks

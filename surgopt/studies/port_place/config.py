@@ -14,12 +14,12 @@ import math
 from typing import Annotated, Literal
 
 import numpy as np
-from pydantic import Field, ValidationInfo, model_validator
+from pydantic import Field, ValidationInfo, field_validator, model_validator
 
 from surgopt.config import NOT_IN_KEY, StrictModel
 from surgopt.robots import dvrk
 from surgopt.robots.models import CAMERA_ARMS, INSTRUMENT_ARMS, get_model
-from surgopt.robots.platforms import AUTO_PLATFORM, CART_MODELS, PLATFORMS
+from surgopt.robots.platforms import AUTO_PLATFORM, CART_MODELS, PLATFORMS, cart_models
 from surgopt.studies.port_place.geometry import (
     MAX_MESH_BYTES,
     MAX_POINTS_BYTES,
@@ -33,7 +33,7 @@ from surgopt.studies.port_place.geometry import (
     target_points_mm,
 )
 from surgopt.studies.port_place.arm_config import RcmArmFile, SerialInstrumentArm
-from surgopt.studies.port_place.carts import cart_named
+from surgopt.studies.port_place.carts import cart_named, cart_of  # noqa: F401 (cart_of: theirs)
 from surgopt.plans.search import check_objectives, search_field
 
 #: A 3-vector of a patient-sized quantity: finite and within 10 m (mm) of the patient frame's origin.
@@ -372,7 +372,7 @@ class Cart(StrictModel):
     patient's frame is on the table top (``table_height_mm`` above the floor), tilted head down by
     ``trendelenburg_deg`` and left side up by ``lateral_tilt_deg``."""
 
-    model: Literal[CART_MODELS] = Field(
+    model: str = Field(
         "none", description="'none': docking assumed; 'classic': the Classic cart's setup joints solved; 'si': the "
                             "Si cart's (its PSMs and ECM, robot.instrument_arm = 'dvrk_psm_si', camera_arm = "
                             "'dvrk_ecm_si'; each arm docked at the one orientation its setup joints give nearest "
@@ -380,7 +380,8 @@ class Cart(StrictModel):
                             "description); 'auto' "
                             "(the embedded default's): 'classic' where its arms are the Classic PSMs and ECM on "
                             "the grid of layouts, 'none' otherwise (a note says why); resolved when the config is "
-                            "read, so the stored config names the one used")
+                            "read, so the stored config names the one used",
+        json_schema_extra={"enum": list(CART_MODELS)})
     pose: Literal["grid", "given", "search"] = Field(
         "grid", description="'grid': every pose of the grid below, a layout's first that docks; 'given': x_mm, "
                             "y_mm, heading_deg; 'search': a [search]'s dimensions (cart_around_deg, "
@@ -408,6 +409,16 @@ class Cart(StrictModel):
                                                                              "table's outline (its base's reach)")
     trendelenburg_deg: float = Field(0.0, ge=-40.0, le=40.0, description="head down (positive) or up")
     lateral_tilt_deg: float = Field(0.0, ge=-40.0, le=40.0, description="the patient's left side up (positive)")
+
+    @field_validator("model")
+    @classmethod
+    def _a_platform(cls, model: str) -> str:
+        """One of ``CART_MODELS``, read from the platform registry when the config is validated (not when this
+        module was imported), so that a platform registered later is a value like the others."""
+        names = cart_models()
+        if model not in names:
+            raise ValueError(f"Input should be {', '.join(repr(n) for n in names[:-1])} or {names[-1]!r}")
+        return model
 
     @model_validator(mode="after")
     def _ordered(self):
@@ -444,7 +455,7 @@ class PortPlaceConfig(StrictModel):
     def _the_cart_carries_its_arms(self):
         if self.cart.model == "auto":
             object.__setattr__(self.cart, "model", "none" if cart_does_not_carry(self, AUTO_PLATFORM) else AUTO_PLATFORM)
-        if self.cart.model == "none":
+        if not cart_named(self.cart.model).docks:
             return self
         if self.cart.pose == "search" and self.search == "grid":
             raise ValueError("cart.pose: 'search' makes the cart's pose a dimension of a [search]: give a [search] "
@@ -530,13 +541,6 @@ class PortPlaceConfig(StrictModel):
 
 
 Config = PortPlaceConfig
-
-
-def cart_of(config) -> str:
-    """The cart a config models: validated, as stored (a dict), or none ("none")."""
-    if isinstance(config, dict):
-        return (config.get("cart") or {}).get("model", "none")
-    return "none" if config is None else config.cart.model
 
 
 def cart_does_not_carry(cfg: PortPlaceConfig, model: str) -> str:

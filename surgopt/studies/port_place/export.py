@@ -11,6 +11,7 @@ import numpy as np
 from surgopt.robots.platforms import PLATFORMS
 
 from surgopt.errors import UsageError
+from surgopt.studies.port_place.carts import has_cart
 from surgopt.studies.port_place.config import PortPlaceConfig, camera_arm_of, instrument_of
 from surgopt.studies.port_place.geometry import FRAME_TEXT
 
@@ -62,7 +63,7 @@ def dvrk_setup(cfg: PortPlaceConfig, row: dict) -> str:
     from surgopt.studies.port_place.clashes import docking_that_clears
     from surgopt.studies.port_place.tables import model_of, row_patient_in_cart
 
-    if cfg.cart.model == "none":
+    if not has_cart(cfg):
         raise UsageError("--format dvrk: this run has no cart (cart.model = 'none'): run it with [cart] model = "
                          "'classic' (or 'si') to solve the setup joints")
     if row.get("cart_pose", -1) < 0:

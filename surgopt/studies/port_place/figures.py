@@ -7,6 +7,7 @@ import numpy as np
 from surgopt.robots.platforms import PLATFORMS
 
 from surgopt.studies.plotting import columns, pyplot, save
+from surgopt.studies.port_place.carts import has_cart
 from surgopt.studies.port_place.geometry import X_LABEL, Y_LABEL, Z_LABEL
 
 COLOURS = {"psm1": "C3", "psm2": "C1", "psm3": "C2", "ecm": "C0"}
@@ -200,9 +201,9 @@ def figures(cfg, table, out, design_id=None):
     paths.append(save(fig, out / "port_place_sites_top.png"))
 
     paths.append(reach_maps(plt, cfg, sites, port_tables, dex, out))
-    if cfg.cart.model != "none" and row is not None and c["cart_pose"][row] >= 0:
+    if has_cart(cfg) and row is not None and c["cart_pose"][row] >= 0:
         paths.append(cart_figure(plt, cfg, row_of(c, row), out))
-    elif cfg.cart.model != "none" and design_id is None and (clash := cheapest_clash(c)) is not None:
+    elif has_cart(cfg) and design_id is None and (clash := cheapest_clash(c)) is not None:
         paths.append(cart_figure(plt, cfg, row_of(c, clash), out, "no layout's links clear: the cheapest that "
                                  "fails on them alone"))
 

@@ -29,6 +29,7 @@ import numpy as np
 from surgopt.robots.platforms import AUTO_PLATFORM, PLATFORMS
 
 from surgopt.robots import dvrk
+from surgopt.studies.port_place.carts import has_cart
 from surgopt.studies.port_place import HELP  # the command's help, read by the CLI without importing this module
 from surgopt.studies import Estimate, Study, figures_in, html_views_in, peak_bytes, summary_in
 from surgopt.parts import concat_rows
@@ -158,7 +159,7 @@ def cart_search_columns(config) -> tuple[str, ...]:
     """A search's cart dimensions (``cart.pose = "search"``; ``tables.searched_pose_box``), else none."""
     from surgopt.studies.port_place.tables import searched_pose_box
 
-    if config is None or cart_of(config) == "none":
+    if config is None or not has_cart(config):
         return ()
     cart = (config.get("cart") or {}) if isinstance(config, dict) else config.cart
     if (cart.get("pose") if isinstance(cart, dict) else cart.pose) != "search":
@@ -172,7 +173,7 @@ def cart_search_columns(config) -> tuple[str, ...]:
 
 def links_of(config) -> bool:
     """Whether the arms' links decide feasible (``tables.links_decide``) in a config, validated or as stored."""
-    if cart_of(config) == "none":
+    if not has_cart(config):
         return False
     if isinstance(config, dict):
         # as stored: the field's value; absent, its default (0: on); None, a run from before it was the default
@@ -195,7 +196,7 @@ LINK_MEANING = {"meaning": "the least clearance of the arms' links outside the b
 def cart_fields(config) -> list:
     import pyarrow as pa
 
-    if cart_of(config) == "none":
+    if not has_cart(config):
         return []
     links = [pa.field("external_link_pair", pa.int64(), metadata={
         "meaning": "the two links of external_clearance_mm: 256 x arm pair (0 PSM1-PSM2, 1 PSM1-ECM, 2 PSM2-ECM, "
@@ -268,7 +269,7 @@ def cart_metadata(config) -> dict | None:
 
     if config is None:
         return None
-    if cart_of(config) == "none":  # what the closing report says of the cart: none, and why
+    if not has_cart(config):  # what the closing report says of the cart: none, and why
         return {"cart": no_cart_note(config)}
     return {"config": json.dumps(config if isinstance(config, dict) else config.model_dump(mode="json"))}
 
@@ -305,8 +306,8 @@ def compute_task(cfg, chunk: int, index: int) -> dict:
                                                          cfg.rows_stored == "feasible")
     return design_rows(cfg, sites, t, ids, ids, f, bad, cost, design_ids,
                        np.zeros((len(design_ids), len(docking_columns(cfg)))), dock=dock,
-                       floor=model.dock.poses.floor if cfg.cart.model != "none" else None,
-                       dock_tables=model.dock if cfg.cart.model != "none" else None)
+                       floor=model.dock.poses.floor if has_cart(cfg) else None,
+                       dock_tables=model.dock if has_cart(cfg) else None)
 
 
 def design_rows(cfg, sites, t, ids, site_ids, f, bad, cost, design_ids, docking_deg, aim_mm=None,
@@ -520,7 +521,7 @@ def evaluate_designs(cfg, x: np.ndarray, ids: np.ndarray, source: str) -> dict:
     port_cols = [col[c] for c in (aim_columns(cfg) if surface else [f"{arm}_site" for arm in arms_of(cfg)])]
     docking_cols = [col.get(c) for c in docking_columns(cfg)]  # None: not free, 0
     roll_cols = [col[c] for c in searched_roll_columns(cfg) if c in col]  # a trial's rolls (deg, per PSM)
-    cart = cfg.cart.model != "none"  # the grid's dock tables (every site, every cart pose), each design's sites
+    cart = has_cart(cfg)  # the grid's dock tables (every site, every cart pose), each design's sites
     searched = cart_search_columns(cfg)  # or, searched, each design's own pose's (of sites alone: the box's middle)
     out = []
     for r in range(x.shape[0]):
@@ -741,7 +742,7 @@ def estimate(cfg) -> Estimate:
     per_design = NS_PER_DESIGN if arms == 2 else NS_PER_DESIGN_3
     per_site_point = NS_PER_SITE_POINT if cfg.robot.instrument_serial is None else NS_PER_SITE_POINT_SERIAL
     seconds = (d * per_design + n * m * per_site_point + n * n / 2 * m * NS_PER_PAIR_POINT) * 1e-9
-    if cfg.cart.model != "none":  # each instrument arm's setup joints at each site and cart pose
+    if has_cart(cfg):  # each instrument arm's setup joints at each site and cart pose
         from surgopt.studies.port_place.tables import cart_poses
 
         poses = len(cart_poses(cfg).floor)
@@ -749,9 +750,9 @@ def estimate(cfg) -> Estimate:
         if links_of(cfg):  # the links' clearance tables, each arm pair's (site, site, pose) entries
             seconds += link_pairs(arms) * n * n * poses * NS_PER_LINK_ENTRY * 1e-9
     row = (ROW_BYTES if arms == 2 else ROW_BYTES_3) + 8 * len(roll_columns(cfg)) + (
-        CART_ROW_BYTES + (arms + 1) * (SUJ_MARGIN_ROW_BYTES + SUJ_JOINTS_ROW_BYTES) if cfg.cart.model != "none" else 0)
-    working = n * n * 8 * 12 + n * m * 9 + LIBRARY_BYTES + (CART_LIBRARY_BYTES if cfg.cart.model != "none" else 0)
-    if cfg.cart.model != "none":  # the dock tables: each arm's margins, best joints and the ECM's aim per (site, pose)
+        CART_ROW_BYTES + (arms + 1) * (SUJ_MARGIN_ROW_BYTES + SUJ_JOINTS_ROW_BYTES) if has_cart(cfg) else 0)
+    working = n * n * 8 * 12 + n * m * 9 + LIBRARY_BYTES + (CART_LIBRARY_BYTES if has_cart(cfg) else 0)
+    if has_cart(cfg):  # the dock tables: each arm's margins, best joints and the ECM's aim per (site, pose)
         working += n * poses * DOCK_ENTRY_BYTES
     if links_of(cfg):  # float32 values, int16 pairs and the float work arrays of each arm pair's dense tables
         working += link_pairs(arms) * n * n * poses * LINK_ENTRY_BYTES
@@ -779,7 +780,7 @@ def figure_columns(config) -> list[str]:
     """What the grid's figures read: the ports, the cost and the feasibility (not the ~40 other columns); with the
     cart, its pose and the ports' positions (the cart figure solves the setup joints again from them)."""
     arms = arms_of(config)
-    cart = [*CART_COLUMNS, *(f"{arm}_{c}_mm" for arm in arms for c in "xyz")] if cart_of(config) != "none" else []
+    cart = [*CART_COLUMNS, *(f"{arm}_{c}_mm" for arm in arms for c in "xyz")] if has_cart(config) else []
     # with the links in feasible, the figures draw the report's best layout: its PSMs' rolls searched, whose cost
     # so docked reads the row's dexterity (``clashes.rolled_cost``)
     rolled = ["dexterity_mean", *(["psm3_dexterity_mean"] if "psm3" in arms else [])] if links_of(config) else []
