@@ -242,8 +242,26 @@ def test_a_clinical_check_outside_its_band_is_marked():
     assert R.within_band([62.3], (45.0, 75.0)) == "yes"
     assert R.within_band([49.1, 82.4], (45.0, 75.0)) == "OUTSIDE"
     assert R.within_band([82.0], (80.0, math.inf)) == "yes" and R.within_band([1.0], None) == ""
-    bands = {label: band for label, *_, band in R.CLINICAL_CHECKS}
+    bands = {label: band for label, *_, band in R.clinical_checks()}
     assert bands["manipulation angle over the target (deg)"] == (45.0, 75.0)
+    assert bands["port spacing (mm)"] == (80.0, math.inf)
+
+
+def test_the_clinical_checks_hold_a_layout_to_the_runs_own_constraints():
+    """#53: a run with min_port_spacing_mm = 60, port_to_target_mm = [60, 150] and manipulation_angle_deg =
+    [40, 80] is checked against those numbers (it was against 80, 180 and 45-75 whatever the run), each said
+    beside the literature's; a horizontal port-to-target constraint is not the 3-D column's band."""
+    cfg = C.PortPlaceConfig.model_validate({"constraints": {"min_port_spacing_mm": 60.0, "port_to_target_mm": [60.0, 150.0],
+                                                            "manipulation_angle_deg": [40.0, 80.0]}})
+    checks = {label: (clinical, band) for label, _, _, _, clinical, band in R.clinical_checks(cfg)}
+    assert checks["port spacing (mm)"][1] == (60.0, math.inf) and checks["port spacing (mm)"][0].startswith(">= 60 ")
+    assert checks["instrument port to target centre, 3-D (mm)"][1] == (60.0, 150.0)
+    assert checks["manipulation angle at the centre (deg)"][1] == (40.0, 80.0)
+    assert "Hanna 1997" in checks["manipulation angle at the centre (deg)"][0]
+    assert R.within_band([70.0], checks["port spacing (mm)"][1]) == "yes"  # 70 mm: OUTSIDE against the old 80
+    flat = C.PortPlaceConfig.model_validate({"constraints": {"port_to_target_measure": "horizontal"}})
+    assert {label: band for label, *_, band in R.clinical_checks(flat)}[
+        "instrument port to target centre, 3-D (mm)"] is None
 
 
 def test_the_embedded_default_docks_on_the_classic_cart_and_other_arms_say_why_not():

@@ -60,7 +60,7 @@ def _body(cfg) -> dict:
 
 def views(run, cfg, parts) -> list[View]:
     """The run's sections (``cfg``: its validated config), aggregates streamed from ``parts``."""
-    from surgopt.studies.port_place.report import CLINICAL_CHECKS, least_cost_layouts
+    from surgopt.studies.port_place.report import CLINICAL_COLUMNS, clinical_checks, least_cost_layouts
     from surgopt.studies.port_place.study import arms_of, docking_columns, roll_columns
     from surgopt.studies.port_place.tables import camera_lines, model_of
 
@@ -71,7 +71,7 @@ def views(run, cfg, parts) -> list[View]:
     targets = model.targets_m * 1000
     site_best = _site_best(parts, arms, len(sites))
     wanted = sorted({*LAYOUT_COLUMNS, *[f"{a}_{s}" for a in arms for s in ("site", "x_mm", "y_mm", "z_mm")],
-                     *[f for _, fields, *_ in CLINICAL_CHECKS for f in fields], "infeasible",
+                     *CLINICAL_COLUMNS, "infeasible",
                      *[f"{a}_elevation_deg" for a in arms[:-1]], *PARALLEL_COLUMNS,
                      *roll_columns(cfg), *docking_columns(cfg)} & set(parts.schema.names))
     best = least_cost_layouts(parts, max(PARALLEL, TOP_FEASIBLE), True, wanted)  # the table's and the lines'
@@ -128,7 +128,7 @@ def views(run, cfg, parts) -> list[View]:
         "layouts": layouts, "n_layouts": top.num_rows, "body": _body(cfg),
         "checks": [[label, list(fields), digits, joiner, clinical,
                     None if band is None else [band[0], band[1] if math.isfinite(band[1]) else None]]
-                   for label, fields, digits, joiner, clinical, band in CLINICAL_CHECKS],
+                   for label, fields, digits, joiner, clinical, band in clinical_checks(cfg)],
         "reasons": [[int(bit), why] for bit, why in REASONS.items()],
         "axes": [X_LABEL, Y_LABEL, Z_LABEL],
     }

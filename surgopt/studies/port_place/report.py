@@ -26,25 +26,38 @@ from surgopt.studies.port_place.geometry import FRAME_TEXT, from_landmark
 from surgopt.studies.port_place.study import links_of
 
 
-#: A layout's clinical checks beside their literature values: (quantity, row fields, decimals, how the fields'
-#: values are joined, the clinical number and its source). The closing report and the HTML page read it.
-#: The best layout's checks against the literature: (quantity, columns, digits, joiner, the clinical number, its
-#: band (lo, hi) where the literature gives one: a value outside it is marked).
-CLINICAL_CHECKS = (
-    ("port spacing (mm)", ("min_port_spacing_mm",), 0, "", ">= 80 (assumption: 8 cm)", (80.0, math.inf)),
-    ("instrument port to target centre, 3-D (mm)", ("psm_to_target_mm",), 0, "",
-     "<= 180 (J Endourol 2004: port to pubis)", (0.0, 180.0)),
-    ("manipulation angle at the centre (deg)", ("manipulation_angle_centre_deg",), 1, "",
-     "45-75, 60 best (Hanna 1997)", (45.0, 75.0)),
-    ("manipulation angle over the target (deg)", ("manipulation_angle_min_deg", "manipulation_angle_max_deg"), 1,
-     " - ", "45-75", (45.0, 75.0)),
-    ("azimuth imbalance (deg)", ("azimuth_imbalance_deg",), 1, "", "0: equal azimuths (Hanna 1997)", None),
-    ("instrument elevation at the centre (deg)", ("psm1_elevation_deg", "psm2_elevation_deg"), 1, " / ",
-     "60 with a 60-deg manipulation angle (Hanna 1997)", None),
-    ("optical axis off the instruments' arc (deg)", ("camera_off_arc_deg",), 1, "", "0: camera between them", None),
-    ("common reach", ("common_reach",), 3, "", "1", (1.0, 1.0)),
-    ("camera coverage", ("camera_coverage",), 3, "", "1", (1.0, 1.0)),
-)
+def clinical_checks(cfg=None) -> tuple:
+    """A layout's clinical checks beside the numbers it is held to: (quantity, row columns, decimals, how the
+    columns' values are joined, the number and its source, its band (lo, hi) where there is one: a value outside it
+    is marked). The bands are the run's own constraints (``cfg``; None: the defaults), each said beside the
+    literature's value it defaults to: a run with min_port_spacing_mm = 60 is checked against 60, not 80. The
+    closing report and the HTML page read it."""
+    k = (cfg.constraints if cfg is not None else PortPlaceConfig().constraints)
+    spacing, (near, far), (a_lo, a_hi) = k.min_port_spacing_mm, k.port_to_target_mm, k.manipulation_angle_deg
+    three_d = k.port_to_target_measure == "3d"  # the column is 3-D: a horizontal constraint is not its band
+    return (
+        ("port spacing (mm)", ("min_port_spacing_mm",), 0, "",
+         f">= {spacing:g} (constraints.min_port_spacing_mm; default 80: an assumption, 8 cm)", (spacing, math.inf)),
+        ("instrument port to target centre, 3-D (mm)", ("psm_to_target_mm",), 0, "",
+         (f"{near:g}-{far:g} (constraints.port_to_target_mm" if three_d else
+          f"{near:g}-{far:g} horizontal (constraints.port_to_target_mm, not this 3-D distance")
+         + "; <= 180: J Endourol 2004, port to pubis)", (near, far) if three_d else None),
+        ("manipulation angle at the centre (deg)", ("manipulation_angle_centre_deg",), 1, "",
+         f"{a_lo:g}-{a_hi:g} (constraints.manipulation_angle_deg; 45-75, 60 best: Hanna 1997)", (a_lo, a_hi)),
+        ("manipulation angle over the target (deg)", ("manipulation_angle_min_deg", "manipulation_angle_max_deg"),
+         1, " - ", f"{a_lo:g}-{a_hi:g}", (a_lo, a_hi)),
+        ("azimuth imbalance (deg)", ("azimuth_imbalance_deg",), 1, "", "0: equal azimuths (Hanna 1997)", None),
+        ("instrument elevation at the centre (deg)", ("psm1_elevation_deg", "psm2_elevation_deg"), 1, " / ",
+         "60 with a 60-deg manipulation angle (Hanna 1997)", None),
+        ("optical axis off the instruments' arc (deg)", ("camera_off_arc_deg",), 1, "", "0: camera between them",
+         None),
+        ("common reach", ("common_reach",), 3, "", "1", (1.0, 1.0)),
+        ("camera coverage", ("camera_coverage",), 3, "", "1", (1.0, 1.0)),
+    )
+
+
+#: The columns the clinical checks read (the same whatever the run's bands).
+CLINICAL_COLUMNS = tuple(f for _, fields, *_ in clinical_checks() for f in fields)
 
 
 #: What reading a run's config again from its rows' metadata can raise (an older run's fields, a missing key).
@@ -54,6 +67,14 @@ STORED_ERRORS = (ValueError, OSError, KeyError)
 def stored_config(meta: dict) -> PortPlaceConfig:
     """The run's config as its rows' metadata keep it (its files are not read and hashed again)."""
     return PortPlaceConfig.model_validate(json.loads(meta["config"]), context={"stored": True})
+
+
+def _config_or_none(meta: dict) -> PortPlaceConfig | None:
+    """``stored_config``, or None where it cannot be read again (the checks then say the defaults)."""
+    try:
+        return stored_config(meta)
+    except STORED_ERRORS:
+        return None
 
 
 def within_band(values, band) -> str:
@@ -116,7 +137,7 @@ def summary(parts) -> Summary:
         checks = [[label + (" (all three instruments)" if fields == ("common_reach",) and "psm3_reach" in b else ""),
                    joiner.join(f"{b[f]:.{digits}f}" for f in fields), clinical,
                    within_band([b[f] for f in fields], band)]
-                  for label, fields, digits, joiner, clinical, band in CLINICAL_CHECKS]
+                  for label, fields, digits, joiner, clinical, band in clinical_checks(_config_or_none(meta))]
         tables.append(("best layout: clinical checks", ["quantity", "value", "clinical number", "within"], checks))
         mark = json.loads(meta["landmark"]) if "landmark" in meta else None
         ports = [[arm, str(b[f"{arm}_site"]), f"{b[f'{arm}_x_mm']:.0f}", f"{b[f'{arm}_y_mm']:.0f}",
