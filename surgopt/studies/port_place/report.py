@@ -5,7 +5,7 @@ where they overlap; with the links in feasible, the headline's best is the first
 cheaper than every feasible row), and the least-cost layouts the report and the page list (one of each layout).
 
 Read from the stored rows and the run's config in their metadata (a report of an old run is the run's); the
-study (``study.STUDY``) names ``summary`` here by module, imported when a report is made. One module of ~420
+study (``study.STUDY``) names ``summary`` here by module, imported when a report is made. One module of ~450
 lines: the tables of one report, which read one another's rows (the screen's rows are the least-cost layouts',
 the headline's layout is the screen's, the docking tables show its docking; the page and the figures ask the
 same screen, ``headline_layout``).

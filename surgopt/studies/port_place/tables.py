@@ -13,7 +13,7 @@ the grid's chunks combine into designs. A search's tasks build only the tables o
 the parent's; a worker process builds its own on its first task (rebuilding is cheaper than pickling the tables
 to every worker, and gives the same arrays). The model is where the setup joints' and the cart's tables will go.
 
-One module of ~750 lines: the model, the per-port tables built from it and the cart's dock tables are built
+One module of ~660 lines: the model, the per-port tables built from it and the cart's dock tables are built
 together (a dock table reads the model's rolled docking frames; the grid's tables read the dock tables), and the
 docked arms of one layout (the report, the export, the figures) are solved the way the tables were.
 
