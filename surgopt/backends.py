@@ -15,6 +15,7 @@ import contextlib
 import logging
 import os
 import signal
+import warnings
 from collections.abc import Callable
 from dataclasses import dataclass
 
@@ -213,7 +214,10 @@ def _dask_client(scheduler: str | None, jobs: int):
     os.environ.setdefault("NUMBA_NUM_THREADS", "1")
     os.environ.setdefault("DASK_LOGGING__DISTRIBUTED", "error")
     logging.getLogger("distributed").setLevel(logging.ERROR)
-    cluster = LocalCluster(n_workers=jobs, threads_per_worker=1, processes=True, dashboard_address=None)
+    with warnings.catch_warnings():  # its scheduler's HTTP server takes another port when 8787 is busy (another
+        # cluster): distributed warns of it on stderr, which is not the user's business (no dashboard is asked for)
+        warnings.filterwarnings("ignore", message=r"Port \d+ is already in use", category=UserWarning)
+        cluster = LocalCluster(n_workers=jobs, threads_per_worker=1, processes=True, dashboard_address=None)
     client = Client(cluster)
     _quiet_on_stop_signals(client)
     try:
