@@ -206,3 +206,28 @@ def test_no_module_branches_on_a_carts_name_outside_the_registry_and_the_cart_cl
     assert not {m: lines for m, lines in found.items() if lines}
     probe = ast.parse('if cfg.cart.model == "si": pass\nif cart_of(c) != "none": pass\nif x.model == "si": pass')
     assert _cart_kind_comparisons(probe) == [1, 2]  # the premise: the finder finds them
+
+
+#: Where an arm's kind (an RCM mechanism, or a serial arm keeping the RCM in software) may be read (issue 53): the
+#: config that declares the fields, the arm classes that hold the difference, and the serial arm's own tables
+#: (which read the arm's stance and radius from its section).
+ARM_KIND_HOMES = {"surgopt.studies.port_place.config", "surgopt.studies.port_place.arms",
+                  "surgopt.studies.port_place.serial_arms", "surgopt.studies.port_place.arm_config"}
+ARM_KIND_FIELDS = {"instrument_serial", "camera_serial"}
+
+
+def _arm_kind_reads(tree: ast.AST) -> list[int]:
+    """Lines reading which kind of arm a config has: ``.instrument_serial`` / ``.camera_serial`` as attributes, or
+    their names as strings (a stored config's ``.get("instrument_serial")``)."""
+    return sorted({n.lineno for n in ast.walk(tree)
+                   if (isinstance(n, ast.Attribute) and n.attr in ARM_KIND_FIELDS)
+                   or (isinstance(n, ast.Constant) and n.value in ARM_KIND_FIELDS)})
+
+
+def test_no_module_reads_an_arms_kind_outside_the_arm_classes():
+    port_place = {m: p for m, p in MODULES.items() if m.startswith("surgopt.studies.port_place.")}
+    assert len(port_place) > 10  # the premise: port-place's modules were found
+    found = {m: _arm_kind_reads(ast.parse(p.read_text())) for m, p in port_place.items() if m not in ARM_KIND_HOMES}
+    assert not {m: lines for m, lines in found.items() if lines}
+    probe = ast.parse('if cfg.robot.instrument_serial is None: pass\nx = robot.get("camera_serial")\ny = "serial"')
+    assert _arm_kind_reads(probe) == [1, 2]  # the premise: the finder finds them

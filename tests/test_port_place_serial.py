@@ -13,6 +13,7 @@ from surgopt.studies.port_place import config as C
 from surgopt.studies.port_place import geometry as G
 from surgopt.studies.port_place import tables as T
 from surgopt.studies.port_place import study as S
+from surgopt.studies.port_place.arms import walk_order
 from surgopt.studies.port_place.serial_arms import BASE_INSIDE, serial_tables
 
 from conftest import cli
@@ -59,7 +60,7 @@ def test_the_pa10s_reach_and_dexterity_are_its_closed_form_ik_at_every_port(rcm)
     qdot = [arm.max_joint_speed_rad_s.S1, arm.max_joint_speed_rad_s.S2, arm.max_joint_speed_rad_s.E1,
             arm.max_joint_speed_rad_s.E2, arm.max_joint_speed_rad_s.W1]
     rcm = np.asarray(arm.rcm_in_base_m)
-    order, _ = T.walk_order(cfg.target, np.asarray(cfg.target.centre_mm) / 1000)
+    order, _ = walk_order(cfg.target, np.asarray(cfg.target.centre_mm) / 1000)
     tried = order[:: max(1, len(order) // P.ANCHOR_TRIES)]
     ref = np.zeros_like(st.reach)
     iso = np.zeros(st.reach.shape)

@@ -94,18 +94,26 @@ def cheaper_that_clears(cfg, c: dict, best: int | None) -> int | None:
     return None
 
 
-def serial_arms(ax, cfg, sites_m: np.ndarray, ports: list) -> None:
-    """Each serial instrument arm's centre line (base, joints, flange, port) at its docked pose, at the (site,
-    colour) ``ports``."""
-    from surgopt.studies.port_place.serial_arms import serial_tables
+def held_arms(ax, cfg, sites_m: np.ndarray, ports: list) -> bool:
+    """Each arm that holds its tool by its own joints (a serial arm: ``arms.SerialInstruments`` /
+    ``SerialCamera``) drawn as its centre line (base, joints, flange, port) at its docked pose, at the (site,
+    colour) ``ports`` (the instruments', then the camera's); whether any was drawn."""
+    from surgopt.studies.port_place.config import camera_arm_of, instrument_of
     from surgopt.studies.port_place.tables import model_of
 
-    chosen_sites = np.array([site for site, _ in ports])
-    lines = serial_tables(model_of(cfg), sites_m[chosen_sites]).links * 1000
-    for line, (_, colour) in zip(lines, ports):
-        ax.plot(*line.T, color=colour, lw=3, marker="o", ms=3, alpha=0.8)
-    ax.plot([], [], color="0.3", lw=3, marker="o", ms=3, label=f"{cfg.robot.instrument_serial.holder().name}: "
-                                                               "base, joints, flange, port")
+    model = model_of(cfg)
+    drawn = False
+    for holder, chosen, label in ((model.instruments, ports[:-1], f"{instrument_of(cfg).name}: base, joints, "
+                                                                   "flange, port"),
+                                  (model.endoscope, ports[-1:], f"{camera_arm_of(cfg).name} holding the endoscope")):
+        lines = holder.docked_lines(model, sites_m[[site for site, _ in chosen]])
+        if lines is None:
+            continue
+        for line, (_, colour) in zip(lines * 1000, chosen):
+            ax.plot(*line.T, color=colour, lw=3, marker="o", ms=3, alpha=0.8)
+        ax.plot([], [], color="0.3" if len(chosen) > 1 else chosen[0][1], lw=3, marker="o", ms=3, label=label)
+        drawn = True
+    return drawn
 
 
 def figures(cfg, table, out, design_id=None):
@@ -138,6 +146,7 @@ def figures(cfg, table, out, design_id=None):
         ax.plot_trisurf(*mesh.vertices.T, triangles=faces, color="0.85", alpha=0.25, lw=0.1, edgecolor="0.7")
     sc = ax.scatter(*sites.T, c=per_site, cmap="viridis_r", s=14, depthshade=False)
     fig.colorbar(sc, ax=ax, shrink=0.6, pad=0.1, label="least cost of a feasible design using the site")
+    serial = False  # whether a serial arm is drawn (the view then from the feet, the box to the arms)
     if row is not None:
         from surgopt.studies.port_place.study import layout_isotropy, searched_docking
 
@@ -157,19 +166,11 @@ def figures(cfg, table, out, design_id=None):
                   ", its PSMs rolled so that the links clear (the cart figure)")
         ax.set_title(f"port-place: design {c['design_id'][row]} (cost {c['cost'][row]:.3f}{rolled}); target "
                      f"points by the smaller isotropy", fontsize=9)
-        if cfg.robot.instrument_serial is not None:  # the serial arms themselves, at their docked poses
-            serial_arms(ax, cfg, sites_m, [(c[f"{arm}_site"][row], colour) for arm, colour, _ in arms(c)[:-1]])
-        if cfg.robot.camera_serial is not None:
-            from surgopt.studies.port_place.tables import camera_lines
-
-            line = camera_lines(model_of(cfg), sites_m[[c["ecm_site"][row]]])[0] * 1000
-            ax.plot(*line.T, color=COLOURS["ecm"], lw=3, marker="o", ms=3, alpha=0.8,
-                    label=f"{cfg.robot.camera_serial.holder().name} holding the endoscope")
+        serial = held_arms(ax, cfg, sites_m, [(c[f"{arm}_site"][row], colour) for arm, colour, _ in arms(c)])
         ax.legend(fontsize=8, loc="upper left")
     ax.set_xlabel(X_LABEL)
     ax.set_ylabel(Y_LABEL)
     ax.set_zlabel(Z_LABEL)
-    serial = cfg.robot.instrument_serial is not None or cfg.robot.camera_serial is not None
     lims = [ax.get_xlim3d(), ax.get_ylim3d(), ax.get_zlim3d()]
     ax.set_box_aspect([hi - lo for lo, hi in lims] if serial else (a, b, h))
     ax.view_init(elev=28, azim=-100 if serial else -120)  # serial arms: from the feet

@@ -62,7 +62,7 @@ def views(run, cfg, parts) -> list[View]:
     """The run's sections (``cfg``: its validated config), aggregates streamed from ``parts``."""
     from surgopt.studies.port_place.report import CLINICAL_COLUMNS, clinical_checks, least_cost_layouts
     from surgopt.studies.port_place.study import arms_of, docking_columns, roll_columns
-    from surgopt.studies.port_place.tables import camera_lines, model_of
+    from surgopt.studies.port_place.tables import model_of
 
     arms = list(arms_of(cfg))
     model = model_of(cfg)
@@ -98,13 +98,9 @@ def views(run, cfg, parts) -> list[View]:
     from surgopt.kinematics.port_reasons import REASONS
     from surgopt.robots import dvrk
 
-    arm_lines = cam_lines = None
-    if cfg.robot.instrument_serial is not None:  # the serial arms' centre lines at their docked pose, every site
-        from surgopt.studies.port_place.serial_arms import serial_tables
-
-        arm_lines = serial_tables(model, sites_m).links * 1000
-    if cfg.robot.camera_serial is not None:
-        cam_lines = camera_lines(model, sites_m) * 1000
+    arm_lines, cam_lines = (None if lines is None else lines * 1000  # a serial arm's centre lines, every site
+                            for lines in (model.instruments.docked_lines(model, sites_m),
+                                          model.endoscope.docked_lines(model, sites_m)))
     reach3 = dex3 = None
     if model.third_rot is not None:  # the third instrument docks in frames of its own (the Si PSM3)
         from surgopt.kinematics import port_place as K

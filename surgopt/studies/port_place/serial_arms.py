@@ -65,10 +65,10 @@ def serial_tables(model, sites: np.ndarray, extra_yaw_rad=None) -> SerialTables:
     given, by ``extra_yaw_rad`` at each site (a search's free docking); ``model``: the config's ``PortModel``."""
     from surgopt.kinematics import port_serial as S
 
-    arm, k = model.cfg.robot.instrument_serial, model.serial_instrument
+    arm, k = model.cfg.robot.instrument_serial, model.instruments.kernel
     rcm, rot, pos, refused = _stand(model, arm, sites, extra_yaw_rad)
     targets, centre = model.targets_m, model.centre_m
-    order, parent = model.walk
+    order, parent = model.instruments.walk
     joints = np.empty((len(sites), len(targets), 5))
     reach, dex = S.serial_instrument_tables(k.chain, k.seed, k.restarts, rcm, k.tool_m, rot, pos, targets, order,
                                             parent, refused == 0, joints)
@@ -117,7 +117,7 @@ def serial_camera_tables(model, sites: np.ndarray, tips: np.ndarray, ok: np.ndar
     base would stand inside the body or its links, there, come nearer the wall than ``link_radius_mm``."""
     from surgopt.kinematics import port_serial as S
 
-    arm, k = model.cfg.robot.camera_serial, model.serial_camera
+    arm, k = model.cfg.robot.camera_serial, model.endoscope.kernel
     rcm, rot, pos, refused = _stand(model, arm, sites)
     joints = np.full((len(sites), 5), np.nan)
     one = np.zeros(1, np.int64)

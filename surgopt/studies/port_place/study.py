@@ -29,11 +29,12 @@ import numpy as np
 from surgopt.robots.platforms import AUTO_PLATFORM, PLATFORMS
 
 from surgopt.robots import dvrk
+from surgopt.studies.port_place.arms import instruments_held
 from surgopt.studies.port_place.carts import has_cart
 from surgopt.studies.port_place import HELP  # the command's help, read by the CLI without importing this module
 from surgopt.studies import Estimate, Study, figures_in, html_views_in, peak_bytes, summary_in
 from surgopt.parts import concat_rows
-from surgopt.studies.port_place.config import OBJECTIVE, PortPlaceConfig, camera_arm_of, cart_of, instrument_of
+from surgopt.studies.port_place.config import OBJECTIVE, PortPlaceConfig, cart_of, instrument_of
 from surgopt.studies.port_place.geometry import sites_mm, target_points_mm
 from surgopt.studies.port_place.tables import LATERAL, model_of, port_tables, redocked, rolled
 
@@ -387,14 +388,8 @@ def design_rows(cfg, sites, t, ids, site_ids, f, bad, cost, design_ids, docking_
 
 def roll_columns(config=None) -> tuple[str, ...]:
     """Each RCM instrument arm's docking roll at its port (none for serial arms, which keep the RCM in
-    software and have no docking frame to turn)."""
-    if config is None:
-        serial = None
-    elif isinstance(config, dict):
-        serial = (config.get("robot") or {}).get("instrument_serial")
-    else:
-        serial = config.robot.instrument_serial
-    return () if serial is not None else tuple(f"{arm}_roll_deg" for arm in arms_of(config)[:-1])
+    software and have no docking frame to turn: ``arms``)."""
+    return tuple(f"{arm}_roll_deg" for arm in arms_of(config)[:-1]) if instruments_held(config).rolls else ()
 
 
 def docking_columns(config=None) -> tuple[str, ...]:
@@ -402,6 +397,13 @@ def docking_columns(config=None) -> tuple[str, ...]:
     pitch (0: the default docking); for a serial arm the yaw is its base's turn about the port, added to
     ``base_yaw_deg``, and the pitch stays 0."""
     return tuple(f"{arm}_docking_{angle}_deg" for arm in arms_of(config)[:-1] for angle in ("yaw", "pitch"))
+
+
+def free_docking_columns(config=None) -> tuple[str, ...]:
+    """The docking columns a search turns (``docking_columns``): yaw and pitch for an RCM arm, a serial arm's
+    base yaw only (``arms``); the others stay 0."""
+    angles = instruments_held(config).docking_angles
+    return tuple(c for c in docking_columns(config) if c.rsplit("_", 2)[-2] in angles)
 
 
 def aim_columns(config=None) -> tuple[str, ...]:
@@ -459,8 +461,7 @@ def design_dims(cfg: PortPlaceConfig) -> dict:
         dims = {f"{arm}_site": list(range(len(sites))) for arm in arms_of(cfg)}
     r = cfg.robot.docking_range_deg
     if r > 0:  # a serial arm turns its base about the port (yaw) only
-        free = docking_columns(cfg)[::2] if cfg.robot.instrument_serial is not None else docking_columns(cfg)
-        dims.update({c: (-r, r) for c in free})
+        dims.update({c: (-r, r) for c in free_docking_columns(cfg)})
     for c in stance_columns(cfg):
         reach = getattr(cfg.robot, f"{c.split('_')[0]}_serial").stance_range_m
         dims[c] = (-reach, reach)
@@ -509,7 +510,6 @@ def evaluate_designs(cfg, x: np.ndarray, ids: np.ndarray, source: str) -> dict:
     x = np.asarray(x, dtype=np.float64).reshape(len(ids), -1)
     model = model_of(cfg)  # its grid's tables are not built: a design builds the tables of its own ports
     all_sites, crit, centre = model.sites_m, model.criteria, model.centre_m
-    serial = cfg.robot.instrument_serial is not None
     names = list(design_dims(cfg))
     if x.shape[1] == ports:  # site numbers alone: the configured docking and stance
         names = [f"{arm}_site" for arm in arms_of(cfg)]
@@ -535,19 +535,15 @@ def evaluate_designs(cfg, x: np.ndarray, ids: np.ndarray, source: str) -> dict:
         sites = all_sites[site_ids]
         pose = searched_values(cfg.cart, {c: v[col[c]] for c in searched if c in col}) if searched else None
         model_r = model.with_config(cfg_r) if stances else model
-        if serial:  # the RCM mechanism (the camera) docked as in the grid, each serial base turned by its yaw
-            t, _, _ = port_tables(model_r, sites, K.docking_frames(sites, centre, LATERAL),
-                                  base_yaw_rad=np.radians([*docking[0::2], 0.0]))
-        else:
-            rot = K.tilted_frames(K.docking_frames(sites, centre, LATERAL), np.radians([*docking[0::2], 0.0]),
-                                  np.radians([*docking[1::2], 0.0]))
-            outside = K.external_clearances(sites, np.ascontiguousarray(rot[:, :, 2]), dvrk.OUTSIDE_LENGTH_M)
-            rolls = np.radians([*v[roll_cols], 0.0]) if roll_cols else None  # each port's, the ECM's 0
-            frames = rolled(rot, rolls) if roll_cols else None
-            tables = (None if not cart else searched_dock(model, site_ids, pose, frames) if pose is not None
-                      else cart_of_sites(model.dock, site_ids) if frames is None
-                      else redocked(model, cart_of_sites(model.dock, site_ids), site_ids, frames))
-            t, _, _ = port_tables(model_r, sites, rot, outside, dock=tables, rolls_rad=rolls)
+        # the docking frames tilted by the design's yaw and pitch (an RCM arm), or each serial base turned by its yaw
+        rot, base_yaw = model.instruments.turned(K.docking_frames(sites, centre, LATERAL), docking)
+        outside = K.external_clearances(sites, np.ascontiguousarray(rot[:, :, 2]), dvrk.OUTSIDE_LENGTH_M)
+        rolls = np.radians([*v[roll_cols], 0.0]) if roll_cols else None  # each port's, the ECM's 0
+        frames = rolled(rot, rolls) if roll_cols else None
+        tables = (None if not cart else searched_dock(model, site_ids, pose, frames) if pose is not None
+                  else cart_of_sites(model.dock, site_ids) if frames is None
+                  else redocked(model, cart_of_sites(model.dock, site_ids), site_ids, frames))
+        t, _, _ = port_tables(model_r, sites, rot, outside, base_yaw_rad=base_yaw, dock=tables, rolls_rad=rolls)
         local, f, bad, cost, _, dock = design_columns(t, crit, 0, 1, ports - 1)
         out.append(design_rows(cfg, sites, t, local, site_ids[None, :], f, bad, cost,
                                np.asarray(ids[r:r + 1], dtype=np.int64), docking[None, :],
@@ -562,8 +558,7 @@ def evaluate_designs(cfg, x: np.ndarray, ids: np.ndarray, source: str) -> dict:
 def searched_docking(cfg: PortPlaceConfig) -> bool:
     """Whether a run's trials dock each RCM instrument in frames of their own (a [search]'s docking yaw and pitch,
     ``robot.docking_range_deg`` > 0, or its rolls, ``docking_roll = 'search'``), not the grid's at its sites."""
-    r = cfg.robot
-    return r.instrument_serial is None and (r.docking_roll == "search" or r.docking_range_deg > 0)
+    return instruments_held(cfg).docks_in_own_frames(cfg)
 
 
 def layout_isotropy(cfg: PortPlaceConfig, row: dict) -> np.ndarray:
@@ -643,19 +638,12 @@ def preflight(cfg) -> None:
     t = model.grid.tables
     best = int(t.reach_count.max())
     if best < t.n_points:
-        from surgopt.studies.port_place.serial_arms import refused_ports_note
-
-        arm = ("" if cfg.robot.instrument_serial is None else
-               f"; stand the arm elsewhere (robot.instrument_serial.rcm_in_base_m, base_yaw_deg: rcm-grid finds where "
-               f"an arm keeps an RCM best){refused_ports_note(model, model.sites_m)}")
+        arm = model.instruments.refused_note(model)
         raise ValueError(f"target: no candidate port's instrument ({instrument_of(cfg).name}, docked toward the "
                          f"target's centre) reaches the whole target: {best:,} of its {t.n_points:,} points at best, "
                          f"so every layout would fail on reach; move or shrink the target, ease its approach cone, "
                          f"or widen patient.port_region / constraints.port_to_target_mm{arm}")
-    if cfg.robot.camera_serial is not None and not t.coverage.any():
-        raise ValueError(f"robot.camera_serial: the arm ({camera_arm_of(cfg).name}) holds the endoscope where it "
-                         f"must be at no candidate port, so no layout has a camera; stand it elsewhere "
-                         f"(rcm_in_base_m, base_yaw_deg) or give it a longer tool")
+    model.endoscope.check(model, t)
 
 
 #: Cost model: ~60 ns to combine one design and turn it into columns on one core (~70 ns with a third
@@ -671,10 +659,6 @@ CART_ROW_BYTES = 32
 SUJ_MARGIN_ROW_BYTES = 16
 SUJ_JOINTS_ROW_BYTES = 6 * 8
 IN_FLIGHT_TASKS = 4
-NS_PER_SITE_POINT = 60.0
-#: A serial instrument arm's per-port tables: ~3.4 us per site x target point (generic Newton IK by continuation,
-#: benchmarks/bench_port_place.py: 0.55 s for 164 x 915 at 91 % reached).
-NS_PER_SITE_POINT_SERIAL = 4000.0
 NS_PER_PAIR_POINT = 300.0
 
 
@@ -740,7 +724,7 @@ def estimate(cfg) -> Estimate:
     arms = cfg.robot.instrument_count
     d = n_designs(n, arms)
     per_design = NS_PER_DESIGN if arms == 2 else NS_PER_DESIGN_3
-    per_site_point = NS_PER_SITE_POINT if cfg.robot.instrument_serial is None else NS_PER_SITE_POINT_SERIAL
+    per_site_point = instruments_held(cfg).ns_per_site_point
     seconds = (d * per_design + n * m * per_site_point + n * n / 2 * m * NS_PER_PAIR_POINT) * 1e-9
     if has_cart(cfg):  # each instrument arm's setup joints at each site and cart pose
         from surgopt.studies.port_place.tables import cart_poses

@@ -39,21 +39,12 @@ from surgopt.robots import dvrk
 from surgopt.robots.dvrk_suj import INSTRUMENT_SUJS
 from surgopt.studies.port_place.carts import (LATERAL, cart_for, patient_in_cart, rolled,  # noqa: F401 (theirs)
                                               row_patient_in_cart, si_frames)
+from surgopt.studies.port_place.arms import (RcmCamera, RcmInstruments, arm_limits,  # noqa: F401 (theirs)
+                                             camera_held, instrument_limits, instruments_held, reach_offsets_m)
 from surgopt.studies.port_place.config import PortPlaceConfig, Target, camera_arm_of, instrument_of
 from surgopt.studies.port_place.geometry import sites_mm, target_points_mm
 
 #: The patient's lateral axis (x): each docking frame's x is turned as near it as the shaft allows.
-
-
-class SerialKernel(NamedTuple):
-    """A serial arm's inputs to ``kinematics.port_serial``, read once from its DH table or URDF: the chain's
-    arrays, the IK's seed and restarts, the tool's length past the flange (m). Its RCM (``rcm_in_base_m``) is
-    read from the arm itself, since a search moves it (``stance``)."""
-
-    chain: tuple
-    seed: np.ndarray
-    restarts: np.ndarray
-    tool_m: float
 
 
 class GridTables(NamedTuple):
@@ -79,9 +70,8 @@ class PortModel:
     camera: object  # kinematics.port_place.Camera
     limits: object  # the instrument arm's kinematics.port_place.ArmLimits
     cone: object  # kinematics.port_place.Approach of the target for the instrument's wrist
-    serial_instrument: SerialKernel | None
-    serial_camera: SerialKernel | None
-    walk: tuple | None  # (order, parent): Prim's order over the target from its centre (serial instruments)
+    instruments: RcmInstruments  # how the instruments are held (``arms``): an RCM arm, or a serial arm's kernel
+    endoscope: RcmCamera  # how the endoscope is held (``arms``)
 
     @cached_property
     def grid(self) -> GridTables:
@@ -112,41 +102,18 @@ class PortModel:
         return dataclasses.replace(self, cfg=cfg)
 
 
-def serial_kernel(arm) -> SerialKernel:
-    """A ``SerialInstrumentArm``'s chain arrays, seed and restarts (``kinematics.serial_chain``)."""
-    from surgopt.kinematics.serial_chain import default_restarts, kernel_arrays
-
-    chain, _, seed = arm.chain()
-    seed = np.asarray(seed, np.float64)
-    return SerialKernel(kernel_arrays(chain), seed, default_restarts(seed), float(arm.tool_past_flange_m))
-
-
-def walk_order(target: Target, centre_m: np.ndarray) -> tuple:
-    """Prim's order over the target's points from the one nearest the centre (``port_serial.prim_order``): the
-    continuation a serial arm's IK walks."""
-    from surgopt.kinematics.port_serial import prim_order
-
-    pts = target_points_mm(target) / 1000
-    root = int(np.argmin(np.linalg.norm(pts - centre_m, axis=1)))
-    return prim_order(pts, root)
-
-
 def prepare(cfg: PortPlaceConfig) -> PortModel:
     """Build the model of a validated config (the grid's tables on first use of ``PortModel.grid``)."""
     from surgopt.kinematics import port_place as K
 
     sites = sites_mm(cfg) / 1000
     centre = np.asarray(cfg.target.centre_mm, float) / 1000
-    r = cfg.robot
-    instrument = instrument_of(cfg)
+    instruments, endoscope = instruments_held(cfg).prepare(cfg, centre), camera_held(cfg).prepare(cfg)
     return PortModel(
         cfg=cfg, sites_m=sites, targets_m=target_points_mm(cfg.target) / 1000, centre_m=centre,
         rot=K.docking_frames(sites, centre, LATERAL), criteria=criteria(cfg), camera=camera_of(cfg),
-        limits=None if r.instrument_serial is not None else instrument_limits(cfg, instrument),
-        cone=approach(cfg.target, instrument.wrist_bend_rad),
-        serial_instrument=None if r.instrument_serial is None else serial_kernel(r.instrument_serial),
-        serial_camera=None if r.camera_serial is None else serial_kernel(r.camera_serial),
-        walk=None if r.instrument_serial is None else walk_order(cfg.target, centre))
+        limits=instruments.limits(cfg), cone=approach(cfg.target, instrument_of(cfg).wrist_bend_rad),
+        instruments=instruments, endoscope=endoscope)
 
 
 _held: list = [None, None]  # [the canonical JSON of the config, its model]
@@ -161,39 +128,6 @@ def model_of(cfg: PortPlaceConfig) -> PortModel:
         if _held[0] != key:
             _held[:] = [key, prepare(cfg)]
         return _held[1]
-
-
-def arm_limits(arm):
-    """The kernel's ``ArmLimits`` of an arm (``dvrk.RcmArm`` or ``rcm_arm.RcmLimits``; a spherical mechanism with
-    its axes)."""
-    from surgopt.kinematics.port_place import ArmLimits
-
-    axes = getattr(arm, "yaw_axis", None)
-    spherical = (True, *arm.yaw_axis, *arm.pitch_axis) if axes is not None else ()
-    return ArmLimits(*arm.yaw_limits_rad, *arm.pitch_limits_rad, *arm.insertion_limits_m, arm.along_shaft_m,
-                     *spherical)
-
-
-def reach_offsets_m(cfg: PortPlaceConfig, arm) -> tuple[float, float]:
-    """(tip past the wrist, least wrist depth), m: the config's ``robot.tip_beyond_wrist_mm`` and
-    ``robot.min_wrist_depth_mm``, or, where they are not given, the arm's own (``dvrk.RcmArm``: the Large Needle
-    Driver's 9.1 mm, the PSM controller's 45 mm; 0 for an arm from a file)."""
-    r = cfg.robot
-    tip = getattr(arm, "tip_beyond_wrist_m", 0.0) if r.tip_beyond_wrist_mm is None else r.tip_beyond_wrist_mm / 1000
-    depth = (getattr(arm, "min_wrist_depth_m", 0.0) if r.min_wrist_depth_mm is None
-             else r.min_wrist_depth_mm / 1000)
-    return tip, depth
-
-
-def instrument_limits(cfg: PortPlaceConfig, arm):
-    """The instrument's ``ArmLimits`` with the config's reaching point and least wrist depth: the reaching point
-    moved from the wrist to the tip (along_shaft_m + tip: the point rcm_point puts on a target point, eq. P1), and
-    insertion's lower limit raised so that the wrist, at q3 + the wrist's own offset from the RCM, lies at least
-    the least depth inside (q3 >= depth - offset)."""
-    limits = arm_limits(arm)
-    tip, depth = reach_offsets_m(cfg, arm)
-    wrist = limits.along_shaft_m
-    return limits._replace(along_shaft_m=wrist + tip, insertion_lo=max(limits.insertion_lo, depth - wrist))
 
 
 #: The rolls about the shaft a 'most_reach' docking tries at each port (deg).
@@ -216,7 +150,7 @@ def instrument_rolls_rad(model: PortModel, sites: np.ndarray, rot: np.ndarray) -
     side = roll_sides(sites)
     if not cart_for(model.cfg).roll_is_free:  # the Si's setup joints give each arm one orientation (S5)
         return np.zeros(len(sites))
-    if r.docking_roll in ("given", "search") or model.limits is None:  # a search's trials give their own
+    if r.docking_roll in ("given", "search") or not model.instruments.rolls:  # a search's trials give their own
         return np.radians(r.docking_roll_deg) * side
     choices = np.array(ROLL_CHOICES_DEG)
     counts = np.stack([K.instrument_tables(sites, rolled(rot, np.radians(c) * side), model.targets_m, model.limits,
@@ -257,21 +191,13 @@ def approach(target: Target, wrist_bend_rad: float):
     return Approach(*d, math.cos(wrist_bend_rad - math.radians(target.approach_half_angle_deg)))
 
 
-def approach_mask(sites: np.ndarray, targets: np.ndarray, cone) -> np.ndarray:
-    """[site, point]: whether the shaft from the port to the point lies within the approach cone's reach of the
-    wrist (``instrument_tables``' test, for arms whose reach is computed elsewhere)."""
-    d = targets[None, :, :] - sites[:, None, :]
-    return d @ np.array([cone.dx, cone.dy, cone.dz]) >= cone.cos_min * np.linalg.norm(d, axis=2)
-
-
 def camera_of(cfg: PortPlaceConfig):
-    """The endoscope for the kernels (``port_place.Camera``); held by a serial arm, its mechanism's ranges are left
-    open (the arm's own IK decides, ``serial_arms.serial_camera_tables``)."""
-    from surgopt.kinematics.port_place import ArmLimits, Camera
+    """The endoscope for the kernels (``port_place.Camera``), its mechanism's ranges as the config's arm holds it
+    (a serial arm's open: its own IK decides, ``arms.SerialCamera``)."""
+    from surgopt.kinematics.port_place import Camera
 
     r = cfg.robot
-    limits = (arm_limits(camera_arm_of(cfg)) if r.camera_serial is None else
-              ArmLimits(-math.pi, math.pi, -math.pi / 2, math.pi / 2, 0.0, 10.0, 0.0))
+    limits = camera_held(cfg).limits(cfg)
     return Camera(limits, math.radians(r.camera_fov_deg) / 2,
                   r.camera_standoff_mm / 1000, r.camera_range_mm[0] / 1000, r.camera_range_mm[1] / 1000,
                   math.radians(r.camera_scope_angle_deg), r.camera_scope_view == "down")
@@ -313,25 +239,19 @@ def port_tables(model: PortModel, sites: np.ndarray, rot: np.ndarray, outside=No
     shaft (a search's, ``docking_roll = 'search'``; else the config's, ``instrument_rolls_rad``)."""
     from surgopt.kinematics import port_designs as D
     from surgopt.kinematics import port_place as K
-    from surgopt.studies.port_place import serial_arms
 
     cfg, targets, centre, crit, camera = model.cfg, model.targets_m, model.centre_m, model.criteria, model.camera
-    r = cfg.robot
-    serial = held = None
     rolls = instrument_rolls_rad(model, sites, rot) if rolls_rad is None else rolls_rad  # the instruments'
     # frames (``instrument_frames``), once
     frames = instrument_frames(model, sites, rot, rolls)
-    if r.instrument_serial is not None:  # a serial arm: its own IK, and its links' clearance outside
-        serial = serial_arms.serial_tables(model, sites, base_yaw_rad)
-        reach = serial.reach & approach_mask(sites, targets, model.cone)
-        dex = np.where(reach, serial.dexterity, 0.0)
-        outside = serial.outside_m
-    else:
-        reach, dex = K.instrument_tables(sites, frames, targets, model.limits, crit.dexterity_length_m, model.cone)
+    reach, dex, outside_held, serial = model.instruments.reach(model, sites, frames, base_yaw_rad)
+    if outside_held is not None:  # a serial arm: its links' clearance outside
+        outside = outside_held
     coverage = K.camera_coverage(sites, rot, targets, centre, camera)
-    views = K.camera_views(sites, rot, centre, camera) if (r.camera_serial or camera.scope_angle_rad) else None
-    if r.camera_serial is not None:  # the endoscope held by a serial arm: placed by its IK
-        held = serial_arms.serial_camera_tables(model, sites, views[0], views[2])
+    views = (K.camera_views(sites, rot, centre, camera) if (model.endoscope.wants_views or camera.scope_angle_rad)
+             else None)
+    held = model.endoscope.hold(model, sites, views)  # a serial arm's: placed by its IK
+    if held is not None:
         coverage = np.where(held.placed, coverage, 0.0)
     pairs = list(K.pair_tables(sites, reach, dex, targets, centre, crit))
     if outside is not None:
@@ -396,17 +316,6 @@ def camera_clearances(sites: np.ndarray, rot: np.ndarray, outside: np.ndarray, s
     if held is None:
         return S.link_camera_clearances(serial.links, sites, axes, dvrk.OUTSIDE_LENGTH_M)
     return S.link_camera_clearances(held.links, sites, axes, dvrk.OUTSIDE_LENGTH_M).T
-
-
-def camera_lines(model: PortModel, sites: np.ndarray) -> np.ndarray:
-    """The serial endoscope arm's centre lines (m) at ports ``sites`` docked as the grid docks them (NaN where it
-    cannot hold the scope): what the figures draw."""
-    from surgopt.kinematics import port_place as K
-    from surgopt.studies.port_place import serial_arms
-
-    tips, _, ok = K.camera_views(sites, K.docking_frames(sites, model.centre_m, LATERAL), model.centre_m,
-                                 model.camera)
-    return serial_arms.serial_camera_tables(model, sites, tips, ok).links
 
 
 # ---- the patient cart (issue 40): where it stands, and which of its setup joints dock which arm at which port
