@@ -664,7 +664,13 @@ def test_an_angled_scope_looks_at_the_centre_from_the_standoff(view):
     tips, axes, ok = K.camera_views(sites, rot, centre, cam)
     assert ok.sum() > len(sites) // 2
     placed = ok & np.isclose(np.linalg.norm(centre - tips, axis=1), cam.standoff_m, rtol=0, atol=1e-12)
-    assert placed.sum() > ok.sum() // 2  # the rest: too close to insert so little (clamped, farther back)
+    # the rest: too close to stop at the standoff without inserting less than the least insertion (the ECM's
+    # 50 mm): inserted to it, the tip on the same shaft nearer the centre
+    clamped = ok & ~placed
+    assert placed.sum() > 10 and clamped.sum() > 10
+    np.testing.assert_allclose(np.linalg.norm(tips[clamped] - sites[clamped], axis=1),
+                               cam.arm.insertion_lo + cam.arm.along_shaft_m, atol=1e-12)
+    assert cam.arm.insertion_lo == 0.050 and (np.linalg.norm(centre - tips[clamped], axis=1) < cam.standoff_m).all()
     for i in np.flatnonzero(placed)[::7]:
         tip, v = _scope_tip_by_bisection(sites[i], centre, math.radians(30.0), cam.standoff_m, view == "down")
         assert np.allclose(tips[i], tip, atol=1e-9) and np.allclose(axes[i], v, atol=1e-9)
@@ -742,8 +748,10 @@ def test_an_rcm_arm_from_a_dh_table_or_a_urdf_gives_the_shipped_arms_rows(tmp_pa
 
     (tmp_path / "ecm.urdf").write_text(ecm_urdf())
     shipped = validate(COARSE, C.Config, "x")
+    # a file has no controller: the ECM's least insertion (50 mm, the shipped arm's) is the config's
     files = validate({**COARSE, "robot": {"instrument_file": {"dh": PSM_DH},
-                                          "camera_file": {"urdf": str(tmp_path / "ecm.urdf")}}}, C.Config, "x")
+                                          "camera_file": {"urdf": str(tmp_path / "ecm.urdf")},
+                                          "camera_min_insertion_mm": 50.0}}, C.Config, "x")
     psm, ecm = C.instrument_of(files), C.camera_arm_of(files)
     for got, ref in ((psm, get_model("dvrk_psm_classic")), (ecm, get_model("dvrk_ecm_classic"))):
         for f in ("yaw_limits_rad", "pitch_limits_rad", "insertion_limits_m"):

@@ -53,6 +53,10 @@ class PortTables(NamedTuple):
     third_reach_count: np.ndarray = np.zeros(0, np.int64)
     third_reach_bits: np.ndarray = np.zeros((0, 1), np.uint64)
     third_dex_site: np.ndarray = np.zeros(0)
+    # per site: the endoscope's tip where it is held (``port_place.camera_views``), its depth past the RCM along the
+    # shaft and its distance to the target's centre, mm (NaN where the scope cannot be placed; the study's rows)
+    camera_tip_depth_mm: np.ndarray = np.zeros(0)
+    camera_tip_to_centre_mm: np.ndarray = np.zeros(0)
 
 
 def reach_bits(reach: np.ndarray) -> np.ndarray:

@@ -331,10 +331,13 @@ def camera_views(sites, rot, centre, camera):
     view is to pass through the centre at distance r from the tip, from a port at distance d: in the triangle
     port, tip, centre the angle at the port is alpha, at the tip pi - theta, so sin(alpha) = r sin(theta) / d and
     the shaft reaches l = d sin(theta - alpha) / sin(theta); the shaft is turned by alpha off the line of sight,
-    in the plane of ``scope_tilt_direction``, away from the side the view turns to. Insertion below its range is
-    clamped (the tip stops farther back, on the same shaft; the view then passes beside the centre); beyond its
-    range, or with r sin(theta) > d, or the shaft outside the arm's yaw and pitch in its docking frame ``rot``
-    (``rcm_inverse``), the port cannot be used. (docs/port_placement.md, eq. P10.)"""
+    in the plane of ``scope_tilt_direction``, away from the side the view turns to. Where that would insert the
+    scope less than its insertion's lower limit (``arm.insertion_lo``: the least insertion, the scope out of its
+    cannula and inside the body), it is inserted to that limit: the tip nearer the centre than the standoff, on
+    the same shaft (an angled scope's view then passes beside the centre). Beyond its range, with the tip then
+    nearer the centre than the scope's sharp range begins (``near_m``), with r sin(theta) > d, or with the shaft
+    outside the arm's yaw and pitch in its docking frame ``rot`` (``rcm_inverse``), the port cannot be used.
+    (docs/port_placement.md, eq. P10.)"""
     n = sites.shape[0]
     tips = np.zeros((n, 3))
     axes = np.zeros((n, 3))
@@ -368,7 +371,11 @@ def camera_views(sites, rot, centre, camera):
         q3 = max(reach - arm.along_shaft_m, arm.insertion_lo)
         if q3 > arm.insertion_hi:
             continue
-        tips[i] = sites[i] + (q3 + arm.along_shaft_m) * shaft
+        tip = sites[i] + (q3 + arm.along_shaft_m) * shaft
+        left = centre - tip
+        if left[0] ** 2 + left[1] ** 2 + left[2] ** 2 < camera.near_m ** 2:  # the tip at (or past) the target
+            continue
+        tips[i] = tip
         axes[i] = view
         ok[i] = True
     return tips, axes, ok

@@ -48,6 +48,8 @@ class RcmArm:
     tip_beyond_wrist_m: float = 0.0
     #: the least distance of the wrist from the RCM the arm's controller accepts (0: none stated)
     min_wrist_depth_m: float = 0.0
+    #: the least insertion (q3) the arm's controller accepts for Cartesian control (0: none stated; the ECM's 50 mm)
+    min_insertion_m: float = 0.0
 
     @property
     def yaw_limits_rad(self) -> tuple[float, float]:
@@ -95,6 +97,11 @@ LND_WRIST_LINK_M = 0.0091
 #: sawIntuitiveResearchKit/mtsIntuitiveResearchKit.h, namespace PSM.
 PSM_SAFE_DISTANCE_FROM_RCM_M = 0.045
 PSM_CANNULA_ENGAGE_DEPTH_M = 0.025
+#: The dVRK's ECM controller: Cartesian control is refused until the endoscope's insertion (q3) is past 50 mm, so
+#: that the scope is out of its cannula: jhu-dvrk/sawIntuitiveResearchKit, components/include/
+#: sawIntuitiveResearchKit/mtsIntuitiveResearchKitECM.h, ``is_safe_for_cartesian_control`` (q3 > 50 mm; the
+#: same test, as ``IsSafeForCartesianControl``, since 2013). Port-place holds every scope at least this deep.
+ECM_SAFE_INSERTION_M = 0.050
 #: How far the Large Needle Driver's jaws can point away from its shaft: a cone of the wrist rows' +-80 deg
 #: (pitch and yaw each reach 80 deg; together they reach farther on the diagonals, so the cone is the
 #: conservative reading of the two limits).

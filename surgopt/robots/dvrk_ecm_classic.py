@@ -7,10 +7,11 @@ brings the reaching point to the wrist (an instrument) or the scope's tip.
 """
 from __future__ import annotations
 
-from surgopt.robots.dvrk import RcmArm, revolute, yaw_pitch_insertion
+from surgopt.robots.dvrk import ECM_SAFE_INSERTION_M, RcmArm, revolute, yaw_pitch_insertion
 
 MODEL = RcmArm(
     "dvrk_ecm_classic",
     yaw_pitch_insertion((-1.5708, 1.5708), (-0.76794, 1.1344), (0.0, 0.255), -0.3822)
     + (revolute(0.0, 0.0, 0.3829, 0.0, -1.552, 1.552, "roll"),),
-    "ECM.json")
+    "ECM.json",
+    min_insertion_m=ECM_SAFE_INSERTION_M)

@@ -7,10 +7,11 @@ brings the reaching point to the wrist (an instrument) or the scope's tip.
 """
 from __future__ import annotations
 
-from surgopt.robots.dvrk import RcmArm, revolute, yaw_pitch_insertion
+from surgopt.robots.dvrk import ECM_SAFE_INSERTION_M, RcmArm, revolute, yaw_pitch_insertion
 
 MODEL = RcmArm(
     "dvrk_ecm_si",
     yaw_pitch_insertion((-2.964, 2.964), (-1.1, 1.04), (0.001, 0.259), -0.3822)
     + (revolute(0.0, 0.0, 0.3829, 0.0, -1.54, 1.54, "roll"),),
-    "ECM_Si.json (its D rows as the Classic's: the file's values for rows 3-4 are the same)")
+    "ECM_Si.json (its D rows as the Classic's: the file's values for rows 3-4 are the same)",
+    min_insertion_m=ECM_SAFE_INSERTION_M)

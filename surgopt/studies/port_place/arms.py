@@ -224,17 +224,20 @@ def instruments_held(config=None) -> type[RcmInstruments]:
 class RcmCamera:
     """The endoscope on an RCM arm (the dVRK ECM, or one from a file)."""
 
-    #: Whether the scope's tip and view must be computed for every port to place the arm (``camera_views``).
-    wants_views = False
-
     @classmethod
     def prepare(cls, cfg: PortPlaceConfig) -> "RcmCamera":
         return cls()
 
     @classmethod
     def limits(cls, cfg: PortPlaceConfig):
-        """The camera mechanism's ``ArmLimits``."""
-        return arm_limits(camera_arm_of(cfg))
+        """The camera mechanism's ``ArmLimits``, its insertion's lower limit raised to the least insertion (the
+        config's ``robot.camera_min_insertion_mm``, else the arm's own: the dVRK ECM's 50 mm, ``dvrk.
+        ECM_SAFE_INSERTION_M``), so that the scope's tip is out of the cannula, inside the body."""
+        arm = camera_arm_of(cfg)
+        limits = arm_limits(arm)
+        given = cfg.robot.camera_min_insertion_mm
+        least = getattr(arm, "min_insertion_m", 0.0) if given is None else given / 1000
+        return limits._replace(insertion_lo=max(limits.insertion_lo, least))
 
     def hold(self, model, sites: np.ndarray, views) -> None:
         """Where the arm holds the scope at each port, when it must be solved (``SerialCamera``): the RCM
@@ -250,8 +253,6 @@ class RcmCamera:
 
 class SerialCamera(RcmCamera):
     """The endoscope held by a serial arm keeping its RCM at the port in software."""
-
-    wants_views = True
 
     def __init__(self, kernel: SerialKernel):
         self.kernel = kernel

@@ -248,7 +248,13 @@ class Robot(StrictModel):
                                                             "clear the others; the angles are the working pair's)")
     camera_arm: Literal[CAMERA_ARMS] = "dvrk_ecm_classic"
     camera_fov_deg: float = Field(70.0, gt=0, lt=180, description="full view angle of a 0-deg scope (60-70 typical)")
-    camera_standoff_mm: float = Field(100.0, gt=0, description="the scope tip stops this far before the target centre")
+    camera_standoff_mm: float = Field(100.0, gt=0, description="the scope's tip stops this far before the target "
+                                      "centre, where the port's distance allows: never shallower than "
+                                      "camera_min_insertion_mm (then nearer the centre)")
+    camera_min_insertion_mm: float | None = Field(
+        None, ge=0.0, le=300.0, description="the endoscope's least insertion (its arm's q3) at every port: the "
+        "scope out of its cannula and inside the body; none: the arm's own controller limit (the dVRK ECM refuses "
+        "Cartesian control until q3 > 50 mm, is_safe_for_cartesian_control; 0 for an arm from a file)")
     camera_range_mm: list[float] = Field([10.0, 200.0], min_length=2, max_length=2,
                                          description="sharp imaging range from the tip")
     camera_scope_angle_deg: float = Field(0.0, ge=0.0, le=60.0,
@@ -504,6 +510,21 @@ class PortPlaceConfig(StrictModel):
         if r.min_wrist_depth_mm > deepest_mm:
             raise ValueError(f"robot.min_wrist_depth_mm: {r.min_wrist_depth_mm:g} mm, but {arm.name}'s insertion "
                              f"takes its wrist at most {deepest_mm:.1f} mm past the RCM: no point would be reached")
+        return self
+
+    @model_validator(mode="after")
+    def _the_scope_inserts_to_its_least_insertion(self):
+        r = self.robot
+        if r.camera_min_insertion_mm is None:
+            return self
+        if r.camera_serial is not None:
+            raise ValueError("robot.camera_min_insertion_mm goes with an RCM endoscope arm (camera_arm or "
+                             "camera_file); a serial arm holds the scope where its own IK can")
+        arm = camera_arm_of(self)
+        if r.camera_min_insertion_mm > arm.insertion_limits_m[1] * 1000:
+            raise ValueError(f"robot.camera_min_insertion_mm: {r.camera_min_insertion_mm:g} mm, but {arm.name}'s "
+                             f"insertion ends at {arm.insertion_limits_m[1] * 1000:.0f} mm: no port could hold "
+                             f"the scope")
         return self
 
     @model_validator(mode="after")

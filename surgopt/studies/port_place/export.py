@@ -61,7 +61,7 @@ def dvrk_setup(cfg: PortPlaceConfig, row: dict) -> str:
     ``suj_tip_to_tool_origin`` as used, its port (mm, patient frame), its base (RCM) frame in the cart's world
     frame, and its own joints at the target's centre."""
     from surgopt.studies.port_place.clashes import docking_that_clears
-    from surgopt.studies.port_place.tables import model_of, row_patient_in_cart
+    from surgopt.studies.port_place.tables import camera_tips, model_of, row_patient_in_cart
 
     if not has_cart(cfg):
         raise UsageError("--format dvrk: this run has no cart (cart.model = 'none'): run it with [cart] model = "
@@ -77,9 +77,9 @@ def dvrk_setup(cfg: PortPlaceConfig, row: dict) -> str:
         suj = PLATFORMS[cfg.cart.model].suj(a.arm)
         holder = camera_arm_of(cfg) if a.arm == "ECM" else instrument_of(cfg)
         port = np.asarray(a.port_m)
-        if a.arm == "ECM":  # its own yaw and pitch aim the scope; inserted to the standoff before the centre
-            inserted = float(np.linalg.norm(centre - port)) - cfg.robot.camera_standoff_mm / 1000
-            joints = [*a.ecm, inserted - holder.along_shaft_m] if a.ecm else None
+        if a.arm == "ECM":  # its own yaw and pitch aim the scope; inserted as the rows hold it (camera_views)
+            depth = float(camera_tips(model_of(cfg), port[None])["camera_tip_depth_mm"][0]) / 1000
+            joints = [*a.ecm, depth - holder.along_shaft_m] if a.ecm and np.isfinite(depth) else None
         else:
             joints = arm_joints_at_centre(model_of(cfg).limits, np.linalg.inv(patient) @ a.base, centre)
         arms.append({

@@ -125,6 +125,13 @@ def schema(config=None):
                *[pa.field(f"{arm}_wrist_margin_deg", pa.float64(), metadata={
                    "meaning": "the wrist's bend left at the worst target point for the approach cone (its whole "
                               "bend when no approach is asked; negative: short by that much)"}) for arm in arms[:-1]],
+               pa.field("ecm_tip_depth_mm", pa.float64(), metadata={
+                   "meaning": "the endoscope's tip past the RCM (the port) along its shaft, as held: inserted to "
+                              "stop camera_standoff_mm before the target's centre, never less than its least "
+                              "insertion (the dVRK ECM's 50 mm); NaN where the scope cannot be placed"}),
+               pa.field("ecm_tip_to_target_mm", pa.float64(), metadata={
+                   "meaning": "the endoscope's tip to the target's centre, as held (the standoff the port's "
+                              "distance allows); the camera's coverage is seen from there"}),
                *[pa.field(c, pa.float64()) for c in docking_columns(config)],
                *[pa.field(c, pa.float64(), metadata={"meaning": "the instrument arm's docking frame turned about "
                                                                  "its neutral shaft (deg, x toward y): "
@@ -345,6 +352,8 @@ def design_rows(cfg, sites, t, ids, site_ids, f, bad, cost, design_ids, docking_
     for a, arm in enumerate(arms[:-1]):
         cols[f"{arm}_elevation_deg"] = rise[ids[:, a]]
         cols[f"{arm}_wrist_margin_deg"] = t.wrist_margin_deg[ids[:, a]]
+    cols["ecm_tip_depth_mm"] = t.camera_tip_depth_mm[ids[:, -1]]
+    cols["ecm_tip_to_target_mm"] = t.camera_tip_to_centre_mm[ids[:, -1]]
     for c, name in enumerate(docking_columns(cfg)):
         cols[name] = np.asarray(docking_deg[:, c], dtype=np.float64)
     for a, name in enumerate(roll_columns(cfg)):  # the rolls the tables docked each port at
@@ -649,10 +658,10 @@ def preflight(cfg) -> None:
 #: Cost model: ~60 ns to combine one design and turn it into columns on one core (~70 ns with a third
 #: instrument), plus the tables (~60 ns per site x target point by the closed forms, ~0.3 us per instrument
 #: pair x target point);
-#: a row is ~190 bytes (~230 with a third instrument).
+#: a row is ~206 bytes (~246 with a third instrument).
 NS_PER_DESIGN = 60.0
 NS_PER_DESIGN_3 = 70.0
-ROW_BYTES, ROW_BYTES_3 = 190, 230
+ROW_BYTES, ROW_BYTES_3 = 206, 246
 #: The cart's columns in a row: cart_pose (int64) and the pose's x, y and heading (float64).
 CART_ROW_BYTES = 32
 #: Each arm's setup-joint margins and its six setup joints in a row (float64 each).

@@ -248,8 +248,7 @@ def port_tables(model: PortModel, sites: np.ndarray, rot: np.ndarray, outside=No
     if outside_held is not None:  # a serial arm: its links' clearance outside
         outside = outside_held
     coverage = K.camera_coverage(sites, rot, targets, centre, camera)
-    views = (K.camera_views(sites, rot, centre, camera) if (model.endoscope.wants_views or camera.scope_angle_rad)
-             else None)
+    views = K.camera_views(sites, rot, centre, camera)  # the scope's tip and view at each port (eq. P10)
     held = model.endoscope.hold(model, sites, views)  # a serial arm's: placed by its IK
     if held is not None:
         coverage = np.where(held.placed, coverage, 0.0)
@@ -266,7 +265,7 @@ def port_tables(model: PortModel, sites: np.ndarray, rot: np.ndarray, outside=No
                           len(targets), D.reach_bits(reach), D.site_dexterity(reach, dex),
                           wrist_margin_deg(model, sites), outside_camera,
                           *((dock.bits, dock.camera) if dock is not None else no_cart(len(sites))),
-                          roll_deg=in_degrees(rolls))
+                          roll_deg=in_degrees(rolls), **camera_tip_tables(sites, centre, views, held))
     third = third_frames(model, sites)
     if third is not None:  # the third instrument's reach in frames of its own (the Si PSM3)
         reach3, dex3 = K.instrument_tables(sites, third, targets, model.limits, crit.dexterity_length_m, model.cone)
@@ -275,6 +274,26 @@ def port_tables(model: PortModel, sites: np.ndarray, rot: np.ndarray, outside=No
     if links_decide(cfg) and dock is not None and dock.joints is not None:
         tables = with_links(model, tables, sites, frames, dock, third)
     return tables, reach, dex
+
+
+def camera_tip_tables(sites: np.ndarray, centre: np.ndarray, views, held=None) -> dict:
+    """Per port: the endoscope's tip (``camera_views``) as its depth past the RCM along the shaft and its distance
+    to the target's centre, mm; NaN where the scope cannot be placed (or a serial arm cannot hold it, ``held``)."""
+    tips, _, ok = views
+    if held is not None:
+        ok = ok & held.placed
+    depth = np.where(ok, np.linalg.norm(tips - sites, axis=1) * 1000, np.nan)
+    return {"camera_tip_depth_mm": depth,
+            "camera_tip_to_centre_mm": np.where(ok, np.linalg.norm(centre - tips, axis=1) * 1000, np.nan)}
+
+
+def camera_tips(model: PortModel, sites: np.ndarray) -> dict:
+    """``camera_tip_tables`` of ports ``sites`` (m) docked as the grid docks the camera: what a view of one
+    layout (its export) reads, from the kernel the rows use."""
+    from surgopt.kinematics import port_place as K
+
+    frames = K.docking_frames(sites, model.centre_m, LATERAL)
+    return camera_tip_tables(sites, model.centre_m, K.camera_views(sites, frames, model.centre_m, model.camera))
 
 
 def links_decide(cfg: PortPlaceConfig) -> bool:
