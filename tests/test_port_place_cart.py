@@ -124,6 +124,8 @@ def test_the_dvrk_export_puts_each_psm_rcm_on_its_port_by_the_reference_kinemati
     centre = np.array(C.Target().centre_mm) / 1000
     names = [a["name"] for a in setup["arms"]]
     assert names == ["PSM1", "PSM2", "ECM"]
+    assert sorted(setup["teleop"].values()) == ["PSM1", "PSM2"] and set(setup["teleop"]) == {"MTMR", "MTML"}
+    assert setup["teleop"]["MTMR"] in setup["teleop_note"]
     assert "+x toward the patient's left, +y toward the head" in setup["units"]  # #42 item 3: which side
     clear = setup["clearances_outside_body"]
     assert len(clear["checks"]) == 3 * 2 + 3 * 2  # 3 pairs (docked, over the target), 3 arms x (patient, table)

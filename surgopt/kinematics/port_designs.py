@@ -57,6 +57,9 @@ class PortTables(NamedTuple):
     # shaft and its distance to the target's centre, mm (NaN where the scope cannot be placed; the study's rows)
     camera_tip_depth_mm: np.ndarray = np.zeros(0)
     camera_tip_to_centre_mm: np.ndarray = np.zeros(0)
+    # per site: the tip itself (m, patient frame) and its unit view axis (NaN where the scope cannot be placed)
+    camera_tip_m: np.ndarray = np.zeros((0, 3))
+    camera_axis: np.ndarray = np.zeros((0, 3))
 
 
 def reach_bits(reach: np.ndarray) -> np.ndarray:

@@ -14,6 +14,7 @@ from surgopt.errors import UsageError
 from surgopt.studies.port_place.carts import has_cart
 from surgopt.studies.port_place.config import PortPlaceConfig, camera_arm_of, instrument_of
 from surgopt.studies.port_place.geometry import FRAME_TEXT
+from surgopt.studies.port_place.hands import pairing_words, teleop_pairing
 
 #: The format's version: a reader can refuse one it does not know.
 DVRK_FORMAT = "surgopt-dvrk-setup-1"
@@ -100,6 +101,10 @@ def dvrk_setup(cfg: PortPlaceConfig, row: dict) -> str:
                     "trendelenburg_deg": cfg.cart.trendelenburg_deg, "lateral_tilt_deg": cfg.cart.lateral_tilt_deg},
            "feasible": bool(row["feasible"]), "fails_on": fails_on(row["infeasible"]),
            "cart_to_patient": _matrix(patient), "docking": docking, "arms": arms,
+           "teleop": teleop_pairing(int(row.get("image_right_psm", 0))),
+           "teleop_note": (f"{pairing_words(int(row['image_right_psm']))}: MTMR drives the PSM on the camera "
+                           f"image's right (the image level, its up the patient's front)" if "image_right_psm" in row
+                           else "a run stored before the rows said which PSM is on the image's right: run it again"),
            "clearances_outside_body": clearances_of(clearances, cfg)}
     return json.dumps(out, indent=1) + "\n"
 

@@ -23,6 +23,7 @@ from surgopt.studies.port_place.clashes import in_feasible
 from surgopt.robots.platforms import PLATFORMS
 from surgopt.studies.port_place.config import PortPlaceConfig
 from surgopt.studies.port_place.geometry import FRAME_TEXT, from_landmark
+from surgopt.studies.port_place.hands import pairing_words
 from surgopt.studies.port_place.study import links_of
 
 
@@ -139,6 +140,8 @@ def summary(parts) -> Summary:
                    within_band([b[f] for f in fields], band)]
                   for label, fields, digits, joiner, clinical, band in clinical_checks(_config_or_none(meta))]
         tables.append(("best layout: clinical checks", ["quantity", "value", "clinical number", "within"], checks))
+        if "image_right_psm" in b:  # which hand drives which arm (#54 item 4)
+            headline["hands"] = pairing_words(int(b["image_right_psm"]))
         mark = json.loads(meta["landmark"]) if "landmark" in meta else None
         ports = [[arm, str(b[f"{arm}_site"]), f"{b[f'{arm}_x_mm']:.0f}", f"{b[f'{arm}_y_mm']:.0f}",
                   f"{b[f'{arm}_z_mm']:.0f}"] + ([from_landmark(b[f"{arm}_x_mm"], b[f"{arm}_y_mm"], mark[1:])]

@@ -31,6 +31,7 @@ from surgopt.robots.platforms import AUTO_PLATFORM, PLATFORMS
 from surgopt.robots import dvrk
 from surgopt.studies.port_place.arms import instruments_held
 from surgopt.studies.port_place.carts import has_cart
+from surgopt.studies.port_place.hands import image_right_psm
 from surgopt.studies.port_place import HELP  # the command's help, read by the CLI without importing this module
 from surgopt.studies import Estimate, Study, figures_in, html_views_in, peak_bytes, summary_in
 from surgopt.parts import concat_rows
@@ -132,6 +133,11 @@ def schema(config=None):
                pa.field("ecm_tip_to_target_mm", pa.float64(), metadata={
                    "meaning": "the endoscope's tip to the target's centre, as held (the standoff the port's "
                               "distance allows); the camera's coverage is seen from there"}),
+               pa.field("image_right_psm", pa.int64(), metadata={
+                   "meaning": "1 or 2: the working pair's PSM whose port lies to the camera image's right (the "
+                              "image level, its up the patient's front): the surgeon's right hand (MTMR) should "
+                              "drive it, else the hands are crossed; 0: neither (no camera image, or the two "
+                              "enter it along one line; studies/port_place/hands.py)"}),
                *[pa.field(c, pa.float64()) for c in docking_columns(config)],
                *[pa.field(c, pa.float64(), metadata={"meaning": "the instrument arm's docking frame turned about "
                                                                  "its neutral shaft (deg, x toward y): "
@@ -354,6 +360,8 @@ def design_rows(cfg, sites, t, ids, site_ids, f, bad, cost, design_ids, docking_
         cols[f"{arm}_wrist_margin_deg"] = t.wrist_margin_deg[ids[:, a]]
     cols["ecm_tip_depth_mm"] = t.camera_tip_depth_mm[ids[:, -1]]
     cols["ecm_tip_to_target_mm"] = t.camera_tip_to_centre_mm[ids[:, -1]]
+    cols["image_right_psm"] = image_right_psm(sites[ids[:, 0]], sites[ids[:, 1]], t.camera_tip_m[ids[:, -1]],
+                                              t.camera_axis[ids[:, -1]])
     for c, name in enumerate(docking_columns(cfg)):
         cols[name] = np.asarray(docking_deg[:, c], dtype=np.float64)
     for a, name in enumerate(roll_columns(cfg)):  # the rolls the tables docked each port at
@@ -658,10 +666,10 @@ def preflight(cfg) -> None:
 #: Cost model: ~60 ns to combine one design and turn it into columns on one core (~70 ns with a third
 #: instrument), plus the tables (~60 ns per site x target point by the closed forms, ~0.3 us per instrument
 #: pair x target point);
-#: a row is ~206 bytes (~246 with a third instrument).
+#: a row is ~214 bytes (~254 with a third instrument).
 NS_PER_DESIGN = 60.0
 NS_PER_DESIGN_3 = 70.0
-ROW_BYTES, ROW_BYTES_3 = 206, 246
+ROW_BYTES, ROW_BYTES_3 = 214, 254
 #: The cart's columns in a row: cart_pose (int64) and the pose's x, y and heading (float64).
 CART_ROW_BYTES = 32
 #: Each arm's setup-joint margins and its six setup joints in a row (float64 each).

@@ -278,13 +278,15 @@ def port_tables(model: PortModel, sites: np.ndarray, rot: np.ndarray, outside=No
 
 def camera_tip_tables(sites: np.ndarray, centre: np.ndarray, views, held=None) -> dict:
     """Per port: the endoscope's tip (``camera_views``) as its depth past the RCM along the shaft and its distance
-    to the target's centre, mm; NaN where the scope cannot be placed (or a serial arm cannot hold it, ``held``)."""
-    tips, _, ok = views
+    to the target's centre, mm, the tip itself (m) and its view axis; NaN where the scope cannot be placed (or a
+    serial arm cannot hold it, ``held``)."""
+    tips, axes, ok = views
     if held is not None:
         ok = ok & held.placed
     depth = np.where(ok, np.linalg.norm(tips - sites, axis=1) * 1000, np.nan)
     return {"camera_tip_depth_mm": depth,
-            "camera_tip_to_centre_mm": np.where(ok, np.linalg.norm(centre - tips, axis=1) * 1000, np.nan)}
+            "camera_tip_to_centre_mm": np.where(ok, np.linalg.norm(centre - tips, axis=1) * 1000, np.nan),
+            "camera_tip_m": np.where(ok[:, None], tips, np.nan), "camera_axis": np.where(ok[:, None], axes, np.nan)}
 
 
 def camera_tips(model: PortModel, sites: np.ndarray) -> dict:
