@@ -298,10 +298,11 @@ def test_the_embedded_default_docks_on_the_classic_cart_and_other_arms_say_why_n
 
 
 def test_the_best_layouts_are_screened_for_their_links_clearance(monkeypatch):
-    """The closing report checks the best layouts' links outside the body (not yet in feasible) in cost order until
-    one clears, at most SCREEN_LAYOUTS: the first whose least clearance is >= 0 (at the run's docking, or with the
-    PSMs rolled) is named in the headline; when none clears it says so with the least overlap among them; each
-    row's least is the least of that layout's clearances."""
+    """The closing report checks the best layouts' links outside the body in cost order until one clears docked as
+    its row is, at most SCREEN_LAYOUTS: the first whose least clearance is >= 0 is named in the headline; one that
+    clears only with its PSMs rolled is advice beside it (``chosen``, ``cheaper_if_rolled_words``), never the
+    answer (#54 item 2); when none clears it says so with the least overlap among them; each row's least is the
+    least of that layout's clearances."""
     import json
 
     from surgopt.studies.port_place import clashes
@@ -333,20 +334,28 @@ def test_the_best_layouts_are_screened_for_their_links_clearance(monkeypatch):
     assert seen == [0, 1, 2] and len(table) == 3 and chosen is None  # screened by cost until one clears
     assert word.startswith("design 2 (") and [r[2] for r in table] == ["-100", "-20", "5"]
     assert table[0][-1] == "none of 9 that reach and dock" and table[2][-1] == "-"  # tried only where it overlaps
-    least_mm.update({2: -5.0, 3: -8.0})
+    least_mm.update({2: -5.0, 3: -8.0, 4: 30.0})
     rolled[3] = ({"PSM1": 0.0, "PSM2": -60.0}, 12.0)
     word, (_, _, table), chosen = R.clearance_screen(rows, meta)
-    assert word.startswith("design 3 with its PSMs' docking rolled (PSM2 -60 deg") and "12 mm" in word
-    assert chosen[0]["design_id"] == 3 and chosen[1].rolls == {"PSM1": 0.0, "PSM2": -60.0}  # the headline's
+    assert word.startswith("design 4 (the best feasible layout whose links clear")  # the answer's check goes on
+    assert chosen[0]["design_id"] == 3 and chosen[1].rolls == {"PSM1": 0.0, "PSM2": -60.0}  # the advice
     assert table[3][-1].startswith("PSM1 +0, PSM2 -60: 12 mm") and table[3][-1].endswith("cost 0.34")
-    assert "so docked its cost is 0.3400 (at the run's roll 0.3300" in word
-    assert "its row fails on its links" not in word and title.startswith("the best feasible layouts")
+    advice = R.cheaper_if_rolled_words(*chosen)
+    assert advice.startswith("design 3 (cost 0.3400 so docked) is not a feasible row") and "PSM2 -60 deg" in advice
+    assert "by 12 mm" in advice and "Not the answer" in advice and title.startswith("the best feasible layouts")
+    del least_mm[4]
+    word, _, chosen = R.clearance_screen(rows, meta)
+    assert word.startswith(f"none of the {R.SCREEN_LAYOUTS} best feasible layouts, docked as its row is")
+    assert word.endswith("design 3 clears with its PSMs' docking rolled (cheaper_if_rolled)") and chosen is not None
     rows[3]["feasible"] = False  # with the links in feasible: a cheaper layout failing only on them, screened first
-    word, (title, _, _), _ = R.clearance_screen(rows, meta)
-    assert "its row fails on its links at the run's roll (reason 16)" in word
+    seen.clear()
+    least_mm[4] = 30.0
+    word, (title, _, _), chosen = R.clearance_screen(rows, meta)
+    assert seen[0] == 3 and chosen[0]["design_id"] == 3 and word.startswith("design 4 (")
     assert title.startswith("the best layouts (the feasible ones and, as the links are in feasible")
     rows[3]["feasible"] = True
     rolled.clear()
+    del least_mm[4]
     seen.clear()
     word, (_, _, table), _ = R.clearance_screen(rows, meta)
     assert word.startswith(f"none of the {R.SCREEN_LAYOUTS} best") and "by 5 mm or more" in word

@@ -44,21 +44,13 @@ def best_per_site(c: dict, n_sites: int) -> np.ndarray:
 
 
 def chosen(c: dict, design_id: int | None, cfg=None) -> int | None:
-    """The row of ``design_id``, or of the closing report's best layout: the best feasible design, or, with the
-    links in feasible (``cfg``), the first cheaper one that fails only on them at the run's docking roll and
-    clears with its PSMs rolled (``cheaper_that_clears``)."""
+    """The row of ``design_id``, or of the closing report's answer: the best feasible design (by cost, then
+    design_id; ``cfg`` is accepted for the callers' sake: the answer never depends on a screen)."""
     if design_id is not None:
         rows = np.flatnonzero(c["design_id"] == design_id)
         return int(rows[0]) if len(rows) else None
     ok = np.flatnonzero(c["feasible"])
-    best = int(ok[np.lexsort((c["design_id"][ok], c["cost"][ok]))[0]]) if len(ok) else None
-    if cfg is not None and "cart_pose" in c:
-        from surgopt.studies.port_place.study import links_of
-
-        if links_of(cfg):
-            rolled = cheaper_that_clears(cfg, c, best)
-            return best if rolled is None else rolled
-    return best
+    return int(ok[np.lexsort((c["design_id"][ok], c["cost"][ok]))[0]]) if len(ok) else None
 
 
 def cheapest_clash(c: dict) -> int | None:
@@ -73,25 +65,6 @@ def cheapest_clash(c: dict) -> int | None:
 def row_of(c: dict, r: int) -> dict:
     """Row ``r`` of the columns ``c`` as a dict of Python values."""
     return {k: (v[r].item() if hasattr(v[r], "item") else v[r]) for k, v in c.items()}
-
-
-def cheaper_that_clears(cfg, c: dict, best: int | None) -> int | None:
-    """Of the rows cheaper than ``best`` (by cost, then design_id) that fail only on the links at the run's roll
-    (reason 16), the first of at most ``report.SCREEN_LAYOUTS`` whose links clear with each PSM's roll searched
-    (``clashes.rolls_that_clear``, memoised: the report's screen asks the same), or None: the report's headline."""
-    from surgopt.kinematics.port_reasons import OUTSIDE
-    from surgopt.studies.port_place.clashes import rolls_that_clear
-    from surgopt.studies.port_place.report import SCREEN_LAYOUTS
-
-    cost, ids = c["cost"], c["design_id"]
-    cheaper = c["infeasible"] == OUTSIDE
-    if best is not None:
-        cheaper &= (cost < cost[best]) | ((cost == cost[best]) & (ids < ids[best]))
-    cand = np.flatnonzero(cheaper)
-    for r in cand[np.lexsort((ids[cand], cost[cand]))][:SCREEN_LAYOUTS]:
-        if rolls_that_clear(cfg, row_of(c, int(r))).least is not None:
-            return int(r)
-    return None
 
 
 def held_arms(ax, cfg, sites_m: np.ndarray, ports: list) -> bool:
@@ -160,11 +133,8 @@ def figures(cfg, table, out, design_id=None):
             p = sites[c[f"{arm}_site"][row]]
             ax.plot(*np.stack([p, centre]).T, color=colour, lw=2)
             ax.scatter(*p, color=colour, s=60, label=f"{label} site {c[f'{arm}_site'][row]}")
-        # the report's best layout, not a feasible row, only where a roll clears it (``chosen``); a design asked for
-        # by its id is drawn as its row says
-        rolled = ("" if design_id is not None or c["feasible"][row] else
-                  ", its PSMs rolled so that the links clear (the cart figure)")
-        ax.set_title(f"port-place: design {c['design_id'][row]} (cost {c['cost'][row]:.3f}{rolled}); target "
+        # the report's answer (the best feasible row, ``chosen``), or the design asked for by its id, as its row says
+        ax.set_title(f"port-place: design {c['design_id'][row]} (cost {c['cost'][row]:.3f}); target "
                      f"points by the smaller isotropy", fontsize=9)
         serial = held_arms(ax, cfg, sites_m, [(c[f"{arm}_site"][row], colour) for arm, colour, _ in arms(c)])
         ax.legend(fontsize=8, loc="upper left")

@@ -40,7 +40,8 @@ def image_right_psm(psm1_m: np.ndarray, psm2_m: np.ndarray, tip_m: np.ndarray, a
         d = port - tip_m
         x, y = np.einsum("ij,ij->i", d, right), np.einsum("ij,ij->i", d, up)
         norm = np.hypot(x, y)
-        return x / norm, y / norm
+        with np.errstate(invalid="ignore", divide="ignore"):  # a port on the view's line: NaN, neither side
+            return x / norm, y / norm
 
     (x1, y1), (x2, y2) = in_image(psm1_m), in_image(psm2_m)
     turn = x1 * y2 - y1 * x2

@@ -81,16 +81,9 @@ def views(run, cfg, parts) -> list[View]:
 
     top = pa.concat_tables([t for t in (feasible, infeasible) if t is not None and t.num_rows]) \
         if (feasible.num_rows or (infeasible is not None and infeasible.num_rows)) else feasible
-    found = headline_rolled(cfg, parts)
-    if found is not None:  # the headline's best layout first (once): it clears only with its PSMs rolled
-        import pyarrow.compute as pc
-
-        top = pa.concat_tables([pa.Table.from_pylist([{c: found[0][c] for c in top.column_names}], schema=top.schema),
-                                top.filter(pc.not_equal(top["design_id"], found[0]["design_id"]))])
+    found = headline_rolled(cfg, parts)  # a cheaper layout that clears only rolled: said, never listed as the answer
     layouts = {c: top[c].to_numpy(zero_copy_only=False) for c in wanted}
     layouts["rolled"] = np.array([""] * top.num_rows, dtype=object)
-    if found is not None:
-        layouts["rolled"][0] = rolled_words(found[1])
     mark_name, mark = reference_landmark(cfg.patient)
     for a in arms:  # each port from the reference landmark, in words (the closing report's)
         layouts[f"{a}_from"] = np.array([from_landmark(x, y, mark) for x, y in zip(layouts[f"{a}_x_mm"],
@@ -181,7 +174,7 @@ def views(run, cfg, parts) -> list[View]:
 
 
 def headline_rolled(cfg, parts):
-    """(row, ``RollsThatClear``) of the headline's best layout when it clears only with its PSMs rolled
+    """(row, ``RollsThatClear``) of a layout cheaper than the answer that clears only with its PSMs rolled
     (``report.headline_layout``: the summary's screen, memoised), else None."""
     from surgopt.studies.port_place.report import headline_layout
     from surgopt.studies.port_place.study import links_of
@@ -198,15 +191,15 @@ def rolled_words(rolled) -> str:
 
 
 def rolled_note(found) -> str:
-    """A line saying that the headline's best layout, first in the table, clears only with its PSMs rolled
-    (``headline_rolled``); "" otherwise."""
+    """A line saying that a layout cheaper than the first in the table clears only with its PSMs rolled
+    (``headline_rolled``): not a row, so not listed as the answer; "" otherwise."""
     if found is None:
         return ""
     row, rolled = found
-    return (f'<p class="note" id="pp-rolled">First: the headline\'s best layout, {row["design_id"]} (cost '
-            f'{rolled.cost:.4f}), whose links clear only with its PSMs docked rolled about their shafts '
-            f"({rolled_words(rolled)}); its row, at the run's docking roll, fails on them (reason 16), so it shows "
-            f"as rolled, not feasible. The summary's tables below give it docked so.</p>")
+    return (f'<p class="note" id="pp-rolled">Not listed: layout {row["design_id"]} (cost {rolled.cost:.4f} so '
+            f"docked) would be cheaper, but its links clear only with its PSMs docked rolled about their shafts "
+            f"({rolled_words(rolled)}), checked for it alone; its row, at the run's docking roll, fails on them "
+            f"(reason 16). The answer is the best feasible row, first below.</p>")
 
 
 SCENE_SCRIPT = r"""

@@ -1,8 +1,8 @@
 """port-place's closing report: the feasible count and each reason's, the best layout's clinical checks beside
 the literature, its ports (and from a landmark), its cart pose and setup joints docked as the export docks it,
 why the best layouts without the cart do not dock, the links' screen of the best layouts (with each PSM's roll
-where they overlap; with the links in feasible, the headline's best is the first it clears, rolled where that is
-cheaper than every feasible row), and the least-cost layouts the report and the page list (one of each layout).
+where they overlap; the answer is always the rows' best feasible layout, and a cheaper one that clears only rolled
+is said beside it as advice), and the least-cost layouts the report and the page list (one of each layout).
 
 Read from the stored rows and the run's config in their metadata (a report of an old run is the run's); the
 study (``study.STUDY``) names ``summary`` here by module, imported when a report is made. One module of ~450
@@ -87,7 +87,7 @@ def within_band(values, band) -> str:
 
 #: What every answer leaves out (docs/port_placement.md, "What the model leaves out"), said in the closing report.
 NOT_MODELLED = ("the Xi's setup joints, each PSM's docking turn as a dimension of the rows (the Classic's roll, the "
-                "Si's yaw off psi*: the rows take the run's; the report turns them for its best layouts), tissue "
+                "Si's yaw off psi*: the rows take the run's; the report tries them on cheaper layouts as advice, never as the answer), tissue "
                 "and the body wall's thickness (a port is a point), the assistant's port, the table's rails and arm "
                 "boards and the patient's arms; every link radius is an assumption (docs/port_placement.md, what "
                 "the model leaves out)")
@@ -125,16 +125,11 @@ def summary(parts) -> Summary:
     first = rows[0] if rows else None
     best = best.slice(0, 5)
     tables = []
-    if first is not None or rolled is not None:
+    if rolled is not None:  # a cheaper layout the screen clears with its PSMs rolled: advice, not the answer
+        headline["cheaper_if_rolled"] = cheaper_if_rolled_words(*rolled, _config_or_none(meta))
+    if first is not None:  # the answer is the rows' best feasible layout, docked as its row is (#54 item 2, #56 2)
         b = first
-        if rolled is not None:  # cheaper than every row that clears at the run's roll, clear with its PSMs rolled
-            headline.update({"best_design_id": rolled[0]["design_id"], "best_cost": rolled[1].cost,
-                             "best_at_run_roll": "none: no row is feasible at the run's docking roll" if b is None
-                             else f"design {b['design_id']}, cost {b['cost']:.6f} (the rows' best feasible: its "
-                                  f"links clear at the run's docking roll)"})
-            b = rolled[0]
-        else:
-            headline.update({"best_design_id": b["design_id"], "best_cost": b["cost"]})
+        headline.update({"best_design_id": b["design_id"], "best_cost": b["cost"]})
         checks = [[label + (" (all three instruments)" if fields == ("common_reach",) and "psm3_reach" in b else ""),
                    joiner.join(f"{b[f]:.{digits}f}" for f in fields), clinical,
                    within_band([b[f] for f in fields], band)]
@@ -170,7 +165,7 @@ def summary(parts) -> Summary:
                            f"right, cranial or caudal)", ["design_id", *arms],
                            [[str(r["design_id"]), *(from_landmark(r[f"{a}_x_mm"], r[f"{a}_y_mm"], mark[1:])
                                                     for a in arms)] for r in best.to_pylist()]))
-    if first is None and rolled is None:
+    if first is None:
         headline["best"] = "none: no design is feasible (see the reasons' counts)"
         if screen is not None:  # the layouts failing only on their links, none of which a roll cleared
             headline["links_clear"], table, _ = screen
@@ -291,6 +286,17 @@ def screen_of(parts, meta: dict, best: list[dict]):
     return clearance_screen(best, meta) if best else None
 
 
+def cheaper_if_rolled_words(row: dict, rolled, cfg=None) -> str:
+    """The screen's cheaper layout that clears only rolled (``rolled_of``), in words: not a row, so not the
+    answer; what it would take to make it one."""
+    turned = ", ".join(f"{a} {d:+.0f} deg" for a, d in rolled.rolls.items() if d)
+    return (f"design {row['design_id']} (cost {rolled.cost:.4f} so docked) is not a feasible row: its links overlap "
+            f"at the run's docking roll; with its PSMs' docking turned ({turned}) they would clear by "
+            f"{rolled.least.clearance_mm:.0f} mm, checked for this one layout only (not as the rows are: every "
+            f"check at every pose). Not the answer: to weigh such dockings as rows, run with robot.docking_roll = "
+            f"'search' (or another docking_roll_deg)" + ("" if cfg is None else _below_table(cfg, row, rolled)))
+
+
 def rolled_of(screen) -> tuple | None:
     """(row, ``RollsThatClear``) of the headline's best layout when it is one whose row is not feasible: it fails
     only on its links at the run's docking roll, is cheaper than every feasible row, and clears with its PSMs
@@ -305,7 +311,8 @@ _headlines: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
 
 
 def headline_layout(parts, meta: dict) -> tuple | None:
-    """``rolled_of`` the run's screen, as the summary found it (kept), or screened now."""
+    """``rolled_of`` the run's screen, as the summary found it (kept), or screened now: advice beside the
+    answer (``cheaper_if_rolled_words``), never the answer."""
     if parts not in _headlines:
         rows = least_cost_layouts(parts, max(5, SCREEN_LAYOUTS)).to_pylist()
         _headlines[parts] = rolled_of(screen_of(parts, meta, rows))
@@ -326,11 +333,11 @@ def with_cheaper_overlapping(parts, feasible: list[dict]) -> list[dict]:
 def clearance_screen(rows: list[dict], meta: dict):
     """The best layouts (``rows``, distinct, by cost) screened for their links' clearance outside the body, which
     feasible may leave out (issue 40; the rows' feasible has them at the run's docking roll only): (the
-    headline's word, the table, (the row, its ``RollsThatClear``) when the first that clears does so only with
-    its PSMs rolled, else None), or None when the run's config cannot be read again. A layout whose links
+    headline's word, the table, (the row, its ``RollsThatClear``) of the first cheaper layout that clears only
+    with its PSMs rolled, else None), or None when the run's config cannot be read again. A layout whose links
     overlap at the run's docking roll is tried with each PSM's own roll (``clashes.rolls_that_clear``: full
-    reach and the setup joints' ranges kept). The headline names the
-    first layout that clears, at the run's roll or with rolls; else how much the least of them overlaps."""
+    reach and the setup joints' ranges kept). The word names the first layout that clears docked as its row is
+    (the answer's check); a rolled one is advice (``cheaper_if_rolled_words``), never the answer."""
     from surgopt.studies.port_place.clashes import layout_clearances, least, rolls_that_clear, turn_words
 
     try:
@@ -338,7 +345,12 @@ def clearance_screen(rows: list[dict], meta: dict):
     except STORED_ERRORS:
         return None
     out, clear, chosen = [], None, None
-    for r in rows[:SCREEN_LAYOUTS]:
+    cheaper, feasible = [r for r in rows if not r["feasible"]], [r for r in rows if r["feasible"]]
+    # the cheaper layouts that fail only on their links, until one clears rolled (advice), then the feasible rows
+    # until one clears docked as its row is (the answer's check): each phase at most SCREEN_LAYOUTS
+    for r in cheaper[:SCREEN_LAYOUTS] + feasible[:SCREEN_LAYOUTS]:
+        if chosen is not None and not r["feasible"]:
+            continue
         c = least(layout_clearances(cfg, r))
         if c is None:
             continue
@@ -355,19 +367,9 @@ def clearance_screen(rows: list[dict], meta: dict):
         if clear is None and c.clearance_mm >= 0:
             clear = (f"design {r['design_id']} (the best {'feasible ' if r['feasible'] else ''}layout whose links "
                      f"clear; {{n}} screened)")
-        elif clear is None and rolled is not None and rolled.least is not None:
-            turned = ", ".join(f"{a} {d:+.0f}" for a, d in rolled.rolls.items() if d)
-            turn, participle = turn_words(cfg)
-            kind, where = turn.split(" ", 1)  # "roll", "about the shaft"; "yaw", "off psi*"
-            clear = (f"design {r['design_id']} with its PSMs' docking {participle} ({turned} deg {where}): least "
-                     f"clearance {rolled.least.clearance_mm:.0f} mm ({rolled.least.link_a} / {rolled.least.link_b}); "
-                     f"so docked its cost is {rolled.cost:.4f} (at the run's {'roll' if kind == 'roll' else 'psi*'} "
-                     f"{r['cost']:.4f}: of the cost only the dexterity depends on the {kind})"
-                     + ("" if r["feasible"] else "; its row fails on its links at the run's roll (reason 16), and it "
-                        "is cheaper than every feasible layout")
-                     + "; `surgopt export --format dvrk` docks it so" + _below_table(cfg, r, rolled))
-            chosen = (r, rolled)
-        if clear is not None:  # what the headline needs: the best layout that clears (each costs ~0.5-2 s)
+        elif clear is None and chosen is None and rolled is not None and rolled.least is not None:
+            chosen = (r, rolled)  # advice beside the answer (``cheaper_if_rolled_words``)
+        if clear is not None:  # what the headline needs: the best layout that clears as its row docks it
             break
     if not out:
         return None
@@ -377,12 +379,14 @@ def clearance_screen(rows: list[dict], meta: dict):
     else:
         worst = max(float(x[2]) for x in out)
         kind = "feasible layouts" if all(r["feasible"] for r in rows[:n]) else "layouts failing only on their links"
-        word = (f"none of the {n} best {kind}, at the run's docking or each PSM's own {turn_words(cfg)[0]}: their links "
-                f"overlap outside the body by {-worst:.0f} mm or more (link clearance: {in_feasible(cfg)})")
+        word = (f"none of the {n} best {kind}, docked as its row is: their links overlap outside the body by "
+                f"{-worst:.0f} mm or more (link clearance: {in_feasible(cfg)})"
+                + ("" if chosen is None else f"; design {chosen[0]['design_id']} clears with its PSMs' docking "
+                   f"{turn_words(cfg)[1]} (cheaper_if_rolled)"))
     which = ("the best feasible layouts" if all(r["feasible"] for r in rows[:n]) else
              "the best layouts (the feasible ones and, as the links are in feasible, those cheaper that fail only on "
              "them at the run's roll)")
-    title = (f"{which}, {n} screened by cost until one clears (at most {SCREEN_LAYOUTS}): their "
+    title = (f"{which}, {n} screened by cost until one clears (at most {SCREEN_LAYOUTS} of each): their "
              f"links' least clearance outside the body (capsules, radii "
              f"assumed; negative: they overlap; {in_feasible(cfg)})"
              + f", and each PSM's docking {turn_words(cfg)[0]} (deg, {ROLL_TEXT}) at which they clear")
