@@ -106,8 +106,10 @@ def _tables_equal_layouts(cfg, model, t, pairs, per_pair: int = 8) -> dict:
     for pair, (x, y) in pairs:
         value = t.link_value[pair]
         chosen = []
-        for where in (np.argwhere(value >= 0), np.argwhere(value < 0)):  # half clear (or capped), half overlapping
-            chosen += list(where[rng.choice(len(where), size=min(per_pair // 2, len(where)), replace=False)])
+        capped = per_pair // 4  # half overlapping, a quarter at the cap, the rest clear below it
+        for where, k in ((np.argwhere((value >= 0) & (value < CAP_M - 1e-6)), per_pair - per_pair // 2 - capped),
+                         (np.argwhere(value >= CAP_M - 1e-6), capped), (np.argwhere(value < 0), per_pair // 2)):
+            chosen += list(where[rng.choice(len(where), size=min(k, len(where)), replace=False)])
         for i, j, p in chosen:
             spare = iter(s for s in range(len(model.sites_m)) if s not in (i, j))
             row = _row(cfg, model, {x: i, y: j, **{a: next(spare) for a in arms if a not in (x, y)}}, p)

@@ -419,7 +419,16 @@ def test_a_layout_whose_links_overlap_clears_with_a_psm_rolled_about_its_shaft(t
     from surgopt.studies.port_place.clashes import mounts_below_table_top
 
     low = mounts_below_table_top(cfg, row, arms + ecm)
-    assert low  # the premise here: the rolled PSM2 comes in from below the table top (the default's does too)
+    assert not [a for a in low if a.startswith("PSM")]  # #54: a roll parking a PSM's mount there is refused
+    for name, _ in got.rolls.items():  # every roll it tried docked its mount above the table top
+        for deg, arm in rolled_docks(cfg, row, name.lower(), patient):
+            tip = suj_forward_reference("classic", arm.arm, arm.joints) @ np.linalg.inv(
+                PLATFORMS["classic"].suj(arm.arm).tip_to_tool)
+            assert float((tip[:3, 3] - patient[:3, 3]) @ patient[:3, 2]) >= 0.0
+    allow = C.PortPlaceConfig.model_validate({**GRID, "cart": {**GRID["cart"], "mount_below_table_top": "allow"}})
+    more = {n: {d for d, _ in rolled_docks(allow, row, n.lower(), patient)} for n in got.rolls}
+    fewer = {n: {d for d, _ in rolled_docks(cfg, row, n.lower(), patient)} for n in got.rolls}
+    assert all(fewer[n] <= more[n] for n in got.rolls) and any(fewer[n] < more[n] for n in got.rolls)  # the premise
     for arm in arms + ecm:
         tip = suj_forward_reference("classic", arm.arm, arm.joints) @ np.linalg.inv(PLATFORMS["classic"].suj(arm.arm).tip_to_tool)
         height_mm = float((tip[:3, 3] - patient[:3, 3]) @ patient[:3, 2]) * 1000
@@ -588,7 +597,9 @@ def test_a_searched_cart_pose_docks_each_design_at_its_own_pose(tmp_path):
     assert S.evaluate_designs(cfg, x, np.array([0]), "t")["cart_pose"][0] == -1
     narrow = validate({**searched, "cart": {**searched["cart"], "around_deg": [-90.0, -45.0],
                                             "distance_mm": [850.0, 950.0]},
-                       "search": {"method": "cmaes", "trials": 64, "batch": 16, "seed": 1}}, C.Config, "x")
+                       "search": {"method": "cmaes", "trials": 64, "batch": 16, "seed": 2}}, C.Config, "x")
+    # seed 2: its 64 trials find a feasible layout (the premise below); with the scope at the ECM's least insertion
+    # and no mount below the table top (#54) feasible layouts on this narrow arc are rare (seeds 0, 1, 3-7: none)
     rows = run_study(S.STUDY, narrow, config_name="s", store=Store(tmp_path / "s"), jobs=1, quiet=True).table
     assert len(rows) == 64 and len({round(a, 6) for a in rows["cart_around_deg"].to_pylist()}) > 10
     assert -90 <= min(rows["cart_around_deg"].to_pylist()) <= max(rows["cart_around_deg"].to_pylist()) <= -45
@@ -696,3 +707,30 @@ def test_the_rows_give_each_arms_setup_joint_margins_at_its_pose():
                                        atol=1e-6)
     undocked = cols["cart_pose"] < 0
     assert undocked.any() and all(np.isnan(cols[f"{a}_suj_j1_deg"][undocked]).all() for a in ("psm1", "psm2", "ecm"))
+
+
+def test_a_psm_whose_mount_would_stand_below_the_table_top_does_not_dock():
+    """#54, the bedside: the height of each PSM's mount (its setup joints' last frame) over the table top, written
+    out here from the solved setup joints by the reference forward kinematics (world -> SUJ, the DH products; the
+    mount is the base times the tip -> tool inverse) at every docked (site, pose) of a small grid with
+    ``mount_below_table_top = 'allow'``, equals ``tables.mount_heights_m`` of the site's docking frame (1e-9 m,
+    whatever the pose); some stand below (the premise), and with the default 'refuse' exactly those do not dock."""
+    from reference import SUJ_TIP_ROTATION
+
+    allow = C.PortPlaceConfig.model_validate({**GRID, "cart": {**GRID["cart"], "mount_below_table_top": "allow"}})
+    model = T.prepare(allow)
+    dock = model.dock
+    below = np.zeros(dock.margin.shape, bool)
+    for a, arm in enumerate(("PSM1", "PSM2")):
+        z = T.mount_heights_m(allow, arm, model.instrument_rot, model.sites_m)
+        tool = np.eye(4)
+        tool[:3, :3], tool[:3, 3] = SUJ_TIP_ROTATION, (0.4864, 0.0, 0.1524)  # dvrk-kinematics.md, every PSM
+        docked = np.argwhere(dock.margin[a] >= 0)
+        for i, p in docked[:: max(1, len(docked) // 60)]:
+            mount = suj_forward_reference("classic", arm, dock.joints[a, i, p]) @ np.linalg.inv(tool)
+            in_patient = np.linalg.inv(dock.poses.patient[p]) @ mount
+            assert in_patient[2, 3] == pytest.approx(z[i], abs=1e-9)
+        below[a] = (z < 0)[:, None] & (dock.margin[a] >= 0)
+    assert below.any() and (~below & (dock.margin >= 0)).any()  # the premise: both kinds dock when allowed
+    refused = T.prepare(C.PortPlaceConfig.model_validate(GRID)).dock
+    np.testing.assert_array_equal(refused.margin >= 0, (dock.margin >= 0) & ~below)

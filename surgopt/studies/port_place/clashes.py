@@ -240,14 +240,19 @@ def rolled_reach(cfg, row: dict, arm: str) -> tuple[np.ndarray, np.ndarray, np.n
 def rolled_docks(cfg, row: dict, arm: str, patient: np.ndarray, reached=None) -> list[tuple[float, object]]:
     """(turn in deg, ``tables.DockedArm``) for each turn of ROLL_GRID_DEG at which PSM ``arm`` (``psm1`` ...)
     still reaches every target point from its port (``rolled_reach``, or ``reached``: its answer already had)
-    and its setup joints dock the turned frame within their ranges (S2; the Si's S3, S7). A DockedArm's
+    and its setup joints dock the turned frame within their ranges (S2; the Si's S3, S7) with their mount above the
+    table top (unless ``cart.mount_below_table_top = 'allow'``, ``tables.mount_heights_m``). A DockedArm's
     ``roll_deg`` is the Classic's roll; on the Si, 0 (the turn is a yaw, in the returned degrees)."""
     from surgopt.studies.port_place.tables import DockedArm, base_pose
 
+    from surgopt.studies.port_place.tables import mount_heights_m
+
     frames, full, _, site = rolled_reach(cfg, row, arm) if reached is None else reached
+    low = (mount_heights_m(cfg, arm.upper(), np.asarray(frames), np.repeat(np.asarray(site)[None], len(frames), 0))
+           < 0.0) & (cfg.cart.mount_below_table_top == "refuse")
     out = []
-    for deg, rot, ok in zip(ROLL_GRID_DEG, frames, full):
-        if not ok:
+    for deg, rot, ok, below in zip(ROLL_GRID_DEG, frames, full, low):
+        if not ok or below:  # it loses a target point, or its mount would stand below the table top
             continue
         base = patient @ base_pose(rot, site)
         answer = cart_for(cfg).psm_ik(arm.upper(), base)

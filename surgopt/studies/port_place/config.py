@@ -413,6 +413,10 @@ class Cart(StrictModel):
                                     description="the table's foot and head ends, cranial (assumption)")
     clear_of_table_mm: float = Field(350.0, ge=0.0, le=2000.0, description="the cart's origin this far from the "
                                                                              "table's outline (its base's reach)")
+    mount_below_table_top: Literal["refuse", "allow"] = Field(
+        "refuse", description="'refuse': a PSM does not dock where its setup joints would hold its mount (their last "
+                              "frame, where the arm's own links begin) below the table top: beside the table stand "
+                              "the patient's arms, the arm boards and the rails (issue 54); 'allow': it may")
     trendelenburg_deg: float = Field(0.0, ge=-40.0, le=40.0, description="head down (positive) or up")
     lateral_tilt_deg: float = Field(0.0, ge=-40.0, le=40.0, description="the patient's left side up (positive)")
 

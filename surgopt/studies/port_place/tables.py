@@ -476,12 +476,26 @@ def psm_docks(model: PortModel, site_ids: np.ndarray, poses: CartPoses, rot=None
         bases[:, :3, :3], bases[:, :3, 3], bases[:, 3, 3] = frames, sites, 1.0
         return np.ascontiguousarray(np.einsum("pij,njk->npik", poses.patient, bases).reshape(n * m, 4, 4))
 
-    shared = in_cart(model.instrument_rot[site_ids] if rot is None else rot)
+    frames = model.instrument_rot[site_ids] if rot is None else rot
+    shared = in_cart(frames)
     for a, arm in enumerate(arms):  # the best solution's least margin (suj_answer's first), every site and pose
-        third = in_cart(model.third_rot[site_ids]) if a == 2 and model.third_rot is not None else None
+        own = a == 2 and model.third_rot is not None
+        third = in_cart(model.third_rot[site_ids]) if own else None
         got, q = cart.psm_solutions(arm, shared, third)
         margin[a], joints[a] = got.reshape(n, m), q.reshape(n, m, 6)
+        if cfg.cart.mount_below_table_top == "refuse":  # the mount's height does not depend on the cart's pose
+            low = mount_heights_m(cfg, arm, model.third_rot[site_ids] if own else frames, sites) < 0.0
+            margin[a, low], joints[a, low] = -np.inf, np.nan
     return margin, joints
+
+
+def mount_heights_m(cfg: PortPlaceConfig, arm: str, frames: np.ndarray, sites_m: np.ndarray) -> np.ndarray:
+    """(n,) The height over the table top (the patient frame's z, m) of PSM ``arm``'s mount (its setup joints' last
+    frame, where its own links begin) when its base (the RCM) is docked in ``frames`` (n, 3, 3) at ``sites_m`` (n,
+    3): the base times the inverse of SUJ_tip_to_tool_origin, whatever the cart's pose (the base is fixed in the
+    patient's frame)."""
+    back = np.linalg.inv(np.asarray(PLATFORMS[cfg.cart.model].suj(arm).tip_to_tool, float))[:3, 3]
+    return sites_m[:, 2] + frames[:, 2, :] @ back
 
 
 def redocked(model: PortModel, dock: DockTables, site_ids: np.ndarray, rot: np.ndarray) -> DockTables:
