@@ -223,6 +223,42 @@ def test_feasible_rows_keep_their_links_clear_and_clashes_fail_on_them(links):
                                    err_msg=c)
 
 
+def test_a_feasible_rows_cart_pose_is_the_one_at_which_its_links_clear_most():
+    """#54 item 5: a feasible row's cart pose is, of the poses at which every arm docks and every link clears (each
+    pair's and each arm's against the patient and table at least the least), the one whose least clearance is
+    largest (ties: the first), written out here from the tables' entries; it is often not the first pose that
+    clears (the premise), and the row's external clearance is that pose's least. The scope's least insertion 0
+    (not the ECM's 50 mm): this small grid then has 16 feasible rows to weigh, not one."""
+    cfg = PC.PortPlaceConfig.model_validate({**LINKS, "robot": {"camera_min_insertion_mm": 0.0},
+                                             "cart": {**LINKS["cart"], "distance_step_mm": 150.0}})
+    t = T.model_of(cfg).grid.tables
+    cols = S.compute_task(cfg, S.n_total(cfg), 0)
+    least_m = cfg.constraints.min_link_clearance_mm / 1000
+    poses = t.link_value.shape[3]
+
+    def docks(words, p):
+        return (int(words[p // 64]) >> (p % 64)) & 1
+
+    moved = 0
+    feasible = np.flatnonzero(cols["feasible"])
+    for r in feasible:
+        a, b, k = (int(cols[f"{x}_site"][r]) for x in ("psm1", "psm2", "ecm"))
+        best, at, first = -np.inf, -1, -1
+        for p in range(poses):
+            if not (docks(t.dock[0, a], p) and docks(t.dock[1, b], p) and docks(t.dock_camera[k], p)):
+                continue
+            values = np.array([t.link_value[0, a, b, p], t.link_value[1, a, k, p], t.link_value[2, b, k, p],
+                               t.arm_value[0, a, p], t.arm_value[1, b, p], t.arm_value[3, k, p]], float)
+            if not np.all(values >= least_m):  # NaN or below: not clear there
+                continue
+            first = p if first < 0 else first
+            if values.min() > best:
+                best, at = values.min(), p
+        assert cols["cart_pose"][r] == at and cols["external_clearance_mm"][r] == pytest.approx(best * 1000, abs=1e-3)
+        moved += first != at
+    assert moved > 0  # the premise: the first pose that clears is not always the clearest
+
+
 def test_the_batch_solver_keeps_the_best_solutions_joints():
     """``suj_batch.classic_psm_solutions`` (the joints the link tables place the setup joints at): at poses made
     from random in-range joints, its margins are ``classic_psm_margins``' and its joints, through the SUJ's forward

@@ -734,3 +734,39 @@ def test_a_psm_whose_mount_would_stand_below_the_table_top_does_not_dock():
     assert below.any() and (~below & (dock.margin >= 0)).any()  # the premise: both kinds dock when allowed
     refused = T.prepare(C.PortPlaceConfig.model_validate(GRID)).dock
     np.testing.assert_array_equal(refused.margin >= 0, (dock.margin >= 0) & ~below)
+
+
+def test_the_report_says_when_the_answers_cart_pose_lies_on_a_bound_of_the_grid():
+    """#54 item 5: the grid's places (around, distance, heading offset) numbered as ``cart_poses`` numbers the
+    poses (each place's floor pose written again from it); an answer on the nearest ring and an end of the arc is
+    said so, with how many feasible layouts dock on each bound (counted here from a stub of the rows); one inside the
+    grid says nothing, nor does a given pose."""
+    import pyarrow as pa
+
+    cfg = C.PortPlaceConfig.model_validate(GRID)
+    places = T.grid_place_of_pose(cfg)
+    floor = T.cart_poses(cfg).floor
+    assert len(places) == len(floor)
+    for place, pose in zip(places, floor):
+        np.testing.assert_allclose(T.floor_pose(cfg, *place), pose, atol=1e-9)
+    near = float(cfg.cart.distance_mm[0])
+    corner = int(np.flatnonzero((places[:, 1] == near) & (places[:, 0] == places[:, 0].min())
+                                & (places[:, 2] != places[:, 2].min()) & (places[:, 2] != places[:, 2].max()))[0])
+    inner = np.flatnonzero((places[:, 1] > near) & (places[:, 1] < places[:, 1].max())
+                           & (places[:, 0] > places[:, 0].min()) & (places[:, 0] < places[:, 0].max())
+                           & (places[:, 2] != places[:, 2].min()) & (places[:, 2] != places[:, 2].max()))
+    assert len(inner)  # the premise: the grid has an inside
+
+    class Rows:
+        num_rows = 5
+
+        def only(self, columns):
+            yield pa.table({"cart_pose": [corner, corner, int(inner[0]), -1, corner],
+                            "feasible": [True, True, True, True, False]})
+
+    words = R.cart_bound_words(Rows(), {"cart_pose": corner}, cfg)
+    assert f"on the grid's nearest ring ({near:g}, cart.distance_mm; 2 of the 3 feasible layouts dock there)" in words
+    assert "arc's end" in words and "widen them" in words
+    assert R.cart_bound_words(Rows(), {"cart_pose": int(inner[0])}, cfg) == ""
+    given = C.PortPlaceConfig.model_validate({**GRID, "cart": {**GRID["cart"], "pose": "given"}})
+    assert R.cart_bound_words(Rows(), {"cart_pose": 0}, given) == ""

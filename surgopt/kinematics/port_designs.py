@@ -230,9 +230,10 @@ def design_columns(t, crit, start, stop, instruments=2, feasible_only=False):
             outside = np.nan  # the links are not placed: no pose docks, or the design fails on another count
         if pose < 0:
             b |= DOCKING
-        elif links and b == 0:  # the first pose at which they dock and their links clear, else the docking that
-            # clears most (only for designs that pass every other check: the tables hold the entries they need)
-            clear, turned = first_clear(t, i, j, l, k)
+        elif links and b == 0:  # of the dockings whose links clear, the one that clears most (the pose of the most
+            # margin, issue 54, not the first found), else OUTSIDE at the docking that clears most (only for designs
+            # that pass every other check: the tables hold the entries they need)
+            clear, turned = clearest_clear(t, i, j, l, k)
             if clear >= 0:
                 pose, swapped = clear, turned
             else:
@@ -323,22 +324,39 @@ def _entries(i, j, l, k, swapped):
 
 
 @njit(**EXACT)
-def first_clear(t, i, j, l, k):
-    """``first_dock`` with the links' words too: the first cart pose at which every arm docks and every pair of
-    arms' links clear (either way round, straight preferred), or -1."""
+def clear_words(t, i, j, l, k, w):
+    """Word w of the cart poses at which every arm docks and every pair of arms' links clear (and each arm the
+    patient and the table), PSM1 on i and PSM2 on j (straight) or the other way round (crossed)."""
+    straight, crossed = docking_words(t.dock, t.dock_camera, i, j, l, k, w)
+    for e in _entries(i, j, l, k, False):
+        straight &= t.link_words[e[0], e[1], e[2], w]
+    for e in _entries(i, j, l, k, True):
+        crossed &= t.link_words[e[0], e[1], e[2], w]
+    if t.arm_words.shape[0] > 0:  # each arm clear of the patient and the table
+        around = t.arm_words[3, k, w] & (t.arm_words[2, l, w] if l >= 0 else ~np.uint64(0))
+        straight &= t.arm_words[0, i, w] & t.arm_words[1, j, w] & around
+        crossed &= t.arm_words[0, j, w] & t.arm_words[1, i, w] & around
+    return straight, crossed
+
+
+@njit(**EXACT)
+def clearest_clear(t, i, j, l, k):
+    """Of the cart poses (and ways round) at which every arm docks and every link clears (``clear_words``), the
+    one whose least link clearance (``links_at``) is largest: the docking of the most margin (issue 54), not the
+    first found (ties: the first, by pose, straight before crossed in each word); (-1, 0) where none clears."""
+    best, at, turned = -np.inf, -1, 0
     for w in range(t.dock.shape[2]):
-        straight, crossed = docking_words(t.dock, t.dock_camera, i, j, l, k, w)
-        for e in _entries(i, j, l, k, False):
-            straight &= t.link_words[e[0], e[1], e[2], w]
-        for e in _entries(i, j, l, k, True):
-            crossed &= t.link_words[e[0], e[1], e[2], w]
-        if t.arm_words.shape[0] > 0:  # each arm clear of the patient and the table
-            around = t.arm_words[3, k, w] & (t.arm_words[2, l, w] if l >= 0 else ~np.uint64(0))
-            straight &= t.arm_words[0, i, w] & t.arm_words[1, j, w] & around
-            crossed &= t.arm_words[0, j, w] & t.arm_words[1, i, w] & around
-        if (straight | crossed) != 0:
-            return lowest_pose(w, straight, crossed)
-    return -1, 0
+        straight, crossed = clear_words(t, i, j, l, k, w)
+        for swapped in range(2):
+            word = crossed if swapped else straight
+            while word != 0:
+                low = word & (~word + np.uint64(1))
+                p = w * 64 + np.int64(popcount64(low - np.uint64(1)))
+                v, _ = links_at(t, i, j, l, k, p, swapped)
+                if at < 0 or v > best:
+                    best, at, turned = v, p, swapped
+                word &= word - np.uint64(1)
+    return at, turned
 
 
 @njit(**EXACT)

@@ -389,7 +389,8 @@ class Cart(StrictModel):
                             "read, so the stored config names the one used",
         json_schema_extra={"enum": list(CART_MODELS)})
     pose: Literal["grid", "given", "search"] = Field(
-        "grid", description="'grid': every pose of the grid below, a layout's first that docks; 'given': x_mm, "
+        "grid", description="'grid': every pose of the grid below, a layout's the one at which its links clear most "
+                            "(without the links in feasible: its first that docks); 'given': x_mm, "
                             "y_mm, heading_deg; 'search': a [search]'s dimensions (cart_around_deg, "
                             "cart_distance_mm, cart_yaw_offset_deg within around_deg, distance_mm and the range of "
                             "yaw_offsets_deg), each trial docked at its own pose")

@@ -145,6 +145,9 @@ def summary(parts) -> Summary:
         tables.append((f"best layout: ports ({FRAME_TEXT})", ["arm", "site", "x_mm", "y_mm", "z_mm"]
                        + ([f"from the {mark[0]} (mm, top view)"] if mark else []), ports))
         if "cart_pose" in b:  # after the screen: the best layout's clearances and rolls are then known
+            bound = cart_bound_words(parts, b, _config_or_none(meta))
+            if bound:
+                headline["cart_on_bound"] = bound
             tables += docking_tables(b, meta)
             if meta.get("rows_stored") != "feasible":
                 tables += undocked_table(parts, meta)
@@ -274,6 +277,37 @@ def why_undocked(dock, sites: np.ndarray) -> np.ndarray:
 #: patient and the table; ``clashes.layout_clearances``).
 SCREEN_LAYOUTS = 10
 ROLL_TEXT = "a 15-degree grid over +-90"
+
+
+def cart_bound_words(parts, best: dict, cfg) -> str:
+    """Where the answer's cart pose lies on a bound of the run's grid of cart poses (its nearest or farthest ring,
+    an end of its arc, an outermost heading offset), in words with how many feasible layouts dock on that bound
+    too; "" where it lies inside the grid, or the cart's pose was given or searched (issue 54 item 5: the grid's
+    bounds are the config's; a bound the answer sits on is one a wider grid might beat)."""
+    from surgopt.studies.port_place.tables import grid_place_of_pose
+
+    if cfg is None or cfg.cart.pose != "grid" or best.get("cart_pose", -1) < 0:
+        return ""
+    places = grid_place_of_pose(cfg)
+    at = places[best["cart_pose"]]
+    poses = [t.filter(t["feasible"])["cart_pose"].to_numpy() for t in parts.only(["cart_pose", "feasible"])]
+    poses = np.concatenate(poses) if poses else np.zeros(0, np.int64)
+    poses = poses[poses >= 0].astype(np.int64)
+    said = []
+    for c, field, low, high in ((1, "distance_mm", "nearest ring", "farthest ring"), (0, "around_deg", "arc's end",
+                                "arc's end"), (2, "yaw_offsets_deg", "outermost heading offset",
+                                               "outermost heading offset")):
+        lo, hi = places[:, c].min(), places[:, c].max()
+        for value, name in ((lo, low), (hi, high)):
+            if lo < hi and abs(at[c] - value) < 1e-9:
+                n = int(np.count_nonzero(np.abs(places[poses, c] - value) < 1e-9))
+                said.append(f"on the grid's {name} ({value:g}, cart.{field}; {n:,} of the {len(poses):,} feasible "
+                            f"layouts dock there)")
+    if not said:
+        return ""
+    return ("the answer's cart pose lies " + "; and ".join(said) + ": a pose beyond it may do better. The grid's "
+            "bounds are the config's (the cart's footprint is not modelled, only its origin cart.clear_of_table_mm "
+            "from the table): widen them to see")
 
 
 def screen_of(parts, meta: dict, best: list[dict]):

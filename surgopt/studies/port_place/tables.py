@@ -392,11 +392,27 @@ def cart_poses(cfg: PortPlaceConfig) -> CartPoses:
     elif cart.pose == "search":
         floor = np.array([floor_pose(cfg, *searched_middle(cart).values())])
     else:
-        around = np.arange(cart.around_deg[0], cart.around_deg[1] + 1e-9, cart.around_step_deg)
-        distance = np.arange(cart.distance_mm[0], cart.distance_mm[1] + 1e-9, cart.distance_step_mm)
-        floor = np.array([floor_pose(cfg, a, d, off) for a in around for d in distance for off in cart.yaw_offsets_deg])
+        grid = grid_places(cfg)
+        floor = np.array([floor_pose(cfg, *g) for g in grid])
         floor = floor[off_table(cart, floor[:, 0], floor[:, 1])]
     return poses_of(cart, floor)
+
+
+def grid_places(cfg: PortPlaceConfig) -> np.ndarray:
+    """(P, 3) The grid's places before the table's clearance is applied: around (deg), distance (mm), heading offset
+    (deg), in the grid's order (``cart_poses``)."""
+    cart = cfg.cart
+    around = np.arange(cart.around_deg[0], cart.around_deg[1] + 1e-9, cart.around_step_deg)
+    distance = np.arange(cart.distance_mm[0], cart.distance_mm[1] + 1e-9, cart.distance_step_mm)
+    return np.array([(a, d, off) for a in around for d in distance for off in cart.yaw_offsets_deg], float)
+
+
+def grid_place_of_pose(cfg: PortPlaceConfig) -> np.ndarray:
+    """(poses, 3) Each grid pose's (around deg, distance mm, heading offset deg): ``grid_places`` that stand clear
+    of the table, as ``cart_poses`` numbers them."""
+    grid = grid_places(cfg)
+    floor = np.array([floor_pose(cfg, *g) for g in grid])
+    return grid[off_table(cfg.cart, floor[:, 0], floor[:, 1])]
 
 
 def poses_of(cart, floor: np.ndarray) -> CartPoses:
