@@ -245,6 +245,10 @@ def plot(
     if out is not None and out.exists() and not out.is_dir():
         fail(f"--out: {out} is a file; give a folder for the figures", 2)
     with guard():
+        if out is not None:  # not into a run folder of the store (leave --out off to write beside the run)
+            from surgopt.outputs import checked
+
+            checked(out)
         from surgopt.results import config_of, resolve_run
         from surgopt.store import Store
 
@@ -317,6 +321,10 @@ def report(
     if out is not None and out.is_dir():
         fail(f"--out: {out} is a folder; give the page's file name (e.g. report.html)", 2)
     with guard():
+        if out is not None and str(out) != "-":  # not into the store's own files (its run folders, parts, ...)
+            from surgopt.outputs import checked
+
+            checked(out)
         from surgopt import html_report as H
         from surgopt.results import resolve_run, run_records
         from surgopt.store import Store
@@ -346,7 +354,8 @@ def report(
             st, r, _ = items[0]
             path = _write_page(H, st, r, out or r.path / H.REPORT_FILE)
             latest = "" if runs_ else f" (the latest {study + ' ' if study else ''}run in the store)"
-            typer.echo(f"{path}: {st.name} run {r.key[:12]} {r.manifest.get('config_name', '')}{latest}")
+            typer.echo(f"{path}: {st.name} run {r.key[:12]} {r.manifest.get('config_name', '')}{latest}",
+                       err=str(path) == "-")  # the page itself on standard output: the word beside it
             return
         path = out or s.root / H.REPORT_FILE
         _write_text(path, H.comparison_page(items))
@@ -359,9 +368,20 @@ def _write_page(H, st, r, path: Path) -> Path:
 
 
 def _write_text(path: Path, text: str) -> None:
-    """Atomically: a reader never sees half a page."""
+    """Atomically (a reader never sees half a page), through what is not a regular file (a FIFO, /dev/stdout),
+    ``-``: standard output (``outputs.write_text_out``); the caller has refused a user's path into the store."""
+    from surgopt.outputs import is_stdout, streamed
     from surgopt.store import atomic_write
 
+    if is_stdout(path):
+        from surgopt.outputs import write_text_out
+
+        write_text_out(path, text)
+        return
+    if streamed(Path(path)):  # a FIFO, a device: streamed into, never replaced by a file
+        Path(path).write_bytes(text.encode("utf-8"))
+        return
+    path = Path(path).expanduser().resolve(strict=False)  # a link to a page: its target replaced, the link kept
     path.parent.mkdir(parents=True, exist_ok=True)
     atomic_write(path, lambda tmp: tmp.write_text(text, encoding="utf-8"))
 
@@ -415,18 +435,20 @@ def export(
             text, notes = export_design(Store(store), runs_[0], design, fmt, study)
             for note in notes:
                 typer.echo(note, err=True)
-            if out is None:
-                sys.stdout.write(text)
-            else:
-                from surgopt.store import atomic_write
+            from surgopt.outputs import is_stdout, write_text_out
 
-                atomic_write(out, lambda tmp: tmp.write_text(text))
+            write_text_out(out, text)
+            if not is_stdout(out):
                 typer.echo(f"wrote {out} (design {design}, {fmt})", err=True)
             return
         if design is not None:
             fail("--design goes with a study's own --format (csv, parquet and json export every row)", 2)
-        if fmt == ExportFormat.parquet and out is None:
+        from surgopt.outputs import checked, is_stdout
+
+        if fmt == ExportFormat.parquet and is_stdout(out):
             fail("--format parquet needs --out FILE", 2)
+        if not is_stdout(out):
+            checked(out)  # not into the store's own files: refused before anything is read or written
         if out is not None and out.is_dir():
             fail(f"--out: {out} is a folder; give a file", 2)
         from surgopt.export import export_runs, write_csv, write_json, write_parquet
@@ -436,7 +458,7 @@ def export(
             typer.echo(note, err=True)
         writer = {ExportFormat.csv: write_csv, ExportFormat.parquet: write_parquet, ExportFormat.json: write_json}
         writer[ExportFormat(fmt)](export, out)
-    if out is not None:
+    if out is not None and str(out) != "-":
         typer.echo(f"wrote {out} ({export.num_rows} rows, {len(export.schema)} columns)", err=True)
 
 

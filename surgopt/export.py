@@ -7,7 +7,6 @@ Arrow's CSV writer it is a few seconds and one part's memory).
 """
 from __future__ import annotations
 
-import sys
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Callable, Iterator
@@ -143,17 +142,11 @@ def write_json(export: Export, out: Path | None) -> None:
 
 
 def _to(out: Path | None, write: Callable) -> None:
-    if out is None:
-        write(sys.stdout.buffer)
-        sys.stdout.buffer.flush()
-        return
-    from surgopt.store import atomic_write
+    """``outputs.write_out``: standard output (None or ``-``), through what is not a regular file, else atomically;
+    never into the store's own files."""
+    from surgopt.outputs import write_out
 
-    def to_file(tmp: Path) -> None:
-        with open(tmp, "wb") as f:
-            write(f)
-
-    atomic_write(out, to_file)
+    write_out(out, write)
 
 
 def csv_lines(table) -> bytes:

@@ -249,8 +249,10 @@ def write_baseline(table, keys, path: Path) -> None:
     """The table sorted by its key columns, written atomically as a Parquet baseline."""
     import pyarrow.parquet as pq
 
+    from surgopt.outputs import checked
     from surgopt.store import atomic_write
 
+    path = checked(path, "--baseline")  # never onto the store's own files
     path.parent.mkdir(parents=True, exist_ok=True)
     atomic_write(path, lambda tmp: pq.write_table(table.sort_by([(k, "ascending") for k in keys]), tmp,
                                                   compression="zstd"))

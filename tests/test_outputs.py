@@ -1,0 +1,74 @@
+"""Issue 55 items 1 and 2: what ``--out`` names is never one of the store's own files, what is not a regular file is
+written through (never replaced by a file), ``-`` is standard output, and a link to a file keeps being a link.
+(``surgopt/outputs.py``: one rule for every writer.)"""
+import hashlib
+import os
+import stat
+import threading
+
+import pytest
+
+from conftest import invoke
+
+
+def _sha(path):
+    return hashlib.sha256(path.read_bytes()).hexdigest()
+
+
+def _run_folder(store):
+    (folder,) = [p.parent for p in store.rglob("_manifest.json")]
+    return folder
+
+
+@pytest.mark.parametrize("command", ["csv", "parquet", "json", "report", "plot", "baseline"])
+def test_an_output_into_the_store_is_refused_in_one_line_and_nothing_changes(stored, command, tmp_path):
+    cfg, store, _ = stored
+    run = _run_folder(store)
+    before = {p: _sha(p) for p in run.rglob("*") if p.is_file()}
+    assert any(p.name.startswith("part-") for p in before)  # the premise: a run with parts
+    for target in (run / "part-00000.parquet", run / "_manifest.json", run / "mine.out", run,
+                   store / "study=rcm-grid" / "_hits" / "x", store / "study=rcm-grid" / ".locks" / "x"):
+        if command == "report":
+            args = ("report", "latest", "--store", store, "--out", target)
+        elif command == "plot":
+            args = ("plot", "latest", "--store", store, "--out", target)
+        elif command == "baseline":
+            args = ("check", cfg, "--store", store, "--baseline", target, "--write")
+        else:
+            args = ("export", "latest", "--store", store, "--format", command, "--out", target)
+        if target == run and command != "plot":
+            continue  # a folder is refused for a file anyway
+        if command == "plot" and target.name.startswith(("part-", "_manifest")):
+            continue  # a file is refused for the figures' folder anyway
+        code, output = invoke(*args)
+        lines = [line for line in output.strip().splitlines() if line.strip()]
+        assert code == 2 and len(lines) == 1 and "result store" in lines[0] and "nothing was written" in lines[0], \
+            (target, output)
+    assert {p: _sha(p) for p in run.rglob("*") if p.is_file()} == before
+
+
+def test_a_fifo_is_written_through_and_stays_a_fifo(stored, tmp_path):
+    _, store, table = stored
+    fifo = tmp_path / "rows.csv"
+    os.mkfifo(fifo)
+    got = []
+    reader = threading.Thread(target=lambda: got.append(fifo.read_bytes()))
+    reader.start()
+    code, output = invoke("export", "latest", "--store", store, "--format", "csv", "--out", fifo)
+    reader.join(timeout=60)
+    assert code == 0 and got and got[0].count(b"\n") == table.num_rows + 1
+    assert stat.S_ISFIFO(os.stat(fifo).st_mode)  # not replaced by a regular file
+
+
+def test_dash_is_standard_output_and_a_link_stays_a_link(stored, tmp_path):
+    _, store, table = stored
+    code, output = invoke("export", "latest", "--store", store, "--format", "csv", "--out", "-")
+    assert code == 0 and output.count("\n") >= table.num_rows + 1 and "wrote" not in output
+    target = tmp_path / "target.csv"
+    target.write_text("old\n")
+    link = tmp_path / "link.csv"
+    link.symlink_to(target)
+    code, _ = invoke("export", "latest", "--store", store, "--format", "csv", "--out", link)
+    assert code == 0 and link.is_symlink() and target.read_text().count("\n") == table.num_rows + 1
+    code, _ = invoke("export", "latest", "--store", store, "--format", "parquet", "--out", "-")
+    assert code == 2  # binary Parquet is not written to a terminal
