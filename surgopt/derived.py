@@ -17,7 +17,8 @@ from functools import lru_cache
 from pathlib import Path
 from typing import Any, Callable
 
-DERIVED = "_derived.json"
+from surgopt.store import DERIVED  # the store's layout names it
+
 #: A derived file larger than this is not one surgopt wrote (a port-place report's entries are ~20 kB).
 MAX_DERIVED_BYTES = 16 * 2 ** 20
 FORMAT = 1

@@ -23,7 +23,8 @@ import sys
 import time
 from pathlib import Path
 
-HITS = "_hits"
+from surgopt.store import HITS  # the store's layout names it
+
 FORMAT = 1
 #: Recorded command lines kept per store (each a few hundred bytes); the least recently written go first.
 MAX_HITS = 256

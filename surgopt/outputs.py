@@ -31,9 +31,7 @@ def is_stdout(out) -> bool:
 def store_reserved(path: Path) -> str:
     """Why ``path`` (resolved) belongs to a store and must not be written by an export ("" where it does not): a
     part, a manifest or the derived numbers by name, or a place inside a run folder, its hits, locks or staging."""
-    from surgopt.derived import DERIVED
-    from surgopt.hits import HITS
-    from surgopt.store import LEGACY_MANIFEST, LOCKS, MANIFEST, STAGING
+    from surgopt.store import DERIVED, HITS, LEGACY_MANIFEST, LOCKS, MANIFEST, STAGING
 
     if PART.fullmatch(path.name) or path.name in (MANIFEST, LEGACY_MANIFEST, DERIVED):
         return f"is a name the result store keeps for its own files ({path.name})"

@@ -53,6 +53,10 @@ LEGACY_MANIFEST = "manifest.json"
 #: work; a stop, an error and the end of a run write the manifest at once (``sync_manifest``, ``finish``).
 MANIFEST_EVERY_S = 0.25
 LOCKS = ".locks"
+#: A run's derived numbers (``derived.py``) and a study folder's recorded command lines (``hits.py``): names the
+#: store reserves, defined here with its layout so that what guards it (``outputs.py``) reads them from one place.
+DERIVED = "_derived.json"
+HITS = "_hits"
 STAGING = ".staging"
 FORMAT_VERSION = 1
 #: What a study name may be (it becomes a folder name): a plain word.
