@@ -20,8 +20,16 @@ AGGREGATE_NOTE = ("This page embeds aggregates of the run's rows (computed from 
                   "themselves; `surgopt export {key} --out rows.csv` writes every row.")
 
 
+#: What JSON embedded in a <script> never holds as itself (issue 55 item 5): '<', '>' and '&' (so that no string can
+#: end the script, open a comment ('<!--' keeps a script from running at all) or an entity), and the two line
+#: separators JavaScript reads as line ends; each as its \\u escape, which JSON.parse reads back as the character.
+SCRIPT_SAFE = str.maketrans({"<": "\\u003c", ">": "\\u003e", "&": "\\u0026", "\u2028": "\\u2028",
+                             "\u2029": "\\u2029"})
+
+
 def to_json(obj) -> str:
-    """JSON for embedding in a <script>: numpy values as numbers (NaN and inf as null), '</' escaped."""
+    """JSON for embedding in a <script>: numpy values as numbers (NaN and inf as null), '<', '>', '&' and the line
+    separators escaped (``SCRIPT_SAFE``)."""
     def default(o):
         if isinstance(o, np.ndarray):
             return o.tolist()
@@ -34,7 +42,7 @@ def to_json(obj) -> str:
         raise TypeError(type(o).__name__)
 
     text = json.dumps(_finite(obj), default=default, separators=(",", ":"), allow_nan=False)  # JSON has no NaN
-    return text.replace("</", "<\\/")
+    return text.translate(SCRIPT_SAFE)
 
 
 def _finite(obj):

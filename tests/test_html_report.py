@@ -304,3 +304,43 @@ def tomllib_load(path):
     import tomllib
 
     return tomllib.loads(path.read_text())
+
+
+HOSTILE = ("]]>-->", "<!--<script>", "</script><script>alert(1)</script>", "a & b <b>", "\u2028x\u2029")
+
+
+def test_embedded_json_holds_no_character_that_could_end_or_stop_a_script():
+    """#55 item 5: every JSON a page embeds in a script goes through ``to_json``: '<', '>', '&' and the line
+    separators escaped, and it reads back as the same value."""
+    import json
+
+    from surgopt.html_report import to_json
+
+    value = {"names": list(HOSTILE), "nested": {h: [h] for h in HOSTILE}}
+    text = to_json(value)
+    assert not set("<>&\u2028\u2029") & set(text) and json.loads(text) == value
+
+
+def test_hostile_strings_in_a_pages_figures_and_data_keep_every_figure_drawing(page, tmp_path):
+    """#55 item 5: a page whose figures' names, titles and embedded data hold '<!--<script>' and the like (a name a
+    user controls: before, one such string stopped the page's script, no figure drawn) draws every figure in
+    Chromium, with no console error, and shows the strings as text."""
+    from surgopt import html_report as H
+    from surgopt.studies.page import View
+
+    sections, scripts, data = [], [], {}
+    for k, h in enumerate(HOSTILE):
+        view = View(title=f"view {k}", figures={f"f{k}": {"data": [{"x": [1, 2], "y": [k, k + 1], "name": h,
+                                                                       "type": "scatter"}],
+                                                             "layout": {"title": {"text": h}}}},
+                      data={"label": h}, data_id=f"d{k}")
+        section, more, blocks = H.render_view(view, k)
+        sections.append(section)
+        scripts += more
+        data.update(blocks)
+    path = tmp_path / "hostile.html"
+    path.write_text(H.page("hostile", "strings", sections, scripts, data))
+    errors, requests = _open(page, path, tmp_path)
+    assert not errors and not requests, errors
+    assert page.locator(".js-plotly-plot .main-svg").count() >= len(HOSTILE)  # every figure drawn
+    assert page.locator("#d1").text_content() and "<!--<script>" in page.locator("#f1").text_content()
