@@ -121,15 +121,35 @@ document.querySelectorAll('table.sortable').forEach(function(table){
 
 
 def page(title: str, subtitle: str, sections: list[str], scripts: list[str], data: dict[str, str]) -> str:
-    """The whole page: Plotly and every script inline, data as JSON script blocks."""
+    """The whole page: Plotly and every script inline, data as JSON script blocks. Its content-security policy
+    lets run only the page's own two scripts, by their sha256 (issue 55 item 4: no other inline script, no inline
+    handler, nothing fetched); the JSON blocks are data, never run."""
     blocks = "".join(f'<script type="application/json" id="{esc(k)}">{v}</script>' for k, v in data.items())
+    plotly, main = plotly_js(), f"const PLOTS=[];{TABLE_SCRIPT}{''.join(map(_guarded, scripts))}{PLOTS_SCRIPT}"
+    allowed = " ".join(f"'{script_hash(s)}'" for s in (plotly, main))
     return ("<!doctype html><html lang=\"en\"><head><meta charset=\"utf-8\">"
-            "<meta http-equiv=\"Content-Security-Policy\" content=\"default-src 'none'; script-src 'unsafe-inline' "
+            f"<meta http-equiv=\"Content-Security-Policy\" content=\"default-src 'none'; script-src {allowed} "
             "'unsafe-eval'; style-src 'unsafe-inline'; img-src data: blob:; font-src data:; worker-src blob:\">"
-            f"<title>{esc(title)}</title><style>{STYLE}</style><script>{plotly_js()}</script></head><body>"
+            f"<title>{esc(title)}</title><style>{STYLE}</style><script>{plotly}</script></head><body>"
             f"<header><h1>{esc(title)}</h1><p>{esc(subtitle)}</p></header><main>{''.join(sections)}</main>"
-            f"{blocks}<script>const PLOTS=[];{TABLE_SCRIPT}{''.join(map(_guarded, scripts))}{PLOTS_SCRIPT}</script>"
-            "</body></html>")
+            f"{blocks}<script>{main}</script></body></html>")
+
+
+def script_hash(script: str) -> str:
+    """A content-security policy's source of one inline script: 'sha256-' and the base64 of its UTF-8 bytes'
+    digest (CSP Level 2)."""
+    import base64
+    import hashlib
+
+    return "sha256-" + base64.b64encode(hashlib.sha256(script.encode("utf-8")).digest()).decode()
+
+
+def page_link(relative: str) -> str:
+    """A link from one page to another: a relative path, percent-encoded, that starts with './' (so that no folder
+    name can make it a scheme: a store named 'javascript:...' is a path here, issue 55 item 4)."""
+    from urllib.parse import quote
+
+    return "" if not relative else "./" + quote(relative.replace("\\", "/"), safe="/=")
 
 
 def _guarded(script: str) -> str:
@@ -332,7 +352,7 @@ def index_page(store, records: list[dict]) -> str:
     """Every run of the store: name, tags, study, state, rows, headline, and a link to its page."""
     rows, links = [], []
     for r in records:
-        link = r.get("link", "")
+        link = page_link(r.get("link", ""))
         rows.append([r.get("name") or "", r["study"], r["key"][:12], r.get("config_name", ""), r.get("state", ""),
                      r.get("rows", ""), r.get("created", ""), ", ".join(f"{k}={v}" for k, v in (r.get("tags") or {}).items()),
                      r.get("headline", "")])

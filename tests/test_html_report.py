@@ -344,3 +344,38 @@ def test_hostile_strings_in_a_pages_figures_and_data_keep_every_figure_drawing(p
     assert not errors and not requests, errors
     assert page.locator(".js-plotly-plot .main-svg").count() >= len(HOSTILE)  # every figure drawn
     assert page.locator("#d1").text_content() and "<!--<script>" in page.locator("#f1").text_content()
+
+
+def test_only_the_pages_own_scripts_run_and_index_links_are_paths(page, tmp_path):
+    """#55 item 4: the policy names the page's two scripts by their sha256 and allows no other inline script: a
+    script or an inline handler that reached the page's HTML does not run in Chromium (the page's own still do:
+    its figure draws); the store index's links are percent-encoded relative paths from './', so a store folder
+    named 'javascript:alert(7)%2F%2F' is a path, not a scheme."""
+    import re as _re
+
+    from surgopt import html_report as H
+    from surgopt.studies.page import View
+
+    injected = ('<script>document.body.dataset.injected="1"</script>'
+                '<img src="data:," onerror="document.body.dataset.handler=\'1\'">')
+    view = View(title="v", figures={"f": {"data": [{"x": [1, 2], "y": [1, 2], "type": "scatter"}]}}, html=injected)
+    section, scripts, data = H.render_view(view, 0)
+    text = H.page("t", "s", [section], scripts, data)
+    policy = _re.search(r'Content-Security-Policy" content="([^"]*)"', text).group(1)
+    script_src = policy.split("script-src ")[1].split(";")[0].split()
+    assert "'unsafe-inline'" not in script_src and sum(s.startswith("'sha256-") for s in script_src) == 2
+    path = tmp_path / "p.html"
+    path.write_text(text)
+    page.set_viewport_size({"width": 1200, "height": 900})
+    page.goto(path.as_uri())
+    page.wait_for_selector("body[data-ready]", timeout=120_000)
+    assert page.locator(".js-plotly-plot .main-svg").count() >= 1  # the page's own script ran
+    assert page.evaluate("document.body.dataset.injected") is None and page.evaluate("document.body.dataset.handler") is None
+
+    class Store:
+        root = tmp_path / "javascript:alert(7)%2F%2F"
+
+    record = {"study": "rcm-grid", "key": "ab" * 32, "link": "javascript:alert(7)%2F%2F/study=rcm-grid/key=ab/_report.html"}
+    index = H.index_page(Store(), [record])
+    (link,) = _re.findall(r'data-link="([^"]*)"', index)
+    assert link == "./javascript%3Aalert%287%29%252F%252F/study=rcm-grid/key=ab/_report.html"
