@@ -56,7 +56,10 @@ def config_file_path(value: str, context: dict) -> Path:
     path = Path(value).expanduser()
     if not path.is_absolute():
         path = Path(context.get("config_dir") or Path.cwd()) / path
-    return path.resolve()
+    real = path.resolve()
+    if _read_files is not None and real != path:  # a link (the file's, a folder's on the way): what it names now
+        _read_files.append((str(path), str(real), ""))  # is checked again by a cache hit (its contents by its read)
+    return real
 
 
 #: While a command records (``recording``): (path, sha256) of every file a config was read from or named.
@@ -65,7 +68,8 @@ _read_files: list | None = None
 
 @contextlib.contextmanager
 def recording():
-    """The files configs read while inside, as a list of (absolute path, sha256) filled in as they are read:
+    """The files configs read while inside, as a list of (path as named, the file it resolved to, sha256) filled
+    in as they are read:
     what a cache hit answered before the config is validated must find unchanged (``surgopt.hits``)."""
     global _read_files
     outer, _read_files = _read_files, []
@@ -76,11 +80,13 @@ def recording():
 
 
 def note_read(path: Path, data: bytes) -> bytes:
-    """``data`` as read from ``path`` for a config, noted while ``recording``."""
+    """``data`` as read from ``path`` for a config, noted while ``recording`` as (the path as it was named, the file
+    it resolved to, the sha256): a cache hit resolves the named path again (issue 55 item 3: a link retargeted is
+    another file, whatever the old one holds)."""
     if _read_files is not None:
         import hashlib
 
-        _read_files.append((str(Path(path).resolve()), hashlib.sha256(data).hexdigest()))
+        _read_files.append((str(path), str(Path(path).resolve()), hashlib.sha256(data).hexdigest()))
     return data
 
 

@@ -25,7 +25,10 @@ from pathlib import Path
 
 from surgopt.store import HITS  # the store's layout names it
 
-FORMAT = 1
+#: 2: each file recorded as named and as resolved (issue 55 item 3); a format-1 entry is not answered from.
+FORMAT = 2
+#: The environment that changes what a path names (``~``) or which package runs: part of a command's identity.
+PATH_ENVIRONMENT = ("HOME", "PYTHONPATH")
 #: Recorded command lines kept per store (each a few hundred bytes); the least recently written go first.
 MAX_HITS = 256
 MAX_HIT_BYTES = 1 << 20
@@ -53,10 +56,11 @@ def plain_command(argv: list[str]) -> tuple[str, list[str], str | None] | None:
 
 def command_sha256(study: str, args: list[str]) -> str:
     """sha256 of what a plain command line's run depends on besides the files it reads: the study, its
-    arguments, the working folder (relative paths), the SURGOPT_* environment and the package's code."""
+    arguments, the working folder (relative paths), the SURGOPT_* environment, HOME and PYTHONPATH (what ``~`` and
+    the package mean) and the package's code."""
     from surgopt.derived import package_sha256
 
-    env = {k: v for k, v in os.environ.items() if k.startswith("SURGOPT_")}
+    env = {k: v for k, v in os.environ.items() if k.startswith("SURGOPT_") or k in PATH_ENVIRONMENT}
     text = json.dumps({"format": FORMAT, "study": study, "args": list(args), "cwd": os.getcwd(), "env": env,
                        "code": package_sha256()}, sort_keys=True)
     return hashlib.sha256(text.encode()).hexdigest()
@@ -85,9 +89,15 @@ def record(store, study: str, args: list[str], run, files_read: list, notes: lis
 
 
 def _unchanged(files_read) -> bool:
-    for path, sha in files_read:
+    """Whether every file read names the same file now, resolved again from the path as the command (or its config)
+    named it, and that file has the same sha256."""
+    for named, resolved, sha in files_read:
         try:
-            with open(path, "rb") as f:
+            if str(Path(named).resolve()) != resolved:  # a link (a file's, a folder's) retargeted
+                return False
+            if not sha:  # a name recorded for where it led (``files.config_file_path``); its file is checked apart
+                continue
+            with open(named, "rb") as f:
                 if hashlib.file_digest(f, "sha256").hexdigest() != sha:
                     return False
         except OSError:

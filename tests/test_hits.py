@@ -62,7 +62,7 @@ def test_a_repeated_command_line_is_answered_without_loading_the_study(tmp_path)
     (record,) = (store / "_hits").glob("*.json")
     entry = json.loads(record.read_text())
     (run,) = (store / "study=rcm-grid").glob("key=*")
-    assert run.name == f"key={entry['key']}" and [p for p, _ in entry["files"]] == [str(tmp_path / "small.toml")]
+    assert run.name == f"key={entry['key']}" and [r for _, r, _ in entry["files"]] == [str(tmp_path / "small.toml")]
     second, _, loaded = _surgopt("rcm-grid", "small.toml", "--store", store, cwd=tmp_path)
     assert loaded == "LOADED []" and "cache hit: rcm-grid" in second
     usual, _, loaded = _surgopt("rcm-grid", "small.toml", "--store", store, "--jobs", "1", cwd=tmp_path)
@@ -115,7 +115,66 @@ def test_the_files_a_config_names_are_recorded_with_their_sha256(tmp_path):
     with recording() as seen:
         variants(get_study("port-place"), str(tmp_path / "c.toml"), [], {})
     want = {str(tmp_path / f): hashlib.sha256((tmp_path / f).read_bytes()).hexdigest() for f in ("c.toml", "pts.csv")}
-    assert dict(seen) == want
+    assert {resolved: sha for _, resolved, sha in seen} == want
+
+
+def test_a_retargeted_link_or_another_home_is_not_answered_from_the_record(tmp_path):
+    """#55 item 3: a recorded command line resolves every path again as it was named: a config given through a
+    link, or through a linked folder, retargeted to another config is not answered with the old run (the usual way
+    runs the new one); a file a config names through a link (port-place's target points) is recorded with where
+    the link led, and a retargeted link is a change; HOME (what '~' means) is part of the command's identity."""
+    import os
+
+    from surgopt import hits
+    from surgopt.compose import variants
+    from surgopt.files import recording
+    from surgopt.studies import get_study
+
+    store = tmp_path / "s"
+    (tmp_path / "a.toml").write_text(CONFIG)
+    (tmp_path / "b.toml").write_text(CONFIG.replace("x_count = 5", "x_count = 6"))
+    (tmp_path / "c.toml").symlink_to(tmp_path / "a.toml")
+    args = ("rcm-grid", "c.toml", "--store", store)
+    _surgopt(*args, cwd=tmp_path)
+    out, _, loaded = _surgopt(*args, cwd=tmp_path)
+    assert loaded == "LOADED []"  # the premise: answered from the record
+    (tmp_path / "c.toml").unlink()
+    (tmp_path / "c.toml").symlink_to(tmp_path / "b.toml")
+    out, _, loaded = _surgopt(*args, cwd=tmp_path)
+    assert "numpy" in loaded and "cache hit" not in out and len(list((store / "study=rcm-grid").glob("key=*"))) == 2
+    for name, count in (("d1", 7), ("d2", 8)):
+        (tmp_path / name).mkdir()
+        (tmp_path / name / "x.toml").write_text(CONFIG.replace("x_count = 5", f"x_count = {count}"))
+    (tmp_path / "cfgs").symlink_to(tmp_path / "d1")
+    args = ("rcm-grid", "cfgs/x.toml", "--store", store)
+    _surgopt(*args, cwd=tmp_path)
+    out, _, loaded = _surgopt(*args, cwd=tmp_path)
+    assert loaded == "LOADED []"
+    (tmp_path / "cfgs").unlink()
+    (tmp_path / "cfgs").symlink_to(tmp_path / "d2")
+    out, _, loaded = _surgopt(*args, cwd=tmp_path)
+    assert "numpy" in loaded and "cache hit" not in out and len(list((store / "study=rcm-grid").glob("key=*"))) == 4
+    (tmp_path / "p1.csv").write_text("0 -100 40\n10 -100 40\n")
+    (tmp_path / "p2.csv").write_text("0 -100 40\n10 -100 40\n")  # the same bytes: only the link tells them apart
+    (tmp_path / "pts.csv").symlink_to(tmp_path / "p1.csv")
+    (tmp_path / "t.toml").write_text('[target]\nshape = "points"\npoints_file = "pts.csv"\n')
+    with recording() as seen:
+        variants(get_study("port-place"), str(tmp_path / "t.toml"), [], {})
+    assert (str(tmp_path / "pts.csv"), str(tmp_path / "p1.csv"), "") in seen and hits._unchanged(seen)
+    (tmp_path / "pts.csv").unlink()
+    (tmp_path / "pts.csv").symlink_to(tmp_path / "p2.csv")
+    assert not hits._unchanged(seen)
+    home = os.environ.get("HOME")
+    try:
+        os.environ["HOME"] = str(tmp_path)
+        one = hits.command_sha256("rcm-grid", ["c.toml"])
+        os.environ["HOME"] = str(tmp_path / "d1")
+        assert hits.command_sha256("rcm-grid", ["c.toml"]) != one
+    finally:
+        if home is None:
+            os.environ.pop("HOME", None)
+        else:
+            os.environ["HOME"] = home
 
 
 def _parquet(table, **kw) -> bytes:
