@@ -142,18 +142,21 @@ def test_a_retargeted_link_or_another_home_is_not_answered_from_the_record(tmp_p
     (tmp_path / "c.toml").symlink_to(tmp_path / "b.toml")
     out, _, loaded = _surgopt(*args, cwd=tmp_path)
     assert "numpy" in loaded and "cache hit" not in out and len(list((store / "study=rcm-grid").glob("key=*"))) == 2
-    for name, count in (("d1", 7), ("d2", 8)):
+    for name, count in (("d1", 7), ("d2", 8)):  # a linked config folder, as the record sees it (in this process)
         (tmp_path / name).mkdir()
         (tmp_path / name / "x.toml").write_text(CONFIG.replace("x_count = 5", f"x_count = {count}"))
     (tmp_path / "cfgs").symlink_to(tmp_path / "d1")
-    args = ("rcm-grid", "cfgs/x.toml", "--store", store)
-    _surgopt(*args, cwd=tmp_path)
-    out, _, loaded = _surgopt(*args, cwd=tmp_path)
-    assert loaded == "LOADED []"
-    (tmp_path / "cfgs").unlink()
-    (tmp_path / "cfgs").symlink_to(tmp_path / "d2")
-    out, _, loaded = _surgopt(*args, cwd=tmp_path)
-    assert "numpy" in loaded and "cache hit" not in out and len(list((store / "study=rcm-grid").glob("key=*"))) == 4
+    here = os.getcwd()
+    try:
+        os.chdir(tmp_path)
+        with recording() as seen:
+            variants(get_study("rcm-grid"), "cfgs/x.toml", [], {})
+        assert ("cfgs/x.toml", str(tmp_path / "d1" / "x.toml")) == seen[0][:2] and hits._unchanged(seen)
+        (tmp_path / "cfgs").unlink()
+        (tmp_path / "cfgs").symlink_to(tmp_path / "d2")
+        assert not hits._unchanged(seen)
+    finally:
+        os.chdir(here)
     (tmp_path / "p1.csv").write_text("0 -100 40\n10 -100 40\n")
     (tmp_path / "p2.csv").write_text("0 -100 40\n10 -100 40\n")  # the same bytes: only the link tells them apart
     (tmp_path / "pts.csv").symlink_to(tmp_path / "p1.csv")
