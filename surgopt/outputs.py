@@ -72,6 +72,8 @@ def write_out(out, write: Callable[[BinaryIO], None], option: str = "--out") -> 
         sys.stdout.buffer.flush()
         return
     path = checked(out, option)
+    if path.is_dir():  # '' reads as '.': a folder either way
+        raise UsageError(f"{option}: {out} is a folder; give a file (nothing was written)")
     given = Path(out).expanduser()
     if streamed(given):  # stat follows the links as opening does (/dev/stdout's /proc/self/fd/1 included)
         with open(given, "wb") as sink:

@@ -72,3 +72,18 @@ def test_dash_is_standard_output_and_a_link_stays_a_link(stored, tmp_path):
     assert code == 0 and link.is_symlink() and target.read_text().count("\n") == table.num_rows + 1
     code, _ = invoke("export", "latest", "--store", store, "--format", "parquet", "--out", "-")
     assert code == 2  # binary Parquet is not written to a terminal
+
+
+def test_an_empty_or_folder_out_is_one_line(stored, tmp_path):
+    """#55 item 7: ``--out ''`` (a folder: '.') for a study's own format was a 'Is a directory' error naming a
+    temporary file in the folder's parent; it is one line naming --out."""
+    _, store, _ = stored
+    for out in ("", tmp_path):
+        code, output = invoke("export", "latest", "--store", store, "--format", "csv", "--out", out)
+        assert code == 2 and output.strip().count("\n") == 0 and "--out" in output and "folder" in output
+    from surgopt.errors import UsageError
+    from surgopt.outputs import write_text_out
+
+    for out in ("", tmp_path):  # a study's own format (--format dvrk, ports) writes through this
+        with pytest.raises(UsageError, match="is a folder; give a file"):
+            write_text_out(out, "x")
