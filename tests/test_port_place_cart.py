@@ -770,3 +770,21 @@ def test_the_report_says_when_the_answers_cart_pose_lies_on_a_bound_of_the_grid(
     assert R.cart_bound_words(Rows(), {"cart_pose": int(inner[0])}, cfg) == ""
     given = C.PortPlaceConfig.model_validate({**GRID, "cart": {**GRID["cart"], "pose": "given"}})
     assert R.cart_bound_words(Rows(), {"cart_pose": 0}, given) == ""
+
+
+def test_a_grid_of_cart_poses_is_counted_by_arithmetic_and_bounded():
+    """#55 item 6: ``config.grid_count`` equals the length of the array ``tables.grid_places`` builds (random spans
+    and steps); a grid past ``MAX_CART_POSES`` is refused when the config is read, naming the step, before anything is
+    built (a 1e-300 step counts as inf, not numpy's 'Maximum allowed size exceeded')."""
+    from pydantic import ValidationError
+
+    rng = np.random.default_rng(3)
+    for _ in range(200):
+        lo = float(rng.uniform(-180, 180))
+        span, step = (lo, lo + float(rng.uniform(0, 300))), float(rng.uniform(0.5, 60))
+        assert C.grid_count(span, step) == len(np.arange(span[0], span[1] + 1e-9, step))
+    assert len(T.cart_poses(C.PortPlaceConfig.model_validate({"cart": {"model": "classic"}})).floor) <= C.MAX_CART_POSES
+    for step, field in (({"around_step_deg": 0.01, "distance_step_mm": 1.0}, "around_step_deg"),
+                        ({"around_step_deg": 1e-300}, "around_step_deg"), ({"distance_step_mm": 0.001}, "distance_step_mm")):
+        with pytest.raises(ValidationError, match=f"{field}: .* cart poses .* more than the 10,000"):
+            C.PortPlaceConfig.model_validate({"cart": {"model": "classic", **step}})

@@ -441,6 +441,36 @@ class Cart(StrictModel):
             raise ValueError("distance_mm: must be > 0")
         return self
 
+    @model_validator(mode="after")
+    def _a_grid_the_run_can_hold(self):
+        """The grid's poses counted by arithmetic (never built to be counted, issue 55 item 6), refused past
+        ``MAX_CART_POSES`` naming the step that makes it so."""
+        if self.pose != "grid":
+            return self
+        counts = {"around_step_deg": grid_count(self.around_deg, self.around_step_deg),
+                  "distance_step_mm": grid_count(self.distance_mm, self.distance_step_mm)}
+        total = counts["around_step_deg"] * counts["distance_step_mm"] * len(self.yaw_offsets_deg)
+        if total > MAX_CART_POSES:
+            worst = max(counts, key=counts.get)
+            raise ValueError(f"{worst}: {getattr(self, worst):g} makes {total:,.0f} cart poses (around "
+                             f"{counts['around_step_deg']:,.0f} x distance {counts['distance_step_mm']:,.0f} x "
+                             f"{len(self.yaw_offsets_deg)} headings), more than the {MAX_CART_POSES:,} a run "
+                             f"docks at (each arm's setup joints are solved at every site and pose); take a "
+                             f"larger step")
+        return self
+
+
+#: The most cart poses a grid may have: the dock tables hold each arm's joints at every site and pose (at 164 sites,
+#: 10,000 poses are ~240 MB a PSM); the default has 150.
+MAX_CART_POSES = 10_000
+
+
+def grid_count(span, step: float) -> float:
+    """How many values ``numpy.arange(lo, hi + 1e-9, step)`` takes (``tables.grid_places``), by arithmetic: a float,
+    so that a step of 1e-300 counts (as inf) instead of building the array."""
+    lo, hi = span
+    return math.floor((hi + 1e-9 - lo) / step) + 1 if (hi - lo) / step < 1e15 else math.inf
+
 
 class PortPlaceConfig(StrictModel):
     patient: Patient = Patient()
