@@ -151,29 +151,36 @@ def fail(exc: BaseException, code: int) -> None:
 
 
 
+#: What a stopped or failed command that stores nothing (report, export, summarize, plot, diff, runs) says instead
+#: of ``RESUME`` (issue 55 item 7: it has no chunks to resume).
+UNCHANGED = "this command stores nothing: the store's runs are as they were; run it again"
+
+
 @contextlib.contextmanager
-def guard():
+def guard(stores: bool = True):
     """Every failure a command can meet ends in one line on stderr and an exit code: 2 bad input,
-    1 a failed run or store, 130 / 143 / 129 interrupted by SIGINT / SIGTERM / SIGHUP."""
+    1 a failed run or store, 130 / 143 / 129 interrupted by SIGINT / SIGTERM / SIGHUP. ``stores``: whether the
+    command stores a run's chunks (its lines then say a resume finds them; else ``UNCHANGED``)."""
     from surgopt import interrupts
     from surgopt.errors import SurgoptError, out_of_memory
 
+    hint = RESUME if stores else UNCHANGED
     try:
         yield
     except KeyboardInterrupt as exc:  # Ctrl-C, or SIGTERM / SIGHUP (surgopt.interrupts.Stopped)
-        raise typer.Exit(interrupts.report(exc, RESUME))
+        raise typer.Exit(interrupts.report(exc, hint))
     except Exception as exc:  # noqa: BLE001 - re-raised below unless it is a stop's consequence or ours to word
         if interrupts.received() is not None:
             # what failed while a stop unwound is the stop: a lock file mid-rename, a library that wraps the
             # KeyboardInterrupt raised inside it (pydantic-core building a validator: SchemaError)
-            raise typer.Exit(interrupts.report(None, RESUME)) from None
+            raise typer.Exit(interrupts.report(None, hint)) from None
         if not isinstance(exc, (SurgoptError, OSError)) and not out_of_memory(exc):
             raise
-        fail_on(exc)
+        fail_on(exc, stores)
 
 
-def fail_on(exc: BaseException) -> None:
-    """One line and the exit code for a library error, out of memory, or an OS error."""
+def fail_on(exc: BaseException, stores: bool = True) -> None:
+    """One line and the exit code for a library error, out of memory, or an OS error (``stores``: as ``guard``)."""
     from surgopt.errors import SurgoptError, out_of_memory
     from surgopt.store import is_disk_full
 
@@ -181,10 +188,11 @@ def fail_on(exc: BaseException) -> None:
         fail(exc, exc.exit_code)
     if out_of_memory(exc):
         fail("out of memory; what finished before it is stored (`surgopt runs` says how much): run the same "
-              "command again with more memory, a smaller config or --jobs 1", 1)
+             "command again with more memory, a smaller config or --jobs 1" if stores else
+             f"out of memory; {UNCHANGED} with more memory free", 1)
     where = f" writing {exc.filename}" if getattr(exc, "filename", None) else ""
     if is_disk_full(exc):
-        fail(f"the disk is full{where}; {RESUME} once there is space", 1)
+        fail(f"the disk is full{where}; {RESUME if stores else UNCHANGED} once there is space", 1)
     fail(f"{getattr(exc, 'strerror', None) or exc}{where}", 1)
 
 

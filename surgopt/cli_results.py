@@ -51,7 +51,7 @@ def runs(
 
     from rich.table import Table
 
-    with guard():
+    with guard(stores=False):
         from surgopt.results import run_records
         from surgopt.store import Store
         from surgopt.studies import STUDIES
@@ -187,7 +187,7 @@ def summarize(
     """Summary of a stored run: top designs by the study's objective, its distribution, feasibility,
     and for studies without an objective their own comparison tables. Works on partial runs and says so."""
     fmt = fmt.value
-    with guard():
+    with guard(stores=False):
         from surgopt.report import render, run_sections
         from surgopt.results import resolve_run
         from surgopt.store import Store
@@ -244,7 +244,7 @@ def plot(
     for the paper setups)."""
     if out is not None and out.exists() and not out.is_dir():
         fail(f"--out: {out} is a file; give a folder for the figures", 2)
-    with guard():
+    with guard(stores=False):
         if out is not None:  # not into a run folder of the store (leave --out off to write beside the run)
             from surgopt.outputs import checked
 
@@ -320,7 +320,7 @@ def report(
     rows (the page says how to export them)."""
     if out is not None and out.is_dir():
         fail(f"--out: {out} is a folder; give the page's file name (e.g. report.html)", 2)
-    with guard():
+    with guard(stores=False):
         if out is not None and str(out) != "-":  # not into the store's own files (its run folders, parts, ...)
             from surgopt.outputs import checked
 
@@ -424,7 +424,7 @@ def export(
 ) -> None:
     """A run's whole table as one tidy table, with the run key (and, for several runs, the config fields
     that differ between them) as columns. The CSV reads back with pandas.read_csv as it is."""
-    with guard():
+    with guard(stores=False):
         from surgopt.results import export_design
         from surgopt.store import Store
 
@@ -475,7 +475,7 @@ def diff(
     study's key columns (rows only in one run, largest changes, the best design of each)."""
     import json
 
-    with guard():
+    with guard(stores=False):
         from surgopt.results import diff_runs
         from surgopt.store import Store
 

@@ -87,3 +87,23 @@ def test_an_empty_or_folder_out_is_one_line(stored, tmp_path):
     for out in ("", tmp_path):  # a study's own format (--format dvrk, ports) writes through this
         with pytest.raises(UsageError, match="is a folder; give a file"):
             write_text_out(out, "x")
+
+
+@pytest.mark.parametrize("fault", ["disk full", "out of memory"])
+def test_a_command_that_stores_nothing_does_not_say_resume(stored, tmp_path, monkeypatch, fault):
+    """#55 item 7: export, report and summarize store no chunk: a full disk or running out of memory there says the
+    store's runs are as they were, not "finished chunks are stored, run the same command again to resume"."""
+    import errno
+
+    from surgopt import export
+
+    def broken(*_):
+        if fault == "disk full":
+            raise OSError(errno.ENOSPC, "No space left on device", str(tmp_path / "rows.csv"))
+        raise MemoryError()
+
+    monkeypatch.setattr(export, "write_csv", broken)
+    _, store, _ = stored
+    code, output = invoke("export", "latest", "--store", store, "--format", "csv", "--out", tmp_path / "rows.csv")
+    assert code == 1 and "stores nothing" in output and "resume" not in output and output.strip().count("\n") == 0
+    assert ("disk is full" in output) == (fault == "disk full")
