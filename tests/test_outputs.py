@@ -11,6 +11,26 @@ import pytest
 from conftest import invoke
 
 
+@pytest.fixture(scope="module")
+def stored(tmp_path_factory):
+    """One small rcm-grid run for the module (every test here only reads it or is refused before writing):
+    (config path, store path, table), as ``conftest.stored``."""
+    from surgopt.config import load_config
+    from surgopt.runner import run_study
+    from surgopt.store import Store
+    from surgopt.studies import get_study
+
+    from conftest import RCM_SMALL
+
+    tmp = tmp_path_factory.mktemp("outputs")
+    rcm = get_study("rcm-grid")
+    cfg = tmp / "small.toml"
+    cfg.write_text(RCM_SMALL)
+    res = run_study(rcm, load_config(cfg, rcm.config_model), config_name="small", store=Store(tmp / "store"),
+                    jobs=1, quiet=True, chunk=4)
+    return cfg, tmp / "store", res.table
+
+
 def _sha(path):
     return hashlib.sha256(path.read_bytes()).hexdigest()
 
