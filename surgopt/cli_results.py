@@ -369,21 +369,11 @@ def _write_page(H, st, r, path: Path) -> Path:
 
 def _write_text(path: Path, text: str) -> None:
     """Atomically (a reader never sees half a page), through what is not a regular file (a FIFO, /dev/stdout),
-    ``-``: standard output (``outputs.write_text_out``); the caller has refused a user's path into the store."""
-    from surgopt.outputs import is_stdout, streamed
-    from surgopt.store import atomic_write
+    ``-``: standard output (``outputs.write_text_out``); the caller has refused a user's path into the store, and
+    the page beside a run is the command's own."""
+    from surgopt.outputs import write_text_out
 
-    if is_stdout(path):
-        from surgopt.outputs import write_text_out
-
-        write_text_out(path, text)
-        return
-    if streamed(Path(path)):  # a FIFO, a device: streamed into, never replaced by a file
-        Path(path).write_bytes(text.encode("utf-8"))
-        return
-    path = Path(path).expanduser().resolve(strict=False)  # a link to a page: its target replaced, the link kept
-    path.parent.mkdir(parents=True, exist_ok=True)
-    atomic_write(path, lambda tmp: tmp.write_text(text, encoding="utf-8"))
+    write_text_out(path, text, own=True)
 
 
 def _headline_text(s, rec) -> str:

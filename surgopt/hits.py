@@ -23,8 +23,6 @@ import sys
 import time
 from pathlib import Path
 
-from surgopt.store import HITS  # the store's layout names it
-
 #: 2: each file recorded as named and as resolved (issue 55 item 3); a format-1 entry is not answered from.
 FORMAT = 2
 #: The environment that changes what a path names (``~``) or which package runs: part of a command's identity.
@@ -67,6 +65,8 @@ def command_sha256(study: str, args: list[str]) -> str:
 
 
 def _path(store, digest: str) -> Path:
+    from surgopt.store import HITS  # the store's layout names it (imported here: the CLI's start-up reads this module)
+
     return Path(store.root) / HITS / f"{digest}.json"
 
 

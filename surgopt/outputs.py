@@ -64,14 +64,15 @@ def streamed(path: Path) -> bool:
     return not (stat.S_ISREG(mode) or stat.S_ISDIR(mode))
 
 
-def write_out(out, write: Callable[[BinaryIO], None], option: str = "--out") -> None:
+def write_out(out, write: Callable[[BinaryIO], None], option: str = "--out", own: bool = False) -> None:
     """``write(sink)`` to standard output (``out`` None or ``-``), through what is not a regular file, or into a
-    regular file replaced atomically; refused before writing anything where ``out`` belongs to a store."""
+    regular file replaced atomically; refused before writing anything where ``out`` belongs to a store, unless it
+    is ``own`` (a file the command itself keeps beside a run, e.g. the run's page)."""
     if is_stdout(out):
         write(sys.stdout.buffer)
         sys.stdout.buffer.flush()
         return
-    path = checked(out, option)
+    path = Path(out).expanduser().resolve(strict=False) if own else checked(out, option)
     if path.is_dir():  # '' reads as '.': a folder either way
         raise UsageError(f"{option}: {out} is a folder; give a file (nothing was written)")
     given = Path(out).expanduser()
@@ -89,7 +90,7 @@ def write_out(out, write: Callable[[BinaryIO], None], option: str = "--out") -> 
     atomic_write(path, to_file)
 
 
-def write_text_out(out, text: str, option: str = "--out") -> None:
+def write_text_out(out, text: str, option: str = "--out", own: bool = False) -> None:
     """``write_out`` of a text (UTF-8)."""
     data = text.encode("utf-8")
-    write_out(out, lambda sink: sink.write(data), option)
+    write_out(out, lambda sink: sink.write(data), option, own)

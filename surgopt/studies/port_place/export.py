@@ -79,7 +79,8 @@ def dvrk_setup(cfg: PortPlaceConfig, row: dict) -> str:
         holder = camera_arm_of(cfg) if a.arm == "ECM" else instrument_of(cfg)
         port = np.asarray(a.port_m)
         if a.arm == "ECM":  # its own yaw and pitch aim the scope; inserted as the rows hold it (camera_views)
-            depth = float(camera_tips(model_of(cfg), port[None])["camera_tip_depth_mm"][0]) / 1000
+            depth = (row["ecm_tip_depth_mm"] if "ecm_tip_depth_mm" in row  # as the row holds it; a run stored
+                     else camera_tips(model_of(cfg), port[None])["camera_tip_depth_mm"][0]) / 1000  # before: solved
             joints = [*a.ecm, depth - holder.along_shaft_m] if a.ecm and np.isfinite(depth) else None
         else:
             joints = arm_joints_at_centre(model_of(cfg).limits, np.linalg.inv(patient) @ a.base, centre)

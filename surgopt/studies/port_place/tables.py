@@ -392,9 +392,7 @@ def cart_poses(cfg: PortPlaceConfig) -> CartPoses:
     elif cart.pose == "search":
         floor = np.array([floor_pose(cfg, *searched_middle(cart).values())])
     else:
-        grid = grid_places(cfg)
-        floor = np.array([floor_pose(cfg, *g) for g in grid])
-        floor = floor[off_table(cart, floor[:, 0], floor[:, 1])]
+        floor = grid_on_floor(cfg)[1]
     return poses_of(cart, floor)
 
 
@@ -407,12 +405,18 @@ def grid_places(cfg: PortPlaceConfig) -> np.ndarray:
     return np.array([(a, d, off) for a in around for d in distance for off in cart.yaw_offsets_deg], float)
 
 
-def grid_place_of_pose(cfg: PortPlaceConfig) -> np.ndarray:
-    """(poses, 3) Each grid pose's (around deg, distance mm, heading offset deg): ``grid_places`` that stand clear
-    of the table, as ``cart_poses`` numbers them."""
+def grid_on_floor(cfg: PortPlaceConfig) -> tuple[np.ndarray, np.ndarray]:
+    """(places, floor poses) of the grid's places that stand clear of the table, in ``cart_poses``' order: each
+    place's (around deg, distance mm, heading offset deg) and its floor pose (x, y mm, heading deg)."""
     grid = grid_places(cfg)
     floor = np.array([floor_pose(cfg, *g) for g in grid])
-    return grid[off_table(cfg.cart, floor[:, 0], floor[:, 1])]
+    clear = off_table(cfg.cart, floor[:, 0], floor[:, 1])
+    return grid[clear], floor[clear]
+
+
+def grid_place_of_pose(cfg: PortPlaceConfig) -> np.ndarray:
+    """(poses, 3) Each grid pose's (around deg, distance mm, heading offset deg), as ``cart_poses`` numbers them."""
+    return grid_on_floor(cfg)[0]
 
 
 def poses_of(cart, floor: np.ndarray) -> CartPoses:
