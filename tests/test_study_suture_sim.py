@@ -138,3 +138,30 @@ def test_cli_suture_sim_stores_caches_and_reports(tmp_path):
     assert np.array_equal(table["q4_rad"].to_numpy(), np.concatenate([x["q4_rad"] for x in lib]))
     r = subprocess.run(cmd, capture_output=True, text=True, check=True)
     assert "cache hit" in r.stdout
+
+
+def test_the_run_grid_is_counted_by_arithmetic_and_bounded():
+    """#55 item 6: runs and steps by arithmetic (equal to walking the product), and a grid past MAX_RUNS refused
+    in one line naming the lists (before: 9 M run dicts built to count them, 'out of memory')."""
+    import itertools
+
+    from surgopt.config import validate
+    from surgopt.errors import ConfigError
+
+    cfg = validate({"weights": {"A": [1.0] * 8, "B": [2.0] * 8}, "arm_length_mm": [550.0, 600.0],
+                    "task": {"modes": ["spin", "orbit_tangent"], "radius_mm": [4.0, 6.0, 7.5], "speed_mm_s": [0.5, 2.0]}},
+                   S.Config, "x.toml")
+    t = cfg.task
+    walked = list(itertools.product(cfg.weights.items(), cfg.arm_length_mm, cfg.fulcrum_to_tip_mm, t.modes,
+                                    t.radius_mm, t.speed_mm_s))
+    grid = S.run_grid(cfg)
+    assert S.n_runs(cfg) == S.n_tasks(cfg, 1) == len(walked) == 48
+    for i, ((w, wv), la, f, m, r, v) in enumerate(walked):
+        g = grid[i]
+        assert (g["run_id"], g["weight_set"], g["arm_length_mm"], g["fulcrum_to_tip_mm"], g["mode"], g["radius_mm"],
+                g["speed_mm_s"]) == (i, w, la, f, m, r, v) and list(g["weights"]) == wv
+    assert S.total_steps(cfg) == sum(S.run_steps(cfg, g) for g in grid) == S.estimate(cfg).rows
+    many = [1.0 + k * 0.001 for k in range(200)]
+    with pytest.raises(ConfigError, match=r"task.radius_mm 200 x task.speed_mm_s 200 make 160,000 runs, more "
+                                          r"than the 10,000"):
+        validate({"task": {"radius_mm": many, "speed_mm_s": many}}, S.Config, "x.toml")

@@ -8,7 +8,6 @@ run (one task); rows are the time steps of every run.
 """
 from __future__ import annotations
 
-import itertools
 import math
 from typing import Annotated, Literal
 
@@ -166,6 +165,12 @@ def five_bar_crossing(fb: FiveBar, q1: float, q2: float) -> str:
     return ""
 
 
+#: A run's time steps at most (one run is one task, held in memory while it runs).
+MAX_STEPS_PER_RUN = 1_000_000
+#: Runs a config may name at most: each run is one task and one stored part (the paper's grid is 16).
+MAX_RUNS = 10_000
+
+
 class Task(StrictModel):
     modes: list[Literal[MODE_NAMES]] = Field(["spin"], min_length=1)
     radius_mm: list[Positive] = Field([6.0], min_length=1)
@@ -177,10 +182,12 @@ class Task(StrictModel):
 
     @model_validator(mode="after")
     def _not_too_long(self):
-        for r, v in itertools.product(self.radius_mm, self.speed_mm_s):
-            steps = math.radians(self.arc_deg) * r / v / self.dt_s
-            if steps > 1_000_000:
-                raise ValueError(f"radius {r} mm at {v} mm/s with dt {self.dt_s} s is {steps:.0f} steps (max 1e6)")
+        """The longest run (the largest radius at the least speed), by arithmetic: a list of thousands of radii
+        and speeds is not walked pair by pair to find it."""
+        r, v = max(self.radius_mm), min(self.speed_mm_s)
+        steps = math.radians(self.arc_deg) * r / v / self.dt_s
+        if steps > MAX_STEPS_PER_RUN:
+            raise ValueError(f"radius {r} mm at {v} mm/s with dt {self.dt_s} s is {steps:.0f} steps (max 1e6)")
         return self
 
 
@@ -197,23 +204,51 @@ class SutureSimConfig(StrictModel):
 
     @model_validator(mode="after")
     def _fulcrum_inside_arm(self):
-        for la, f in itertools.product(self.arm_length_mm, self.fulcrum_to_tip_mm):
-            if f >= la + self.robot.start_pose.q3_mm:
-                raise ValueError(f"fulcrum_to_tip_mm {f} must be shorter than the holder ({la} mm + q3)")
+        """The longest fulcrum-to-tip against the shortest holder (the pair that fails first), by arithmetic."""
+        la, f = min(self.arm_length_mm), max(self.fulcrum_to_tip_mm)
+        if f >= la + self.robot.start_pose.q3_mm:
+            raise ValueError(f"fulcrum_to_tip_mm {f} must be shorter than the holder ({la} mm + q3)")
+        return self
+
+    @model_validator(mode="after")
+    def _runs_bounded(self):
+        """The run grid counted by arithmetic (the product of the lists' lengths) and refused past MAX_RUNS."""
+        n = math.prod(len(v) for v in _run_axes(self))
+        if n > MAX_RUNS:
+            sizes = " x ".join(f"{name} {len(v)}" for name, v in zip(RUN_AXES, _run_axes(self)))
+            raise ValueError(f"{sizes} make {n:,} runs, more than the {MAX_RUNS:,} a config may name "
+                             "(each run is one task and one stored part); shorten the lists")
         return self
 
 
 Config = SutureSimConfig
 
+#: The run grid's axes, in the order runs are numbered.
+RUN_AXES = ("weights", "arm_length_mm", "fulcrum_to_tip_mm", "task.modes", "task.radius_mm", "task.speed_mm_s")
+
+
+def _run_axes(cfg) -> tuple[list, ...]:
+    t = cfg.task
+    return (list(cfg.weights.items()), cfg.arm_length_mm, cfg.fulcrum_to_tip_mm, t.modes, t.radius_mm, t.speed_mm_s)
+
+
+def n_runs(cfg: SutureSimConfig) -> int:
+    """Runs of the config's grid: the product of its lists' lengths."""
+    return math.prod(len(v) for v in _run_axes(cfg))
+
+
+def run_at(cfg: SutureSimConfig, index: int) -> dict:
+    """Run ``index`` of the grid in ``itertools.product`` order (weights, arm length, fulcrum, mode, radius,
+    speed; the last fastest), without listing the others."""
+    axes = _run_axes(cfg)
+    (w, wv), la, f, m, r, v = (axis[k] for axis, k in zip(axes, np.unravel_index(index, [len(a) for a in axes])))
+    return dict(run_id=index, weight_set=w, weights=np.array(wv), arm_length_mm=la, fulcrum_to_tip_mm=f,
+                mode=m, radius_mm=r, speed_mm_s=v)
+
 
 def run_grid(cfg: SutureSimConfig) -> list[dict]:
-    """Every combination, in a fixed order: one dict per run."""
-    t = cfg.task
-    combos = itertools.product(cfg.weights.items(), cfg.arm_length_mm, cfg.fulcrum_to_tip_mm,
-                               t.modes, t.radius_mm, t.speed_mm_s)
-    return [dict(run_id=i, weight_set=w, weights=np.array(wv), arm_length_mm=la, fulcrum_to_tip_mm=f,
-                 mode=m, radius_mm=r, speed_mm_s=v)
-            for i, ((w, wv), la, f, m, r, v) in enumerate(combos)]
+    """Every combination, in a fixed order: one dict per run (at most MAX_RUNS)."""
+    return [run_at(cfg, i) for i in range(n_runs(cfg))]
 
 
 def start_q(cfg: SutureSimConfig) -> np.ndarray:
@@ -276,8 +311,17 @@ def run_steps(cfg: SutureSimConfig, run: dict) -> int:
     return int(np.round(math.radians(t.arc_deg) * run["radius_mm"] / run["speed_mm_s"] / t.dt_s)) + 1
 
 
+def total_steps(cfg: SutureSimConfig) -> int:
+    """Time steps of every run, by arithmetic: each (radius, speed) pair's steps (run_steps) times the runs
+    that share it."""
+    t = cfg.task
+    r, v = np.asarray(t.radius_mm, float)[:, None], np.asarray(t.speed_mm_s, float)[None, :]
+    per_pair = np.round(math.radians(t.arc_deg) * r / v / t.dt_s).astype(np.int64) + 1
+    return int(per_pair.sum()) * (n_runs(cfg) // per_pair.size)
+
+
 def estimate(cfg: SutureSimConfig) -> Estimate:
-    steps = sum(run_steps(cfg, r) for r in run_grid(cfg))
+    steps = total_steps(cfg)
     return Estimate(steps, "time steps", steps, steps * US_PER_STEP * 1e-6, peak_bytes(steps, 220))
 
 
@@ -287,7 +331,7 @@ def auto_chunk(cfg: SutureSimConfig) -> int:
 
 
 def n_tasks(cfg: SutureSimConfig, chunk: int) -> int:
-    return len(run_grid(cfg))
+    return n_runs(cfg)
 
 
 def warm_up(cfg: SutureSimConfig) -> None:
@@ -301,7 +345,7 @@ def compute_task(cfg: SutureSimConfig, chunk: int, index: int) -> dict:
     """All time steps of run ``index``."""
     from surgopt.kinematics.throat import suture_run
 
-    run = run_grid(cfg)[index]
+    run = run_at(cfg, index)
     t = cfg.task
     geo = geometry(cfg, run["arm_length_mm"], run["fulcrum_to_tip_mm"])
     ts, qs, pe, re = suture_run(start_q(cfg), geo, run["weights"], int(SutureMode[run["mode"].upper()]), run["radius_mm"],
