@@ -788,3 +788,24 @@ def test_a_grid_of_cart_poses_is_counted_by_arithmetic_and_bounded():
                         ({"around_step_deg": 1e-300}, "around_step_deg"), ({"distance_step_mm": 0.001}, "distance_step_mm")):
         with pytest.raises(ValidationError, match=f"{field}: .* cart poses .* more than the 10,000"):
             C.PortPlaceConfig.model_validate({"cart": {"model": "classic", **step}})
+
+
+def test_a_targets_grid_is_counted_by_arithmetic_before_it_is_built():
+    """#55 item 6, the target's part: ``geometry.shape_grid_count`` equals the bounding-box grid
+    ``target_points_mm`` builds (random radii and spacings), and a grid far past MAX_TARGET_POINTS is refused from
+    that count, before a point is built (before: radii of 300 mm at 0.5 mm built 1.7 G points to count them)."""
+    import tracemalloc
+
+    from pydantic import ValidationError
+
+    from surgopt.studies.port_place import geometry as G
+
+    rng = np.random.default_rng(5)
+    for _ in range(50):
+        t = C.Target(shape="box", radii_mm=list(rng.uniform(1, 40, 3)), spacing_mm=float(rng.uniform(1, 10)))
+        assert G.shape_grid_count(t) == len(G.target_points_mm(t))
+    tracemalloc.start()
+    with pytest.raises(ValidationError, match=r"target: about 907,042,516 sample points \(at most 20,000"):
+        C.PortPlaceConfig.model_validate({"target": {"radii_mm": [300, 300, 300], "spacing_mm": 0.5}})
+    assert tracemalloc.get_traced_memory()[1] < 50 * 2 ** 20  # counted, not built (the grid is ~40 GB)
+    tracemalloc.stop()

@@ -23,11 +23,13 @@ from surgopt.robots.platforms import AUTO_PLATFORM, CART_MODELS, PLATFORMS, cart
 from surgopt.studies.port_place.geometry import (
     MAX_MESH_BYTES,
     MAX_POINTS_BYTES,
+    MAX_TARGET_POINTS,
     body_mesh,
     check_mesh_scale,
     file_points_mm,
     inside_body,
     mesh_points_mm,
+    shape_grid_count,
     even_odd_area_mm2,
     sites_mm,
     target_points_mm,
@@ -569,11 +571,16 @@ class PortPlaceConfig(StrictModel):
                                ("constraints.manipulation_angle_deg", self.constraints.manipulation_angle_deg)):
             if not 0 <= lo < hi:
                 raise ValueError(f"{name}: [{lo:g}, {hi:g}] must be 0 <= low < high")
+        if self.target.shape in ("sphere", "ellipsoid", "box") and shape_grid_count(self.target) > 10 * MAX_TARGET_POINTS:
+            # counted before it is built: a box holds all, an ellipsoid about pi/6 of its box's points
+            share = 1.0 if self.target.shape == "box" else math.pi / 6
+            raise ValueError(f"target: about {shape_grid_count(self.target) * share:,.0f} sample points (at most "
+                             f"{MAX_TARGET_POINTS:,}: a larger spacing_mm)")
         pts = target_points_mm(self.target)
         if len(pts) == 0:
             raise ValueError("target: no sample point (a spacing larger than the target)")
-        if len(pts) > 20_000:
-            raise ValueError(f"target: {len(pts):,} sample points (at most 20,000: a larger spacing_mm)")
+        if len(pts) > MAX_TARGET_POINTS:
+            raise ValueError(f"target: {len(pts):,} sample points (at most {MAX_TARGET_POINTS:,}: a larger spacing_mm)")
         outside = ~inside_body(pts, self.patient)
         if outside.any():
             p = pts[np.argmax(outside)]

@@ -100,7 +100,9 @@ def grid_1d(half: float, spacing: float) -> np.ndarray:
     return np.arange(-k, k + 1) * spacing
 
 
-#: The largest target points file read (bytes): 20,000 points of text with room to spare.
+#: Target sample points a run takes at most (every port's reach and dexterity is checked at each).
+MAX_TARGET_POINTS = 20_000
+#: The largest target points file read (bytes): MAX_TARGET_POINTS points of text with room to spare.
 MAX_POINTS_BYTES = 20 * 2 ** 20
 
 
@@ -149,6 +151,12 @@ def mesh_points_mm(path: str, sha256: str, units: str, offset_mm: tuple, spacing
         raise ValueError(f"mesh_file: {path}: no point of a {spacing_mm:g} mm grid lies inside the mesh (a smaller "
                          f"spacing_mm)")
     return pts
+
+
+def shape_grid_count(t) -> int:
+    """Grid points a sphere, ellipsoid or box target's bounding box holds at ``spacing_mm`` (what
+    ``target_points_mm`` builds before keeping those inside), by arithmetic."""
+    return math.prod(2 * int(math.floor(r / t.spacing_mm + 1e-9)) + 1 for r in t.radii_mm)
 
 
 def target_points_mm(t) -> np.ndarray:
