@@ -210,9 +210,11 @@ def _dask_client(scheduler: str | None, jobs: int):
             client.close()
         return
     # worker processes inherit this environment: one numba thread each, our numba cache, and distributed's
-    # own log at errors only (its info and warnings about nannies and cancelled tasks are not the user's)
+    # own log at critical only: its info and warnings about nannies and cancelled tasks are not the user's, and
+    # its errors are a worker losing this process's scheduler when a stop ends it (Ctrl-C while the cluster
+    # starts: 24 lines of heartbeat tracebacks, issue 55 item 7); a task's own error reaches this process
     os.environ.setdefault("NUMBA_NUM_THREADS", "1")
-    os.environ.setdefault("DASK_LOGGING__DISTRIBUTED", "error")
+    os.environ.setdefault("DASK_LOGGING__DISTRIBUTED", "critical")
     logging.getLogger("distributed").setLevel(logging.ERROR)
     with warnings.catch_warnings():  # its scheduler's HTTP server takes another port when 8787 is busy (another
         # cluster): distributed warns of it on stderr, which is not the user's business (no dashboard is asked for)

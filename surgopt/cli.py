@@ -16,7 +16,7 @@ import typer
 from typer.core import TyperGroup
 
 from surgopt.cli_common import (  # noqa: F401 - app and the options: the commands below register on them
-    RESUME, Backend, BackendOpt, ChunkOpt, DryRunOpt, ForceOpt, JobsOpt, MaxHoursOpt, MaxMemoryOpt, MultirunOpt,
+    COMPLETE, RESUME, UNCHANGED, Backend, BackendOpt, ChunkOpt, DryRunOpt, ForceOpt, JobsOpt, MaxHoursOpt, MaxMemoryOpt, MultirunOpt,
     NameOpt, PrintConfigOpt, TagOpt, QuietOpt, SchedulerOpt, StoreOpt, VerboseOpt, app, guard, print_report, print_table,
     set_verbosity, wide_console,
 )
@@ -178,7 +178,10 @@ class StudyCommand:
 
 def _run_study_command(study, cmd: StudyCommand, flags=()):
     set_verbosity(cmd.verbose)
+    from surgopt import interrupts
+
     with guard():
+        interrupts.on_stop(UNCHANGED)  # reading configs, estimating: nothing stored yet
         tags = _tags(cmd.tag)
         from surgopt.compose import variants
         from surgopt.runner import run_study
@@ -207,8 +210,10 @@ def _run_study_command(study, cmd: StudyCommand, flags=()):
         finished = []
         for v in todo:
             run_name = cmd.name if cmd.name is None or len(todo) == 1 else f"{cmd.name}[{len(finished)}]"
+            interrupts.on_stop(RESUME)
             result = run_study(study, v.config, config_name=v.config_name, store=Store(cmd.store), options=options,
                                say=say, name=run_name, tags=tags)
+            interrupts.on_stop(COMPLETE if result.run.complete else RESUME)
             summary = _report(study, result, brief=len(todo) > 1)
             finished.append((v, result, summary))
             for f in flags:
@@ -216,9 +221,11 @@ def _run_study_command(study, cmd: StudyCommand, flags=()):
                     continue
                 from surgopt.plans import follow_up_plan
 
+                interrupts.on_stop(RESUME)
                 follow = run_study(study, v.config, plan=follow_up_plan(f.follow_up, study, v.config, result),
                                    config_name=v.config_name + f.follow_up_suffix, store=Store(cmd.store),
                                    options=options, chunk=None, say=say)
+                interrupts.on_stop(COMPLETE if follow.run.complete else RESUME)
                 _report(study, follow)
         if len(todo) > 1:
             _multirun_table(study, finished)
@@ -546,7 +553,7 @@ def run() -> None:
         code = exc.code if isinstance(exc, SystemExit) else None
         if interrupts.received() is not None:  # also a stop whose exception a callback swallowed or wrapped
             # now: no wait for worker threads still inside a kernel (their chunks are computed again on resume)
-            interrupts.exit_now(interrupts.report(None, RESUME))
+            interrupts.exit_now(interrupts.report(None))
         sys.exit(code)
 
 

@@ -12,7 +12,7 @@ from typing import Annotated, Optional
 
 import typer
 
-from surgopt.interrupts import RESUME  # the line of a stopped command (light: imports nothing)
+from surgopt.interrupts import COMPLETE, RESUME, UNCHANGED  # noqa: F401 - the lines of a stopped command (light: imports nothing)
 
 app = typer.Typer(
     name="surgopt",
@@ -151,32 +151,29 @@ def fail(exc: BaseException, code: int) -> None:
 
 
 
-#: What a stopped or failed command that stores nothing (report, export, summarize, plot, diff, runs) says instead
-#: of ``RESUME`` (issue 55 item 7: it has no chunks to resume).
-UNCHANGED = "this command stores nothing: the store's runs are as they were; run it again"
-
-
 @contextlib.contextmanager
 def guard(stores: bool = True):
     """Every failure a command can meet ends in one line on stderr and an exit code: 2 bad input,
     1 a failed run or store, 130 / 143 / 129 interrupted by SIGINT / SIGTERM / SIGHUP. ``stores``: whether the
-    command stores a run's chunks (its lines then say a resume finds them; else ``UNCHANGED``)."""
+    command stores a run's chunks (its lines then say a resume finds them; else ``UNCHANGED``). A study command
+    says ``interrupts.on_stop`` as it goes: UNCHANGED while it reads its configs or estimates (a dry run),
+    RESUME while a run stores, COMPLETE once it is stored."""
     from surgopt import interrupts
     from surgopt.errors import SurgoptError, out_of_memory
 
-    hint = RESUME if stores else UNCHANGED
+    interrupts.on_stop(RESUME if stores else UNCHANGED)
     try:
         yield
     except KeyboardInterrupt as exc:  # Ctrl-C, or SIGTERM / SIGHUP (surgopt.interrupts.Stopped)
-        raise typer.Exit(interrupts.report(exc, hint))
+        raise typer.Exit(interrupts.report(exc))
     except Exception as exc:  # noqa: BLE001 - re-raised below unless it is a stop's consequence or ours to word
         if interrupts.received() is not None:
             # what failed while a stop unwound is the stop: a lock file mid-rename, a library that wraps the
             # KeyboardInterrupt raised inside it (pydantic-core building a validator: SchemaError)
-            raise typer.Exit(interrupts.report(None, hint)) from None
+            raise typer.Exit(interrupts.report(None)) from None
         if not isinstance(exc, (SurgoptError, OSError)) and not out_of_memory(exc):
             raise
-        fail_on(exc, stores)
+        fail_on(exc, interrupts.stop_hint() == RESUME)
 
 
 def fail_on(exc: BaseException, stores: bool = True) -> None:

@@ -44,6 +44,14 @@ STOP_GRACE_S = 3.0
 
 #: What a stopped command's line says a resume will find.
 RESUME = "finished chunks are stored, run the same command again to resume"
+#: ... said instead by a command that stores nothing (report, export, summarize, plot, diff, runs, a dry run, a
+#: study command before its run begins; issue 55 item 7: it has no chunks to resume).
+UNCHANGED = "this command stores nothing: the store's runs are as they were; run it again"
+#: ... said instead once a study command's run is stored complete (issue 56 item 10: nothing to resume).
+COMPLETE = "the run is stored complete; the same command again prints its report from the store"
+#: What the command in hand says now (``on_stop``): its line changes as it goes from reading to storing to done
+#: (before a command's guard: nothing stored).
+_on_stop = [UNCHANGED]
 _report_lock = threading.Lock()
 
 
@@ -157,7 +165,7 @@ def _watch(read_fd: int) -> None:
         if signums:
             break
     threading.Event().wait(STOP_GRACE_S)  # the orderly path ends the process first, as a rule
-    exit_now(report(None, RESUME, signum=signums[0]))
+    exit_now(report(None, signum=signums[0]))
 
 
 def exit_now(code: int) -> None:
@@ -210,9 +218,21 @@ def raise_if_stopped() -> None:
         raise Stopped(_received[0])
 
 
-def report(exc: BaseException | None, resume: str, signum: int | None = None) -> int:
-    """Say on stderr that the command was stopped (and that ``resume`` holds), once whoever says it (the
-    command's guard, the CLI's last word, the watchdog); the exit code."""
+def on_stop(hint: str) -> None:
+    """What a stop's line says from now on (RESUME, UNCHANGED or COMPLETE): set by a command as it goes."""
+    _on_stop[0] = hint
+
+
+def stop_hint() -> str:
+    """What a stop's line says now."""
+    return _on_stop[0]
+
+
+def report(exc: BaseException | None, resume: str | None = None, signum: int | None = None) -> int:
+    """Say on stderr that the command was stopped (and that ``resume`` holds, by default what the command in hand
+    said last, ``on_stop``), once whoever says it (the command's guard, the CLI's last word, the watchdog); the
+    exit code."""
+    resume = resume or _on_stop[0]
     signum = signum or (exc.signum if isinstance(exc, Stopped) else (received() or signal.SIGINT))
     with _report_lock:  # the main thread and the watchdog: one line
         if not _reported:
