@@ -352,7 +352,8 @@ def report(
             items.append((st, r, r.parts(st.schema_for(r.manifest["config"]))))
         if len(items) == 1:
             st, r, _ = items[0]
-            path = _write_page(H, st, r, out or r.path / H.REPORT_FILE)
+            path = _write_page(H, st, r, out or r.path / H.REPORT_FILE,
+                               "--out" if out else "the page beside the run (--out FILE writes it elsewhere)")
             latest = "" if runs_ else f" (the latest {study + ' ' if study else ''}run in the store)"
             typer.echo(f"{path}: {st.name} run {r.key[:12]} {r.manifest.get('config_name', '')}{latest}",
                        err=str(path) == "-")  # the page itself on standard output: the word beside it
@@ -362,18 +363,18 @@ def report(
         typer.echo(f"{path}: {len(items)} runs compared ({', '.join(r.key[:8] for _, r, _ in items)})")
 
 
-def _write_page(H, st, r, path: Path) -> Path:
-    _write_text(path, H.run_page(st, r, r.parts(st.schema_for(r.manifest["config"]))))
+def _write_page(H, st, r, path: Path, option: str = "the page beside the run (--out FILE writes it elsewhere)") -> Path:
+    _write_text(path, H.run_page(st, r, r.parts(st.schema_for(r.manifest["config"]))), option)
     return path
 
 
-def _write_text(path: Path, text: str) -> None:
+def _write_text(path: Path, text: str, option: str = "--out") -> None:
     """Atomically (a reader never sees half a page), through what is not a regular file (a FIFO, /dev/stdout),
     ``-``: standard output (``outputs.write_text_out``); the caller has refused a user's path into the store, and
     the page beside a run is the command's own."""
     from surgopt.outputs import write_text_out
 
-    write_text_out(path, text, own=True)
+    write_text_out(path, text, option, own=True)
 
 
 def _headline_text(s, rec) -> str:

@@ -7,10 +7,13 @@
 - What exists and is not a regular file (a FIFO with a reader waiting, a character device, ``/dev/stdout``, which
   is a link to ``/proc/self/fd/1``) is written through, streamed into as it is; it is never replaced by a file.
 - A regular file (or a new one) is replaced atomically (``store.atomic_write``), through any symbolic link to it:
-  the link is kept and its target replaced.
+  the link is kept and its target replaced. A file this user may not write, or a folder it may not write into, is
+  refused in one line (exit 2) before anything is written: a rename would replace another user's file that
+  ``open`` would not (a folder anyone may write to), and the temporary file's name is not what the user gave.
 """
 from __future__ import annotations
 
+import os
 import re
 import stat
 import sys
@@ -46,12 +49,34 @@ def store_reserved(path: Path) -> str:
 
 def checked(out: Path, option: str = "--out") -> Path:
     """``out`` resolved (links followed, ``~`` expanded), or a ``UsageError`` naming the option when it belongs to
-    a store (``store_reserved``)."""
+    a store (``store_reserved``) or this user may not write it (``refused_unwritable``): before anything is read."""
     real = Path(out).expanduser().resolve(strict=False)
     why = store_reserved(real)
     if why:
         raise UsageError(f"{option}: {out} {why}; give a path outside the store's run folders (nothing was written)")
+    refused_unwritable(real, out, option)
     return real
+
+
+def refused_unwritable(path: Path, out, option: str) -> None:
+    """A ``UsageError`` naming ``option`` where this user may not write ``path`` (an existing file) or create it
+    (the nearest folder of it that exists)."""
+    if path.exists():
+        if not os.access(path, os.W_OK):
+            raise UsageError(f"{option}: {out} cannot be written by this user (it belongs to "
+                             f"{_owner(path)}); nothing was written")
+        return
+    folder = next(p for p in path.parents if p.exists())
+    if not os.access(folder, os.W_OK | os.X_OK):
+        raise UsageError(f"{option}: {out}: this user cannot write in the folder {folder} (it belongs to "
+                         f"{_owner(folder)}); nothing was written")
+
+
+def _owner(path: Path) -> str:
+    try:
+        return path.owner()
+    except (KeyError, OSError):
+        return f"user {path.stat().st_uid}"
 
 
 def streamed(path: Path) -> bool:
@@ -73,6 +98,8 @@ def write_out(out, write: Callable[[BinaryIO], None], option: str = "--out", own
         sys.stdout.buffer.flush()
         return
     path = Path(out).expanduser().resolve(strict=False) if own else checked(out, option)
+    if own:
+        refused_unwritable(path, out, option)
     if path.is_dir():  # '' reads as '.': a folder either way
         raise UsageError(f"{option}: {out} is a folder; give a file (nothing was written)")
     given = Path(out).expanduser()
@@ -86,8 +113,13 @@ def write_out(out, write: Callable[[BinaryIO], None], option: str = "--out", own
         with open(tmp, "wb") as sink:
             write(sink)
 
-    path.parent.mkdir(parents=True, exist_ok=True)
-    atomic_write(path, to_file)
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        atomic_write(path, to_file)
+    except OSError as exc:  # a write error names no file: name the one the user gave (a full disk)
+        if exc.filename is None and exc.errno is not None:
+            raise OSError(exc.errno, exc.strerror, str(path)) from None
+        raise
 
 
 def write_text_out(out, text: str, option: str = "--out", own: bool = False) -> None:

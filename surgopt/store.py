@@ -176,6 +176,27 @@ def atomic_write(path: Path, write) -> None:
     _fsync_dir(path.parent)
 
 
+def _held_exclusively(path: Path) -> bool:
+    """Whether a process holds ``path``'s lock (filelock's exclusive ``flock``), asked through a read-only
+    descriptor with a shared lock that cannot be granted beside it: for a lock file this user may not open to
+    write (filelock's own test opens it read-write)."""
+    import fcntl
+
+    try:
+        fd = os.open(path, os.O_RDONLY)
+    except OSError:
+        return False
+    try:
+        fcntl.flock(fd, fcntl.LOCK_SH | fcntl.LOCK_NB)
+    except BlockingIOError:
+        return True
+    except OSError:
+        return False
+    finally:
+        os.close(fd)  # (closing the descriptor releases the shared lock)
+    return False
+
+
 def _fsync_dir(path: Path) -> None:
     fd = os.open(path, os.O_RDONLY)
     try:
@@ -503,6 +524,8 @@ class Store:
             lock.acquire(timeout=0)
         except Timeout:
             return self._holder_text(path)
+        except PermissionError:  # a store this user may read but not write (a lab's shared store)
+            return self._holder_text(path) if _held_exclusively(path) else None
         lock.release()
         return None
 

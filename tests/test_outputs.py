@@ -127,3 +127,75 @@ def test_a_command_that_stores_nothing_does_not_say_resume(stored, tmp_path, mon
     code, output = invoke("export", "latest", "--store", store, "--format", "csv", "--out", tmp_path / "rows.csv")
     assert code == 1 and "stores nothing" in output and "resume" not in output and output.strip().count("\n") == 0
     assert ("disk is full" in output) == (fault == "disk full")
+
+
+def test_an_output_this_user_may_not_write_is_refused_before_anything_is_read(stored, tmp_path, monkeypatch):
+    """#55, outputs as a non-root user: a folder this user may not write into and a file it may not write (another
+    user's, in a folder anyone may write to: a rename would have replaced it) are refused in one line, exit 2,
+    naming --out and the owner, nothing written (before: "Permission denied writing .../.rows.csv.tmp-NNN", exit
+    1, or the other user's file replaced). Run as root (who may write anything) the user's view is what
+    ``os.access`` answers, made to answer as for another user."""
+    from pathlib import Path
+
+    from surgopt import outputs
+
+    _, store, _ = stored
+    ro, theirs = tmp_path / "ro", tmp_path / "theirs.csv"
+    ro.mkdir()
+    theirs.write_text("theirs")
+    if os.geteuid() == 0:
+        real = os.access
+        monkeypatch.setattr(outputs.os, "access",
+                            lambda p, mode: real(p, mode) and not (mode & os.W_OK and Path(p) in (ro, theirs)))
+    else:
+        ro.chmod(0o555)
+        theirs.chmod(0o444)
+    assert not os.access(ro, os.W_OK) or os.geteuid() == 0  # the premise, as the code sees it
+    for args, out in ((("export", "latest", "--format", "csv"), ro / "rows.csv"),
+                      (("export", "latest", "--format", "json"), ro / "sub" / "rows.json"),
+                      (("report", "latest"), ro / "page.html"), (("plot", "latest"), ro / "figures"),
+                      (("export", "latest", "--format", "csv"), theirs)):
+        code, output = invoke(*args, "--store", store, "--out", out)
+        assert code == 2 and output.strip().count("\n") == 0 and output.startswith(f"surgopt: error: --out: {out}"), \
+            (args, output)
+        assert ("cannot write in the folder" if out != theirs else "cannot be written by this user") in output
+    assert sorted(p.name for p in tmp_path.rglob("*")) == ["ro", "theirs.csv"] and theirs.read_text() == "theirs"
+
+
+def test_a_full_disk_names_the_file_and_leaves_nothing_behind(stored, tmp_path, monkeypatch):
+    """A write that fails for want of space (the error names no file: ``write`` does not) says which output, in one
+    line, and leaves no temporary file beside it."""
+    import errno
+
+    from surgopt import export
+
+    def full(*_):  # the header is written, then the disk fills up
+        raise OSError(errno.ENOSPC, "No space left on device")
+        yield
+
+    monkeypatch.setattr(export, "_in_order", full)
+    _, store, _ = stored
+    out = tmp_path / "rows.csv"
+    code, output = invoke("export", "latest", "--store", store, "--format", "csv", "--out", out)
+    assert code == 1 and output.strip() == (f"surgopt: error: the disk is full writing {out}; this command stores "
+                                            "nothing: the store's runs are as they were; run it again once there "
+                                            "is space"), output
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_a_lock_this_user_may_not_open_for_writing_still_tells_a_run_being_written(tmp_path):
+    """A store this user may read but not write (a lab's shared store): ``runs`` asked each run's lock by opening
+    it read-write and ended in "Permission denied writing .../.locks/KEY.lock". A lock file it may only read is
+    asked through a shared ``flock`` on a read-only descriptor: held while the writer holds it, free after."""
+    from filelock import FileLock
+
+    from surgopt.store import _held_exclusively
+
+    path = tmp_path / "k.lock"
+    writer = FileLock(path)
+    writer.acquire()
+    try:
+        assert _held_exclusively(path)
+    finally:
+        writer.release()
+    assert path.exists() and not _held_exclusively(path)
