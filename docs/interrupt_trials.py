@@ -100,6 +100,25 @@ def same(a: dict, b: dict) -> bool:
     return a.keys() == b.keys() and all(a[k].equals(b[k]) for k in a)
 
 
+def how_they_differ(a: dict, b: dict) -> str:
+    """Where a resumed run's tables differ from the uninterrupted run's: keys, row counts, the columns and rows."""
+    if a.keys() != b.keys():
+        return f"; runs {sorted(k[:8] for k in a)} vs {sorted(k[:8] for k in b)}"
+    out = []
+    for k in a:
+        x, y = a[k], b[k]
+        if x.num_rows != y.num_rows:
+            out.append(f"{k[:8]}: {x.num_rows} vs {y.num_rows} rows")
+            continue
+        for c in x.column_names:
+            if not x[c].equals(y[c]):
+                xs, ys = x[c].to_pylist(), y[c].to_pylist()
+                rows = [i for i, (p, q) in enumerate(zip(xs, ys)) if p != q]
+                out.append(f"{k[:8]}.{c}: {len(rows)} rows differ, e.g. row {rows[0]}: {xs[rows[0]]!r} vs "
+                           f"{ys[rows[0]]!r}" if rows else f"{k[:8]}.{c}: equal values, unequal arrays")
+    return "; " + "; ".join(out)
+
+
 def command(kind, cfg, store, backend):
     study, _, extra, _ = KINDS[kind]
     return [sys.executable, "-m", "surgopt", study, str(cfg), *extra, "--store", str(store), "-q", "--backend", backend]
@@ -144,10 +163,12 @@ def series(cfg, tmp: Path, kind: str, backend: str, n: int, rng: random.Random) 
                 out["bad"].append(f"{sig.name} at {delay:.2f} s: exit {p.returncode} after {took:.1f} s, {len(lines)} lines: "
                                   f"{err.strip()[:200]!r}")
         r = subprocess.run(command(kind, cfg, store, backend), capture_output=True, text=True)
-        if r.returncode == 0 and same(table(store), ref):
+        got = table(store) if r.returncode == 0 else {}
+        if r.returncode == 0 and same(got, ref):
             out["identical"] += 1
         else:
-            out["bad"].append(f"resume after {sig.name} at {delay:.2f} s: exit {r.returncode} {r.stderr.strip()[:200]!r}")
+            out["bad"].append(f"resume after {sig.name} at {delay:.2f} s: exit {r.returncode} {r.stderr.strip()[:200]!r}"
+                              f"{how_they_differ(got, ref) if r.returncode == 0 else ''}")
     out["duration_s"] = duration
     return out
 
