@@ -198,7 +198,9 @@ def _run_study_command(study, cmd: StudyCommand, flags=()):
             given = variants(study, config, overrides, updates, multirun=cmd.multirun, flags_text=flags_text)
             todo = _expanded(study, given, flags)
         if cmd.print_config:
-            _print_configs(todo)
+            from surgopt.compose import origins
+
+            _print_configs(todo, origins(study, config, overrides, updates, flags_text))
             return
         notes = [n for v in todo if study.advice for n in study.advice(v.config)]
         for note in dict.fromkeys(notes):  # once each, in order (the runs of a --multirun often share one)
@@ -299,10 +301,16 @@ def _best_of(study, finished) -> None:
         wide_console().print(f"best of the {len(finished)} runs by {key}: {value:.6g} ({v.config_name})")
 
 
-def _print_configs(todo) -> None:
-    """The effective validated configs as TOML: exactly what is hashed (``--print-config``)."""
+def _print_configs(todo, origins: dict[str, str] | None = None) -> None:
+    """The effective validated configs as TOML: exactly what is hashed (``--print-config``), after a comment
+    saying where each value given came from (``compose.origins``); every other value is its field's default."""
     from surgopt.config import to_toml
 
+    if origins:
+        width = max(map(len, origins))
+        typer.echo("# where each value given came from (every value not listed is its field's default):")
+        for key, source in origins.items():
+            typer.echo(f"#   {key:<{width}}  {source}")
     for v in todo:
         if len(todo) > 1:
             typer.echo(f"# {v.config_name}")

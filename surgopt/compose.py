@@ -51,6 +51,31 @@ def base_data(study, config: str | Path | list | None) -> tuple[dict, str, str]:
     return read_config_data(config), str(config), Path(config).stem
 
 
+def _leaves(data: Any, where: str = "") -> list[str]:
+    """The dotted keys of a parsed config's values (a table's keys recursively; a list or number is a leaf)."""
+    if not isinstance(data, dict):
+        return [where] if where else []
+    return [k for key, v in data.items() for k in _leaves(v, f"{where}.{key}" if where else str(key))]
+
+
+def origins(study, config: str | Path | list | None = None, overrides: list[str] | None = None,
+            updates: dict | None = None, flags_text: str = "") -> dict[str, str]:
+    """Where each value a command sets comes from (``--print-config``, issue 56 item 1): each dotted key the
+    embedded default (no config given), each config file (the later over the earlier), the command line's
+    overrides and a study flag name, with the last that set it. A key none of them names is the field's default."""
+    if config is None:
+        layers = [(f"embedded default {study.default_config}", base_data(study, None)[0])]
+    else:
+        paths = list(config) if isinstance(config, (list, tuple)) else [config]
+        layers = [(str(p), read_config_data(p)) for p in paths]
+    out: dict[str, str] = {}
+    for source, data in layers:
+        out.update({k: source for k in _leaves(data or {})})
+    out.update({k: "the command line" for k, _ in parse_overrides(list(overrides or []))})
+    out.update({k: flags_text or "a flag" for k in (updates or {})})
+    return out
+
+
 def first_config(config: str | Path | list | None):
     """The config file whose folder relative paths of the command line are taken from: the first of several."""
     return config[0] if isinstance(config, (list, tuple)) else config

@@ -15,7 +15,7 @@ from surgopt.studies.port_place import tables as T
 
 from reference import PSM_CLASSIC_MDH, mdh_chain, segment_distance_sampled
 
-SMALL = {"patient": {"port_region": {"site_spacing_mm": 36.0}}, "target": {"spacing_mm": 15.0}}
+SMALL = {"patient": {"port_region": {"site_spacing_mm": 36.0}}, "target": {"spacing_mm": 15.0}, "cart": {"model": "none"}}
 
 
 def _sphere_directions(n=12):

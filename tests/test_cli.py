@@ -308,3 +308,32 @@ def test_another_studys_flag_is_named_as_such(tmp_path):
     assert not (tmp_path / "s").exists()
     r = cli("port-place", "--jbs", "2", "--store", tmp_path / "s", check=False)
     assert r.returncode == 2 and "--jobs" in r.stderr
+
+
+def test_help_keeps_every_bracket_it_is_given():
+    """#56 item 7: Rich read "[default: ...]" in an option's help as markup and dropped it ("Output file .",
+    "exceeds this ."). No command's help (the study commands' too) holds a "[" that is not escaped, and the
+    rendered --help shows each default."""
+    import re
+
+    import typer.main
+    from typer.testing import CliRunner
+
+    from surgopt.cli import app
+
+    group = typer.main.get_command(app)
+    seen = []
+    for name in group.list_commands(None):
+        command = group.get_command(None, name)
+        for p in command.params:
+            assert not re.search(r"(?<!\\)\[", getattr(p, "help", None) or ""), (name, p.name, p.help)
+            seen.append(p.name)
+    assert "max_memory_gb" in seen and "out" in seen  # the premise: the study commands' options were walked
+    for args, shown in ((["export", "--help"], "[default: standard output"),
+                        (["port-place", "--help"], "[default: half of this machine"),
+                        (["report", "--help"], "[default: beside the run")):
+        out = CliRunner().invoke(app, args, env={"COLUMNS": "200"}).output
+        assert shown in " ".join(out.replace("│", " ").split()), (args, out)
+    lead = CliRunner().invoke(app, ["port-place", "--help"], env={"COLUMNS": "100"}).output.splitlines()[:16]
+    assert sum(line.strip().startswith("Example: surgopt port-place") for line in lead) == 2  # leads with two
+    assert any(line.strip().startswith("Frame: the patient's, in mm") for line in lead)

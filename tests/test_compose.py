@@ -90,3 +90,30 @@ def test_a_later_config_file_that_is_not_a_table_is_refused_naming_it(tmp_path):
     (tmp_path / "b.yaml").write_text("- 1\n- 2\n")
     with pytest.raises(ConfigError, match=r"b\.yaml.*table of sections"):
         variants(get_study("port-place"), [str(tmp_path / "a.toml"), str(tmp_path / "b.yaml")])
+
+
+def test_a_config_of_ones_own_keeps_the_robot_and_print_config_says_where_each_value_came_from(tmp_path):
+    """#56 item 1: a port-place config naming only [patient] and [target] ran with the cart's model 'none' (the
+    field's default then; the embedded default's 'auto' was not the base of a config file), so the cart and every
+    link check vanished (80,683 feasible of 2.4 M instead of ~2,000). 'auto' is now the field's default: the file
+    gives the same config as the embedded default with the same values given on the command line. --print-config
+    names the file, the command line or the embedded default each given value came from."""
+    from surgopt.compose import origins, variants
+    from surgopt.studies import get_study
+
+    from conftest import invoke
+
+    study = get_study("port-place")
+    own = tmp_path / "my_patient.toml"
+    own.write_text("[patient]\nsemi_axes_mm = [170.0, 200.0, 130.0]\n[target]\ncentre_mm = [0.0, -90.0, 40.0]\n")
+    (mine,) = variants(study, own)
+    (same,) = variants(study, None, ["patient.semi_axes_mm=[170.0,200.0,130.0]", "target.centre_mm=[0.0,-90.0,40.0]"])
+    assert mine.config.cart.model == "classic" and mine.config == same.config
+    assert origins(study, own, ["cart.distance_mm=[900,1200]"]) == {
+        "patient.semi_axes_mm": str(own), "target.centre_mm": str(own), "cart.distance_mm": "the command line"}
+    assert origins(study) == {"cart.model": "embedded default port_place_dvrk.toml"}
+    code, out = invoke("port-place", own, "cart.distance_mm=[900,1200]", "--print-config")
+    lines = out.splitlines()
+    assert code == 0 and lines[0].startswith("# where each value given came from")
+    assert any(line.split() == ["#", "target.centre_mm", str(own)] for line in lines[:4])
+    assert 'model = "classic"' in out

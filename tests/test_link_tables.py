@@ -18,7 +18,7 @@ from surgopt.studies.port_place.link_tables import CAP_M, pair_name
 
 from reference import segment_distance_sampled
 
-SMALL = {"patient": {"port_region": {"site_spacing_mm": 36.0}}, "target": {"spacing_mm": 15.0}}
+SMALL = {"patient": {"port_region": {"site_spacing_mm": 36.0}}, "target": {"spacing_mm": 15.0}, "cart": {"model": "none"}}
 LINKS = {**SMALL, "cart": {"model": "classic", "around_step_deg": 30.0, "distance_step_mm": 300.0},
          "constraints": {"min_link_clearance_mm": 0.0}}
 

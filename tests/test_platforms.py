@@ -14,7 +14,7 @@ from surgopt.studies.port_place import carts as CT
 from surgopt.studies.port_place import config as C
 from surgopt.studies.port_place import study as S
 
-SMALL = {"patient": {"port_region": {"site_spacing_mm": 72.0}}, "target": {"spacing_mm": 20.0}}
+SMALL = {"patient": {"port_region": {"site_spacing_mm": 72.0}}, "target": {"spacing_mm": 20.0}, "cart": {"model": "none"}}
 
 
 def test_every_list_of_carts_is_the_registrys():

@@ -11,7 +11,7 @@ from surgopt.studies.port_place import config as C
 from surgopt.studies.port_place import geometry as G
 from surgopt.studies.port_place import study as S
 
-SMALL = {"patient": {"port_region": {"site_spacing_mm": 36.0}}, "target": {"spacing_mm": 15.0}}
+SMALL = {"patient": {"port_region": {"site_spacing_mm": 36.0}}, "target": {"spacing_mm": 15.0}, "cart": {"model": "none"}}
 TIP_PAST_Q3_M = -0.3822 + 0.3829  # ECM.json: the insertion row's offset plus the roll row's D
 LEAST_INSERTION_M, MOST_INSERTION_M = 0.050, 0.255
 

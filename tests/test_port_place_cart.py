@@ -19,7 +19,7 @@ from surgopt.studies.port_place import tables as T
 from conftest import cli
 from reference import suj_forward_reference
 
-SMALL = {"patient": {"port_region": {"site_spacing_mm": 36.0}}, "target": {"spacing_mm": 15.0}}
+SMALL = {"patient": {"port_region": {"site_spacing_mm": 36.0}}, "target": {"spacing_mm": 15.0}, "cart": {"model": "none"}}
 #: The links outside the body are the default's (min_link_clearance_mm = 0) but off here: these tests are about
 #: docking alone (tests/test_link_tables.py checks the links; the ECM's one-handed setup joints are no mirror
 #: image of themselves, so its links would break the mirror twins).

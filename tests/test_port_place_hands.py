@@ -8,7 +8,7 @@ from surgopt.studies.port_place import config as C
 from surgopt.studies.port_place import study as S
 from surgopt.studies.port_place.hands import image_right_psm, pairing_words, teleop_pairing
 
-SMALL = {"patient": {"port_region": {"site_spacing_mm": 36.0}}, "target": {"spacing_mm": 15.0}}
+SMALL = {"patient": {"port_region": {"site_spacing_mm": 36.0}}, "target": {"spacing_mm": 15.0}, "cart": {"model": "none"}}
 
 
 def test_a_surgeon_at_the_head_sees_the_patients_right_on_the_right_and_at_the_feet_the_left():

@@ -15,7 +15,7 @@ from surgopt.studies.port_place import geometry as G
 from surgopt.studies.port_place import report as R
 from surgopt.studies.port_place import study as S
 
-COARSE = {"patient": {"port_region": {"site_spacing_mm": 72.0}}, "target": {"spacing_mm": 20.0}}
+COARSE = {"patient": {"port_region": {"site_spacing_mm": 72.0}}, "target": {"spacing_mm": 20.0}, "cart": {"model": "none"}}
 
 
 @pytest.mark.parametrize("x, y, words", [(72.0, -18.0, "72 left, 18 caudal"), (-72.0, 18.0, "72 right, 18 cranial"),

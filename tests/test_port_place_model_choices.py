@@ -21,11 +21,11 @@ from reference import PSM_CLASSIC_MDH, mdh_chain
 #: The Large Needle Driver's wrist pitch and wrist yaw rows (alpha, A, D, prismatic, offset), typed from
 #: ../shared/robots/dvrk-kinematics.md: the yaw row's A, 0.0091 m, carries the jaws' tip past the wrist.
 LND_WRIST_MDH = [(-np.pi / 2, 0.0, 0.0, False, -np.pi / 2), (-np.pi / 2, 0.0091, 0.0, False, -np.pi / 2)]
-SMALL = {"patient": {"port_region": {"site_spacing_mm": 36.0}}, "target": {"spacing_mm": 15.0}}
+SMALL = {"patient": {"port_region": {"site_spacing_mm": 36.0}}, "target": {"spacing_mm": 15.0}, "cart": {"model": "none"}}
 #: A larger target (120 x 150 x 70 mm, issue 40 item 3's) on which the choices move which sites reach it all.
 LARGE = {"patient": {"port_region": {"site_spacing_mm": 36.0}},
          "target": {"shape": "box", "radii_mm": [60.0, 75.0, 35.0], "centre_mm": [0.0, -40.0, 50.0],
-                    "spacing_mm": 15.0}}
+                    "spacing_mm": 15.0}, "cart": {"model": "none"}}
 RNG = np.random.default_rng(40)
 
 

@@ -111,8 +111,8 @@ def test_the_3d_layout_figure_gives_sites_and_target_points_each_their_own_colou
         return path
 
     monkeypatch.setattr(F, "save", kept)
-    cfg = validate({"patient": {"port_region": {"site_spacing_mm": 54.0}}, "target": {"spacing_mm": 20.0}},
-                   C.PortPlaceConfig, "x")
+    cfg = validate({"patient": {"port_region": {"site_spacing_mm": 54.0}}, "target": {"spacing_mm": 20.0},
+                    "cart": {"model": "none"}}, C.PortPlaceConfig, "x")
     rows = S.compute_task(cfg, 10 ** 6, 0)
     import pyarrow as pa
 

@@ -21,7 +21,7 @@ from reference import finite_difference_jacobian
 ANY_APPROACH = K.Approach(0.0, 0.0, -1.0, -2.0)  # no approach cone
 
 RNG = np.random.default_rng(29)
-SMALL = {"patient": {"port_region": {"site_spacing_mm": 36.0}}, "target": {"spacing_mm": 15.0}}
+SMALL = {"patient": {"port_region": {"site_spacing_mm": 36.0}}, "target": {"spacing_mm": 15.0}, "cart": {"model": "none"}}
 
 
 def _limits(arm):
@@ -45,7 +45,7 @@ def test_a_mirror_symmetric_patient_gives_a_mirror_symmetric_optimum():
 
 
 THREE = {"patient": {"port_region": {"site_spacing_mm": 50.0}}, "target": {"spacing_mm": 15.0},
-         "robot": {"instrument_count": 3}}
+         "robot": {"instrument_count": 3}, "cart": {"model": "none"}}
 
 
 def test_three_psms_on_a_mirror_symmetric_patient_give_every_design_its_mirror_twin():
@@ -226,7 +226,7 @@ def test_a_mesh_of_the_dome_gives_the_domes_sites_and_best_layout(tmp_path):
     mesh.apply_scale(0.001)
     mesh.apply_translation([0.0, 0.0, -0.02])  # 20 mm below the table: the offset puts it back
     mesh.export(tmp_path / "dome_m.ply")
-    small = {"patient": {"port_region": {"site_spacing_mm": 72.0}}, "target": {"spacing_mm": 20.0}}
+    small = {"patient": {"port_region": {"site_spacing_mm": 72.0}}, "target": {"spacing_mm": 20.0}, "cart": {"model": "none"}}
     dome = validate(small, C.Config, "dome")
     as_mesh = validate({**small, "patient": {**small["patient"], "shape": "mesh", "mesh_file": "dome_m.ply",
                                              "mesh_units": "m", "mesh_offset_mm": [0.0, 0.0, 20.0]}},
@@ -374,7 +374,7 @@ def test_a_bad_target_mesh_is_refused_with_the_field_named(tmp_path, case):
 
 # --- searches over the ports and the docking (plans) ----------------------------------------------------------
 
-COARSE = {"patient": {"port_region": {"site_spacing_mm": 72.0}}, "target": {"spacing_mm": 20.0}}
+COARSE = {"patient": {"port_region": {"site_spacing_mm": 72.0}}, "target": {"spacing_mm": 20.0}, "cart": {"model": "none"}}
 
 
 @pytest.mark.parametrize("instruments", [2, 3])
@@ -596,7 +596,7 @@ def test_a_region_painted_on_the_mesh_keeps_the_sites_on_its_faces(tmp_path):
 
     mesh, painted = _painted_dome(tmp_path / "painted")
     base = {"patient": {"shape": "mesh", "mesh_file": "painted.ply", "port_region": {"site_spacing_mm": 36.0}},
-            "target": {"spacing_mm": 20.0}}
+            "target": {"spacing_mm": 20.0}, "cart": {"model": "none"}}
     plain = validate(base, C.Config, "plain", {"config_dir": str(tmp_path)})
     region = {**base["patient"]["port_region"], "face_color_rgb": [255, 0, 0]}
     cfg = validate({**base, "patient": {**base["patient"], "port_region": region}}, C.Config, "painted",

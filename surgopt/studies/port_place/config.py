@@ -381,12 +381,12 @@ class Cart(StrictModel):
     ``trendelenburg_deg`` and left side up by ``lateral_tilt_deg``."""
 
     model: str = Field(
-        "none", description="'none': docking assumed; 'classic': the Classic cart's setup joints solved; 'si': the "
+        "auto", description="'none': docking assumed; 'classic': the Classic cart's setup joints solved; 'si': the "
                             "Si cart's (its PSMs and ECM, robot.instrument_arm = 'dvrk_psm_si', camera_arm = "
                             "'dvrk_ecm_si'; each arm docked at the one orientation its setup joints give nearest "
                             "the aim, its own yaw and pitch absorbing the rest; its links from the dVRK's Si "
                             "description); 'auto' "
-                            "(the embedded default's): 'classic' where its arms are the Classic PSMs and ECM on "
+                            "(the default): 'classic' where its arms are the Classic PSMs and ECM on "
                             "the grid of layouts, 'none' otherwise (a note says why); resolved when the config is "
                             "read, so the stored config names the one used",
         json_schema_extra={"enum": list(CART_MODELS)})
