@@ -101,7 +101,7 @@ MaxHoursOpt = Annotated[float, typer.Option(
                                  "(the estimate is printed; raise this to run it anyway).")]
 MaxMemoryOpt = Annotated[Optional[float], typer.Option(
     "--max-memory-gb", callback=_positive_finite, help="Refuse a config whose estimated peak memory exceeds this "
-                                     "[default: half of this machine's memory].", show_default=False)]
+                                     "\\[default: half of this machine's memory].", show_default=False)]
 ChunkOpt = Annotated[Optional[int], typer.Option(
     "--chunk-size", min=1, help="Design points per task (a resumed run keeps the size it started with).",
     show_default=False)]

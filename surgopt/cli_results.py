@@ -229,7 +229,7 @@ FIGURES_FOLDER = "_figures"
 def plot(
     run: RunRef = None,
     out: Annotated[Optional[Path], typer.Option(
-        "--out", help="Folder for the figures [default: the run's own folder in the store, "
+        "--out", help="Folder for the figures \\[default: the run's own folder in the store, "
                       "STORE/study=<study>/key=<key>/_figures, kept with the run as MLflow keeps artifacts; "
                       "Parquet readers skip it]", show_default=False)] = None,
     fmt: Annotated[FigureFormat, typer.Option("--format", help="png, pdf or svg.")] = FigureFormat.png,
@@ -301,10 +301,10 @@ def run_stamp(study: str, run) -> str:
 @app.command("report")
 def report(
     runs_: Annotated[Optional[list[str]], typer.Argument(
-        metavar="[RUN]...", help="Key prefixes, names or configs of stored runs [default: the store's latest run]; "
+        metavar="[RUN]...", help="Key prefixes, names or configs of stored runs \\[default: the store's latest run]; "
                                  "several make one comparison page.", show_default=False)] = None,
     out: Annotated[Optional[Path], typer.Option(
-        "--out", help="The page's file [default: beside the run in the store, STORE/study=<study>/key=<key>/"
+        "--out", help="The page's file \\[default: beside the run in the store, STORE/study=<study>/key=<key>/"
                       "_report.html; a comparison or the index: STORE/_report.html]", show_default=False)] = None,
     store_index: Annotated[bool, typer.Option(
         "--store-index", help="One page listing every run of the store (name, tags, headline) with a link to each "
@@ -405,7 +405,7 @@ def export(
     design: Annotated[Optional[int], typer.Option("--design", help="The design (its key column's value, e.g. a "
                                                                    "design_id) a study's own format writes.",
                                                   show_default=False)] = None,
-    out: Annotated[Optional[Path], typer.Option("--out", help="Output file [default: standard output; "
+    out: Annotated[Optional[Path], typer.Option("--out", help="Output file \\[default: standard output; "
                                                               "needed for parquet].", show_default=False)] = None,
     store: StoreOpt = None,
     study: StudyOpt = None,

@@ -4,24 +4,26 @@
 (numpy, pydantic, their configs).
 """
 
-HELP = """Port placement for the da Vinci Research Kit on a patient: two or three PSMs and the ECM.
+HELP = """Port placement for the da Vinci Research Kit on a patient: two or three PSMs and the ECM, docked by the patient cart.
 
-    Candidate ports on an insufflated abdomen (a half-ellipsoid or superquadric dome, or a closed mesh), a
-    target inside it (sphere, ellipsoid or box sampled at a spacing, a points file, or a closed mesh). Every
-    assignment of the instrument ports (robot.instrument_count = 2 or 3) and the camera port is one design:
-    reach of each instrument (RCM inverse kinematics within the joint limits), common reach, dexterity,
-    manipulation angle (45-75 deg, Hanna 1997), azimuth imbalance, camera coverage, port spacing, shaft and arm
-    clearances, cost, and why a design is infeasible (a bit mask). With the patient cart ([cart]; the Classic
-    cart by default for the dVRK's arms) each arm's setup joints are solved at every site and cart pose of a
-    grid around the table (or one given, or searched), and a design is feasible only where one pose docks every
-    arm with every arm's links (setup joints' and its own, capsules) clear of each other, the patient and the
-    table (constraints.min_link_clearance_mm, mm, 0 by default; off: docking alone); the closing report's best
-    layout may turn a PSM's docking about its shaft to clear them. cart.model=si docks the Si's PSMs and ECM
-    (robot.instrument_arm=dvrk_psm_si, robot.camera_arm=dvrk_ecm_si) at the one orientation its setup joints
-    give nearest the aim, the arms' own yaw and pitch absorbing the rest (its links measured by the report, not
-    in feasible). `surgopt export KEY --design ID --format dvrk` writes the set-up a dVRK loads. Rows: one per
-    design. The summary ranks feasible designs by cost and checks the best against the clinical numbers.
-    A 3-PSM enumeration runs to 10^8 designs and more: rows_stored=feasible keeps only the feasible designs'
-    rows. Any RCM arm from a DH table or URDF ([robot.instrument_file], [robot.camera_file]), or a serial arm
-    keeping the RCM in software ([robot.instrument_serial], [robot.camera_serial]: a PA10, UR5e, Panda, iiwa or
-    any DH/URDF arm, its base standing beside the port) in place of the dVRK's."""
+    Example: surgopt port-place   (the dVRK example: a dome patient, the Classic cart, the arms' links checked)
+
+    Example: surgopt port-place my_patient.toml cart.distance_mm=[900,1200] --dry-run   (a config of one's own
+    changes only what it names; --dry-run first says the size, time and memory)
+
+    Frame: the patient's, in mm, on the table top: x lateral (the patient's left +x), y toward the head,
+    z anterior (up).
+
+    Every assignment of the instrument ports (robot.instrument_count = 2 or 3) and the camera port to candidate
+    sites is one design: each instrument's reach (RCM inverse kinematics within the joint limits), dexterity,
+    manipulation angle (45-75 deg, Hanna 1997), azimuth imbalance, the camera's view from inside the body, port
+    spacing, shaft clearances, a cost, and why a design is infeasible. With the cart (cart.model = auto: the
+    Classic cart for the dVRK's Classic arms; none: docking assumed) every arm's setup joints are solved at each
+    cart pose of a grid around the table, and a design is feasible only where one pose docks every arm with its
+    links clear of each other, the patient and the table. The summary ranks the feasible designs by cost.
+
+    Then: surgopt report (the run's page); surgopt export KEY --design ID --format dvrk (the set-up a dVRK
+    loads). Other arms: cart.model = si with the Si's PSMs and ECM, an RCM arm from a DH table or URDF
+    ([robot.instrument_file], [robot.camera_file]), a serial arm keeping the RCM in software
+    ([robot.instrument_serial], [robot.camera_serial]). A 3-PSM enumeration runs to 10^8 designs:
+    rows_stored = feasible keeps only the feasible rows."""
