@@ -396,6 +396,21 @@ class _StudyCommands(TyperGroup):
             self.add_command(_study_command(name), name)
         return super().get_command(ctx, name)
 
+    def resolve_command(self, ctx, args):
+        """As Typer's, with "Did you mean" drawn from every command, the studies not yet loaded too (Typer's looks
+        only at the commands already built: ``surgopt port-placee`` had no suggestion, issue 56 item 10)."""
+        from difflib import get_close_matches
+
+        try:
+            return self._click_resolve_command(ctx, args)
+        except Exception as exc:  # noqa: BLE001 - Typer's own click's UsageError (it vendors click), re-raised
+            if not isinstance(getattr(exc, "message", None), str):
+                raise
+            matches = get_close_matches(args[0], self.list_commands(ctx)) if args else []
+            if matches and "Did you mean" not in exc.message:
+                exc.message = f"{exc.message.rstrip('.')}. Did you mean {', '.join(repr(m) for m in matches)}?"
+            raise
+
     def format_help(self, ctx, formatter):
         self._listing = True
         try:

@@ -337,3 +337,15 @@ def test_help_keeps_every_bracket_it_is_given():
     lead = CliRunner().invoke(app, ["port-place", "--help"], env={"COLUMNS": "100"}).output.splitlines()[:16]
     assert sum(line.strip().startswith("Example: surgopt port-place") for line in lead) == 2  # leads with two
     assert any(line.strip().startswith("Frame: the patient's, in mm") for line in lead)
+
+
+def test_a_mistyped_study_is_suggested_like_any_command():
+    """#56 item 10: 'surgopt port-placee' had no "Did you mean" (Typer looks only at the commands built, and a
+    study's is built when it is run); 'reportt' had one."""
+    from typer.testing import CliRunner
+
+    from surgopt.cli import app
+
+    for typo, meant in (("port-placee", "'port-place'"), ("rcm-gird", "'rcm-grid'"), ("reportt", "'report'")):
+        out = CliRunner().invoke(app, [typo]).output
+        assert f"No such command '{typo}'. Did you mean {meant}" in " ".join(out.replace("│", " ").split()), out

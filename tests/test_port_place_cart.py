@@ -809,3 +809,22 @@ def test_a_targets_grid_is_counted_by_arithmetic_before_it_is_built():
         C.PortPlaceConfig.model_validate({"target": {"radii_mm": [300, 300, 300], "spacing_mm": 0.5}})
     assert tracemalloc.get_traced_memory()[1] < 50 * 2 ** 20  # counted, not built (the grid is ~40 GB)
     tracemalloc.stop()
+
+
+def test_the_setup_joint_table_gives_the_revolute_and_column_margins_apart():
+    """#56 item 10: the closing report's setup-joint table had one "least range margin" column holding rad for
+    some arms and m for others. Now the revolute joints' least margin (deg, which joint) and the column's (mm) are
+    two columns, checked on joints placed at known distances from their ranges."""
+    from types import SimpleNamespace
+
+    from surgopt.robots.platforms import PLATFORMS
+
+    suj = PLATFORMS["classic"].suj("PSM2")
+    (c_lo, _), *revolute = suj.ranges
+    joints = [c_lo + 0.123] + [(lo + hi) / 2 for lo, hi in revolute]
+    joints[2] = revolute[1][1] - np.radians(4.0)  # the second revolute joint 4 deg inside its upper end
+    assert all(min(j - lo, hi - j) > np.radians(4.0) for k, (j, (lo, hi)) in enumerate(zip(joints[1:], revolute)) if k != 1)
+    cfg = SimpleNamespace(cart=SimpleNamespace(model="classic"))
+    arm = SimpleNamespace(arm="PSM2", joints=tuple(joints))
+    assert R.suj_margin_words(cfg, arm) == (f"4.0 ({suj.links[2].name})", "123")
+    assert R.suj_margin_words(cfg, SimpleNamespace(arm="ECM", joints=())) == ("-", "-")

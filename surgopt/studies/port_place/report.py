@@ -181,6 +181,18 @@ def summary(parts) -> Summary:
     return Summary(headline, counts, tables)
 
 
+def suj_margin_words(cfg, arm) -> tuple[str, str]:
+    """A docked arm's least margin to its setup joints' ranges, the revolute joints' (deg, and which) and the
+    column's (mm) apart: one column of rad and m mixed read as one number (issue 56 item 10)."""
+    if not arm.joints:
+        return "-", "-"
+    suj = PLATFORMS[cfg.cart.model].suj(arm.arm)
+    margins = [min(v - lo, hi - v) for v, (lo, hi) in zip(arm.joints, suj.ranges)]
+    names = [link.name for link in suj.links]
+    least, name = min(zip(margins[1:], names[1:]))
+    return f"{math.degrees(least):.1f} ({name})", f"{margins[0] * 1000:.0f}"
+
+
 def docking_tables(best: dict, meta: dict) -> list:
     """The best layout's cart pose and each arm's setup joints there (solved again from the row's ports and
     pose, and the run's config in the rows' metadata), docked as the dvrk export docks it (``docking_that_clears``:
@@ -198,8 +210,7 @@ def docking_tables(best: dict, meta: dict) -> list:
     pose = [[f"{best['cart_x_mm']:.0f}", f"{best['cart_y_mm']:.0f}", f"{best['cart_heading_deg']:.1f}",
              str(best["cart_pose"]) if cfg.cart.pose != "search" else
              f"searched: {best['cart_around_deg']:.1f} deg around, {best['cart_distance_mm']:.0f} mm"]]
-    rows = [[a.arm, a.site, " ".join(f"{v:.4f}" for v in a.joints) if a.joints else "-",
-             "-" if a.margin is None else f"{a.margin:.3f}" + (f" ({a.tightest})" if a.tightest else ""),
+    rows = [[a.arm, a.site, " ".join(f"{v:.4f}" for v in a.joints) if a.joints else "-", *suj_margin_words(cfg, a),
              a.note or (f"ECM yaw {math.degrees(a.ecm[0]):.1f}, pitch {math.degrees(a.ecm[1]):.1f} deg" if a.ecm
                         else f"docking {turn_words(cfg)[1]} {turned[a.arm]:+.0f} deg ({turn_words(cfg)[0]})"
                         if a.arm in turned
@@ -211,7 +222,7 @@ def docking_tables(best: dict, meta: dict) -> list:
             ("best layout: setup joints (column m, then rad, the dVRK's simulated_position order)"
              + (" as `export --format dvrk` docks it: each PSM's docking turned so that the links clear" if turned
                 else ""),
-             ["arm", "port", "suj_joints", "least range margin", "note"], rows),
+             ["arm", "port", "suj_joints", "least joint margin_deg", "column margin_mm", "note"], rows),
             ("best layout: least clearance outside the body (capsules, radii assumed; negative: the links overlap; "
              + in_feasible(cfg) + ")", ["between", "clearance_mm", "link", "against", "where"], clear)]
 
