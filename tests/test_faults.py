@@ -480,3 +480,38 @@ def test_a_stop_while_a_local_dask_cluster_starts_is_one_line(tmp_path):
     assert r.stdout.split() == ["[50]", "2"], (r.stdout, r.stderr)  # both workers log at CRITICAL (50) only
     assert r.returncode == 130 and fault_lines(r.stderr) == ["surgopt: interrupted; finished chunks are stored, run "
                                                              "the same command again to resume"], r.stderr
+
+
+INSIDE_NUMBA = """
+import signal, sys, time
+from surgopt import interrupts
+interrupts.install()
+import numba
+from numba.core import event
+
+
+class StopWhileCompiling(event.Listener):
+    def on_start(self, ev):
+        signal.raise_signal(signal.SIGINT)  # lands here, numba's compiler below on the stack
+        print("numba went on", flush=True)
+
+    def on_end(self, ev):
+        pass
+
+
+with event.install_listener("numba:compile", StopWhileCompiling()):
+    numba.njit(lambda x: x + 1)(1)
+print("compiled", flush=True)
+time.sleep(30)  # the watchdog ends the process
+"""
+
+
+def test_a_stop_inside_numba_is_not_raised_there_and_still_ends_in_one_line():
+    """A Ctrl-C that landed while a kernel module was imported or a kernel loaded (0.7-1.2 s into `surgopt report`
+    of a port-place run) raised inside numba, and the process died of a segmentation fault with no word (8 of 8
+    instants). A stop whose stack holds numba's frames is recorded, not raised; numba finishes what it does and
+    the watchdog ends the process with the one line and the signal's exit code."""
+    r = subprocess.run([sys.executable, "-c", INSIDE_NUMBA], capture_output=True, text=True, timeout=120)
+    assert r.stdout.split("\n")[:2] == ["numba went on", "compiled"], (r.stdout, r.stderr)  # the premise
+    assert r.returncode == 130 and fault_lines(r.stderr) == [
+        "surgopt: interrupted; this command stores nothing: the store's runs are as they were; run it again"], r.stderr
