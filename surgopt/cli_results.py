@@ -335,15 +335,21 @@ def report(
 
             path = out or s.root / H.REPORT_FILE
             records = [rec for rec in run_records(s, study) if not str(rec["state"]).startswith("UNREADABLE")]
-            written = []
-            for rec in records:
+            written, kept = [], []
+            for i, rec in enumerate(records):
                 st, r = resolve_run(s, rec["key"], rec["study"])
                 if r.manifest["parts"]:
-                    written.append(_write_page(H, st, r, r.path / H.REPORT_FILE))
-                    rec["link"] = os.path.relpath(r.path / H.REPORT_FILE, path.resolve().parent)
+                    page = r.path / H.REPORT_FILE
+                    if H.current_page(r, page):  # built from this run as it is, by this code: kept
+                        kept.append(page)
+                    else:
+                        typer.echo(f"page {i + 1} of {len(records)}: {st.name} run {r.key[:12]} ...", err=True)
+                        written.append(_write_page(H, st, r, page))
+                    rec["link"] = os.path.relpath(page, path.resolve().parent)
                 rec["headline"] = _headline_text(s, rec)
             _write_text(path, H.index_page(s, records))
-            typer.echo(f"{path} (the store's {len(records)} runs; {len(written)} run pages written beside them)")
+            typer.echo(f"{path} (the store's {len(records)} runs; {len(written)} run pages written beside them, "
+                       f"{len(kept)} kept: current)")
             return
         refs = runs_ or [None]
         items = []

@@ -120,7 +120,8 @@ document.querySelectorAll('table.sortable').forEach(function(table){
 """
 
 
-def page(title: str, subtitle: str, sections: list[str], scripts: list[str], data: dict[str, str]) -> str:
+def page(title: str, subtitle: str, sections: list[str], scripts: list[str], data: dict[str, str],
+         stamp: str = "") -> str:
     """The whole page: Plotly and every script inline, data as JSON script blocks. Its content-security policy
     lets run only the page's own two scripts, by their sha256 (issue 55 item 4: no other inline script, no inline
     handler, nothing fetched); the JSON blocks are data, never run."""
@@ -128,7 +129,8 @@ def page(title: str, subtitle: str, sections: list[str], scripts: list[str], dat
     plotly, main = plotly_js(), f"const PLOTS=[];{TABLE_SCRIPT}{''.join(map(_guarded, scripts))}{PLOTS_SCRIPT}"
     allowed = " ".join(f"'{script_hash(s)}'" for s in (plotly, main))
     return ("<!doctype html><html lang=\"en\"><head><meta charset=\"utf-8\">"
-            f"<meta http-equiv=\"Content-Security-Policy\" content=\"default-src 'none'; script-src {allowed} "
+            + (f'<meta name="surgopt-page" content="{esc(stamp)}">' if stamp else "")
+            + f"<meta http-equiv=\"Content-Security-Policy\" content=\"default-src 'none'; script-src {allowed} "
             "'unsafe-eval'; style-src 'unsafe-inline'; img-src data: blob:; font-src data:; worker-src blob:\">"
             f"<title>{esc(title)}</title><style>{STYLE}</style><script>{plotly}</script></head><body>"
             f"<header><h1>{esc(title)}</h1><p>{esc(subtitle)}</p></header><main>{''.join(sections)}</main>"
@@ -306,7 +308,49 @@ def run_page(study, run, parts) -> str:
     sections, scripts, data, _ = run_sections(study, run, parts)
     name = run.manifest.get("name") or run.manifest.get("config_name", "")
     return page(f"surgopt {study.name}: {name}", f"run {run.key[:12]} · {run.manifest.get('created', '')} · "
-                f"{parts.num_rows:,} rows · {run.path}", sections, scripts, data)
+                f"{parts.num_rows:,} rows · {run.path}", sections, scripts, data, page_stamp(run))
+
+
+#: What a run page's stamp is read from: the head of the file (the stamp is the page's first meta but one).
+STAMP_BYTES = 4096
+
+
+def page_stamp(run) -> str:
+    """What a run's page was built from: the run's key, its manifest (the parts with their sha256, its name, tags
+    and headline) and the source of the package that drew it. ``report --store-index`` reuses a page whose stamp
+    is this one (issue 56 item 5: it rebuilt every run's page each time)."""
+    import hashlib
+
+    manifest = json.dumps(run.manifest, sort_keys=True, default=str)
+    return hashlib.sha256(f"{run.key}\n{manifest}\n{_package_source_sha()}".encode()).hexdigest()
+
+
+def current_page(run, path) -> bool:
+    """Whether the page at ``path`` was built from this run as it is now, by this code (``page_stamp``)."""
+    try:
+        with open(path, "rb") as f:
+            head = f.read(STAMP_BYTES).decode("utf-8", "replace")
+    except OSError:
+        return False
+    return f'<meta name="surgopt-page" content="{page_stamp(run)}">' in head
+
+
+def _package_source_sha() -> str:
+    """The sha256 of every source file of the installed surgopt package (what draws a page), once a process."""
+    global _SOURCE_SHA
+    if _SOURCE_SHA is None:
+        import hashlib
+        from pathlib import Path
+
+        root = Path(__file__).resolve().parent
+        h = hashlib.sha256()
+        for f in sorted(root.rglob("*.py")):
+            h.update(str(f.relative_to(root)).encode() + b"\0" + f.read_bytes())
+        _SOURCE_SHA = h.hexdigest()
+    return _SOURCE_SHA
+
+
+_SOURCE_SHA: str | None = None
 
 
 def comparison_page(items) -> str:

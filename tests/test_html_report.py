@@ -84,7 +84,7 @@ def _make_pages(tmp: Path) -> dict:
     out["compare"] = tmp / "compare.html"
     r = cli("report", "--store-index", "--store", store)
     out["index"] = store / "_report.html"
-    assert "6 runs" in r.stdout
+    assert "6 runs" in r.stdout and "6 run pages written beside them, 0 kept" in r.stdout
     out["store"] = store
     return out
 
@@ -379,3 +379,27 @@ def test_only_the_pages_own_scripts_run_and_index_links_are_paths(page, tmp_path
     index = H.index_page(Store(), [record])
     (link,) = _re.findall(r'data-link="([^"]*)"', index)
     assert link == "./javascript%3Aalert%287%29%252F%252F/study=rcm-grid/key=ab/_report.html"
+
+
+def test_the_store_index_keeps_each_run_page_that_is_current(pages):
+    """#56 item 5: ``report --store-index`` rebuilt every run's page each time (minutes on a store of port-place
+    runs). A page stamped with what it was built from (the run's key and manifest, the package's source) is kept;
+    a page that is gone, or whose stamp is not the run's now, is built again, and only those."""
+    from surgopt import html_report as H
+    from surgopt.store import Store
+
+    from conftest import invoke
+
+    store = pages["store"]
+    runs = sorted(Store(store).runs(), key=lambda r: r.key)
+    files = [r.path / H.REPORT_FILE for r in runs]
+    assert all(H.current_page(r, f) for r, f in zip(runs, files))  # the premise: every page is current
+    before = {f: f.stat().st_mtime_ns for f in files}
+    code, out = invoke("report", "--store-index", "--store", store)
+    assert code == 0 and "0 run pages written beside them, 6 kept: current" in out, out
+    assert {f: f.stat().st_mtime_ns for f in files} == before  # not one page rewritten
+    files[0].unlink()
+    files[1].write_text(files[1].read_text().replace(H.page_stamp(runs[1]), "0" * 64))  # another run's page
+    code, out = invoke("report", "--store-index", "--store", store)
+    assert code == 0 and "2 run pages written beside them, 4 kept: current" in out, out
+    assert all(H.current_page(r, f) for r, f in zip(runs, files))
