@@ -454,9 +454,11 @@ def export(
         for note in export.notes:
             typer.echo(note, err=True)
         writer = {ExportFormat.csv: write_csv, ExportFormat.parquet: write_parquet, ExportFormat.json: write_json}
-        writer[ExportFormat(fmt)](export, out)
+        writer[ExportFormat(fmt)](export, out, lambda m: typer.echo(m, err=True))
     if out is not None and str(out) != "-":
-        typer.echo(f"wrote {out} ({export.num_rows} rows, {len(export.schema)} columns)", err=True)
+        size = out.stat().st_size if out.is_file() else None
+        typer.echo(f"wrote {out} ({export.num_rows} rows, {len(export.schema)} columns"
+                   f"{'' if size is None else f', {size / 1e6:,.1f} MB'})", err=True)
 
 
 @app.command("diff")

@@ -130,3 +130,33 @@ def test_diff_equals_a_plain_pandas_merge(monkeypatch, tmp_path):
     plain = pandas_diff(ra.read_table(toy.schema()), rb.read_table(toy.schema()), ["i"], [], "square")
     assert plain["rows_only_a"] == 10 and plain["metrics"]["x"]["changed"] == 20  # the premise: they differ
     same_diff(ours, plain)
+
+
+def test_an_export_says_how_far_it_is_past_two_seconds_and_its_size_at_the_end(tmp_path):
+    """#56 item 5: a 2.4 M-row CSV export (1.33 GB) ran a minute with no word and ended with no size. Progress
+    speaks once an export has taken PROGRESS_AFTER_S, then every PROGRESS_EVERY_S (a clock the test moves), with
+    rows, share and bytes; the closing line gives the file's size."""
+    from pathlib import Path
+
+    from surgopt.export import PROGRESS_AFTER_S, PROGRESS_EVERY_S, Progress
+
+    from conftest import invoke
+
+    BASE = Path(__file__).parent / "baselines"
+    now = [0.0]
+    said = []
+    p = Progress(2_400_000, said.append, clock=lambda: now[0])
+    for _ in range(10):  # ten parts of 240,000 rows and 130 MB, 0.9 s apart
+        now[0] += 0.9
+        p.add(240_000, 130_000_000)
+    assert now[0] > PROGRESS_AFTER_S + PROGRESS_EVERY_S  # the premise: long enough for two lines
+    assert said == ["export: 720,000 of 2,400,000 rows (30 %), 390 MB written ...",
+                    "export: 2,160,000 of 2,400,000 rows (90 %), 1,170 MB written ..."]
+    quiet = Progress(10, None, clock=lambda: 1e9)
+    quiet.add(10)
+    assert quiet.said == 0
+    code, out = invoke("rcm-grid", BASE / "rcm_small.toml", "--store", tmp_path / "s", "--quiet")
+    assert code == 0
+    code, out = invoke("export", "latest", "--store", tmp_path / "s", "--format", "csv", "--out", tmp_path / "r.csv")
+    size = (tmp_path / "r.csv").stat().st_size
+    assert code == 0 and out.strip().endswith(f", {size / 1e6:,.1f} MB)"), out
