@@ -17,7 +17,8 @@ from typer.core import TyperGroup
 
 from surgopt.cli_common import (  # noqa: F401 - app and the options: the commands below register on them
     COMPLETE, RESUME, UNCHANGED, Backend, BackendOpt, ChunkOpt, DryRunOpt, ForceOpt, JobsOpt, MaxHoursOpt, MaxMemoryOpt, MultirunOpt,
-    NameOpt, PrintConfigOpt, TagOpt, QuietOpt, SchedulerOpt, StoreOpt, VerboseOpt, app, guard, print_report, print_table,
+    NameOpt, PrintConfigOpt, TagOpt, QuietOpt, SchedulerOpt, StoreOpt, VerboseOpt, announced, app, guard, print_report,
+    print_table,
     set_verbosity, wide_console,
 )
 
@@ -216,7 +217,7 @@ def _run_study_command(study, cmd: StudyCommand, flags=()):
             result = run_study(study, v.config, config_name=v.config_name, store=Store(cmd.store), options=options,
                                say=say, name=run_name, tags=tags)
             interrupts.on_stop(COMPLETE if result.run.complete else RESUME)
-            summary = _report(study, result, brief=len(todo) > 1)
+            summary = _report(study, result, brief=len(todo) > 1, quiet=cmd.quiet)
             finished.append((v, result, summary))
             for f in flags:
                 if f.follow_up is None:
@@ -228,7 +229,7 @@ def _run_study_command(study, cmd: StudyCommand, flags=()):
                                    config_name=v.config_name + f.follow_up_suffix, store=Store(cmd.store),
                                    options=options, chunk=None, say=say)
                 interrupts.on_stop(COMPLETE if follow.run.complete else RESUME)
-                _report(study, follow)
+                _report(study, follow, quiet=cmd.quiet)
         if len(todo) > 1:
             _multirun_table(study, finished)
             _best_of(study, finished)
@@ -434,13 +435,16 @@ def _listed_study(name: str):
 app.info.cls = _StudyCommands
 
 
-def _report(study, result, brief: bool = False):
-    """The closing report of one run (``brief``: headline only, for each run of a --multirun)."""
+def _report(study, result, brief: bool = False, quiet: bool = False):
+    """The closing report of one run (``brief``: headline only, for each run of a --multirun; ``quiet``: no word
+    while it is built)."""
     run = result.run
     from surgopt.errors import StoreError
 
     try:
-        summary, edges, front = _closing_numbers(study, run, result.parts, brief)
+        with announced(f"the closing report of {study.name} run {run.key[:12]} ({result.parts.num_rows:,} rows)",
+                       quiet=quiet):
+            summary, edges, front = _closing_numbers(study, run, result.parts, brief)
     except StoreError:
         from surgopt.store import manifest_of
 

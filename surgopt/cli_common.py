@@ -144,6 +144,41 @@ def _main_options(
     set_verbosity(verbose)
 
 
+#: A phase says what it does once it has taken this long, then every ANNOUNCE_EVERY_S (issue 56 item 5).
+ANNOUNCE_AFTER_S = 2.0
+ANNOUNCE_EVERY_S = 15.0
+
+
+@contextlib.contextmanager
+def announced(what: str, say=None, quiet: bool = False):
+    """``what`` (e.g. "building the closing report of port-place run 734f48b5c35e") said on stderr, with the time
+    so far, once the phase inside has taken ANNOUNCE_AFTER_S and every ANNOUNCE_EVERY_S after (from a daemon
+    thread: the phase itself may hold the GIL in numpy or numba, which let it go); silent for a quick phase, and
+    with ``quiet`` (--quiet)."""
+    if quiet:
+        yield
+        return
+    import threading
+    import time
+
+    say = say or (lambda m: typer.echo(m, err=True))
+    done = threading.Event()
+    t0 = time.monotonic()
+
+    def speak():
+        wait = ANNOUNCE_AFTER_S
+        while not done.wait(wait):
+            say(f"{what} ... ({time.monotonic() - t0:.0f} s)")
+            wait = ANNOUNCE_EVERY_S
+
+    thread = threading.Thread(target=speak, name="surgopt-announce", daemon=True)
+    thread.start()
+    try:
+        yield
+    finally:
+        done.set()
+
+
 def fail(exc: BaseException, code: int) -> None:
     typer.echo(f"surgopt: error: {exc}", err=True)
     raise typer.Exit(code)

@@ -370,7 +370,11 @@ def report(
 
 
 def _write_page(H, st, r, path: Path, option: str = "the page beside the run (--out FILE writes it elsewhere)") -> Path:
-    _write_text(path, H.run_page(st, r, r.parts(st.schema_for(r.manifest["config"]))), option)
+    from surgopt.cli_common import announced
+
+    with announced(f"building the page of {st.name} run {r.key[:12]} ({r.rows:,} rows)"):
+        text = H.run_page(st, r, r.parts(st.schema_for(r.manifest["config"])))
+    _write_text(path, text, option)
     return path
 
 

@@ -349,3 +349,27 @@ def test_a_mistyped_study_is_suggested_like_any_command():
     for typo, meant in (("port-placee", "'port-place'"), ("rcm-gird", "'rcm-grid'"), ("reportt", "'report'")):
         out = CliRunner().invoke(app, [typo]).output
         assert f"No such command '{typo}'. Did you mean {meant}" in " ".join(out.replace("│", " ").split()), out
+
+
+def test_a_long_phase_says_what_it_does_and_a_quick_or_quiet_one_says_nothing(monkeypatch):
+    """#56 item 5: the closing report of a large run and the page of `surgopt report` were minutes of silence. A
+    phase under ``announced`` says what it does with the time so far once it has taken ANNOUNCE_AFTER_S, then every
+    ANNOUNCE_EVERY_S; a phase that ends first, or --quiet, says nothing (the delays shortened for the test; the
+    thread's lines are counted, not timed)."""
+    import threading
+
+    from surgopt import cli_common
+
+    monkeypatch.setattr(cli_common, "ANNOUNCE_AFTER_S", 0.05)
+    monkeypatch.setattr(cli_common, "ANNOUNCE_EVERY_S", 0.05)
+    said, spoke = [], threading.Event()
+    with cli_common.announced("building the page", say=lambda m: (said.append(m), spoke.set())):
+        assert spoke.wait(30)  # the phase lasts until the announcement has come
+    assert said and said[0].startswith("building the page ... (") and said[0].endswith(" s)")
+    quick, quiet = [], []
+    monkeypatch.setattr(cli_common, "ANNOUNCE_AFTER_S", 60.0)
+    with cli_common.announced("quick", say=quick.append):
+        pass
+    with cli_common.announced("quiet", say=quiet.append, quiet=True):
+        pass
+    assert quick == [] and quiet == []
