@@ -253,10 +253,10 @@ def _worker_setup(cache_dir: str, study_name: str, cfg) -> str:
     import numba
 
     numba.set_num_threads(1)
-    from surgopt.jit import compile_lock
+    from surgopt.jit import while_compiling
     from surgopt.studies import get_study
 
-    with compile_lock():
+    with while_compiling(holder=f"pid {os.getpid()} (a dask worker of surgopt {study_name})"):
         get_study(study_name).warm_up(cfg)
     return os.environ["NUMBA_CACHE_DIR"]
 

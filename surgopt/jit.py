@@ -104,15 +104,16 @@ def wide_vector_features() -> str | None:
 QUIET_WAIT_S = 2.0
 
 
-def compile_lock(timeout_s: float = 600.0, on_wait=None):
-    """A lock across processes on the numba cache folder, held while a study compiles its kernels.
+def compile_lock(timeout_s: float = 600.0, on_wait=None, holder: str = ""):
+    """A lock across processes on the numba cache folder, held while numba compiles into it
+    (``while_compiling``).
 
     Two surgopt processes compiling the same kernels into one cache at once (e.g. two commands started
     together after an upgrade) race on the cache's index files; once a process was seen to abort
-    (SIGABRT) loading a half-written entry. With the lock the second waits, then loads the first's
-    result. Past ``timeout_s`` it compiles anyway (a stale holder must not block a run for ever).
-    ``on_wait()`` is called once when another process has held it for QUIET_WAIT_S (one that only loads the
-    cached kernels holds it for a second or two: not worth a word).
+    (SIGABRT) loading a half-written entry. With the lock the second waits. Past ``timeout_s`` it compiles
+    anyway (a stale holder must not block a run for ever). ``holder``: who takes it ("pid 123 (surgopt
+    port-place)"), written beside the lock for a waiter to name; ``on_wait(holder)`` is called once when another
+    process has held it for QUIET_WAIT_S.
     """
     import contextlib
 
@@ -121,22 +122,71 @@ def compile_lock(timeout_s: float = 600.0, on_wait=None):
     path = numba_cache_dir()
     path.mkdir(parents=True, exist_ok=True)
     lock = FileLock(str(path / ".surgopt-compile.lock"))
+    named = path / ".surgopt-compile.holder"
 
     @contextlib.contextmanager
     def held():
         try:
             try:
-                lock.acquire(timeout=min(QUIET_WAIT_S, timeout_s))  # another process loading: a moment
+                lock.acquire(timeout=min(QUIET_WAIT_S, timeout_s))  # another process compiling one kernel: a moment
             except Timeout:
                 if on_wait is not None:
-                    on_wait()  # another process compiles into this cache now: say so before waiting on
+                    on_wait(_holder_of(named))  # another process compiles into this cache now: say who
                 lock.acquire(timeout=max(0.0, timeout_s - QUIET_WAIT_S))
         except Timeout:
             yield
             return
         try:
+            with contextlib.suppress(OSError):
+                named.write_text(holder or f"pid {os.getpid()}")
             yield
         finally:
             lock.release()
 
     return held()
+
+
+def _holder_of(path) -> str:
+    try:
+        return path.read_text().strip() or "another surgopt process"
+    except OSError:
+        return "another surgopt process"
+
+
+def while_compiling(on_wait=None, holder: str = "", on_compile=None):
+    """A region where numba's compiles take the cache's ``compile_lock`` (issue 56 item 6): the lock is held from
+    the start of an outermost compile to its end (numba's "numba:compile" events; a kernel loaded from the cache
+    compiles nothing and takes no lock), not through a study's whole warm-up (its tables built, minutes), so that
+    an unrelated run loading its own kernels never queues behind it. ``on_compile()``: called at each outermost
+    compile's start."""
+    import contextlib
+
+    from numba.core import event
+
+    depth, taken = [0], []
+
+    class Locking(event.Listener):
+        def on_start(self, ev):
+            depth[0] += 1
+            if depth[0] == 1:
+                if on_compile is not None:
+                    on_compile()
+                region = compile_lock(on_wait=on_wait, holder=holder)
+                region.__enter__()
+                taken.append(region)
+
+        def on_end(self, ev):
+            depth[0] -= 1
+            if depth[0] == 0 and taken:
+                taken.pop().__exit__(None, None, None)
+
+    @contextlib.contextmanager
+    def region():
+        try:
+            with event.install_listener("numba:compile", Locking()):
+                yield
+        finally:
+            while taken:  # an error inside a compile: no end event came
+                taken.pop().__exit__(None, None, None)
+
+    return region()

@@ -18,7 +18,7 @@ from surgopt.backends import get_backend
 from surgopt.config import study_key
 from surgopt.errors import ConfigError, SurgoptError, UsageError, out_of_memory
 from surgopt.interrupts import raise_if_stopped
-from surgopt.jit import QUIET_WAIT_S, numba_cache_dir
+from surgopt.jit import numba_cache_dir
 from surgopt.store import Run, Store
 
 DEFAULT_JOBS = 2
@@ -469,57 +469,59 @@ def warm_up(study, cfg, say=None) -> tuple[float, bool]:
 
 
 def _warm_up(study, cfg, say=None) -> tuple[float, bool]:
-    """``study.warm_up`` under the numba cache's compile lock (``surgopt.jit.compile_lock``): the seconds it took
-    and whether numba compiled anything (else it loaded every kernel from the cache).
+    """``study.warm_up``, numba's compiles in it under the numba cache's compile lock (``surgopt.jit.while_compiling``:
+    held only while numba compiles, not while the study builds its tables): the seconds it took and whether numba
+    compiled anything (else it loaded every kernel from the cache).
 
-    With ``say``: a word when the lock is held by another process (and how long it was waited for), and, when
-    the kernels take over COMPILE_NOTICE_S, whether they are being compiled (a first run after an install or an
-    update: numba's compile events say so) or loaded from the cache, with the time it took."""
+    With ``say``: a word when the lock is held by another process (naming it, and how long it was waited for),
+    and, when the kernels take over COMPILE_NOTICE_S, whether they are being compiled (a first run after an
+    install or an update: numba's compile events say so) or loaded from the cache, with the time it took; a
+    compile that starts after the word said "loading" is said too (issue 56 item 6)."""
+    import os
     import threading
 
-    from surgopt.jit import compile_lock, configure_numba
+    from surgopt.jit import configure_numba, while_compiling
 
     configure_numba()  # before numba is imported here
-    from numba.core import event
-
-    waited = []
-    on_wait = None if say is None else (lambda: (waited.append(time.perf_counter()), say(
-        f"waiting for another surgopt process compiling kernels into {numba_cache_dir()} ...")))
     compiling = threading.Event()
+    told = []
 
-    class Compiles(event.Listener):
-        def on_start(self, ev):
-            compiling.set()
-
-        def on_end(self, ev):
-            pass
-
-    with compile_lock(on_wait=on_wait):
-        t0 = time.perf_counter()
-        if waited and say is not None:
-            say(f"waited {t0 - waited[0] + QUIET_WAIT_S:.0f} s for the other process")
-        told = []
-
-        def notice():
-            told.append(compiling.is_set())
-            builds = f" and building {study.warm_up_builds}" if study.warm_up_builds else ""
-            say(f"compiling the {study.name} kernels (the first run after an install or an update; later runs load "
-                f"them from {numba_cache_dir()}){builds} ..." if told[0] else
-                f"loading the {study.name} kernels from {numba_cache_dir()}{builds} ...")
-
-        timer = None
+    def on_wait(holder):
         if say is not None:
-            timer = threading.Timer(COMPILE_NOTICE_S, notice)
-            timer.daemon = True
-            timer.start()
-        try:
-            with event.install_listener("numba:compile", Compiles()):
-                study.warm_up(cfg)
-        finally:
-            if timer is not None:
-                timer.cancel()
-        took = time.perf_counter() - t0
-        if told and say is not None:
-            say(f"kernels {'compiled' if compiling.is_set() else 'loaded'}"
-                f"{', tables built' if study.warm_up_builds else ''} in {took:.0f} s")
-        return took, compiling.is_set()
+            say(f"waiting for {holder}, compiling kernels into {numba_cache_dir()} ...")
+
+    def compile_notice():
+        builds = f" and building {study.warm_up_builds}" if study.warm_up_builds else ""
+        return (f"compiling the {study.name} kernels (the first run after an install or an update; later runs load "
+                f"them from {numba_cache_dir()}){builds} ...")
+
+    def on_compile():
+        if not compiling.is_set() and told and not told[0] and say is not None:
+            say(compile_notice())  # the word said "loading": a kernel turned out not to be in the cache
+            told[0] = True
+        compiling.set()
+
+    t0 = time.perf_counter()
+
+    def notice():
+        told.append(compiling.is_set())
+        builds = f" and building {study.warm_up_builds}" if study.warm_up_builds else ""
+        say(compile_notice() if told[0] else f"loading the {study.name} kernels from {numba_cache_dir()}{builds} ...")
+
+    timer = None
+    if say is not None:
+        timer = threading.Timer(COMPILE_NOTICE_S, notice)
+        timer.daemon = True
+        timer.start()
+    try:
+        with while_compiling(on_wait=on_wait, holder=f"pid {os.getpid()} (surgopt {study.name})",
+                             on_compile=on_compile):
+            study.warm_up(cfg)
+    finally:
+        if timer is not None:
+            timer.cancel()
+    took = time.perf_counter() - t0
+    if told and say is not None:
+        say(f"kernels {'compiled' if compiling.is_set() else 'loaded'}"
+            f"{', tables built' if study.warm_up_builds else ''} in {took:.0f} s")
+    return took, compiling.is_set()

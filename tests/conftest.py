@@ -27,7 +27,7 @@ configure_numba()
 
 #: The notes a run prints while it compiles the kernels or waits for another process compiling them into the
 #: shared cache (surgopt.runner._warm_up): under two test workers they can come before a fault's one line.
-COMPILE_NOTES = ("waiting for another surgopt process compiling", "waited ", "compiling the ", "loading the ",
+COMPILE_NOTES = ("waiting for ", "waited ", "compiling the ", "loading the ",
                  "kernels compiled", "kernels loaded")
 
 

@@ -206,15 +206,15 @@ def test_a_wait_on_the_compile_lock_is_announced_only_when_it_lasts(tmp_path, mo
             time.sleep(0.01)
         said = []
 
-        def on_wait():
-            said.append(1)
+        def on_wait(holder):
+            said.append(holder)
             release.touch()
 
         if not announced:
             threading.Timer(0.2, release.touch).start()
         with jit.compile_lock(on_wait=on_wait):
             pass
-        assert said == ([1] if announced else [])
+        assert said == (["another surgopt process"] if announced else [])  # the holder wrote no name
     finally:
         release.touch()
         holder.wait(timeout=60)
@@ -244,3 +244,50 @@ def test_the_slurm_recipe_writes_one_single_threaded_worker_per_job_with_the_sha
         assert " --nthreads 1 " in worker + " " and not cluster.workers  # no job submitted
     finally:
         cluster.close()
+
+
+HOLD_AND_NAME = """
+import os, sys, time
+from filelock import FileLock
+folder, release = sys.argv[1], sys.argv[2]
+with FileLock(os.path.join(folder, ".surgopt-compile.lock")):
+    open(os.path.join(folder, ".surgopt-compile.holder"), "w").write(f"pid {os.getpid()} (surgopt port-place)")
+    open(release + ".held", "w").close()
+    while not os.path.exists(release):
+        time.sleep(0.01)
+"""
+
+
+def test_the_compile_lock_is_held_only_while_numba_compiles_and_a_waiter_names_the_holder(tmp_path, monkeypatch):
+    """#56 item 6: the numba cache's lock was held through a study's whole warm-up (port-place's tables built,
+    minutes), so unrelated runs queued ("waiting for another surgopt process compiling kernels", no pid). Inside
+    ``jit.while_compiling`` a call that compiles nothing (the kernel already built) runs while another process
+    holds the lock, and a call that compiles waits for it, saying who holds it."""
+    import time
+
+    import numba
+
+    from surgopt import jit
+
+    monkeypatch.setenv("NUMBA_CACHE_DIR", str(tmp_path / "nc"))
+    monkeypatch.setattr(jit, "QUIET_WAIT_S", 0.05)
+    (tmp_path / "nc").mkdir()
+    built = numba.njit(lambda x: x * 2)
+    assert built(2) == 4  # compiled now, before the lock is taken by the other process
+    release = tmp_path / "release"
+    holder = subprocess.Popen([sys.executable, "-c", HOLD_AND_NAME, str(tmp_path / "nc"), str(release)])
+    try:
+        while not (tmp_path / "release.held").exists():
+            time.sleep(0.01)
+        said, compiles = [], []
+        with jit.while_compiling(on_wait=lambda who: (said.append(who), release.touch()),
+                                 on_compile=lambda: compiles.append(1)):
+            assert built(3) == 6
+            assert said == [] and compiles == []  # no compile: no lock asked for, no wait
+            assert not release.exists()  # the other process still holds it
+            fresh = numba.njit(lambda x: x + 1)
+            assert fresh(1) == 2  # compiles: waits until the holder lets go (told to when the wait is said)
+        assert compiles == [1] and said == [f"pid {holder.pid} (surgopt port-place)"]
+    finally:
+        release.touch()
+        holder.wait(timeout=60)
