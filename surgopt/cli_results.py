@@ -489,18 +489,28 @@ def diff(
     console = wide_console(0)
     print_table(console, f"config: {d['a']['key'][:12]} vs {d['b']['key'][:12]}", ["field", "a", "b"],
                  [[k, str(a), str(b)] for k, (a, b) in d["config"].items()] or [["(identical configs)", "", ""]])
-    print_table(console, f"metrics over {d['rows_joined']} rows joined on {', '.join(d['key_columns'])} "
-                          f"({d['rows_only_a']} only in a, {d['rows_only_b']} only in b)",
-                 ["column", "rows changed", "max |b - a|", "mean b - a"],
-                 [[c, m["changed"], f"{m['max_abs']:.6g}", f"{m['mean']:.6g}"] for c, m in d["metrics"].items()])
+    if d["rows_joined"]:
+        print_table(console, f"metrics over {d['rows_joined']} rows joined on {', '.join(d['key_columns'])} "
+                              f"({d['rows_only_a']} only in a, {d['rows_only_b']} only in b)",
+                     ["column", "rows changed", "max |b - a|", "mean b - a"],
+                     [[c, m["changed"], f"{m['max_abs']:.6g}", f"{m['mean']:.6g}"] for c, m in d["metrics"].items()])
+    else:  # issue 56 item 9: 29 rows of zeros said nothing
+        typer.echo(f"no layout in common: no row of a ({d['rows_only_a']:,}) has the {', '.join(d['key_columns'])} "
+                   f"of a row of b ({d['rows_only_b']:,})"
+                   + ("; the best of each is compared below" if d["best"] and (d["best"]["a"] or d["best"]["b"])
+                      else ""))
     if d["worst"]:
         cols = list(d["worst"][0])
         print_table(console, f"most changed rows (by |b - a| of {d['objective']})", cols,
                      [[_cell(r[c]) for c in cols] for r in d["worst"]])
-    if d["best"]:
-        print_table(console, f"best design of each by {d['objective']}", ["run"] + list(d["best"]["a"]),
-                     [["a"] + [_cell(v) for v in d["best"]["a"].values()],
-                      ["b"] + [_cell(v) for v in d["best"]["b"].values()]])
+    if d["best"] is not None and d["best"] and not (d["best"]["a"] or d["best"]["b"]):
+        typer.echo(f"neither run has a {'feasible ' if d.get('best_among') == 'feasible' else ''}design to compare "
+                   f"by {d['objective']}")
+    if d["best"] and (d["best"]["a"] or d["best"]["b"]):
+        header = list(d["best"]["a"] or d["best"]["b"])
+        print_table(console, f"best design of each by {d['objective']}" + (" (feasible, least first)" if
+                    d.get("best_among") == "feasible" else ""), ["run", *header],
+                    [[run, *(_cell(d["best"][run][c]) if d["best"][run] else "-" for c in header)] for run in "ab"])
 
 
 def _cell(v) -> str:

@@ -94,14 +94,14 @@ class Parts:
         return best.drop_columns(["__order"])
 
     def scan(self, column: str, k: int, ascending: bool = False, where: Callable | None = None,
-             where_columns: tuple[str, ...] | None = None):
-        """What a summary shows of ``column``: (its k largest rows as ``top`` gives them, unfiltered; the column
-        whole; the column over rows where ``where(part)``, or None). ``where_columns``: the columns ``where``
-        reads, when known: then one pass reads ``column`` and those alone, and a second only the parts that hold
-        the k rows (a 2.2 M-row port-place run: 2 of 45 columns, then a few parts); else one pass reads every
-        column of every part."""
+             where_columns: tuple[str, ...] | None = None, top_where: bool = False):
+        """What a summary shows of ``column``: (its k largest rows as ``top`` gives them, unfiltered, or with
+        ``top_where`` among the rows where ``where(part)`` only; the column whole; the column over rows where
+        ``where(part)``, or None). ``where_columns``: the columns ``where`` reads, when known: then one pass reads
+        ``column`` and those alone, and a second only the parts that hold the k rows (a 2.2 M-row port-place run:
+        2 of 45 columns, then a few parts); else one pass reads every column of every part."""
         if where is None or where_columns is not None:
-            return self._scan_narrow(column, k, ascending, where, where_columns or ())
+            return self._scan_narrow(column, k, ascending, where, where_columns or (), top_where)
         import pyarrow as pa
 
         best, offset, values, kept = None, 0, [], []
@@ -112,25 +112,29 @@ class Parts:
                 kept.append(v[_np(where(t))])
             cand = t.append_column("__order", pa.array(np.arange(offset, offset + t.num_rows), pa.int64()))
             offset += t.num_rows
+            if top_where and where is not None:
+                cand = cand.filter(pa.array(_np(where(t))))
             best = _top_k(cand if best is None else pa.concat_tables([best, cand]), column, k, ascending)
         top = self.schema.empty_table() if best is None else best.drop_columns(["__order"])
         whole = np.concatenate(values) if values else np.zeros(0)
         return top, whole, (np.concatenate(kept) if kept else np.zeros(0)) if where is not None else None
 
-    def _scan_narrow(self, column: str, k: int, ascending: bool, where: Callable | None, where_columns) -> tuple:
-        values, kept, sizes = [], [], []
+    def _scan_narrow(self, column: str, k: int, ascending: bool, where: Callable | None, where_columns,
+                     top_where: bool = False) -> tuple:
+        values, kept, sizes, masks = [], [], [], []
         for t in self.only(list(dict.fromkeys([column, *where_columns]))):
             v = t[column].to_numpy(zero_copy_only=False)
             values.append(v)
             sizes.append(t.num_rows)
             if where is not None:
-                kept.append(v[_np(where(t))])
+                masks.append(_np(where(t)))
+                kept.append(v[masks[-1]])
         whole = np.concatenate(values) if values else np.zeros(0)
         top = self.schema.empty_table()
-        if len(whole):
-            v = whole.astype(float)
-            order = np.arange(len(v))
-            rows = np.lexsort((order, v if ascending else -v))[:k]  # by value, then first occurrence (``_top_k``)
+        among = np.flatnonzero(np.concatenate(masks)) if top_where and masks else np.arange(len(whole))
+        if len(among):
+            v = whole.astype(float)[among]
+            rows = among[np.lexsort((among, v if ascending else -v))[:k]]  # by value, then first occurrence
             starts = np.concatenate([[0], np.cumsum(sizes)])
             part = np.searchsorted(starts, rows, side="right") - 1
             needed = sorted(set(part.tolist()))

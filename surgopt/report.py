@@ -15,10 +15,22 @@ STATS = ("count", "min", "p25", "median", "p75", "max", "mean")
 
 def sort_order(sort: str | None, study) -> tuple[str | None, bool]:
     """(column, ascending) of a --sort value: "name" ranks the largest first, "-name" the smallest (as a
-    [search] objective's "-name" minimises); no value: the study's objective, largest first."""
+    [search] objective's "-name" minimises); no value: the objective the study reports (``reported_objective``,
+    e.g. port-place's cost, least first: ranked among the feasible rows, ``ranks_feasible``), else its objective,
+    largest first."""
     if sort is None:
+        if study.reported_objective is not None:
+            column, direction = study.reported_objective
+            return column, direction == "minimize"
         return study.objective, False
     return (sort[1:], True) if sort.startswith("-") else (sort, False)
+
+
+def ranks_feasible(sort: str | None, study) -> bool:
+    """Whether the top rows are drawn from the feasible rows only: by the study's reported objective (issue 56
+    item 9: port-place's summary ranked every row by its penalised score, down to -605.9, not by the cost of the
+    layouts one could use)."""
+    return sort is None and study.reported_objective is not None and study.feasible_mask is not None
 
 
 def top_table(study, parts, top: int = 10, sort: str | None = None):
@@ -28,6 +40,9 @@ def top_table(study, parts, top: int = 10, sort: str | None = None):
     if column is None or not parts.num_rows:
         return None
     check_sort_column(parts.schema, column)
+    if ranks_feasible(sort, study):
+        return parts.scan(column, top, ascending=ascending, where=study.feasible_mask,
+                          where_columns=study.feasible_columns, top_where=True)[0]
     return parts.top(column, top, ascending=ascending)
 
 
@@ -68,8 +83,9 @@ def summary_sections(study, run, parts, top: int = 10, sort: str | None = None,
     if objective is not None and parts.num_rows:
         names_all = parts.schema.names
         check_sort_column(parts.schema, objective)
+        among_feasible = ranks_feasible(sort, study)
         best, every, feasible = parts.scan(objective, top, ascending=ascending, where=study.feasible_mask,
-                                            where_columns=study.feasible_columns)
+                                            where_columns=study.feasible_columns, top_where=among_feasible)
         cols = columns(best)
         names = [c for c in names_all if cols[c].dtype != object or c in study.key_columns]
         more = ""
@@ -84,7 +100,8 @@ def summary_sections(study, run, parts, top: int = 10, sort: str | None = None,
             chosen = [c for c in study.top_columns(run.manifest["config"]) if c in names]
             if len(chosen) < len(names):
                 names, more = chosen, f"; {len(names) - len(chosen)} more columns: --columns or --format json"
-        sections.append((f"top {best.num_rows} by {objective}{' (smallest first)' if ascending else ''}"
+        sections.append((f"top {best.num_rows}{' feasible' if among_feasible else ''} by {objective}"
+                         f"{' (smallest first)' if ascending else ''}"
                          f"{more if not columns_shown and study.top_columns is not None and more else ''}", names,
                          [[_fmt(cols[c][i]) for c in names] for i in range(best.num_rows)]))
         rows = []
@@ -215,8 +232,9 @@ def summary_record(study, run, parts, top: int = 10, sort: str | None = None) ->
         check_sort_column(parts.schema, objective)
         out["objective"] = objective
         out["ascending"] = ascending
+        among_feasible = ranks_feasible(sort, study)
         best, every, feasible = parts.scan(objective, top, ascending=ascending, where=study.feasible_mask,
-                                            where_columns=study.feasible_columns)
+                                            where_columns=study.feasible_columns, top_where=among_feasible)
         out["top"] = best.to_pylist()
         out["distribution"] = {}
         for label, v in (("all", every.astype(float)), ("feasible", feasible.astype(float))):

@@ -290,7 +290,7 @@ def diff_runs(store: Store, ref_a: str, ref_b: str, study_name: str | None = Non
     pos_a, pos_b, only_a, only_b = _joined_positions(a, b, keys, rounded)
     key_values = {k: _key_values(a[k].to_numpy(zero_copy_only=False), rounded) for k in keys}
     metrics, deltas = {}, {}
-    for c in a.column_names:
+    for c in a.column_names if pos_a.size else []:  # no layout in common: nothing to compare row by row
         if c in keys or c in index_only or c not in b.column_names or not _is_number(a.schema.field(c).type):
             continue
         x = a[c].to_numpy(zero_copy_only=False).astype(float)[pos_a]
@@ -300,7 +300,9 @@ def diff_runs(store: Store, ref_a: str, ref_b: str, study_name: str | None = Non
         metrics[c] = {"changed": int(np.count_nonzero(np.abs(finite) > 0)),
                       "max_abs": float(np.abs(finite).max()) if finite.size else (0.0 if not d.size else float("nan")),
                       "mean": float(finite.mean()) if finite.size else (0.0 if not d.size else float("nan"))}
-    objective = sa.objective or next(iter(metrics), None)
+    # the objective a user reads (port-place: the cost of the feasible layouts, least first), else the study's
+    objective, least = (sa.reported_objective[0], sa.reported_objective[1] == "minimize") if sa.reported_objective \
+        else (sa.objective or next(iter(metrics), None), False)
     worst, best = [], {}
     if objective is not None and pos_a.size:
         oa = a[objective].to_numpy(zero_copy_only=False)[pos_a]
@@ -309,13 +311,17 @@ def diff_runs(store: Store, ref_a: str, ref_b: str, study_name: str | None = Non
         order = np.argsort(np.where(np.isnan(change), np.inf, -change), kind="stable")[:top]  # largest, NaN last
         worst = [{**{k: _plain(key_values[k][pos_a[i]]) for k in keys}, f"{objective}_a": _plain(oa[i]),
                   f"{objective}_b": _plain(ob[i])} for i in order]
-        show = keys + [c for c in a.column_names if c not in keys][:8]
-        best = {"a": _best_row(a, objective, show, key_values), "b": _best_row(
-            b, objective, show, {k: _key_values(b[k].to_numpy(zero_copy_only=False), rounded) for k in keys})}
+    if objective is not None:  # the best of each, also (above all) when no layout is in both
+        show = keys + [c for c in dict.fromkeys([objective, *a.column_names]) if c not in keys][:9]
+        feasible = sa.feasible_mask if sa.reported_objective else None
+        best = {"a": _best_row(a, objective, show, key_values, least, feasible), "b": _best_row(
+            b, objective, show, {k: _key_values(b[k].to_numpy(zero_copy_only=False), rounded) for k in keys}, least,
+            feasible)}
     return {"study": sa.name, "a": {"key": ra.key, "config_name": ra.manifest.get("config_name")},
             "b": {"key": rb.key, "config_name": rb.manifest.get("config_name")}, "config": config,
             "key_columns": keys, "rows_joined": int(pos_a.size), "rows_only_a": only_a, "rows_only_b": only_b,
-            "metrics": metrics, "objective": objective, "worst": worst, "best": best}
+            "metrics": metrics, "objective": objective, "worst": worst, "best": best,
+            "best_among": "feasible" if sa.reported_objective else "all"}
 
 
 def _is_number(t) -> bool:
@@ -354,12 +360,15 @@ def _joined_positions(a, b, keys: list[str], rounded: bool):
     return pos_a[order], pos_b[order], int(np.count_nonzero(has_a & ~has_b)), int(np.count_nonzero(has_b & ~has_a))
 
 
-def _best_row(t, objective: str, show: list[str], key_values: dict) -> dict:
-    """The first row with the largest ``objective`` (NaN skipped), its ``show`` columns (keys as joined)."""
+def _best_row(t, objective: str, show: list[str], key_values: dict, least: bool = False, feasible=None) -> dict:
+    """The first row with the largest ``objective`` (``least``: the smallest; NaN skipped; ``feasible``: among the
+    rows its mask keeps), its ``show`` columns (keys as joined)."""
     v = t[objective].to_numpy(zero_copy_only=False).astype(float)
+    if feasible is not None:
+        v = np.where(np.asarray(feasible(t), bool), v, np.nan)
     if np.isnan(v).all():
         return {}
-    i = int(np.nanargmax(v))
+    i = int(np.nanargmin(v) if least else np.nanargmax(v))
     return {c: _plain(key_values[c][i] if c in key_values else t[c][i].as_py()) for c in show}
 
 

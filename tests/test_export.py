@@ -69,7 +69,7 @@ def test_pandas_reads_the_csv_back_as_the_table_was():
     assert back.dtypes.astype(str).tolist()[:5] == ["float64", "float64", "float64", "int64", "bool"]
 
 
-def pandas_diff(a, b, keys, index_only, objective, top=5, decimals=None):
+def pandas_diff(a, b, keys, index_only, objective, top=5, decimals=None, least_feasible=False):
     """``diff``'s metrics, worst rows and best rows the plain way (what surgopt did before issue 42 item 5): both
     tables whole in pandas, rounded keys, an outer merge."""
     a, b = a.to_pandas(), b.to_pandas()
@@ -89,8 +89,11 @@ def pandas_diff(a, b, keys, index_only, objective, top=5, decimals=None):
     rows = both.loc[delta.sort_values(ascending=False, kind="stable").index[:top]]
     worst = [{**{k: r[k] for k in keys}, f"{objective}_a": r[f"{objective}_a"], f"{objective}_b": r[f"{objective}_b"]}
              for _, r in rows.iterrows()]
-    show = keys + [c for c in a.columns if c not in keys][:8]
-    best = {"a": a.loc[a[objective].idxmax(), show].to_dict(), "b": b.loc[b[objective].idxmax(), show].to_dict()}
+    show = keys + [c for c in dict.fromkeys([objective, *a.columns]) if c not in keys][:9]
+    if least_feasible:  # port-place: the feasible layout of least cost
+        best = {side: t.loc[t[t["feasible"]][objective].idxmin(), show].to_dict() for side, t in (("a", a), ("b", b))}
+    else:
+        best = {"a": a.loc[a[objective].idxmax(), show].to_dict(), "b": b.loc[b[objective].idxmax(), show].to_dict()}
     return {"rows_joined": len(both), "rows_only_a": int((joined["_merge"] == "left_only").sum()),
             "rows_only_b": int((joined["_merge"] == "right_only").sum()), "metrics": metrics, "worst": worst,
             "best": best}

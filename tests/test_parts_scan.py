@@ -68,3 +68,26 @@ def test_a_studys_feasible_columns_are_what_its_mask_reads(name):
     assert 0 < whole.sum() < len(whole)  # the premise: the mask decides something
     np.testing.assert_array_equal(np.asarray(study.feasible_mask(table.select(list(study.feasible_columns))), bool),
                                   whole)
+
+
+@settings(max_examples=40, deadline=None)
+@given(sizes=st.lists(st.integers(0, 30), min_size=1, max_size=6), k=st.integers(1, 12), asc=st.booleans(),
+       seed=st.integers(0, 2 ** 16))
+def test_the_top_among_feasible_rows_is_pandas_sort_of_the_feasible_rows(sizes, k, asc, seed):
+    """#56 item 9: summarize ranks port-place's layouts by the cost of the feasible ones (``top_where``), not by the
+    penalised score of all: both scans give pandas' stable sort of the feasible rows by cost (ties in row order)."""
+    import pandas as pd
+
+    rng = np.random.default_rng(seed)
+    tables, start = [], 0
+    for n in sizes:
+        tables.append(pa.table({"id": start + np.arange(n), "cost": rng.integers(0, 5, n).astype(float),
+                                "feasible": rng.random(n) < 0.4}))
+        start += n
+    parts, _ = _parts(tables)
+    df = pa.concat_tables(tables).to_pandas()
+    want = df[df["feasible"]].sort_values("cost", ascending=asc, kind="stable").head(k)["id"].tolist()
+    where = lambda t: t["feasible"].to_numpy(zero_copy_only=False)  # noqa: E731
+    for columns in (None, ("feasible",)):
+        top = parts.scan("cost", k, asc, where, where_columns=columns, top_where=True)[0]
+        assert top["id"].to_pylist() == want and all(top["feasible"].to_pylist())

@@ -226,7 +226,8 @@ def test_diff_of_two_port_place_runs_matches_layouts_by_their_ports(tmp_path):
     from test_export import pandas_diff, same_diff
 
     ka, ia = S.STUDY.design_identity(runs[0].manifest["config"])
-    same_diff(d, pandas_diff(*(r.read_table(S.schema()) for r in runs), list(ka), list(ia), "score", decimals=6))
+    same_diff(d, pandas_diff(*(r.read_table(S.schema()) for r in runs), list(ka), list(ia), "cost", decimals=6,
+                             least_feasible=True))
     # export of both runs stacked: says which columns match a layout across them, and matched on those the
     # region's every layout has the whole run's cost (#42 item 1, for export)
     import pyarrow as pa
@@ -828,3 +829,30 @@ def test_the_setup_joint_table_gives_the_revolute_and_column_margins_apart():
     arm = SimpleNamespace(arm="PSM2", joints=tuple(joints))
     assert R.suj_margin_words(cfg, arm) == (f"4.0 ({suj.links[2].name})", "123")
     assert R.suj_margin_words(cfg, SimpleNamespace(arm="ECM", joints=())) == ("-", "-")
+
+
+def test_diff_of_runs_with_no_layout_in_common_says_so_and_compares_their_best_feasible_layouts(tmp_path):
+    """#56 item 9: diff of two runs on different site grids printed 29 rows of zeros (no row joined) and named the
+    best design by the penalised score. It says there is no layout in common and compares the feasible layouts
+    of least cost (pandas over each run's rows)."""
+    from surgopt.results import diff_runs
+    from surgopt.runner import run_study
+    from surgopt.store import Store
+
+    from conftest import invoke
+
+    store = Store(tmp_path / "s")
+    keys = []
+    for spacing in (72.0, 60.0):
+        cfg = C.PortPlaceConfig.model_validate({"patient": {"port_region": {"site_spacing_mm": spacing}},
+                                                "target": {"spacing_mm": 20.0}, "cart": {"model": "none"}})
+        keys.append(run_study(S.STUDY, cfg, config_name=f"s{spacing:.0f}", store=store, jobs=1, quiet=True).run.key)
+    d = diff_runs(store, keys[0], keys[1])
+    assert d["rows_joined"] == 0 and d["metrics"] == {} and d["worst"] == [] and d["objective"] == "cost"
+    for side, key in zip("ab", keys):
+        df = store.open("port-place", key).read_table().to_pandas()
+        want = df[df["feasible"]].sort_values("cost", kind="stable").iloc[0]
+        assert d["best"][side]["design_id"] == want["design_id"] and d["best"][side]["cost"] == want["cost"]
+    code, out = invoke("diff", keys[0][:12], keys[1][:12], "--store", tmp_path / "s")
+    assert code == 0 and "no layout in common" in out and "rows changed" not in out
+    assert "best design of each by cost (feasible, least first)" in " ".join(out.split())
