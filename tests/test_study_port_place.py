@@ -934,3 +934,19 @@ def test_a_feasible_rows_run_is_budgeted_at_its_likely_peak_and_shows_the_bound(
     r = cli("port-place", "robot.instrument_count=3", "rows_stored=feasible", "--dry-run", "--max-memory-gb",
             f"{est.peak_bytes / 2 ** 30 / 2:.2f}", "--store", tmp_path / "s", env={**os.environ, "COLUMNS": "300"})
     assert "REFUSED" in r.stdout
+
+
+def test_too_few_sites_names_the_filter_that_left_too_few():
+    """#56 item 10: a marked region wholly outside the body was blamed on constraints.port_to_target_mm. The error
+    counts the grid's points kept by each filter up to the one that left too few, so it names that one."""
+    from pydantic import ValidationError
+
+    outside = {"patient": {"port_region": {"polygon_mm": [[500, 500], [700, 500], [700, 700], [500, 700]]}}}
+    with pytest.raises(ValidationError, match=r"inside patient.port_region.polygon_mm \(no grid point over the body "
+                                              r"lies inside it: the region is outside the body's top view\): 0"):
+        C.PortPlaceConfig.model_validate(outside)
+    with pytest.raises(ValidationError) as near:
+        C.PortPlaceConfig.model_validate({"constraints": {"port_to_target_mm": [0, 20]}})
+    text = str(near.value)
+    assert "within constraints.port_to_target_mm [0, 20] of the target's centre: 0" in text
+    assert "polygon_mm" not in text  # no region marked: not named

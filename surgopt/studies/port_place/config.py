@@ -31,6 +31,7 @@ from surgopt.studies.port_place.geometry import (
     mesh_points_mm,
     shape_grid_count,
     even_odd_area_mm2,
+    site_stages,
     sites_mm,
     target_points_mm,
 )
@@ -590,11 +591,13 @@ class PortPlaceConfig(StrictModel):
                     else f"the mesh {self.patient.mesh_file}")
             raise ValueError(f"target: the point ({p[0]:.0f}, {p[1]:.0f}, {p[2]:.0f}) mm is outside the body "
                              f"({body})")
-        sites = sites_mm(self)
+        sites, stages = site_stages(self)
         n, ports = len(sites), self.robot.instrument_count + 1
         if n < ports:
-            raise ValueError(f"patient.port_region: {n} candidate site(s) within constraints.port_to_target_mm; "
-                             f"{ports} ports need at least {ports}")
+            first = next(i for i, (_, k) in enumerate(stages) if k < ports)  # the filter that left too few
+            counts = "; ".join(f"{what}: {k:,}" for what, k in stages[:first + 1])
+            raise ValueError(f"patient.port_region: {n} candidate site(s), {ports} ports need at least {ports}; of "
+                             f"the {self.patient.port_region.site_spacing_mm:g} mm grid's points, {counts}")
         farthest = float(np.max(np.linalg.norm(sites[:, None, :] - sites[None, :, :], axis=2)))
         if farthest < self.constraints.min_port_spacing_mm:
             raise ValueError(f"constraints.min_port_spacing_mm: {self.constraints.min_port_spacing_mm:g} mm, but no two "

@@ -415,6 +415,13 @@ def sites_mm(cfg) -> np.ndarray:
     ``min_height_fraction`` of the body's height, inside ``polygon_mm`` when given, on a face painted
     ``face_color_rgb`` when given, and where the target centre is within ``port_to_target_mm`` (3-D or top-view,
     ``port_to_target_measure``)."""
+    return site_stages(cfg)[0]
+
+
+def site_stages(cfg) -> tuple[np.ndarray, list[tuple[str, int]]]:
+    """``sites_mm`` and how many grid points each of its filters kept, in order: (what kept them, count) for the
+    wall high enough (and painted), the marked region, the distance to the target (issue 56 item 10: a region
+    wholly outside the body was blamed on port_to_target_mm)."""
     a, b, c = body_extent_mm(cfg.patient)
     s = cfg.patient.port_region.site_spacing_mm
     gx, gy = np.meshgrid(grid_1d(a, s), grid_1d(b, s), indexing="ij")
@@ -426,10 +433,20 @@ def sites_mm(cfg) -> np.ndarray:
         z, face = _mesh_wall(x, y, patient_mesh(cfg.patient))
         z = np.where((face >= 0) & painted[np.maximum(face, 0)], z, np.nan)
     keep = np.nan_to_num(z, nan=-1.0) >= cfg.patient.port_region.min_height_fraction * c
+    stages = [(f"on the body's wall at least patient.port_region.min_height_fraction "
+               f"({cfg.patient.port_region.min_height_fraction:g}) of its height"
+               + (", on a painted face" if painted is not None else ""), int(keep.sum()))]
     if cfg.patient.port_region.polygon_mm is not None:
-        keep &= inside_polygon(x, y, np.asarray(cfg.patient.port_region.polygon_mm, float))
+        inside = inside_polygon(x, y, np.asarray(cfg.patient.port_region.polygon_mm, float))
+        keep &= inside
+        stages.append(("of those, inside patient.port_region.polygon_mm" + (
+            " (no grid point over the body lies inside it: the region is outside the body's top view)"
+            if not inside.any() else f" ({int(inside.sum())} grid points over the body inside it)"), int(keep.sum())))
     pts = np.stack([x[keep], y[keep], z[keep]], axis=1)
     apart = pts - np.asarray(cfg.target.centre_mm)
     dist = np.linalg.norm(apart[:, :2] if cfg.constraints.port_to_target_measure == "horizontal" else apart, axis=1)
     lo, hi = cfg.constraints.port_to_target_mm
-    return pts[(dist >= lo) & (dist <= hi)]
+    near = (dist >= lo) & (dist <= hi)
+    stages.append((f"of those, within constraints.port_to_target_mm [{lo:g}, {hi:g}] of the target's centre",
+                   int(near.sum())))
+    return pts[near], stages
