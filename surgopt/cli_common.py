@@ -233,7 +233,18 @@ def wide_console(min_width: int = 150):
     from rich.console import Console
 
     c = Console()
-    return c if c.is_terminal else Console(width=max(c.width, min_width))
+    return c if c.is_terminal else Console(width=columns_env() or max(c.width, min_width))
+
+
+def columns_env() -> int | None:
+    """The width a user set in COLUMNS (20 to 1,000 characters), else None: a piped table honours it."""
+    import os
+
+    try:
+        width = int(os.environ.get("COLUMNS", ""))
+    except ValueError:
+        return None
+    return width if 20 <= width <= 1000 else None
 
 
 #: The narrowest a table's first column (its labels) is folded to when the table must fit a terminal.
@@ -251,8 +262,9 @@ def print_table(console, title, header, rows) -> None:
     rows = [[str(v) for v in row] for row in rows]
     widths = [max([len(header[i])] + [len(r[i]) for r in rows if i < len(r)]) for i in range(len(header))]
     need = sum(w + 3 for w in widths) + 1
-    if not console.is_terminal:
-        console = Console(width=max(need, len(title or "") + 4, 80), file=console.file, force_terminal=False)
+    if not console.is_terminal:  # a pipe or a file: its own width, or the COLUMNS a user set (issue 56 item 8)
+        console = Console(width=columns_env() or max(need, len(title or "") + 4, 80), file=console.file,
+                          force_terminal=False)
     omitted = []
     if need > console.width and 1 <= len(rows) <= 2 and len(header) > 2:
         header, rows = ["field", *(["value"] if len(rows) == 1 else ["row 1", "row 2"])], \

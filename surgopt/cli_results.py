@@ -98,11 +98,27 @@ def _compare(s, study: str | None, fmt) -> None:
     if not records:
         typer.echo(f"no complete {study} runs in {s.root}")
         return
-    rows = [[r["key"][:12], r["name"], r["plan"]] + [json.dumps(r["config"].get(k), default=str) for k in varying]
+    # the headline first, then the config values that differ (a narrow terminal keeps the columns from the left:
+    # best_cost and feasible, not a landmark's coordinates; issue 56 item 8); paths by their file name and hashes
+    # by their first 12 digits (item 10; --format json keeps them whole)
+    rows = [[r["key"][:12], r["name"], r["plan"]]
             + [f"{r['headline'][k]:.6g}" if isinstance(r["headline"][k], float) else str(r["headline"][k])
-               for k in metrics] for r in records]
-    print_table(wide_console(), f"{study} runs in {s.root}: the config values that differ, and the headline",
-                ["key", "name", "plan"] + varying + metrics, rows)
+               for k in metrics] + [_short(r["config"].get(k)) for k in varying] for r in records]
+    print_table(wide_console(), f"{study} runs in {s.root}: the headline, and the config values that differ",
+                ["key", "name", "plan"] + metrics + varying, rows)
+
+
+def _short(value) -> str:
+    """A config value as ``runs --compare`` shows it: a path by its file name, a sha256 by its first 12 hex
+    digits, anything else as JSON."""
+    import json
+    import re
+
+    if isinstance(value, str) and re.fullmatch(r"[0-9a-f]{64}", value):
+        return value[:12]
+    if isinstance(value, str) and value.startswith("/") and "/" in value[1:]:
+        return value.rsplit("/", 1)[1]
+    return json.dumps(value, default=str)
 
 
 @runs_app.command("rm")

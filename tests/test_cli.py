@@ -373,3 +373,45 @@ def test_a_long_phase_says_what_it_does_and_a_quick_or_quiet_one_says_nothing(mo
     with cli_common.announced("quiet", say=quiet.append, quiet=True):
         pass
     assert quick == [] and quiet == []
+
+
+def test_runs_compare_shows_the_headline_first_and_paths_and_hashes_short():
+    """#56 items 8 and 10: ``runs --compare`` put the differing config values before the headline (a narrow
+    terminal kept a landmark's coordinates and dropped best_cost) and printed a mesh's absolute path and its
+    64-hex hash whole. The text table shows a path by its file name and a hash by 12 digits; JSON keeps them."""
+    from surgopt.cli_results import _short
+
+    assert _short("/home/me/patients/openhelp/wall.stl") == "wall.stl"
+    assert _short("ab" * 32) == "ab" * 6
+    assert _short([1.0, 2.0]) == "[1.0, 2.0]" and _short("dome") == '"dome"'
+
+
+def test_runs_compare_puts_the_headline_before_the_config_values(tmp_path):
+    from pathlib import Path
+
+    from conftest import invoke
+
+    base = Path(__file__).parent / "baselines" / "rcm_small.toml"
+    for length in ("0.2", "0.25"):
+        assert invoke("rcm-grid", base, f"robot.tool_length_m={length}", "--store", tmp_path, "--quiet")[0] == 0
+    code, out = invoke("runs", "--store", tmp_path, "--compare", "--study", "rcm-grid")
+    header = next(line for line in out.splitlines() if "key" in line and "plan" in line)
+    assert code == 0 and header.index("best_gii") < header.index("robot.tool_length_m"), header
+
+
+def test_a_piped_table_honours_the_columns_a_user_set(tmp_path):
+    """#56 item 8: in a pipe COLUMNS was ignored (400-730-character lines). Piped with COLUMNS=80, summarize's tables
+    fit 80 characters and say which columns they left out; without COLUMNS a pipe still gets every column."""
+    from pathlib import Path
+
+    from typer.testing import CliRunner
+
+    from surgopt.cli import app
+
+    base = Path(__file__).parent / "baselines" / "port_small.toml"
+    runner = CliRunner()
+    assert runner.invoke(app, ["port-place", str(base), "--store", str(tmp_path), "--quiet"]).exit_code == 0
+    narrow = runner.invoke(app, ["summarize", "latest", "--store", str(tmp_path)], env={"COLUMNS": "80"}).output
+    wide = runner.invoke(app, ["summarize", "latest", "--store", str(tmp_path)], env={"COLUMNS": None}).output
+    assert max(map(len, narrow.splitlines())) <= 80 and "not shown at 80 columns" in narrow
+    assert max(map(len, wide.splitlines())) > 80 and "not shown" not in wide
