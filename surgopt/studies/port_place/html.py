@@ -66,7 +66,7 @@ def views(run, cfg, parts) -> list[View]:
 
     arms = list(arms_of(cfg))
     model = model_of(cfg)
-    sites_m, (_, reach, dex) = model.sites_m, model.grid
+    sites_m, (reach, dex) = model.sites_m, model.site_reach
     sites = sites_m * 1000
     targets = model.targets_m * 1000
     site_best = _site_best(parts, arms, len(sites))
