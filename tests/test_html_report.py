@@ -189,12 +189,19 @@ def test_clicking_a_layout_redraws_the_3d_scene_and_its_checks(pages, page, tmp_
         rows = page.locator("#pp-layouts tbody tr:visible")
         assert rows.count() >= 2
         target = rows.nth(1)
-        design = target.locator("td").first.inner_text().replace(",", "")
+        design = target.locator("td").first.inner_text()
+        assert design.isdigit()  # #56 item 4: an id, without thousands separators
         target.click()
         page.wait_for_function(f"document.getElementById('pp-scene').dataset.layout === '{design}'", timeout=30_000)
         assert scene.get_attribute("data-layout") == design != first
         assert page.evaluate("+document.getElementById('pp-scene').dataset.paintedMs") > 0  # checks painted first
         assert page.locator("#pp-title").inner_text().startswith(f"Layout {design}")
+        # #56 item 4: the scene marks the landmarks (the dome's, said to be assumed) and the sides
+        traces = page.evaluate("document.getElementById('pp-scene').data.map(t => [t.name, t.text || null])")
+        named = {name: text for name, text in traces}
+        assert "umbilicus" in named["landmarks (assumed: the dome has none of its own)"]
+        assert set(named["sides"]) == {"patient's left", "patient's right", "head", "feet"}
+        assert "marked region" not in named  # none marked in this run
         assert page.locator("#pp-ports tbody tr").count() >= 3
         assert "selected" in (target.get_attribute("class") or "")
         all_rows = page.locator("#pp-layouts tbody tr").count()

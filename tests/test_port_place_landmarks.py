@@ -120,3 +120,25 @@ def test_a_searchs_repeated_layouts_are_listed_once_and_counted():
     plain = R.least_cost_layouts(Parts.of_table(grid), 5)  # the grid alone: no repeats, the five best rows
     assert plain["design_id"].to_pylist() == grid.take(pa.array(best[:5]))["design_id"].to_pylist()
     assert plain.schema.metadata[b"repeats_collapsed"] == b"0"
+
+
+def test_the_scene_marks_the_landmarks_the_region_and_the_sides_on_the_wall():
+    """#56 item 4: the page's scene gets the landmarks on the wall (the dome's said to be assumed; a config's not),
+    the marked region's outline closed and lifted 2 mm above the wall, and the four sides past the body."""
+    from surgopt.studies.port_place.geometry import wall_height_mm
+    from surgopt.studies.port_place.html import scene_marks
+
+    poly = [[-150.0, -150.0], [150.0, -150.0], [150.0, 100.0], [-150.0, 100.0]]
+    cfg = C.PortPlaceConfig.model_validate({**COARSE, "patient": {"port_region": {"site_spacing_mm": 72.0,
+                                                                                 "polygon_mm": poly}}})
+    m = scene_marks(cfg)
+    assert m["landmarks_assumed"] and "umbilicus" in [n for n, *_ in m["landmarks"]]
+    for _, x, y, z in m["landmarks"]:
+        assert z == pytest.approx(float(wall_height_mm(np.array([x]), np.array([y]), cfg.patient)[0]))
+    r = np.asarray(m["region"])
+    np.testing.assert_array_equal(r[0], r[-1])  # closed
+    np.testing.assert_allclose(r[:, 2], wall_height_mm(r[:, 0], r[:, 1], cfg.patient) + 2.0, atol=0.06)
+    assert {tuple(v[:2]) for v in r[::12][:4]} == {tuple(p) for p in poly}  # through every vertex
+    assert [s[0] for s in m["sides"]] == ["patient's left", "patient's right", "head", "feet"]
+    own = C.PortPlaceConfig.model_validate({**COARSE, "patient": {"landmarks_mm": {"umbilicus": [0.0, 0.0]}}})
+    assert not scene_marks(own)["landmarks_assumed"]

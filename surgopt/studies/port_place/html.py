@@ -83,7 +83,6 @@ def views(run, cfg, parts) -> list[View]:
         if (feasible.num_rows or (infeasible is not None and infeasible.num_rows)) else feasible
     found = headline_rolled(cfg, parts)  # a cheaper layout that clears only rolled: said, never listed as the answer
     layouts = {c: top[c].to_numpy(zero_copy_only=False) for c in wanted}
-    layouts["rolled"] = np.array([""] * top.num_rows, dtype=object)
     mark_name, mark = reference_landmark(cfg.patient)
     for a in arms:  # each port from the reference landmark, in words (the closing report's)
         layouts[f"{a}_from"] = np.array([from_landmark(x, y, mark) for x, y in zip(layouts[f"{a}_x_mm"],
@@ -120,8 +119,9 @@ def views(run, cfg, parts) -> list[View]:
                    for label, fields, digits, joiner, clinical, band in clinical_checks(cfg)],
         "reasons": [[int(bit), why] for bit, why in REASONS.items()],
         "axes": [X_LABEL, Y_LABEL, Z_LABEL],
+        **scene_marks(cfg),
     }
-    rows = [[(f"rolled: {layouts['rolled'][i]}" if c == "feasible" and layouts["rolled"][i] else layouts[c][i])
+    rows = [[str(layouts[c][i]) if c == "design_id" else layouts[c][i]  # an id, not a quantity: no separators
              for c in LAYOUT_COLUMNS if c in layouts]
             + [", ".join(str(layouts[f"{a}_site"][i]) for a in arms)] for i in range(top.num_rows)]
     header = [c for c in LAYOUT_COLUMNS if c in layouts] + ["sites (" + ", ".join(arms) + ")"]
@@ -173,6 +173,31 @@ def views(run, cfg, parts) -> list[View]:
     return views_out
 
 
+def scene_marks(cfg) -> dict:
+    """What the scene marks on the patient (issue 56 item 4): the landmarks on the wall (name, x, y, z mm; the
+    dome's own said to be assumed), the marked region's outline lifted onto the wall, and the sides (the patient's
+    left and right, head and feet) just past the body."""
+    from surgopt.studies.port_place.geometry import body_extent_mm, landmarks_mm, wall_height_mm
+
+    marks = landmarks_mm(cfg.patient)
+    names = list(marks)
+    xy = np.array([marks[n] for n in names], float).reshape(-1, 2)
+    z = wall_height_mm(xy[:, 0], xy[:, 1], cfg.patient) if len(xy) else np.zeros(0)
+    landmarks = [[n, float(x), float(y), float(np.nan_to_num(h, nan=0.0))] for n, (x, y), h in zip(names, xy, z)]
+    region = None
+    if cfg.patient.port_region.polygon_mm is not None:
+        poly = np.asarray(cfg.patient.port_region.polygon_mm, float)
+        edge = np.concatenate([np.linspace(p, q, 12, endpoint=False) for p, q in zip(poly, np.roll(poly, -1, 0))])
+        edge = np.vstack([edge, edge[:1]])
+        h = np.nan_to_num(wall_height_mm(edge[:, 0], edge[:, 1], cfg.patient), nan=0.0)
+        region = np.column_stack([edge, h + 2.0]).round(1)  # 2 mm above the wall, drawn over it
+    a, b, _ = body_extent_mm(cfg.patient)
+    sides = [["patient's left", 1.15 * a, 0.0, 0.0], ["patient's right", -1.15 * a, 0.0, 0.0],
+             ["head", 0.0, 1.1 * b, 0.0], ["feet", 0.0, -1.1 * b, 0.0]]
+    return {"landmarks": landmarks, "landmarks_assumed": not cfg.patient.landmarks_mm, "region": region,
+            "sides": sides}
+
+
 def headline_rolled(cfg, parts):
     """(row, ``RollsThatClear``) of a layout cheaper than the answer that clears only with its PSMs rolled
     (``report.headline_layout``: the summary's screen, memoised), else None."""
@@ -220,7 +245,15 @@ function base(){
   const none = {type:'scatter3d', mode:'markers', x:pick(unused, 0), y:pick(unused, 1), z:pick(unused, 2),
     marker:{size:2.5, color:'#9aa5b1'}, name:'sites no feasible layout uses',
     text:unused.map(i => 'site '+i+': no feasible layout uses it'), hoverinfo:'text'};
-  return [body, sites, none];
+  const marks = D.landmarks.length ? [{type:'scatter3d', mode:'markers+text', x:D.landmarks.map(m=>m[1]),
+    y:D.landmarks.map(m=>m[2]), z:D.landmarks.map(m=>m[3]), text:D.landmarks.map(m=>m[0]), textposition:'top center',
+    marker:{size:5, symbol:'diamond', color:'#7a3e9d'}, name:D.landmarks_assumed ? 'landmarks (assumed: the dome has none of its own)' : 'landmarks',
+    hoverinfo:'text'}] : [];
+  const region = D.region ? [{type:'scatter3d', mode:'lines', x:D.region.map(p=>p[0]), y:D.region.map(p=>p[1]),
+    z:D.region.map(p=>p[2]), line:{color:'#d9822b', width:5}, name:'marked region', hoverinfo:'skip'}] : [];
+  const sides = {type:'scatter3d', mode:'text', x:D.sides.map(s=>s[1]), y:D.sides.map(s=>s[2]), z:D.sides.map(s=>s[3]),
+    text:D.sides.map(s=>s[0]), textfont:{size:12, color:'#52606d'}, name:'sides', showlegend:false, hoverinfo:'skip'};
+  return [body, sites, none, ...marks, ...region, sides];
 }
 function draw(i){
   // the checks, ports and title at once; the scene on the next frame, once they are painted (software WebGL takes
@@ -270,13 +303,13 @@ function sceneTraces(i){
 }
 function sceneLayout(i){
   return {uirevision:'keep', height:620, margin:{l:0, r:0, t:30, b:0}, showlegend:true, legend:{orientation:'h', x:0, y:0, bgcolor:'rgba(255,255,255,0.7)'},
-    title:{text:'layout '+col('design_id', i)+' · cost '+fmt(col('cost', i), 4)+(col('rolled', i)?' · PSMs rolled: '+col('rolled', i):col('feasible', i)?'':' · INFEASIBLE'), font:{size:13}},
+    title:{text:'layout '+col('design_id', i)+' · cost '+fmt(col('cost', i), 4)+(col('feasible', i)?'':' · INFEASIBLE'), font:{size:13}},
     scene:{aspectmode:'data', xaxis:{title:{text:D.axes[0]}}, yaxis:{title:{text:D.axes[1]}},
            zaxis:{title:{text:D.axes[2]}}, camera:{eye:{x:-1.2, y:-1.6, z:1.0}}}};
 }
 function showLayout(i){
-  document.getElementById('pp-title').textContent = 'Layout ' + col('design_id', i) + (col('rolled', i) ?
-    ' (docked with its PSMs rolled: ' + col('rolled', i) + ')' : col('feasible', i) ? '' : ' (infeasible)');
+  document.getElementById('pp-title').textContent = 'Layout ' + col('design_id', i) + (col('feasible', i) ? '' :
+    ' (infeasible)');
   const body = document.querySelector('#pp-checks tbody'); body.innerHTML = '';
   D.checks.forEach(c => { const tr = document.createElement('tr');
     const v = c[1].map(f => fmt(col(f, i), c[2])).join(c[3]);
@@ -284,7 +317,7 @@ function showLayout(i){
     if (out) tr.className = 'flag';
     [c[0], v, c[4], c[5] ? (out ? 'OUTSIDE' : 'yes') : ''].forEach(t => { const td = document.createElement('td'); td.textContent = t; tr.appendChild(td); });
     body.appendChild(tr); });
-  const bad = col('rolled', i) ? 0 : col('infeasible', i);  // a rolled layout's links clear so docked
+  const bad = col('infeasible', i);
   if (bad) { D.reasons.forEach(r => { if (bad & r[0]) { const tr = document.createElement('tr'); tr.className = 'flag';
     tr.innerHTML = '<td colspan="4"></td>'; tr.firstChild.textContent = 'fails: ' + r[1]; body.appendChild(tr); } }); }
   const ports = document.querySelector('#pp-ports tbody'); ports.innerHTML = '';
@@ -302,7 +335,7 @@ function filter(){
   const clear = parseFloat(document.getElementById('pp-clear').value);
   let shown = 0;
   document.querySelectorAll('#pp-layouts tbody tr').forEach(tr => { const i = +tr.dataset.i;
-    let ok = !feas || col('feasible', i) || !!col('rolled', i);
+    let ok = !feas || col('feasible', i);
     if (!isNaN(elev)) ok = ok && Math.min.apply(null, arms.slice(0, -1).map(a => col(a+'_elevation_deg', i))) >= elev;
     if (!isNaN(clear)) ok = ok && col('external_clearance_mm', i) >= clear;
     tr.style.display = ok ? '' : 'none'; shown += ok ? 1 : 0; });
