@@ -325,3 +325,32 @@ def test_an_si_psm_yawed_off_psi_star_docks_on_the_si_family_and_still_reaches()
             assert np.all((psm.yaw_limits_rad[0] <= q1) & (q1 <= psm.yaw_limits_rad[1])
                           & (psm.pitch_limits_rad[0] <= q2) & (q2 <= psm.pitch_limits_rad[1])
                           & (lim.insertion_lo <= q3) & (q3 <= lim.insertion_hi))
+
+
+def test_each_arms_shaft_outside_is_its_own_length():
+    """#53: the shafts' outside segment (the arms' external clearance without the cart's links, and the page's
+    drawn shafts) was the Classic PSM's 0.4318 m for every arm; the Si PSM's insertion row puts its carriage
+    0.4826 m behind the RCM. Each RCM arm's own length now (a file arm whose row gives none: the Classic's, said).
+    Measured: no row of the Si grid here changes with it (shafts that diverge outward come closest at their ports),
+    so the rows' outside table is checked against the sampled reference at the arm's own length."""
+    from reference import segment_distance_sampled
+
+    from surgopt.studies.port_place import tables as T
+
+    cfg = C.PortPlaceConfig.model_validate({**SI, "cart": {"model": "none"}})
+    classic = C.PortPlaceConfig.model_validate({"patient": SI["patient"], "target": SI["target"],
+                                                "cart": {"model": "none"}})
+    assert T.criteria(cfg).outside_length_m == pytest.approx(0.4826) == T.outside_length_m(cfg)
+    assert T.criteria(classic).outside_length_m == pytest.approx(0.4318)
+    model = T.model_of(cfg)
+    sites, centre = model.sites_m, model.centre_m
+    outside = model.grid.tables.outside
+
+    def back(k):
+        u = (centre - sites[k]) / np.linalg.norm(centre - sites[k])
+        return sites[k] - 0.4826 * u
+
+    for i in range(0, len(sites), 3):
+        for j in range(i + 1, len(sites), 4):
+            assert outside[i, j] == pytest.approx(segment_distance_sampled(back(i), sites[i], back(j), sites[j],
+                                                                           n=801), abs=1e-3)

@@ -64,6 +64,13 @@ class RcmArm:
         return self.rows[2].lower, self.rows[2].upper
 
     @property
+    def outside_length_m(self) -> float:
+        """How far behind the RCM the arm's carriage (the instrument's back end) sits at zero insertion: the
+        insertion row's offset (its d; the Classic PSM's 0.4318 m, the Si's 0.4826 m), the outside segment of the
+        arms' external clearance; the Classic PSM's OUTSIDE_LENGTH_M for an arm whose row has none (an assumption)."""
+        return abs(self.rows[2].d_m) or OUTSIDE_LENGTH_M
+
+    @property
     def along_shaft_m(self) -> float:
         """Distance from the RCM, along the shaft, of the reaching point at zero insertion (q3 = 0): the
         insertion row's offset (its d) plus the next row's d."""
@@ -111,6 +118,7 @@ LND_WRIST_BEND_RAD = min(-LND_WRIST_LIMITS_RAD[0], LND_WRIST_LIMITS_RAD[1])
 INSTRUMENT_SHAFT_DIAMETER_MM = 8.0
 ENDOSCOPE_DIAMETER_MM = 12.0
 #: How far behind the RCM the instrument's back end (and the arm carrying it) sits at zero insertion:
-#: the RCM-to-tool-origin offset of the Classic PSM, 0.4318 m. Used as the length of the outside segment
-#: in the arms' external clearance.
+#: the RCM-to-tool-origin offset of the Classic PSM, 0.4318 m. Each RCM arm uses its own insertion row's
+#: (``RcmArm.outside_length_m``: the Si PSM's 0.4826 m); this is the length for an arm whose row gives none, and
+#: for the outside segment a serial arm's links are measured against.
 OUTSIDE_LENGTH_M = 0.4318

@@ -32,7 +32,6 @@ from surgopt.studies.port_place.geometry import (
     shape_grid_count,
     even_odd_area_mm2,
     site_stages,
-    sites_mm,
     target_points_mm,
 )
 from surgopt.studies.port_place.arm_config import RcmArmFile, SerialInstrumentArm

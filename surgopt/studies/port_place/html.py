@@ -62,7 +62,7 @@ def views(run, cfg, parts) -> list[View]:
     """The run's sections (``cfg``: its validated config), aggregates streamed from ``parts``."""
     from surgopt.studies.port_place.report import CLINICAL_COLUMNS, clinical_checks, least_cost_layouts
     from surgopt.studies.port_place.study import arms_of, docking_columns, roll_columns
-    from surgopt.studies.port_place.tables import model_of
+    from surgopt.studies.port_place.tables import model_of, outside_length_m
 
     arms = list(arms_of(cfg))
     model = model_of(cfg)
@@ -88,7 +88,6 @@ def views(run, cfg, parts) -> list[View]:
         layouts[f"{a}_from"] = np.array([from_landmark(x, y, mark) for x, y in zip(layouts[f"{a}_x_mm"],
                                                                                   layouts[f"{a}_y_mm"])])
     from surgopt.kinematics.port_reasons import REASONS
-    from surgopt.robots import dvrk
 
     arm_lines, cam_lines = (None if lines is None else lines * 1000  # a serial arm's centre lines, every site
                             for lines in (model.instruments.docked_lines(model, sites_m),
@@ -108,7 +107,7 @@ def views(run, cfg, parts) -> list[View]:
         layout_iso = [[None if np.isnan(v) else round(float(v), 4) for v in layout_isotropy(cfg, r)] for r in rows]
     data = {
         "layout_iso": layout_iso,
-        "arm_lines": arm_lines, "cam_lines": cam_lines, "outside_mm": dvrk.OUTSIDE_LENGTH_M * 1000,
+        "arm_lines": arm_lines, "cam_lines": cam_lines, "outside_mm": outside_length_m(cfg) * 1000,
         "arms": arms, "colours": [COLOURS[a] for a in arms], "sites": sites, "site_best": site_best,
         "targets": targets, "centre": np.asarray(cfg.target.centre_mm, float),
         "reach": np.asarray(reach, bool).astype(np.int8), "dex": np.round(np.asarray(dex, float), 4),

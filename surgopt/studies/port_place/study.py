@@ -28,7 +28,6 @@ import numpy as np
 
 from surgopt.robots.platforms import AUTO_PLATFORM, PLATFORMS
 
-from surgopt.robots import dvrk
 from surgopt.studies.port_place.arms import instruments_held
 from surgopt.studies.port_place.carts import has_cart
 from surgopt.studies.port_place.hands import image_right_psm
@@ -37,7 +36,7 @@ from surgopt.studies import Estimate, Study, figures_in, html_views_in, peak_byt
 from surgopt.parts import concat_rows
 from surgopt.studies.port_place.config import OBJECTIVE, PortPlaceConfig, cart_of, instrument_of
 from surgopt.studies.port_place.geometry import sites_mm, target_points_mm
-from surgopt.studies.port_place.tables import LATERAL, model_of, port_tables, redocked, rolled
+from surgopt.studies.port_place.tables import LATERAL, model_of, outside_length_m, port_tables, redocked, rolled
 
 NAME = "port-place"
 KERNEL_VERSION = "port-place-1"
@@ -554,7 +553,7 @@ def evaluate_designs(cfg, x: np.ndarray, ids: np.ndarray, source: str) -> dict:
         model_r = model.with_config(cfg_r) if stances else model
         # the docking frames tilted by the design's yaw and pitch (an RCM arm), or each serial base turned by its yaw
         rot, base_yaw = model.instruments.turned(K.docking_frames(sites, centre, LATERAL), docking)
-        outside = K.external_clearances(sites, np.ascontiguousarray(rot[:, :, 2]), dvrk.OUTSIDE_LENGTH_M)
+        outside = K.external_clearances(sites, np.ascontiguousarray(rot[:, :, 2]), outside_length_m(cfg))
         rolls = np.radians([*v[roll_cols], 0.0]) if roll_cols else None  # each port's, the ECM's 0
         frames = rolled(rot, rolls) if roll_cols else None
         tables = (None if not cart else searched_dock(model, site_ids, pose, frames) if pose is not None

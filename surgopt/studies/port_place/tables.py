@@ -222,8 +222,16 @@ def criteria(cfg: PortPlaceConfig):
     lo, hi = (math.radians(v) for v in k.manipulation_angle_deg)
     return Criteria(k.dexterity_length_m, lo, hi, math.radians(60.0), k.tip_zone_mm / 1000,
                     (k.shaft_diameter_mm + k.min_shaft_clearance_mm) / 1000, k.min_external_clearance_mm / 1000,
-                    dvrk.OUTSIDE_LENGTH_M, k.min_port_spacing_mm / 1000, o.reach, o.angle, o.azimuth, o.camera,
+                    outside_length_m(cfg), k.min_port_spacing_mm / 1000, o.reach, o.angle, o.azimuth, o.camera,
                     o.dexterity)
+
+
+def outside_length_m(cfg: PortPlaceConfig) -> float:
+    """The outside segment of the instruments' external clearance: the instrument arm's own
+    (``RcmArm.outside_length_m``; issue 53: the Classic's 0.4318 m was applied to the Si PSM, whose row gives
+    0.4826 m), or the Classic's for a serial arm (its links are measured themselves)."""
+    arm = instrument_of(cfg)
+    return getattr(arm, "outside_length_m", dvrk.OUTSIDE_LENGTH_M)
 
 
 def wrist_margin_deg(model: PortModel, sites: np.ndarray) -> np.ndarray:
