@@ -359,10 +359,11 @@ def comparison_page(items) -> str:
     from surgopt.report import run_summary
     from surgopt.results import flat_config
 
-    heads, configs = [], []
+    heads, configs, feasibility = [], [], []
     for study, run, parts in items:
         s = run_summary(study, run, parts) if parts.num_rows else None  # each run's closing report, kept
         heads.append(dict(s.headline) if s else {})
+        feasibility.append(dict(s.feasibility) if s else {})
         configs.append(flat_config(run.manifest["config"]))
     labels = [run.manifest.get("name") or f"{run.key[:8]} {run.manifest.get('config_name', '')}" for _, run, _ in items]
     keys = list(dict.fromkeys(k for h in heads for k in h))
@@ -374,6 +375,7 @@ def comparison_page(items) -> str:
               if len({json.dumps(c.get(f)) for c in configs}) > 1]
     sections.append(f'<section id="differences"><h2>Config fields that differ ({len(differ)})</h2>'
                     f'{table_html(["field", *labels], differ, sortable=False)}</section>')
+    sections.append(feasibility_section(labels, feasibility))
     scripts, data, cells = [], {}, []
     for i, (study, run, parts) in enumerate(items):
         if study.html_views is None or not parts.num_rows:
@@ -381,7 +383,8 @@ def comparison_page(items) -> str:
         views = study.html_views(run, config_of(study, run), parts)
         if not views:
             continue
-        view = views[0]
+        view = next((v for v in views if v.figures), views[0])  # a figure a page can hold twice (port-place's
+        # scene is drawn by a script of its own: its top view of the best layout instead)
         view.figures = {f"c{i}-{k}": v for k, v in view.figures.items()}
         view.data, view.script, view.html = None, "", ""
         sec, scr, dat = render_view(view, 100 + i)
@@ -390,6 +393,33 @@ def comparison_page(items) -> str:
     if cells:
         sections.append(f'<section id="views"><div class="row">{"".join(cells)}</div></section>')
     return page(f"surgopt: {len(items)} runs compared", " · ".join(labels), sections, scripts, data)
+
+
+def feasibility_section(labels: list[str], feasibility: list[dict]) -> str:
+    """Why the runs' feasible counts differ (issue 56 item 3): each check's count of failing layouts run by run and,
+    for two runs, how many more or fewer fail it in the second, in words; counted over each run's own rows (not
+    joined layout by layout; a layout can fail several checks)."""
+    keys = list(dict.fromkeys(k for f in feasibility for k in f))
+    if not keys:
+        return ""
+
+    def number(v):
+        return v if isinstance(v, (int, float)) and not isinstance(v, bool) else None
+
+    rows = []
+    for k in keys:
+        values = [f.get(k, "") for f in feasibility]
+        row = [k, *values]
+        if len(values) == 2 and number(values[0]) is not None and number(values[1]) is not None:
+            change = values[1] - values[0]
+            row.append("no change" if change == 0 else
+                       f"{abs(change):,} {'more' if change > 0 else 'fewer'} layouts fail it"
+                       if k.startswith("infeasible:") else f"{change:+,}")
+        rows.append(row)
+    header = ["count", *labels] + (["second against first"] if len(labels) == 2 else [])
+    return (f'<section id="feasibility"><h2>Why the feasible counts differ</h2><p class="note">Each check\'s count of '
+            f"layouts failing it, run by run (each run's own rows, not joined layout by layout; a layout can fail "
+            f"several checks).</p>{table_html(header, rows, sortable=False)}</section>")
 
 
 def index_page(store, records: list[dict]) -> str:

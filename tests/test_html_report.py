@@ -82,6 +82,12 @@ def _make_pages(tmp: Path) -> dict:
     keys = [r.key[:12] for r in Store(store).runs("rcm-grid")]
     cli("report", *keys, "--store", store, "--out", tmp / "compare.html")
     out["compare"] = tmp / "compare.html"
+    # two port-place runs on different site grids, compared (#56 item 3): their own store, the index's stays six
+    ports = tmp / "ports"
+    cli("port-place", BASE / "port_small.toml", "--store", ports, "--quiet")
+    cli("port-place", BASE / "port_small.toml", "patient.port_region.site_spacing_mm=60", "--store", ports, "--quiet")
+    cli("report", *[r.key[:12] for r in Store(ports).runs()], "--store", ports, "--out", tmp / "compare-ports.html")
+    out["compare-ports"] = tmp / "compare-ports.html"
     r = cli("report", "--store-index", "--store", store)
     out["index"] = store / "_report.html"
     assert "6 runs" in r.stdout and "6 run pages written beside them, 0 kept" in r.stdout
@@ -410,3 +416,21 @@ def test_the_store_index_keeps_each_run_page_that_is_current(pages):
     code, out = invoke("report", "--store-index", "--store", store)
     assert code == 0 and "2 run pages written beside them, 4 kept: current" in out, out
     assert all(H.current_page(r, f) for r, f in zip(runs, files))
+
+
+def test_a_comparison_of_port_layouts_draws_each_runs_best_layout_and_says_why_the_counts_differ(pages, page,
+                                                                                                   tmp_path):
+    """#56 item 3: comparing two port-place runs drew the headlines and the config differences, then under each run
+    a caption and no figure. Each run's best feasible layout is drawn from above (its ports by arm, the sites, the
+    target's centre, the landmarks), and a table says how many more or fewer layouts fail each check."""
+    errors, requests = _open(page, pages["compare-ports"], tmp_path)
+    try:
+        assert not errors and not requests, (errors, requests)
+        for cell in ("c0-pp-top", "c1-pp-top"):
+            names = page.evaluate(f"document.getElementById('{cell}').data.map(t => t.name)")
+            assert {"PSM1 port", "PSM2 port", "ECM port", "target centre", "candidate sites"} <= set(names), names
+        text = page.locator("#feasibility").inner_text()
+        assert "Why the feasible counts differ" in text and "layouts fail it" in text
+    except AssertionError:
+        print("screenshot:", _kept_on_failure(page, tmp_path, "report-compare-ports"))
+        raise

@@ -152,6 +152,11 @@ def views(run, cfg, parts) -> list[View]:
             + f" (of {parts.num_rows:,} rows)</h3>{rolled_note(found)}{filters}"
             + f"<div class=\"scroll\">{table}</div>",
         data, "pp-data", SCENE_SCRIPT)]
+    if feasible.num_rows:
+        views_out.append(View("The best layout, top view", FRAME + " The feasible layout of least cost: each arm's port "
+                              "(from the " + mark_name + "), the candidate sites, the target's centre and the "
+                              "landmarks.", {"pp-top": top_view_figure(cfg, model, feasible.slice(0, 1).to_pylist()[0],
+                                                                       arms)}))
     if reasons:
         views_out.append(View("Why layouts fail", "Counts of layouts failing each check (a layout can fail several).",
                               {"pp-reasons": {"data": [{"type": "bar", "orientation": "h", "y": [r for r, _ in reasons],
@@ -170,6 +175,36 @@ def views(run, cfg, parts) -> list[View]:
                                                                   "colorscale": "Viridis", "reversescale": True}}],
                                                "layout": {"height": 460, "margin": {"l": 80, "r": 80}}}}))
     return views_out
+
+
+def top_view_figure(cfg, model, row: dict, arms: list[str]) -> dict:
+    """A layout seen from above (x lateral, y toward the head, mm): the body's outline (a dome's base ellipse; a
+    mesh's candidate sites alone), the candidate sites, the layout's ports by arm, the target's centre and the
+    landmarks; a static figure a page can hold once per run (the comparison page's, issue 56 item 3)."""
+    sites = model.sites_m * 1000
+    traces = []
+    if cfg.patient.shape == "dome":
+        a, b, _ = cfg.patient.semi_axes_mm
+        t = np.linspace(0.0, 2 * math.pi, 121)
+        traces.append({"type": "scatter", "mode": "lines", "x": a * np.cos(t), "y": b * np.sin(t),
+                       "line": {"color": "#c9b8a6"}, "name": "body (the dome's base)", "hoverinfo": "skip"})
+    traces.append({"type": "scatter", "mode": "markers", "x": sites[:, 0], "y": sites[:, 1],
+                   "marker": {"size": 4, "color": "#9aa5b1"}, "name": "candidate sites"})
+    for a in arms:
+        traces.append({"type": "scatter", "mode": "markers+text", "x": [row[f"{a}_x_mm"]], "y": [row[f"{a}_y_mm"]],
+                       "text": [a.upper()], "textposition": "top center",
+                       "marker": {"size": 13, "color": COLOURS[a]}, "name": f"{a.upper()} port"})
+    c = cfg.target.centre_mm
+    traces.append({"type": "scatter", "mode": "markers", "x": [c[0]], "y": [c[1]],
+                   "marker": {"size": 11, "symbol": "x", "color": "#c0392b"}, "name": "target centre"})
+    marks = scene_marks(cfg)["landmarks"]
+    if marks:
+        traces.append({"type": "scatter", "mode": "markers+text", "x": [m[1] for m in marks],
+                       "y": [m[2] for m in marks], "text": [m[0] for m in marks], "textposition": "bottom center",
+                       "marker": {"size": 8, "symbol": "diamond", "color": "#7a3e9d"}, "name": "landmarks"})
+    return {"data": traces, "layout": {
+        "height": 460, "title": {"text": f"layout {row['design_id']} · cost {row['cost']:.4f}", "font": {"size": 13}},
+        "xaxis": {"title": {"text": X_LABEL}}, "yaxis": {"title": {"text": Y_LABEL}, "scaleanchor": "x"}}}
 
 
 def scene_marks(cfg) -> dict:
