@@ -235,9 +235,10 @@ TABLE_THREADS = min(4, len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaff
 
 def body_distance_mm(p: np.ndarray, patient, cap_mm: float, many: bool = False) -> np.ndarray:
     """Per point (mm) outside the body: its distance to the body wall, capped at ``cap_mm`` (the mesh's by
-    trimesh's closest point, exact; the dome's to the nearest of ``dome_samples_mm``, less their gap: a lower
-    bound within that gap of the true distance). ``many``: the dome's nearest sample found by a k-d tree (the
-    same sample; for millions of points, where the brute-force loop takes ~30 us a point near the body)."""
+    trimesh's closest point, exact, in chunks; the dome's to the nearest of ``dome_samples_mm``, less their gap: a
+    lower bound within that gap of the true distance). ``many``: the dome's nearest sample found by a k-d tree (the
+    same sample; for millions of points, where the brute-force loop takes ~30 us a point near the body); the
+    mesh's nearest vertex of it subdivided, less its gap (``_mesh_tree``: a lower bound within 1.7 mm)."""
     if patient.shape == "dome" and many:
         tree, gap = _dome_tree(tuple(patient.semi_axes_mm), patient.dome_exponent)
         d, _ = tree.query(np.asarray(p, float), distance_upper_bound=cap_mm + gap, workers=TABLE_THREADS)
@@ -253,9 +254,43 @@ def body_distance_mm(p: np.ndarray, patient, cap_mm: float, many: bool = False) 
     out = np.full(len(p), cap_mm)
     lo, hi = mesh.bounds
     near = np.all((p >= lo - cap_mm) & (p <= hi + cap_mm), axis=1)
-    if near.any():
-        out[near] = np.minimum(trimesh.proximity.closest_point(mesh, p[near])[1], cap_mm)
+    if near.any() and many:  # the nearest vertex of the mesh subdivided to MESH_GAP_EDGE_MM, less its gap
+        tree, gap = _mesh_tree(patient.mesh_file, patient.mesh_sha256, patient.mesh_units,
+                               tuple(patient.mesh_offset_mm))
+        d, _ = tree.query(np.asarray(p[near], float), distance_upper_bound=cap_mm + gap, workers=TABLE_THREADS)
+        out[near] = np.clip(np.where(np.isinf(d), cap_mm + gap, d) - gap, 0.0, cap_mm)
+    elif near.any():
+        out[near] = np.minimum(in_chunks(lambda q: trimesh.proximity.closest_point(mesh, q)[1], p[near]), cap_mm)
     return out
+
+
+#: How many points one call of trimesh's closest point or containment test takes (a mesh patient's link tables
+#: ask millions at once: one call of 2 M points asked 9.4 GB; issue 57 item 0).
+MESH_QUERY_CHUNK = 5_000
+#: The edge a mesh patient is subdivided to for its distance lower bound (mm): every point of a triangle whose
+#: edges are at most this lies within MESH_GAP_EDGE_MM / sqrt(3) of one of its vertices.
+MESH_GAP_EDGE_MM = 3.0
+
+
+def in_chunks(f, p: np.ndarray, size: int = MESH_QUERY_CHUNK) -> np.ndarray:
+    """``f`` of the points ``p`` taken ``size`` at a time, concatenated: bounded memory for trimesh's queries."""
+    if len(p) <= size:
+        return np.asarray(f(p))
+    return np.concatenate([np.asarray(f(p[k:k + size])) for k in range(0, len(p), size)])
+
+
+@lru_cache(maxsize=2)
+def _mesh_tree(path: str, sha256: str, units: str, offset_mm: tuple):
+    """A k-d tree over the vertices of the body mesh subdivided until no edge is longer than MESH_GAP_EDGE_MM
+    (trimesh's ``subdivide_to_size``), and their gap, MESH_GAP_EDGE_MM / sqrt(3): the distance to the nearest
+    vertex, less the gap, is a lower bound within the gap of the distance to the wall (as the dome's samples)."""
+    import trimesh
+    from scipy.spatial import cKDTree
+
+    mesh = body_mesh(path, sha256, units, offset_mm)
+    v, _ = trimesh.remesh.subdivide_to_size(np.asarray(mesh.vertices), np.asarray(mesh.faces),
+                                            max_edge=MESH_GAP_EDGE_MM, max_iter=20)
+    return cKDTree(v), MESH_GAP_EDGE_MM / math.sqrt(3.0)
 
 
 def dome_surface_mm(semi_axes_mm, exponent: float, u: np.ndarray, v: np.ndarray):
@@ -353,7 +388,7 @@ def inside_body(p: np.ndarray, patient) -> np.ndarray:
     """Which points (mm) lie inside the body: the dome, or the closed mesh (trimesh's containment test)."""
     if patient.shape == "dome":
         return inside_dome(p, patient.semi_axes_mm, patient.dome_exponent)
-    return np.asarray(patient_mesh(patient).contains(p), bool) & (p[:, 2] >= 0)
+    return in_chunks(patient_mesh(patient).contains, p).astype(bool) & (p[:, 2] >= 0)
 
 
 def wall_height_mm(x: np.ndarray, y: np.ndarray, patient) -> np.ndarray:
