@@ -485,6 +485,7 @@ def test_a_stop_while_a_local_dask_cluster_starts_is_one_line(tmp_path):
 INSIDE_NUMBA = """
 import signal, sys, time
 from surgopt import interrupts
+interrupts.STOP_GRACE_S = 0.5  # the watchdog's grace, shortened (the default 3 s)
 interrupts.install()
 import numba
 from numba.core import event

@@ -636,6 +636,10 @@ def warm_up(cfg) -> None:
     from surgopt.plans.search import optimiser_of
 
     model = model_of(cfg)
+    if optimiser_of(cfg) is None:
+        reach, _ = model.site_reach
+        if reach.sum(axis=1).max() < reach.shape[1]:
+            return  # no port reaches the whole target: ``preflight`` refuses it next, no table built for nothing
     t, crit = model.grid.tables, model.criteria
     if optimiser_of(cfg) is None:
         design_columns(t, crit, 0, 1, cfg.robot.instrument_count, cfg.rows_stored == "feasible")
@@ -651,15 +655,15 @@ def preflight(cfg) -> None:
     if optimiser_of(cfg) is not None:
         return
     model = model_of(cfg)
-    t = model.grid.tables
-    best = int(t.reach_count.max())
-    if best < t.n_points:
+    reach, _ = model.site_reach  # the instruments' reach alone: a refused target builds no cart or link tables
+    best, n_points = int(reach.sum(axis=1).max()), reach.shape[1]
+    if best < n_points:
         arm = model.instruments.refused_note(model)
         raise ValueError(f"target: no candidate port's instrument ({instrument_of(cfg).name}, docked toward the "
-                         f"target's centre) reaches the whole target: {best:,} of its {t.n_points:,} points at best, "
+                         f"target's centre) reaches the whole target: {best:,} of its {n_points:,} points at best, "
                          f"so every layout would fail on reach; move or shrink the target, ease its approach cone, "
                          f"or widen patient.port_region / constraints.port_to_target_mm{arm}")
-    model.endoscope.check(model, t)
+    model.endoscope.check(model, model.grid.tables)
 
 
 #: Cost model: ~60 ns to combine one design and turn it into columns on one core (~70 ns with a third
