@@ -25,9 +25,9 @@ def test_two_processes_on_one_key(tmp_path):
     cfg.write_text(RCM_SLOW.replace("x_count = 121", "x_count = 15"))  # 16 chunks of 40: the spin is the wait
     store = tmp_path / "store"
     args = ["rcm-grid", str(cfg), "--store", str(store), "--quiet", "--jobs", "1", "--chunk-size", "40"]
-    # the first holds the run's lock for 8 s whatever the machine's load (its third chunk spins: tests/slow_cli.py),
+    # the first holds the run's lock for 5 s whatever the machine's load (its third chunk spins: tests/slow_cli.py),
     # so the second always finds it held (under load, a plain run had finished before the second started)
-    a = subprocess.Popen([sys.executable, str(Path(__file__).parent / "slow_cli.py"), "8", "chunk", *args],
+    a = subprocess.Popen([sys.executable, str(Path(__file__).parent / "slow_cli.py"), "5", "chunk", *args],
                          stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     wait_for_parts(store, "rcm-grid", 2, a)
     b = subprocess.Popen([sys.executable, "-m", "surgopt", *args], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
