@@ -321,8 +321,10 @@ def page_stamp(run) -> str:
     is this one (issue 56 item 5: it rebuilt every run's page each time)."""
     import hashlib
 
+    from surgopt.derived import package_sha256
+
     manifest = json.dumps(run.manifest, sort_keys=True, default=str)
-    return hashlib.sha256(f"{run.key}\n{manifest}\n{_package_source_sha()}".encode()).hexdigest()
+    return hashlib.sha256(f"{run.key}\n{manifest}\n{package_sha256()}".encode()).hexdigest()
 
 
 def current_page(run, path) -> bool:
@@ -335,22 +337,6 @@ def current_page(run, path) -> bool:
     return f'<meta name="surgopt-page" content="{page_stamp(run)}">' in head
 
 
-def _package_source_sha() -> str:
-    """The sha256 of every source file of the installed surgopt package (what draws a page), once a process."""
-    global _SOURCE_SHA
-    if _SOURCE_SHA is None:
-        import hashlib
-        from pathlib import Path
-
-        root = Path(__file__).resolve().parent
-        h = hashlib.sha256()
-        for f in sorted(root.rglob("*.py")):
-            h.update(str(f.relative_to(root)).encode() + b"\0" + f.read_bytes())
-        _SOURCE_SHA = h.hexdigest()
-    return _SOURCE_SHA
-
-
-_SOURCE_SHA: str | None = None
 
 
 def comparison_page(items) -> str:
