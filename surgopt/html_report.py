@@ -374,7 +374,7 @@ def comparison_page(items) -> str:
         view.figures = {f"c{i}-{k}": v for k, v in view.figures.items()}
         view.data, view.script, view.html = None, "", ""
         sec, scr, dat = render_view(view, 100 + i)
-        cells.append(f"<div><h2>{esc(labels[i])}</h2>{sec}</div>")
+        cells.append(f'<div><h2 style="overflow-wrap:anywhere">{esc(labels[i])}</h2>{sec}</div>')  # long config names wrap
         scripts += scr
     if cells:
         sections.append(f'<section id="views"><div class="row">{"".join(cells)}</div></section>')
