@@ -96,6 +96,14 @@ def store_dir(tmp_path):
     return tmp_path / "store"
 
 
+def slowed(*args, seconds=60):
+    """The command line of ``surgopt ARGS`` whose third chunk spins ``seconds`` (tests/slow_cli.py): a stop or a
+    kill after ``wait_for_parts(..., 2, ...)`` lands in that chunk whatever the machine's speed. A plain run of a
+    test's small grid finished before the kill on a fast CI machine (the manifest is written every 0.25 s, and a
+    whole run takes ~0.8 s)."""
+    return [sys.executable, str(Path(__file__).parent / "slow_cli.py"), str(seconds), "chunk", *map(str, args)]
+
+
 def wait_for_parts(store, study, n, proc, timeout=120):
     """Block until a run of ``study`` in ``store`` has n parts; fail if ``proc`` ends first."""
     import json

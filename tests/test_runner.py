@@ -13,7 +13,7 @@ from surgopt.runner import run_study
 from surgopt.store import Store
 from surgopt.studies import get_study
 
-from conftest import RCM_SLOW, cli, single_run, single_table, wait_for_parts
+from conftest import RCM_SLOW, cli, single_run, single_table, slowed, wait_for_parts
 
 BASE = Path(__file__).parent / "baselines"
 CONFIGS = {"rcm-grid": "rcm_small", "raven-sweep": "raven_small", "suture-sim": "suture_small"}
@@ -129,10 +129,9 @@ def test_interrupted_run_resumes_to_the_same_table(tmp_path, how):
     cfg.write_text(RCM_SLOW)
     store = tmp_path / "store"
     jobs = "1" if how == "SIGKILL" else "2"
-    proc = subprocess.Popen([sys.executable, "-m", "surgopt", "rcm-grid", str(cfg), "--store", str(store),
-                             "--quiet", "--jobs", jobs, "--chunk-size", "40"],
+    proc = subprocess.Popen(slowed("rcm-grid", cfg, "--store", store, "--quiet", "--jobs", jobs, "--chunk-size", "40"),
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
-    wait_for_parts(store, "rcm-grid", 3, proc)
+    wait_for_parts(store, "rcm-grid", 2, proc)  # stopped while the third chunk spins
     proc.send_signal(getattr(signal, how))
     _, err = proc.communicate(timeout=60)
     if how == "SIGINT":
@@ -143,7 +142,7 @@ def test_interrupted_run_resumes_to_the_same_table(tmp_path, how):
     run = single_run(store)
     assert not run.complete
     done = len(run.manifest["parts"])
-    assert 3 <= done < run.manifest["n_tasks"]
+    assert 2 <= done < run.manifest["n_tasks"]
     r = cli("rcm-grid", cfg, "--store", store, "--quiet", "--jobs", "2")
     assert f"resuming: {done} of {run.manifest['n_tasks']} chunks already stored" in r.stdout
     resumed = single_table(store)

@@ -133,19 +133,19 @@ def test_cli_sweep_stored_cached_and_resumed(tmp_path):
 
     from surgopt.store import Store
 
-    from conftest import wait_for_parts
+    from conftest import slowed, wait_for_parts
 
     cfg = tmp_path / "small.toml"
     cfg.write_text(SMALL)
     store = tmp_path / "store"
     cmd = [sys.executable, "-m", "surgopt", "raven-sweep", str(cfg), "--store", str(store), "--quiet",
            "--jobs", "1", "--chunk-size", "1"]
-    proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
-    wait_for_parts(store, "raven-sweep", 3, proc)
+    proc = subprocess.Popen(slowed(*cmd[3:]), stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    wait_for_parts(store, "raven-sweep", 2, proc)  # killed while the third chunk spins
     proc.send_signal(signal.SIGKILL)
     proc.wait()
     (run,) = Store(store).runs()
-    assert not run.complete
+    assert not run.complete and len(run.manifest["parts"]) == 2
     r = subprocess.run(cmd[:-4], capture_output=True, text=True, check=True)
     assert "resuming" in r.stdout
     (run,) = Store(store).runs()
