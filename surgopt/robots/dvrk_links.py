@@ -10,10 +10,12 @@ skeleton is the shaft u(q1, q2) of the DH model (``kinematics.port_place.shaft_d
 tests/test_capsules.py checks it), so both descriptions agree where they overlap. The ECM's arm beyond its
 setup joints is not in that file; it is modelled as its scope's carriage, a line behind the RCM (below).
 
-How thick they are (*assumptions*: the description has meshes, not primitives, and the dVRK publishes no link
-widths): the setup joints' links 50 mm radius, the PSM's yaw link and its mount 45 mm, the parallelogram's links
-30 mm, the insertion stage 30 mm, the instrument's housing on the carriage 40 mm, the shaft outside the port
-4 mm (the 8 mm instrument: data), the ECM's scope 6 mm (the 12 mm camera port: data), its carriage and camera 40 mm. Read each as the link's half width.
+How thick they are: the PSMs' own links (Classic and Si) are capsules fitted to the arms' own meshes
+(jhu-dvrk/dvrk_model, ``dvrk_link_envelopes``, written by tools/fit_link_envelopes.py: each contains its mesh,
+tests/test_link_envelopes.py). What has no mesh placed on this skeleton stays an *assumption*, labelled as such:
+the setup joints' links 50 mm radius, the link from the SUJ's tip to the arm 45 mm, the Si instrument's housing
+40 mm (its mesh is empty in that repository), the ECM's carriage and camera 40 mm; the shaft outside the port 4 mm
+and the ECM's scope 6 mm are the instruments' own 8 mm and 12 mm (data). Read each radius as the link's half width.
 """
 from __future__ import annotations
 
@@ -51,6 +53,10 @@ class Capsule(NamedTuple):
 
 HALF_PI = math.pi / 2
 
+#: The link model in a few words, for the reports and the export beside every clearance.
+LINK_MODEL_WORDS = ("capsules: the PSMs' own links fitted to the dVRK's meshes, the setup joints', the ECM's and the "
+                    "mounts' radii assumed")
+
 #: The Classic PSM's skeleton (psm.base.urdf.xacro): the yaw link turns about the base's -y through the RCM; the
 #: parallelogram's back and front pivots sit on it 0.5185 and 0.4285 m from the RCM; its bottom and top links
 #: turn back by -q2 (mimic -1), the lower long link (0.520 m) forward again; the carriage ("tool_main") slides
@@ -69,22 +75,30 @@ PSM_CLASSIC_FRAMES = (
 URDF = "jhu-dvrk/dvrk-ros psm.base.urdf.xacro"
 ASSUMED = "radius assumed"
 
+
+def mesh_capsules(skeleton: str) -> tuple:
+    """The PSM's links as fitted to its own meshes (``dvrk_link_envelopes``, issue 54), each named with its mesh
+    and how loose its fit is (the capsules' volume over the mesh's convex hull)."""
+    from surgopt.robots import dvrk_link_envelopes as E
+
+    fits = [e for e in E.ENVELOPES if e.skeleton == skeleton]
+    loose = {}
+    for e in fits:
+        loose[e.mesh] = loose.get(e.mesh, 0.0) + e.capsule_volume_l / e.hull_volume_l
+    return tuple(Capsule(e.name, e.frame, e.point_a_m, e.frame, e.point_b_m, e.radius_m,
+                         f"{E.REPOSITORY}@{E.COMMIT} {e.mesh}: fitted, x{loose[e.mesh]:.1f} its hull's volume")
+                 for e in fits)
+
+
 #: "mount": the SUJ's tip (the base frame's point where SUJ_tip_to_tool_origin starts, ``dvrk_suj``) is added
-#: by the code as frame "mount"; the capsules between it and the yaw link close the arm to its setup joints.
+#: by the code as frame "mount"; the capsule between it and the yaw link closes the arm to its setup joints (its
+#: radius an assumption). The arm's own links are its meshes' fitted capsules (``mesh_capsules``): the mount's
+#: housing, the yaw link, the parallelogram's four links, the insertion stage and the instrument's housing; the
+#: shaft outside the port is the instrument's 8 mm.
 PSM_CLASSIC_CAPSULES = (
     Capsule("mount", "mount", (0.0, 0.0, 0.0), "back", (0.0, 0.0, 0.0), 0.045, f"{URDF}, suj-simulated.json; "
             f"{ASSUMED}"),
-    Capsule("yaw link", "front", (0.0, 0.0, 0.0), "back", (0.0, 0.0, 0.0), 0.045, f"{URDF}; {ASSUMED}"),
-    Capsule("parallelogram back link", "back", (0.0, 0.0, 0.0), "top", (0.0, 0.0, 0.0), 0.03,
-            f"{URDF}; {ASSUMED}"),
-    Capsule("parallelogram lower link", "bottom", (0.0, 0.0, 0.0), "insertion", (0.0, 0.0, 0.0), 0.03,
-            f"{URDF}; {ASSUMED}"),
-    # the stage the carriage slides on: from the lower link's end back along the shaft over the carriage's
-    # 0.24 m travel and its housing (the stage's length is an assumption; the file draws it as a mesh)
-    Capsule("insertion stage", "insertion", (0.0, 0.0, 0.0), "insertion", (0.0, 0.35, 0.0), 0.03,
-            f"{URDF}; length and {ASSUMED}"),
-    Capsule("instrument housing", "carriage", (0.0, 0.0, 0.0), "carriage", (0.0, 0.0, -0.08), 0.04,
-            f"{URDF}; length and {ASSUMED}"),
+    *mesh_capsules("PSM_CLASSIC"),
     Capsule("shaft outside the port", "carriage", (0.0, 0.0, 0.0), "base", (0.0, 0.0, 0.0), 0.004,
             "dvrk-kinematics.md: 8 mm shaft"),
 )
@@ -124,20 +138,13 @@ PSM_SI_FRAMES = (
     LinkFrame("carriage", "pitch 3", (0.11523752, 0.0, 0.31095531), (math.pi, 0.0, -math.pi), 2, 1.0, True),
 )
 
-#: The Si PSM's links outside the body, each between two of its frames' points (radii as the Classic's: assumed).
+#: The Si PSM's links outside the body: the mount (assumed, as the Classic's), its meshes' fitted capsules (the arm
+#: base, the yaw and pitch links, the parallelogram, the insertion stage), the instrument's housing (the Si housing's
+#: mesh is empty in the dVRK's repository: the Classic's length and radius, assumed) and the shaft.
 PSM_SI_CAPSULES = (
     Capsule("mount", "mount", (0.0, 0.0, 0.0), "arm base", (0.0, 0.0, 0.0), 0.045, f"{SI_URDF}, suj-si-simulated"
             f".json; {ASSUMED}"),
-    Capsule("yaw link", "arm base", (0.0, 0.0, 0.0), "pitch", (0.0, 0.0, 0.0), 0.045, f"{SI_URDF}; {ASSUMED}"),
-    Capsule("parallelogram first link", "pitch", (0.0, 0.0, 0.0), "pitch 2", (0.0, 0.0, 0.0), 0.03,
-            f"{SI_URDF}; {ASSUMED}"),
-    Capsule("parallelogram second link", "pitch 2", (0.0, 0.0, 0.0), "pitch 3", (0.0, 0.0, 0.0), 0.03,
-            f"{SI_URDF}; {ASSUMED}"),
-    Capsule("parallelogram third link", "pitch 3", (0.0, 0.0, 0.0), "pitch 3", (0.11523752, 0.0, 0.31095531), 0.03,
-            f"{SI_URDF}; {ASSUMED}"),
-    # the stage the adaptor slides on: along the shaft from its q3 = 0 place over the Si's 0.29 m travel
-    Capsule("insertion stage", "pitch 3", (0.11523752, 0.0, 0.31095531), "pitch 3", (0.11523752, 0.0, 0.02095531),
-            0.03, f"{SI_URDF}, PSM_Si.json travel; {ASSUMED}"),
+    *mesh_capsules("PSM_SI"),
     Capsule("instrument housing", "carriage", (0.0, 0.0, 0.0), "carriage", (0.0, 0.0, -0.08), 0.04,
             f"{SI_URDF}; length and {ASSUMED}"),
     Capsule("shaft outside the port", "carriage", (0.0, 0.0, 0.0), "base", (0.0, 0.0, 0.0), 0.004,
