@@ -158,10 +158,23 @@ def test_crossed_setup_joints_are_refused_with_the_pair_named():
             row.update({f"{arm}_{c}_mm": sites[s, k] for k, c in enumerate("xyz")})
         docked = T.docked_arms(cfg, {k: v for k, v in row.items() if not k.startswith("ecm")})
         assert all(a.joints for a in docked)
-        return next(c for c in X.layout_clearances(cfg, row, docked) if c.check == "PSM1 and PSM2, docked")
+        found = next(c for c in X.layout_clearances(cfg, row, docked) if c.check == "PSM1 and PSM2, docked")
+        # the setup joints' links alone (the arms' own, their meshes' capsules, may meet either way round)
+        patient = T.row_patient_in_cart(cfg, row)
+        model = T.model_of(cfg)
+        arms = [X.arm_poses(cfg, a, patient, model.targets_m[:0], model.limits.along_shaft_m) for a in docked]
+        keep = [np.array(["setup joint link" in n for n in a.names]) for a in arms]
+        value, i, j = C.least_pair_clearance(arms[0].segments[0][keep[0]], arms[0].radii[keep[0]],
+                                           arms[1].segments[0][keep[1]], arms[1].radii[keep[1]])
+        names = [np.array(a.names)[k] for a, k in zip(arms, keep)]
+        return found, X.Clearance("PSM1 and PSM2 setup joints, docked", value * 1000, names[0][i], names[1][j],
+                                  "docked")
 
     left, right = (i, j) if sites[i, 0] < 0 else (j, i)
-    a, b = clearance(left, right), clearance(right, left)
+    (whole_a, a), (whole_b, b) = clearance(left, right), clearance(right, left)
     crossed, straight = (a, b) if a.clearance_mm < b.clearance_mm else (b, a)
     assert crossed.clearance_mm < 0 and straight.clearance_mm > crossed.clearance_mm
     assert crossed.link_a.startswith("PSM1 ") and crossed.link_b.startswith("PSM2 ")
+    for whole in (whole_a, whole_b):  # the layout's least over every link is no more than its setup joints'
+        assert whole.link_a.startswith("PSM1 ") and whole.link_b.startswith("PSM2 ") and whole.clearance_mm < 0
+    assert min(whole_a.clearance_mm, whole_b.clearance_mm) <= crossed.clearance_mm + 1e-9

@@ -7,6 +7,7 @@ import numpy as np
 import pytest
 
 from surgopt.kinematics import capsules as C
+from surgopt.kinematics.capsules import PAIR_CODE
 from surgopt.kinematics.port_place import segment_distance
 from surgopt.kinematics.port_reasons import OUTSIDE
 from surgopt.studies.port_place import config as PC
@@ -19,8 +20,10 @@ from surgopt.studies.port_place.link_tables import CAP_M, pair_name
 from reference import segment_distance_sampled
 
 SMALL = {"patient": {"port_region": {"site_spacing_mm": 36.0}}, "target": {"spacing_mm": 15.0}, "cart": {"model": "none"}}
+#: The links in feasible on a coarse grid. Docked at roll 0 no layout of it keeps its links clear since the PSMs'
+#: links are their meshes' capsules (the two mounts' housings meet); at -45 deg 11 of its 39,732 layouts do.
 LINKS = {**SMALL, "cart": {"model": "classic", "around_step_deg": 30.0, "distance_step_mm": 300.0},
-         "constraints": {"min_link_clearance_mm": 0.0}}
+         "constraints": {"min_link_clearance_mm": 0.0}, "robot": {"docking_roll_deg": -45.0}}
 
 
 def test_the_segment_distance_matches_the_closed_form_and_takes_points():
@@ -69,6 +72,35 @@ def test_the_pruned_least_is_the_exhaustive_least():
         assert want - 1e-12 <= floored < want + 0.01
         seen["overlap" if want < 0 else "clear"] += 1
     assert min(seen.values()) > 0
+
+
+@pytest.fixture
+def thin_links(monkeypatch):
+    """``cart.model = "classic_thin"``: the Classic cart with its PSMs' links as thin as they were assumed. With the
+    meshes' capsules no layout of these small grids keeps three PSMs' links clear, and too few two-PSM layouts do
+    to see the cart pose of most clearance differ from the first; what these tests check (the tables' machinery)
+    does not depend on the radii, and the platform registry takes a platform like any other."""
+    from dataclasses import replace
+
+    from surgopt.robots import dvrk_links as L
+    from surgopt.robots import platforms as P
+
+    classic = P.PLATFORMS["classic"]
+    thin = tuple([L.Capsule("mount", "mount", (0.0, 0.0, 0.0), "back", (0.0, 0.0, 0.0), 0.045, "a test's"),
+                  L.Capsule("yaw link", "front", (0.0, 0.0, 0.0), "back", (0.0, 0.0, 0.0), 0.045, "a test's"),
+                  L.Capsule("parallelogram back link", "back", (0.0, 0.0, 0.0), "top", (0.0, 0.0, 0.0), 0.03, "a test's"),
+                  L.Capsule("parallelogram lower link", "bottom", (0.0, 0.0, 0.0), "insertion", (0.0, 0.0, 0.0), 0.03,
+                            "a test's"),
+                  L.Capsule("insertion stage", "insertion", (0.0, 0.0, 0.0), "insertion", (0.0, 0.35, 0.0), 0.03,
+                            "a test's"),
+                  L.Capsule("instrument housing", "carriage", (0.0, 0.0, 0.0), "carriage", (0.0, 0.0, -0.08), 0.04,
+                            "a test's"),
+                  L.PSM_CLASSIC_CAPSULES[-1]])  # the shaft outside the port
+    assert thin[-1].name == "shaft outside the port"
+    monkeypatch.setitem(P.PLATFORMS, "classic_thin", replace(
+        classic, name="classic_thin", title="Classic (a test's thin links)",
+        links=P.ArmLinks(L.PSM_CLASSIC_FRAMES, thin, L.ECM_CLASSIC_FRAMES, L.ECM_CLASSIC_CAPSULES)))
+    return "classic_thin"
 
 
 @pytest.fixture(scope="module")
@@ -121,7 +153,7 @@ def _tables_equal_layouts(cfg, model, t, pairs, per_pair: int = 8) -> dict:
                              key=lambda c: c.clearance_mm)
                 a = ("PSM1", "PSM2", "PSM3", "ECM").index(arm)
                 assert float(t.arm_value[a, at, p]) == pytest.approx(around.clearance_mm / 1000, abs=1e-6)
-                assert pair_name(256 * (6 + a) + int(t.arm_code[a, at, p]), cart) == \
+                assert pair_name(PAIR_CODE * (6 + a) + int(t.arm_code[a, at, p]), cart) == \
                     f"{around.link_a} / {around.link_b}"
                 seen["around"] += 1
             v, code = float(t.link_value[pair, i, j, p]), int(t.link_code[pair, i, j, p])
@@ -133,7 +165,7 @@ def _tables_equal_layouts(cfg, model, t, pairs, per_pair: int = 8) -> dict:
                 seen["overlap"] += 1
             else:
                 assert got.clearance_mm / 1000 == pytest.approx(v, abs=1e-6)
-                named = pair_name(256 * pair + code, cart)
+                named = pair_name(PAIR_CODE * pair + code, cart)
                 if named != f"{got.link_a} / {got.link_b}":  # a tie (two links meeting at a joint): the table's
                     assert _named_clearance(cfg, row, *named.split(" / ")) == pytest.approx(v, abs=1e-6)  # pair
                     seen["tie"] = seen.get("tie", 0) + 1
@@ -223,14 +255,15 @@ def test_feasible_rows_keep_their_links_clear_and_clashes_fail_on_them(links):
                                    err_msg=c)
 
 
-def test_a_feasible_rows_cart_pose_is_the_one_at_which_its_links_clear_most():
+def test_a_feasible_rows_cart_pose_is_the_one_at_which_its_links_clear_most(thin_links):
     """#54 item 5: a feasible row's cart pose is, of the poses at which every arm docks and every link clears (each
     pair's and each arm's against the patient and table at least the least), the one whose least clearance is
     largest (ties: the first), written out here from the tables' entries; it is often not the first pose that
     clears (the premise), and the row's external clearance is that pose's least. The scope's least insertion 0
-    (not the ECM's 50 mm): this small grid then has 16 feasible rows to weigh, not one."""
+    (not the ECM's 50 mm) and the test's thin links (``thin_links``): this small grid then has rows to weigh."""
     cfg = PC.PortPlaceConfig.model_validate({**LINKS, "robot": {"camera_min_insertion_mm": 0.0},
-                                             "cart": {**LINKS["cart"], "distance_step_mm": 150.0}})
+                                             "cart": {**LINKS["cart"], "distance_step_mm": 150.0,
+                                                      "model": thin_links}})
     t = T.model_of(cfg).grid.tables
     cols = S.compute_task(cfg, S.n_total(cfg), 0)
     least_m = cfg.constraints.min_link_clearance_mm / 1000
@@ -282,12 +315,13 @@ def test_the_batch_solver_keeps_the_best_solutions_joints():
         assert min(min(v - lo, hi - v) for v, (lo, hi) in zip(q, ranges)) == pytest.approx(m, abs=1e-12)
 
 
-def test_three_psms_keep_every_pair_of_links_clear():
+def test_three_psms_keep_every_pair_of_links_clear(thin_links):
     """Three PSMs and the ECM with the links deciding: the tables hold all six arm pairs and PSM3 against its
     surroundings. With 25 mm of overlap allowed (the most the config allows; at 0 no layout of this small config
     keeps its links clear: the three PSMs' setup joints crowd one another), the best feasible row's least clearance and pair equal ``clashes``' least for that layout
     (there PSM3's setup joints and the ECM's mount), every feasible row keeps the least, and some fail on the links alone."""
     cfg = PC.PortPlaceConfig.model_validate({**LINKS, "robot": {"instrument_count": 3},
+                                             "cart": {**LINKS["cart"], "model": thin_links},
                                              "constraints": {"min_link_clearance_mm": -25.0}})
     t = T.model_of(cfg).grid.tables
     assert t.link_words.shape[0] == 6 and np.isfinite(t.link_value[3:]).any()

@@ -28,6 +28,12 @@ from surgopt.kinematics.port_place import segment_distance, segment_distance_xyz
 from surgopt.robots.chain import rot_x, rot_y, rot_z, trans
 
 GOLDEN = (math.sqrt(5.0) - 1.0) / 2.0
+#: How a link clearance's two links are coded in one integer (the tables' and rows' ``external_link_pair``):
+#: LINK_CODE * (the first's link) + (the second's link, or what it meets), and LINK_CODE ** 2 * (the arm pair, or
+#: 6 + the arm against its surroundings) + that: at most LINK_CODE links an arm (the Classic PSM's meshes' capsules
+#: and its setup joints are 23). The largest code, LINK_CODE ** 2 * 10, must fit the tables' int16.
+LINK_CODE = 32
+PAIR_CODE = LINK_CODE * LINK_CODE
 
 
 class Capsules(NamedTuple):
@@ -288,7 +294,7 @@ def pair_clearances(tasks, static_x, moving_x, r_sx, r_mx, balls_mx, static_y, m
     P, Lm, 2, 3), ``balls_m*`` their ``swept_balls`` over the pose ``groups`` per site; Lm may be 0), the least of fixed to fixed, fixed
     to moving and moving to fixed, below ``start`` (T,: moving to moving, which does not depend on the cart's
     pose, given by the caller; the cap when none) with its ``start_code``, stopping at the first below ``floor``
-    (``least_between``). Returns the clearance (m) and the link pair, 16 * (X's link) + (Y's link), each arm's
+    (``least_between``). Returns the clearance (m) and the link pair, LINK_CODE * (X's link) + (Y's link), each arm's
     links numbered fixed first, then moving (-1: none below the start).""" 
     n_task = tasks.shape[0]
     value = np.empty(n_task)
@@ -302,15 +308,15 @@ def pair_clearances(tasks, static_x, moving_x, r_sx, r_mx, balls_mx, static_y, m
         best, c = start[t], start_code[t]
         v, a, b, _, _ = least_between(sx, r_sx, bx, one, sy, r_sy, by, one, best, floor)
         if a >= 0:
-            best, c = v, 16 * a + b
+            best, c = v, LINK_CODE * a + b
         if moving_y.shape[2] > 0 and best >= floor:
             v, a, b, _, _ = least_between(sx, r_sx, bx, one, moving_y[j], r_my, balls_my[j], groups, best, floor)
             if a >= 0:
-                best, c = v, 16 * a + fy + b
+                best, c = v, LINK_CODE * a + fy + b
         if moving_x.shape[2] > 0 and best >= floor:
             v, a, b, _, _ = least_between(moving_x[i], r_mx, balls_mx[i], groups, sy, r_sy, by, one, best, floor)
             if a >= 0:
-                best, c = v, 16 * (fx + a) + b
+                best, c = v, LINK_CODE * (fx + a) + b
         value[t], code[t] = best, c
     return value, code
 

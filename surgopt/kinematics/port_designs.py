@@ -8,6 +8,7 @@ from typing import NamedTuple
 import numpy as np
 
 from surgopt.jit import EXACT, njit
+from surgopt.kinematics.capsules import PAIR_CODE
 from surgopt.kinematics.port_reasons import ANGLE, CAMERA, CAMERA_SIDE, DOCKING, OUTSIDE, REACH, SHAFTS, SPACING
 
 
@@ -361,14 +362,14 @@ def clearest_clear(t, i, j, l, k):
 
 @njit(**EXACT)
 def links_at(t, i, j, l, k, pose, swapped):
-    """The least link clearance (m) between the design's arms at a cart pose, and its pair's code (256 * arm pair
+    """The least link clearance (m) between the design's arms at a cart pose, and its pair's code (PAIR_CODE * arm pair
     + the tables' link code; NaN and -1 where no entry was computed)."""
     best, code = np.nan, -1
     for e in _entries(i, j, l, k, swapped == 1):
         v = np.float64(t.link_value[e[0], e[1], e[2], pose])
         if v == v and not (best <= v):
             c = np.int64(t.link_code[e[0], e[1], e[2], pose])
-            best, code = v, (256 * e[0] + c if c >= 0 else -1)
+            best, code = v, (PAIR_CODE * e[0] + c if c >= 0 else -1)
     if t.arm_words.shape[0] > 0:
         a, b = (j, i) if swapped == 1 else (i, j)
         for arm, site in ((0, a), (1, b), (2, l), (3, k)):
@@ -376,7 +377,7 @@ def links_at(t, i, j, l, k, pose, swapped):
                 continue
             v = np.float64(t.arm_value[arm, site, pose])
             if v == v and not (best <= v):
-                best, code = v, 256 * (6 + arm) + np.int64(t.arm_code[arm, site, pose])
+                best, code = v, PAIR_CODE * (6 + arm) + np.int64(t.arm_code[arm, site, pose])
     return best, code
 
 

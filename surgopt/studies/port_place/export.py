@@ -8,6 +8,7 @@ import json
 
 import numpy as np
 
+from surgopt.robots.dvrk_links import LINK_MODEL_WORDS
 from surgopt.robots.platforms import PLATFORMS
 
 from surgopt.errors import UsageError
@@ -36,12 +37,11 @@ def arm_joints_at_centre(limits, base_in_patient: np.ndarray, centre_m: np.ndarr
 
 def clearances_of(checks: list, cfg: PortPlaceConfig) -> dict:
     """The layout's least clearances outside the body (``clashes``): each check's value (mm), links and where,
-    and the least of them; the model's radii are assumptions (``robots/dvrk_links.py``)."""
+    and the least of them; the link model named (``robots/dvrk_links.LINK_MODEL_WORDS``)."""
     from surgopt.studies.port_place.clashes import in_feasible, least
 
     worst = least(checks)
-    model = ("capsules about the setup joints' frames and the arms' links (robots/dvrk_links.py; radii assumed); "
-             + in_feasible(cfg))
+    model = f"{LINK_MODEL_WORDS} (robots/dvrk_links.py); {in_feasible(cfg)}"
     return {"least_mm": None if worst is None else round(worst.clearance_mm, 1),
             "model": model,
             "checks": [{"check": c.check, "clearance_mm": round(c.clearance_mm, 1), "link": c.link_a,

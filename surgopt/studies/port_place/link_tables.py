@@ -27,12 +27,13 @@ import numpy as np
 
 # the setup joints' links checked: after the column and the arm's carriage on it, which are the cart's
 # (``clashes.arm_poses``)
+from surgopt.kinematics.capsules import LINK_CODE, PAIR_CODE
 from surgopt.robots.dvrk_links import SUJ_ON_COLUMN as FIRST_SUJ_LINK, through_port
 from surgopt.robots.platforms import PLATFORMS
 from surgopt.studies.port_place.geometry import TABLE_THREADS
 
-#: The arm pairs whose links are checked, in the order of the rows' ``external_link_pair`` code (256 * pair +
-#: 16 * link of the first + link of the second).
+#: The arm pairs whose links are checked, in the order of the rows' ``external_link_pair`` code (PAIR_CODE * pair +
+#: LINK_CODE * link of the first + link of the second: ``kinematics.capsules``).
 ARM_PAIRS = (("PSM1", "PSM2"), ("PSM1", "ECM"), ("PSM2", "ECM"), ("PSM1", "PSM3"), ("PSM2", "PSM3"),
              ("PSM3", "ECM"))
 #: Points along a link at most this far apart (m) where its clearance to the patient is measured, and the table's
@@ -57,7 +58,7 @@ class LinkTables(NamedTuple):
     words: dict
     names: dict
     # each arm (PSM1, PSM2, PSM3, ECM) against its surroundings (the patient's body, the table) at (site, pose):
-    # the least clearance (m; NaN where it does not dock), 16 * link + (0 patient, 1 table), and the words
+    # the least clearance (m; NaN where it does not dock), LINK_CODE * link + (0 patient, 1 table), and the words
     arm_value: np.ndarray | None = None
     arm_code: np.ndarray | None = None
     arm_words: np.ndarray | None = None
@@ -96,11 +97,15 @@ def suj_link_count(cart: str, arm: str) -> int:
 def link_names(arm: str, cart: str = "classic") -> tuple[str, ...]:
     """An arm's links in the tables' numbering: its setup joints' (fixed), then its own."""
     n_suj = suj_link_count(cart, arm)
-    return (tuple(f"{arm} setup joint link {k + 1}" for k in range(FIRST_SUJ_LINK, FIRST_SUJ_LINK + n_suj))
-            + tuple(f"{arm} {c.name}" for c in PLATFORMS[cart].own_links(arm)[1]))
+    names = (tuple(f"{arm} setup joint link {k + 1}" for k in range(FIRST_SUJ_LINK, FIRST_SUJ_LINK + n_suj))
+             + tuple(f"{arm} {c.name}" for c in PLATFORMS[cart].own_links(arm)[1]))
+    if len(names) > LINK_CODE:  # a platform's data, not a user's input: the code could not name its links
+        raise ValueError(f"{arm} on the {cart} cart has {len(names)} links; a clearance's code names at most "
+                         f"{LINK_CODE} (kinematics.capsules.LINK_CODE)")
+    return names
 
 
-#: The arms checked against their surroundings, in the order of the rows' codes 256 * (6 + arm) + 16 * link +
+#: The arms checked against their surroundings, in the order of the rows' codes PAIR_CODE * (6 + arm) + LINK_CODE * link +
 #: what (``SURROUNDINGS``).
 ARMS = ("PSM1", "PSM2", "PSM3", "ECM")
 SURROUNDINGS = ("patient's body", "table")
@@ -111,7 +116,7 @@ def pair_name(code: int, cart: str = "classic") -> str:
     ("" for -1)."""
     if code < 0:
         return ""
-    pair, link, other = code // 256, (code % 256) // 16, code % 16
+    pair, link, other = code // PAIR_CODE, (code % PAIR_CODE) // LINK_CODE, code % LINK_CODE
     if pair >= len(ARM_PAIRS):
         return f"{link_names(ARMS[pair - len(ARM_PAIRS)], cart)[link]} / {SURROUNDINGS[other]}"
     a, b = ARM_PAIRS[pair]
@@ -129,7 +134,7 @@ def surroundings(cfg, segs: np.ndarray, radii: np.ndarray, through: np.ndarray, 
     """(C2, C3) Per item of ``segs`` (K, L, 2, 3), patient frame, where ``valid``: the least clearance (m) of its
     links to the patient's body (points along each link at most ``SPACING_M`` apart, the body distance
     resolved to ``PATIENT_CAP_MM``; not the links that pass the port, ``through``) and to the table (the
-    slab, exact by golden-section search), and its code 16 * link + (0 patient, 1 table): (value (K,), code (K,)),
+    slab, exact by golden-section search), and its code LINK_CODE * link + (0 patient, 1 table): (value (K,), code (K,)),
     NaN and -1 elsewhere. As ``clashes.against_patient`` and ``against_table`` measure them."""
     from surgopt.kinematics.capsules import along_many, segments_box_distance
     from surgopt.studies.port_place.geometry import body_box_mm, body_distance_mm, inside_body
@@ -156,7 +161,7 @@ def surroundings(cfg, segs: np.ndarray, radii: np.ndarray, through: np.ndarray, 
     both = np.stack([patient, table], axis=1).reshape(len(idx), n_link * 2)
     best = np.argmin(both, axis=1)
     value[idx] = both[np.arange(len(idx)), best]
-    code[idx] = 16 * (best // 2) + best % 2
+    code[idx] = LINK_CODE * (best // 2) + best % 2
     return value, code
 
 
@@ -362,7 +367,7 @@ def link_tables(model, sites: np.ndarray, rot: np.ndarray, dock, wanted: Wanted,
             start, la, lb = moving_starts(tasks, n, moving[x], balls[x], moving[y], balls[y], r_own, groups, cap,
                                           least)
             fx, fy = len(r_static[x]), len(r_static[y])
-            start_code = np.where(la >= 0, 16 * (la + fx) + lb + fy, -1)
+            start_code = np.where(la >= 0, LINK_CODE * (la + fx) + lb + fy, -1)
         moving_y, r_my, balls_y = (none, np.zeros(0), no_balls) if y == "ECM" else (moving[y], r_own, balls[y])
         v, c = in_threads(_pairs, (tasks, start, start_code), static[x], moving[x], r_static[x], r_own, balls[x],
                           static[y], moving_y, r_static[y], r_my, balls_y, groups, least)
@@ -401,7 +406,7 @@ def arm_surroundings(cfg, moving, r_own, static, docks):
     """Each arm against the patient and the table at each (site, pose) where it docks (``surroundings``): a PSM's
     own links (``moving``, per PSM) once per site over its poses (its docked frame does not depend on the cart),
     the least of those and its setup joints' at the pose; the ECM held docked. (value (4, n, m) m, NaN where it
-    does not dock; code (4, n, m): 16 * link + what, the links numbered as ``link_names``.)"""
+    does not dock; code (4, n, m): LINK_CODE * link + what, the links numbered as ``link_names``.)"""
     cart = cfg.cart.model
     n, m = static["ECM"].shape[:2]
     value, code = np.full((4, n, m), np.nan), np.full((4, n, m), -1, np.int64)
@@ -423,7 +428,8 @@ def arm_surroundings(cfg, moving, r_own, static, docks):
                 measured[id(own)] = surroundings(cfg, own.reshape(n, -1, 2, 3), np.tile(r_own, k),
                                                  np.tile(through_own, k), np.ones(n, bool))
             own_v, own_c = measured[id(own)]
-            own_c = np.where(own_c >= 0, 16 * (n_suj + (own_c // 16) % len(r_own)) + own_c % 16, -1)
+            own_c = np.where(own_c >= 0, LINK_CODE * (n_suj + (own_c // LINK_CODE) % len(r_own)) + own_c % LINK_CODE,
+                             -1)
             worse = own_v[:, None] < v
             v, c = np.where(worse, own_v[:, None], v), np.where(worse, own_c[:, None], c)
         value[a], code[a] = v, c

@@ -20,6 +20,7 @@ import numpy as np
 
 from surgopt.studies import Summary
 from surgopt.studies.port_place.clashes import in_feasible
+from surgopt.robots.dvrk_links import LINK_MODEL_WORDS
 from surgopt.robots.platforms import PLATFORMS
 from surgopt.studies.port_place.config import PortPlaceConfig
 from surgopt.studies.port_place.geometry import FRAME_TEXT, from_landmark
@@ -89,8 +90,8 @@ def within_band(values, band) -> str:
 NOT_MODELLED = ("the Xi's setup joints, each PSM's docking turn as a dimension of the rows (the Classic's roll, the "
                 "Si's yaw off psi*: the rows take the run's; the report tries them on cheaper layouts as advice, never as the answer), tissue "
                 "and the body wall's thickness (a port is a point), the assistant's port, the table's rails and arm "
-                "boards and the patient's arms; every link radius is an assumption (docs/port_placement.md, what "
-                "the model leaves out)")
+                "boards and the patient's arms; the setup joints' and the ECM's link radii are assumptions, the PSMs' "
+                "are capsules about their meshes (docs/port_placement.md, what the model leaves out)")
 
 
 def summary(parts) -> Summary:
@@ -223,7 +224,7 @@ def docking_tables(best: dict, meta: dict) -> list:
              + (" as `export --format dvrk` docks it: each PSM's docking turned so that the links clear" if turned
                 else ""),
              ["arm", "port", "suj_joints", "least joint margin_deg", "column margin_mm", "note"], rows),
-            ("best layout: least clearance outside the body (capsules, radii assumed; negative: the links overlap; "
+            (f"best layout: least clearance outside the body ({LINK_MODEL_WORDS}; negative: the links overlap; "
              + in_feasible(cfg) + ")", ["between", "clearance_mm", "link", "against", "where"], clear)]
 
 
@@ -432,8 +433,8 @@ def clearance_screen(rows: list[dict], meta: dict):
              "the best layouts (the feasible ones and, as the links are in feasible, those cheaper that fail only on "
              "them at the run's roll)")
     title = (f"{which}, {n} screened by cost until one clears (at most {SCREEN_LAYOUTS} of each): their "
-             f"links' least clearance outside the body (capsules, radii "
-             f"assumed; negative: they overlap; {in_feasible(cfg)})"
+             f"links' least clearance outside the body ({LINK_MODEL_WORDS}; negative: they overlap; "
+             f"{in_feasible(cfg)})"
              + f", and each PSM's docking {turn_words(cfg)[0]} (deg, {ROLL_TEXT}) at which they clear")
     return word, (title, ["design_id", "cost", "least_clearance_mm", "between", "links", "with rolls"], out), chosen
 

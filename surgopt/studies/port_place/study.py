@@ -209,12 +209,15 @@ LINK_MEANING = {"meaning": "the least clearance of the arms' links outside the b
 def cart_fields(config) -> list:
     import pyarrow as pa
 
+    from surgopt.kinematics.capsules import LINK_CODE, PAIR_CODE
+
     if not has_cart(config):
         return []
     links = [pa.field("external_link_pair", pa.int64(), metadata={
-        "meaning": "the two links of external_clearance_mm: 256 x arm pair (0 PSM1-PSM2, 1 PSM1-ECM, 2 PSM2-ECM, "
-                   "3 PSM1-PSM3, 4 PSM2-PSM3, 5 PSM3-ECM) + 16 x the first arm's link + the second's, or 256 x (6 + "
-                   "arm: PSM1, PSM2, PSM3, ECM) + 16 x its link + (0 the patient's body, 1 the table); each arm's "
+        "meaning": f"the two links of external_clearance_mm: {PAIR_CODE} x arm pair (0 PSM1-PSM2, 1 PSM1-ECM, 2 "
+                   f"PSM2-ECM, 3 PSM1-PSM3, 4 PSM2-PSM3, 5 PSM3-ECM) + {LINK_CODE} x the first arm's link + the "
+                   f"second's, or {PAIR_CODE} x (6 + arm: PSM1, PSM2, PSM3, ECM) + {LINK_CODE} x its link + (0 the "
+                   "patient's body, 1 the table); each arm's "
                    "links its setup joints' 3-6, then its own (link_tables.pair_name decodes it); -1: none"})] \
         if links_of(config) else []
     margins = [pa.field(f"{arm}_suj_{what}", pa.float64(), metadata={
