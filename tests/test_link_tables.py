@@ -9,7 +9,7 @@ import pytest
 from surgopt.kinematics import capsules as C
 from surgopt.kinematics.capsules import PAIR_CODE
 from surgopt.kinematics.port_place import segment_distance
-from surgopt.kinematics.port_reasons import OUTSIDE
+from surgopt.kinematics.port_reasons import DOCKING, OUTSIDE
 from surgopt.studies.port_place import config as PC
 from surgopt.studies.port_place import report as R
 from surgopt.studies.port_place import study as S
@@ -468,8 +468,16 @@ def test_with_no_row_feasible_the_headline_says_none_and_a_layout_a_roll_clears_
         assert head["best"].startswith("none") and "best_design_id" not in head
         assert head["cheaper_if_rolled"].startswith(f"design {cheapest[3]['design_id']} (cost ")
         clears.clear()
-        head = R.summary(parts).headline
+        summary = R.summary(parts)
+        head = summary.headline
         assert head["best"].startswith("none") and "best_design_id" not in head and "cheaper_if_rolled" not in head
+        # with none feasible the report says why: each check's count (the rows' own), and why the cart docks none
+        # of the layouts every other check passes (their count: the rows failing on docking or the links alone)
+        titles = [t[0] for t in summary.tables]
+        why = dict(next(t for t in summary.tables if t[0].startswith("why no design is feasible"))[2])
+        assert why["arms closer than their clearance outside the body"] == f"{np.count_nonzero(bad & OUTSIDE):,}"
+        assert why["every check but the cart's docking passes"] == f"{np.count_nonzero(bad == DOCKING):,}"
+        assert any(t.startswith("the 1,000 layouts of least cost feasible without the cart") for t in titles)
         assert head["links_clear"].startswith(f"none of the {R.SCREEN_LAYOUTS} best layouts failing only on their links")
 
 
@@ -480,7 +488,7 @@ def test_with_no_layout_clear_the_cart_figure_draws_the_cheapest_that_fails_on_i
     drawn and naming the overlapping pair as ``clashes.layout_clearances``' least names it."""
     import pyarrow as pa
 
-    from surgopt.kinematics.port_reasons import OUTSIDE
+    from surgopt.kinematics.port_reasons import DOCKING, OUTSIDE
     from surgopt.studies.port_place import figures as F
 
     cfg = PC.PortPlaceConfig.model_validate({

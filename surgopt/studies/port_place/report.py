@@ -169,8 +169,16 @@ def summary(parts) -> Summary:
                            f"right, cranial or caudal)", ["design_id", *arms],
                            [[str(r["design_id"]), *(from_landmark(r[f"{a}_x_mm"], r[f"{a}_y_mm"], mark[1:])
                                                     for a in arms)] for r in best.to_pylist()]))
-    if first is None:
-        headline["best"] = "none: no design is feasible (see the reasons' counts)"
+    if first is None:  # the answer is why: each check's count, and why the cart docks none of the rest
+        headline["best"] = "none: no design is feasible (the reasons below)"
+        failing = [[k.removeprefix("infeasible: "), f"{v:,}"] for k, v in counts.items()
+                   if k.startswith("infeasible: ") and v]
+        if "cart_pose" in parts.schema.names and meta.get("rows_stored") != "feasible":
+            failing.append(["every check but the cart's docking passes", f"{only_docking:,}"])
+            tables += undocked_table(parts, meta)  # (with the links deciding, those failing on them alone too)
+        if failing:
+            tables.insert(0, ("why no design is feasible: the designs failing each check (one may fail several)",
+                              ["check", "designs"], failing))
         if screen is not None:  # the layouts failing only on their links, none of which a roll cleared
             headline["links_clear"], table, _ = screen
             tables.append(table)
