@@ -108,3 +108,20 @@ def test_a_field_of_a_number_or_a_word_says_both_in_one_error(value, says):
     assert "constraints.min_link_clearance_mm: " + says in text and "also" not in text
     assert "constrained-float" not in text and "literal[" not in text
     assert validate({"constraints": {"min_link_clearance_mm": "off"}}, Config, "x").constraints.link_least_mm is None
+
+
+def test_every_shipped_port_place_config_validates_and_the_clinical_ones_name_their_sources():
+    """configs/port_place_*.toml, port_region_*.toml and clinical_*.toml are port-place configs (the clinical
+    set-ups of issue 54 each say where its numbers come from, and run on the Classic cart)."""
+    from surgopt.studies import get_study
+
+    study = get_study("port-place")
+    names = sorted(p.name for p in (REPO / "configs").glob("*.toml")
+                   if p.name.startswith(("port_place_", "port_region_", "clinical_")))
+    assert len([n for n in names if n.startswith("clinical_")]) == 2
+    for name in names:
+        cfg = load_config(REPO / "configs" / name, study.config_model)
+        if name.startswith("clinical_"):
+            text = (REPO / "configs" / name).read_text()
+            assert "Sources" in text or "Source" in text, name
+            assert cfg.cart.model == "classic"
