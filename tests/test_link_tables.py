@@ -477,7 +477,7 @@ def test_with_no_row_feasible_the_headline_says_none_and_a_layout_a_roll_clears_
         why = dict(next(t for t in summary.tables if t[0].startswith("why no design is feasible"))[2])
         assert why["arms closer than their clearance outside the body"] == f"{np.count_nonzero(bad & OUTSIDE):,}"
         assert why["every check but the cart's docking passes"] == f"{np.count_nonzero(bad == DOCKING):,}"
-        assert any(t.startswith("the 1,000 layouts of least cost feasible without the cart") for t in titles)
+        assert any(t.startswith("the ") and "layouts of least cost feasible without the cart" in t for t in titles)
         assert head["links_clear"].startswith(f"none of the {R.SCREEN_LAYOUTS} best layouts failing only on their links")
 
 
