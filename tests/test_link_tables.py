@@ -554,3 +554,65 @@ def test_a_searched_roll_docks_and_clears_each_trial_as_the_grid_at_that_roll(tm
     assert len(rows) == 16 and len(np.unique(np.round(rolls, 6))) > 4 and np.all(np.abs(rolls) <= 90.0)
     with pytest.raises(ConfigError, match="robot.docking_roll"):
         validate({**LINKS, "robot": {"docking_roll": "search"}}, PC.Config, "x")
+
+
+def test_the_whole_target_clearance_is_the_exhaustive_least_over_every_target_point(links):
+    """#54 item 3: ``clashes.whole_target_clearances`` (every target point, pruned by lower bounds) against
+    ``capsules.least_over_poses`` over every pose pair of the same arms (no pruning), pair by pair, on a feasible
+    row of the small grid; each is no more than the sampled check's least (``layout_clearances``: 64 points) for
+    that pair, and the points it names are target points."""
+    from surgopt.studies.port_place.clashes import arm_poses, whole_target_clearances
+    from surgopt.studies.port_place.tables import docked_arms, row_patient_in_cart
+
+    cfg, model, t = links
+    cols = S.compute_task(cfg, S.n_total(cfg), 0)
+    r = int(np.flatnonzero(cols["feasible"])[0])  # the premise: the grid has feasible rows (11)
+    row = {k: (v[r].item() if hasattr(v[r], "item") else v[r]) for k, v in cols.items()}
+    whole = whole_target_clearances(cfg, row)
+    sampled = {c.check.split(",")[0]: c for c in layout_clearances(cfg, row) if c.check.endswith("over the target")}
+    assert len(whole) == 3 and all(f"({len(model.targets_m):,} points)" in c.check for c in whole)
+    patient = row_patient_in_cart(cfg, row)
+    arms = {a.arm: arm_poses(cfg, a, patient, model.targets_m, model.limits.along_shaft_m)
+            for a in docked_arms(cfg, row) if a.joints}
+    for c in whole:
+        x, y = c.check.split(",")[0].split(" and ")
+        want = C.least_over_poses(arms[x].segments, arms[x].radii, arms[y].segments, arms[y].radii)[0] * 1000
+        assert c.clearance_mm == pytest.approx(want, abs=1e-9)
+        assert c.clearance_mm <= sampled[f"{x} and {y}"].clearance_mm + 1e-9
+        assert c.link_a.startswith(f"{x} ") and c.link_b.startswith(f"{y} ")
+
+
+def test_the_closing_report_says_what_the_answers_links_do_over_the_whole_target(tmp_path):
+    """The headline's ``links_whole_target``: clear (by the least over every target point), or the overlap the rows'
+    sample missed with the next feasible layout by cost that clears, or that none of the next does. The whole-target
+    check is faked per design here (the test above holds the real one)."""
+    from surgopt.runner import run_study
+    from surgopt.store import Store
+    from surgopt.studies.port_place import clashes
+
+    store = Store(tmp_path / "s")
+    cfg = PC.PortPlaceConfig.model_validate(LINKS)
+    run_study(S.STUDY, cfg, config_name="links", store=store, jobs=1, quiet=True)
+    (run,) = store.runs("port-place")
+    parts = run.parts(S.STUDY.schema_for(run.manifest["config"]))
+    ranked = R.least_cost_layouts(parts, R.WHOLE_TARGET_SCREEN + 1).to_pylist()
+    assert len(ranked) >= 3  # the premise: feasible layouts after the answer
+    values = {}
+
+    def fake(cfg, row):
+        return [clashes.Clearance("PSM1 and PSM2, over the whole target (42 points)", values.get(row["design_id"], -7.0),
+                                  "PSM1 a", "PSM2 b", "PSM1 target point (1, 2, 3) mm; PSM2 docked")]
+
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setattr(clashes, "whole_target_clearances", fake)
+        values[ranked[0]["design_id"]] = 12.0
+        assert R.summary(parts).headline["links_whole_target"].startswith("clear by 12 mm between arms over every "
+                                                                          "one of the 42 points")
+        values[ranked[0]["design_id"]] = -7.0
+        values[ranked[2]["design_id"]] = 3.0
+        words = R.summary(parts).headline["links_whole_target"]
+        assert words.startswith("OVERLAP: over the whole target (42 points) the answer's links overlap by 7 mm")
+        assert f"design {ranked[2]['design_id']} (cost " in words and "(by 3 mm)" in words
+        values.clear()
+        assert R.summary(parts).headline["links_whole_target"].endswith(
+            f"none of the next {R.WHOLE_TARGET_SCREEN} feasible layouts by cost clears over the whole target")

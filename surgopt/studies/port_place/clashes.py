@@ -192,6 +192,47 @@ def layout_clearances(cfg, row: dict, docked=None) -> list[Clearance]:
     return out
 
 
+#: The whole target's points are checked in this many groups of neighbours (each bounded by its own balls).
+WHOLE_TARGET_GROUPS = 16
+
+
+def whole_target_clearances(cfg, row: dict) -> list[Clearance]:
+    """(#54 item 3) Between each pair of a layout's docked arms (docked as its row is), the least clearance over
+    **every** target point (each PSM at any of them and docked, the other at any of its own; the ECM held docked),
+    exact: ``capsules.least_between`` over all pose pairs, pruned only by lower bounds. The rows and
+    ``layout_clearances`` sample ``link_tables.POSE_POINTS`` of them; the least over the whole target is no more
+    than theirs and may be less. Kept for the process (``_memoised``)."""
+    if not links_modelled(cfg):
+        return []
+    return list(_memoised("whole target", cfg, row, lambda: _whole_target(cfg, row)))
+
+
+def _whole_target(cfg, row: dict) -> list[Clearance]:
+    from surgopt.kinematics.capsules import least_between, swept_balls
+    from surgopt.studies.port_place.link_tables import grouped, spread_points
+    from surgopt.studies.port_place.tables import docked_arms, model_of, row_patient_in_cart
+
+    model = model_of(cfg)
+    start = int(np.argmin(np.linalg.norm(model.targets_m - model.centre_m, axis=1)))
+    seeds = spread_points(model.targets_m, WHOLE_TARGET_GROUPS, start)[0]  # spread first, then every other point
+    first = np.concatenate([seeds, np.setdiff1d(np.arange(len(model.targets_m)), seeds)])
+    points, groups = grouped(model.targets_m[first], min(WHOLE_TARGET_GROUPS, len(model.targets_m)))
+    patient = row_patient_in_cart(cfg, row)
+    arms = [arm_poses(cfg, a, patient, points, model.limits.along_shaft_m) for a in docked_arms(cfg, row)
+            if a.joints]
+    held = np.array([0, 1], np.int64)
+    out = []
+    for x in range(len(arms)):
+        for y in range(x + 1, len(arms)):
+            a, b = arms[x], arms[y]
+            ga, gb = (groups if len(p.poses) > 1 else held for p in (a, b))
+            v, i, j, p, s = least_between(a.segments, a.radii, swept_balls(a.segments, a.radii, ga), ga,
+                                          b.segments, b.radii, swept_balls(b.segments, b.radii, gb), gb, np.inf)
+            out.append(Clearance(f"{a.arm} and {b.arm}, over the whole target ({len(points):,} points)", v * 1000,
+                                 a.names[i], b.names[j], f"{a.arm} {a.poses[p]}; {b.arm} {b.poses[s]}"))
+    return out
+
+
 def least(clearances: list[Clearance]) -> Clearance | None:
     return min(clearances, key=lambda c: c.clearance_mm) if clearances else None
 

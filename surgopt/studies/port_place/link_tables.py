@@ -194,8 +194,14 @@ def pose_points(model) -> tuple[np.ndarray, np.ndarray]:
     target's extremes), and the groups' offsets among the arm's poses (the docked pose first, a group of its
     own): (points (k, 3), offsets (G + 2,))."""
     start = int(np.argmin(np.linalg.norm(model.targets_m - model.centre_m, axis=1)))
-    points = model.targets_m[spread_points(model.targets_m, POSE_POINTS, start)[0]]
-    seeds = points[:POSE_GROUPS]
+    return grouped(model.targets_m[spread_points(model.targets_m, POSE_POINTS, start)[0]], POSE_GROUPS)
+
+
+def grouped(points: np.ndarray, n_groups: int) -> tuple[np.ndarray, np.ndarray]:
+    """``points`` (farthest-point ordered: the first ``n_groups`` are spread) ordered into groups of neighbours,
+    each point with the nearest of the first n_groups, and the groups' offsets among an arm's poses (the docked pose
+    first, a group of its own): (points (k, 3), offsets (n_groups + 2,))."""
+    seeds = points[:n_groups]
     group = np.argmin(np.linalg.norm(points[:, None, :] - seeds[None, :, :], axis=2), axis=1)
     order = np.argsort(group, kind="stable")
     counts = np.bincount(group, minlength=len(seeds))

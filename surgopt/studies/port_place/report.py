@@ -155,6 +155,9 @@ def summary(parts) -> Summary:
             if screen is not None:
                 headline["links_clear"], table, _ = screen
                 tables.append(table)
+            whole = whole_target_words(parts, meta, b)
+            if whole:
+                headline["links_whole_target"] = whole
     if best.num_rows:
         cols = ["design_id", "cost", "common_reach", "dexterity_mean", "manipulation_angle_mean_deg",
                 "azimuth_imbalance_deg", "camera_coverage"]
@@ -188,6 +191,40 @@ def summary(parts) -> Summary:
     if "cart_pose" in parts.schema.names and meta.get("rows_stored") != "feasible":
         counts["infeasible only for docking (feasible without the cart)"] = only_docking
     return Summary(headline, counts, tables)
+
+
+#: The feasible layouts after the answer (by cost) the closing report checks over the whole target when the
+#: answer's links overlap there (each ~1 s).
+WHOLE_TARGET_SCREEN = 5
+
+
+def whole_target_words(parts, meta: dict, answer: dict) -> str | None:
+    """(#54 item 3) What the answer's links do over every target point (``clashes.whole_target_clearances``),
+    in words: clear by how much, or the overlap the rows' sample missed, its pair and where, and the first of the
+    next WHOLE_TARGET_SCREEN feasible layouts by cost whose links clear over the whole target."""
+    from surgopt.studies.port_place.clashes import least, links_modelled, whole_target_clearances
+    from surgopt.studies.port_place.link_tables import POSE_POINTS
+
+    cfg = _config_or_none(meta)
+    if cfg is None or not links_modelled(cfg) or cfg.constraints.link_least_mm is None:
+        return None
+    floor = cfg.constraints.link_least_mm
+    worst = least(whole_target_clearances(cfg, answer))
+    if worst is None:
+        return None
+    points = worst.check.split("(")[-1].rstrip(")")
+    if worst.clearance_mm >= floor:
+        return (f"clear by {worst.clearance_mm:.0f} mm between arms over every one of the {points} ({worst.link_a} / "
+                f"{worst.link_b}; the rows check {POSE_POINTS} of them)")
+    words = (f"OVERLAP: over the whole target ({points}) the answer's links overlap by {-worst.clearance_mm:.0f} mm "
+             f"({worst.link_a} / {worst.link_b}; {worst.where}), which the rows' check of {POSE_POINTS} points "
+             f"passed")
+    for row in least_cost_layouts(parts, WHOLE_TARGET_SCREEN + 1).to_pylist()[1:]:
+        other = least(whole_target_clearances(cfg, row))
+        if other is not None and other.clearance_mm >= floor:
+            return words + (f"; design {row['design_id']} (cost {row['cost']:.4g}), the next feasible layout by cost "
+                            f"whose links clear over the whole target (by {other.clearance_mm:.0f} mm)")
+    return words + f"; none of the next {WHOLE_TARGET_SCREEN} feasible layouts by cost clears over the whole target"
 
 
 def suj_margin_words(cfg, arm) -> tuple[str, str]:
@@ -224,8 +261,11 @@ def docking_tables(best: dict, meta: dict) -> list:
                         else f"docking {turn_words(cfg)[1]} {turned[a.arm]:+.0f} deg ({turn_words(cfg)[0]})"
                         if a.arm in turned
                         else "")] for a in docked]
+    from surgopt.studies.port_place.clashes import whole_target_clearances
+
+    whole = [] if turned else whole_target_clearances(cfg, best)  # (#54 item 3) at the row's own docking
     clear = [[c.check, f"{c.clearance_mm:.0f}", c.link_a, c.link_b, c.where]
-             for c in clearances]
+             for c in clearances + whole]
     return [(f"best layout: the {PLATFORMS[cfg.cart.model].title} cart (origin on the floor, patient frame; heading from +y toward +x)",
              ["x_mm", "y_mm", "heading_deg", "pose (of the grid, or searched)"], pose),
             ("best layout: setup joints (column m, then rad, the dVRK's simulated_position order)"
