@@ -553,7 +553,8 @@ def test_the_closing_report_searches_each_layouts_rolls_once(tmp_path, monkeypat
     row = next(r for r in R.least_cost_layouts(run.parts(S.STUDY.schema_for(run.manifest["config"])), 1).to_pylist())
     rolled = clashes.rolls_that_clear(cfg, row)  # kept: not searched again
     shown = rolled.clearances or clashes.layout_clearances(cfg, row)  # docked to clear where a roll clears it
-    assert [r[1] for r in clear[2]] == [f"{c.clearance_mm:.0f}" for c in shown]
+    sampled = [r for r in clear[2] if "over the whole target" not in r[0]]  # (and a row a pair over every point)
+    assert [r[1] for r in sampled] == [f"{c.clearance_mm:.0f}" for c in shown]
     assert calls["rolls"].count(best) == 1
     # issue 40's "done means": the closing report names what the model leaves out
     assert all(w in summary.headline["not_modelled"] for w in ("Xi", "tissue", "assistant's port", "rails"))
