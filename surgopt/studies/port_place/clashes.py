@@ -17,7 +17,7 @@ import numpy as np
 from surgopt.robots.platforms import PLATFORMS
 
 from surgopt.studies.port_place.carts import cart_for
-from surgopt.studies.port_place.link_tables import PATIENT_CAP_MM, SPACING_M, TABLE_THICKNESS_M, pose_points
+from surgopt.studies.port_place.link_tables import PATIENT_CAP_MM, SPACING_M, pose_points, table_box
 
 class Clearance(NamedTuple):
     """One least clearance: what against what, the value (mm, negative: they overlap), which links, and where
@@ -116,10 +116,7 @@ def against_table(cfg, a: ArmPoses, patient: np.ndarray) -> Clearance:
     refined on the closest link by golden-section search."""
     from surgopt.kinematics.capsules import along, box_distance, segment_box_distance
 
-    cart = cfg.cart
-    w = cart.table_half_width_mm / 1000
-    lo = np.array([-w, cart.table_y_mm[0] / 1000, -TABLE_THICKNESS_M])
-    hi = np.array([w, cart.table_y_mm[1] / 1000, 0.0])
+    lo, hi = table_box(cfg)  # the one the link tables measure against
     segs = (a.segments - patient[:3, 3]) @ patient[:3, :3]  # into the patient's frame
     flat = segs.reshape(-1, 2, 3)
     pts, owner = along(flat, SPACING_M)
