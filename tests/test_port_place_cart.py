@@ -131,6 +131,12 @@ def test_the_dvrk_export_puts_each_psm_rcm_on_its_port_by_the_reference_kinemati
     clear = setup["clearances_outside_body"]
     assert len(clear["checks"]) == 3 * 2 + 3 * 2  # 3 pairs (docked, over the target), 3 arms x (patient, table)
     assert clear["least_mm"] == min(c["clearance_mm"] for c in clear["checks"])
+    whole = setup["clearances_over_whole_target"]  # (#54 item 3) each pair over every target point, no more
+    assert len(whole["checks"]) == 3 and whole["least_mm"] == min(c["clearance_mm"] for c in whole["checks"])
+    for c in whole["checks"]:  # than the sampled check of that pair
+        pair = c["check"].split(",")[0]
+        sampled = next(s for s in clear["checks"] if s["check"] == f"{pair}, over the target")
+        assert c["clearance_mm"] <= sampled["clearance_mm"] + 0.1 and "points)" in c["check"]
     ecm_arm = get_model("dvrk_ecm_classic")
     ecm = setup["arms"][2]
     base = suj_forward_reference("classic", "ECM", ecm["suj_joints"])

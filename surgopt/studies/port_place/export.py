@@ -73,7 +73,7 @@ def dvrk_setup(cfg: PortPlaceConfig, row: dict) -> str:
     centre = np.asarray(cfg.target.centre_mm, float) / 1000
     patient = row_patient_in_cart(cfg, row)
     arms = []
-    docked, _, docking, clearances = docking_that_clears(cfg, row)
+    docked, rolls, docking, clearances = docking_that_clears(cfg, row)
     for a in docked:
         suj = PLATFORMS[cfg.cart.model].suj(a.arm)
         holder = camera_arm_of(cfg) if a.arm == "ECM" else instrument_of(cfg)
@@ -106,8 +106,25 @@ def dvrk_setup(cfg: PortPlaceConfig, row: dict) -> str:
            "teleop_note": (f"{pairing_words(int(row['image_right_psm']))}: MTMR drives the PSM on the camera "
                            f"image's right (the image level, its up the patient's front)" if "image_right_psm" in row
                            else "a run stored before the rows said which PSM is on the image's right: run it again"),
-           "clearances_outside_body": clearances_of(clearances, cfg)}
+           "clearances_outside_body": clearances_of(clearances, cfg),
+           "clearances_over_whole_target": whole_target_of(cfg, row, rolls)}
     return json.dumps(out, indent=1) + "\n"
+
+
+def whole_target_of(cfg: PortPlaceConfig, row: dict, rolls: dict) -> dict:
+    """(#54 item 3) The layout's arms pair by pair over every target point (``clashes.whole_target_clearances``),
+    at the row's own docking: the sampled ``clearances_outside_body`` may miss an overlap between their points.
+    Where the export docks otherwise (rolled to clear), not checked, and said."""
+    from surgopt.studies.port_place.clashes import least, whole_target_clearances
+
+    if any(rolls.values()):
+        return {"least_mm": None, "note": "not checked: the export docks the PSMs rolled, the check is of the "
+                                          "row's own docking", "checks": []}
+    checks = whole_target_clearances(cfg, row)
+    worst = least(checks)
+    return {"least_mm": None if worst is None else round(worst.clearance_mm, 1),
+            "checks": [{"check": c.check, "clearance_mm": round(c.clearance_mm, 1), "link": c.link_a,
+                        "against": c.link_b, "where": c.where} for c in checks]}
 
 
 def ports_csv(cfg: PortPlaceConfig, row: dict) -> str:
