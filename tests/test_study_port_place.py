@@ -85,6 +85,12 @@ def test_three_psms_from_the_cli_store_only_feasible_rows_and_say_so(tmp_path):
     assert rec["top"][0]["psm3_reach"] == 1.0 and rec["top"][0]["common_reach"] == 1.0
     out = cli("plot", "--store", tmp_path / "s", "--out", tmp_path / "fig").stdout
     assert "port_place_layout_3d.png" in out and "port_place_reasons.png" not in out
+    # none feasible: the run kept no reasons, and says how to see them (not "the reasons below")
+    import os
+
+    none = cli("port-place", *overrides, "constraints.min_port_spacing_mm=220", "--store", tmp_path / "n",
+               env=dict(os.environ, COLUMNS="400"))
+    assert "none: no design is feasible (this run stored feasible rows only, so it kept no reasons" in none.stdout
     big = cli("port-place", "robot.instrument_count=3", "--store", tmp_path / "t", "--max-memory-gb", "4",
               check=False)
     assert big.returncode == 2 and "348,612,012 port designs" in big.stderr and "rows_stored=feasible" in big.stderr

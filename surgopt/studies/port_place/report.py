@@ -173,7 +173,9 @@ def summary(parts) -> Summary:
                            [[str(r["design_id"]), *(from_landmark(r[f"{a}_x_mm"], r[f"{a}_y_mm"], mark[1:])
                                                     for a in arms)] for r in best.to_pylist()]))
     if first is None:  # the answer is why: each check's count, and why the cart docks none of the rest
-        headline["best"] = "none: no design is feasible (the reasons below)"
+        headline["best"] = ("none: no design is feasible (the reasons below)" if meta.get("rows_stored") != "feasible"
+                            else "none: no design is feasible (this run stored feasible rows only, so it kept no "
+                                 "reasons: run with rows_stored = 'all', on a coarser grid if need be, to see them)")
         failing = [[k.removeprefix("infeasible: "), f"{v:,}"] for k, v in counts.items()
                    if k.startswith("infeasible: ") and v]
         if "cart_pose" in parts.schema.names and meta.get("rows_stored") != "feasible":
