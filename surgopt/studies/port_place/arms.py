@@ -164,6 +164,12 @@ class RcmInstruments:
         """What a config could change when no port's instrument reaches the whole target (beyond the target)."""
         return ""
 
+    @classmethod
+    def outside_length_m(cls, cfg: PortPlaceConfig) -> float:
+        """The outside segment of the instruments' external clearance (the shaft behind the port): the RCM arm's
+        own (``RcmArm.outside_length_m``: the Classic PSM's 0.4318 m, the Si's 0.4826 m)."""
+        return instrument_of(cfg).outside_length_m
+
 
 class SerialInstruments(RcmInstruments):
     """Each instrument on a serial arm keeping the RCM at the port in software (``serial_arms``)."""
@@ -211,6 +217,14 @@ class SerialInstruments(RcmInstruments):
 
         return (f"; stand the arm elsewhere (robot.instrument_serial.rcm_in_base_m, base_yaw_deg: rcm-grid finds "
                 f"where an arm keeps an RCM best){refused_ports_note(model, model.sites_m)}")
+
+    @classmethod
+    def outside_length_m(cls, cfg: PortPlaceConfig) -> float:
+        """A serial arm's links are measured themselves (``docked_lines``); its shafts' outside segment is the
+        Classic PSM's (``dvrk.OUTSIDE_LENGTH_M``), as the external-clearance check has always taken it."""
+        from surgopt.robots import dvrk
+
+        return dvrk.OUTSIDE_LENGTH_M
 
 
 def instruments_held(config=None) -> type[RcmInstruments]:

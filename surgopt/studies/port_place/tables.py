@@ -230,8 +230,7 @@ def outside_length_m(cfg: PortPlaceConfig) -> float:
     """The outside segment of the instruments' external clearance: the instrument arm's own
     (``RcmArm.outside_length_m``; issue 53: the Classic's 0.4318 m was applied to the Si PSM, whose row gives
     0.4826 m), or the Classic's for a serial arm (its links are measured themselves)."""
-    arm = instrument_of(cfg)
-    return getattr(arm, "outside_length_m", dvrk.OUTSIDE_LENGTH_M)
+    return instruments_held(cfg).outside_length_m(cfg)
 
 
 def wrist_margin_deg(model: PortModel, sites: np.ndarray) -> np.ndarray:
