@@ -427,7 +427,9 @@ def export(
     fmt: Annotated[str, typer.Option("--format", help="csv, parquet or json (records); or a study's own format "
                                                        "of one design (--design), such as port-place's dvrk (the "
                                                        "layout's set-up for the robot: cart pose, setup joints, "
-                                                       "ports, as JSON) and ports (its ports and the patient's "
+                                                       "ports, as JSON), dvrk-suj-fixed (the dVRK's own SUJ_Fixed "
+                                                       "file: each arm's base frame in the cart's) and ports (its "
+                                                       "ports and the patient's "
                                                        "landmarks as CSV, each measured from the reference "
                                                        "landmark).")] = "csv",
     design: Annotated[Optional[int], typer.Option("--design", help="The design (its key column's value, e.g. a "

@@ -131,6 +131,21 @@ def test_the_dvrk_export_puts_each_psm_rcm_on_its_port_by_the_reference_kinemati
     clear = setup["clearances_outside_body"]
     assert len(clear["checks"]) == 3 * 2 + 3 * 2  # 3 pairs (docked, over the target), 3 arms x (patient, table)
     assert clear["least_mm"] == min(c["clearance_mm"] for c in clear["checks"])
+    # #57 item 5: the dVRK's own SUJ_Fixed file: a comment (the dVRK's reader takes it), then the four arms it
+    # expects, each placed arm's measured_cp the base frame its setup joints give (the reference FK of the joints
+    # the dvrk export writes), PSM3 (not in this layout) left without one, the pairing named in the comment
+    cli("export", "latest", "--store", tmp_path / "s", "--design", str(best), "--format", "dvrk-suj-fixed",
+        "--out", tmp_path / "suj-fixed.json", cwd=tmp_path)
+    text = (tmp_path / "suj-fixed.json").read_text()
+    assert text.startswith("/* surgopt port-place") and text.count("*/") == 1
+    comment, body = text.split("*/")
+    fixed = json.loads(body)["arms"]
+    assert [a["name"] for a in fixed] == ["ECM", "PSM1", "PSM2", "PSM3"] and "measured_cp" not in fixed[3]
+    for a in fixed[:3]:
+        joints = next(x["suj_joints"] for x in setup["arms"] if x["name"] == a["name"])
+        np.testing.assert_allclose(np.array(a["measured_cp"]), suj_forward_reference("classic", a["name"], joints),
+                                   atol=1e-9)
+    assert f"MTMR drives {setup['teleop']['MTMR']}" in comment
     whole = setup["clearances_over_whole_target"]  # (#54 item 3) each pair over every target point, no more
     assert len(whole["checks"]) == 3 and whole["least_mm"] == min(c["clearance_mm"] for c in whole["checks"])
     for c in whole["checks"]:  # than the sampled check of that pair
@@ -171,15 +186,18 @@ def test_the_dvrk_export_puts_each_psm_rcm_on_its_port_by_the_reference_kinemati
     rows = run.read_table(S.STUDY.schema_for(run.manifest["config"]), columns=["design_id", "cart_pose"]).to_pandas()
     undockable = rows.loc[rows.cart_pose == -1, "design_id"].astype(str).tolist()
     assert undockable  # the premise: some layouts no cart pose docks
-    bad = cli("export", "latest", "--store", tmp_path / "s", "--design", undockable[0], "--format", "dvrk",
-              cwd=tmp_path, check=False)
-    assert bad.returncode == 2 and "not dockable" in bad.stderr and len(bad.stderr.strip().splitlines()) == 1
+    for fmt in ("dvrk", "dvrk-suj-fixed"):
+        bad = cli("export", "latest", "--store", tmp_path / "s", "--design", undockable[0], "--format", fmt,
+                  "--out", tmp_path / f"never-{fmt}.json", cwd=tmp_path, check=False)
+        assert bad.returncode == 2 and "not dockable" in bad.stderr and len(bad.stderr.strip().splitlines()) == 1
+        assert not (tmp_path / f"never-{fmt}.json").exists()
     plain = tmp_path / "p.toml"
     plain.write_text("[patient.port_region]\nsite_spacing_mm = 72.0\n[target]\nspacing_mm = 20.0\n")
     cli("port-place", "p.toml", "--store", tmp_path / "s2", cwd=tmp_path)
-    bad = cli("export", "latest", "--store", tmp_path / "s2", "--design", "0", "--format", "dvrk", cwd=tmp_path,
-              check=False)
-    assert bad.returncode == 2 and "no cart" in bad.stderr
+    for fmt in ("dvrk", "dvrk-suj-fixed"):
+        bad = cli("export", "latest", "--store", tmp_path / "s2", "--design", "0", "--format", fmt, cwd=tmp_path,
+                  check=False)
+        assert bad.returncode == 2 and "no cart" in bad.stderr
 
 
 def test_the_dvrk_export_names_the_runs_own_docking_roll():

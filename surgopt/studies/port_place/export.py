@@ -127,6 +127,45 @@ def whole_target_of(cfg: PortPlaceConfig, row: dict, rolls: dict) -> dict:
                         "against": c.link_b, "where": c.where} for c in checks]}
 
 
+#: The arms the dVRK's SUJ_Fixed reads, all four of them (``mtsIntuitiveResearchKitSUJFixed::Configure`` refuses
+#: any other count or name).
+SUJ_FIXED_ARMS = ("ECM", "PSM1", "PSM2", "PSM3")
+
+
+def suj_fixed(cfg: PortPlaceConfig, row: dict) -> str:
+    """(#57 item 5) The dVRK's own ``SUJ_Fixed`` file for one layout (as jhu-dvrk/sawIntuitiveResearchKit's
+    ``share/arm/suj-fixed-simulated.json``): ``"arms"``, the four the dVRK expects, each ``"name"`` and
+    ``"measured_cp"``, the arm's base frame in the cart's frame (4x4, m), docked as ``--format dvrk`` docks it (the
+    setup joints' forward kinematics at the joints it writes). An arm the layout does not place (PSM3 of a two-PSM
+    layout, or one its setup joints do not reach) has no ``measured_cp``: the dVRK then warns and leaves it
+    invalid, rather than holding a frame no one chose. A comment at the top (the dVRK's JSON reader takes them)
+    names the run, the design and the teleoperation pairing that keeps the surgeon's hands uncrossed."""
+    from surgopt.studies.port_place.clashes import docking_that_clears
+
+    if not has_cart(cfg):
+        raise UsageError("--format dvrk-suj-fixed: this run has no cart (cart.model = 'none'): run it with [cart] "
+                         "model = 'classic' (or 'si') to solve the setup joints")
+    if row.get("cart_pose", -1) < 0:
+        raise UsageError(f"--format dvrk-suj-fixed: design {row['design_id']} is not dockable (no cart pose of the "
+                         f"grid docks every arm); export a design whose cart_pose >= 0")
+    docked, _, docking, _ = docking_that_clears(cfg, row)
+    frames = {a.arm: a.base for a in docked if a.base is not None and a.joints}
+    arms = []
+    for name in SUJ_FIXED_ARMS:
+        arm = {"name": name}
+        if name in frames:
+            arm["measured_cp"] = _matrix(frames[name])
+        arms.append(arm)
+    pairing = teleop_pairing(int(row.get("image_right_psm", 0)))
+    said = (f"surgopt port-place: run {row.get('run_key') or '?'}, design {row['design_id']} (feasible: "
+            f"{bool(row['feasible'])}); each measured_cp is the arm's base (RCM) frame in the cart's frame, m; "
+            f"docking: {docking}; an arm without measured_cp is not placed by this layout; the teleoperation that "
+            f"keeps the surgeon's hands uncrossed: "
+            + (", ".join(f"{m} drives {p}" for m, p in pairing.items()) or "not known (a run stored before the rows "
+                                                                           "said which PSM is on the image's right)"))
+    return f"/* {said.replace('*/', '* /')} */\n" + json.dumps({"arms": arms}, indent=4) + "\n"
+
+
 def ports_csv(cfg: PortPlaceConfig, row: dict) -> str:
     """``surgopt export KEY --design ID --format ports``: the layout's ports and the patient's landmarks as CSV, one
     line each: what (port, landmark), name, site, x_mm, y_mm, z_mm (the patient frame; a landmark's z is the
