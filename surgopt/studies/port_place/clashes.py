@@ -7,6 +7,11 @@ other at any of its own: they move independently), the ECM held where it docks. 
 table, every link but those that pass through the port (the shafts) at every pose, at points along the link at
 most ``SPACING_M`` apart (the least over-reads by at most half that, and on a dome by the surface samples' gap);
 the table as a slab under the patient frame's z = 0 of ``TABLE_THICKNESS_M`` (an assumption), tilted with it.
+The answer is also checked over every target point (``whole_target_clearances``, #54 item 3).
+
+One module of ~450 lines: one layout's clearances as the report, the figures and the export ask for them (the
+arms placed per pose, between arms, against the patient and the table, over the whole target, the docking roll
+that clears), all sharing ``ArmPoses`` and one memo of answers; the rows' tables are ``link_tables``.
 """
 from __future__ import annotations
 
