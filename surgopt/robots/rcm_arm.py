@@ -32,6 +32,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from surgopt.robots.chain import PRISMATIC, REVOLUTE, ChainError, ChainSpec, axis_motion, chain_transform, frames_at
+from surgopt.robots.dvrk import OUTSIDE_LENGTH_M
 
 #: Lines meet, a point lies on a line: within this distance (m); axes are orthogonal within this cosine.
 MEET_M = 1e-6
@@ -62,6 +63,9 @@ class RcmLimits:
     #: base frame
     rcm_m: tuple[float, float, float] = (0.0, 0.0, 0.0)
     base_rotation: tuple[tuple[float, float, float], ...] = ((1.0, 0.0, 0.0), (0.0, 1.0, 0.0), (0.0, 0.0, 1.0))
+    #: the outside segment of the instruments' external clearance (m): an arm from a file gives none, so the
+    #: Classic PSM's (``dvrk.OUTSIDE_LENGTH_M``, an assumption), as the clearance has always taken it
+    outside_length_m: float = OUTSIDE_LENGTH_M
 
 
 def closest_points(p, a, q, b):
