@@ -55,6 +55,17 @@ def fails_on(bits: int) -> list[str]:
     return [text for bit, text in REASONS.items() if bits & bit]
 
 
+def refuse_undocked(fmt: str, cfg: PortPlaceConfig, row: dict) -> None:
+    """A robot's format needs the cart's docking: a run without the cart, or a design no cart pose docks, is
+    refused in one line naming the format."""
+    if not has_cart(cfg):
+        raise UsageError(f"--format {fmt}: this run has no cart (cart.model = 'none'): run it with [cart] model = "
+                         "'classic' (or 'si') to solve the setup joints")
+    if row.get("cart_pose", -1) < 0:
+        raise UsageError(f"--format {fmt}: design {row['design_id']} is not dockable (no cart pose of the grid "
+                         f"docks every arm); export a design whose cart_pose >= 0")
+
+
 def dvrk_setup(cfg: PortPlaceConfig, row: dict) -> str:
     """The layout of ``row`` (a design of a run with the cart) as JSON: ``cart_to_patient`` (the patient's frame
     in the cart's world frame, 4x4, m), whether the row is feasible (and what it fails on), and one entry per arm
@@ -64,12 +75,7 @@ def dvrk_setup(cfg: PortPlaceConfig, row: dict) -> str:
     from surgopt.studies.port_place.clashes import docking_that_clears
     from surgopt.studies.port_place.tables import camera_tips, model_of, row_patient_in_cart
 
-    if not has_cart(cfg):
-        raise UsageError("--format dvrk: this run has no cart (cart.model = 'none'): run it with [cart] model = "
-                         "'classic' (or 'si') to solve the setup joints")
-    if row.get("cart_pose", -1) < 0:
-        raise UsageError(f"--format dvrk: design {row['design_id']} is not dockable (no cart pose of the grid "
-                         f"docks every arm); export a design whose cart_pose >= 0")
+    refuse_undocked("dvrk", cfg, row)
     centre = np.asarray(cfg.target.centre_mm, float) / 1000
     patient = row_patient_in_cart(cfg, row)
     arms = []
@@ -142,12 +148,7 @@ def suj_fixed(cfg: PortPlaceConfig, row: dict) -> str:
     names the run, the design and the teleoperation pairing that keeps the surgeon's hands uncrossed."""
     from surgopt.studies.port_place.clashes import docking_that_clears
 
-    if not has_cart(cfg):
-        raise UsageError("--format dvrk-suj-fixed: this run has no cart (cart.model = 'none'): run it with [cart] "
-                         "model = 'classic' (or 'si') to solve the setup joints")
-    if row.get("cart_pose", -1) < 0:
-        raise UsageError(f"--format dvrk-suj-fixed: design {row['design_id']} is not dockable (no cart pose of the "
-                         f"grid docks every arm); export a design whose cart_pose >= 0")
+    refuse_undocked("dvrk-suj-fixed", cfg, row)
     docked, _, docking, _ = docking_that_clears(cfg, row)
     frames = {a.arm: a.base for a in docked if a.base is not None and a.joints}
     arms = []
