@@ -58,7 +58,8 @@ def main(out: str, design_id: int, overrides: list[str]) -> None:
     arms = [a for a in docked_arms(cfg, row) if a.arm.startswith("PSM") and a.joints]
     poses = [arm_poses(cfg, a, patient, points, model.limits.along_shaft_m) for a in arms]
     _, moving = between(poses[0], poses[1])
-    skeleton_name = {"si": "PSM_SI"}.get(cfg.cart.model, "PSM_CLASSIC")
+    psm_capsules = PLATFORMS[cfg.cart.model].own_links(arms[0].arm)[1]  # the platform's PSM links: which meshes
+    skeleton_name = next(e.skeleton for e in E.ENVELOPES if any(e.mesh in c.source for c in psm_capsules))
     fig, axes = plt.subplots(1, 3, figsize=(16, 6))
     views = ((0, 1, "top (x, y)"), (0, 2, "front (x, z)"), (1, 2, "side (y, z)"))
     for arm, armp, colour in zip(arms, poses, ("C0", "C1")):

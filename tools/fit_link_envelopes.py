@@ -152,7 +152,10 @@ CUTS = (0.25, 0.4, 0.5, 0.6, 0.75)
 
 
 def fitted(points):
-    hull = np.asarray(__import__("trimesh").convex.convex_hull(points).vertices)
+    """(hull vertices, a, b, r): the capsule fitted to the convex hull of ``points``."""
+    import trimesh
+
+    hull = np.asarray(trimesh.convex.convex_hull(points).vertices)
     return (hull, *fit_capsule(hull))
 
 
