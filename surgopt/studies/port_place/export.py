@@ -9,7 +9,7 @@ import json
 import numpy as np
 
 from surgopt.robots.dvrk_links import LINK_MODEL_WORDS
-from surgopt.robots.platforms import PLATFORMS
+from surgopt.robots.platforms import CAMERA_ROLE, INSTRUMENT_ROLES, PLATFORMS
 
 from surgopt.errors import UsageError
 from surgopt.studies.port_place.carts import has_cart
@@ -134,8 +134,8 @@ def whole_target_of(cfg: PortPlaceConfig, row: dict, rolls: dict) -> dict:
 
 
 #: The arms the dVRK's SUJ_Fixed reads, all four of them (``mtsIntuitiveResearchKitSUJFixed::Configure`` refuses
-#: any other count or name).
-SUJ_FIXED_ARMS = ("ECM", "PSM1", "PSM2", "PSM3")
+#: any other count or name): the platform registry's roles, the camera's first as the dVRK's sample file has it.
+SUJ_FIXED_ARMS = (CAMERA_ROLE, *INSTRUMENT_ROLES)
 
 
 def suj_fixed(cfg: PortPlaceConfig, row: dict) -> str:
