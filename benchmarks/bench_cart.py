@@ -2,8 +2,8 @@
 
 Run:  python benchmarks/bench_cart.py
 Prints, on the default config with the Classic cart on its grid of floor poses (164 sites, 150 poses):
-- the Classic PSM SUJ's closed form (S2): the jitted batch (``kinematics.suj_batch.classic_psm_margins``) in solves/s
-  against the plain Python ``kinematics.suj.classic_psm_ik`` pose by pose (a sample), the two checked equal;
+- the Classic PSM SUJ's closed form (S2): the jitted batch (``kinematics.port.suj_batch.classic_psm_margins``) in solves/s
+  against the plain Python ``kinematics.port.suj.classic_psm_ik`` pose by pose (a sample), the two checked equal;
 - the Classic ECM's docking grid (S4): the jitted ``ecm_margins`` against the numpy ``ecm_classic_dock`` vectorised
   over the sites (one cart pose at a time), checked equal;
 - `surgopt port-place cart.model=classic` end to end, warm, 2 threads: the (layout, cart pose) pairs it decides
@@ -29,9 +29,9 @@ import time
 
 import numpy as np
 
-from surgopt.kinematics import suj as K
-from surgopt.kinematics import suj_batch as B
-from surgopt.robots.platforms import PLATFORMS
+from surgopt.kinematics.port import suj as K
+from surgopt.kinematics.port import suj_batch as B
+from surgopt.robots.dvrk.platforms import PLATFORMS
 from surgopt.studies.port_place import config as C
 from surgopt.studies.port_place import study as S
 from surgopt.studies.port_place import tables as T
@@ -100,7 +100,7 @@ SI_ARGS = ["cart.model=si", "robot.instrument_arm=dvrk_psm_si", "robot.camera_ar
 
 
 def si_solver() -> None:
-    from surgopt.kinematics.si_docking import si_solutions
+    from surgopt.kinematics.port.si_docking import si_solutions
 
     cfg = C.PortPlaceConfig.model_validate({"cart": {"model": "si"}, "robot": {
         "instrument_arm": "dvrk_psm_si", "camera_arm": "dvrk_ecm_si"}})
@@ -166,7 +166,7 @@ def end_to_end() -> None:
 
 
 def pruned_least() -> None:
-    from surgopt.kinematics import capsules as Cap
+    from surgopt.kinematics.port import capsules as Cap
     from surgopt.studies.port_place import link_tables as L
 
     cfg = C.PortPlaceConfig.model_validate({"cart": {"model": "classic"}})

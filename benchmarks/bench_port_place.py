@@ -24,8 +24,8 @@ import time
 
 import numpy as np
 
-from surgopt.kinematics import port_designs as D
-from surgopt.kinematics import port_place as K
+from surgopt.kinematics.port import designs as D
+from surgopt.kinematics.port import place as K
 from surgopt.robots import dvrk
 from surgopt.robots.models import get_model
 from surgopt.studies.port_place import config as C

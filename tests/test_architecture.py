@@ -179,7 +179,7 @@ def test_every_file_a_config_names_is_a_file_field_that_layered_configs_resolve(
 
 #: Where a cart's kind may be compared with a name (issue 53): the platform registry and the cart classes (and the
 #: config's own "auto", which the registry resolves).
-CART_KIND_HOMES = {"surgopt.robots.platforms", "surgopt.studies.port_place.carts"}
+CART_KIND_HOMES = {"surgopt.robots.dvrk.platforms", "surgopt.studies.port_place.carts"}
 CART_KINDS = {"none", "classic", "si"}
 
 

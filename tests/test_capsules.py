@@ -7,8 +7,8 @@ import math
 import numpy as np
 import pytest
 
-from surgopt.kinematics import capsules as C
-from surgopt.robots import dvrk_links as L
+from surgopt.kinematics.port import capsules as C
+from surgopt.robots.dvrk import links as L
 from surgopt.studies.port_place import clashes as X
 from surgopt.studies.port_place import config as CF
 from surgopt.studies.port_place import tables as T
@@ -114,9 +114,9 @@ def test_the_si_psm_skeleton_agrees_with_the_dh_model_and_the_si_setup_joints(q)
     (4 mm); and the arm's base, where the URDF puts it, is the Si setup joints' last frame at the files' sample
     joints within 1 cm (two descriptions of one arm: the URDF's 0.843 m from the RCM, suj-si-simulated.json's
     tip transform 0.834 m)."""
-    from surgopt.kinematics import suj as S
-    from surgopt.robots.dvrk_suj import SAMPLE_JOINTS
-    from surgopt.robots.platforms import PLATFORMS
+    from surgopt.kinematics.port import suj as S
+    from surgopt.robots.dvrk.suj import SAMPLE_JOINTS
+    from surgopt.robots.dvrk.platforms import PLATFORMS
 
     si = [(math.pi / 2, 0.0, 0.0, False, math.pi / 2), (-math.pi / 2, 0.0, 0.0, False, -math.pi / 2),
           (math.pi / 2, 0.0, 0.0, True, -0.4826)]  # PSM_Si.json's yaw, pitch, insertion (dvrk-kinematics.md)

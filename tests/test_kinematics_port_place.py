@@ -1,4 +1,4 @@
-"""port-place's kernels (surgopt/kinematics/port_place.py, port_designs.py) against references that share no code
+"""port-place's kernels (surgopt/kinematics/port/place.py, designs.py) against references that share no code
 with them: the dVRK arms' RCM kinematics (P1, P2) against the modified-DH tables multiplied out in
 tests/reference.py, the isotropy (P5) against a finite-difference Jacobian, reach against joint-space sampling,
 the pair tables (P6, P7, P9) against closed forms and per-pair numpy loops, the design kernel (P11) against a
@@ -9,8 +9,8 @@ import math
 import numpy as np
 import pytest
 
-from surgopt.kinematics import port_designs as D
-from surgopt.kinematics import port_place as K
+from surgopt.kinematics.port import designs as D
+from surgopt.kinematics.port import place as K
 from surgopt.robots.models import get_model
 from surgopt.studies.port_place import config as C
 from surgopt.studies.port_place import study as S
@@ -144,7 +144,7 @@ def test_three_instruments_combine_as_a_brute_force_over_the_reach_sets():
     per design: the common reach of all three (the premise: some designs need the bit count, neither the
     pair nor the third reaching every point), the least clearances over the pairs, the spacing over the
     four ports, the third's isotropy in the cost; the pair's columns are the 2-PSM design's."""
-    from surgopt.kinematics.port_place import REACH, SHAFTS, SPACING
+    from surgopt.kinematics.port.place import REACH, SHAFTS, SPACING
 
     n, m = 8, 131  # 131 points: three words, the last one partial
     t, reach, dex = _tables(n, m, np.random.default_rng(2))

@@ -1,4 +1,4 @@
-"""The patient cart's setup joints (surgopt/robots/dvrk_suj.py, surgopt/kinematics/suj.py): forward kinematics
+"""The patient cart's setup joints (surgopt/robots/dvrk/suj.py, surgopt/kinematics/port/suj.py): forward kinematics
 against the SUJ data typed again in tests/reference.py as textbook modified-DH products (the dVRK's sample
 ``simulated_position`` vectors and random joints), inverse kinematics by round trips (every solution's forward
 kinematics is the pose to 1e-9 m and rad; random in-range joints recovered among the solutions) and the poses it
@@ -8,9 +8,9 @@ import math
 import numpy as np
 import pytest
 
-from surgopt.kinematics import suj as K
-from surgopt.robots import dvrk_suj as D
-from surgopt.robots.platforms import PLATFORMS
+from surgopt.kinematics.port import suj as K
+from surgopt.robots.dvrk import suj as D
+from surgopt.robots.dvrk.platforms import PLATFORMS
 
 from reference import SUJ_REFERENCE, suj_forward_reference
 
@@ -133,7 +133,7 @@ def test_poses_the_suj_cannot_reach_are_refused_with_the_reason():
 
 def _ecm_batch(suj, yaw_rad, pitch_rad, origins, aims):
     """``suj_batch.ecm_margins`` (the jitted S4 the dock tables use) with ``ecm_classic_dock``'s arguments."""
-    from surgopt.kinematics import suj_batch as B
+    from surgopt.kinematics.port import suj_batch as B
 
     return B.ecm_margins(B.ecm_arrays(suj, yaw_rad, pitch_rad), np.ascontiguousarray(origins, float),
                          np.ascontiguousarray(aims, float), *K.ECM_GRID_STEPS)
@@ -209,7 +209,7 @@ def test_the_batch_solver_gives_the_closed_forms_best_margin_pose_by_pose(arm):
     Python, itself held to the textbook forward kinematics above): the best solution's least margin of poses made
     from random joints (in range, and past the ranges by up to 0.5 rad), of those poses turned off what the wrist
     can tilt, and moved out of the planar chain's reach (-inf both ways). The premises: each kind occurs."""
-    from surgopt.kinematics import suj_batch as B
+    from surgopt.kinematics.port import suj_batch as B
 
     suj = D.CLASSIC[arm]
     s = B.suj_arrays(suj)
@@ -254,7 +254,7 @@ def test_an_si_docking_points_the_shaft_with_the_arms_own_joints(arm):
     ranges; the absorbed angle is the neutral shaft's to the aim and never below the closed form's least, which
     a brute-force sweep of the yaw (3,600 steps) reaches within its step and psi* exactly; where the SUJ reaches
     the port at psi* the first docking absorbs just that (the premise: it does for some aims)."""
-    from surgopt.kinematics import si_docking as SD
+    from surgopt.kinematics.port import si_docking as SD
     from surgopt.robots.models import get_model
     from surgopt.studies.port_place.tables import arm_limits
 
@@ -291,7 +291,7 @@ def test_an_si_docking_points_the_shaft_with_the_arms_own_joints(arm):
 def test_an_si_docking_that_cannot_be_made_says_why():
     """A port the Si's planar chain reaches at no yaw, and an aim the arm's own pitch cannot absorb at any yaw
     where it does (the pitch's range narrowed to +-1 deg, the aim 45 deg off the family), each refused in words."""
-    from surgopt.kinematics import si_docking as SD
+    from surgopt.kinematics.port import si_docking as SD
     from surgopt.robots.models import get_model
     from surgopt.studies.port_place.tables import arm_limits
 

@@ -1,4 +1,4 @@
-"""Issue 54: the PSMs' links as capsules fitted to the dVRK's own meshes (``surgopt/robots/dvrk_link_envelopes.py``,
+"""Issue 54: the PSMs' links as capsules fitted to the dVRK's own meshes (``surgopt/robots/dvrk/link_envelopes.py``,
 written by tools/fit_link_envelopes.py from jhu-dvrk/dvrk_model), checked apart from the fit: each capsule holds
 its mesh part's convex hull (tests/data/dvrk_link_hulls.npz, written with it; a capsule is convex, so holding the
 hull's vertices is holding the part), the meshes placed on surgopt's skeleton sit where the DH model's shaft is,
@@ -14,9 +14,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from surgopt.kinematics.capsules import skeleton
-from surgopt.robots import dvrk_link_envelopes as E
-from surgopt.robots import dvrk_links as L
+from surgopt.kinematics.port.capsules import skeleton
+from surgopt.robots.dvrk import link_envelopes as E
+from surgopt.robots.dvrk import links as L
 
 HULLS = Path(__file__).parent / "data" / "dvrk_link_hulls.npz"
 MIRROR = Path("/work/.mirror/jhu-dvrk+dvrk_model/repo")

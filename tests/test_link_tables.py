@@ -6,10 +6,10 @@ against its row."""
 import numpy as np
 import pytest
 
-from surgopt.kinematics import capsules as C
-from surgopt.kinematics.capsules import PAIR_CODE
-from surgopt.kinematics.port_place import segment_distance
-from surgopt.kinematics.port_reasons import DOCKING, OUTSIDE
+from surgopt.kinematics.port import capsules as C
+from surgopt.kinematics.port.capsules import PAIR_CODE
+from surgopt.kinematics.port.place import segment_distance
+from surgopt.kinematics.port.reasons import DOCKING, OUTSIDE
 from surgopt.studies.port_place import config as PC
 from surgopt.studies.port_place import report as R
 from surgopt.studies.port_place import study as S
@@ -27,7 +27,7 @@ LINKS = {**SMALL, "cart": {"model": "classic", "around_step_deg": 30.0, "distanc
 
 
 def test_the_segment_distance_matches_the_closed_form_and_takes_points():
-    """``segments_distance`` (scalars, the link tables' inner loop) against ``port_place.segment_distance`` on
+    """``segments_distance`` (scalars, the link tables' inner loop) against ``place.segment_distance`` on
     random segments (1e-12), and where either is a point (which that one divides by) against sampling."""
     rng = np.random.default_rng(3)
     for _ in range(200):
@@ -82,8 +82,8 @@ def thin_links(monkeypatch):
     does not depend on the radii, and the platform registry takes a platform like any other."""
     from dataclasses import replace
 
-    from surgopt.robots import dvrk_links as L
-    from surgopt.robots import platforms as P
+    from surgopt.robots.dvrk import links as L
+    from surgopt.robots.dvrk import platforms as P
 
     classic = P.PLATFORMS["classic"]
     thin = tuple([L.Capsule("mount", "mount", (0.0, 0.0, 0.0), "back", (0.0, 0.0, 0.0), 0.045, "a test's"),
@@ -204,7 +204,7 @@ def test_the_si_link_tables_equal_each_layouts_clearances():
     from them (``_tables_equal_layouts``: the plain Si inverse, the Si skeleton per pose). Premises: the tables
     hold all six pairs, PSM3's frames are not PSM1's at the sites checked, and entries overlapping and clear are
     both checked."""
-    from surgopt.robots.platforms import PLATFORMS
+    from surgopt.robots.dvrk.platforms import PLATFORMS
     from surgopt.studies.port_place.link_tables import ARM_PAIRS
 
     cfg = PC.PortPlaceConfig.model_validate({
@@ -296,9 +296,9 @@ def test_the_batch_solver_keeps_the_best_solutions_joints():
     """``suj_batch.classic_psm_solutions`` (the joints the link tables place the setup joints at): at poses made
     from random in-range joints, its margins are ``classic_psm_margins``' and its joints, through the SUJ's forward
     kinematics (S1), give the pose back (1e-9) with that least margin; where no solution reaches, NaN."""
-    from surgopt.kinematics import suj as K
-    from surgopt.kinematics import suj_batch as B
-    from surgopt.robots.platforms import PLATFORMS
+    from surgopt.kinematics.port import suj as K
+    from surgopt.kinematics.port import suj_batch as B
+    from surgopt.robots.dvrk.platforms import PLATFORMS
 
     rng = np.random.default_rng(11)
     suj = PLATFORMS["classic"].suj("PSM2")
@@ -346,8 +346,8 @@ def test_the_tables_and_the_report_dock_each_arm_with_the_same_joints():
     solution (what the report, the export and ``clashes`` place) at every docked (site, pose) of every PSM, where
     solutions' margins tie too (``suj.MARGIN_TIE``: the first in the solver's order). The premise: ties occur
     (PSM3's assumed full-turn ranges leave the column's margin, shared by both elbows, deciding)."""
-    from surgopt.kinematics import suj as K
-    from surgopt.robots.platforms import PLATFORMS
+    from surgopt.kinematics.port import suj as K
+    from surgopt.robots.dvrk.platforms import PLATFORMS
 
     cfg = PC.PortPlaceConfig.model_validate({**LINKS, "robot": {"instrument_count": 3}})
     model = T.model_of(cfg)
@@ -488,7 +488,7 @@ def test_with_no_layout_clear_the_cart_figure_draws_the_cheapest_that_fails_on_i
     drawn and naming the overlapping pair as ``clashes.layout_clearances``' least names it."""
     import pyarrow as pa
 
-    from surgopt.kinematics.port_reasons import DOCKING, OUTSIDE
+    from surgopt.kinematics.port.reasons import DOCKING, OUTSIDE
     from surgopt.studies.port_place import figures as F
 
     cfg = PC.PortPlaceConfig.model_validate({

@@ -1,4 +1,4 @@
-"""Issue 53: one platform registry (``robots/platforms.py``), carts as classes (``studies/port_place/carts.py``).
+"""Issue 53: one platform registry (``robots/dvrk/platforms.py``), carts as classes (``studies/port_place/carts.py``).
 
 A platform added in a test touches the registry only: a Classic cart raised 150 mm on a base (its world frame
 0.15 m above the floor) is one ``Platform`` entry; configs take it by name, and its rows are checked against
@@ -9,7 +9,7 @@ import dataclasses
 import numpy as np
 import pytest
 
-from surgopt.robots import platforms as P
+from surgopt.robots.dvrk import platforms as P
 from surgopt.studies.port_place import carts as CT
 from surgopt.studies.port_place import config as C
 from surgopt.studies.port_place import study as S

@@ -8,8 +8,8 @@ import math
 import numpy as np
 import pytest
 
-from surgopt.kinematics import port_designs as D
-from surgopt.kinematics.port_place import DOCKING
+from surgopt.kinematics.port import designs as D
+from surgopt.kinematics.port.place import DOCKING
 from surgopt.robots.models import get_model
 from surgopt.studies.port_place import config as C
 from surgopt.studies.port_place import report as R
@@ -395,7 +395,7 @@ def test_a_layout_whose_links_overlap_clears_with_a_psm_rolled_about_its_shaft(t
     definition, its setup joints through the reference FK land that base, every target point is reached within
     the joint limits (closed-form inverse, then the forward map back to the point), and every clearance of the
     layout so docked is >= 0."""
-    from surgopt.kinematics import port_place as K
+    from surgopt.kinematics.port import place as K
     from surgopt.runner import run_study
     from surgopt.store import Store
     from surgopt.studies.port_place.clashes import layout_clearances, least, rolled_docks, rolls_that_clear
@@ -441,7 +441,7 @@ def test_a_layout_whose_links_overlap_clears_with_a_psm_rolled_about_its_shaft(t
     assert rolls_that_clear(cfg, row) is got  # kept for the process: the report, the figure, the export share it
     # an arm whose mount (the SUJ's tip) lies below the table top is named with its depth: the tip from the
     # reference FK of the tool origin and the cart data's tip-to-tool transform
-    from surgopt.robots.platforms import PLATFORMS
+    from surgopt.robots.dvrk.platforms import PLATFORMS
     from surgopt.studies.port_place.clashes import mounts_below_table_top
 
     low = mounts_below_table_top(cfg, row, arms + ecm)
@@ -654,9 +654,9 @@ def test_the_report_says_why_the_best_layouts_without_the_cart_do_not_dock(tmp_p
     reason held, for sample layouts, by the setup joints solved pose by pose in plain Python apart from the
     tables (S2 for the PSMs, the numpy S4 grid for the ECM): a pair's PSMs that take its ports at no pose either
     way round, or arms each docking somewhere but never all at one pose (the premise: some layouts of a reason)."""
-    from surgopt.kinematics import suj as SUJ
-    from surgopt.kinematics.port_reasons import DOCKING
-    from surgopt.robots.platforms import PLATFORMS
+    from surgopt.kinematics.port import suj as SUJ
+    from surgopt.kinematics.port.reasons import DOCKING
+    from surgopt.robots.dvrk.platforms import PLATFORMS
     from surgopt.runner import run_study
     from surgopt.store import Store
 
@@ -707,7 +707,7 @@ def test_the_rows_give_each_arms_setup_joint_margins_at_its_pose():
     margins computed here from the quoted and assumed ranges; the rows' joints through the reference forward
     kinematics land each arm's base where that solution does; undocked rows NaN. Premises: docked rows of both
     ways round (PSM1 on the pair's first port and on its second) are among those checked."""
-    from surgopt.robots.platforms import PLATFORMS
+    from surgopt.robots.dvrk.platforms import PLATFORMS
 
     cfg = C.PortPlaceConfig.model_validate(GRID)
     cols = S.compute_task(cfg, S.n_total(cfg), 0)
@@ -844,7 +844,7 @@ def test_the_setup_joint_table_gives_the_revolute_and_column_margins_apart():
     two columns, checked on joints placed at known distances from their ranges."""
     from types import SimpleNamespace
 
-    from surgopt.robots.platforms import PLATFORMS
+    from surgopt.robots.dvrk.platforms import PLATFORMS
 
     suj = PLATFORMS["classic"].suj("PSM2")
     (c_lo, _), *revolute = suj.ranges

@@ -8,7 +8,7 @@ import numpy as np
 import pydantic
 import pytest
 
-from surgopt.kinematics import port_place as K
+from surgopt.kinematics.port import place as K
 from surgopt.robots import dvrk
 from surgopt.robots.models import get_model
 from surgopt.studies.port_place import config as C

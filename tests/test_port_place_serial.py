@@ -1,5 +1,5 @@
 """port-place with instruments on serial arms that keep the RCM in software (``[robot.instrument_serial]``,
-surgopt/kinematics/port_serial.py): reach and dexterity against the PA10-7C's closed-form IK and a
+surgopt/kinematics/port/serial.py): reach and dexterity against the PA10-7C's closed-form IK and a
 finite-difference constrained Jacobian in tests/reference.py, every solution through the chain's textbook DH
 product in the patient frame, the clearances against sampled segments, the study's rows, bad input."""
 import math
@@ -7,7 +7,7 @@ import math
 import numpy as np
 import pytest
 
-from surgopt.kinematics import port_serial as P
+from surgopt.kinematics.port import serial as P
 from surgopt.robots.models import get_model
 from surgopt.studies.port_place import config as C
 from surgopt.studies.port_place import geometry as G
@@ -386,7 +386,7 @@ def test_a_serial_arm_holds_the_endoscope_where_the_scope_must_be():
     tip and flange, to 1e-9 m; the camera's coverage is the mechanism-free coverage there and 0 at the other
     ports (premise: both kinds); the instruments' outside clearance to it is the least distance from their
     shaft lines to its centre line (sampled segments)."""
-    from surgopt.kinematics import port_place as K
+    from surgopt.kinematics.port import place as K
     from surgopt.robots import dvrk
     from surgopt.studies.port_place.serial_arms import serial_camera_tables
 

@@ -9,9 +9,9 @@ import math
 import numpy as np
 import pytest
 
-from surgopt.kinematics import suj as SJ
-from surgopt.kinematics.si_docking import own_joints, si_solutions
-from surgopt.robots.platforms import PLATFORMS
+from surgopt.kinematics.port import suj as SJ
+from surgopt.kinematics.port.si_docking import own_joints, si_solutions
+from surgopt.robots.dvrk.platforms import PLATFORMS
 from surgopt.robots.models import get_model
 from surgopt.studies.port_place import config as C
 from surgopt.studies.port_place import study as S
@@ -137,7 +137,7 @@ def test_three_psms_on_the_si_cart_dock_the_third_in_its_own_frame():
     on its port; its reach is the share of the target it reaches in that frame (``instrument_tables`` on frames
     the tables do not share), not in PSM1's. Premises: the two frames reach differently at some of the rows'
     third ports; docked and undocked rows both checked."""
-    from surgopt.kinematics import port_place as K
+    from surgopt.kinematics.port import place as K
 
     cfg = C.PortPlaceConfig.model_validate({**SI, "robot": {**SI_ARMS, "instrument_count": 3}})
     model = T.model_of(cfg)
@@ -211,10 +211,10 @@ def test_the_si_export_lands_each_rcm_on_its_port_and_its_own_joints_aim_the_sha
 
 def _a_docked_infeasible_design_is_written_with_its_reasons_and_a_note(tmp_path):
     """The dvrk export of a design that docks but fails another check: ``feasible`` false, ``fails_on`` its
-    row's reasons in words (``port_reasons.REASONS``), and a note on stderr that it is not a layout to use."""
+    row's reasons in words (``reasons.REASONS``), and a note on stderr that it is not a layout to use."""
     import pyarrow.compute as pc
 
-    from surgopt.kinematics.port_reasons import REASONS
+    from surgopt.kinematics.port.reasons import REASONS
     from surgopt.store import Store
 
     (run,) = Store(tmp_path / "s").runs("port-place")
@@ -245,7 +245,7 @@ def test_the_page_colours_the_target_by_the_si_psm3s_own_isotropy(tmp_path, page
     instrument's own reach and isotropy (PSM3's Si frames: ``instrument_tables`` on them here), and colours each
     target point of the first layout by the least isotropy of the three instruments, PSM3's in its own frame.
     Premise: the first layout's PSM3 isotropy in its own frame differs from PSM1's frame's at some point."""
-    from surgopt.kinematics import port_place as K
+    from surgopt.kinematics.port import place as K
 
     (tmp_path / "si3.toml").write_text(
         "rows_stored = \"feasible\"\n[patient.port_region]\nsite_spacing_mm = 36.0\n[target]\nspacing_mm = 15.0\n"

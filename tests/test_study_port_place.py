@@ -1,4 +1,4 @@
-"""port-place (surgopt/studies/port_place/study.py, surgopt/kinematics/port_place.py): the dVRK arms' RCM kinematics
+"""port-place (surgopt/studies/port_place/study.py, surgopt/kinematics/port/place.py): the dVRK arms' RCM kinematics
 against the modified-DH tables multiplied out in tests/reference.py, reach against joint-space sampling,
 angles and clearances against closed forms, a mirror-symmetric patient's optimum, bad input, the CLI."""
 import math
@@ -7,7 +7,7 @@ import os
 import numpy as np
 import pytest
 
-from surgopt.kinematics import port_place as K
+from surgopt.kinematics.port import place as K
 from surgopt.robots import dvrk
 from surgopt.robots.models import get_model
 from surgopt.studies.port_place import config as C
@@ -661,7 +661,7 @@ def test_an_angled_scope_looks_at_the_centre_from_the_standoff(view):
     """camera_views for a 30 deg scope against the tip found by bisection on the constraints (the view through
     the centre, the tip standoff_m from it), on every default site the ECM can use; the view is 30 deg off the
     shaft; the coverage counts the points in the cone about that view; a straight scope is unchanged."""
-    from surgopt.kinematics import port_place as K
+    from surgopt.kinematics.port import place as K
 
     cfg = C.PortPlaceConfig.model_validate({"robot": {"camera_scope_angle_deg": 30.0, "camera_scope_view": view}})
     sites, centre = G.sites_mm(cfg) / 1000, np.asarray(cfg.target.centre_mm) / 1000

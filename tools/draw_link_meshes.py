@@ -35,11 +35,11 @@ def main(out: str, design_id: int, overrides: list[str]) -> None:
 
     import surgopt
     from surgopt.config import load_embedded
-    from surgopt.kinematics import capsules as C
-    from surgopt.kinematics import suj as S
-    from surgopt.kinematics.port_place import rcm_inverse
-    from surgopt.robots import dvrk_link_envelopes as E
-    from surgopt.robots.platforms import PLATFORMS
+    from surgopt.kinematics.port import capsules as C
+    from surgopt.kinematics.port import suj as S
+    from surgopt.kinematics.port.place import rcm_inverse
+    from surgopt.robots.dvrk import link_envelopes as E
+    from surgopt.robots.dvrk.platforms import PLATFORMS
     from surgopt.studies import get_study
     from surgopt.studies.port_place.clashes import arm_poses, between
     from surgopt.studies.port_place.link_tables import pose_points

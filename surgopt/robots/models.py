@@ -34,10 +34,10 @@ ARMS = {
     "ur5e": Arm("serial", None, "surgopt.robots.ur5e"),
     "panda": Arm("serial", None, "surgopt.robots.panda"),
     "lbr_iiwa_14": Arm("serial", None, "surgopt.robots.lbr_iiwa_14"),
-    "dvrk_psm_classic": Arm("rcm", "instrument", "surgopt.robots.dvrk_psm_classic"),
-    "dvrk_psm_si": Arm("rcm", "instrument", "surgopt.robots.dvrk_psm_si"),
-    "dvrk_ecm_classic": Arm("rcm", "camera", "surgopt.robots.dvrk_ecm_classic"),
-    "dvrk_ecm_si": Arm("rcm", "camera", "surgopt.robots.dvrk_ecm_si"),
+    "dvrk_psm_classic": Arm("rcm", "instrument", "surgopt.robots.dvrk.psm_classic"),
+    "dvrk_psm_si": Arm("rcm", "instrument", "surgopt.robots.dvrk.psm_si"),
+    "dvrk_ecm_classic": Arm("rcm", "camera", "surgopt.robots.dvrk.ecm_classic"),
+    "dvrk_ecm_si": Arm("rcm", "camera", "surgopt.robots.dvrk.ecm_si"),
 }
 
 

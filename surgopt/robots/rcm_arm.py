@@ -2,7 +2,7 @@
 centre of motion and reduced to what the port-placement study's closed forms need (issue #29: "any RCM arm from
 a DH table / URDF").
 
-The closed forms (``surgopt.kinematics.port_place``) put the reaching point (an instrument's wrist, a scope's
+The closed forms (``surgopt.kinematics.port.place``) put the reaching point (an instrument's wrist, a scope's
 tip) at p = (q3 + c) u(q1, q2), u = R(w1, q1) R(w2, q2) s, in a base frame B at the RCM with the shaft s = -z at
 q = 0: yaw q1 turns the shaft about the fixed axis w1, pitch q2 about the axis w2 that the yaw carries, and
 insertion q3 slides it. An arm described as a serial chain is that mechanism when, at its neutral pose (yaw and

@@ -32,7 +32,7 @@ NS_PER_SITE_POINT_SERIAL = 4000.0
 
 
 class SerialKernel(NamedTuple):
-    """A serial arm's inputs to ``kinematics.port_serial``, read once from its DH table or URDF: the chain's
+    """A serial arm's inputs to ``kinematics.port.serial``, read once from its DH table or URDF: the chain's
     arrays, the IK's seed and restarts, the tool's length past the flange (m). Its RCM (``rcm_in_base_m``) is
     read from the arm itself, since a search moves it (``stance``)."""
 
@@ -45,7 +45,7 @@ class SerialKernel(NamedTuple):
 class Reached(NamedTuple):
     """The instruments' reach[site, point] and dexterity[site, point] at some ports, and, for a serial arm, its
     clearance outside the body per pair of sites (m) and its ``SerialTables`` (None for an RCM arm: the shafts'
-    lines decide outside, ``kinematics.port_place.external_clearances``)."""
+    lines decide outside, ``kinematics.port.place.external_clearances``)."""
 
     reach: np.ndarray
     dexterity: np.ndarray
@@ -63,9 +63,9 @@ def serial_kernel(arm) -> SerialKernel:
 
 
 def walk_order(target: Target, centre_m: np.ndarray) -> tuple:
-    """Prim's order over the target's points from the one nearest the centre (``port_serial.prim_order``): the
+    """Prim's order over the target's points from the one nearest the centre (``serial.prim_order``): the
     continuation a serial arm's IK walks."""
-    from surgopt.kinematics.port_serial import prim_order
+    from surgopt.kinematics.port.serial import prim_order
 
     pts = target_points_mm(target) / 1000
     root = int(np.argmin(np.linalg.norm(pts - centre_m, axis=1)))
@@ -75,7 +75,7 @@ def walk_order(target: Target, centre_m: np.ndarray) -> tuple:
 def arm_limits(arm):
     """The kernel's ``ArmLimits`` of an arm (``dvrk.RcmArm`` or ``rcm_arm.RcmLimits``; a spherical mechanism with
     its axes)."""
-    from surgopt.kinematics.port_place import ArmLimits
+    from surgopt.kinematics.port.place import ArmLimits
 
     axes = getattr(arm, "yaw_axis", None)
     spherical = (True, *arm.yaw_axis, *arm.pitch_axis) if axes is not None else ()
@@ -135,7 +135,7 @@ class RcmInstruments:
     def reach(self, model, sites: np.ndarray, frames: np.ndarray, base_yaw_rad=None) -> Reached:
         """Reach and isotropy of each port's instrument docked in ``frames`` (``instrument_tables``: eq. P1's
         inverse within the limits, the approach cone, eq. P5)."""
-        from surgopt.kinematics import port_place as K
+        from surgopt.kinematics.port import place as K
 
         reach, dex = K.instrument_tables(sites, frames, model.targets_m, model.limits,
                                          model.criteria.dexterity_length_m, model.cone)
@@ -144,7 +144,7 @@ class RcmInstruments:
     def turned(self, frames: np.ndarray, docking_deg: np.ndarray) -> tuple[np.ndarray, None]:
         """(frames, base yaws) of ports docked with a search's ``docking_deg`` (yaw, pitch per instrument, then
         the camera's 0, 0): the docking frames tilted (``tilted_frames``); no base to turn."""
-        from surgopt.kinematics import port_place as K
+        from surgopt.kinematics.port import place as K
 
         return K.tilted_frames(frames, np.radians([*docking_deg[0::2], 0.0]),
                                np.radians([*docking_deg[1::2], 0.0])), None
@@ -278,7 +278,7 @@ class SerialCamera(RcmCamera):
     @classmethod
     def limits(cls, cfg: PortPlaceConfig):
         """Open ranges: the arm's own IK decides where it can hold the scope (``hold``)."""
-        from surgopt.kinematics.port_place import ArmLimits
+        from surgopt.kinematics.port.place import ArmLimits
 
         return ArmLimits(-math.pi, math.pi, -math.pi / 2, math.pi / 2, 0.0, 10.0, 0.0)
 
@@ -290,7 +290,7 @@ class SerialCamera(RcmCamera):
     def docked_lines(self, model, sites: np.ndarray) -> np.ndarray:
         """(ports, joints, 3) m: the arm's centre line at each port docked as the grid docks it (NaN where it
         cannot hold the scope)."""
-        from surgopt.kinematics import port_place as K
+        from surgopt.kinematics.port import place as K
         from surgopt.studies.port_place.carts import LATERAL
 
         frames = K.docking_frames(sites, model.centre_m, LATERAL)

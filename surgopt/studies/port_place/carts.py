@@ -1,7 +1,7 @@
 """Port-place's carts as classes: every branch on which cart a config models is a method here (issue 53).
 
 ``cart_for(cfg)`` gives the config's cart: ``NoCart`` (docking assumed), or the class of its platform's family of
-setup joints (``Platform.suj_family``, ``robots/platforms.py``): ``ClassicCart`` (a column and five revolute
+setup joints (``Platform.suj_family``, ``robots/dvrk/platforms.py``): ``ClassicCart`` (a column and five revolute
 joints: the docking frame's roll about the shaft is free; S2, S4) or ``SiCart`` (a column, planar joints and two
 fixed links: one orientation per yaw, psi*; S3, S5-S7). ``FAMILIES`` is the one map from a family to its class. A
 platform of an existing family is data alone (``PLATFORMS``); a new family is one class here.
@@ -16,7 +16,7 @@ import math
 import numpy as np
 
 from surgopt.robots.chain import rot_x, rot_y, rot_z
-from surgopt.robots.platforms import PLATFORMS, Platform, platform_of
+from surgopt.robots.dvrk.platforms import PLATFORMS, Platform, platform_of
 
 #: The lateral direction the neutral docking frame's x is taken from (patient frame: the patient's left).
 LATERAL = np.array([1.0, 0.0, 0.0])
@@ -63,7 +63,7 @@ def si_frames(cfg, suj, sites: np.ndarray, aims: np.ndarray, turn_rad: float = 0
     the floor (turning the cart turns psi* with it), so one frame per port serves every pose of the grid. The Si's
     PSM1 and PSM2 give the same frames (their bases differ by a half turn about the vertical). ``turn_rad``: each
     yawed that much off psi* (the report's search for clear links, ``clashes.turned_frames``)."""
-    from surgopt.kinematics.si_docking import si_frame
+    from surgopt.kinematics.port.si_docking import si_frame
 
     p = patient_in_cart(cfg.cart, 0.0, 0.0, 0.0)[:3, :3]
     return np.array([p.T @ si_frame(suj, p @ a, turn_rad) for a in aims]).reshape(len(sites), 3, 3)
@@ -75,7 +75,7 @@ def _unit_aims(centre_m: np.ndarray, sites: np.ndarray) -> np.ndarray:
 
 
 def _neutral(cfg, site: np.ndarray) -> np.ndarray:
-    from surgopt.kinematics import port_place as K
+    from surgopt.kinematics.port import place as K
 
     return K.docking_frames(site[None], np.asarray(cfg.target.centre_mm, float) / 1000, LATERAL)
 
@@ -125,15 +125,15 @@ class ClassicCart(NoCart):
         self.platform = platform
 
     def psm_ik(self, role: str, base: np.ndarray):
-        """One PSM's setup joints for its base frame ``base`` in the cart's world frame (``kinematics.suj``, S2)."""
-        from surgopt.kinematics import suj as S
+        """One PSM's setup joints for its base frame ``base`` in the cart's world frame (``kinematics.port.suj``, S2)."""
+        from surgopt.kinematics.port import suj as S
 
         return S.classic_psm_ik(self.platform.suj(role), base)
 
     def psm_solutions(self, role: str, bases: np.ndarray, third_bases=None) -> tuple[np.ndarray, np.ndarray]:
         """(least margin, joints (n, 6)) of the best solution for each of ``bases`` (n, 4, 4) of PSM ``role``
         (``suj_batch``, S2 jitted); ``third_bases``: PSM3's own bases where its frames are its own (unused)."""
-        from surgopt.kinematics.suj_batch import classic_psm_solutions, suj_arrays
+        from surgopt.kinematics.port.suj_batch import classic_psm_solutions, suj_arrays
 
         return classic_psm_solutions(suj_arrays(self.platform.suj(role)), bases)
 
@@ -141,8 +141,8 @@ class ClassicCart(NoCart):
         """The ECM's setup joints at ports ``sites_m`` for each patient pose in ``patients`` (m, 4, 4), its own yaw
         and pitch aiming the scope along ``shafts`` (``suj_batch.ecm_margins``, S4): (margin, joints, yaw and
         pitch), per pose then port."""
-        from surgopt.kinematics.suj import ECM_GRID_STEPS
-        from surgopt.kinematics.suj_batch import ecm_arrays, ecm_margins
+        from surgopt.kinematics.port.suj import ECM_GRID_STEPS
+        from surgopt.kinematics.port.suj_batch import ecm_arrays, ecm_margins
 
         origins = np.concatenate([sites_m @ p[:3, :3].T + p[:3, 3] for p in patients])
         aims = np.concatenate([shafts @ p[:3, :3].T for p in patients])
@@ -183,13 +183,13 @@ class SiCart(ClassicCart):
                 + " (its own yaw and pitch absorbing the rest)")
 
     def psm_ik(self, role, base):
-        from surgopt.kinematics import suj as S
+        from surgopt.kinematics.port import suj as S
 
         return S.si_ik(self.platform.suj(role), base)
 
     def psm_solutions(self, role, bases, third_bases=None):
         """S3, S7 batched: the column and three (PSM3: four) planar joints, the rest NaN."""
-        from surgopt.kinematics.si_docking import si_solutions
+        from surgopt.kinematics.port.si_docking import si_solutions
 
         got, q = si_solutions(self.platform.suj(role), bases if third_bases is None else third_bases)
         return got, np.concatenate([q, np.full((len(q), 6 - q.shape[1]), np.nan)], axis=1)
@@ -199,7 +199,7 @@ class SiCart(ClassicCart):
         shaft (``si_docking.own_joints``, the same at every cart pose) within the ECM's ranges, and its setup
         joints at each pose (S3, ``si_docking.si_solutions``). The margin, as the Classic's (S4): the least of the
         setup joints' and the own yaw's and pitch's margins (rad; the column's in m)."""
-        from surgopt.kinematics.si_docking import own_joints, si_solutions
+        from surgopt.kinematics.port.si_docking import own_joints, si_solutions
 
         suj = self.platform.suj("ECM")
         n, m = len(sites_m), len(patients)

@@ -1,6 +1,6 @@
 """A docked layout's clearances outside the body (issue 40): each arm's setup-joint links and its own links
-(``robots/dvrk_links.py``) as capsules in the cart's world frame, docked and at the joint values that reach each
-target point, checked between arms, against the patient and against the table (``kinematics.capsules``).
+(``robots/dvrk/links.py``) as capsules in the cart's world frame, docked and at the joint values that reach each
+target point, checked between arms, against the patient and against the table (``kinematics.port.capsules``).
 
 Between two arms the least is over every pair of their poses (each instrument at any of its target points, the
 other at any of its own: they move independently), the ECM held where it docks. Against the patient and the
@@ -19,7 +19,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from surgopt.robots.platforms import PLATFORMS
+from surgopt.robots.dvrk.platforms import PLATFORMS
 
 from surgopt.studies.port_place.carts import cart_for
 from surgopt.studies.port_place.link_tables import PATIENT_CAP_MM, SPACING_M, pose_points, table_box
@@ -54,10 +54,10 @@ def _point_label(p_mm: np.ndarray) -> str:
 def arm_poses(cfg, arm, patient: np.ndarray, targets_m: np.ndarray, along_shaft_m: float) -> ArmPoses:
     """A docked arm's capsules (its setup joints', fixed, and its own, moving) docked and at each target point
     (a PSM; the ECM held at its docked aim)."""
-    from surgopt.kinematics import capsules as C
-    from surgopt.kinematics import suj as S
-    from surgopt.kinematics.port_place import rcm_inverse
-    from surgopt.robots import dvrk_links as L
+    from surgopt.kinematics.port import capsules as C
+    from surgopt.kinematics.port import suj as S
+    from surgopt.kinematics.port.place import rcm_inverse
+    from surgopt.robots.dvrk import links as L
 
     frames = S.frames(PLATFORMS[cfg.cart.model].suj(arm.arm), arm.joints)
     suj = C.polyline_capsules(frames[:-1, :3, 3], L.SUJ_RADIUS_M, f"{arm.arm} setup joint", L.SUJ_ON_COLUMN)
@@ -85,7 +85,7 @@ def arm_poses(cfg, arm, patient: np.ndarray, targets_m: np.ndarray, along_shaft_
 
 def between(a: ArmPoses, b: ArmPoses) -> tuple[Clearance, Clearance]:
     """The least clearance between two arms docked, and over every pair of their poses."""
-    from surgopt.kinematics.capsules import least_over_poses, least_pair_clearance
+    from surgopt.kinematics.port.capsules import least_over_poses, least_pair_clearance
 
     c0, i0, j0 = least_pair_clearance(a.segments[0], a.radii, b.segments[0], b.radii)
     docked = Clearance(f"{a.arm} and {b.arm}, docked", c0 * 1000, a.names[i0], b.names[j0], "docked")
@@ -97,7 +97,7 @@ def between(a: ArmPoses, b: ArmPoses) -> tuple[Clearance, Clearance]:
 
 def against_patient(cfg, a: ArmPoses, patient: np.ndarray) -> Clearance:
     """(C3) The least clearance of the arm's links (not the shafts) to the patient's body at any pose."""
-    from surgopt.kinematics.capsules import along
+    from surgopt.kinematics.port.capsules import along
     from surgopt.studies.port_place.geometry import body_distance_mm, inside_body
 
     fixed = np.all(a.segments == a.segments[:1], axis=(0, 2, 3))  # the setup joints' links: once, not per pose
@@ -119,7 +119,7 @@ def against_patient(cfg, a: ArmPoses, patient: np.ndarray) -> Clearance:
 def against_table(cfg, a: ArmPoses, patient: np.ndarray) -> Clearance:
     """(C2) The least clearance of the arm's links to the table (a slab under the patient, in its frame),
     refined on the closest link by golden-section search."""
-    from surgopt.kinematics.capsules import along, box_distance, segment_box_distance
+    from surgopt.kinematics.port.capsules import along, box_distance, segment_box_distance
 
     lo, hi = table_box(cfg)  # the one the link tables measure against
     segs = (a.segments - patient[:3, 3]) @ patient[:3, :3]  # into the patient's frame
@@ -210,7 +210,7 @@ def whole_target_clearances(cfg, row: dict) -> list[Clearance]:
 
 
 def _whole_target(cfg, row: dict) -> list[Clearance]:
-    from surgopt.kinematics.capsules import least_between, swept_balls
+    from surgopt.kinematics.port.capsules import least_between, swept_balls
     from surgopt.studies.port_place.link_tables import grouped, spread_points
     from surgopt.studies.port_place.tables import docked_arms, model_of, row_patient_in_cart
 
@@ -268,7 +268,7 @@ def rolled_reach(cfg, row: dict, arm: str) -> tuple[np.ndarray, np.ndarray, np.n
     a roll about its neutral shaft, or on the Si a yaw off psi*): (its frames (R, 3, 3), full reach (R,), the
     isotropy at each target point (R, points; eq. P5, 0 where it does not reach), the port (3,) m), by the
     kernel's own tables in the turned frames."""
-    from surgopt.kinematics import port_place as K
+    from surgopt.kinematics.port import place as K
     from surgopt.studies.port_place.tables import model_of
 
     model = model_of(cfg)
@@ -348,7 +348,7 @@ def _rolls_that_clear(cfg, row: dict) -> RollsThatClear:
     the most; the first whose least clearance is >= 0, or ``least`` None."""
     import itertools
 
-    from surgopt.kinematics.capsules import least_pair_clearance
+    from surgopt.kinematics.port.capsules import least_pair_clearance
     from surgopt.studies.port_place.tables import docked_arms, model_of, row_patient_in_cart
 
     patient = row_patient_in_cart(cfg, row)
@@ -397,7 +397,7 @@ def mounts_below_table_top(cfg, row: dict, docked) -> dict:
     """Each docked arm whose mount (the setup joints' last frame, where the arm's own links begin) lies below the
     table top: its depth there (mm). Clear of the table slab the model has, such an arm still rises from beside the
     table, where the patient's arms, the arm boards and the rails stand (not modelled): a docking to check."""
-    from surgopt.kinematics import suj as S
+    from surgopt.kinematics.port import suj as S
     from surgopt.studies.port_place.tables import row_patient_in_cart
 
     patient = row_patient_in_cart(cfg, row)

@@ -19,7 +19,7 @@ from pydantic import Field, ValidationInfo, field_validator, model_validator
 from surgopt.config import NOT_IN_KEY, StrictModel
 from surgopt.robots import dvrk
 from surgopt.robots.models import CAMERA_ARMS, INSTRUMENT_ARMS, get_model
-from surgopt.robots.platforms import AUTO_PLATFORM, CART_MODELS, PLATFORMS, cart_models
+from surgopt.robots.dvrk.platforms import AUTO_PLATFORM, CART_MODELS, PLATFORMS, cart_models
 from surgopt.studies.port_place.geometry import (
     MAX_MESH_BYTES,
     MAX_POINTS_BYTES,
@@ -363,10 +363,10 @@ class Objective(StrictModel):
 
 
 class Cart(StrictModel):
-    """The dVRK patient cart (issue 40): its setup joints (``robots/dvrk_suj.py``) must put each arm's base at its
+    """The dVRK patient cart (issue 40): its setup joints (``robots/dvrk/suj.py``) must put each arm's base at its
     port, docked as the rows assume (the neutral shaft through the target's centre). "none": docking is assumed,
     as before the cart was modelled. "classic": the Classic cart; every arm's setup joints are solved for each port
-    and cart pose (``kinematics.suj``: the PSMs' docked toward the target's centre, the ECM's with its own yaw and
+    and cart pose (``kinematics.port.suj``: the PSMs' docked toward the target's centre, the ECM's with its own yaw and
     pitch aiming the scope), and a layout is dockable when at one cart pose every arm's SUJ has a solution within
     its ranges (PSM1 and PSM2 on either of the pair's ports). The arms' links are not checked against each other
     yet: a dockable layout is one the setup joints can reach.

@@ -8,8 +8,8 @@ import json
 
 import numpy as np
 
-from surgopt.robots.dvrk_links import LINK_MODEL_WORDS
-from surgopt.robots.platforms import CAMERA_ROLE, INSTRUMENT_ROLES, PLATFORMS
+from surgopt.robots.dvrk.links import LINK_MODEL_WORDS
+from surgopt.robots.dvrk.platforms import CAMERA_ROLE, INSTRUMENT_ROLES, PLATFORMS
 
 from surgopt.errors import UsageError
 from surgopt.studies.port_place.carts import has_cart
@@ -27,9 +27,9 @@ def _matrix(t) -> list:
 
 def arm_joints_at_centre(limits, base_in_patient: np.ndarray, centre_m: np.ndarray) -> list[float]:
     """An instrument arm's yaw, pitch (rad) and insertion (m) that put its reaching point (the tip or the wrist,
-    as the run's ``ArmLimits`` say) on the target's centre (``kinematics.port_place.rcm_inverse``, eq. P2, in its
+    as the run's ``ArmLimits`` say) on the target's centre (``kinematics.port.place.rcm_inverse``, eq. P2, in its
     base frame)."""
-    from surgopt.kinematics.port_place import rcm_inverse
+    from surgopt.kinematics.port.place import rcm_inverse
 
     p = base_in_patient[:3, :3].T @ (centre_m - base_in_patient[:3, 3])
     return [float(v) for v in rcm_inverse(p, limits.along_shaft_m)]
@@ -37,11 +37,11 @@ def arm_joints_at_centre(limits, base_in_patient: np.ndarray, centre_m: np.ndarr
 
 def clearances_of(checks: list, cfg: PortPlaceConfig) -> dict:
     """The layout's least clearances outside the body (``clashes``): each check's value (mm), links and where,
-    and the least of them; the link model named (``robots/dvrk_links.LINK_MODEL_WORDS``)."""
+    and the least of them; the link model named (``robots/dvrk/links.LINK_MODEL_WORDS``)."""
     from surgopt.studies.port_place.clashes import in_feasible, least
 
     worst = least(checks)
-    model = f"{LINK_MODEL_WORDS} (robots/dvrk_links.py); {in_feasible(cfg)}"
+    model = f"{LINK_MODEL_WORDS} (robots/dvrk/links.py); {in_feasible(cfg)}"
     return {"least_mm": None if worst is None else round(worst.clearance_mm, 1),
             "model": model,
             "checks": [{"check": c.check, "clearance_mm": round(c.clearance_mm, 1), "link": c.link_a,
@@ -49,8 +49,8 @@ def clearances_of(checks: list, cfg: PortPlaceConfig) -> dict:
 
 
 def fails_on(bits: int) -> list[str]:
-    """What a row fails on (``port_reasons.REASONS``, in their order); empty for a feasible row."""
-    from surgopt.kinematics.port_reasons import REASONS
+    """What a row fails on (``reasons.REASONS``, in their order); empty for a feasible row."""
+    from surgopt.kinematics.port.reasons import REASONS
 
     return [text for bit, text in REASONS.items() if bits & bit]
 

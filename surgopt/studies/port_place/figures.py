@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from surgopt.robots.platforms import PLATFORMS
+from surgopt.robots.dvrk.platforms import PLATFORMS
 
 from surgopt.studies.plotting import columns, pyplot, save
 from surgopt.studies.port_place.carts import has_cart
@@ -56,7 +56,7 @@ def chosen(c: dict, design_id: int | None, cfg=None) -> int | None:
 def cheapest_clash(c: dict) -> int | None:
     """The cheapest row (then the lowest design_id) that docks and fails on its links alone (reason 16), or None:
     with no layout to draw, the cart figure shows where the cheapest overlaps."""
-    from surgopt.kinematics.port_reasons import OUTSIDE
+    from surgopt.kinematics.port.reasons import OUTSIDE
 
     cand = np.flatnonzero((c["infeasible"] == OUTSIDE) & (c["cart_pose"] >= 0)) if "cart_pose" in c else []
     return int(cand[np.lexsort((c["design_id"][cand], c["cost"][cand]))[0]]) if len(cand) else None
@@ -179,7 +179,7 @@ def figures(cfg, table, out, design_id=None):
                                  "fails on them alone"))
 
     # why designs fail
-    from surgopt.kinematics.port_reasons import REASONS
+    from surgopt.kinematics.port.reasons import REASONS
 
     if cfg.rows_stored == "feasible":  # the infeasible designs' rows, and so their reasons, were not kept
         return paths
@@ -254,7 +254,7 @@ def cart_figure(plt, cfg, row: dict, out, note: str = ""):
     export docks it (``clashes.docking_that_clears``: each PSM rolled about its shaft where that clears the links).
     Where its links overlap however docked, the two links of the least clearance are drawn red and named;
     ``note``: why this layout is drawn, when it is not the best."""
-    from surgopt.kinematics import suj as S
+    from surgopt.kinematics.port import suj as S
     from surgopt.studies.port_place.geometry import body_extent_mm, dome_surface_mm
     from surgopt.studies.port_place.clashes import arm_poses
     from surgopt.studies.port_place.tables import model_of, row_patient_in_cart

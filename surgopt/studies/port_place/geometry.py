@@ -244,7 +244,7 @@ def body_distance_mm(p: np.ndarray, patient, cap_mm: float, many: bool = False) 
         d, _ = tree.query(np.asarray(p, float), distance_upper_bound=cap_mm + gap, workers=TABLE_THREADS)
         return np.clip(np.where(np.isinf(d), cap_mm + gap, d) - gap, 0.0, cap_mm)
     if patient.shape == "dome":
-        from surgopt.kinematics.port_serial import nearest_distances
+        from surgopt.kinematics.port.serial import nearest_distances
 
         samples, gap = dome_samples_mm(tuple(patient.semi_axes_mm), patient.dome_exponent)
         return np.clip(nearest_distances(np.ascontiguousarray(p, float), samples, cap_mm + gap) - gap, 0.0, cap_mm)

@@ -87,14 +87,14 @@ def views(run, cfg, parts) -> list[View]:
     for a in arms:  # each port from the reference landmark, in words (the closing report's)
         layouts[f"{a}_from"] = np.array([from_landmark(x, y, mark) for x, y in zip(layouts[f"{a}_x_mm"],
                                                                                   layouts[f"{a}_y_mm"])])
-    from surgopt.kinematics.port_reasons import REASONS
+    from surgopt.kinematics.port.reasons import REASONS
 
     arm_lines, cam_lines = (None if lines is None else lines * 1000  # a serial arm's centre lines, every site
                             for lines in (model.instruments.docked_lines(model, sites_m),
                                           model.endoscope.docked_lines(model, sites_m)))
     reach3 = dex3 = None
     if model.third_rot is not None:  # the third instrument docks in frames of its own (the Si PSM3)
-        from surgopt.kinematics import port_place as K
+        from surgopt.kinematics.port import place as K
 
         reach3, dex3 = K.instrument_tables(sites_m, model.third_rot, model.targets_m, model.limits,
                                            model.criteria.dexterity_length_m, model.cone)

@@ -17,7 +17,7 @@ words of where the clearance is at least ``constraints.min_link_clearance_mm``. 
 per-layout clearances (the same capsules placed by the plain forward kinematics) in tests/test_link_tables.py.
 
 One module of ~450 lines: each arm's links placed (static, moving), the pairs' and the surroundings' tables and
-their packing are one computation read together, for either cart; its kernels are ``kinematics.capsules``'.
+their packing are one computation read together, for either cart; its kernels are ``kinematics.port.capsules``'.
 """
 from __future__ import annotations
 
@@ -27,13 +27,13 @@ import numpy as np
 
 # the setup joints' links checked: after the column and the arm's carriage on it, which are the cart's
 # (``clashes.arm_poses``)
-from surgopt.kinematics.capsules import LINK_CODE, PAIR_CODE
-from surgopt.robots.dvrk_links import SUJ_ON_COLUMN as FIRST_SUJ_LINK, through_port
-from surgopt.robots.platforms import PLATFORMS
+from surgopt.kinematics.port.capsules import LINK_CODE, PAIR_CODE
+from surgopt.robots.dvrk.links import SUJ_ON_COLUMN as FIRST_SUJ_LINK, through_port
+from surgopt.robots.dvrk.platforms import PLATFORMS
 from surgopt.studies.port_place.geometry import TABLE_THREADS
 
 #: The arm pairs whose links are checked, in the order of the rows' ``external_link_pair`` code (PAIR_CODE * pair +
-#: LINK_CODE * link of the first + link of the second: ``kinematics.capsules``).
+#: LINK_CODE * link of the first + link of the second: ``kinematics.port.capsules``).
 ARM_PAIRS = (("PSM1", "PSM2"), ("PSM1", "ECM"), ("PSM2", "ECM"), ("PSM1", "PSM3"), ("PSM2", "PSM3"),
              ("PSM3", "ECM"))
 #: Points along a link at most this far apart (m) where its clearance to the patient is measured, and the table's
@@ -101,7 +101,7 @@ def link_names(arm: str, cart: str = "classic") -> tuple[str, ...]:
              + tuple(f"{arm} {c.name}" for c in PLATFORMS[cart].own_links(arm)[1]))
     if len(names) > LINK_CODE:  # a platform's data, not a user's input: the code could not name its links
         raise ValueError(f"{arm} on the {cart} cart has {len(names)} links; a clearance's code names at most "
-                         f"{LINK_CODE} (kinematics.capsules.LINK_CODE)")
+                         f"{LINK_CODE} (kinematics.port.capsules.LINK_CODE)")
     return names
 
 
@@ -136,7 +136,7 @@ def surroundings(cfg, segs: np.ndarray, radii: np.ndarray, through: np.ndarray, 
     resolved to ``PATIENT_CAP_MM``; not the links that pass the port, ``through``) and to the table (the
     slab, exact by golden-section search), and its code LINK_CODE * link + (0 patient, 1 table): (value (K,), code (K,)),
     NaN and -1 elsewhere. As ``clashes.against_patient`` and ``against_table`` measure them."""
-    from surgopt.kinematics.capsules import along_many, segments_box_distance
+    from surgopt.kinematics.port.capsules import along_many, segments_box_distance
     from surgopt.studies.port_place.geometry import body_box_mm, body_distance_mm, inside_body
 
     n_item, n_link = segs.shape[:2]
@@ -214,7 +214,7 @@ def own_moving(model, sites: np.ndarray, rot: np.ndarray, arm: str = "PSM1"
     PSM's own links (its cart's, ``Platform.own_links``) docked at each port in its docking frame ``rot`` (n, 3, 3), with
     the mount where its setup joints' tip is (SUJ_tip_to_tool_origin), docked (yaw = pitch = 0, the tip at the
     centre's depth) and reaching each of ``pose_points`` (eq. P2), as ``clashes.arm_poses`` places them."""
-    from surgopt.kinematics import capsules as C
+    from surgopt.kinematics.port import capsules as C
 
     along = model.limits.along_shaft_m
     points, groups = pose_points(model)
@@ -255,7 +255,7 @@ def to_patient(dock) -> np.ndarray:
 def suj_static(cfg, arm: str, joints: np.ndarray, dock) -> np.ndarray:
     """(n, m, S, 2, 3) An arm's setup-joint links (``FIRST_SUJ_LINK`` on, ``suj_link_count``) at its joints (n, m,
     6: the jointed first; NaN where it does not dock) in the patient's frame."""
-    from surgopt.kinematics.suj_batch import link_segments
+    from surgopt.kinematics.port.suj_batch import link_segments
 
     n, m = joints.shape[:2]
     frame = np.broadcast_to(to_patient(dock)[None], (n, m, 4, 4)).reshape(-1, 4, 4)
@@ -269,8 +269,8 @@ def ecm_static(cfg, dock) -> np.ndarray:
     """(n, m, S + 3, 2, 3) The ECM docked at each site and pose: its setup joints' links and its own
     (``Platform.own_links``: at the yaw and pitch that aim the scope, insertion 0), in the patient's frame (NaN where it
     does not dock)."""
-    from surgopt.kinematics import capsules as C
-    from surgopt.kinematics.suj_batch import chain_ends
+    from surgopt.kinematics.port import capsules as C
+    from surgopt.kinematics.port.suj_batch import chain_ends
 
     suj = PLATFORMS[cfg.cart.model].suj("ECM")
     joints = dock.camera_joints
@@ -291,7 +291,7 @@ def ecm_static(cfg, dock) -> np.ndarray:
 
 def suj_radii(cart: str, arm: str) -> np.ndarray:
     """An arm's setup-joint links' radii (m)."""
-    from surgopt.robots.dvrk_links import SUJ_RADIUS_M
+    from surgopt.robots.dvrk.links import SUJ_RADIUS_M
 
     return np.full(suj_link_count(cart, arm), SUJ_RADIUS_M)
 
@@ -330,9 +330,9 @@ def link_tables(model, sites: np.ndarray, rot: np.ndarray, dock, wanted: Wanted,
     ``dock`` (its ``joints``) where both dock and a design can need it (``wanted``; elsewhere NaN, and the words
     set: the links do not decide there); ``rot``: the instrument arms' docking frames there, ``third_rot`` the
     third's where they are its own (the Si's PSM3, ``tables.third_frames``)."""
-    from surgopt.kinematics import capsules as C
-    from surgopt.kinematics.port_designs import pack_bits
-    from surgopt.robots.dvrk_suj import INSTRUMENT_SUJS
+    from surgopt.kinematics.port import capsules as C
+    from surgopt.kinematics.port.designs import pack_bits
+    from surgopt.robots.dvrk.suj import INSTRUMENT_SUJS
 
     cfg = model.cfg
     cart = cfg.cart.model
@@ -392,7 +392,7 @@ def moving_starts(tasks, n, moving_x, balls_x, moving_y, balls_y, radii, groups,
     """Two PSMs' own links over every pair of their poses (``capsules.moving_pairs``), once per site pair of
     ``tasks`` (T, 3: site of X, site of Y, cart pose), whatever the pose: (least (T,), X's link, Y's link). Two arms
     in the same frames (``moving_x is moving_y``) are one problem per unordered pair."""
-    from surgopt.kinematics import capsules as C
+    from surgopt.kinematics.port import capsules as C
 
     if moving_x is moving_y:
         lo, hi = np.minimum(tasks[:, 0], tasks[:, 1]), np.maximum(tasks[:, 0], tasks[:, 1])
@@ -444,7 +444,7 @@ def arm_surroundings(cfg, moving, r_own, static, docks):
 
 def _pairs(tasks, start, start_code, *rest):
     """``capsules.pair_clearances`` with its row-aligned arguments first (``in_threads``)."""
-    from surgopt.kinematics.capsules import pair_clearances
+    from surgopt.kinematics.port.capsules import pair_clearances
 
     static_x, moving_x, r_sx, r_mx, balls_mx, static_y, moving_y, r_sy, r_my, balls_my, groups, floor = rest
     return pair_clearances(tasks, static_x, moving_x, r_sx, r_mx, balls_mx, static_y, moving_y, r_sy, r_my, balls_my,

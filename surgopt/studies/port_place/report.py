@@ -20,8 +20,8 @@ import numpy as np
 
 from surgopt.studies import Summary
 from surgopt.studies.port_place.clashes import in_feasible
-from surgopt.robots.dvrk_links import LINK_MODEL_WORDS
-from surgopt.robots.platforms import PLATFORMS
+from surgopt.robots.dvrk.links import LINK_MODEL_WORDS
+from surgopt.robots.dvrk.platforms import PLATFORMS
 from surgopt.studies.port_place.config import PortPlaceConfig
 from surgopt.studies.port_place.geometry import FRAME_TEXT, from_landmark
 from surgopt.studies.port_place.hands import pairing_words
@@ -96,7 +96,7 @@ NOT_MODELLED = ("the Xi's setup joints, each PSM's docking turn as a dimension o
 
 def summary(parts) -> Summary:
     """Feasible count, each reason's count, the best feasible design by cost with its clinical checks."""
-    from surgopt.kinematics.port_reasons import DOCKING, REASONS
+    from surgopt.kinematics.port.reasons import DOCKING, REASONS
 
     n = parts.num_rows
     by_bit = dict.fromkeys(REASONS, 0)
@@ -292,7 +292,7 @@ def undocked_table(parts, meta: dict) -> list:
     """How many of the UNDOCKED_OF_BEST layouts of least cost that are feasible without the cart (every reason
     but docking passes) the cart cannot dock, and why (``why_undocked``): the closing report's answer to "which
     of the previous best layouts are not dockable"."""
-    from surgopt.kinematics.port_reasons import DOCKING, OUTSIDE
+    from surgopt.kinematics.port.reasons import DOCKING, OUTSIDE
     from surgopt.studies.port_place.tables import model_of
 
     arms = [a for a in ("psm1", "psm2", "psm3", "ecm") if f"{a}_site" in parts.schema.names]
@@ -419,7 +419,7 @@ def with_cheaper_overlapping(parts, feasible: list[dict]) -> list[dict]:
     """With the links in feasible: the layouts cheaper than the best feasible one that fail only on the links
     (reason 16: they dock, and their links overlap at the run's docking roll at every pose) before the feasible
     ones, by cost, for the screen to try with each PSM's roll (``clearance_screen``)."""
-    from surgopt.kinematics.port_reasons import OUTSIDE
+    from surgopt.kinematics.port.reasons import OUTSIDE
 
     cheaper = [r for r in least_cost_layouts(parts, SCREEN_LAYOUTS, False, only_reasons=OUTSIDE).to_pylist()
                if not feasible or (r["cost"], r["design_id"]) < (feasible[0]["cost"], feasible[0]["design_id"])]

@@ -1,5 +1,5 @@
 """port-place's instruments on serial arms that keep the RCM in software (``[robot.instrument_serial]``): each
-candidate port's reach and dexterity, and the arms' clearance outside the body, from ``kinematics.port_serial``.
+candidate port's reach and dexterity, and the arms' clearance outside the body, from ``kinematics.port.serial``.
 
 A port is refused for the arm (it reaches nothing there) when the arm's base would stand inside the patient's
 body, or when its links, at the docked pose, pass through the body or nearer its wall than their radius
@@ -40,7 +40,7 @@ def _stand(model, arm, sites: np.ndarray, extra_yaw_rad=None):
     """(rcm in the base (m), base rotations, base origins, refused) of a serial ``arm`` standing at ports ``sites``
     (m), turned by ``base_yaw_deg`` and ``extra_yaw_rad``: BASE_INSIDE where its base would stand inside the
     body."""
-    from surgopt.kinematics import port_serial as S
+    from surgopt.kinematics.port import serial as S
 
     rcm = np.asarray(arm.rcm_in_base_m, np.float64)
     yaw = np.radians(arm.base_yaw_deg) + (0.0 if extra_yaw_rad is None else np.asarray(extra_yaw_rad, float))
@@ -51,7 +51,7 @@ def _stand(model, arm, sites: np.ndarray, extra_yaw_rad=None):
 def _docked(model, arm, kernel, rcm, joints: np.ndarray, rot, pos, refused: np.ndarray):
     """(centre lines, through) of the arm at its docked ``joints`` (n, 5; NaN: none): where its links come through
     or near the wall (``_links_inside``) the port is refused (``refused`` set to LINKS_INSIDE) and its line NaN."""
-    from surgopt.kinematics import port_serial as S
+    from surgopt.kinematics.port import serial as S
 
     links = S.link_polylines(kernel.chain, np.ascontiguousarray(joints), kernel.tool_m, rcm, rot, pos)
     through = _links_inside(links, model.cfg, arm.link_radius_mm)
@@ -63,7 +63,7 @@ def _docked(model, arm, kernel, rcm, joints: np.ndarray, rot, pos, refused: np.n
 def serial_tables(model, sites: np.ndarray, extra_yaw_rad=None) -> SerialTables:
     """The serial instrument arm's tables at ports ``sites`` (m), each base turned by ``base_yaw_deg`` and, when
     given, by ``extra_yaw_rad`` at each site (a search's free docking); ``model``: the config's ``PortModel``."""
-    from surgopt.kinematics import port_serial as S
+    from surgopt.kinematics.port import serial as S
 
     arm, k = model.cfg.robot.instrument_serial, model.instruments.kernel
     rcm, rot, pos, refused = _stand(model, arm, sites, extra_yaw_rad)
@@ -115,7 +115,7 @@ def serial_camera_tables(model, sites: np.ndarray, tips: np.ndarray, ok: np.ndar
     IK with the tip at ``tips`` and the tool line through the port, on the seeded branch (one target point a
     port: the anchor is the point itself), within the limits and with the RCM on the tool; refused where its
     base would stand inside the body or its links, there, come nearer the wall than ``link_radius_mm``."""
-    from surgopt.kinematics import port_serial as S
+    from surgopt.kinematics.port import serial as S
 
     arm, k = model.cfg.robot.camera_serial, model.endoscope.kernel
     rcm, rot, pos, refused = _stand(model, arm, sites)

@@ -14,7 +14,7 @@ evaluated; docs/port_placement.md has the model, its sources and assumptions.
 
 The config models are in ``config``, the geometry they imply (patient, sites, target) in ``geometry``, the
 per-port and per-pair tables and the cart's in ``tables`` and ``link_tables``, the design kernels in
-``kinematics.port_designs``, a serial arm's tables in ``serial_arms``, the closing report in ``report`` (named
+``kinematics.port.designs``, a serial arm's tables in ``serial_arms``, the closing report in ``report`` (named
 here by module, imported when a report is made). One module of ~830 lines: the rows and their columns, the
 design's dimensions (ports, docking, stance) that both the rows and the search read, the evaluator and the
 estimate are one declaration, read together; split, the study's declaration and its search would import each
@@ -26,7 +26,7 @@ import math
 
 import numpy as np
 
-from surgopt.robots.platforms import AUTO_PLATFORM, PLATFORMS
+from surgopt.robots.dvrk.platforms import AUTO_PLATFORM, PLATFORMS
 
 from surgopt.studies.port_place.arms import instruments_held
 from surgopt.studies.port_place.carts import has_cart
@@ -44,7 +44,7 @@ DEFAULT_CONFIG = "port_place_dvrk.toml"
 CONFIG_HELP = "TOML or YAML config ([patient], [target], [robot], [constraints], [objective]); default: the dVRK example."
 
 def n_designs(n_sites: int, instruments: int = 2) -> int:
-    """Designs of ``n_sites`` candidates (``port_designs.design_columns``'s enumeration): an unordered working
+    """Designs of ``n_sites`` candidates (``designs.design_columns``'s enumeration): an unordered working
     pair of instruments, then (three instruments) the third's port, then the camera's, all distinct:
     C(n, 2) (n - 2), times (n - 3) with a third instrument."""
     d = n_sites * (n_sites - 1) // 2 * max(0, n_sites - 2)
@@ -99,7 +99,7 @@ FLOAT_COLUMNS = ("psm1_reach", "psm2_reach", "common_reach", "dexterity_mean", "
                  "manipulation_angle_centre_deg", "azimuth_imbalance_deg", "camera_coverage",
                  "shaft_clearance_mm", "external_clearance_mm", "camera_off_arc_deg")
 ANGLE_COLUMNS = {4, 5, 6, 8, 9, 13}
-#: With a third instrument, after FLOAT_COLUMNS (``port_designs.THIRD_COLUMNS``).
+#: With a third instrument, after FLOAT_COLUMNS (``designs.THIRD_COLUMNS``).
 THIRD_COLUMNS = ("psm3_reach", "psm3_dexterity_mean")
 
 
@@ -209,7 +209,7 @@ LINK_MEANING = {"meaning": "the least clearance of the arms' links outside the b
 def cart_fields(config) -> list:
     import pyarrow as pa
 
-    from surgopt.kinematics.capsules import LINK_CODE, PAIR_CODE
+    from surgopt.kinematics.port.capsules import LINK_CODE, PAIR_CODE
 
     if not has_cart(config):
         return []
@@ -239,7 +239,7 @@ def cart_fields(config) -> list:
 def suj_joint_columns(config) -> dict[str, tuple[tuple[str, str], ...]]:
     """Per arm (its column prefix), its setup joints' names in the cart's data and their row columns, in the
     order of the dVRK's ``simulated_position``: the column (prismatic, mm) first, then the revolute joints (deg)."""
-    from surgopt.robots.dvrk_suj import INSTRUMENT_SUJS
+    from surgopt.robots.dvrk.suj import INSTRUMENT_SUJS
 
     cart = PLATFORMS[cart_of(config)]
     out = {}
@@ -300,7 +300,7 @@ def _feasible_metadata(config) -> dict:
 
 
 def _reasons():
-    from surgopt.kinematics.port_reasons import REASONS
+    from surgopt.kinematics.port.reasons import REASONS
 
     return REASONS
 
@@ -312,7 +312,7 @@ INFEASIBLE_PENALTY = 100.0
 def compute_task(cfg, chunk: int, index: int) -> dict:
     """Designs [index*chunk, (index+1)*chunk) of the enumeration, every port docked toward the target's centre
     (only the feasible ones' rows when ``rows_stored`` is 'feasible')."""
-    from surgopt.kinematics.port_designs import design_columns
+    from surgopt.kinematics.port.designs import design_columns
 
     model = model_of(cfg)
     sites, (t, _, _), crit = model.sites_m, model.grid, model.criteria
@@ -522,8 +522,8 @@ def evaluate_designs(cfg, x: np.ndarray, ids: np.ndarray, source: str) -> dict:
     of those ports (``port_tables``), combined as the enumeration combines them (its design 0 is the ports in
     this order), with the cart's dock tables of those ports when the run has a cart. A design whose ports coincide
     is infeasible (zero spacing and clearance)."""
-    from surgopt.kinematics import port_place as K
-    from surgopt.kinematics.port_designs import design_columns
+    from surgopt.kinematics.port import place as K
+    from surgopt.kinematics.port.designs import design_columns
 
     ports = len(arms_of(cfg))
     x = np.asarray(x, dtype=np.float64).reshape(len(ids), -1)
@@ -584,7 +584,7 @@ def layout_isotropy(cfg: PortPlaceConfig, row: dict) -> np.ndarray:
     """(target points,) The instruments' smaller isotropy (eq. P5) at each target point, docked as the layout's
     row says (its docking yaw and pitch, eq. P3, then its rolls: a searched trial's own frames), NaN where one of
     them does not reach it: what the figures and the page colour a searched layout's target by."""
-    from surgopt.kinematics import port_place as K
+    from surgopt.kinematics.port import place as K
 
     model = model_of(cfg)
     arms = arms_of(cfg)[:-1]
@@ -602,7 +602,7 @@ def searched_dock(model, site_ids: np.ndarray, pose: dict, rot=None):
     ``tables.searched_values``): one pose, at which no arm docks (nothing solved) when the cart's origin would
     stand within ``clear_of_table_mm`` of the table; ``rot``: the instruments' frames at the ports when not the
     model's (a search's rolls)."""
-    from surgopt.kinematics.port_designs import pack_bits
+    from surgopt.kinematics.port.designs import pack_bits
     from surgopt.studies.port_place.tables import DockTables, dock_at, floor_pose, off_table, poses_of
 
     cfg = model.cfg
@@ -635,7 +635,7 @@ def cart_of_sites(dock, site_ids: np.ndarray):
 def warm_up(cfg) -> None:
     """The per-port tables (their kernels), then the design kernel as the config's tasks call it: the grid's
     chunks (``compute_task``), or a search's one design at a time (``evaluate_designs``)."""
-    from surgopt.kinematics.port_designs import design_columns
+    from surgopt.kinematics.port.designs import design_columns
     from surgopt.plans.search import optimiser_of
 
     model = model_of(cfg)
@@ -685,7 +685,7 @@ IN_FLIGHT_TASKS = 4
 NS_PER_PAIR_POINT = 300.0
 
 
-#: One Classic PSM setup joint's inverse kinematics (``kinematics.suj_batch.classic_psm_margins``, jitted): ~3.4 us
+#: One Classic PSM setup joint's inverse kinematics (``kinematics.port.suj_batch.classic_psm_margins``, jitted): ~3.4 us
 #: measured (benchmarks/bench_cart.py; plain Python's classic_psm_ik: ~118 us).
 NS_PER_SUJ_SOLVE = 4_000.0
 #: The links' clearance tables (``link_tables``), per (arm pair, site, site, cart pose) entry of the dense tables
@@ -700,7 +700,7 @@ LINK_ENTRY_BYTES = 16
 def link_pairs(instruments: int) -> int:
     """The arm pairs whose links are checked: PSM1-PSM2 and each PSM with the ECM, and PSM3 with the others."""
     return 3 if instruments == 2 else 6
-#: The ECM's setup joints at one site and cart pose (``kinematics.suj_batch.ecm_margins``' grid of 36 x 36 x 12,
+#: The ECM's setup joints at one site and cart pose (``kinematics.port.suj_batch.ecm_margins``' grid of 36 x 36 x 12,
 #: jitted): ~125 us measured (3.1 s for the default's 164 x 150; numpy over a pose's sites: ~300 us).
 NS_PER_ECM_DOCK = 130_000.0
 

@@ -18,9 +18,9 @@ together (a dock table reads the model's rolled docking frames; the grid's table
 docked arms of one layout (the report, the export, the figures) are solved the way the tables were.
 
 Equations: the docking frame (shaft through the target's centre, the frame's x as near the patient's lateral
-axis as the shaft allows) is ``kinematics.port_place.docking_frames``; reach is the RCM inverse of
+axis as the shaft allows) is ``kinematics.port.place.docking_frames``; reach is the RCM inverse of
 ``rcm_point`` within ``ArmLimits`` (docs/port_placement.md, "Reach"); the pair tables are
-``kinematics.port_place.pair_tables`` (manipulation angle, Hanna et al. 1997); the wrist margin below is the
+``kinematics.port.place.pair_tables`` (manipulation angle, Hanna et al. 1997); the wrist margin below is the
 approach cone's test of ``instrument_tables``.
 """
 from __future__ import annotations
@@ -33,10 +33,10 @@ from typing import NamedTuple
 
 import numpy as np
 
-from surgopt.robots.platforms import PLATFORMS
+from surgopt.robots.dvrk.platforms import PLATFORMS
 
 from surgopt.robots import dvrk
-from surgopt.robots.dvrk_suj import INSTRUMENT_SUJS
+from surgopt.robots.dvrk.suj import INSTRUMENT_SUJS
 from surgopt.studies.port_place.carts import (LATERAL, cart_for, patient_in_cart, rolled,  # noqa: F401 (theirs)
                                               row_patient_in_cart, si_frames)
 from surgopt.studies.port_place.arms import (RcmCamera, RcmInstruments, arm_limits,  # noqa: F401 (theirs)
@@ -66,10 +66,10 @@ class PortModel:
     targets_m: np.ndarray  # (m, 3) the target's points
     centre_m: np.ndarray  # (3,) the target's centre
     rot: np.ndarray  # (n, 3, 3) each site's default docking frame (its z: the shaft toward the centre)
-    criteria: object  # kinematics.port_place.Criteria
-    camera: object  # kinematics.port_place.Camera
-    limits: object  # the instrument arm's kinematics.port_place.ArmLimits
-    cone: object  # kinematics.port_place.Approach of the target for the instrument's wrist
+    criteria: object  # kinematics.port.place.Criteria
+    camera: object  # kinematics.port.place.Camera
+    limits: object  # the instrument arm's kinematics.port.place.ArmLimits
+    cone: object  # kinematics.port.place.Approach of the target for the instrument's wrist
     instruments: RcmInstruments  # how the instruments are held (``arms``): an RCM arm, or a serial arm's kernel
     endoscope: RcmCamera  # how the endoscope is held (``arms``)
 
@@ -115,7 +115,7 @@ class PortModel:
 
 def prepare(cfg: PortPlaceConfig) -> PortModel:
     """Build the model of a validated config (the grid's tables on first use of ``PortModel.grid``)."""
-    from surgopt.kinematics import port_place as K
+    from surgopt.kinematics.port import place as K
 
     sites = sites_mm(cfg) / 1000
     centre = np.asarray(cfg.target.centre_mm, float) / 1000
@@ -155,7 +155,7 @@ def instrument_rolls_rad(model: PortModel, sites: np.ndarray, rot: np.ndarray) -
     """Each port's docking roll (rad, signed by ``roll_sides``): ``robot.docking_roll_deg``, or with
     ``docking_roll = 'most_reach'`` the one of ``ROLL_CHOICES_DEG`` whose frame reaches the most target points
     (``instrument_tables``; ties: the choice nearest docking_roll_deg, then the smaller)."""
-    from surgopt.kinematics import port_place as K
+    from surgopt.kinematics.port import place as K
 
     r = model.cfg.robot
     side = roll_sides(sites)
@@ -190,10 +190,10 @@ def third_frames(model: PortModel, sites: np.ndarray) -> np.ndarray | None:
 
 
 def approach(target: Target, wrist_bend_rad: float):
-    """The target's approach cone for the kernel (``port_place.Approach``): a point is reached only where the
+    """The target's approach cone for the kernel (``place.Approach``): a point is reached only where the
     shaft's direction from the port lies within (wrist bend - half-angle) of the approach direction, so that the
     wrist can point the jaws along every direction of the cone; any direction when none is given."""
-    from surgopt.kinematics.port_place import Approach
+    from surgopt.kinematics.port.place import Approach
 
     if target.approach_direction is None:
         return Approach(0.0, 0.0, -1.0, -2.0)  # a cosine below -1: every shaft direction passes
@@ -203,9 +203,9 @@ def approach(target: Target, wrist_bend_rad: float):
 
 
 def camera_of(cfg: PortPlaceConfig):
-    """The endoscope for the kernels (``port_place.Camera``), its mechanism's ranges as the config's arm holds it
+    """The endoscope for the kernels (``place.Camera``), its mechanism's ranges as the config's arm holds it
     (a serial arm's open: its own IK decides, ``arms.SerialCamera``)."""
-    from surgopt.kinematics.port_place import Camera
+    from surgopt.kinematics.port.place import Camera
 
     r = cfg.robot
     limits = camera_held(cfg).limits(cfg)
@@ -216,7 +216,7 @@ def camera_of(cfg: PortPlaceConfig):
 
 def criteria(cfg: PortPlaceConfig):
     """The kernels' ``Criteria``: the constraints and the objective's weights, in radians and metres."""
-    from surgopt.kinematics.port_place import Criteria
+    from surgopt.kinematics.port.place import Criteria
 
     k, o = cfg.constraints, cfg.objective
     lo, hi = (math.radians(v) for v in k.manipulation_angle_deg)
@@ -255,8 +255,8 @@ def port_tables(model: PortModel, sites: np.ndarray, rot: np.ndarray, outside=No
     instrument arm's base turned further at each port (a search's free docking); ``dock``: the cart's
     ``DockTables`` of these sites (None: no cart, every arm docks); ``rolls_rad``: each port's roll about its
     shaft (a search's, ``docking_roll = 'search'``; else the config's, ``instrument_rolls_rad``)."""
-    from surgopt.kinematics import port_designs as D
-    from surgopt.kinematics import port_place as K
+    from surgopt.kinematics.port import designs as D
+    from surgopt.kinematics.port import place as K
 
     cfg, targets, centre, crit, camera = model.cfg, model.targets_m, model.centre_m, model.criteria, model.camera
     rolls = instrument_rolls_rad(model, sites, rot) if rolls_rad is None else rolls_rad  # the instruments'
@@ -310,7 +310,7 @@ def camera_tip_tables(sites: np.ndarray, centre: np.ndarray, views, held=None) -
 def camera_tips(model: PortModel, sites: np.ndarray) -> dict:
     """``camera_tip_tables`` of ports ``sites`` (m) docked as the grid docks the camera: what a view of one
     layout (its export) reads, from the kernel the rows use."""
-    from surgopt.kinematics import port_place as K
+    from surgopt.kinematics.port import place as K
 
     frames = K.docking_frames(sites, model.centre_m, LATERAL)
     return camera_tip_tables(sites, model.centre_m, K.camera_views(sites, frames, model.centre_m, model.camera))
@@ -345,7 +345,7 @@ def camera_clearances(sites: np.ndarray, rot: np.ndarray, outside: np.ndarray, s
     """[instrument port, camera port]: the two arms' clearance outside the body, each arm its shaft line behind
     its port (``outside``, the instruments' pair table, i < j), or a serial arm's centre line (``serial``: the
     instruments' ``SerialTables``, ``held``: the camera's ``SerialCamera``)."""
-    from surgopt.kinematics import port_serial as S
+    from surgopt.kinematics.port import serial as S
 
     if serial is None and held is None:
         return outside + outside.T
@@ -469,7 +469,7 @@ def base_pose(rot: np.ndarray, site_m: np.ndarray) -> np.ndarray:
 
 def dock_tables(model: PortModel) -> DockTables:
     """Every arm's setup joints at every site and cart pose, as bits and margins: each instrument arm's best
-    solution's least margin (``kinematics.suj_batch``, S2 jitted over every (site, pose); its docking frame the
+    solution's least margin (``kinematics.port.suj_batch``, S2 jitted over every (site, pose); its docking frame the
     rolled one, ``PortModel.instrument_rot``) and the ECM's (``camera_dock``); with no cart, one pose at which
     everything docks."""
     cfg = model.cfg
@@ -485,7 +485,7 @@ def dock_at(model: PortModel, site_ids: np.ndarray, poses: CartPoses, rot=None) 
     """``dock_tables`` of some candidate sites (``site_ids``, in that order: a design's own ports) at some cart
     poses (a searched pose: one); ``rot``: the instruments' frames at those sites when not the model's (a
     search's rolls)."""
-    from surgopt.kinematics.port_designs import pack_bits
+    from surgopt.kinematics.port.designs import pack_bits
 
     m, n = len(poses.floor), len(site_ids)
     margin, joints = psm_docks(model, site_ids, poses, rot)
@@ -539,7 +539,7 @@ def mount_heights_m(cfg: PortPlaceConfig, arm: str, frames: np.ndarray, sites_m:
 def redocked(model: PortModel, dock: DockTables, site_ids: np.ndarray, rot: np.ndarray) -> DockTables:
     """``dock`` (the dock tables of ``site_ids``) with the instruments' setup joints solved again in frames ``rot``
     (a search's rolls, one per site); the ECM's, which do not depend on them, kept."""
-    from surgopt.kinematics.port_designs import pack_bits
+    from surgopt.kinematics.port.designs import pack_bits
 
     margin, joints = psm_docks(model, site_ids, dock.poses, rot)
     return dock._replace(bits=pack_bits(margin >= 0.0), margin=margin,
@@ -564,7 +564,7 @@ def suj_margins(cfg: PortPlaceConfig, dock: DockTables) -> tuple[np.ndarray, np.
 def camera_shafts(camera, centre_m: np.ndarray, sites_m: np.ndarray) -> np.ndarray:
     """(n, 3) The endoscope's shaft direction at each port (patient frame): toward the target's centre, or an
     angled scope's shaft (``camera_views``' tip)."""
-    from surgopt.kinematics import port_place as K
+    from surgopt.kinematics.port import place as K
 
     if camera.scope_angle_rad == 0.0:
         d = centre_m - sites_m
@@ -576,7 +576,7 @@ def camera_shafts(camera, centre_m: np.ndarray, sites_m: np.ndarray) -> np.ndarr
 
 def camera_dock(cfg: PortPlaceConfig, patient: np.ndarray, sites_m: np.ndarray):
     """The ECM's setup joints at ports ``sites_m`` (n, 3) with the patient at ``patient`` (4, 4, or (m, 4, 4):
-    each cart pose) in the cart's world frame (``kinematics.suj_batch.ecm_margins``, S4: its own yaw and pitch
+    each cart pose) in the cart's world frame (``kinematics.port.suj_batch.ecm_margins``, S4: its own yaw and pitch
     aim the scope's shaft): (margin, SUJ joints, ECM yaw and pitch) per port (per pose, then port)."""
     arm = camera_arm_of(cfg)
     centre = np.asarray(cfg.target.centre_mm, float) / 1000
@@ -605,8 +605,8 @@ def docked_arms(cfg: PortPlaceConfig, row: dict) -> list[DockedArm]:
     """Each arm of a layout's row (its ports, ``psm1_x_mm`` ..., and its cart pose, ``cart_x_mm`` ...) docked by
     the cart's setup joints: the best solution within the ranges (the largest least margin); the ECM's with its
     own yaw and pitch aiming the scope (``camera_dock``), in ``ecm``."""
-    from surgopt.kinematics import port_place as K
-    from surgopt.kinematics import suj as S
+    from surgopt.kinematics.port import place as K
+    from surgopt.kinematics.port import suj as S
 
     cart = cart_for(cfg)
     centre = np.asarray(cfg.target.centre_mm, float) / 1000

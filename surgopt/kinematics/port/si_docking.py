@@ -7,7 +7,7 @@ The Si's setup joints set only the yaw psi of the arm's base about the vertical 
 
 so with the RCM on the port, the arm's neutral shaft -z_base points along R(psi) (0, 0, -1) and cannot be aimed
 at the target's centre in general. The arm's own yaw q1 and pitch q2 absorb the rest: in the base frame the
-aim a (a unit vector from the port toward the centre) is a_b = R(psi)^T a, and (P2, ``port_place.rcm_inverse``)
+aim a (a unit vector from the port toward the centre) is a_b = R(psi)^T a, and (P2, ``place.rcm_inverse``)
 q2 = -asin(a_b,y), q1 = atan2(a_b,x, -a_b,z). The angle they absorb, between the neutral shaft and the aim, is
 least at the yaw that brings the neutral shaft's horizontal part onto the aim's (S6):
 
@@ -25,7 +25,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from surgopt.kinematics import suj as S
+from surgopt.kinematics.port import suj as S
 
 #: The yaws tried besides psi*: a grid of this step over a whole turn (rad).
 YAW_STEP_RAD = math.radians(1.0)

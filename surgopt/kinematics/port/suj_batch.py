@@ -15,7 +15,7 @@ from typing import NamedTuple
 import numpy as np
 
 from surgopt.jit import EXACT, njit
-from surgopt.kinematics.suj import MARGIN_TIE
+from surgopt.kinematics.port.suj import MARGIN_TIE
 
 
 class SujArrays(NamedTuple):
@@ -32,7 +32,7 @@ class SujArrays(NamedTuple):
 
 
 def suj_arrays(suj) -> SujArrays:
-    """A ``robots.dvrk_suj.Suj`` (a Classic PSM's: six jointed links, none fixed) as ``SujArrays``."""
+    """A ``robots.dvrk.suj.Suj`` (a Classic PSM's: six jointed links, none fixed) as ``SujArrays``."""
     if len(suj.links) != 6 or suj.fixed:
         raise ValueError(f"{suj.cart} {suj.arm}: the batch solver is the Classic PSM SUJ's (six jointed links)")
     rows = suj.links
@@ -204,7 +204,7 @@ class EcmArrays(NamedTuple):
 
 
 def ecm_arrays(suj, yaw_rad: tuple, pitch_rad: tuple) -> EcmArrays:
-    """A Classic ECM ``robots.dvrk_suj.Suj`` and the ECM's yaw and pitch ranges as ``EcmArrays``."""
+    """A Classic ECM ``robots.dvrk.suj.Suj`` and the ECM's yaw and pitch ranges as ``EcmArrays``."""
     tip = np.asarray(suj.tip_to_tool, float)
     rows = suj.links
     return EcmArrays(np.asarray(suj.world_to_suj, float), tip[:3, 3].copy(), math.atan2(tip[1, 0], tip[0, 0]),

@@ -1,7 +1,7 @@
 """da Vinci Research Kit arms: what the PSM (instrument arm) and the ECM (endoscope arm), both RCM mechanisms,
 share: the ``RcmArm`` type, their yaw / pitch / insertion rows, the Large Needle Driver's wrist, the shaft
-diameters. The arms themselves are model files (``dvrk_psm_classic.py``, ``dvrk_psm_si.py``, ``dvrk_ecm_classic.py``,
-``dvrk_ecm_si.py``) in the one registry of shipped arms (``robots.models.ARMS``, kind "rcm").
+diameters. The arms themselves are model files in this package (``psm_classic.py``, ``psm_si.py``, ``ecm_classic.py``,
+``ecm_si.py``) in the one registry of shipped arms (``robots.models.ARMS``, kind "rcm").
 
 Source: jhu-dvrk/sawIntuitiveResearchKit (commit 9e535e6, April 2026), share/kinematic/ (PSM.json,
 PSM_Si.json, ECM.json, ECM_Si.json), share/tool/ (LARGE_NEEDLE_DRIVER_400006.json, ..._420006.json), as

@@ -34,7 +34,7 @@ import math
 import numpy as np
 
 from surgopt.jit import CONTRACT, EXACT, njit
-from surgopt.kinematics.port_place import segment_distance
+from surgopt.kinematics.port.place import segment_distance
 from surgopt.kinematics.serial_chain import (
     N_ACTIVE, chain_frames, constraint_reference, continue_walk, newton_rcm, pose_extremes_from_jacobian,
     scalar_buffers, seed_solve, within_limits,
@@ -230,7 +230,7 @@ def _real_segments(lines):
 @njit(**EXACT)
 def link_clearances(lines):
     """(n, n) least distance between two arms' centre lines (``link_polylines``), entries i < j filled (as
-    ``port_place.pair_tables``' outside); 0 where either arm has no docked pose."""
+    ``place.pair_tables``' outside); 0 where either arm has no docked pose."""
     n, p = lines.shape[0], lines.shape[1]
     out = np.zeros((n, n))
     real = _real_segments(lines)
@@ -273,7 +273,7 @@ def polyline_clearances(a, b):
 def link_camera_clearances(lines, sites, axes, length_m):
     """[instrument site, camera site]: least distance between the serial arm's centre line at the first and the
     camera arm's shaft line continued ``length_m`` behind its port along ``axes`` (unit, outward) at the second
-    (``port_place.external_clearances``' segment); 0 where the arm has no docked pose, or the two share a site."""
+    (``place.external_clearances``' segment); 0 where the arm has no docked pose, or the two share a site."""
     n, p = lines.shape[0], lines.shape[1]
     out = np.zeros((n, n))
     real = _real_segments(lines)

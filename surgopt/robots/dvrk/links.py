@@ -6,12 +6,12 @@ jhu-dvrk/dvrk-ros ``dvrk_model/model/psm.base.urdf.xacro`` (commit be3910ac): ea
 roll-pitch-yaw rad, URDF's fixed-axis convention R = Rz(yaw) Ry(pitch) Rx(roll)) and the joint it turns about its
 z with (yaw q1, pitch q2 times the parallelogram's mimic multiplier +-1, or insertion q3 along z). The frame
 ``base`` is the PSM's base frame, whose origin is the RCM: at (q1, q2) the carriage-to-wrist line of this
-skeleton is the shaft u(q1, q2) of the DH model (``kinematics.port_place.shaft_direction``,
+skeleton is the shaft u(q1, q2) of the DH model (``kinematics.port.place.shaft_direction``,
 tests/test_capsules.py checks it), so both descriptions agree where they overlap. The ECM's arm beyond its
 setup joints is not in that file; it is modelled as its scope's carriage, a line behind the RCM (below).
 
 How thick they are: the PSMs' own links (Classic and Si) are capsules fitted to the arms' own meshes
-(jhu-dvrk/dvrk_model, ``dvrk_link_envelopes``, written by tools/fit_link_envelopes.py: each contains its mesh,
+(jhu-dvrk/dvrk_model, ``dvrk.link_envelopes``, written by tools/fit_link_envelopes.py: each contains its mesh,
 tests/test_link_envelopes.py). What has no mesh placed on this skeleton stays an *assumption*, labelled as such:
 the setup joints' links 50 mm radius, the link from the SUJ's tip to the arm 45 mm, the Si instrument's housing
 40 mm (its mesh is empty in that repository), the ECM's carriage and camera 40 mm; the shaft outside the port 4 mm
@@ -77,9 +77,9 @@ ASSUMED = "radius assumed"
 
 
 def mesh_capsules(skeleton: str) -> tuple:
-    """The PSM's links as fitted to its own meshes (``dvrk_link_envelopes``, issue 54), each named with its mesh
+    """The PSM's links as fitted to its own meshes (``dvrk.link_envelopes``, issue 54), each named with its mesh
     and how loose its fit is (the capsules' volume over the mesh's convex hull)."""
-    from surgopt.robots import dvrk_link_envelopes as E
+    from surgopt.robots.dvrk import link_envelopes as E
 
     fits = [e for e in E.ENVELOPES if e.skeleton == skeleton]
     loose = {}
@@ -90,7 +90,7 @@ def mesh_capsules(skeleton: str) -> tuple:
                  for e in fits)
 
 
-#: "mount": the SUJ's tip (the base frame's point where SUJ_tip_to_tool_origin starts, ``dvrk_suj``) is added
+#: "mount": the SUJ's tip (the base frame's point where SUJ_tip_to_tool_origin starts, ``dvrk.suj``) is added
 #: by the code as frame "mount"; the capsule between it and the yaw link closes the arm to its setup joints (its
 #: radius an assumption). The arm's own links are its meshes' fitted capsules (``mesh_capsules``): the mount's
 #: housing, the yaw link, the parallelogram's four links, the insertion stage and the instrument's housing; the
@@ -151,7 +151,7 @@ PSM_SI_CAPSULES = (
             "dvrk-kinematics.md: 8 mm shaft"),
 )
 
-#: The setup joints' links: the segments between successive frames of ``kinematics.suj.frames``; the first two
+#: The setup joints' links: the segments between successive frames of ``kinematics.port.suj.frames``; the first two
 #: (the cart's column and the arm's carriage on it) are part of the cart and not checked between arms.
 SUJ_RADIUS_M = 0.05
 

@@ -1,6 +1,6 @@
 """Why a port-place design is infeasible: the bits of its ``infeasible`` column and their words.
 
-Plain constants, apart from the kernels that set them (``port_place``, ``port_designs``), so that the readers (the
+Plain constants, apart from the kernels that set them (``place``, ``designs``), so that the readers (the
 rows' schema, the reports) name them without loading numba.
 """
 

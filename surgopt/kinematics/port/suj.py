@@ -1,4 +1,4 @@
-"""The patient cart's setup joints (SUJ, ``robots/dvrk_suj.py``): forward kinematics from the DH data, and
+"""The patient cart's setup joints (SUJ, ``robots/dvrk/suj.py``): forward kinematics from the DH data, and
 inverse kinematics: the joint values that put an arm's base (its RCM frame) at a given pose in the cart's
 world frame, every solution, or the reason there is none.
 
@@ -21,7 +21,7 @@ reachable docking orientations are R = Rz(psi) R_0, a one-parameter family (``si
 the family is refused with the angle it is off by; on it, two elbow solutions. The Si PSM3 (S7) has four planar
 joints for the same three degrees of freedom: its first is free, taken on a grid, the rest solved as above.
 
-All in metres and radians. Plain numpy, pose by pose; ``kinematics.suj_batch`` jits S2 and S4 over every
+All in metres and radians. Plain numpy, pose by pose; ``kinematics.port.suj_batch`` jits S2 and S4 over every
 (site, cart pose) for the dock tables and is held to these.
 """
 from __future__ import annotations

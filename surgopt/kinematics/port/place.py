@@ -3,13 +3,13 @@
 Numba kernels only; arrays and named tuples in, arrays out. Lengths in m, angles in rad. Each arm's base
 frame sits at its port (the RCM) with its neutral shaft (q1 = q2 = 0) pointing at the target's centre
 (``docking_frames``); a target point p, in that frame, is reached by the yaw/pitch/insertion mechanism in
-closed form (``rcm_inverse``, the inverse of ``rcm_point``; ``surgopt/robots/dvrk.py`` derives it from the
+closed form (``rcm_inverse``, the inverse of ``rcm_point``; ``surgopt/robots/dvrk/__init__.py`` derives it from the
 modified-DH rows and tests/reference.py multiplies them out independently).
 
 The design space factors: what one arm does at one port depends on the port alone (``port_tables``: reach
 and dexterity at every target point, the camera's coverage), what two arms do together on the pair of
 ports (``pair_tables``: common reach, manipulation angle, shaft clearance inside, arm clearance outside),
-and a design (two or three instrument ports and a camera port) combines them (``port_designs``) at a few
+and a design (two or three instrument ports and a camera port) combines them (``designs``) at a few
 operations per design, so every assignment of >= 10^6 designs is affordable.
 
 One module of ~510 lines: the per-port and per-pair kernels (with the orthogonal and the spherical RCM closed
@@ -24,7 +24,7 @@ from typing import NamedTuple
 import numpy as np
 
 from surgopt.jit import EXACT, njit
-from surgopt.kinematics.port_reasons import (  # noqa: F401 - the bits the kernels set (and REASONS, for callers)
+from surgopt.kinematics.port.reasons import (  # noqa: F401 - the bits the kernels set (and REASONS, for callers)
     ANGLE, CAMERA, CAMERA_SIDE, DOCKING, OUTSIDE, REACH, REASONS, SHAFTS, SPACING,
 )
 
@@ -78,7 +78,7 @@ class Camera(NamedTuple):
 
 
 class Criteria(NamedTuple):
-    """What makes a design feasible and how it is scored (``port_place`` study's [constraints], [objective])."""
+    """What makes a design feasible and how it is scored (``place`` study's [constraints], [objective])."""
 
     dexterity_length_m: float  # characteristic length L of the isotropy (angular columns scaled by rho / L)
     angle_lo_rad: float  # manipulation angle range (Hanna et al. 1997: 45-75 deg)

@@ -1,4 +1,4 @@
-"""Port placement's designs: the per-port and per-pair tables (``port_place``) combined into one row per
+"""Port placement's designs: the per-port and per-pair tables (``place``) combined into one row per
 design of two or three instrument ports and a camera port, every port distinct, at a few operations per
 design (issue #29). Numba kernels and the numpy helpers that pack their tables."""
 from __future__ import annotations
@@ -8,8 +8,8 @@ from typing import NamedTuple
 import numpy as np
 
 from surgopt.jit import EXACT, njit
-from surgopt.kinematics.capsules import PAIR_CODE
-from surgopt.kinematics.port_reasons import ANGLE, CAMERA, CAMERA_SIDE, DOCKING, OUTSIDE, REACH, SHAFTS, SPACING
+from surgopt.kinematics.port.capsules import PAIR_CODE
+from surgopt.kinematics.port.reasons import ANGLE, CAMERA, CAMERA_SIDE, DOCKING, OUTSIDE, REACH, SHAFTS, SPACING
 
 
 class PortTables(NamedTuple):
@@ -54,7 +54,7 @@ class PortTables(NamedTuple):
     third_reach_count: np.ndarray = np.zeros(0, np.int64)
     third_reach_bits: np.ndarray = np.zeros((0, 1), np.uint64)
     third_dex_site: np.ndarray = np.zeros(0)
-    # per site: the endoscope's tip where it is held (``port_place.camera_views``), its depth past the RCM along the
+    # per site: the endoscope's tip where it is held (``place.camera_views``), its depth past the RCM along the
     # shaft and its distance to the target's centre, mm (NaN where the scope cannot be placed; the study's rows)
     camera_tip_depth_mm: np.ndarray = np.zeros(0)
     camera_tip_to_centre_mm: np.ndarray = np.zeros(0)

@@ -1,8 +1,8 @@
 """The one registry of patient carts (platforms) port-place docks its arms with: ``PLATFORMS``.
 
 A platform is data: its name in configs (``cart.model``) and in words, the shipped arms it carries for each role
-(``robots/models.py``'s names), each arm's setup joints (``dvrk_suj``), where its world frame stands above the
-floor, its arms' own links as skeletons and capsules (``dvrk_links``), and which family of setup joints it has
+(``robots/models.py``'s names), each arm's setup joints (``dvrk.suj``), where its world frame stands above the
+floor, its arms' own links as skeletons and capsules (``dvrk.links``), and which family of setup joints it has
 (``suj_family``: how an arm is docked by them, the one thing port-place's cart classes dispatch on). Every other
 list of carts (the config's choices, the names in words, the carts whose links are modelled) is derived from it,
 and an arm's role is spelled one way: ``ROLES``.
@@ -15,8 +15,8 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Mapping
 
-from surgopt.robots import dvrk_links as L
-from surgopt.robots import dvrk_suj as S
+from surgopt.robots.dvrk import links as L
+from surgopt.robots.dvrk import suj as S
 
 #: An arm's role on a cart, spelled one way everywhere: the instruments (the working pair, then the third) and
 #: the camera arm. The rows' column prefixes are these in lower case (``column_prefix``).
@@ -58,7 +58,7 @@ class Platform:
 
     ``suj_family``: "classic" (a prismatic column and five revolute joints: the docking frame's roll about the
     shaft is free, S2) or "si" (a column, planar joints and two fixed links: one orientation per yaw, psi*, S3-S7).
-    ``world_above_floor_m`` and its source: the files give no floor (``dvrk_suj``)."""
+    ``world_above_floor_m`` and its source: the files give no floor (``dvrk.suj``)."""
 
     name: str
     title: str

@@ -4,10 +4,10 @@ A capsule's clearance to another is the distance between their segments less bot
 solid (the table) the least over the segment of a point's distance to the box less the radius, a convex function
 along the segment found by golden-section search (C2); to the patient the least over points along the segment
 (spacing given) of the body distance less the radius (C3, in the study: the body is not convex). An arm's
-capsules at joint values q come from its skeleton (``robots/dvrk_links.py``): each frame's transform from its
+capsules at joint values q come from its skeleton (``robots/dvrk/links.py``): each frame's transform from its
 parent, origin, roll-pitch-yaw and joint (C4).
 
-The segment distance is ``kinematics.port_place.segment_distance`` (Ericson, Real-Time Collision Detection,
+The segment distance is ``kinematics.port.place.segment_distance`` (Ericson, Real-Time Collision Detection,
 5.1.9, with its degenerate cases; ``segments_distance`` takes the segments as (2, 3) arrays). The least clearance between two arms over
 every pair of their poses (each arm at each of its own target points: the instruments move independently) is one
 jitted loop (``least_over_poses``), and pruned by bounding balls for the rows' tables (``least_between``,
@@ -24,7 +24,7 @@ from typing import NamedTuple
 import numpy as np
 
 from surgopt.jit import EXACT, njit
-from surgopt.kinematics.port_place import segment_distance, segment_distance_xyz
+from surgopt.kinematics.port.place import segment_distance, segment_distance_xyz
 from surgopt.robots.chain import rot_x, rot_y, rot_z, trans
 
 GOLDEN = (math.sqrt(5.0) - 1.0) / 2.0
@@ -236,7 +236,7 @@ def point_segment_distance(x, p0, p1):
 @njit(**EXACT)
 def segments_distance(p, q):
     """The shortest distance between segments p (2, 3) and q (2, 3), either possibly of zero length
-    (``port_place.segment_distance_xyz``)."""
+    (``place.segment_distance_xyz``)."""
     return segment_distance_xyz(p[0, 0], p[0, 1], p[0, 2], p[1, 0], p[1, 1], p[1, 2],
                                 q[0, 0], q[0, 1], q[0, 2], q[1, 0], q[1, 1], q[1, 2])
 

@@ -1,7 +1,7 @@
 """The dVRK's Classic ECM (endoscope camera manipulator): an RCM arm holding the endoscope.
 
 Source: jhu-dvrk/sawIntuitiveResearchKit share/kinematic/ and share/tool/ as transcribed in
-../shared/robots/dvrk-kinematics.md (radians and metres as there; ``robots/dvrk.py`` has the convention).
+../shared/robots/dvrk-kinematics.md (radians and metres as there; ``robots/dvrk/__init__.py`` has the convention).
 Rows: yaw, pitch, insertion (limits in rad, rad, m; the insertion offset in m), then the roll row whose d
 brings the reaching point to the wrist (an instrument) or the scope's tip.
 """
