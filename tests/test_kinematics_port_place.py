@@ -9,6 +9,7 @@ import math
 import numpy as np
 import pytest
 
+from surgopt.kinematics.port import columns as F
 from surgopt.kinematics.port import designs as D
 from surgopt.kinematics.port import place as K
 from surgopt.robots.models import get_model
@@ -168,20 +169,23 @@ def test_three_instruments_combine_as_a_brute_force_over_the_reach_sets():
         common = np.count_nonzero(reach[i] & reach[j] & reach[l])
         if not reach[l].all() and not (reach[i] & reach[j]).all():
             bit_counted += 1
-        assert f[r, 2] == common / m
-        assert f[r, 14] == reach[l].sum() / m and f[r, 15] == pytest.approx(dex[l][reach[l]].mean(), abs=1e-12)
-        assert f[r, 11] == min(t.inside[i, j], pair(t.inside, i, l), pair(t.inside, j, l))
+        assert f[r, F.COMMON_REACH] == common / m
+        assert f[r, F.REACH_3] == reach[l].sum() / m
+        assert f[r, F.DEXTERITY_3] == pytest.approx(dex[l][reach[l]].mean(), abs=1e-12)
+        assert f[r, F.SHAFT_CLEARANCE] == min(t.inside[i, j], pair(t.inside, i, l), pair(t.inside, j, l))
         # the instruments' pairs from their table, each instrument and the camera from theirs ([instrument, camera])
-        assert f[r, 12] == min(*(pair(t.outside, x, y) for x, y in itertools.combinations((i, j, l), 2)),
+        assert f[r, F.EXTERNAL_CLEARANCE] == min(*(pair(t.outside, x, y) for x, y in itertools.combinations((i, j, l), 2)),
                                *(t.outside_camera[x, k] for x in (i, j, l)))
         spacing = min(t.spacing[x, y] for x, y in itertools.combinations((i, j, l, k), 2))
+        assert f[r, F.PORT_SPACING] == spacing  # the kernel's own least spacing, stored as min_port_spacing_mm
         assert bool(bad[r] & SPACING) == (spacing < crit.min_spacing_m)
         assert bool(bad[r] & REACH) == (common < m)
-        assert bool(bad[r] & SHAFTS) == (f[r, 11] < crit.min_shaft_gap_m)
+        assert bool(bad[r] & SHAFTS) == (f[r, F.SHAFT_CLEARANCE] < crit.min_shaft_gap_m)
         q = two[(i, j, k)]
-        for c in (0, 1, 3, 4, 5, 6, 7, 8, 9, 10, 13):
+        for c in (F.REACH_1, F.REACH_2, F.DEXTERITY_MEAN, F.ANGLE_MEAN, F.ANGLE_MIN, F.ANGLE_MAX, F.ANGLE_SHARE,
+                  F.ANGLE_CENTRE, F.AZIMUTH_IMBALANCE, F.CAMERA_COVERAGE, F.CAMERA_OFF_ARC):
             assert f[r, c] == f2[q, c]
-        expected = cost2[q] + crit.w_reach * (f2[q, 2] - f[r, 2]) + crit.w_dexterity * (1 - dex[l][reach[l]].mean())
+        expected = cost2[q] + crit.w_reach * (f2[q, F.COMMON_REACH] - f[r, F.COMMON_REACH]) + crit.w_dexterity * (1 - dex[l][reach[l]].mean())
         assert cost[r] == pytest.approx(expected, abs=1e-12)
     assert bit_counted > 0  # the premise: the popcount branch was taken
 
@@ -222,3 +226,19 @@ def test_the_azimuths_and_sides_are_the_angles_at_the_centre_and_the_lateral_off
             assert azimuth[i, k] == pytest.approx(want, abs=1e-12)
             assert side[i, k] == pytest.approx((sites[i] - sites[k]) @ lat, abs=1e-15)
     assert (side > 0).sum() > 9 and (side < 0).sum() > 9
+
+
+def test_every_kernel_column_is_named_once_and_stored_in_the_unit_its_name_says():
+    """Issue 53: the design kernel's columns by named index (``kinematics/port/columns.py``): every position named
+    once, every stored name in the rows' schema exactly once, and its unit what the name says (rad -> _deg,
+    m -> _mm); a two-instrument design's array stops before the third's columns."""
+    names = [c.stored for c in F.COLUMNS]
+    assert len(set(names)) == len(names)
+    for cfg in (C.PortPlaceConfig(), C.PortPlaceConfig.model_validate({"robot": {"instrument_count": 3}})):
+        schema = S.schema(cfg).names
+        stored = [n for n in names if n in schema]
+        assert len(stored) == F.width(cfg.robot.instrument_count) and all(schema.count(n) == 1 for n in stored)
+    for c in F.COLUMNS:
+        unit = {"rad": "_deg", "m": "_mm"}.get(c.kernel_unit)
+        assert (c.stored.endswith(unit) if unit else not c.stored.endswith(("_deg", "_mm"))), c
+    assert F.width(2) == F.REACH_3 < F.DEXTERITY_3 == F.width(3) - 1

@@ -8,6 +8,7 @@ from typing import NamedTuple
 import numpy as np
 
 from surgopt.jit import EXACT, njit
+from surgopt.kinematics.port import columns as C
 from surgopt.kinematics.port.capsules import PAIR_CODE
 from surgopt.kinematics.port.reasons import ANGLE, CAMERA, CAMERA_SIDE, DOCKING, OUTSIDE, REACH, SHAFTS, SPACING
 
@@ -138,10 +139,6 @@ def at(a, i, j):
     return a[min(i, j), max(i, j)]
 
 
-#: The design columns after the pair's 14: the third instrument's reach and mean isotropy.
-THIRD_COLUMNS = 2
-
-
 @njit(**EXACT)
 def design_columns(t, crit, start, stop, instruments=2, feasible_only=False):
     """Designs ``start`` .. ``stop`` - 1 of ``instruments`` (2 or 3) instrument arms and the camera. Design d is
@@ -167,7 +164,7 @@ def design_columns(t, crit, start, stop, instruments=2, feasible_only=False):
     dex3 = t.third_dex_site if own else t.dex_site
     size = stop - start
     ids = np.empty((size, 4 if three else 3), dtype=np.int64)
-    f = np.empty((size, 14 + (THIRD_COLUMNS if three else 0)))
+    f = np.empty((size, C.THREE_INSTRUMENTS if three else C.TWO_INSTRUMENTS))
     bad = np.empty(size, dtype=np.int64)
     cost = np.empty(size)
     design = np.empty(size, dtype=np.int64)
@@ -243,28 +240,29 @@ def design_columns(t, crit, start, stop, instruments=2, feasible_only=False):
             outside, code = links_at(t, i, j, l, k, pose, swapped)
         if b == 0 or not feasible_only:
             ids[out, 0], ids[out, 1], ids[out, ids.shape[1] - 1] = i, j, k
-            f[out, 0] = t.reach_count[i] / t.n_points
-            f[out, 1] = t.reach_count[j] / t.n_points
-            f[out, 2] = common
-            f[out, 3] = t.dex_mean[i, j]
-            f[out, 4] = t.ang_mean[i, j]
-            f[out, 5] = t.ang_min[i, j]
-            f[out, 6] = t.ang_max[i, j]
-            f[out, 7] = t.ang_share[i, j]
-            f[out, 8] = t.ang_centre[i, j]
-            f[out, 9] = imbalance
-            f[out, 10] = t.coverage[k]
-            f[out, 11] = inside
-            f[out, 12] = outside
-            f[out, 13] = off_arc
+            f[out, C.REACH_1] = t.reach_count[i] / t.n_points
+            f[out, C.REACH_2] = t.reach_count[j] / t.n_points
+            f[out, C.COMMON_REACH] = common
+            f[out, C.DEXTERITY_MEAN] = t.dex_mean[i, j]
+            f[out, C.ANGLE_MEAN] = t.ang_mean[i, j]
+            f[out, C.ANGLE_MIN] = t.ang_min[i, j]
+            f[out, C.ANGLE_MAX] = t.ang_max[i, j]
+            f[out, C.ANGLE_SHARE] = t.ang_share[i, j]
+            f[out, C.ANGLE_CENTRE] = t.ang_centre[i, j]
+            f[out, C.AZIMUTH_IMBALANCE] = imbalance
+            f[out, C.CAMERA_COVERAGE] = t.coverage[k]
+            f[out, C.SHAFT_CLEARANCE] = inside
+            f[out, C.EXTERNAL_CLEARANCE] = outside
+            f[out, C.CAMERA_OFF_ARC] = off_arc
+            f[out, C.PORT_SPACING] = spacing
             bad[out] = b
             cost[out] = (crit.w_reach * (1.0 - common) + crit.w_angle * abs(t.ang_mean[i, j] - crit.angle_best_rad)
                          + crit.w_azimuth * (imbalance + off_arc) + crit.w_camera * (1.0 - t.coverage[k])
                          + crit.w_dexterity * (1.0 - t.dex_mean[i, j]))
             if three:
                 ids[out, 2] = l
-                f[out, 14] = reach3[l] / t.n_points
-                f[out, 15] = dex3[l]
+                f[out, C.REACH_3] = reach3[l] / t.n_points
+                f[out, C.DEXTERITY_3] = dex3[l]
                 cost[out] += crit.w_dexterity * (1.0 - dex3[l])
             design[out] = start + r
             dock[out, 0], dock[out, 1], dock[out, 2] = pose, swapped, code

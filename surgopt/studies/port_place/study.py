@@ -26,6 +26,7 @@ import math
 
 import numpy as np
 
+from surgopt.kinematics.port.columns import COLUMNS, PORT_SPACING, REACH_1, REACH_2, index as column_index, stored_value
 from surgopt.robots.dvrk.platforms import AUTO_PLATFORM, PLATFORMS
 
 from surgopt.studies.port_place.arms import instruments_held
@@ -94,13 +95,10 @@ def n_tasks(cfg, chunk: int) -> int:
     return max(1, math.ceil(n_total(cfg) / chunk))
 
 
-FLOAT_COLUMNS = ("psm1_reach", "psm2_reach", "common_reach", "dexterity_mean", "manipulation_angle_mean_deg",
-                 "manipulation_angle_min_deg", "manipulation_angle_max_deg", "manipulation_angle_share_45_75",
-                 "manipulation_angle_centre_deg", "azimuth_imbalance_deg", "camera_coverage",
-                 "shaft_clearance_mm", "external_clearance_mm", "camera_off_arc_deg")
-ANGLE_COLUMNS = {4, 5, 6, 8, 9, 13}
-#: With a third instrument, after FLOAT_COLUMNS (``designs.THIRD_COLUMNS``).
-THIRD_COLUMNS = ("psm3_reach", "psm3_dexterity_mean")
+#: The design kernel's float columns stored in the rows' first block, in the schema's order (named once, with unit
+#: and meaning, in ``kinematics/port/columns.py``): the pair's and the camera's, then the third instrument's.
+THIRD_COLUMNS = tuple(c.stored for c in COLUMNS[PORT_SPACING + 1:])
+FLOAT_COLUMNS = tuple(c.stored for c in COLUMNS[:PORT_SPACING])
 
 
 def float_columns(config=None) -> tuple[str, ...]:
@@ -338,23 +336,19 @@ def design_rows(cfg, sites, t, ids, site_ids, f, bad, cost, design_ids, docking_
     if floor is not None:
         swap = dock[:, 1] == 1
         ids, site_ids, f = ids.copy(), site_ids.copy(), f.copy()
-        for a in (ids, site_ids, f):
+        for a in (ids, site_ids):
             a[swap, 0], a[swap, 1] = a[swap, 1], a[swap, 0].copy()
+        f[swap, REACH_1], f[swap, REACH_2] = f[swap, REACH_2], f[swap, REACH_1].copy()
     cols = {"design_id": design_ids}
     cols.update({f"{arm}_site": site_ids[:, a] for a, arm in enumerate(arms)})
     for a, arm in enumerate(arms):
         for c, axis in enumerate("xyz"):
             cols[f"{arm}_{axis}_mm"] = sites[ids[:, a], c] * 1000
-    for c, name in enumerate(float_columns(cfg)):
-        v = f[:, c]
-        cols[name] = np.degrees(v) if c in ANGLE_COLUMNS else (v * 1000 if name.endswith("_mm") else v)
+    for name in (*float_columns(cfg), "min_port_spacing_mm"):  # each in its stored unit, by its kernel index
+        c = column_index(name)
+        cols[name] = stored_value(COLUMNS[c], f[:, c])
     centre = np.asarray(cfg.target.centre_mm) / 1000
     d = np.linalg.norm(sites - centre, axis=1) * 1000
-    spacing = np.full(len(ids), np.inf)
-    for a in range(len(arms)):
-        for b in range(a + 1, len(arms)):
-            spacing = np.minimum(spacing, t.spacing[ids[:, a], ids[:, b]])
-    cols["min_port_spacing_mm"] = spacing * 1000
     cols["psm_to_target_mm"] = d[ids[:, :-1]].max(axis=1) if len(ids) else np.zeros(0)
     rise = np.degrees(np.arcsin((sites[:, 2] - centre[2]) * 1000 / d))  # each site's elevation over the centre
     for a, arm in enumerate(arms[:-1]):
