@@ -231,3 +231,27 @@ def test_no_module_reads_an_arms_kind_outside_the_arm_classes():
     assert not {m: lines for m, lines in found.items() if lines}
     probe = ast.parse('if cfg.robot.instrument_serial is None: pass\nx = robot.get("camera_serial")\ny = "serial"')
     assert _arm_kind_reads(probe) == [1, 2]  # the premise: the finder finds them
+
+
+#: port-place's views (issue 53: "the views import no kernel and never rebuild a pose themselves: they read a
+#: ``Layout`` from ``layout.py``"): the closing report, the figures, the page, the robot files.
+VIEWS = tuple(f"surgopt.studies.port_place.{m}" for m in ("report", "figures", "html", "export"))
+
+
+def kernels() -> set[str]:
+    """The kernel modules: those under ``surgopt.kinematics`` that compile with numba (import ``surgopt.jit``).
+    The vocabulary modules beside them (``kinematics/port/reasons.py``, ``columns.py``: plain constants) are not."""
+    return {m for m in MODULES if m.startswith("surgopt.kinematics.")
+            and any(imported == "surgopt.jit" for imported, _, _ in imports(m))}
+
+
+def test_no_view_imports_a_kernel_nor_docks_a_layout_itself():
+    ks = kernels()
+    assert {"surgopt.kinematics.port.suj_batch", "surgopt.kinematics.port.place"} <= ks  # the premise
+    assert "surgopt.kinematics.port.reasons" not in ks and "surgopt.kinematics.port.columns" not in ks
+    for view in VIEWS:
+        taken = imports(view)
+        assert not [(m, line) for m, _, line in taken if m in ks], view
+        # a layout's docking is solved in one place (layout.layout_of), not by each view
+        assert not [(m, n, line) for m, n, line in taken if n in ("docking_that_clears", "docked_arms",
+                                                                    "row_patient_in_cart")], view

@@ -140,9 +140,9 @@ MEMO_ENTRIES = 32
 _memo: dict = {}
 
 
-def _memoised(what: str, cfg, row: dict, compute):
+def memoised(what: str, cfg, row: dict, compute):
     """``compute()`` once per (what, the config, the row's values) in this process, the MEMO_ENTRIES latest kept:
-    both functions memoised are pure functions of the config and the row."""
+    every answer memoised is a pure function of the config and the row (the layout, its clearances, rolls)."""
     key = (what, cfg.model_dump_json(), tuple(sorted((k, repr(v)) for k, v in row.items())))
     if key not in _memo:
         while len(_memo) >= MEMO_ENTRIES:
@@ -174,13 +174,13 @@ def layout_clearances(cfg, row: dict, docked=None) -> list[Clearance]:
     """Every least clearance of a layout's row on the cart (its ports and cart pose): each pair of docked arms
     (docked and over the target), each arm against the patient and the table. Arms that do not dock are left
     out (their setup joints have no solution to place links at). ``docked``: the arms docked otherwise than the
-    row's own docking (rolled); without it the answer is kept for the process (``_memoised``)."""
+    row's own docking (rolled); without it the answer is kept for the process (``memoised``)."""
     from surgopt.studies.port_place.tables import docked_arms, model_of, row_patient_in_cart
 
     if not links_modelled(cfg):
         return []
     if docked is None:
-        return list(_memoised("clearances", cfg, row, lambda: layout_clearances(cfg, row, docked_arms(cfg, row))))
+        return list(memoised("clearances", cfg, row, lambda: layout_clearances(cfg, row, docked_arms(cfg, row))))
     patient = row_patient_in_cart(cfg, row)
     model = model_of(cfg)
     points = pose_points(model)[0]
@@ -203,10 +203,10 @@ def whole_target_clearances(cfg, row: dict) -> list[Clearance]:
     **every** target point (each PSM at any of them and docked, the other at any of its own; the ECM held docked),
     exact: ``capsules.least_between`` over all pose pairs, pruned only by lower bounds. The rows and
     ``layout_clearances`` sample ``link_tables.POSE_POINTS`` of them; the least over the whole target is no more
-    than theirs and may be less. Kept for the process (``_memoised``)."""
+    than theirs and may be less. Kept for the process (``memoised``)."""
     if not links_modelled(cfg):
         return []
-    return list(_memoised("whole target", cfg, row, lambda: _whole_target(cfg, row)))
+    return list(memoised("whole target", cfg, row, lambda: _whole_target(cfg, row)))
 
 
 def _whole_target(cfg, row: dict) -> list[Clearance]:
@@ -335,8 +335,8 @@ class RollsThatClear(NamedTuple):
 
 
 def rolls_that_clear(cfg, row: dict) -> RollsThatClear:
-    """``_rolls_that_clear``, kept for the process (``_memoised``)."""
-    return _memoised("rolls", cfg, row, lambda: _rolls_that_clear(cfg, row))
+    """``_rolls_that_clear``, kept for the process (``memoised``)."""
+    return memoised("rolls", cfg, row, lambda: _rolls_that_clear(cfg, row))
 
 
 def _rolls_that_clear(cfg, row: dict) -> RollsThatClear:

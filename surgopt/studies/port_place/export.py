@@ -25,16 +25,6 @@ def _matrix(t) -> list:
     return [[float(v) for v in row] for row in np.asarray(t, float)]
 
 
-def arm_joints_at_centre(limits, base_in_patient: np.ndarray, centre_m: np.ndarray) -> list[float]:
-    """An instrument arm's yaw, pitch (rad) and insertion (m) that put its reaching point (the tip or the wrist,
-    as the run's ``ArmLimits`` say) on the target's centre (``kinematics.port.place.rcm_inverse``, eq. P2, in its
-    base frame)."""
-    from surgopt.kinematics.port.place import rcm_inverse
-
-    p = base_in_patient[:3, :3].T @ (centre_m - base_in_patient[:3, 3])
-    return [float(v) for v in rcm_inverse(p, limits.along_shaft_m)]
-
-
 def clearances_of(checks: list, cfg: PortPlaceConfig) -> dict:
     """The layout's least clearances outside the body (``clashes``): each check's value (mm), links and where,
     and the least of them; the link model named (``robots/dvrk/links.LINK_MODEL_WORDS``)."""
@@ -72,14 +62,15 @@ def dvrk_setup(cfg: PortPlaceConfig, row: dict) -> str:
     (PSM1, PSM2, PSM3, ECM): its cart ("classic" or "si"), SUJ joints, ``world_origin_to_suj`` and
     ``suj_tip_to_tool_origin`` as used, its port (mm, patient frame), its base (RCM) frame in the cart's world
     frame, and its own joints at the target's centre."""
-    from surgopt.studies.port_place.clashes import docking_that_clears
-    from surgopt.studies.port_place.tables import camera_tips, model_of, row_patient_in_cart
+    from surgopt.studies.port_place.layout import arm_joints_at_centre, layout_of
+    from surgopt.studies.port_place.tables import camera_tips, model_of
 
     refuse_undocked("dvrk", cfg, row)
     centre = np.asarray(cfg.target.centre_mm, float) / 1000
-    patient = row_patient_in_cart(cfg, row)
+    layout = layout_of(cfg, row)
+    patient = layout.patient_in_cart
     arms = []
-    docked, rolls, docking, clearances = docking_that_clears(cfg, row)
+    docked, rolls, docking, clearances = layout.docked, layout.rolls, layout.docking, layout.clearances
     for a in docked:
         suj = PLATFORMS[cfg.cart.model].suj(a.arm)
         holder = camera_arm_of(cfg) if a.arm == "ECM" else instrument_of(cfg)
@@ -146,11 +137,11 @@ def suj_fixed(cfg: PortPlaceConfig, row: dict) -> str:
     layout, or one its setup joints do not reach) has no ``measured_cp``: the dVRK then warns and leaves it
     invalid, rather than holding a frame no one chose. A comment at the top (the dVRK's JSON reader takes them)
     names the run, the design and the teleoperation pairing that keeps the surgeon's hands uncrossed."""
-    from surgopt.studies.port_place.clashes import docking_that_clears
+    from surgopt.studies.port_place.layout import layout_of
 
     refuse_undocked("dvrk-suj-fixed", cfg, row)
-    docked, _, docking, _ = docking_that_clears(cfg, row)
-    frames = {a.arm: a.base for a in docked if a.base is not None and a.joints}
+    layout = layout_of(cfg, row)
+    docking, frames = layout.docking, layout.frames_of()
     arms = []
     for name in SUJ_FIXED_ARMS:
         arm = {"name": name}

@@ -254,12 +254,13 @@ def cart_figure(plt, cfg, row: dict, out, note: str = ""):
     export docks it (``clashes.docking_that_clears``: each PSM rolled about its shaft where that clears the links).
     Where its links overlap however docked, the two links of the least clearance are drawn red and named;
     ``note``: why this layout is drawn, when it is not the best."""
-    from surgopt.kinematics.port import suj as S
     from surgopt.studies.port_place.geometry import body_extent_mm, dome_surface_mm
     from surgopt.studies.port_place.clashes import arm_poses
-    from surgopt.studies.port_place.tables import model_of, row_patient_in_cart
+    from surgopt.studies.port_place.layout import layout_of, setup_joint_frames
+    from surgopt.studies.port_place.tables import model_of
 
-    patient = row_patient_in_cart(cfg, row)
+    layout = layout_of(cfg, row)  # as the dvrk export docks it
+    patient = layout.patient_in_cart
     to_cart = lambda p: p @ patient[:3, :3].T + patient[:3, 3]  # noqa: E731 - patient (m) -> cart world (m)
     fig = plt.figure(figsize=(8.0, 6.6))
     ax = fig.add_subplot(projection="3d")
@@ -275,9 +276,7 @@ def cart_figure(plt, cfg, row: dict, out, note: str = ""):
     centre = to_cart(np.asarray(cfg.target.centre_mm, float) / 1000)
     ax.scatter(*centre, color="k", s=20, label="target centre")
     model = model_of(cfg)
-    from surgopt.studies.port_place.clashes import docking_that_clears
-
-    docked, rolls, _, clearances = docking_that_clears(cfg, row)  # as the dvrk export docks it
+    docked, rolls, clearances = layout.docked, layout.rolls, layout.clearances
     from surgopt.studies.port_place.clashes import least, turn_words
 
     worst = least(clearances)
@@ -287,7 +286,7 @@ def cart_figure(plt, cfg, row: dict, out, note: str = ""):
     for arm, colour in zip(docked, ("C0", "C1", "C2", "C3")):
         if not arm.joints:
             continue
-        f = S.frames(PLATFORMS[cfg.cart.model].suj(arm.arm), arm.joints)
+        f = setup_joint_frames(cfg, arm)
         ax.plot(*f[:-1, :3, 3].T, color=colour, lw=2.5, marker="o", ms=3, label=f"{arm.arm} setup joints")
         links = arm_poses(cfg, arm, patient, model.targets_m[:0], model.limits.along_shaft_m)
         own = [i for i, n in enumerate(links.names) if "setup joint" not in n]

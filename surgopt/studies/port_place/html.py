@@ -93,11 +93,8 @@ def views(run, cfg, parts) -> list[View]:
                             for lines in (model.instruments.docked_lines(model, sites_m),
                                           model.endoscope.docked_lines(model, sites_m)))
     reach3 = dex3 = None
-    if model.third_rot is not None:  # the third instrument docks in frames of its own (the Si PSM3)
-        from surgopt.kinematics.port import place as K
-
-        reach3, dex3 = K.instrument_tables(sites_m, model.third_rot, model.targets_m, model.limits,
-                                           model.criteria.dexterity_length_m, model.cone)
+    if model.third_site_reach is not None:  # the third instrument docks in frames of its own (the Si PSM3)
+        reach3, dex3 = model.third_site_reach
         reach3, dex3 = np.asarray(reach3, bool).astype(np.int8), np.round(np.asarray(dex3, float), 4)
     from surgopt.studies.port_place.study import layout_isotropy, searched_docking
 

@@ -243,17 +243,19 @@ def suj_margin_words(cfg, arm) -> tuple[str, str]:
 
 def docking_tables(best: dict, meta: dict) -> list:
     """The best layout's cart pose and each arm's setup joints there (solved again from the row's ports and
-    pose, and the run's config in the rows' metadata), docked as the dvrk export docks it (``docking_that_clears``:
+    pose, and the run's config in the rows' metadata), docked as the dvrk export docks it (``layout.layout_of``:
     where the links overlap at the run's own docking and a roll of each PSM about its shaft clears them, so),
     and the links' clearances so docked."""
-    from surgopt.studies.port_place.clashes import docking_that_clears, turn_words
+    from surgopt.studies.port_place.clashes import turn_words
+    from surgopt.studies.port_place.layout import layout_of
 
     try:
         cfg = stored_config(meta)
     except STORED_ERRORS as exc:
         return [("best layout: the cart", ["note"], [[f"the run's config cannot be read again ({exc}); the cart "
                                                        f"pose is in the row's cart_* columns"]])]
-    docked, rolls, _, clearances = docking_that_clears(cfg, best)  # as the export docks it
+    layout = layout_of(cfg, best)  # as the export docks it
+    docked, rolls, clearances = layout.docked, layout.rolls, layout.clearances
     turned = {arm: deg for arm, deg in rolls.items() if deg}
     pose = [[f"{best['cart_x_mm']:.0f}", f"{best['cart_y_mm']:.0f}", f"{best['cart_heading_deg']:.1f}",
              str(best["cart_pose"]) if cfg.cart.pose != "search" else

@@ -103,6 +103,17 @@ class PortModel:
         return third_frames(self, self.sites_m)
 
     @cached_property
+    def third_site_reach(self) -> tuple[np.ndarray, np.ndarray] | None:
+        """(reach, isotropy) of the third instrument at every candidate site and target point where it docks in
+        frames of its own (the Si PSM3, ``third_rot``), else None: what the page colours its target by."""
+        from surgopt.kinematics.port import place as K
+
+        if self.third_rot is None:
+            return None
+        return K.instrument_tables(self.sites_m, self.third_rot, self.targets_m, self.limits,
+                                   self.criteria.dexterity_length_m, self.cone)
+
+    @cached_property
     def dock(self) -> "DockTables":
         """Which of the cart's setup joints dock which arm at which site and cart pose (``dock_tables``)."""
         return dock_tables(self)

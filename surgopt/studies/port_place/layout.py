@@ -1,0 +1,70 @@
+"""One stored layout, re-solved once, for every view (issue 53: "the views import no kernel and never rebuild a
+pose themselves: they read a ``Layout``").
+
+A layout's row holds its ports, its cart pose and every number the rows computed; the views (the closing report,
+the figures, the page, the robot files) also need what the rows do not store: each arm's setup joints and base
+frame, the links' clearances and their pairs. ``layout_of`` solves them once per (config, row) in a process, docked
+as the robot files dock them (``clashes.docking_that_clears``: the run's own docking, or where the links overlap
+there, a roll of each PSM that clears them, said so), and the helpers below give the views what they draw or write
+from it (a setup joint chain's frames, an arm's joints at the target's centre) so that no view calls a kernel.
+"""
+from __future__ import annotations
+
+from typing import NamedTuple
+
+import numpy as np
+
+from surgopt.robots.dvrk.platforms import PLATFORMS
+
+
+class Layout(NamedTuple):
+    """A row re-solved on its cart: the patient's frame in the cart's world frame (4x4, m; None without a cart),
+    each arm docked (``tables.DockedArm``, PSMs then the ECM), each PSM's roll off the run's own docking where it
+    was turned (deg), what docking that is in words, and the links' least clearances so docked (``clashes``)."""
+
+    row: dict
+    patient_in_cart: np.ndarray | None
+    docked: list
+    rolls: dict
+    docking: str
+    clearances: list
+
+    def frames_of(self) -> dict:
+        """Each docked arm's base (RCM) frame in the cart's world frame (4x4, m), by arm name."""
+        return {a.arm: a.base for a in self.docked if a.base is not None and a.joints}
+
+
+def layout_of(cfg, row: dict) -> Layout:
+    """``row`` (a layout of a run with a cart) docked as the robot files dock it, solved once per (config, row) in a
+    process (``clashes.memoised``): every view of one layout reads the same solve."""
+    from surgopt.studies.port_place.clashes import docking_that_clears, memoised
+    from surgopt.studies.port_place.tables import row_patient_in_cart
+
+    def solve() -> Layout:
+        docked, rolls, docking, clearances = docking_that_clears(cfg, row)
+        return Layout(dict(row), row_patient_in_cart(cfg, row), docked, rolls, docking, clearances)
+
+    return memoised("layout", cfg, row, solve)
+
+
+def setup_joint_frames(cfg, arm) -> np.ndarray:
+    """(links + 2, 4, 4) The frames of a docked arm's setup joints (``tables.DockedArm``) in the cart's world frame:
+    its world-to-SUJ frame, each link, the tool origin (S1, ``kinematics/port/suj.frames``)."""
+    from surgopt.kinematics.port import suj as S
+
+    return S.frames(PLATFORMS[cfg.cart.model].suj(arm.arm), arm.joints)
+
+
+def mount_point_m(cfg, arm) -> np.ndarray:
+    """A docked arm's mount (the setup joints' last frame, where its own links begin) in the cart's world frame (m)."""
+    return setup_joint_frames(cfg, arm)[-2, :3, 3]
+
+
+def arm_joints_at_centre(limits, base_in_patient: np.ndarray, centre_m: np.ndarray) -> list[float]:
+    """An instrument arm's yaw, pitch (rad) and insertion (m) that put its reaching point (the tip or the wrist,
+    as the run's ``ArmLimits`` say) on the target's centre (``kinematics.port.place.rcm_inverse``, eq. P2, in its
+    base frame)."""
+    from surgopt.kinematics.port.place import rcm_inverse
+
+    p = base_in_patient[:3, :3].T @ (centre_m - base_in_patient[:3, 3])
+    return [float(v) for v in rcm_inverse(p, limits.along_shaft_m)]
