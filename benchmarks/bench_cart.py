@@ -3,7 +3,7 @@
 Run:  python benchmarks/bench_cart.py
 Prints, on the default config with the Classic cart on its grid of floor poses (164 sites, 150 poses):
 - the Classic PSM SUJ's closed form (S2): the jitted batch (``kinematics.port.suj_batch.classic_psm_margins``) in solves/s
-  against the plain Python ``kinematics.port.suj.classic_psm_ik`` pose by pose (a sample), the two checked equal;
+  against the plain Python ``tests/reference.classic_psm_ik`` pose by pose (a sample), the two checked equal;
 - the Classic ECM's docking grid (S4): the jitted ``ecm_margins`` against the numpy ``ecm_classic_dock`` vectorised
   over the sites (one cart pose at a time), checked equal;
 - `surgopt port-place cart.model=classic` end to end, warm, 2 threads: the (layout, cart pose) pairs it decides
@@ -12,7 +12,7 @@ Prints, on the default config with the Classic cart on its grid of floor poses (
   also with a finer grid of 300+ poses; and with the links deciding (the default: every arm's links clear of each
   other, the patient and the table), its time against the same run without them;
 - the Si's setup joints (S3) over every (site, pose) of the default's grid with the Si arms: the numpy batch
-  (``si_docking.si_solutions``) against the plain ``suj.si_ik`` pose by pose, checked equal, and
+  (``si_docking.si_solutions``) against the plain ``reference.si_ik`` pose by pose, checked equal, and
   `surgopt port-place cart.model=si` end to end (the Si arms), docking alone and with the links deciding, with
   the dry run's estimates;
 - the pruned least clearance between two arms (``capsules.least_between``, the link tables' kernel) against the
@@ -26,15 +26,18 @@ import subprocess
 import sys
 import tempfile
 import time
+from pathlib import Path
 
 import numpy as np
 
-from surgopt.kinematics.port import suj as K
 from surgopt.kinematics.port import suj_batch as B
 from surgopt.robots.dvrk.platforms import PLATFORMS
 from surgopt.studies.port_place import config as C
 from surgopt.studies.port_place import study as S
 from surgopt.studies.port_place import tables as T
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
+import reference as REF  # noqa: E402 - the plain Python twin (S2, S3, S4) the batch solvers are timed against
 
 
 def best_of(f, repeat=3):
@@ -63,7 +66,7 @@ def solvers() -> None:
     def plain():
         out = []
         for pose in sample:
-            a = K.classic_psm_ik(suj, pose)
+            a = REF.classic_psm_ik(suj, pose)
             sols = a.within + a.outside
             out.append(sols[0].margin if sols else -math.inf)
         return np.array(out)
@@ -81,7 +84,7 @@ def solvers() -> None:
     some = poses.patient[:: max(1, m // 10)]
 
     def numpy_ecm():
-        return [K.ecm_classic_dock(PLATFORMS["classic"].suj("ECM"), ecm.yaw_limits_rad, ecm.pitch_limits_rad,
+        return [REF.ecm_classic_dock(PLATFORMS["classic"].suj("ECM"), ecm.yaw_limits_rad, ecm.pitch_limits_rad,
                                    model.sites_m @ p[:3, :3].T + p[:3, 3], shafts @ p[:3, :3].T)[0] for p in some]
 
     T.camera_dock(cfg, some[:1], model.sites_m[:2])  # compiled or loaded
@@ -117,7 +120,7 @@ def si_solver() -> None:
     def plain():
         out = []
         for pose in in_cart[::step]:
-            a = K.si_ik(suj, pose)
+            a = REF.si_ik(suj, pose)
             sols = a.within + a.outside
             out.append(sols[0].margin if sols else -math.inf)
         return np.array(out)

@@ -693,3 +693,399 @@ def suj_forward_reference(cart, arm, q):
     tool = np.eye(4)
     tool[:3, :3], tool[:3, 3] = SUJ_TIP_ROTATION, tip
     return t @ tool
+
+
+# ---------------------------------------------------------------------------
+# The dVRK patient cart's setup joints (S1-S7), plain Python pose by pose (issue 53: the naive twin of the rows'
+# solvers, ``kinematics/port/suj_batch.py`` (S2, S4 jitted) and ``si_docking.si_solutions`` (S3, S7); production
+# runs only those). Its own DH, wrap and Si-orientation helpers: nothing here calls the package's solvers; the
+# solvers' shared constants (MARGIN_TIE, the grids' steps) and the SUJ data are read.
+# ---------------------------------------------------------------------------
+import math  # noqa: E402
+from typing import NamedTuple  # noqa: E402
+
+from surgopt.kinematics.port.suj import ECM_GRID_STEPS, MARGIN_TIE, SI_REDUNDANT_STEPS  # noqa: E402
+
+
+def _suj_mdh(alpha: float, a: float, theta: float, d: float) -> np.ndarray:
+    return dh_modified(theta, d, a, alpha)
+
+
+def _suj_link(row, q: float) -> np.ndarray:
+    """One SUJ DH row at joint value q: theta + q for a revolute joint, d + q for the column."""
+    if row.prismatic:
+        return _suj_mdh(row.alpha_rad, row.a_m, row.theta_offset_rad, row.d_m + q)
+    return _suj_mdh(row.alpha_rad, row.a_m, row.theta_offset_rad + q, row.d_m)
+
+
+def _suj_wrap(angle: float) -> float:
+    """An angle in (-pi, pi]."""
+    a = math.remainder(angle, 2 * math.pi)
+    return math.pi if a == -math.pi else a
+
+
+def _suj_planar(suj, n_planar: int):
+    """(the column's x offset A_c, its D, the planar joints' A (from the second on) and D, their offsets)."""
+    col = suj.links[0]
+    rows = suj.links[1:1 + n_planar]
+    return col.a_m, col.d_m, [r.a_m for r in rows], [r.d_m for r in rows], [r.theta_offset_rad for r in rows]
+
+
+def _fixed_links(suj) -> np.ndarray:
+    g = np.eye(4)
+    for row in suj.fixed:
+        g = g @ _suj_link(row, 0.0)
+    return g
+
+
+def _si_orientation(suj, yaw_rad: float) -> np.ndarray:
+    """(S3) R(W) Rz(yaw) R(fixed links) R_tip."""
+    r = np.asarray(suj.world_to_suj, float)[:3, :3] @ _suj_mdh(0, 0, yaw_rad, 0)[:3, :3] @ _fixed_links(suj)[:3, :3]
+    return r @ np.asarray(suj.tip_to_tool, float)[:3, :3]
+
+
+def _least_absorbed(suj, aim: np.ndarray) -> tuple[float, float]:
+    """(S6) psi* and the least angle the arm's own joints absorb, for a unit aim in the cart's world."""
+    v = _fixed_links(suj)[:3, :3] @ np.asarray(suj.tip_to_tool, float)[:3, :3] @ np.array([0.0, 0.0, -1.0])
+    e = np.asarray(suj.world_to_suj, float)[:3, :3].T @ (aim / np.linalg.norm(aim))
+    psi = math.atan2(e[1], e[0]) - math.atan2(v[1], v[0])
+    return _suj_wrap(psi), abs(math.asin(max(-1.0, min(1.0, v[2]))) - math.asin(max(-1.0, min(1.0, e[2]))))
+
+
+def _own_joints(base_rot: np.ndarray, aim: np.ndarray) -> tuple[float, float, float]:
+    """(P2) q1, q2 that point the shaft along aim from a base of rotation base_rot, and the angle absorbed."""
+    a = base_rot.T @ (aim / np.linalg.norm(aim))
+    return (math.atan2(a[0], -a[2]), -math.asin(max(-1.0, min(1.0, a[1]))), math.acos(max(-1.0, min(1.0, -a[2]))))
+
+
+class SujSolution(NamedTuple):
+    """The SUJ's joints (m, rad) and the least margin to their ranges (m for the column, rad otherwise; negative:
+    outside, by that much) with the joint it belongs to."""
+
+    joints: tuple
+    margin: float
+    tightest: str
+
+
+class SujAnswer(NamedTuple):
+    """Every solution within the ranges (``within``), the ones outside them (``outside``, nearest first), and why
+    there is none within (empty when there is)."""
+
+    within: tuple
+    outside: tuple
+    reason: str
+
+
+def _margin(suj, q) -> tuple[float, str]:
+    """The least distance of the joints inside their ranges, and the joint's name (a revolute joint's value
+    wrapped into its range's turn when it fits there)."""
+    worst, name = math.inf, ""
+    for row, v, (lo, hi) in zip(suj.links, q, suj.ranges):
+        m = min(v - lo, hi - v)
+        if m < worst:
+            worst, name = m, row.name
+    return worst, name
+
+
+def _solution(suj, q) -> SujSolution:
+    q = tuple(float(v) for v in q)
+    return SujSolution(q, *_margin(suj, q))
+
+
+def best_first(sols: list) -> list:
+    """Solutions best first: the head the first that no later one beats by MARGIN_TIE, the rest by margin."""
+    if not sols:
+        return []
+    head = sols[0]
+    for s in sols[1:]:
+        if s.margin > head.margin + MARGIN_TIE:
+            head = s
+    return [head] + sorted((s for s in sols if s is not head), key=lambda s: -s.margin)
+
+
+def _answer(suj, candidates) -> SujAnswer:
+    sols = best_first([_solution(suj, q) for q in candidates])
+    within = tuple(s for s in sols if s.margin >= 0)
+    outside = tuple(s for s in sols if s.margin < 0)
+    if within:
+        return SujAnswer(within, outside, "")
+    if not outside:
+        return SujAnswer((), (), "out of reach: no joint values put the base there")
+    best = outside[0]
+    lo, hi = suj.ranges[[r.name for r in suj.links].index(best.tightest)]
+    value = best.joints[[r.name for r in suj.links].index(best.tightest)]
+    unit = "m" if best.tightest == "column" else "deg"
+    k = 1.0 if unit == "m" else 180 / math.pi
+    return SujAnswer((), outside, f"{suj.cart} {suj.arm} SUJ {best.tightest} = {value * k:.4g} {unit}, outside "
+                                  f"its range [{lo * k:.4g}, {hi * k:.4g}] {unit} (the nearest of "
+                                  f"{len(outside)} solution(s))")
+
+
+def _elbows(x: float, y: float, l1: float, l2: float) -> list[tuple[float, float]]:
+    """Both solutions (theta1, theta2) of a planar two-link chain from the origin to (x, y): l1 u(t1) +
+    l2 u(t1 + t2) = (x, y); none when the point is out of the links' reach."""
+    r2 = x * x + y * y
+    c = (r2 - l1 * l1 - l2 * l2) / (2 * l1 * l2)
+    if c > 1 + 1e-12 or c < -1 - 1e-12:
+        return []
+    c = min(1.0, max(-1.0, c))
+    out = []
+    for s in (math.sqrt(1 - c * c), -math.sqrt(1 - c * c)):
+        t2 = math.atan2(s, c)
+        t1 = math.atan2(y, x) - math.atan2(l2 * s, l1 + l2 * c)
+        out.append((_suj_wrap(t1), _suj_wrap(t2)))
+    return out if out[0] != out[1] else out[:1]
+
+
+def _planar_ik(suj, x: float, y: float, z: float, psi: float) -> list[tuple]:
+    """The column and the three planar joints that put the planar chain's last frame at (x, y, z) with yaw psi
+    (its x axis's heading): the two elbows."""
+    a_c, d_c, a, d, off = _suj_planar(suj, 3)
+    column = z - d_c - sum(d)
+    out = []
+    for t1, t2 in _elbows(x - a_c, y, a[1], a[2]):
+        t3 = _suj_wrap(psi - t1 - t2 - off[2])  # t1, t2: the first two links' headings, offsets included
+        out.append((column, t1 - off[0], t2 - off[1], t3))
+    return out
+
+
+def _to_suj(suj, pose: np.ndarray) -> np.ndarray:
+    """The pose (the base's frame in the cart's world) in the SUJ's base frame, the tip transform taken off."""
+    return np.linalg.inv(np.asarray(suj.world_to_suj, float)) @ pose @ np.linalg.inv(np.asarray(suj.tip_to_tool, float))
+
+
+def classic_psm_ik(suj, pose: np.ndarray) -> SujAnswer:
+    """(S2) Every Classic PSM SUJ solution that puts the arm's base frame at ``pose`` (4x4, cart world)."""
+    t = _to_suj(suj, pose)
+    j4, j5 = suj.links[4], suj.links[5]
+    # t = H Rx(a4) Rz(q4) Tz(d4) Rx(a5) Rz(q5 + o5) Tz(d5) with H = Trans(p) Rz(psi)
+    a4, a5 = j4.alpha_rad, j5.alpha_rad
+    rx4, rx5 = _suj_mdh(a4, 0, 0, 0)[:3, :3], _suj_mdh(a5, 0, 0, 0)[:3, :3]
+    m = t[:3, :3]  # = Rz(psi) rx4 Rz(q4) rx5 Rz(q5 + o5)
+    z = np.array([0.0, 0.0, 1.0])
+    # z.m z = z.rx4 Rz(q4) rx5 z: Rz(psi) and Rz(q5) leave z alone
+    u, v = rx4.T @ z, rx5 @ z  # z.(rx4 Rz(q4) rx5 z) = u.(Rz(q4) v)
+    # u.Rz(q)v = (ux vx + uy vy) cos q + (ux vy - uy vx) sin q + uz vz
+    ca, sa, k = u[0] * v[0] + u[1] * v[1], u[1] * v[0] - u[0] * v[1], u[2] * v[2]
+    target = m[2, 2] - k
+    amp = math.hypot(ca, sa)
+    if amp < 1e-12 or abs(target) > amp * (1 + 1e-12):
+        return SujAnswer((), (), f"{suj.cart} {suj.arm} SUJ: no wrist angle tilts the arm's base so "
+                                 f"(its z is {math.degrees(math.acos(max(-1, min(1, m[2, 2])))):.1f} deg off vertical)")
+    phase = math.atan2(sa, ca)
+    spread = math.acos(max(-1.0, min(1.0, target / amp)))
+    candidates = []
+    for th4 in sorted({_suj_wrap(phase + spread), _suj_wrap(phase - spread)}):
+        r4 = rx4 @ _suj_mdh(0, 0, th4, 0)[:3, :3] @ rx5  # m = Rz(psi) r4 Rz(th5), th = q + offset
+        # m z = Rz(psi) r4 z: psi from the horizontal parts of m z and r4 z
+        w, g = m @ z, r4 @ z
+        psi = math.atan2(w[1], w[0]) - math.atan2(g[1], g[0])
+        rest = r4.T @ _suj_mdh(0, 0, -psi, 0)[:3, :3] @ m  # = Rz(q5 + o5)
+        th5 = math.atan2(rest[1, 0], rest[0, 0])
+        q4, q5 = _suj_wrap(th4 - j4.theta_offset_rad), _suj_wrap(th5 - j5.theta_offset_rad)
+        g4 = _suj_mdh(a4, j4.a_m, th4, j4.d_m) @ _suj_mdh(a5, j5.a_m, th5, j5.d_m)
+        h = t @ np.linalg.inv(g4)  # = Trans(x, y, z) Rz(psi)
+        for q in _planar_ik(suj, h[0, 3], h[1, 3], h[2, 3], math.atan2(h[1, 0], h[0, 0])):
+            candidates.append((*q, q4, q5))
+    return _answer(suj, candidates)
+
+
+def _redundant_planar_ik(suj, x: float, y: float, z: float, psi: float, steps: int) -> list[tuple]:
+    """(S7) The Si PSM3's column and four planar joints that put the chain's last frame at (x, y, z) with yaw psi:
+    four revolute joints for three planar degrees of freedom, so the first, theta1, is free; at each of ``steps``
+    values of it over a turn the rest is the three-joint chain's inverse (two elbows) from the end of the first
+    link, A_2 u(theta1)."""
+    a_c, d_c, a, d, off = _suj_planar(suj, 4)
+    column = z - d_c - sum(d)
+    out = []
+    for k in range(steps):
+        t1 = -math.pi + 2 * math.pi * k / steps  # the first link's heading, its offset included
+        px, py = x - a_c - a[1] * math.cos(t1), y - a[1] * math.sin(t1)
+        c, s = math.cos(t1), math.sin(t1)
+        for h2, t3 in _elbows(c * px + s * py, -s * px + c * py, a[2], a[3]):  # in the first link's frame
+            t4 = _suj_wrap(psi - t1 - h2 - t3 - off[3])
+            out.append((column, _suj_wrap(t1 - off[0]), _suj_wrap(h2 - off[1]), _suj_wrap(t3 - off[2]), t4))
+    return out
+
+
+def si_ik(suj, pose: np.ndarray, tolerance_rad: float = 1e-9, steps: int = SI_REDUNDANT_STEPS) -> SujAnswer:
+    """(S3) Every Si SUJ solution (PSM1, PSM2, ECM: a column and three planar joints) that puts the base at
+    ``pose``; refused when its orientation is off the reachable family by more than ``tolerance_rad``. The Si
+    PSM3 (four planar joints, redundant: S7): its solutions on a grid of ``steps`` values of its first planar
+    joint, the best (the largest least range margin) first."""
+    if len(suj.links) not in (4, 5):
+        raise ValueError(f"{suj.cart} {suj.arm}: {len(suj.links) - 1} planar joints; si_ik solves three or four")
+    t = _to_suj(suj, pose)
+    g = np.eye(4)
+    for row in suj.fixed:
+        g = g @ _suj_link(row, 0.0)
+    h = t @ np.linalg.inv(g)  # must be Trans(x, y, z) Rz(psi)
+    off = math.degrees(math.atan2(math.hypot(h[0, 2], h[1, 2]), h[2, 2]))  # not acos: exact near 0 (1e-16, not 1e-8)
+    if off > math.degrees(tolerance_rad):
+        return SujAnswer((), (), f"{suj.cart} {suj.arm} SUJ: the Si sets only the base's yaw; this docking is "
+                                 f"tilted {off:.2f} deg off the orientations it can give")
+    psi = math.atan2(h[1, 0], h[0, 0])
+    if len(suj.links) == 5:
+        return _answer(suj, _redundant_planar_ik(suj, h[0, 3], h[1, 3], h[2, 3], psi, steps))
+    return _answer(suj, _planar_ik(suj, h[0, 3], h[1, 3], h[2, 3], psi))
+
+
+def _rz(a: np.ndarray) -> np.ndarray:
+    """Rotations about z by each angle of ``a`` (..., 3, 3)."""
+    c, s = np.cos(a), np.sin(a)
+    z, o = np.zeros_like(a), np.ones_like(a)
+    return np.stack([np.stack([c, -s, z], -1), np.stack([s, c, z], -1), np.stack([z, z, o], -1)], -2)
+
+
+def ecm_classic_dock(suj, yaw_rad: tuple, pitch_rad: tuple, origins: np.ndarray, aims: np.ndarray,
+                     psi_steps: int = ECM_GRID_STEPS[0], aim_steps: int = ECM_GRID_STEPS[1],
+                     q4_steps: int = ECM_GRID_STEPS[2]):
+    """(S4) The Classic ECM's setup joints for an endoscope base at each of ``origins`` (n, 3: the RCM, at its
+    port, in the cart's world frame) whose own yaw and pitch (within ``yaw_rad``, ``pitch_rad``) aim its shaft
+    along ``aims`` (n, 3, unit: port to the target's centre).
+
+    The ECM's SUJ ends in two parallel joints about an axis alpha_4 = -0.7853 rad off the vertical, so its base's
+    z axis is always tilted |alpha_4| from the vertical at the planar chain's heading psi, and turned about
+    itself by sigma = theta4 + theta5: the base orientation is Rz(psi) Rx(alpha_4) Rz(sigma) R_tip. In the base
+    frame the aim u = R^T d has u_z fixed by psi and its horizontal part turned by sigma, so the aim is a choice
+    of the angle phi of that part: the shaft's pitch -asin(u_y) and yaw atan2(u_x, -u_z) must lie in their
+    ranges. The base's origin adds Rz(psi) Rx(alpha_4) (Rz(theta4) (A_5, 0, 0) + Rz(sigma) p_tip) to the planar
+    chain's end, whose two elbows and column follow (S2's planar inverse). Searched on a grid of psi
+    (``psi_steps``), phi (``aim_steps``) and theta4 (``q4_steps``); returns per origin (least margin, or -inf where
+    no grid point docks; SUJ joints (6,), ECM yaw and pitch (2,)) of the grid point with the largest least margin
+    (rad; the column's in m) over the SUJ's ranges and the ECM's yaw and pitch ranges."""
+    col, j1, j2, j3, j4, j5 = suj.links
+    w = np.asarray(suj.world_to_suj, float)
+    tip = np.asarray(suj.tip_to_tool, float)
+    p_tip = tip[:3, 3]
+    tip_angle = math.atan2(tip[1, 0], tip[0, 0])  # R_tip = Rz(tip_angle)
+    a4 = j4.alpha_rad
+    n = len(origins)
+    o = (origins - w[:3, 3]) @ w[:3, :3]  # in the SUJ's base frame
+    d = aims @ w[:3, :3]
+    psi = np.linspace(-math.pi, math.pi, psi_steps, endpoint=False)
+    # v = Rx(-a4) Rz(-psi) d: (n, P, 3)
+    dz = np.einsum("pij,nj->npi", _rz(-psi), d)
+    ca, sa = math.cos(a4), math.sin(a4)
+    v = np.stack([dz[..., 0], ca * dz[..., 1] + sa * dz[..., 2], -sa * dz[..., 1] + ca * dz[..., 2]], -1)
+    uz = v[..., 2]
+    r = np.sqrt(np.maximum(0.0, 1.0 - uz * uz))
+    # the aim's grid k * step, k = -F/2 .. F/2 - 1 (F even: each aim's twin pi - phi is on it, below)
+    if aim_steps % 2:
+        raise ValueError(f"aim_steps must be even, not {aim_steps}")
+    phi = (2 * math.pi / aim_steps) * np.arange(-(aim_steps // 2), aim_steps - aim_steps // 2)
+    cos_phi, sin_phi = np.cos(np.abs(phi)), np.copysign(np.sin(np.abs(phi)), phi)
+    ux, uy = r[..., None] * cos_phi, r[..., None] * sin_phi  # (n, P, F)
+    pitch = -np.arcsin(np.clip(uy, -1.0, 1.0))
+    yaw = np.arctan2(ux, -uz[..., None])
+    aim_margin = np.minimum.reduce([yaw - yaw_rad[0], yaw_rad[1] - yaw, pitch - pitch_rad[0], pitch_rad[1] - pitch])
+    # the aim with the largest margin, and its twin pi - phi: with the yaw range symmetric the two tie exactly
+    # (ux changes sign, uy does not), and which one lets the setup joints dock differs, so both are solved
+    # (an argmax alone picked one of them by rounding: which ECM docks changed with the CPU and the batch size)
+    first = aim_margin.argmax(axis=2)  # (n, P)
+    half = aim_steps // 2
+    twin = (half - (first - half) + half) % aim_steps  # pi - phi on the grid (k - half = j  ->  half - j)
+    q4 = np.linspace(-math.pi, math.pi, q4_steps, endpoint=False)
+    th4 = q4 + j4.theta_offset_rad
+    rx = np.array([[1.0, 0.0, 0.0], [0.0, ca, -sa], [0.0, sa, ca]])
+    a_c, l2, l3 = col.a_m, j2.a_m, j3.a_m
+    best = np.full(n, -np.inf)
+    joints = np.full((n, 6), np.nan)
+    ecm = np.full((n, 2), np.nan)
+    lim = suj.ranges
+    for best_phi in (first, twin):
+        aim = np.take_along_axis(aim_margin, best_phi[..., None], 2)[..., 0]
+        # u_xy = Rz(-sigma - tip_angle) v_xy  ->  phi = angle(v_xy) - sigma - tip_angle
+        sigma = np.arctan2(v[..., 1], v[..., 0]) - phi[best_phi] - tip_angle
+        # the base's origin less the planar chain's end: Rz(psi) Rx(a4) (Rz(th4) (A5, 0, 0) + Rz(sigma) p_tip)
+        inner = (np.stack([np.cos(th4), np.sin(th4), np.zeros_like(th4)], -1)[None, None] * j5.a_m
+                 + np.einsum("npij,j->npi", _rz(sigma), p_tip)[:, :, None, :])  # (n, P, Q, 3)
+        off = np.einsum("pij,npqj->npqi", _rz(psi), inner @ rx.T)
+        end = o[:, None, None, :] - off  # the planar chain's end (n, P, Q, 3)
+        x, y = end[..., 0] - a_c, end[..., 1]
+        c2 = (x * x + y * y - l2 * l2 - l3 * l3) / (2 * l2 * l3)
+        reach = np.abs(c2) <= 1.0
+        c2 = np.clip(c2, -1.0, 1.0)
+        column = end[..., 2] - col.d_m - j1.d_m - j2.d_m - j3.d_m
+        for sign in (1.0, -1.0):
+            s2 = sign * np.sqrt(1.0 - c2 * c2)
+            t2 = np.arctan2(s2, c2)
+            t1 = np.arctan2(y, x) - np.arctan2(l3 * s2, l2 + l3 * c2)
+            qs = [column, t1 - j1.theta_offset_rad, t2 - j2.theta_offset_rad,
+                  psi[None, :, None] - t1 - t2 - j3.theta_offset_rad, np.broadcast_to(q4, column.shape),
+                  sigma[:, :, None] - th4 - j5.theta_offset_rad]
+            qs = [qs[0]] + [np.remainder(q + math.pi, 2 * math.pi) - math.pi for q in qs[1:]]
+            margin = np.minimum.reduce([np.minimum(q - lo, hi - q) for q, (lo, hi) in zip(qs, lim)])
+            margin = np.where(reach, np.minimum(margin, aim[:, :, None]), -np.inf)
+            flat = margin.reshape(n, -1)
+            k = flat.argmax(axis=1)
+            better = flat[np.arange(n), k] > best
+            if better.any():
+                ip, iq = np.unravel_index(k, margin.shape[1:])
+                rows = np.flatnonzero(better)
+                best[rows] = flat[rows, k[rows]]
+                joints[rows] = np.stack([q[rows, ip[rows], iq[rows]] for q in qs], -1)
+                f = best_phi[rows, ip[rows]]
+                uxy = r[rows, ip[rows]]
+                u = np.stack([uxy * cos_phi[f], uxy * sin_phi[f], uz[rows, ip[rows]]], -1)
+                ecm[rows] = np.stack([np.arctan2(u[:, 0], -u[:, 2]), -np.arcsin(np.clip(u[:, 1], -1, 1))], -1)
+    return best, joints, ecm
+
+
+#: The yaws tried besides psi*: a grid of this step over a whole turn (rad).
+YAW_STEP_RAD = math.radians(1.0)
+
+
+class SiDocking(NamedTuple):
+    """One way the Si docks an arm on a port: the planar chain's yaw ``yaw_rad`` (S5), the base frame there
+    (4x4, cart world, its origin the port), the SUJ's best solution (``suj.SujSolution``), the arm's own yaw
+    and pitch that point its shaft along the aim (rad), and the angle they absorb (rad)."""
+
+    yaw_rad: float
+    base: np.ndarray
+    suj: SujSolution
+    q1: float
+    q2: float
+    absorbed_rad: float
+
+
+class SiAnswer(NamedTuple):
+    """Every docking found (least absorbed angle first, then the SUJ's margin), and why there is none."""
+
+    dockings: tuple
+    reason: str
+
+
+def si_docking(suj, port: np.ndarray, aim: np.ndarray, limits) -> SiAnswer:
+    """Every Si docking of an arm on ``port`` (m, cart world) whose own yaw and pitch (``limits``: ``yaw_lo``,
+    ``yaw_hi``, ``pitch_lo``, ``pitch_hi``, rad) point its shaft along ``aim``: psi* (S6) and a whole turn of
+    yaws at ``YAW_STEP_RAD``, each where the SUJ solves within its ranges (S3). None: the reason (the SUJ
+    reaches the port at no yaw; or where it does, the arm's yaw or pitch would leave its range, by how much)."""
+    port = np.asarray(port, float)
+    best_psi, _ = _least_absorbed(suj, aim)
+    yaws = [best_psi] + [_suj_wrap(best_psi + k * YAW_STEP_RAD) for k in range(1, round(2 * math.pi / YAW_STEP_RAD))]
+    found, reached, nearest = [], 0, (math.inf, "")
+    for psi in yaws:
+        base = np.eye(4)
+        base[:3, :3], base[:3, 3] = _si_orientation(suj, psi), port
+        answer = si_ik(suj, base)
+        if not answer.within:
+            continue
+        reached += 1
+        q1, q2, absorbed = _own_joints(base[:3, :3], aim)
+        over = max(limits.yaw_lo - q1, q1 - limits.yaw_hi, limits.pitch_lo - q2, q2 - limits.pitch_hi)
+        if over > 0:
+            if over < nearest[0]:
+                nearest = (over, f"yaw {math.degrees(q1):.1f} deg" if max(limits.yaw_lo - q1, q1 - limits.yaw_hi) == over
+                           else f"pitch {math.degrees(q2):.1f} deg")
+            continue
+        found.append(SiDocking(psi, base, answer.within[0], q1, q2, absorbed))
+    found.sort(key=lambda d: (round(d.absorbed_rad, 12), -d.suj.margin))
+    if found:
+        return SiAnswer(tuple(found), "")
+    if not reached:
+        return SiAnswer((), f"{suj.cart} {suj.arm} SUJ: reaches the port at no yaw of its planar chain (within its "
+                            f"ranges)")
+    return SiAnswer((), f"{suj.cart} {suj.arm}: at every yaw where its SUJ reaches the port ({reached} of "
+                        f"{len(yaws)} tried) the arm's own joints cannot point the shaft along the aim (nearest: "
+                        f"{nearest[1]}, {math.degrees(nearest[0]):.1f} deg past its range)")

@@ -12,6 +12,7 @@ from surgopt.kinematics.port import suj as K
 from surgopt.robots.dvrk import suj as D
 from surgopt.robots.dvrk.platforms import PLATFORMS
 
+import reference as REF
 from reference import SUJ_REFERENCE, suj_forward_reference
 
 RNG = np.random.default_rng(40)
@@ -56,7 +57,7 @@ def test_classic_psm_ik_round_trips_and_recovers_random_joints(arm):
     outside = 0
     for q in _random_joints(suj, 60):
         pose = K.forward(suj, q)
-        answer = K.classic_psm_ik(suj, pose)
+        answer = REF.classic_psm_ik(suj, pose)
         sols = answer.within + answer.outside
         assert any(_same_joints(s.joints, q) for s in answer.within)
         for s in sols:
@@ -75,7 +76,7 @@ def test_si_ik_round_trips_and_its_orientations_are_one_family(arm):
     suj = D.SI[arm]
     for q in _random_joints(suj, 60):
         pose = K.forward(suj, q)
-        answer = K.si_ik(suj, pose)
+        answer = REF.si_ik(suj, pose)
         assert any(_same_joints(s.joints, q) for s in answer.within)
         for s in answer.within + answer.outside:
             assert np.abs(K.forward(suj, s.joints) - pose).max() < 1e-9
@@ -93,7 +94,7 @@ def test_the_si_psm3s_redundant_inverse_round_trips_and_recovers_its_joints_on_i
     for q in _random_joints(suj, 20):
         q[1] = -math.pi + 2 * math.pi * RNG.integers(steps) / steps
         pose = suj_forward_reference("si", "PSM3", q)
-        answer = K.si_ik(suj, pose, steps=steps)
+        answer = REF.si_ik(suj, pose, steps=steps)
         assert len(answer.within) > 2 and not answer.outside
         assert any(_same_joints(s.joints, q) for s in answer.within)
         for s in answer.within:
@@ -101,7 +102,7 @@ def test_the_si_psm3s_redundant_inverse_round_trips_and_recovers_its_joints_on_i
         np.testing.assert_allclose(K.si_orientation(suj, sum(q[1:])), pose[:3, :3], atol=1e-12)
     far = K.forward(suj, [0.3, 0.0, 0.0, 0.0, 0.0])
     far[:2, 3] += 3.0  # 3 m further than its links reach
-    answer = K.si_ik(suj, far, steps=steps)
+    answer = REF.si_ik(suj, far, steps=steps)
     assert not answer.within and "out of reach" in answer.reason
 
 
@@ -111,13 +112,13 @@ def test_poses_the_suj_cannot_reach_are_refused_with_the_reason():
     psm1 = D.CLASSIC["PSM1"]
     far = K.forward(psm1, D.SAMPLE_JOINTS[("classic", "PSM1")])
     far[:3, 3] += np.array([3.0, 0.0, 0.0])
-    answer = K.classic_psm_ik(psm1, far)
+    answer = REF.classic_psm_ik(psm1, far)
     assert not answer.within and "out of reach" in answer.reason
     # joints made with j1 and j2 past their ranges until every solution of the pose is outside them (seeded)
     for _ in range(200):
         q = [RNG.uniform(lo, hi) for lo, hi in psm1.ranges]
         q[1], q[2] = RNG.uniform(1.7, 2.5), RNG.uniform(0.5, 2.0)  # j1 past +90 deg, j2 past 0 deg
-        answer = K.classic_psm_ik(psm1, K.forward(psm1, q))
+        answer = REF.classic_psm_ik(psm1, K.forward(psm1, q))
         if not answer.within:
             break
     assert not answer.within and answer.outside  # the premise: such a pose was found
@@ -127,7 +128,7 @@ def test_poses_the_suj_cannot_reach_are_refused_with_the_reason():
     pose = K.forward(si, D.SAMPLE_JOINTS[("si", "PSM1")])
     tilt = np.eye(4)
     tilt[:3, :3] = [[1, 0, 0], [0, math.cos(0.1), -math.sin(0.1)], [0, math.sin(0.1), math.cos(0.1)]]
-    answer = K.si_ik(si, pose @ tilt)
+    answer = REF.si_ik(si, pose @ tilt)
     assert not answer.within and "tilted 5.73 deg" in answer.reason
 
 
@@ -139,7 +140,7 @@ def _ecm_batch(suj, yaw_rad, pitch_rad, origins, aims):
                          np.ascontiguousarray(aims, float), *K.ECM_GRID_STEPS)
 
 
-ECM_SOLVERS = {"numpy": K.ecm_classic_dock, "jitted": _ecm_batch}
+ECM_SOLVERS = {"numpy": REF.ecm_classic_dock, "jitted": _ecm_batch}
 
 
 def _ecm_bases(rng, n: int, spread_m: float, tilt: float):
@@ -198,7 +199,7 @@ def test_the_classic_ecm_dock_does_not_jump_with_rounding(solver):
 
 
 def _python_margin(suj, pose) -> float:
-    answer = K.classic_psm_ik(suj, pose)
+    answer = REF.classic_psm_ik(suj, pose)
     sols = answer.within + answer.outside
     return sols[0].margin if sols else -math.inf
 
@@ -237,7 +238,7 @@ def test_the_jitted_ecm_dock_picks_the_numpy_grids_point():
     (1e-12), SUJ joints (1e-9) and ECM yaw and pitch at 200 random bases, docked or not (premise: both occur)."""
     suj, ecm, origins, aims = _ecm_bases(np.random.default_rng(42), 200, 0.3, 0.8)
     limits = ecm.yaw_limits_rad, ecm.pitch_limits_rad
-    want, got = K.ecm_classic_dock(suj, *limits, origins, aims), _ecm_batch(suj, *limits, origins, aims)
+    want, got = REF.ecm_classic_dock(suj, *limits, origins, aims), _ecm_batch(suj, *limits, origins, aims)
     finite = np.isfinite(want[0])
     assert np.array_equal(np.isfinite(got[0]), finite) and 0 < np.count_nonzero(want[0] >= 0) < finite.sum()
     np.testing.assert_allclose(got[0][finite], want[0][finite], rtol=0, atol=1e-12)
@@ -271,7 +272,7 @@ def test_an_si_docking_points_the_shaft_with_the_arms_own_joints(arm):
         assert least <= min(sweep) + 1e-12 and min(sweep) - least < math.radians(0.1)
         assert math.acos(np.clip(K.si_orientation(suj, psi) @ [0, 0, -1.0] @ aim, -1, 1)) == pytest.approx(least,
                                                                                                         abs=1e-9)
-        answer = SD.si_docking(suj, port, aim, limits)
+        answer = REF.si_docking(suj, port, aim, limits)
         assert answer.dockings and not answer.reason
         for d in answer.dockings[:20]:
             np.testing.assert_allclose(suj_forward_reference("si", arm, d.suj.joints), d.base, atol=1e-9)
@@ -282,7 +283,7 @@ def test_an_si_docking_points_the_shaft_with_the_arms_own_joints(arm):
             assert d.absorbed_rad == pytest.approx(math.acos(np.clip(d.base[:3, :3] @ [0, 0, -1.0] @ aim, -1, 1)),
                                                    abs=1e-9)
             assert d.absorbed_rad >= least - 1e-9 and d.suj.margin >= 0
-        if K.si_ik(suj, answer.dockings[0].base).within and abs(K.wrap(answer.dockings[0].yaw_rad - psi)) < 1e-12:
+        if REF.si_ik(suj, answer.dockings[0].base).within and abs(K.wrap(answer.dockings[0].yaw_rad - psi)) < 1e-12:
             assert answer.dockings[0].absorbed_rad == pytest.approx(least, abs=1e-9)
             at_best += 1
     assert at_best > 0
@@ -291,14 +292,50 @@ def test_an_si_docking_points_the_shaft_with_the_arms_own_joints(arm):
 def test_an_si_docking_that_cannot_be_made_says_why():
     """A port the Si's planar chain reaches at no yaw, and an aim the arm's own pitch cannot absorb at any yaw
     where it does (the pitch's range narrowed to +-1 deg, the aim 45 deg off the family), each refused in words."""
-    from surgopt.kinematics.port import si_docking as SD
     from surgopt.robots.models import get_model
     from surgopt.studies.port_place.tables import arm_limits
 
     suj, limits = D.SI["PSM1"], arm_limits(get_model("dvrk_psm_si"))
     port = K.forward(suj, D.SAMPLE_JOINTS[("si", "PSM1")])[:3, 3]
-    far = SD.si_docking(suj, port + [3.0, 0.0, 0.0], np.array([0.0, 0.0, -1.0]), limits)
+    far = REF.si_docking(suj, port + [3.0, 0.0, 0.0], np.array([0.0, 0.0, -1.0]), limits)
     assert not far.dockings and "reaches the port at no yaw" in far.reason
     narrow = limits._replace(pitch_lo=-math.radians(1.0), pitch_hi=math.radians(1.0))
-    stiff = SD.si_docking(suj, port, np.array([0.0, 0.0, -1.0]), narrow)
+    stiff = REF.si_docking(suj, port, np.array([0.0, 0.0, -1.0]), narrow)
     assert not stiff.dockings and "cannot point the shaft" in stiff.reason and "pitch" in stiff.reason
+
+
+@pytest.mark.parametrize("cart", ["classic", "si"])
+def test_a_views_psm_docking_is_the_rows_solver_and_agrees_with_the_plain_twin(cart):
+    """Issue 53: the views dock a PSM with the rows' own solver (``carts.ClassicCart.psm_docking``: the batch S2, the
+    Si's S3) and it agrees with the plain Python twin (``reference.classic_psm_ik`` / ``si_ik``), pose by pose, on
+    poses the reference forward kinematics makes from random joints (some within the ranges, some outside, some
+    off the Si's family): within, the same joints (1e-9), least margin (1e-12) and tightest joint; outside, the
+    twin's nearest solution's joint named with its value; none, both say so. Premises: every case occurs."""
+    from surgopt.studies.port_place.carts import cart_named
+
+    rng = np.random.default_rng(11)
+    the_cart, twin = cart_named(cart), (REF.classic_psm_ik if cart == "classic" else REF.si_ik)
+    seen = set()
+    for arm in ("PSM1", "PSM2"):
+        suj = PLATFORMS[cart].suj(arm)
+        n = suj.n_joints
+        qs = np.column_stack([rng.uniform(-0.3, 0.9, 120), rng.uniform(-3.4, 3.4, (120, n - 1))])
+        poses = np.array([suj_forward_reference(cart, arm, q) for q in qs])
+        poses[::7, :3, 3] += 3.0  # far beyond the setup joints' reach
+        if cart == "si":
+            poses[3::7] = poses[3::7] @ K.mdh(0.2, 0, 0, 0)  # turned off the family the Si gives
+        for pose in poses:
+            got, want = the_cart.psm_docking(arm, pose), twin(suj, pose)
+            if want.within:
+                best = want.within[0]
+                np.testing.assert_allclose(got.joints, best.joints, atol=1e-9)
+                assert got.margin == pytest.approx(best.margin, abs=1e-12) and got.tightest == best.tightest
+                seen.add("within")
+            elif want.outside:
+                assert not got.joints and got.margin is None
+                assert got.tightest == want.outside[0].tightest and f"SUJ {got.tightest} = " in got.reason
+                seen.add("outside")
+            else:
+                assert not got.joints and got.reason.startswith(f"{cart} {arm} SUJ: no joint values")
+                seen.add("none")
+    assert seen == {"within", "outside", "none"}

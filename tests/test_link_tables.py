@@ -17,6 +17,7 @@ from surgopt.studies.port_place import tables as T
 from surgopt.studies.port_place.clashes import layout_clearances
 from surgopt.studies.port_place.link_tables import CAP_M, pair_name
 
+import reference as REF
 from reference import segment_distance_sampled
 
 SMALL = {"patient": {"port_region": {"site_spacing_mm": 36.0}}, "target": {"spacing_mm": 15.0}, "cart": {"model": "none"}}
@@ -343,10 +344,9 @@ def test_three_psms_keep_every_pair_of_links_clear(thin_links):
 
 def test_the_tables_and_the_report_dock_each_arm_with_the_same_joints():
     """The dock tables' best setup joints (the batch S2, what the link tables place) are the plain S2's first
-    solution (what the report, the export and ``clashes`` place) at every docked (site, pose) of every PSM, where
+    solution (``reference.classic_psm_ik``, the twin apart from the solvers) at every docked (site, pose) of every PSM, where
     solutions' margins tie too (``suj.MARGIN_TIE``: the first in the solver's order). The premise: ties occur
     (PSM3's assumed full-turn ranges leave the column's margin, shared by both elbows, deciding)."""
-    from surgopt.kinematics.port import suj as K
     from surgopt.robots.dvrk.platforms import PLATFORMS
 
     cfg = PC.PortPlaceConfig.model_validate({**LINKS, "robot": {"instrument_count": 3}})
@@ -356,7 +356,7 @@ def test_the_tables_and_the_report_dock_each_arm_with_the_same_joints():
     for a, arm in enumerate(("PSM1", "PSM2", "PSM3")):
         for site, pose in np.argwhere(dock.margin[a] >= 0)[::7]:
             base = dock.poses.patient[pose] @ T.base_pose(model.instrument_rot[site], model.sites_m[site])
-            answer = K.classic_psm_ik(PLATFORMS["classic"].suj(arm), base)
+            answer = REF.classic_psm_ik(PLATFORMS["classic"].suj(arm), base)
             np.testing.assert_allclose(dock.joints[a, site, pose], answer.within[0].joints, rtol=0, atol=1e-9)
             ties += len(answer.within) > 1 and answer.within[1].margin >= answer.within[0].margin - 1e-9
     assert ties > 0
@@ -409,6 +409,7 @@ def test_the_report_screens_the_cheaper_layouts_that_fail_only_on_their_links(tm
 
     answer = feasible[0]["design_id"]
     with pytest.MonkeyPatch.context() as mp:
+        mp.setattr(clashes, "memoised", lambda what, cfg, row, compute: compute())  # no fake kept
         mp.setattr(clashes, "layout_clearances", fake_clearances)
         mp.setattr(clashes, "rolls_that_clear", fake_rolls)
         summary = R.summary(parts)
@@ -461,6 +462,7 @@ def test_with_no_row_feasible_the_headline_says_none_and_a_layout_a_roll_clears_
                                       dexterity=row["dexterity_mean"], cost=row["cost"])
 
     with pytest.MonkeyPatch.context() as mp:
+        mp.setattr(clashes, "memoised", lambda what, cfg, row, compute: compute())  # no fake kept
         mp.setattr(clashes, "layout_clearances",
                    lambda cfg, row, docked=None: [clashes.Clearance("PSM1 and PSM2, docked", -5.0, "a", "b", "d")])
         mp.setattr(clashes, "rolls_that_clear", fake_rolls)
@@ -604,6 +606,7 @@ def test_the_closing_report_says_what_the_answers_links_do_over_the_whole_target
                                   "PSM1 a", "PSM2 b", "PSM1 target point (1, 2, 3) mm; PSM2 docked")]
 
     with pytest.MonkeyPatch.context() as mp:
+        mp.setattr(clashes, "memoised", lambda what, cfg, row, compute: compute())  # no fake kept
         mp.setattr(clashes, "whole_target_clearances", fake)
         values[ranked[0]["design_id"]] = 12.0
         assert R.summary(parts).headline["links_whole_target"].startswith("clear by 12 mm between arms over every "

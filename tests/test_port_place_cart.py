@@ -17,6 +17,7 @@ from surgopt.studies.port_place import study as S
 from surgopt.studies.port_place import tables as T
 
 from conftest import cli
+import reference as REF
 from reference import suj_forward_reference
 
 SMALL = {"patient": {"port_region": {"site_spacing_mm": 36.0}}, "target": {"spacing_mm": 15.0}, "cart": {"model": "none"}}
@@ -352,6 +353,7 @@ def test_the_best_layouts_are_screened_for_their_links_clearance(monkeypatch):
                                           dexterity=0.5, cost=row["cost"] + 0.01)
         return clashes.RollsThatClear({}, None, 9)
 
+    monkeypatch.setattr(clashes, "memoised", lambda what, cfg, row, compute: compute())  # no fake kept
     monkeypatch.setattr(clashes, "layout_clearances", fake)
     monkeypatch.setattr(clashes, "rolls_that_clear", fake_rolls)
     monkeypatch.setattr(R, "_below_table", lambda cfg, row, rolls: "")  # these rows have no cart pose to dock at
@@ -654,7 +656,6 @@ def test_the_report_says_why_the_best_layouts_without_the_cart_do_not_dock(tmp_p
     reason held, for sample layouts, by the setup joints solved pose by pose in plain Python apart from the
     tables (S2 for the PSMs, the numpy S4 grid for the ECM): a pair's PSMs that take its ports at no pose either
     way round, or arms each docking somewhere but never all at one pose (the premise: some layouts of a reason)."""
-    from surgopt.kinematics.port import suj as SUJ
     from surgopt.kinematics.port.reasons import DOCKING
     from surgopt.robots.dvrk.platforms import PLATFORMS
     from surgopt.runner import run_study
@@ -679,7 +680,7 @@ def test_the_report_says_why_the_best_layouts_without_the_cart_do_not_dock(tmp_p
     arm = T.camera_arm_of(cfg)
 
     def psm_docks(name, site):
-        return [bool(SUJ.classic_psm_ik(PLATFORMS["classic"].suj(name), p @ T.base_pose(model.instrument_rot[site],
+        return [bool(REF.classic_psm_ik(PLATFORMS["classic"].suj(name), p @ T.base_pose(model.instrument_rot[site],
                                                                                  model.sites_m[site])).within)
                 for p in poses]
 
@@ -687,7 +688,7 @@ def test_the_report_says_why_the_best_layouts_without_the_cart_do_not_dock(tmp_p
         shaft = (centre - model.sites_m[site]) / np.linalg.norm(centre - model.sites_m[site])
         origins = np.array([p[:3, :3] @ model.sites_m[site] + p[:3, 3] for p in poses])
         aims = np.array([p[:3, :3] @ shaft for p in poses])
-        return list(SUJ.ecm_classic_dock(PLATFORMS["classic"].suj("ECM"), arm.yaw_limits_rad, arm.pitch_limits_rad,
+        return list(REF.ecm_classic_dock(PLATFORMS["classic"].suj("ECM"), arm.yaw_limits_rad, arm.pitch_limits_rad,
                                          origins, aims)[0] >= 0)
 
     for kind in (1, 3):

@@ -18,6 +18,7 @@ from surgopt.studies.port_place import study as S
 from surgopt.studies.port_place import tables as T
 
 from conftest import cli
+import reference as REF
 from reference import suj_forward_reference
 
 SI_ARMS = {"instrument_arm": "dvrk_psm_si", "camera_arm": "dvrk_ecm_si"}
@@ -42,7 +43,7 @@ def test_the_batch_si_inverse_equals_the_plain_one():
         assert np.all(margin[::10] == -np.inf)
         assert (margin >= 0).any() and ((margin < 0) & np.isfinite(margin)).any()
         for k, pose in enumerate(poses):
-            answer = SJ.si_ik(suj, pose)
+            answer = REF.si_ik(suj, pose)
             sols = answer.within + answer.outside
             if not sols:
                 assert margin[k] == -np.inf and answer.reason
@@ -91,7 +92,7 @@ def _plain_docks(cfg, row, patient):
         frame = T.si_frames(cfg, suj, port[None], aim[None])[0]
         base = np.eye(4)
         base[:3, :3], base[:3, 3] = frame, port
-        if not SJ.si_ik(suj, patient @ base).within:
+        if not REF.si_ik(suj, patient @ base).within:
             return False
         if arm == "ecm":
             q1, q2, _ = own_joints(frame, aim)

@@ -14,41 +14,18 @@ least at the yaw that brings the neutral shaft's horizontal part onto the aim's 
     v = R_G R_tip (0, 0, -1),  e = R_W^T a,  psi* = atan2(e_y, e_x) - atan2(v_y, v_x),
     least absorbed angle = |asin(v_z) - asin(e_z)|  (the two directions' elevations).
 
-Where the SUJ's planar chain does not reach the port at psi* (its end's position turns with psi), other yaws are
-tried on a grid; each docking kept is one where the SUJ solves within its ranges (S3) and q1, q2 are within the
-arm's. All in the cart's world frame, metres and radians.
+The study docks each arm at psi* (or psi* turned by a stated yaw, ``si_frame``) and solves the setup joints there
+for many poses at once (``si_solutions``, S3, S7). A search over every yaw of a whole turn, each kept where the SUJ
+solves within its ranges and q1, q2 within the arm's, is the plain twin in ``tests/reference.py`` (``si_docking``).
+All in the cart's world frame, metres and radians.
 """
 from __future__ import annotations
 
 import math
-from typing import NamedTuple
 
 import numpy as np
 
 from surgopt.kinematics.port import suj as S
-
-#: The yaws tried besides psi*: a grid of this step over a whole turn (rad).
-YAW_STEP_RAD = math.radians(1.0)
-
-
-class SiDocking(NamedTuple):
-    """One way the Si docks an arm on a port: the planar chain's yaw ``yaw_rad`` (S5), the base frame there
-    (4x4, cart world, its origin the port), the SUJ's best solution (``suj.SujSolution``), the arm's own yaw
-    and pitch that point its shaft along the aim (rad), and the angle they absorb (rad)."""
-
-    yaw_rad: float
-    base: np.ndarray
-    suj: S.SujSolution
-    q1: float
-    q2: float
-    absorbed_rad: float
-
-
-class SiAnswer(NamedTuple):
-    """Every docking found (least absorbed angle first, then the SUJ's margin), and why there is none."""
-
-    dockings: tuple
-    reason: str
 
 
 def neutral_shaft(suj) -> np.ndarray:
@@ -75,41 +52,6 @@ def own_joints(base_rot: np.ndarray, aim: np.ndarray) -> tuple[float, float, flo
     return q1, q2, math.acos(max(-1.0, min(1.0, -a[2])))
 
 
-def si_docking(suj, port: np.ndarray, aim: np.ndarray, limits) -> SiAnswer:
-    """Every Si docking of an arm on ``port`` (m, cart world) whose own yaw and pitch (``limits``: ``yaw_lo``,
-    ``yaw_hi``, ``pitch_lo``, ``pitch_hi``, rad) point its shaft along ``aim``: psi* (S6) and a whole turn of
-    yaws at ``YAW_STEP_RAD``, each where the SUJ solves within its ranges (S3). None: the reason (the SUJ
-    reaches the port at no yaw; or where it does, the arm's yaw or pitch would leave its range, by how much)."""
-    port = np.asarray(port, float)
-    best_psi, _ = least_absorbed(suj, aim)
-    yaws = [best_psi] + [S.wrap(best_psi + k * YAW_STEP_RAD) for k in range(1, round(2 * math.pi / YAW_STEP_RAD))]
-    found, reached, nearest = [], 0, (math.inf, "")
-    for psi in yaws:
-        base = np.eye(4)
-        base[:3, :3], base[:3, 3] = S.si_orientation(suj, psi), port
-        answer = S.si_ik(suj, base)
-        if not answer.within:
-            continue
-        reached += 1
-        q1, q2, absorbed = own_joints(base[:3, :3], aim)
-        over = max(limits.yaw_lo - q1, q1 - limits.yaw_hi, limits.pitch_lo - q2, q2 - limits.pitch_hi)
-        if over > 0:
-            if over < nearest[0]:
-                nearest = (over, f"yaw {math.degrees(q1):.1f} deg" if max(limits.yaw_lo - q1, q1 - limits.yaw_hi) == over
-                           else f"pitch {math.degrees(q2):.1f} deg")
-            continue
-        found.append(SiDocking(psi, base, answer.within[0], q1, q2, absorbed))
-    found.sort(key=lambda d: (round(d.absorbed_rad, 12), -d.suj.margin))
-    if found:
-        return SiAnswer(tuple(found), "")
-    if not reached:
-        return SiAnswer((), f"{suj.cart} {suj.arm} SUJ: reaches the port at no yaw of its planar chain (within its "
-                            f"ranges)")
-    return SiAnswer((), f"{suj.cart} {suj.arm}: at every yaw where its SUJ reaches the port ({reached} of "
-                        f"{len(yaws)} tried) the arm's own joints cannot point the shaft along the aim (nearest: "
-                        f"{nearest[1]}, {math.degrees(nearest[0]):.1f} deg past its range)")
-
-
 def si_frame(suj, aim: np.ndarray, turn_rad: float = 0.0) -> np.ndarray:
     """(3, 3) The base's rotation (cart world) at psi* (S6) for a unit ``aim`` in the cart's world: the Si docking
     that leaves the arm's own joints the least to absorb; ``turn_rad``: yawed that much off psi* (the arm's own
@@ -126,7 +68,7 @@ def _wrap(a: np.ndarray) -> np.ndarray:
 
 def si_solutions(suj, poses: np.ndarray, tolerance_rad: float = 1e-9,
                  steps: int = S.SI_REDUNDANT_STEPS) -> tuple[np.ndarray, np.ndarray]:
-    """(S3, S7) ``suj.si_ik`` over many poses (N, 4, 4, the base in the cart's world) at once, as a dock table needs
+    """(S3, S7) ``reference.si_ik`` (tests) over many poses (N, 4, 4, the base in the cart's world) at once, as a dock table needs
     it: per pose the best solution's least range margin (m for the column, rad otherwise; -inf: no solution, or the
     pose off the orientations the Si gives by more than ``tolerance_rad``) and its joints (N, the SUJ's joints; the
     column first). The best: the first in ``si_ik``'s order (the first planar joint's grid of ``steps`` on the

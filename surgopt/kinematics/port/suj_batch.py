@@ -1,8 +1,8 @@
-"""The Classic PSM setup joints' closed-form inverse (``suj.classic_psm_ik``, eq. S2) as one jitted loop over many
+"""The Classic PSM setup joints' closed-form inverse (``reference.classic_psm_ik`` (tests), eq. S2) as one jitted loop over many
 poses: for each pose, the largest least range margin of its solutions (-inf: none), which is all a dock table
 needs (``studies/port_place/tables.dock_tables``: every arm at every site and cart pose).
 
-The same steps as ``suj.classic_psm_ik`` written out in scalars (no array per pose): the pose taken into the SUJ's
+The same steps as ``reference.classic_psm_ik`` (tests) written out in scalars (no array per pose): the pose taken into the SUJ's
 base frame with the tip transform off, the wrist's two angles from the Davenport decomposition (q4 from
 z.M z = c^2 + (1 - c^2) cos q4, two signs; psi and q5 from M's columns), then the planar chain's two elbows (law of
 cosines) and the column. ``tests/test_kinematics_suj.py`` holds it to ``classic_psm_ik``'s margins.
@@ -112,7 +112,7 @@ def planar_best(s, x, y, z, psi, q4, q5, head, q_best):
 @njit(**EXACT)
 def classic_psm_margin(s, pose, q_best):
     """(S2) The largest least range margin of the Classic PSM SUJ's solutions that put the arm's base frame at
-    ``pose`` (4x4, cart world); -inf when no joint values reach it (``suj.classic_psm_ik``). That solution's
+    ``pose`` (4x4, cart world); -inf when no joint values reach it (``reference.classic_psm_ik`` (tests)). That solution's
     joints (m, rad) are written to ``q_best`` (6,; untouched when none)."""
     t = s.world_inv @ pose @ s.tip_inv
     m = np.ascontiguousarray(t[:3, :3])
@@ -127,7 +127,7 @@ def classic_psm_margin(s, pose, q_best):
     phase = math.atan2(sa, ca)
     spread = math.acos(max(-1.0, min(1.0, target / amp)))
     first, second = wrap(phase + spread), wrap(phase - spread)
-    first, second = min(first, second), max(first, second)  # ascending, as ``suj.classic_psm_ik`` takes them
+    first, second = min(first, second), max(first, second)  # ascending, as ``reference.classic_psm_ik`` (tests) takes them
     best = -math.inf
     for n in range(2 if second != first else 1):
         th4 = first if n == 0 else second
@@ -222,7 +222,7 @@ def turn(q):
 
 @njit(**EXACT)
 def ecm_margins(s, origins, aims, psi_steps, aim_steps, q4_steps):
-    """(S4) ``suj.ecm_classic_dock`` as one jitted loop: per origin (n, 3, the RCM in the cart's world) and aim
+    """(S4) ``reference.ecm_classic_dock`` (tests) as one jitted loop: per origin (n, 3, the RCM in the cart's world) and aim
     (n, 3, unit), the largest least margin over the grid of the planar chain's heading psi, the aim's angle phi
     (the best of the ECM's own yaw/pitch margins and its twin pi - phi) and theta4, with the SUJ joints and the
     ECM's yaw and pitch there (-inf, NaN where no grid point docks). The same grid, the same order and the same

@@ -12,11 +12,23 @@ Also here, because every cart class uses them: the patient's frame in the cart's
 from __future__ import annotations
 
 import math
+from typing import NamedTuple
 
 import numpy as np
 
 from surgopt.robots.chain import rot_x, rot_y, rot_z
 from surgopt.robots.dvrk.platforms import PLATFORMS, Platform, platform_of
+
+class PsmDocking(NamedTuple):
+    """One PSM's setup joints at one base frame (``ClassicCart.psm_docking``): the best solution's joints (m for the
+    column, rad; empty when none is within the ranges), its least range margin (None then), the joint of that
+    margin, and why none is within (empty when one is)."""
+
+    joints: tuple
+    margin: float | None
+    tightest: str
+    reason: str
+
 
 #: The lateral direction the neutral docking frame's x is taken from (patient frame: the patient's left).
 LATERAL = np.array([1.0, 0.0, 0.0])
@@ -120,15 +132,30 @@ class ClassicCart(NoCart):
     aiming the scope (S4)."""
 
     docks = True
+    #: Why no setup joint values dock a PSM, in words (``psm_docking``).
+    out_of_reach = "beyond the setup joints' reach, or a tilt their wrist cannot give"
 
     def __init__(self, platform: Platform):
         self.platform = platform
 
-    def psm_ik(self, role: str, base: np.ndarray):
-        """One PSM's setup joints for its base frame ``base`` in the cart's world frame (``kinematics.port.suj``, S2)."""
-        from surgopt.kinematics.port import suj as S
-
-        return S.classic_psm_ik(self.platform.suj(role), base)
+    def psm_docking(self, role: str, base: np.ndarray) -> "PsmDocking":
+        """One PSM's setup joints for its base frame ``base`` (4x4) in the cart's world frame, by the rows' own solver
+        (``psm_solutions``: the batch S2, the Si's S3 and S7; issue 53, one implementation in production): the best
+        solution's joints, its least range margin and that joint, or why none is within the ranges."""
+        suj = self.platform.suj(role)
+        margin, q = self.psm_solutions(role, np.asarray(base, float)[None])
+        least, q = float(margin[0]), q[0, :suj.n_joints]
+        if not math.isfinite(least):
+            return PsmDocking((), None, "", f"{suj.cart} {suj.arm} SUJ: no joint values put the arm's base there "
+                                            f"({self.out_of_reach})")
+        k = int(np.argmin([min(v - lo, hi - v) for v, (lo, hi) in zip(q, suj.ranges)]))
+        name = suj.links[k].name
+        if least >= 0.0:
+            return PsmDocking(tuple(float(v) for v in q), least, name, "")
+        unit, scale = ("m", 1.0) if name == "column" else ("deg", 180 / math.pi)
+        lo, hi = suj.ranges[k]
+        return PsmDocking((), None, name, f"{suj.cart} {suj.arm} SUJ {name} = {q[k] * scale:.4g} {unit}, outside its "
+                                          f"range [{lo * scale:.4g}, {hi * scale:.4g}] {unit} (the nearest solution)")
 
     def psm_solutions(self, role: str, bases: np.ndarray, third_bases=None) -> tuple[np.ndarray, np.ndarray]:
         """(least margin, joints (n, 6)) of the best solution for each of ``bases`` (n, 4, 4) of PSM ``role``
@@ -157,6 +184,7 @@ class SiCart(ClassicCart):
 
     roll_is_free = False
     turn = ("yaw off psi*", "yawed")
+    out_of_reach = "beyond the setup joints' reach, or off the orientations the Si's setup joints give"
     own_docking = "the Si's docking frames (each PSM at psi*, S6)"
 
     def instrument_frames(self, model, sites, rot, rolls_rad):
@@ -181,11 +209,6 @@ class SiCart(ClassicCart):
     def turned_how(self, rolls):
         return ("each PSM's Si setup joints yawed off psi* by " + ", ".join(f"{a} {d:+.0f} deg" for a, d in rolls.items())
                 + " (its own yaw and pitch absorbing the rest)")
-
-    def psm_ik(self, role, base):
-        from surgopt.kinematics.port import suj as S
-
-        return S.si_ik(self.platform.suj(role), base)
 
     def psm_solutions(self, role, bases, third_bases=None):
         """S3, S7 batched: the column and three (PSM3: four) planar joints, the rest NaN."""

@@ -298,11 +298,10 @@ def rolled_docks(cfg, row: dict, arm: str, patient: np.ndarray, reached=None) ->
         if not ok or below:  # it loses a target point, or its mount would stand below the table top
             continue
         base = patient @ base_pose(rot, site)
-        answer = cart_for(cfg).psm_ik(arm.upper(), base)
-        if answer.within:
-            best = answer.within[0]
-            out.append((float(deg), DockedArm(arm.upper(), str(row[f"{arm}_site"]), best.joints, best.margin,
-                                              best.tightest, "", tuple(site), base, (),
+        got = cart_for(cfg).psm_docking(arm.upper(), base)
+        if got.joints:
+            out.append((float(deg), DockedArm(arm.upper(), str(row[f"{arm}_site"]), got.joints, got.margin,
+                                              got.tightest, "", tuple(site), base, (),
                                               cart_for(cfg).docked_roll_deg(deg))))
     return out
 

@@ -646,12 +646,8 @@ def docked_arms(cfg: PortPlaceConfig, row: dict) -> list[DockedArm]:
         third = third_frames(model, site[None]) if arm == "psm3" else None  # the Si PSM3's frame is its own
         frame = instrument_frames(model, site[None], neutral, roll)[0] if third is None else third[0]
         base = patient @ base_pose(frame, site)
-        answer = cart_for(cfg).psm_ik(arm.upper(), base)
-        if answer.within:
-            best = answer.within[0]
-            out.append(DockedArm(arm.upper(), str(row[f"{arm}_site"]), best.joints, best.margin, best.tightest, "",
-                                 tuple(site), base, (), float(in_degrees(roll)[0])))
-        else:
-            out.append(DockedArm(arm.upper(), str(row[f"{arm}_site"]), (), None, "", answer.reason, tuple(site),
-                                 base, (), float(in_degrees(roll)[0])))
+        got = cart.psm_docking(arm.upper(), base)
+        out.append(DockedArm(arm.upper(), str(row[f"{arm}_site"]), got.joints, got.margin,
+                             got.tightest if got.joints else "", got.reason, tuple(site), base, (),
+                             float(in_degrees(roll)[0])))
     return out
