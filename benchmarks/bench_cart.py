@@ -35,6 +35,7 @@ from surgopt.robots.dvrk.platforms import PLATFORMS
 from surgopt.studies.port_place import config as C
 from surgopt.studies.port_place import study as S
 from surgopt.studies.port_place import tables as T
+from surgopt.studies.port_place import model as M
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
 import reference as REF  # noqa: E402 - the plain Python twin (S2, S3, S4) the batch solvers are timed against
@@ -51,7 +52,7 @@ def best_of(f, repeat=3):
 
 def solvers() -> None:
     cfg = C.PortPlaceConfig.model_validate({"cart": {"model": "classic"}})
-    model = T.prepare(cfg)
+    model = M.prepare(cfg)
     poses = T.cart_poses(cfg)
     n, m = len(model.sites_m), len(poses.floor)
     bases = np.zeros((n, 4, 4))
@@ -107,7 +108,7 @@ def si_solver() -> None:
 
     cfg = C.PortPlaceConfig.model_validate({"cart": {"model": "si"}, "robot": {
         "instrument_arm": "dvrk_psm_si", "camera_arm": "dvrk_ecm_si"}})
-    model = T.prepare(cfg)
+    model = M.prepare(cfg)
     poses = T.cart_poses(cfg)
     n, m = len(model.sites_m), len(poses.floor)
     bases = np.zeros((n, 4, 4))
@@ -173,7 +174,7 @@ def pruned_least() -> None:
     from surgopt.studies.port_place import link_tables as L
 
     cfg = C.PortPlaceConfig.model_validate({"cart": {"model": "classic"}})
-    model = T.prepare(cfg)
+    model = M.prepare(cfg)
     own, radii, groups = L.own_moving(model, model.sites_m, model.instrument_rot)
     balls = np.stack([Cap.swept_balls(own[i], radii, groups) for i in range(len(own))])
     rng = np.random.default_rng(0)

@@ -31,6 +31,7 @@ from surgopt.robots.models import get_model
 from surgopt.studies.port_place import config as C
 from surgopt.studies.port_place import geometry as G
 from surgopt.studies.port_place import tables as T
+from surgopt.studies.port_place import model as M
 from surgopt.studies.port_place import study as S
 
 
@@ -145,7 +146,7 @@ def main() -> None:
         assert pairs[0][i, j] == r[0] and math.isclose(pairs[2][i, j], r[2], rel_tol=1e-12)
     print(f"per-pair tables, plain numpy point by point ({len(fewer)} pairs): {len(fewer) * m / tp / 1e6:.3f} M "
           f"pair-points/s, numba / plain {(tp / len(fewer)) / (tk / n_pairs):.0f}x (one core each)")
-    model = T.model_of(cfg)
+    model = M.model_of(cfg)
     t, crit = model.grid.tables, model.criteria
     total = S.n_designs(n)
 
@@ -185,8 +186,8 @@ def serial() -> None:
     sites = G.sites_mm(cfg) / 1000
     targets = G.target_points_mm(cfg.target) / 1000
     n, m = len(sites), len(targets)
-    serial_tables(T.prepare(cfg), sites)  # compiled or loaded, Prim's order cached
-    tk, st = best_of(lambda: serial_tables(T.prepare(cfg), sites))
+    serial_tables(M.prepare(cfg), sites)  # compiled or loaded, Prim's order cached
+    tk, st = best_of(lambda: serial_tables(M.prepare(cfg), sites))
     arm = arm_model(RcmGridConfig())
     rcm = np.asarray(cfg.robot.instrument_serial.rcm_in_base_m)
 

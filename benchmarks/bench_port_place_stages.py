@@ -25,7 +25,7 @@ def stages(cfg) -> dict:
     """Seconds per stage on a fresh model of ``cfg`` (the process's kernels already compiled)."""
     import surgopt.studies.port_place.link_tables as L
     from surgopt.studies.port_place import study as S
-    from surgopt.studies.port_place import tables as T
+    from surgopt.studies.port_place import model as M
 
     spent = {"links": 0.0}
     link_tables = L.link_tables
@@ -39,13 +39,13 @@ def stages(cfg) -> dict:
     L.link_tables = timed
     try:
         t0 = time.perf_counter()
-        model = T.prepare(cfg)
+        model = M.prepare(cfg)
         t1 = time.perf_counter()
         model.dock
         t2 = time.perf_counter()
         model.grid
         t3 = time.perf_counter()
-        T._held[:] = [cfg.model_dump_json(), model]  # the tasks read this model (``model_of``)
+        M._held[:] = [cfg.model_dump_json(), model]  # the tasks read this model (``model_of``)
         n = S.n_total(cfg)
         chunk = S.auto_chunk(cfg)
         for task in range(math.ceil(n / chunk)):

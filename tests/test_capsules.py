@@ -12,6 +12,7 @@ from surgopt.robots.dvrk import links as L
 from surgopt.studies.port_place import clashes as X
 from surgopt.studies.port_place import config as CF
 from surgopt.studies.port_place import tables as T
+from surgopt.studies.port_place import model as M
 
 from reference import PSM_CLASSIC_MDH, mdh_chain, segment_distance_sampled
 
@@ -142,7 +143,7 @@ def test_crossed_setup_joints_are_refused_with_the_pair_named():
     cfg = CF.PortPlaceConfig.model_validate(
         {**SMALL, "cart": {"model": "classic", "pose": "given", "x_mm": 0.0, "y_mm": -1500.0, "heading_deg": 0.0,
                            "mount_below_table_top": "allow"}})
-    model = T.model_of(cfg)
+    model = M.model_of(cfg)
     sites = model.sites_m * 1000
     ok = model.dock.margin[:, :, 0] >= 0
     pairs = [(i, int(np.flatnonzero(np.all(np.isclose(sites, s * [-1, 1, 1]), axis=1))[0]))
@@ -156,12 +157,12 @@ def test_crossed_setup_joints_are_refused_with_the_pair_named():
                "psm1_site": p1, "psm2_site": p2, "ecm_site": -1}
         for arm, s in (("psm1", p1), ("psm2", p2)):
             row.update({f"{arm}_{c}_mm": sites[s, k] for k, c in enumerate("xyz")})
-        docked = T.docked_arms(cfg, {k: v for k, v in row.items() if not k.startswith("ecm")})
+        docked = T.docked_arms(M.model_of(cfg), {k: v for k, v in row.items() if not k.startswith("ecm")})
         assert all(a.joints for a in docked)
-        found = next(c for c in X.layout_clearances(cfg, row, docked) if c.check == "PSM1 and PSM2, docked")
+        found = next(c for c in X.layout_clearances(M.model_of(cfg), row, docked) if c.check == "PSM1 and PSM2, docked")
         # the setup joints' links alone (the arms' own, their meshes' capsules, may meet either way round)
         patient = T.row_patient_in_cart(cfg, row)
-        model = T.model_of(cfg)
+        model = M.model_of(cfg)
         arms = [X.arm_poses(cfg, a, patient, model.targets_m[:0], model.limits.along_shaft_m) for a in docked]
         keep = [np.array(["setup joint link" in n for n in a.names]) for a in arms]
         value, i, j = C.least_pair_clearance(arms[0].segments[0][keep[0]], arms[0].radii[keep[0]],

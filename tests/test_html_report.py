@@ -275,7 +275,8 @@ def test_a_searched_dockings_page_and_figure_colour_the_target_by_the_trials_own
     from surgopt.studies.port_place import config as C
     from surgopt.studies.port_place import figures as F
     from surgopt.studies.port_place import study as S
-    from surgopt.studies.port_place.tables import model_of
+    from surgopt.studies.port_place.layout import layout_isotropy
+    from surgopt.studies.port_place.model import model_of
 
     (tmp_path / "r.toml").write_text(
         "[patient.port_region]\nsite_spacing_mm = 36.0\n[target]\nspacing_mm = 15.0\n[robot]\n"
@@ -294,7 +295,7 @@ def test_a_searched_dockings_page_and_figure_colour_the_target_by_the_trials_own
     (run,) = Store(tmp_path / "s").runs("port-place")
     rows = run.parts(S.STUDY.schema_for(run.manifest["config"])).table().to_pylist()
     row = next(r for r in rows if r["design_id"] == first)
-    own = S.layout_isotropy(cfg, row)
+    own = layout_isotropy(model_of(cfg), row)
     got = np.array([np.nan if v is None else v for v in shown], float)
     np.testing.assert_array_equal(np.isnan(got), np.isnan(own))
     np.testing.assert_allclose(got[~np.isnan(got)], own[~np.isnan(own)], atol=1e-4)  # the page rounds to 1e-4
@@ -302,7 +303,7 @@ def test_a_searched_dockings_page_and_figure_colour_the_target_by_the_trials_own
     reached = [r for r in rows if r["common_reach"] == 1.0 and abs(r["psm1_docking_yaw_deg"]) > 1]
     assert reached  # the premise: a trial reaching the whole target docked in frames of its own
     for r in reached:
-        assert np.nanmean(S.layout_isotropy(cfg, r)) == pytest.approx(r["dexterity_mean"], abs=1e-9)
+        assert np.nanmean(layout_isotropy(model_of(cfg), r)) == pytest.approx(r["dexterity_mean"], abs=1e-9)
     assert data["layout_iso"] is not None and np.nanmax(np.abs(np.nan_to_num(grid) - np.nan_to_num(own))) > 1e-3
     seen = {}
     with pytest.MonkeyPatch.context() as mp:

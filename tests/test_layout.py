@@ -13,6 +13,7 @@ from surgopt.studies.port_place import export as E
 from surgopt.studies.port_place import report as R
 from surgopt.studies.port_place import study as S
 from surgopt.studies.port_place.layout import layout_of
+from surgopt.studies.port_place.model import model_of
 
 from reference import suj_forward_reference
 
@@ -42,7 +43,7 @@ def _row_joints(row: dict, arm: str) -> np.ndarray:
 def test_the_layout_docks_each_arm_at_the_rows_own_joints_and_clearance(feasible_rows):
     cfg, rows = feasible_rows
     for row in rows:
-        layout = layout_of(cfg, row)
+        layout = layout_of(model_of(cfg), row)
         assert layout.rolls == {}  # the premise: a feasible row's links clear at its own docking, nothing turned
         assert [a.arm for a in layout.docked] == ["PSM1", "PSM2", "ECM"] and all(a.joints for a in layout.docked)
         for a in layout.docked:
@@ -54,7 +55,7 @@ def test_the_layout_docks_each_arm_at_the_rows_own_joints_and_clearance(feasible
             np.testing.assert_allclose(to_port[:3, 3], port, atol=1e-9)  # each RCM on its port
         least = min(c.clearance_mm for c in layout.clearances)
         assert least == pytest.approx(row["external_clearance_mm"], abs=1e-3) and least >= 0.0
-        assert layout_of(cfg, row).docked is layout.docked  # solved once in the process
+        assert layout_of(model_of(cfg), row).docked is layout.docked  # solved once in the process
 
 
 def test_the_robot_files_write_the_rows_layout(feasible_rows):
@@ -103,7 +104,7 @@ def test_the_cart_figure_draws_each_arms_setup_joints_where_the_rows_joints_put_
     captured = {}
     with pytest.MonkeyPatch.context() as mp:
         mp.setattr(F, "save", lambda fig, path: captured.setdefault("fig", fig))
-        cart_figure(pyplot(), cfg, rows[0], tmp_path)
+        cart_figure(pyplot(), model_of(cfg), rows[0], tmp_path)
     ax = captured["fig"].axes[0]
     tool = np.eye(4)
     tool[:3, :3], tool[:3, 3] = SUJ_TIP_ROTATION, (0.4864, 0.0, 0.1524)  # dvrk-kinematics.md, every PSM

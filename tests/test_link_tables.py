@@ -14,6 +14,7 @@ from surgopt.studies.port_place import config as PC
 from surgopt.studies.port_place import report as R
 from surgopt.studies.port_place import study as S
 from surgopt.studies.port_place import tables as T
+from surgopt.studies.port_place import model as M
 from surgopt.studies.port_place.clashes import layout_clearances
 from surgopt.studies.port_place.link_tables import CAP_M, pair_name
 
@@ -107,7 +108,7 @@ def thin_links(monkeypatch):
 @pytest.fixture(scope="module")
 def links():
     cfg = PC.PortPlaceConfig.model_validate(LINKS)
-    model = T.model_of(cfg)
+    model = M.model_of(cfg)
     return cfg, model, model.grid.tables
 
 
@@ -147,7 +148,7 @@ def _tables_equal_layouts(cfg, model, t, pairs, per_pair: int = 8) -> dict:
             spare = iter(s for s in range(len(model.sites_m)) if s not in (i, j))
             row = _row(cfg, model, {x: i, y: j, **{a: next(spare) for a in arms if a not in (x, y)}}, p)
             name = f"{x.upper()} and {y.upper()}, over the target"
-            found = layout_clearances(cfg, row)
+            found = layout_clearances(M.model_of(cfg), row)
             got = next(c for c in found if c.check == name)
             for arm, at in ((x.upper(), i), (y.upper(), j)):  # each arm against the patient and the table
                 around = min((c for c in found if c.check in (f"{arm} and the patient", f"{arm} and the table")),
@@ -178,13 +179,14 @@ def _named_clearance(cfg, row: dict, link_a: str, link_b: str) -> float:
     """The least clearance (m) over every pair of poses between two named links of a layout, placed as
     ``clashes.arm_poses`` places them."""
     from surgopt.studies.port_place.clashes import arm_poses, pose_points
-    from surgopt.studies.port_place.tables import docked_arms, model_of, patient_in_cart
+    from surgopt.studies.port_place.model import model_of
+    from surgopt.studies.port_place.tables import docked_arms, patient_in_cart
 
     patient = patient_in_cart(cfg.cart, row["cart_x_mm"], row["cart_y_mm"], row["cart_heading_deg"])
     model = model_of(cfg)
     points = pose_points(model)[0]
     arms = {a.arm: arm_poses(cfg, a, patient, points, model.limits.along_shaft_m)
-            for a in docked_arms(cfg, row) if a.joints}
+            for a in docked_arms(M.model_of(cfg), row) if a.joints}
     a, b = (arms[n.split(" ")[0]] for n in (link_a, link_b))
     i, j = a.names.index(link_a), b.names.index(link_b)
     return min(C.segments_distance(x, y) for x in a.segments[:, i] for y in b.segments[:, j]) - a.radii[i] - b.radii[j]
@@ -212,7 +214,7 @@ def test_the_si_link_tables_equal_each_layouts_clearances():
         **SMALL, "robot": {"instrument_arm": "dvrk_psm_si", "camera_arm": "dvrk_ecm_si", "instrument_count": 3},
         "cart": {"model": "si", "around_step_deg": 30.0, "distance_step_mm": 300.0},
         "constraints": {"min_link_clearance_mm": 0.0}})
-    model = T.model_of(cfg)
+    model = M.model_of(cfg)
     t = model.grid.tables
     assert t.link_words.shape[0] == 6 and len(t.third_reach_count)
     sites = np.unique(np.argwhere(np.isfinite(t.link_value[3]))[:, 1])
@@ -241,7 +243,7 @@ def test_feasible_rows_keep_their_links_clear_and_clashes_fail_on_them(links):
     assert np.all(cols["cart_pose"][clash] >= 0)
     best = int(np.flatnonzero(feasible)[np.argmin(cols["cost"][feasible])])
     row = {c: (v[best].item() if hasattr(v[best], "item") else v[best]) for c, v in cols.items()}
-    least = min(layout_clearances(cfg, row), key=lambda c: c.clearance_mm)  # between arms, the patient, the table
+    least = min(layout_clearances(M.model_of(cfg), row), key=lambda c: c.clearance_mm)  # between arms, the patient, the table
     if row["external_clearance_mm"] < CAP_M * 1000 - 1e-3:
         assert row["external_clearance_mm"] == pytest.approx(least.clearance_mm, abs=1e-3)
         assert pair_name(int(row["external_link_pair"])) == f"{least.link_a} / {least.link_b}"
@@ -265,7 +267,7 @@ def test_a_feasible_rows_cart_pose_is_the_one_at_which_its_links_clear_most(thin
     cfg = PC.PortPlaceConfig.model_validate({**LINKS, "robot": {"camera_min_insertion_mm": 0.0},
                                              "cart": {**LINKS["cart"], "distance_step_mm": 150.0,
                                                       "model": thin_links}})
-    t = T.model_of(cfg).grid.tables
+    t = M.model_of(cfg).grid.tables
     cols = S.compute_task(cfg, S.n_total(cfg), 0)
     least_m = cfg.constraints.min_link_clearance_mm / 1000
     poses = t.link_value.shape[3]
@@ -324,7 +326,7 @@ def test_three_psms_keep_every_pair_of_links_clear(thin_links):
     cfg = PC.PortPlaceConfig.model_validate({**LINKS, "robot": {"instrument_count": 3},
                                              "cart": {**LINKS["cart"], "model": thin_links},
                                              "constraints": {"min_link_clearance_mm": -25.0}})
-    t = T.model_of(cfg).grid.tables
+    t = M.model_of(cfg).grid.tables
     assert t.link_words.shape[0] == 6 and np.isfinite(t.link_value[3:]).any()
     cols = S.compute_task(cfg, S.n_total(cfg), 0)
     feasible = cols["feasible"]
@@ -332,7 +334,7 @@ def test_three_psms_keep_every_pair_of_links_clear(thin_links):
     assert np.any(cols["infeasible"] == OUTSIDE)
     best = int(np.flatnonzero(feasible)[np.argmin(cols["cost"][feasible])])
     row = {c: v[best].item() for c, v in cols.items()}
-    found = layout_clearances(cfg, row)
+    found = layout_clearances(M.model_of(cfg), row)
     assert any("PSM3" in c.check for c in found)
     least = min(found, key=lambda c: c.clearance_mm)
     if row["external_clearance_mm"] < CAP_M * 1000 - 25.0 - 1e-3:
@@ -350,7 +352,7 @@ def test_the_tables_and_the_report_dock_each_arm_with_the_same_joints():
     from surgopt.robots.dvrk.platforms import PLATFORMS
 
     cfg = PC.PortPlaceConfig.model_validate({**LINKS, "robot": {"instrument_count": 3}})
-    model = T.model_of(cfg)
+    model = M.model_of(cfg)
     dock = model.dock
     ties = 0
     for a, arm in enumerate(("PSM1", "PSM2", "PSM3")):
@@ -513,7 +515,7 @@ def test_with_no_layout_clear_the_cart_figure_draws_the_cheapest_that_fails_on_i
         F.figures(cfg, pa.table(cols), tmp_path)
     title = titles["port_place_cart_3d.png"]
     row = F.row_of(cols, int(want))
-    least = min(layout_clearances(cfg, row), key=lambda c: c.clearance_mm)
+    least = min(layout_clearances(M.model_of(cfg), row), key=lambda c: c.clearance_mm)
     assert f"design {row['design_id']} on the Si cart" in title and "no layout's links clear" in title
     assert least.clearance_mm < 0 and f"{least.link_a} / {least.link_b} by {-least.clearance_mm:.0f} mm" in title
 
@@ -545,7 +547,7 @@ def test_a_searched_roll_docks_and_clears_each_trial_as_the_grid_at_that_roll(tm
     assert list(S.design_dims(searched))[-2:] == ["psm1_roll_deg", "psm2_roll_deg"]
     x = np.column_stack([cols[f"{a}_site"][pick] for a in S.arms_of(grid_cfg)]).astype(float)
     x[:, :2] = np.sort(x[:, :2], axis=1)  # the enumeration's order (i < j), as the roll-free test
-    sites_x_mm = T.model_of(grid_cfg).sites_m[x[:, :2].astype(int), 0]
+    sites_x_mm = M.model_of(grid_cfg).sites_m[x[:, :2].astype(int), 0]
     x = np.column_stack([x, np.where(sites_x_mm >= 0, 30.0, -30.0)])  # each port's roll, by its side
     alone = S.evaluate_designs(searched, x, cols["design_id"][pick], "t")
     for c, v in cols.items():
@@ -570,12 +572,12 @@ def test_the_whole_target_clearance_is_the_exhaustive_least_over_every_target_po
     cols = S.compute_task(cfg, S.n_total(cfg), 0)
     r = int(np.flatnonzero(cols["feasible"])[0])  # the premise: the grid has feasible rows (11)
     row = {k: (v[r].item() if hasattr(v[r], "item") else v[r]) for k, v in cols.items()}
-    whole = whole_target_clearances(cfg, row)
-    sampled = {c.check.split(",")[0]: c for c in layout_clearances(cfg, row) if c.check.endswith("over the target")}
+    whole = whole_target_clearances(M.model_of(cfg), row)
+    sampled = {c.check.split(",")[0]: c for c in layout_clearances(M.model_of(cfg), row) if c.check.endswith("over the target")}
     assert len(whole) == 3 and all(f"({len(model.targets_m):,} points)" in c.check for c in whole)
     patient = row_patient_in_cart(cfg, row)
     arms = {a.arm: arm_poses(cfg, a, patient, model.targets_m, model.limits.along_shaft_m)
-            for a in docked_arms(cfg, row) if a.joints}
+            for a in docked_arms(M.model_of(cfg), row) if a.joints}
     for c in whole:
         x, y = c.check.split(",")[0].split(" and ")
         want = C.least_over_poses(arms[x].segments, arms[x].radii, arms[y].segments, arms[y].radii)[0] * 1000

@@ -15,6 +15,7 @@ from surgopt.studies.port_place import config as C
 from surgopt.studies.port_place import report as R
 from surgopt.studies.port_place import study as S
 from surgopt.studies.port_place import tables as T
+from surgopt.studies.port_place import model as M
 
 from conftest import cli
 import reference as REF
@@ -66,7 +67,7 @@ def test_with_the_cart_on_the_midline_every_dockable_layout_has_its_mirror_twin(
     same cost, exactly where the ECM docks at the mirror of its port (the ECM's setup joints are not mirror
     images of themselves: its tilt is one-handed). Premises: layouts that fail on docking alone, twins checked."""
     cfg = C.PortPlaceConfig.model_validate(MIDLINE)
-    model = T.model_of(cfg)
+    model = M.model_of(cfg)
     sites = model.sites_m * 1000
     mirror = np.array([int(np.flatnonzero(np.all(np.isclose(sites, s * [-1, 1, 1]), axis=1))[0]) for s in sites])
     ok = model.dock.margin[:, :, 0] >= 0
@@ -407,16 +408,16 @@ def test_a_layout_whose_links_overlap_clears_with_a_psm_rolled_about_its_shaft(t
     run_study(S.STUDY, cfg, config_name="grid", store=store, jobs=1, quiet=True)
     (run,) = store.runs("port-place")
     rows = R.least_cost_layouts(run.parts(S.STUDY.schema_for(run.manifest["config"])), 10).to_pylist()
-    found = [(r, rolls_that_clear(cfg, r)) for r in rows]
+    found = [(r, rolls_that_clear(M.model_of(cfg), r)) for r in rows]
     row, got = next((r, g) for r, g in found if g.least is not None)
-    assert least(layout_clearances(cfg, row)).clearance_mm < 0  # the premise: it overlaps at the run's roll
+    assert least(layout_clearances(M.model_of(cfg), row)).clearance_mm < 0  # the premise: it overlaps at the run's roll
     assert got.least.clearance_mm >= 0 and any(d != 0 for d in got.rolls.values())
     patient = T.patient_in_cart(cfg.cart, row["cart_x_mm"], row["cart_y_mm"], row["cart_heading_deg"])
     centre = np.asarray(cfg.target.centre_mm, float) / 1000
-    model = T.model_of(cfg)
+    model = M.model_of(cfg)
     arms = []
     for name, deg in got.rolls.items():
-        arm = dict(rolled_docks(cfg, row, name.lower(), patient))[deg]
+        arm = dict(rolled_docks(M.model_of(cfg), row, name.lower(), patient))[deg]
         port = np.array([row[f"{name.lower()}_{c}_mm"] for c in "xyz"]) / 1000
         want = _rolled(_docking_frame(port, centre), deg)
         np.testing.assert_allclose(arm.base[:3, :3], patient[:3, :3] @ want, atol=1e-12)
@@ -436,11 +437,11 @@ def test_a_layout_whose_links_overlap_clears_with_a_psm_rolled_about_its_shaft(t
                                cfg.constraints.dexterity_length_m) for n, deg in got.rolls.items()]
     assert got.dexterity == pytest.approx(np.minimum(*iso).mean(), abs=1e-12)
     assert got.cost == pytest.approx(row["cost"] + row["dexterity_mean"] - got.dexterity, abs=1e-12)
-    ecm = [a for a in T.docked_arms(cfg, row) if a.arm == "ECM"]
-    again = layout_clearances(cfg, row, arms + ecm)
+    ecm = [a for a in T.docked_arms(M.model_of(cfg), row) if a.arm == "ECM"]
+    again = layout_clearances(M.model_of(cfg), row, arms + ecm)
     assert min(c.clearance_mm for c in again) == got.least.clearance_mm >= 0
     assert list(got.clearances) == again  # kept with the rolls: what the report's and the export's tables show
-    assert rolls_that_clear(cfg, row) is got  # kept for the process: the report, the figure, the export share it
+    assert rolls_that_clear(M.model_of(cfg), row) is got  # kept for the process: the report, the figure, the export share it
     # an arm whose mount (the SUJ's tip) lies below the table top is named with its depth: the tip from the
     # reference FK of the tool origin and the cart data's tip-to-tool transform
     from surgopt.robots.dvrk.platforms import PLATFORMS
@@ -449,13 +450,13 @@ def test_a_layout_whose_links_overlap_clears_with_a_psm_rolled_about_its_shaft(t
     low = mounts_below_table_top(cfg, row, arms + ecm)
     assert not [a for a in low if a.startswith("PSM")]  # #54: a roll parking a PSM's mount there is refused
     for name, _ in got.rolls.items():  # every roll it tried docked its mount above the table top
-        for deg, arm in rolled_docks(cfg, row, name.lower(), patient):
+        for deg, arm in rolled_docks(M.model_of(cfg), row, name.lower(), patient):
             tip = suj_forward_reference("classic", arm.arm, arm.joints) @ np.linalg.inv(
                 PLATFORMS["classic"].suj(arm.arm).tip_to_tool)
             assert float((tip[:3, 3] - patient[:3, 3]) @ patient[:3, 2]) >= 0.0
     allow = C.PortPlaceConfig.model_validate({**GRID, "cart": {**GRID["cart"], "mount_below_table_top": "allow"}})
-    more = {n: {d for d, _ in rolled_docks(allow, row, n.lower(), patient)} for n in got.rolls}
-    fewer = {n: {d for d, _ in rolled_docks(cfg, row, n.lower(), patient)} for n in got.rolls}
+    more = {n: {d for d, _ in rolled_docks(M.model_of(allow), row, n.lower(), patient)} for n in got.rolls}
+    fewer = {n: {d for d, _ in rolled_docks(M.model_of(cfg), row, n.lower(), patient)} for n in got.rolls}
     assert all(fewer[n] <= more[n] for n in got.rolls) and any(fewer[n] < more[n] for n in got.rolls)  # the premise
     for arm in arms + ecm:
         tip = suj_forward_reference("classic", arm.arm, arm.joints) @ np.linalg.inv(PLATFORMS["classic"].suj(arm.arm).tip_to_tool)
@@ -499,8 +500,8 @@ def test_a_rolled_layouts_cost_takes_the_dexterity_at_its_rolls():
     r = int(np.flatnonzero(cols["feasible"])[0])
     row = {c: v[r].item() for c, v in cols.items()}
     centre = np.asarray(cfg.target.centre_mm, float) / 1000
-    points = T.model_of(cfg).targets_m
-    iso = {a: rolled_reach(cfg, row, a)[2] for a in ("psm1", "psm2")}
+    points = M.model_of(cfg).targets_m
+    iso = {a: rolled_reach(M.model_of(cfg), row, a)[2] for a in ("psm1", "psm2")}
     zero = ROLL_GRID_DEG.index(0)
     dexterity, cost = rolled_cost(cfg, row, {a: iso[a][zero] for a in iso})
     assert dexterity == pytest.approx(row["dexterity_mean"], abs=1e-12) and cost == pytest.approx(row["cost"], abs=1e-12)
@@ -577,8 +578,8 @@ def test_the_closing_report_searches_each_layouts_rolls_once(tmp_path, monkeypat
     assert len(calls["rolls"]) == len(set(calls["rolls"]))  # each layout's rolls searched once
     (clear,) = [t for t in summary.tables if t[0].startswith("best layout: least clearance")]
     row = next(r for r in R.least_cost_layouts(run.parts(S.STUDY.schema_for(run.manifest["config"])), 1).to_pylist())
-    rolled = clashes.rolls_that_clear(cfg, row)  # kept: not searched again
-    shown = rolled.clearances or clashes.layout_clearances(cfg, row)  # docked to clear where a roll clears it
+    rolled = clashes.rolls_that_clear(M.model_of(cfg), row)  # kept: not searched again
+    shown = rolled.clearances or clashes.layout_clearances(M.model_of(cfg), row)  # docked to clear where a roll clears it
     sampled = [r for r in clear[2] if "over the whole target" not in r[0]]  # (and a row a pair over every point)
     assert [r[1] for r in sampled] == [f"{c.clearance_mm:.0f}" for c in shown]
     assert calls["rolls"].count(best) == 1
@@ -672,7 +673,7 @@ def test_the_report_says_why_the_best_layouts_without_the_cart_do_not_dock(tmp_p
     undocked = best[best["infeasible"] == DOCKING]
     assert f": {len(undocked):,} the Classic cart" in title and len(undocked) > 0
     assert sum(int(r[1].replace(",", "")) for r in rows) == len(undocked)
-    model = T.model_of(cfg)
+    model = M.model_of(cfg)
     why = R.why_undocked(model.dock, undocked[["psm1_site", "psm2_site", "ecm_site"]].to_numpy())
     assert {1, 3} <= set(why.tolist())  # the premise: both kinds occur here
     poses = model.dock.poses.patient
@@ -719,7 +720,7 @@ def test_the_rows_give_each_arms_setup_joint_margins_at_its_pose():
     assert swapped.any() and (~swapped).any()
     for r in pick:
         row = {c: v[r].item() for c, v in cols.items()}
-        for arm in T.docked_arms(cfg, row):
+        for arm in T.docked_arms(M.model_of(cfg), row):
             ranges = np.asarray(PLATFORMS["classic"].suj(arm.arm).ranges, float)
             q = np.asarray(arm.joints)
             margin = np.minimum(q - ranges[:, 0], ranges[:, 1] - q)
@@ -746,7 +747,7 @@ def test_a_psm_whose_mount_would_stand_below_the_table_top_does_not_dock():
     from reference import SUJ_TIP_ROTATION
 
     allow = C.PortPlaceConfig.model_validate({**GRID, "cart": {**GRID["cart"], "mount_below_table_top": "allow"}})
-    model = T.prepare(allow)
+    model = M.prepare(allow)
     dock = model.dock
     below = np.zeros(dock.margin.shape, bool)
     for a, arm in enumerate(("PSM1", "PSM2")):
@@ -760,7 +761,7 @@ def test_a_psm_whose_mount_would_stand_below_the_table_top_does_not_dock():
             assert in_patient[2, 3] == pytest.approx(z[i], abs=1e-9)
         below[a] = (z < 0)[:, None] & (dock.margin[a] >= 0)
     assert below.any() and (~below & (dock.margin >= 0)).any()  # the premise: both kinds dock when allowed
-    refused = T.prepare(C.PortPlaceConfig.model_validate(GRID)).dock
+    refused = M.prepare(C.PortPlaceConfig.model_validate(GRID)).dock
     np.testing.assert_array_equal(refused.margin >= 0, (dock.margin >= 0) & ~below)
 
 
@@ -891,7 +892,7 @@ def test_the_pages_reach_is_the_grids_without_building_the_grid():
     ``PortModel.site_reach`` gives the same arrays without building the grid (with the cart and its links)."""
     cfg = C.PortPlaceConfig.model_validate({**GRID, "constraints": {}})
     assert T.links_decide(cfg)  # the premise: the grid would build link tables
-    fresh = T.model_of(cfg)
+    fresh = M.model_of(cfg)
     for built in ("grid", "site_reach"):
         fresh.__dict__.pop(built, None)
     reach, dex = fresh.site_reach

@@ -15,6 +15,7 @@ from surgopt.studies.port_place import config as C
 from surgopt.studies.port_place import geometry as G
 from surgopt.studies.port_place import study as S
 from surgopt.studies.port_place import tables as T
+from surgopt.studies.port_place import model as M
 
 from reference import PSM_CLASSIC_MDH, mdh_chain
 
@@ -31,7 +32,7 @@ RNG = np.random.default_rng(40)
 
 def model(base: dict, **robot):
     cfg = C.PortPlaceConfig.model_validate({**base, "robot": {**base.get("robot", {}), **robot}})
-    return T.prepare(cfg)
+    return M.prepare(cfg)
 
 
 def full_reach_sites(m) -> np.ndarray:
@@ -43,7 +44,7 @@ def test_the_tip_is_the_needle_drivers_last_frame_with_the_wrist_straight():
     """rcm_point with the run's limits (the default: the jaw tip) lands where the PSM's rows and the LND's wrist
     rows, multiplied out in tests/reference.py, put the wrist-yaw frame's origin at q5 = q6 = 0; with
     tip_beyond_wrist_mm = 0, where the roll row puts the wrist."""
-    tip = T.prepare(C.PortPlaceConfig()).limits
+    tip = M.prepare(C.PortPlaceConfig()).limits
     wrist = model({}, tip_beyond_wrist_mm=0.0).limits
     assert tip.along_shaft_m - wrist.along_shaft_m == pytest.approx(dvrk.LND_WRIST_LINK_M, abs=1e-15)
     for _ in range(20):
@@ -57,7 +58,7 @@ def test_the_tip_is_the_needle_drivers_last_frame_with_the_wrist_straight():
 def test_the_wrist_stays_the_least_depth_inside_at_every_reached_point():
     """Every point the default reaches puts the wrist (the tip less 9.1 mm along the shaft) >= 45 mm past the
     RCM, by plain distances; points that only the wrist-at-any-depth model reaches exist (the bound decides)."""
-    deep = T.prepare(C.PortPlaceConfig.model_validate(SMALL))
+    deep = M.prepare(C.PortPlaceConfig.model_validate(SMALL))
     shallow = model(SMALL, min_wrist_depth_mm=0.0)
     rho = np.linalg.norm(deep.targets_m[None, :, :] - deep.sites_m[:, None, :], axis=2)
     wrist_depth = rho - dvrk.LND_WRIST_LINK_M
@@ -139,7 +140,7 @@ def test_the_setup_joints_dock_the_rolled_frame():
         i = int(np.argmin(np.abs(sites[:, 0] - 60.0) + np.abs(sites[:, 1] + 40.0)))
         row = {"psm1_site": i, "cart_x_mm": 0.0, "cart_y_mm": -1100.0, "cart_heading_deg": 0.0,
                **{f"psm1_{c}_mm": sites[i, k] for k, c in enumerate("xyz")}}
-        rows[roll] = docked_arms(cfg, row)[0].base
+        rows[roll] = docked_arms(M.model_of(cfg), row)[0].base
     a, b = rows[0.0], rows[90.0]
     np.testing.assert_allclose(a[:3, 3], b[:3, 3], atol=1e-12)
     np.testing.assert_allclose(a[:3, 2], b[:3, 2], atol=1e-12)

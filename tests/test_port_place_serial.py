@@ -12,6 +12,7 @@ from surgopt.robots.models import get_model
 from surgopt.studies.port_place import config as C
 from surgopt.studies.port_place import geometry as G
 from surgopt.studies.port_place import tables as T
+from surgopt.studies.port_place import model as M
 from surgopt.studies.port_place import study as S
 from surgopt.studies.port_place.arms import walk_order
 from surgopt.studies.port_place.serial_arms import BASE_INSIDE, serial_tables
@@ -52,7 +53,7 @@ def test_the_pa10s_reach_and_dexterity_are_its_closed_form_ik_at_every_port(rcm)
     none."""
     cfg = _config("pa10_7c", rcm)
     sites = G.sites_mm(cfg) / 1000
-    st = serial_tables(T.prepare(cfg), sites)
+    st = serial_tables(M.prepare(cfg), sites)
     targets = G.target_points_mm(cfg.target) / 1000
     arm = cfg.robot.instrument_serial
     lim = np.radians([arm.joint_limit_deg.S1, arm.joint_limit_deg.S2, arm.joint_limit_deg.E1, arm.joint_limit_deg.E2,
@@ -93,7 +94,7 @@ def test_every_solution_closes_the_ur5es_chain_in_the_patient_frame():
     model = get_model("ur5e")
     assert arm.locked_joints_deg == {"wrist_3": 0.0} and arm.tool_axis == [0.0, 0.0, 1.0] and not any(arm.tool_offset_m)
     sites = G.sites_mm(cfg) / 1000
-    st = serial_tables(T.prepare(cfg), sites)
+    st = serial_tables(M.prepare(cfg), sites)
     targets = G.target_points_mm(cfg.target) / 1000
     assert st.reach.mean() > 0.5  # the premise: most (port, point) pairs reached
     limits = [(r.lower, r.upper) for r in model.dh[:5]]
@@ -173,7 +174,7 @@ def test_a_base_inside_the_body_refuses_the_port():
     """An RCM 0.06 m beside the base: a base under the dome (the ellipsoid's own inequality) refuses its port;
     a refused port reaches nothing and has no centre line."""
     cfg = _config("ur5e", [0.06, 0.0, 0.05])
-    st = serial_tables(T.prepare(cfg), G.sites_mm(cfg) / 1000)
+    st = serial_tables(M.prepare(cfg), G.sites_mm(cfg) / 1000)
     a, b, c = np.asarray(cfg.patient.semi_axes_mm) / 1000
     x, y, z = st.base_pos.T
     under = ((x / a) ** 2 + (y / b) ** 2 + (z / c) ** 2 < 1) & (z >= 0)
@@ -352,7 +353,7 @@ def test_the_shipped_pa10_config_loads_and_both_best_ports_reach_the_whole_targe
     assert cfg.robot.instrument_serial.holder().name == "pa10_7c (software RCM)"
     sites = G.sites_mm(cfg)[[28, 144]] / 1000
     assert np.linalg.norm(sites[0] - sites[1]) == pytest.approx(0.180, abs=1e-9)
-    assert serial_tables(T.prepare(cfg), sites).reach.all()
+    assert serial_tables(M.prepare(cfg), sites).reach.all()
 
 
 def test_the_distance_to_a_mesh_patient_is_trimeshs_closest_point(tmp_path):
@@ -396,7 +397,7 @@ def test_a_serial_arm_holds_the_endoscope_where_the_scope_must_be():
     centre = np.asarray(cfg.target.centre_mm) / 1000
     rot = K.docking_frames(sites, centre, T.LATERAL)
     tips, _, ok = K.camera_views(sites, rot, centre, T.camera_of(cfg))
-    held = serial_camera_tables(T.prepare(cfg), sites, tips, ok)
+    held = serial_camera_tables(M.prepare(cfg), sites, tips, ok)
     assert 0 < held.placed.sum() < len(sites)
     for i in np.flatnonzero(held.placed):
         flange = dh_chain_transform(model, [*held.joints[i], 0.0])
@@ -405,7 +406,7 @@ def test_a_serial_arm_holds_the_endoscope_where_the_scope_must_be():
         assert np.linalg.norm(tip - tips[i]) < 1e-9
         along = (tip - sites[i]) @ axis
         assert np.linalg.norm(tip - sites[i] - along * axis) < 1e-9 and 0 < along <= arm.tool_length_m
-    t, _, _ = T.port_tables(T.prepare(cfg), sites, rot)
+    t, _, _ = T.port_tables(M.prepare(cfg), sites, rot)
     free = K.camera_coverage(sites, rot, G.target_points_mm(cfg.target) / 1000, centre, T.camera_of(cfg))
     np.testing.assert_array_equal(t.coverage, np.where(held.placed, free, 0.0))
     i = 0

@@ -16,6 +16,7 @@ from surgopt.robots.models import get_model
 from surgopt.studies.port_place import config as C
 from surgopt.studies.port_place import study as S
 from surgopt.studies.port_place import tables as T
+from surgopt.studies.port_place import model as M
 
 from conftest import cli
 import reference as REF
@@ -58,7 +59,7 @@ def test_each_ports_si_frame_is_the_yaw_that_leaves_the_least_to_absorb_at_every
     aim at (the least the arm's own yaw and pitch absorb), expressed in the patient's frame at that pose: one frame
     per port for every pose (the table tilted 10 degrees head down)."""
     cfg = C.PortPlaceConfig.model_validate(SI)
-    model = T.model_of(cfg)
+    model = M.model_of(cfg)
     sites = model.sites_m[::17]
     aims = model.centre_m - sites
     aims /= np.linalg.norm(aims, axis=1)[:, None]
@@ -141,7 +142,7 @@ def test_three_psms_on_the_si_cart_dock_the_third_in_its_own_frame():
     from surgopt.kinematics.port import place as K
 
     cfg = C.PortPlaceConfig.model_validate({**SI, "robot": {**SI_ARMS, "instrument_count": 3}})
-    model = T.model_of(cfg)
+    model = M.model_of(cfg)
     cols = S.compute_task(cfg, 60_000, 3)
     third = np.unique(cols["psm3_site"])
     aims = model.centre_m - model.sites_m[third]
@@ -273,7 +274,7 @@ def test_the_page_colours_the_target_by_the_si_psm3s_own_isotropy(tmp_path, page
                                             "target": SI["target"], "robot": {**SI_ARMS, "instrument_count": 3},
                                             "cart": {k: v for k, v in SI["cart"].items() if k != "trendelenburg_deg"},
                                             "constraints": SI["constraints"]})  # the run's: no link tables
-    model = T.model_of(cfg)
+    model = M.model_of(cfg)
     at = model.sites_m[sites]
     aims = model.centre_m - at
     aims /= np.linalg.norm(aims, axis=1)[:, None]
@@ -303,12 +304,12 @@ def test_an_si_psm_yawed_off_psi_star_docks_on_the_si_family_and_still_reaches()
     r = int(np.flatnonzero(cols["feasible"])[0])
     row = {c: v[r].item() for c, v in cols.items()}
     patient = T.patient_in_cart(cfg.cart, row["cart_x_mm"], row["cart_y_mm"], row["cart_heading_deg"])
-    model = T.model_of(cfg)
+    model = M.model_of(cfg)
     psm = get_model("dvrk_psm_si")
     lim = model.limits
     for arm in ("psm1", "psm2"):
         port = np.array([row[f"{arm}_{c}_mm"] for c in "xyz"]) / 1000
-        docks = CL.rolled_docks(cfg, row, arm, patient)
+        docks = CL.rolled_docks(M.model_of(cfg), row, arm, patient)
         assert len(docks) > 2 and 0.0 in [d for d, _ in docks]
         aim = patient[:3, :3] @ (model.centre_m - port)
         shaft0 = None
@@ -343,7 +344,7 @@ def test_each_arms_shaft_outside_is_its_own_length():
                                                 "cart": {"model": "none"}})
     assert T.criteria(cfg).outside_length_m == pytest.approx(0.4826) == T.outside_length_m(cfg)
     assert T.criteria(classic).outside_length_m == pytest.approx(0.4318)
-    model = T.model_of(cfg)
+    model = M.model_of(cfg)
     sites, centre = model.sites_m, model.centre_m
     outside = model.grid.tables.outside
 

@@ -13,6 +13,7 @@ from surgopt.robots.models import get_model
 from surgopt.studies.port_place import config as C
 from surgopt.studies.port_place import geometry as G
 from surgopt.studies.port_place import tables as T
+from surgopt.studies.port_place import model as M
 from surgopt.studies.port_place import study as S
 
 from conftest import cli, fault_lines
@@ -65,7 +66,7 @@ def test_three_psms_on_a_mirror_symmetric_patient_give_every_design_its_mirror_t
     np.testing.assert_allclose(cols["cost"][twin], cols["cost"], rtol=1e-9, atol=1e-12)
     assert np.array_equal(cols["infeasible"][twin], cols["infeasible"])
     assert 0 < cols["feasible"].sum() < len(twin)
-    reach = T.model_of(cfg).grid.reach
+    reach = M.model_of(cfg).grid.reach
     common = (reach[arms[0]] & reach[arms[1]] & reach[arms[2]]).mean(axis=1)
     np.testing.assert_array_equal(cols["common_reach"], common)
 
@@ -511,8 +512,8 @@ def test_an_approach_cone_keeps_the_points_whose_shaft_the_wrist_can_turn_into_i
     free, coned = (validate(c, C.PortPlaceConfig, "t") for c in (base, cone))
     sites = G.sites_mm(free) / 1000
     rot = K.docking_frames(sites, np.asarray(free.target.centre_mm) / 1000, T.LATERAL)
-    _, reach_free, _ = T.port_tables(T.prepare(free), sites, rot)
-    _, reach_cone, dex_cone = T.port_tables(T.prepare(coned), sites, rot)
+    _, reach_free, _ = T.port_tables(M.prepare(free), sites, rot)
+    _, reach_cone, dex_cone = T.port_tables(M.prepare(coned), sites, rot)
     pts = G.target_points_mm(free.target) / 1000
     v = pts[None, :, :] - sites[:, None, :]
     d = np.array([0.0, 0.3, -1.0]) / np.linalg.norm([0.0, 0.3, -1.0])
@@ -539,20 +540,20 @@ def test_the_wrist_margin_is_what_the_cone_leaves_of_the_bend_at_the_worst_point
     coned = validate({**base, "target": {**base["target"], "approach_direction": [0.0, 0.3, -1.0],
                                          "approach_half_angle_deg": 10.0}}, C.PortPlaceConfig, "t")
     sites = G.sites_mm(coned) / 1000
-    margin = T.wrist_margin_deg(T.prepare(coned), sites)
+    margin = T.wrist_margin_deg(M.prepare(coned), sites)
     d = np.array([0.0, 0.3, -1.0]) / np.linalg.norm([0.0, 0.3, -1.0])
     for i, site in enumerate(sites):
         worst = max(math.degrees(math.atan2(np.linalg.norm(np.cross(p - site, d)), (p - site) @ d))
                     for p in G.target_points_mm(coned.target) / 1000)
         assert margin[i] == pytest.approx(math.degrees(dvrk.LND_WRIST_BEND_RAD) - 10.0 - worst, abs=1e-9)
     rot = K.docking_frames(sites, np.asarray(coned.target.centre_mm) / 1000, T.LATERAL)
-    _, reach_cone, _ = T.port_tables(T.prepare(coned), sites, rot)
+    _, reach_cone, _ = T.port_tables(M.prepare(coned), sites, rot)
     free = validate(base, C.PortPlaceConfig, "t")
-    _, reach_free, _ = T.port_tables(T.prepare(free), sites, rot)
+    _, reach_free, _ = T.port_tables(M.prepare(free), sites, rot)
     keeps = (reach_cone == reach_free).all(axis=1)
     assert 0 < (margin >= 0).sum() < len(sites)  # the premise: the cone binds at some ports, not all
     assert np.array_equal(margin >= -1e-9, keeps)
-    assert np.all(T.wrist_margin_deg(T.prepare(free), sites) == math.degrees(dvrk.LND_WRIST_BEND_RAD))
+    assert np.all(T.wrist_margin_deg(M.prepare(free), sites) == math.degrees(dvrk.LND_WRIST_BEND_RAD))
 
 
 def test_a_port_region_outline_keeps_the_sites_inside_it():

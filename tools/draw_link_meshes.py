@@ -43,7 +43,8 @@ def main(out: str, design_id: int, overrides: list[str]) -> None:
     from surgopt.studies import get_study
     from surgopt.studies.port_place.clashes import arm_poses, between
     from surgopt.studies.port_place.link_tables import pose_points
-    from surgopt.studies.port_place.tables import docked_arms, model_of, row_patient_in_cart
+    from surgopt.studies.port_place.model import model_of
+    from surgopt.studies.port_place.tables import docked_arms, row_patient_in_cart
 
     df = surgopt.run("port-place", overrides=overrides, store=Path(tempfile.gettempdir()) / "surgopt-draw-store")
     row = df[df.design_id == design_id].iloc[0].to_dict()
@@ -55,7 +56,7 @@ def main(out: str, design_id: int, overrides: list[str]) -> None:
     model = model_of(cfg)
     patient = row_patient_in_cart(cfg, row)
     points = pose_points(model)[0]
-    arms = [a for a in docked_arms(cfg, row) if a.arm.startswith("PSM") and a.joints]
+    arms = [a for a in docked_arms(model, row) if a.arm.startswith("PSM") and a.joints]
     poses = [arm_poses(cfg, a, patient, points, model.limits.along_shaft_m) for a in arms]
     _, moving = between(poses[0], poses[1])
     psm_capsules = PLATFORMS[cfg.cart.model].own_links(arms[0].arm)[1]  # the platform's PSM links: which meshes

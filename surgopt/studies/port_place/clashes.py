@@ -170,19 +170,19 @@ def in_feasible(cfg) -> str:
     return "not part of feasible (constraints.min_link_clearance_mm = 'off')"
 
 
-def layout_clearances(cfg, row: dict, docked=None) -> list[Clearance]:
+def layout_clearances(model, row: dict, docked=None) -> list[Clearance]:
     """Every least clearance of a layout's row on the cart (its ports and cart pose): each pair of docked arms
     (docked and over the target), each arm against the patient and the table. Arms that do not dock are left
     out (their setup joints have no solution to place links at). ``docked``: the arms docked otherwise than the
     row's own docking (rolled); without it the answer is kept for the process (``memoised``)."""
-    from surgopt.studies.port_place.tables import docked_arms, model_of, row_patient_in_cart
+    from surgopt.studies.port_place.tables import docked_arms, row_patient_in_cart
 
+    cfg = model.cfg
     if not links_modelled(cfg):
         return []
     if docked is None:
-        return list(memoised("clearances", cfg, row, lambda: layout_clearances(cfg, row, docked_arms(cfg, row))))
+        return list(memoised("clearances", cfg, row, lambda: layout_clearances(model, row, docked_arms(model, row))))
     patient = row_patient_in_cart(cfg, row)
-    model = model_of(cfg)
     points = pose_points(model)[0]
     arms = [arm_poses(cfg, a, patient, points, model.limits.along_shaft_m) for a in docked if a.joints]
     out = []
@@ -198,29 +198,29 @@ def layout_clearances(cfg, row: dict, docked=None) -> list[Clearance]:
 WHOLE_TARGET_GROUPS = 16
 
 
-def whole_target_clearances(cfg, row: dict) -> list[Clearance]:
+def whole_target_clearances(model, row: dict) -> list[Clearance]:
     """(#54 item 3) Between each pair of a layout's docked arms (docked as its row is), the least clearance over
     **every** target point (each PSM at any of them and docked, the other at any of its own; the ECM held docked),
     exact: ``capsules.least_between`` over all pose pairs, pruned only by lower bounds. The rows and
     ``layout_clearances`` sample ``link_tables.POSE_POINTS`` of them; the least over the whole target is no more
     than theirs and may be less. Kept for the process (``memoised``)."""
-    if not links_modelled(cfg):
+    if not links_modelled(model.cfg):
         return []
-    return list(memoised("whole target", cfg, row, lambda: _whole_target(cfg, row)))
+    return list(memoised("whole target", model.cfg, row, lambda: _whole_target(model, row)))
 
 
-def _whole_target(cfg, row: dict) -> list[Clearance]:
+def _whole_target(model, row: dict) -> list[Clearance]:
     from surgopt.kinematics.port.capsules import least_between, swept_balls
     from surgopt.studies.port_place.link_tables import grouped, spread_points
-    from surgopt.studies.port_place.tables import docked_arms, model_of, row_patient_in_cart
+    from surgopt.studies.port_place.tables import docked_arms, row_patient_in_cart
 
-    model = model_of(cfg)
+    cfg = model.cfg
     start = int(np.argmin(np.linalg.norm(model.targets_m - model.centre_m, axis=1)))
     seeds = spread_points(model.targets_m, WHOLE_TARGET_GROUPS, start)[0]  # spread first, then every other point
     first = np.concatenate([seeds, np.setdiff1d(np.arange(len(model.targets_m)), seeds)])
     points, groups = grouped(model.targets_m[first], min(WHOLE_TARGET_GROUPS, len(model.targets_m)))
     patient = row_patient_in_cart(cfg, row)
-    arms = [arm_poses(cfg, a, patient, points, model.limits.along_shaft_m) for a in docked_arms(cfg, row)
+    arms = [arm_poses(cfg, a, patient, points, model.limits.along_shaft_m) for a in docked_arms(model, row)
             if a.joints]
     held = np.array([0, 1], np.int64)
     out = []
@@ -263,24 +263,22 @@ def turned_frames(cfg, site: np.ndarray, arm: str, turns_rad: np.ndarray) -> np.
     return cart_for(cfg).turned_frames(cfg, site, arm.upper(), turns_rad)
 
 
-def rolled_reach(cfg, row: dict, arm: str) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+def rolled_reach(model, row: dict, arm: str) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """PSM ``arm``'s (``psm1`` ...) port of a layout's row docked at each turn of ROLL_GRID_DEG (``turn_words``:
     a roll about its neutral shaft, or on the Si a yaw off psi*): (its frames (R, 3, 3), full reach (R,), the
     isotropy at each target point (R, points; eq. P5, 0 where it does not reach), the port (3,) m), by the
     kernel's own tables in the turned frames."""
     from surgopt.kinematics.port import place as K
-    from surgopt.studies.port_place.tables import model_of
 
-    model = model_of(cfg)
     site = np.array([row[f"{arm}_{c}_mm"] for c in "xyz"]) / 1000
     rolls = np.radians(np.array(ROLL_GRID_DEG, float))
-    frames = turned_frames(cfg, site, arm, rolls)
+    frames = turned_frames(model.cfg, site, arm, rolls)
     reach, dex = K.instrument_tables(np.repeat(site[None], len(rolls), axis=0), frames, model.targets_m,
                                      model.limits, model.criteria.dexterity_length_m, model.cone)
     return frames, reach.all(axis=1), dex, site
 
 
-def rolled_docks(cfg, row: dict, arm: str, patient: np.ndarray, reached=None) -> list[tuple[float, object]]:
+def rolled_docks(model, row: dict, arm: str, patient: np.ndarray, reached=None) -> list[tuple[float, object]]:
     """(turn in deg, ``tables.DockedArm``) for each turn of ROLL_GRID_DEG at which PSM ``arm`` (``psm1`` ...)
     still reaches every target point from its port (``rolled_reach``, or ``reached``: its answer already had)
     and its setup joints dock the turned frame within their ranges (S2; the Si's S3, S7) with their mount above the
@@ -290,7 +288,8 @@ def rolled_docks(cfg, row: dict, arm: str, patient: np.ndarray, reached=None) ->
 
     from surgopt.studies.port_place.tables import mount_heights_m
 
-    frames, full, _, site = rolled_reach(cfg, row, arm) if reached is None else reached
+    cfg = model.cfg
+    frames, full, _, site = rolled_reach(model, row, arm) if reached is None else reached
     low = (mount_heights_m(cfg, arm.upper(), np.asarray(frames), np.repeat(np.asarray(site)[None], len(frames), 0))
            < 0.0) & (cfg.cart.mount_below_table_top == "refuse")
     out = []
@@ -333,12 +332,12 @@ class RollsThatClear(NamedTuple):
     cost: float | None = None  # and its cost
 
 
-def rolls_that_clear(cfg, row: dict) -> RollsThatClear:
+def rolls_that_clear(model, row: dict) -> RollsThatClear:
     """``_rolls_that_clear``, kept for the process (``memoised``)."""
-    return memoised("rolls", cfg, row, lambda: _rolls_that_clear(cfg, row))
+    return memoised("rolls", model.cfg, row, lambda: _rolls_that_clear(model, row))
 
 
-def _rolls_that_clear(cfg, row: dict) -> RollsThatClear:
+def _rolls_that_clear(model, row: dict) -> RollsThatClear:
     """A layout's PSMs docked at every combination of ROLL_GRID_DEG (each PSM's own roll; the ECM as it docks):
     each combination's docked arms' least clearance to each other (fast: one pose each) and its cost so docked
     (``rolled_cost``: the dexterity changes with the roll). Of those that clear docked, the ROLL_FULL_CHECKS of
@@ -348,15 +347,16 @@ def _rolls_that_clear(cfg, row: dict) -> RollsThatClear:
     import itertools
 
     from surgopt.kinematics.port.capsules import least_pair_clearance
-    from surgopt.studies.port_place.tables import docked_arms, model_of, row_patient_in_cart
+    from surgopt.studies.port_place.tables import docked_arms, row_patient_in_cart
 
+    cfg = model.cfg
     patient = row_patient_in_cart(cfg, row)
-    ecm = [a for a in docked_arms(cfg, row) if a.arm == "ECM" and a.joints]
+    ecm = [a for a in docked_arms(model, row) if a.arm == "ECM" and a.joints]
     psms = [a for a in ("psm1", "psm2", "psm3") if f"{a}_site" in row]
-    reached = {a: rolled_reach(cfg, row, a) for a in psms}
-    options = {a: rolled_docks(cfg, row, a, patient, reached[a]) for a in psms}
+    reached = {a: rolled_reach(model, row, a) for a in psms}
+    options = {a: rolled_docks(model, row, a, patient, reached[a]) for a in psms}
     isotropy = {a: dict(zip(ROLL_GRID_DEG, reached[a][2])) for a in psms}
-    along = model_of(cfg).limits.along_shaft_m
+    along = model.limits.along_shaft_m
     none = np.zeros((0, 3))
     docked_pose = {(a, deg): arm_poses(cfg, d, patient, none, along) for a in psms for deg, d in options[a]}
     ecm_pose = arm_poses(cfg, ecm[0], patient, none, along) if ecm else None
@@ -384,7 +384,7 @@ def _rolls_that_clear(cfg, row: dict) -> RollsThatClear:
     clearest = [t for t in sorted(docked_clear, key=lambda t: -t[0]) if t not in cheapest][:ROLL_FULL_CHECKS]
     for c, cost, dexterity, choice in cheapest + clearest:
         arms = [dict(options[a])[deg] for a, deg in choice] + ecm
-        found = layout_clearances(cfg, row, arms)
+        found = layout_clearances(model, row, arms)
         worst = least(found)
         if worst is not None and worst.clearance_mm >= 0:  # the first that clears, cheapest first
             return RollsThatClear({a.upper(): deg for a, deg in choice}, worst, len(combos), tuple(found),
@@ -410,7 +410,7 @@ def mounts_below_table_top(cfg, row: dict, docked) -> dict:
     return out
 
 
-def docking_that_clears(cfg, row: dict):
+def docking_that_clears(model, row: dict):
     """(the arms as docked, each PSM's docking roll about its shaft in deg where it was turned, what was done,
     the links' clearances so docked): the run's own docking when the layout's links clear outside the body; else,
     when some combination of each PSM's roll clears them (``clashes.rolls_that_clear``: full reach and the setup
@@ -418,14 +418,15 @@ def docking_that_clears(cfg, row: dict):
     overlap."""
     from surgopt.studies.port_place.tables import docked_arms
 
-    docked = docked_arms(cfg, row)
-    clearances = layout_clearances(cfg, row)
+    cfg = model.cfg
+    docked = docked_arms(model, row)
+    clearances = layout_clearances(model, row)
     worst = least(clearances)
     own = cart_for(cfg).own_docking
     turn, _ = turn_words(cfg)
     if worst is None or worst.clearance_mm >= 0:
         return docked, {}, own, clearances
-    found = rolls_that_clear(cfg, row)
+    found = rolls_that_clear(model, row)
     if found.least is None:
         return docked, {}, (f"{own}; their links overlap outside the body by {-worst.clearance_mm:.0f} mm "
                             f"({worst.link_a} / {worst.link_b}) and no {turn} of each PSM (of {found.tried} that "

@@ -63,11 +63,13 @@ def dvrk_setup(cfg: PortPlaceConfig, row: dict) -> str:
     ``suj_tip_to_tool_origin`` as used, its port (mm, patient frame), its base (RCM) frame in the cart's world
     frame, and its own joints at the target's centre."""
     from surgopt.studies.port_place.layout import arm_joints_at_centre, layout_of
-    from surgopt.studies.port_place.tables import camera_tips, model_of
+    from surgopt.studies.port_place.model import model_of
+    from surgopt.studies.port_place.tables import camera_tips
 
     refuse_undocked("dvrk", cfg, row)
     centre = np.asarray(cfg.target.centre_mm, float) / 1000
-    layout = layout_of(cfg, row)
+    model = model_of(cfg)
+    layout = layout_of(model, row)
     patient = layout.patient_in_cart
     arms = []
     docked, rolls, docking, clearances = layout.docked, layout.rolls, layout.docking, layout.clearances
@@ -77,10 +79,10 @@ def dvrk_setup(cfg: PortPlaceConfig, row: dict) -> str:
         port = np.asarray(a.port_m)
         if a.arm == "ECM":  # its own yaw and pitch aim the scope; inserted as the rows hold it (camera_views)
             depth = (row["ecm_tip_depth_mm"] if "ecm_tip_depth_mm" in row  # as the row holds it; a run stored
-                     else camera_tips(model_of(cfg), port[None])["camera_tip_depth_mm"][0]) / 1000  # before: solved
+                     else camera_tips(model, port[None])["camera_tip_depth_mm"][0]) / 1000  # before: solved
             joints = [*a.ecm, depth - holder.along_shaft_m] if a.ecm and np.isfinite(depth) else None
         else:
-            joints = arm_joints_at_centre(model_of(cfg).limits, np.linalg.inv(patient) @ a.base, centre)
+            joints = arm_joints_at_centre(model.limits, np.linalg.inv(patient) @ a.base, centre)
         arms.append({
             "name": a.arm, "suj": cfg.cart.model,
             "suj_joints": list(a.joints) if a.joints else None,
@@ -104,11 +106,11 @@ def dvrk_setup(cfg: PortPlaceConfig, row: dict) -> str:
                            f"image's right (the image level, its up the patient's front)" if "image_right_psm" in row
                            else "a run stored before the rows said which PSM is on the image's right: run it again"),
            "clearances_outside_body": clearances_of(clearances, cfg),
-           "clearances_over_whole_target": whole_target_of(cfg, row, rolls)}
+           "clearances_over_whole_target": whole_target_of(model, row, rolls)}
     return json.dumps(out, indent=1) + "\n"
 
 
-def whole_target_of(cfg: PortPlaceConfig, row: dict, rolls: dict) -> dict:
+def whole_target_of(model, row: dict, rolls: dict) -> dict:
     """(#54 item 3) The layout's arms pair by pair over every target point (``clashes.whole_target_clearances``),
     at the row's own docking: the sampled ``clearances_outside_body`` may miss an overlap between their points.
     Where the export docks otherwise (rolled to clear), not checked, and said."""
@@ -117,7 +119,7 @@ def whole_target_of(cfg: PortPlaceConfig, row: dict, rolls: dict) -> dict:
     if any(rolls.values()):
         return {"least_mm": None, "note": "not checked: the export docks the PSMs rolled, the check is of the "
                                           "row's own docking", "checks": []}
-    checks = whole_target_clearances(cfg, row)
+    checks = whole_target_clearances(model, row)
     worst = least(checks)
     return {"least_mm": None if worst is None else round(worst.clearance_mm, 1),
             "checks": [{"check": c.check, "clearance_mm": round(c.clearance_mm, 1), "link": c.link_a,
@@ -138,9 +140,10 @@ def suj_fixed(cfg: PortPlaceConfig, row: dict) -> str:
     invalid, rather than holding a frame no one chose. A comment at the top (the dVRK's JSON reader takes them)
     names the run, the design and the teleoperation pairing that keeps the surgeon's hands uncrossed."""
     from surgopt.studies.port_place.layout import layout_of
+    from surgopt.studies.port_place.model import model_of
 
     refuse_undocked("dvrk-suj-fixed", cfg, row)
-    layout = layout_of(cfg, row)
+    layout = layout_of(model_of(cfg), row)
     docking, frames = layout.docking, layout.frames_of()
     arms = []
     for name in SUJ_FIXED_ARMS:

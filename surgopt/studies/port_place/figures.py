@@ -67,14 +67,13 @@ def row_of(c: dict, r: int) -> dict:
     return {k: (v[r].item() if hasattr(v[r], "item") else v[r]) for k, v in c.items()}
 
 
-def held_arms(ax, cfg, sites_m: np.ndarray, ports: list) -> bool:
+def held_arms(ax, model, sites_m: np.ndarray, ports: list) -> bool:
     """Each arm that holds its tool by its own joints (a serial arm: ``arms.SerialInstruments`` /
     ``SerialCamera``) drawn as its centre line (base, joints, flange, port) at its docked pose, at the (site,
     colour) ``ports`` (the instruments', then the camera's); whether any was drawn."""
     from surgopt.studies.port_place.config import camera_arm_of, instrument_of
-    from surgopt.studies.port_place.tables import model_of
 
-    model = model_of(cfg)
+    cfg = model.cfg
     drawn = False
     for holder, chosen, label in ((model.instruments, ports[:-1], f"{instrument_of(cfg).name}: base, joints, "
                                                                    "flange, port"),
@@ -90,7 +89,7 @@ def held_arms(ax, cfg, sites_m: np.ndarray, ports: list) -> bool:
 
 
 def figures(cfg, table, out, design_id=None):
-    from surgopt.studies.port_place.tables import model_of
+    from surgopt.studies.port_place.model import model_of
 
     plt = pyplot()
     c = columns(table)
@@ -121,9 +120,10 @@ def figures(cfg, table, out, design_id=None):
     fig.colorbar(sc, ax=ax, shrink=0.6, pad=0.1, label="least cost of a feasible design using the site")
     serial = False  # whether a serial arm is drawn (the view then from the feet, the box to the arms)
     if row is not None:
-        from surgopt.studies.port_place.study import layout_isotropy, searched_docking
+        from surgopt.studies.port_place.layout import layout_isotropy
+        from surgopt.studies.port_place.study import searched_docking
 
-        iso = (layout_isotropy(cfg, row_of(c, row)) if searched_docking(cfg)  # the trial's own docking
+        iso = (layout_isotropy(model, row_of(c, row)) if searched_docking(cfg)  # the trial's own docking
                else np.min([dex[c[f"{arm}_site"][row]] for arm, _, _ in arms(c)[:-1]], axis=0))  # the instruments
         tp = ax.scatter(*targets.T, c=iso, cmap="magma", s=3, depthshade=False)
         # a palette and a colour bar of their own: the points' isotropy is not the sites' cost (#42 item 7)
@@ -136,7 +136,7 @@ def figures(cfg, table, out, design_id=None):
         # the report's answer (the best feasible row, ``chosen``), or the design asked for by its id, as its row says
         ax.set_title(f"port-place: design {c['design_id'][row]} (cost {c['cost'][row]:.3f}); target "
                      f"points by the smaller isotropy", fontsize=9)
-        serial = held_arms(ax, cfg, sites_m, [(c[f"{arm}_site"][row], colour) for arm, colour, _ in arms(c)])
+        serial = held_arms(ax, model, sites_m, [(c[f"{arm}_site"][row], colour) for arm, colour, _ in arms(c)])
         ax.legend(fontsize=8, loc="upper left")
     ax.set_xlabel(X_LABEL)
     ax.set_ylabel(Y_LABEL)
@@ -173,9 +173,9 @@ def figures(cfg, table, out, design_id=None):
 
     paths.append(reach_maps(plt, cfg, sites, port_tables, dex, out))
     if has_cart(cfg) and row is not None and c["cart_pose"][row] >= 0:
-        paths.append(cart_figure(plt, cfg, row_of(c, row), out))
+        paths.append(cart_figure(plt, model, row_of(c, row), out))
     elif has_cart(cfg) and design_id is None and (clash := cheapest_clash(c)) is not None:
-        paths.append(cart_figure(plt, cfg, row_of(c, clash), out, "no layout's links clear: the cheapest that "
+        paths.append(cart_figure(plt, model, row_of(c, clash), out, "no layout's links clear: the cheapest that "
                                  "fails on them alone"))
 
     # why designs fail
@@ -246,7 +246,7 @@ def reach_maps(plt, cfg, sites, t, dex, out):
     return save(fig, out / "port_place_reach_top.png")
 
 
-def cart_figure(plt, cfg, row: dict, out, note: str = ""):
+def cart_figure(plt, model, row: dict, out, note: str = ""):
     """The layout on the cart, in the cart's world frame (m; the floor at z = 0): the patient's surface and the
     table, each arm's setup joints as the polyline of their frames (base, each link, the SUJ's tip), the arm's
     own links docked (the axes of ``clashes``' capsules: mount, yaw link, parallelogram, insertion stage,
@@ -257,9 +257,9 @@ def cart_figure(plt, cfg, row: dict, out, note: str = ""):
     from surgopt.studies.port_place.geometry import body_extent_mm, dome_surface_mm
     from surgopt.studies.port_place.clashes import arm_poses
     from surgopt.studies.port_place.layout import layout_of, setup_joint_frames
-    from surgopt.studies.port_place.tables import model_of
 
-    layout = layout_of(cfg, row)  # as the dvrk export docks it
+    cfg = model.cfg
+    layout = layout_of(model, row)  # as the dvrk export docks it
     patient = layout.patient_in_cart
     to_cart = lambda p: p @ patient[:3, :3].T + patient[:3, 3]  # noqa: E731 - patient (m) -> cart world (m)
     fig = plt.figure(figsize=(8.0, 6.6))
@@ -275,7 +275,6 @@ def cart_figure(plt, cfg, row: dict, out, note: str = ""):
     ax.plot(*table.T, color="0.5", lw=1, label="table top")
     centre = to_cart(np.asarray(cfg.target.centre_mm, float) / 1000)
     ax.scatter(*centre, color="k", s=20, label="target centre")
-    model = model_of(cfg)
     docked, rolls, clearances = layout.docked, layout.rolls, layout.clearances
     from surgopt.studies.port_place.clashes import least, turn_words
 

@@ -62,7 +62,8 @@ def views(run, cfg, parts) -> list[View]:
     """The run's sections (``cfg``: its validated config), aggregates streamed from ``parts``."""
     from surgopt.studies.port_place.report import CLINICAL_COLUMNS, clinical_checks, least_cost_layouts
     from surgopt.studies.port_place.study import arms_of, docking_columns, roll_columns
-    from surgopt.studies.port_place.tables import model_of, outside_length_m
+    from surgopt.studies.port_place.model import model_of
+    from surgopt.studies.port_place.tables import outside_length_m
 
     arms = list(arms_of(cfg))
     model = model_of(cfg)
@@ -96,12 +97,13 @@ def views(run, cfg, parts) -> list[View]:
     if model.third_site_reach is not None:  # the third instrument docks in frames of its own (the Si PSM3)
         reach3, dex3 = model.third_site_reach
         reach3, dex3 = np.asarray(reach3, bool).astype(np.int8), np.round(np.asarray(dex3, float), 4)
-    from surgopt.studies.port_place.study import layout_isotropy, searched_docking
+    from surgopt.studies.port_place.layout import layout_isotropy
+    from surgopt.studies.port_place.study import searched_docking
 
     layout_iso = None  # a search's trials docked in frames of their own: each layout's target colours, its own
     if searched_docking(cfg):
         rows = top.to_pylist()
-        layout_iso = [[None if np.isnan(v) else round(float(v), 4) for v in layout_isotropy(cfg, r)] for r in rows]
+        layout_iso = [[None if np.isnan(v) else round(float(v), 4) for v in layout_isotropy(model, r)] for r in rows]
     data = {
         "layout_iso": layout_iso,
         "arm_lines": arm_lines, "cam_lines": cam_lines, "outside_mm": outside_length_m(cfg) * 1000,

@@ -34,17 +34,18 @@ class Layout(NamedTuple):
         return {a.arm: a.base for a in self.docked if a.base is not None and a.joints}
 
 
-def layout_of(cfg, row: dict) -> Layout:
-    """``row`` (a layout of a run with a cart) docked as the robot files dock it, solved once per (config, row) in a
-    process (``clashes.memoised``): every view of one layout reads the same solve."""
+def layout_of(model, row: dict) -> Layout:
+    """``row`` (a layout of a run with a cart) on its prepared model (``model.PortModel``) docked as the robot files
+    dock it, solved once per (config, row) in a process (``clashes.memoised``): every view of one layout reads the
+    same solve."""
     from surgopt.studies.port_place.clashes import docking_that_clears, memoised
     from surgopt.studies.port_place.tables import row_patient_in_cart
 
     def solve() -> Layout:
-        docked, rolls, docking, clearances = docking_that_clears(cfg, row)
-        return Layout(dict(row), row_patient_in_cart(cfg, row), docked, rolls, docking, clearances)
+        docked, rolls, docking, clearances = docking_that_clears(model, row)
+        return Layout(dict(row), row_patient_in_cart(model.cfg, row), docked, rolls, docking, clearances)
 
-    return memoised("layout", cfg, row, solve)
+    return memoised("layout", model.cfg, row, solve)
 
 
 def setup_joint_frames(cfg, arm) -> np.ndarray:
@@ -68,3 +69,21 @@ def arm_joints_at_centre(limits, base_in_patient: np.ndarray, centre_m: np.ndarr
 
     p = base_in_patient[:3, :3].T @ (centre_m - base_in_patient[:3, 3])
     return [float(v) for v in rcm_inverse(p, limits.along_shaft_m)]
+
+
+def layout_isotropy(model, row: dict) -> np.ndarray:
+    """(target points,) The instruments' smaller isotropy (eq. P5) at each target point, docked as the layout's
+    row says (its docking yaw and pitch, eq. P3, then its rolls: a searched trial's own frames), NaN where one of
+    them does not reach it: what the figures and the page colour a searched layout's target by."""
+    from surgopt.kinematics.port import place as K
+    from surgopt.studies.port_place.carts import LATERAL, rolled
+    from surgopt.studies.port_place.columns import arms_of
+
+    arms = arms_of(model.cfg)[:-1]
+    sites = np.array([[row[f"{a}_{c}_mm"] for c in "xyz"] for a in arms]) / 1000
+    turn = {angle: np.radians([row.get(f"{a}_docking_{angle}_deg", 0.0) for a in arms]) for angle in ("yaw", "pitch")}
+    rot = K.tilted_frames(K.docking_frames(sites, model.centre_m, LATERAL), turn["yaw"], turn["pitch"])
+    frames = rolled(rot, np.radians([row[f"{a}_roll_deg"] for a in arms]))
+    reach, dex = K.instrument_tables(sites, frames, model.targets_m, model.limits, model.criteria.dexterity_length_m,
+                                     model.cone)
+    return np.where(reach.all(axis=0), dex.min(axis=0), np.nan)

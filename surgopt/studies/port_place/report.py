@@ -206,12 +206,13 @@ def whole_target_words(parts, meta: dict, answer: dict) -> str | None:
     next WHOLE_TARGET_SCREEN feasible layouts by cost whose links clear over the whole target."""
     from surgopt.studies.port_place.clashes import least, links_modelled, whole_target_clearances
     from surgopt.studies.port_place.link_tables import POSE_POINTS
+    from surgopt.studies.port_place.model import model_of
 
     cfg = _config_or_none(meta)
     if cfg is None or not links_modelled(cfg) or cfg.constraints.link_least_mm is None:
         return None
-    floor = cfg.constraints.link_least_mm
-    worst = least(whole_target_clearances(cfg, answer))
+    floor, model = cfg.constraints.link_least_mm, model_of(cfg)
+    worst = least(whole_target_clearances(model, answer))
     if worst is None:
         return None
     points = worst.check.split("(")[-1].rstrip(")")
@@ -222,7 +223,7 @@ def whole_target_words(parts, meta: dict, answer: dict) -> str | None:
              f"({worst.link_a} / {worst.link_b}; {worst.where}), which the rows' check of {POSE_POINTS} points "
              f"passed")
     for row in least_cost_layouts(parts, WHOLE_TARGET_SCREEN + 1).to_pylist()[1:]:
-        other = least(whole_target_clearances(cfg, row))
+        other = least(whole_target_clearances(model, row))
         if other is not None and other.clearance_mm >= floor:
             return words + (f"; design {row['design_id']} (cost {row['cost']:.4g}), the next feasible layout by cost "
                             f"whose links clear over the whole target (by {other.clearance_mm:.0f} mm)")
@@ -248,13 +249,15 @@ def docking_tables(best: dict, meta: dict) -> list:
     and the links' clearances so docked."""
     from surgopt.studies.port_place.clashes import turn_words
     from surgopt.studies.port_place.layout import layout_of
+    from surgopt.studies.port_place.model import model_of
 
     try:
         cfg = stored_config(meta)
     except STORED_ERRORS as exc:
         return [("best layout: the cart", ["note"], [[f"the run's config cannot be read again ({exc}); the cart "
                                                        f"pose is in the row's cart_* columns"]])]
-    layout = layout_of(cfg, best)  # as the export docks it
+    model = model_of(cfg)
+    layout = layout_of(model, best)  # as the export docks it
     docked, rolls, clearances = layout.docked, layout.rolls, layout.clearances
     turned = {arm: deg for arm, deg in rolls.items() if deg}
     pose = [[f"{best['cart_x_mm']:.0f}", f"{best['cart_y_mm']:.0f}", f"{best['cart_heading_deg']:.1f}",
@@ -267,7 +270,7 @@ def docking_tables(best: dict, meta: dict) -> list:
                         else "")] for a in docked]
     from surgopt.studies.port_place.clashes import whole_target_clearances
 
-    whole = [] if turned else whole_target_clearances(cfg, best)  # (#54 item 3) at the row's own docking
+    whole = [] if turned else whole_target_clearances(model, best)  # (#54 item 3) at the row's own docking
     clear = [[c.check, f"{c.clearance_mm:.0f}", c.link_a, c.link_b, c.where]
              for c in clearances + whole]
     return [(f"best layout: the {PLATFORMS[cfg.cart.model].title} cart (origin on the floor, patient frame; heading from +y toward +x)",
@@ -295,7 +298,7 @@ def undocked_table(parts, meta: dict) -> list:
     but docking passes) the cart cannot dock, and why (``why_undocked``): the closing report's answer to "which
     of the previous best layouts are not dockable"."""
     from surgopt.kinematics.port.reasons import DOCKING, OUTSIDE
-    from surgopt.studies.port_place.tables import model_of
+    from surgopt.studies.port_place.model import model_of
 
     arms = [a for a in ("psm1", "psm2", "psm3", "ecm") if f"{a}_site" in parts.schema.names]
     cols = {c: [] for c in ["cost", "design_id", "infeasible", *(f"{a}_site" for a in arms)]}
@@ -437,11 +440,13 @@ def clearance_screen(rows: list[dict], meta: dict):
     reach and the setup joints' ranges kept). The word names the first layout that clears docked as its row is
     (the answer's check); a rolled one is advice (``cheaper_if_rolled_words``), never the answer."""
     from surgopt.studies.port_place.clashes import layout_clearances, least, rolls_that_clear, turn_words
+    from surgopt.studies.port_place.model import model_of
 
     try:
         cfg = stored_config(meta)
     except STORED_ERRORS:
         return None
+    model = model_of(cfg)
     out, clear, chosen = [], None, None
     cheaper, feasible = [r for r in rows if not r["feasible"]], [r for r in rows if r["feasible"]]
     # the cheaper layouts that fail only on their links, until one clears rolled (advice), then the feasible rows
@@ -449,10 +454,10 @@ def clearance_screen(rows: list[dict], meta: dict):
     for r in cheaper[:SCREEN_LAYOUTS] + feasible[:SCREEN_LAYOUTS]:
         if chosen is not None and not r["feasible"]:
             continue
-        c = least(layout_clearances(cfg, r))
+        c = least(layout_clearances(model, r))
         if c is None:
             continue
-        rolled = rolls_that_clear(cfg, r) if c.clearance_mm < 0 else None
+        rolled = rolls_that_clear(model, r) if c.clearance_mm < 0 else None
         if rolled is None:
             with_rolls = "-"
         elif rolled.least is None:

@@ -26,7 +26,7 @@ import math
 
 import numpy as np
 
-from surgopt.kinematics.port.columns import COLUMNS, PORT_SPACING, REACH_1, REACH_2, index as column_index, stored_value
+from surgopt.kinematics.port.columns import COLUMNS, REACH_1, REACH_2, index as column_index, stored_value
 from surgopt.robots.dvrk.platforms import AUTO_PLATFORM, PLATFORMS
 
 from surgopt.studies.port_place.arms import instruments_held
@@ -37,7 +37,10 @@ from surgopt.studies import Estimate, Study, figures_in, html_views_in, peak_byt
 from surgopt.parts import concat_rows
 from surgopt.studies.port_place.config import OBJECTIVE, PortPlaceConfig, cart_of, instrument_of
 from surgopt.studies.port_place.geometry import sites_mm, target_points_mm
-from surgopt.studies.port_place.tables import LATERAL, model_of, outside_length_m, port_tables, redocked, rolled
+from surgopt.studies.port_place.columns import (FLOAT_COLUMNS, THIRD_COLUMNS, arms_of,  # noqa: F401 (theirs)
+                                                float_columns, instruments_of)
+from surgopt.studies.port_place.model import model_of
+from surgopt.studies.port_place.tables import LATERAL, outside_length_m, port_tables, redocked, rolled
 
 NAME = "port-place"
 KERNEL_VERSION = "port-place-1"
@@ -54,18 +57,6 @@ def n_designs(n_sites: int, instruments: int = 2) -> int:
 
 def n_total(cfg: PortPlaceConfig) -> int:
     return n_designs(len(sites_mm(cfg)), cfg.robot.instrument_count)
-
-
-def instruments_of(config=None) -> int:
-    """The instrument arms of a config: validated, as stored (a dict), or none (2)."""
-    if isinstance(config, dict):
-        return int(config.get("robot", {}).get("instrument_count", 2))
-    return 2 if config is None else config.robot.instrument_count
-
-
-def arms_of(config=None) -> tuple[str, ...]:
-    """The arms' column prefixes, instruments first, the camera last: psm1, psm2, (psm3,) ecm."""
-    return tuple(f"psm{a + 1}" for a in range(instruments_of(config))) + ("ecm",)
 
 
 def design_identity(config=None) -> tuple[tuple[str, ...], tuple[str, ...]]:
@@ -93,16 +84,6 @@ def auto_chunk(cfg) -> int:
 
 def n_tasks(cfg, chunk: int) -> int:
     return max(1, math.ceil(n_total(cfg) / chunk))
-
-
-#: The design kernel's float columns stored in the rows' first block, in the schema's order (named once, with unit
-#: and meaning, in ``kinematics/port/columns.py``): the pair's and the camera's, then the third instrument's.
-THIRD_COLUMNS = tuple(c.stored for c in COLUMNS[PORT_SPACING + 1:])
-FLOAT_COLUMNS = tuple(c.stored for c in COLUMNS[:PORT_SPACING])
-
-
-def float_columns(config=None) -> tuple[str, ...]:
-    return FLOAT_COLUMNS + (THIRD_COLUMNS if instruments_of(config) == 3 else ())
 
 
 def schema(config=None):
@@ -572,23 +553,6 @@ def searched_docking(cfg: PortPlaceConfig) -> bool:
     """Whether a run's trials dock each RCM instrument in frames of their own (a [search]'s docking yaw and pitch,
     ``robot.docking_range_deg`` > 0, or its rolls, ``docking_roll = 'search'``), not the grid's at its sites."""
     return instruments_held(cfg).docks_in_own_frames(cfg)
-
-
-def layout_isotropy(cfg: PortPlaceConfig, row: dict) -> np.ndarray:
-    """(target points,) The instruments' smaller isotropy (eq. P5) at each target point, docked as the layout's
-    row says (its docking yaw and pitch, eq. P3, then its rolls: a searched trial's own frames), NaN where one of
-    them does not reach it: what the figures and the page colour a searched layout's target by."""
-    from surgopt.kinematics.port import place as K
-
-    model = model_of(cfg)
-    arms = arms_of(cfg)[:-1]
-    sites = np.array([[row[f"{a}_{c}_mm"] for c in "xyz"] for a in arms]) / 1000
-    turn = {angle: np.radians([row.get(f"{a}_docking_{angle}_deg", 0.0) for a in arms]) for angle in ("yaw", "pitch")}
-    rot = K.tilted_frames(K.docking_frames(sites, model.centre_m, LATERAL), turn["yaw"], turn["pitch"])
-    frames = rolled(rot, np.radians([row[f"{a}_roll_deg"] for a in arms]))
-    reach, dex = K.instrument_tables(sites, frames, model.targets_m, model.limits, model.criteria.dexterity_length_m,
-                                     model.cone)
-    return np.where(reach.all(axis=0), dex.min(axis=0), np.nan)
 
 
 def searched_dock(model, site_ids: np.ndarray, pose: dict, rot=None):
