@@ -121,7 +121,7 @@ def figures(cfg, table, out, design_id=None):
     serial = False  # whether a serial arm is drawn (the view then from the feet, the box to the arms)
     if row is not None:
         from surgopt.studies.port_place.layout import layout_isotropy
-        from surgopt.studies.port_place.study import searched_docking
+        from surgopt.studies.port_place.designs import searched_docking
 
         iso = (layout_isotropy(model, row_of(c, row)) if searched_docking(cfg)  # the trial's own docking
                else np.min([dex[c[f"{arm}_site"][row]] for arm, _, _ in arms(c)[:-1]], axis=0))  # the instruments

@@ -61,7 +61,7 @@ def _body(cfg) -> dict:
 def views(run, cfg, parts) -> list[View]:
     """The run's sections (``cfg``: its validated config), aggregates streamed from ``parts``."""
     from surgopt.studies.port_place.report import CLINICAL_COLUMNS, clinical_checks, least_cost_layouts
-    from surgopt.studies.port_place.study import arms_of, docking_columns, roll_columns
+    from surgopt.studies.port_place.columns import arms_of, docking_columns, roll_columns
     from surgopt.studies.port_place.model import model_of
     from surgopt.studies.port_place.tables import outside_length_m
 
@@ -98,7 +98,7 @@ def views(run, cfg, parts) -> list[View]:
         reach3, dex3 = model.third_site_reach
         reach3, dex3 = np.asarray(reach3, bool).astype(np.int8), np.round(np.asarray(dex3, float), 4)
     from surgopt.studies.port_place.layout import layout_isotropy
-    from surgopt.studies.port_place.study import searched_docking
+    from surgopt.studies.port_place.designs import searched_docking
 
     layout_iso = None  # a search's trials docked in frames of their own: each layout's target colours, its own
     if searched_docking(cfg):
@@ -235,7 +235,7 @@ def headline_rolled(cfg, parts):
     """(row, ``RollsThatClear``) of a layout cheaper than the answer that clears only with its PSMs rolled
     (``report.headline_layout``: the summary's screen, memoised), else None."""
     from surgopt.studies.port_place.report import headline_layout
-    from surgopt.studies.port_place.study import links_of
+    from surgopt.studies.port_place.columns import links_of
 
     if not links_of(cfg):
         return None

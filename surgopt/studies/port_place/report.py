@@ -25,7 +25,7 @@ from surgopt.robots.dvrk.platforms import PLATFORMS
 from surgopt.studies.port_place.config import PortPlaceConfig
 from surgopt.studies.port_place.geometry import FRAME_TEXT, from_landmark
 from surgopt.studies.port_place.hands import pairing_words
-from surgopt.studies.port_place.study import links_of
+from surgopt.studies.port_place.columns import links_of
 
 
 def clinical_checks(cfg=None) -> tuple:

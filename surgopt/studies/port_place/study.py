@@ -12,13 +12,14 @@ the arms' outside, a cost and the reasons a design is infeasible. Every assignme
 ports (unordered: the PSMs are the same arm), the third's when there is one, and a distinct camera port is
 evaluated; docs/port_placement.md has the model, its sources and assumptions.
 
-The config models are in ``config``, the geometry they imply (patient, sites, target) in ``geometry``, the
-per-port and per-pair tables and the cart's in ``tables`` and ``link_tables``, the design kernels in
-``kinematics.port.designs``, a serial arm's tables in ``serial_arms``, the closing report in ``report`` (named
-here by module, imported when a report is made). One module of ~830 lines: the rows and their columns, the
-design's dimensions (ports, docking, stance) that both the rows and the search read, the evaluator and the
-estimate are one declaration, read together; split, the study's declaration and its search would import each
-other.
+This module is the study's declaration (``STUDY``): its name, default config, the rows' schema and metadata, the
+task entry (``compute_task``), the estimate, the search space it hands the plans and its exports. What it declares
+lives beside it (issue 53): the config models in ``config``, the geometry they imply (patient, sites, target) in
+``geometry``, the prepared model in ``model``, the per-port, per-pair and dock tables in ``tables`` and
+``link_tables``, the design evaluator in ``designs`` (kernel: ``kinematics.port.designs``), the rows' column
+vocabulary in ``columns``, one row re-solved for the views in ``layout``, the closing report in ``report`` (named
+here by module, imported when a report is made). One module of ~480 lines: the schema, the estimate and the task
+entry are read together (the estimate counts what the schema stores and the tasks build).
 """
 from __future__ import annotations
 
@@ -26,21 +27,21 @@ import math
 
 import numpy as np
 
-from surgopt.kinematics.port.columns import COLUMNS, REACH_1, REACH_2, index as column_index, stored_value
 from surgopt.robots.dvrk.platforms import AUTO_PLATFORM, PLATFORMS
-
 from surgopt.studies.port_place.arms import instruments_held
 from surgopt.studies.port_place.carts import has_cart
-from surgopt.studies.port_place.hands import image_right_psm
 from surgopt.studies.port_place import HELP  # the command's help, read by the CLI without importing this module
 from surgopt.studies import Estimate, Study, figures_in, html_views_in, peak_bytes, summary_in
-from surgopt.parts import concat_rows
-from surgopt.studies.port_place.config import OBJECTIVE, PortPlaceConfig, cart_of, instrument_of
+from surgopt.studies.port_place.config import OBJECTIVE, PortPlaceConfig, instrument_of
 from surgopt.studies.port_place.geometry import sites_mm, target_points_mm
-from surgopt.studies.port_place.columns import (FLOAT_COLUMNS, THIRD_COLUMNS, arms_of,  # noqa: F401 (theirs)
-                                                float_columns, instruments_of)
+from surgopt.studies.port_place.columns import (CART_COLUMNS, DOCKING_COLUMNS, FLOAT_COLUMNS,  # noqa: F401 (theirs)
+                                                SITE_COLUMNS, THIRD_COLUMNS, aim_columns, arms_of,
+                                                cart_search_columns, docking_columns, float_columns,
+                                                instruments_of, links_of, roll_columns, stance_columns,
+                                                suj_joint_columns)
+from surgopt.studies.port_place.designs import (design_dims, design_rows, evaluate_designs,  # noqa: F401 (theirs)
+                                                nearest_sites, reasons, searched_docking)
 from surgopt.studies.port_place.model import model_of
-from surgopt.studies.port_place.tables import LATERAL, outside_length_m, port_tables, redocked, rolled
 
 NAME = "port-place"
 KERNEL_VERSION = "port-place-1"
@@ -138,42 +139,8 @@ def schema(config=None):
                                                                      "-cost, less 100 per reason a design fails"}),
                pa.field("feasible", pa.bool_()),
                pa.field("infeasible", pa.int64(), metadata={"meaning": "bit mask: " + "; ".join(
-                   f"{bit} {why}" for bit, why in _reasons().items())})]
+                   f"{bit} {why}" for bit, why in reasons().items())})]
     return pa.schema(fields, metadata=_stored_metadata(config))
-
-
-#: The cart's columns (with ``cart.model`` other than "none"): the first pose of its grid at which every arm
-#: docks (-1: none), that pose's origin on the floor and heading (the patient's floor frame).
-CART_COLUMNS = ("cart_pose", "cart_x_mm", "cart_y_mm", "cart_heading_deg")
-
-
-def cart_search_columns(config) -> tuple[str, ...]:
-    """A search's cart dimensions (``cart.pose = "search"``; ``tables.searched_pose_box``), else none."""
-    from surgopt.studies.port_place.tables import searched_pose_box
-
-    if config is None or not has_cart(config):
-        return ()
-    cart = (config.get("cart") or {}) if isinstance(config, dict) else config.cart
-    if (cart.get("pose") if isinstance(cart, dict) else cart.pose) != "search":
-        return ()
-    if isinstance(cart, dict):
-        from surgopt.studies.port_place.config import Cart
-
-        cart = Cart.model_validate(cart)
-    return tuple(searched_pose_box(cart))
-
-
-def links_of(config) -> bool:
-    """Whether the arms' links decide feasible (``tables.links_decide``) in a config, validated or as stored."""
-    if not has_cart(config):
-        return False
-    if isinstance(config, dict):
-        # as stored: the field's value; absent, its default (0: on); None, a run from before it was the default
-        least = (config.get("constraints") or {}).get("min_link_clearance_mm", 0.0)
-        return least is not None and least != "off"
-    from surgopt.studies.port_place.tables import links_decide
-
-    return links_decide(config)
 
 
 #: ``external_clearance_mm`` when the links decide (``constraints.min_link_clearance_mm``).
@@ -213,19 +180,6 @@ def cart_fields(config) -> list:
     return [pa.field("cart_pose", pa.int64(), metadata={"meaning": "the first pose of the cart's grid at which "
                                                                     "every arm's setup joints dock (-1: none)"}),
             *[pa.field(c, pa.float64()) for c in CART_COLUMNS[1:]], *links, *margins, *joints]
-
-
-def suj_joint_columns(config) -> dict[str, tuple[tuple[str, str], ...]]:
-    """Per arm (its column prefix), its setup joints' names in the cart's data and their row columns, in the
-    order of the dVRK's ``simulated_position``: the column (prismatic, mm) first, then the revolute joints (deg)."""
-    from surgopt.robots.dvrk.suj import INSTRUMENT_SUJS
-
-    cart = PLATFORMS[cart_of(config)]
-    out = {}
-    for a, arm in enumerate(arms_of(config)):
-        suj = cart.suj("ECM" if arm == "ecm" else INSTRUMENT_SUJS[a])
-        out[arm] = tuple((row.name, f"{arm}_suj_{row.name}_{'mm' if row.prismatic else 'deg'}") for row in suj.links)
-    return out
 
 
 def _stored_metadata(config) -> dict | None:
@@ -278,16 +232,6 @@ def _feasible_metadata(config) -> dict:
         return {"rows_stored": "feasible"}
 
 
-def _reasons():
-    from surgopt.kinematics.port.reasons import REASONS
-
-    return REASONS
-
-
-#: What each reason a design fails takes off its score, so that feasible designs rank first.
-INFEASIBLE_PENALTY = 100.0
-
-
 def compute_task(cfg, chunk: int, index: int) -> dict:
     """Designs [index*chunk, (index+1)*chunk) of the enumeration, every port docked toward the target's centre
     (only the feasible ones' rows when ``rows_stored`` is 'feasible')."""
@@ -305,179 +249,6 @@ def compute_task(cfg, chunk: int, index: int) -> dict:
                        dock_tables=model.dock if has_cart(cfg) else None)
 
 
-def design_rows(cfg, sites, t, ids, site_ids, f, bad, cost, design_ids, docking_deg, aim_mm=None,
-                stance_m=None, dock=None, floor=None, cart_searched=None, dock_tables=None) -> dict:
-    """The rows of designs: ``ids`` (a column per arm, ``arms_of``) index ``sites`` and ``t`` (the tables they
-    were combined from), ``site_ids`` are the candidate sites' numbers reported; ``docking_deg`` (yaw, pitch of
-    each instrument) per design. With the cart (``floor``: its poses, ``tables.CartPoses.floor``), ``dock``
-    (cart pose, swapped) per design: where PSM1 docks on the pair's second port, PSM1's and PSM2's columns
-    are swapped, so that psm1_* is the arm on PSM1's setup joints; ``dock_tables`` (``tables.DockTables`` of the
-    sites ``ids`` index) give each arm's setup joints' range margins at the row's pose."""
-    arms = arms_of(cfg)
-    if floor is not None:
-        swap = dock[:, 1] == 1
-        ids, site_ids, f = ids.copy(), site_ids.copy(), f.copy()
-        for a in (ids, site_ids):
-            a[swap, 0], a[swap, 1] = a[swap, 1], a[swap, 0].copy()
-        f[swap, REACH_1], f[swap, REACH_2] = f[swap, REACH_2], f[swap, REACH_1].copy()
-    cols = {"design_id": design_ids}
-    cols.update({f"{arm}_site": site_ids[:, a] for a, arm in enumerate(arms)})
-    for a, arm in enumerate(arms):
-        for c, axis in enumerate("xyz"):
-            cols[f"{arm}_{axis}_mm"] = sites[ids[:, a], c] * 1000
-    for name in (*float_columns(cfg), "min_port_spacing_mm"):  # each in its stored unit, by its kernel index
-        c = column_index(name)
-        cols[name] = stored_value(COLUMNS[c], f[:, c])
-    centre = np.asarray(cfg.target.centre_mm) / 1000
-    d = np.linalg.norm(sites - centre, axis=1) * 1000
-    cols["psm_to_target_mm"] = d[ids[:, :-1]].max(axis=1) if len(ids) else np.zeros(0)
-    rise = np.degrees(np.arcsin((sites[:, 2] - centre[2]) * 1000 / d))  # each site's elevation over the centre
-    for a, arm in enumerate(arms[:-1]):
-        cols[f"{arm}_elevation_deg"] = rise[ids[:, a]]
-        cols[f"{arm}_wrist_margin_deg"] = t.wrist_margin_deg[ids[:, a]]
-    cols["ecm_tip_depth_mm"] = t.camera_tip_depth_mm[ids[:, -1]]
-    cols["ecm_tip_to_target_mm"] = t.camera_tip_to_centre_mm[ids[:, -1]]
-    cols["image_right_psm"] = image_right_psm(sites[ids[:, 0]], sites[ids[:, 1]], t.camera_tip_m[ids[:, -1]],
-                                              t.camera_axis[ids[:, -1]])
-    for c, name in enumerate(docking_columns(cfg)):
-        cols[name] = np.asarray(docking_deg[:, c], dtype=np.float64)
-    for a, name in enumerate(roll_columns(cfg)):  # the rolls the tables docked each port at
-        cols[name] = t.roll_deg[ids[:, a]]
-    for c, name in enumerate(aim_columns(cfg)):  # the sites themselves, unless a surface search aimed elsewhere
-        cols[name] = sites[ids[:, c // 2], c % 2] * 1000 if aim_mm is None else np.asarray(aim_mm[:, c], float)
-    for c, name in enumerate(stance_columns(cfg)):  # 0 on the grid: the configured stance
-        cols[name] = np.zeros(len(ids)) if stance_m is None else np.asarray(stance_m[:, c], float)
-    if floor is not None:
-        pose = dock[:, 0]
-        cols["cart_pose"] = pose
-        where = np.where(pose[:, None] >= 0, floor[np.maximum(pose, 0)], np.nan)
-        for c, name in enumerate(CART_COLUMNS[1:]):
-            cols[name] = where[:, c]
-        if links_of(cfg):
-            cols["external_link_pair"] = dock[:, 2]
-        if dock_tables is not None and dock_tables.joints is not None:
-            from surgopt.studies.port_place.tables import suj_margins
-
-            revolute, column = suj_margins(cfg, dock_tables)
-            at = np.maximum(pose, 0)
-            for a, arm in enumerate(arms):
-                suj = 3 if arm == "ecm" else a  # the arm on PSM1's, PSM2's, PSM3's setup joints, or the ECM's
-                for name, table in ((f"{arm}_suj_margin_deg", revolute), (f"{arm}_suj_column_margin_mm", column)):
-                    cols[name] = np.where(pose >= 0, table[suj, ids[:, a], at], np.nan)
-            joints = np.concatenate([dock_tables.joints[:len(arms) - 1], dock_tables.camera_joints[None]])
-            for a, (arm, names) in enumerate(suj_joint_columns(cfg).items()):
-                q = joints[a, ids[:, a], at]  # (designs, joints): m and rad; NaN where the arm does not dock there
-                for j, (_, name) in enumerate(names):
-                    value = q[:, j] * 1000 if name.endswith("_mm") else np.degrees(q[:, j])
-                    cols[name] = np.where(pose >= 0, value, np.nan)
-    for c, name in enumerate(cart_search_columns(cfg)):  # the searched pose, docked there or not
-        cols[name] = np.asarray(cart_searched[:, c], float)
-    cols["cost"] = cost
-    failed = sum((bad >> bit) & 1 for bit in range(len(_reasons())))
-    cols["score"] = -cost - INFEASIBLE_PENALTY * failed
-    cols["feasible"] = bad == 0
-    cols["infeasible"] = bad
-    return cols
-
-
-def roll_columns(config=None) -> tuple[str, ...]:
-    """Each RCM instrument arm's docking roll at its port (none for serial arms, which keep the RCM in
-    software and have no docking frame to turn: ``arms``)."""
-    return tuple(f"{arm}_roll_deg" for arm in arms_of(config)[:-1]) if instruments_held(config).rolls else ()
-
-
-def docking_columns(config=None) -> tuple[str, ...]:
-    """Free docking (a search's dimensions): each instrument's base turned off the target's centre, yaw and
-    pitch (0: the default docking); for a serial arm the yaw is its base's turn about the port, added to
-    ``base_yaw_deg``, and the pitch stays 0."""
-    return tuple(f"{arm}_docking_{angle}_deg" for arm in arms_of(config)[:-1] for angle in ("yaw", "pitch"))
-
-
-def free_docking_columns(config=None) -> tuple[str, ...]:
-    """The docking columns a search turns (``docking_columns``): yaw and pitch for an RCM arm, a serial arm's
-    base yaw only (``arms``); the others stay 0."""
-    angles = instruments_held(config).docking_angles
-    return tuple(c for c in docking_columns(config) if c.rsplit("_", 2)[-2] in angles)
-
-
-def aim_columns(config=None) -> tuple[str, ...]:
-    """A surface search's dimensions (``search_ports = "surface"``): each port's top-view point, x and y (mm)."""
-    ports = (config.get("search_ports", "sites") if isinstance(config, dict)
-             else "sites" if config is None else config.search_ports)
-    return tuple(f"{arm}_aim_{c}_mm" for arm in arms_of(config) for c in "xy") if ports == "surface" else ()
-
-
-SERIAL_ROLES = ("instrument", "camera")
-
-
-def stance_columns(config=None) -> tuple[str, ...]:
-    """A search's serial-arm stances: for each serial arm (the instruments' one, the camera's) whose
-    ``stance_range_m`` > 0, its RCM moved out from its base and up, off ``rcm_in_base_m`` (m)."""
-    robot = (config.get("robot", {}) if isinstance(config, dict)
-             else {} if config is None else config.robot.model_dump())
-    return tuple(f"{role}_stance_{d}_m" for role in SERIAL_ROLES
-                 if (robot.get(f"{role}_serial") or {}).get("stance_range_m", 0.0) > 0 for d in ("out", "up"))
-
-
-def with_stance(cfg: PortPlaceConfig, moves: dict) -> PortPlaceConfig:
-    """``cfg`` with each serial arm's RCM moved (``moves``: {role: (out, up) m}): out along its horizontal
-    direction from the base (kept 0.05 m or more from the base's axis), up along z."""
-    update = {}
-    for role, (out, up) in moves.items():
-        arm = getattr(cfg.robot, f"{role}_serial")
-        x, y, z = arm.rcm_in_base_m
-        h = math.hypot(x, y)
-        scale = max(h + out, 0.05) / h
-        update[f"{role}_serial"] = arm.model_copy(update={"rcm_in_base_m": [x * scale, y * scale, z + up]})
-    return cfg.model_copy(update={"robot": cfg.robot.model_copy(update=update)})
-
-
-#: A searched docking roll's range (deg): each PSM's frame turned about its neutral shaft, x toward y.
-ROLL_RANGE_DEG = (-90.0, 90.0)
-
-
-def searched_roll_columns(cfg: PortPlaceConfig) -> tuple[str, ...]:
-    """Each PSM's docking roll as a search's dimension (``robot.docking_roll = 'search'``): the rows' own roll
-    columns, whose value is the trial's."""
-    return roll_columns(cfg) if cfg.robot.docking_roll == "search" else ()
-
-
-def design_dims(cfg: PortPlaceConfig) -> dict:
-    """The dimensions a design of this config has, in order, with their domains: every arm's port (a site, or a
-    top-view point with ``search_ports = "surface"``), each instrument's docking when ``robot.docking_range_deg``
-    > 0 (a serial arm's yaw only), each serial arm's stance when its ``stance_range_m`` > 0, each PSM's docking
-    roll with ``robot.docking_roll = 'search'``, the cart's pose when searched."""
-    sites = sites_mm(cfg)
-    if cfg.search_ports == "surface":  # a box around the candidate sites, top view
-        lo, hi = sites[:, :2].min(axis=0), sites[:, :2].max(axis=0)
-        dims = {c: (float(lo[i % 2]), float(hi[i % 2])) for i, c in enumerate(aim_columns(cfg))}
-    else:
-        dims = {f"{arm}_site": list(range(len(sites))) for arm in arms_of(cfg)}
-    r = cfg.robot.docking_range_deg
-    if r > 0:  # a serial arm turns its base about the port (yaw) only
-        dims.update({c: (-r, r) for c in free_docking_columns(cfg)})
-    for c in stance_columns(cfg):
-        reach = getattr(cfg.robot, f"{c.split('_')[0]}_serial").stance_range_m
-        dims[c] = (-reach, reach)
-    dims.update({c: ROLL_RANGE_DEG for c in searched_roll_columns(cfg)})
-    if cart_search_columns(cfg):
-        from surgopt.studies.port_place.tables import searched_pose_box
-
-        dims.update(searched_pose_box(cfg.cart))
-    return dims
-
-
-def nearest_sites(sites_xy_mm: np.ndarray, aims_mm: np.ndarray) -> np.ndarray:
-    """The candidate site nearest each top-view point (rows of ``aims_mm``, (x, y) mm): its index."""
-    d = ((aims_mm[:, None, :] - sites_xy_mm[None, :, :]) ** 2).sum(axis=2)
-    return d.argmin(axis=1)
-
-
-#: The two-instrument study's docking and site columns.
-DOCKING_COLUMNS = docking_columns()
-SITE_COLUMNS = tuple(f"{arm}_site" for arm in arms_of())
-
-
 def search_plan(cfg):
     """A search's space: every arm's port (categorical: any candidate site; or, with ``search_ports = "surface"``,
     a top-view point within the candidate sites' box, continuous) and, when ``robot.docking_range_deg`` > 0, each
@@ -488,106 +259,6 @@ def search_plan(cfg):
     if spec is None:
         return None
     return SearchPlan(spec, design_dims(cfg), objectives_of(spec, OBJECTIVE))
-
-
-def evaluate_designs(cfg, x: np.ndarray, ids: np.ndarray, source: str) -> dict:
-    """Rows of any designs (rows of ``x``: every arm's site number, ``arms_of``, or with ``search_ports =
-    "surface"`` every arm's top-view point (x, y mm, taken to the nearest candidate site), then each instrument's
-    docking yaw and pitch in deg when free), each from its own ports docked as given: the per-port and per-pair tables
-    of those ports (``port_tables``), combined as the enumeration combines them (its design 0 is the ports in
-    this order), with the cart's dock tables of those ports when the run has a cart. A design whose ports coincide
-    is infeasible (zero spacing and clearance)."""
-    from surgopt.kinematics.port import place as K
-    from surgopt.kinematics.port.designs import design_columns
-
-    ports = len(arms_of(cfg))
-    x = np.asarray(x, dtype=np.float64).reshape(len(ids), -1)
-    model = model_of(cfg)  # its grid's tables are not built: a design builds the tables of its own ports
-    all_sites, crit, centre = model.sites_m, model.criteria, model.centre_m
-    names = list(design_dims(cfg))
-    if x.shape[1] == ports:  # site numbers alone: the configured docking and stance
-        names = [f"{arm}_site" for arm in arms_of(cfg)]
-    elif x.shape[1] != len(names):
-        raise ValueError(f"a design of this config has {len(names)} values ({', '.join(names)}), not {x.shape[1]}")
-    col = {n: j for j, n in enumerate(names)}
-    surface = f"{arms_of(cfg)[0]}_aim_x_mm" in col
-    stances = [c for c in stance_columns(cfg) if c in col]
-    port_cols = [col[c] for c in (aim_columns(cfg) if surface else [f"{arm}_site" for arm in arms_of(cfg)])]
-    docking_cols = [col.get(c) for c in docking_columns(cfg)]  # None: not free, 0
-    roll_cols = [col[c] for c in searched_roll_columns(cfg) if c in col]  # a trial's rolls (deg, per PSM)
-    cart = has_cart(cfg)  # the grid's dock tables (every site, every cart pose), each design's sites
-    searched = cart_search_columns(cfg)  # or, searched, each design's own pose's (of sites alone: the box's middle)
-    out = []
-    for r in range(x.shape[0]):
-        v = x[r]
-        site_ids = (nearest_sites(all_sites[:, :2] * 1000, v[port_cols].reshape(ports, 2)) if surface
-                    else v[port_cols].astype(np.int64))
-        docking = np.array([0.0 if j is None else v[j] for j in docking_cols])
-        stance = np.array([v[col[c]] for c in stances])
-        cfg_r = with_stance(cfg, {c.split("_")[0]: (stance[k], stance[k + 1]) for k, c in enumerate(stances)
-                                  if c.endswith("_out_m")}) if stances else cfg
-        sites = all_sites[site_ids]
-        pose = searched_values(cfg.cart, {c: v[col[c]] for c in searched if c in col}) if searched else None
-        model_r = model.with_config(cfg_r) if stances else model
-        # the docking frames tilted by the design's yaw and pitch (an RCM arm), or each serial base turned by its yaw
-        rot, base_yaw = model.instruments.turned(K.docking_frames(sites, centre, LATERAL), docking)
-        outside = K.external_clearances(sites, np.ascontiguousarray(rot[:, :, 2]), outside_length_m(cfg))
-        rolls = np.radians([*v[roll_cols], 0.0]) if roll_cols else None  # each port's, the ECM's 0
-        frames = rolled(rot, rolls) if roll_cols else None
-        tables = (None if not cart else searched_dock(model, site_ids, pose, frames) if pose is not None
-                  else cart_of_sites(model.dock, site_ids) if frames is None
-                  else redocked(model, cart_of_sites(model.dock, site_ids), site_ids, frames))
-        t, _, _ = port_tables(model_r, sites, rot, outside, base_yaw_rad=base_yaw, dock=tables, rolls_rad=rolls)
-        local, f, bad, cost, _, dock = design_columns(t, crit, 0, 1, ports - 1)
-        out.append(design_rows(cfg, sites, t, local, site_ids[None, :], f, bad, cost,
-                               np.asarray(ids[r:r + 1], dtype=np.int64), docking[None, :],
-                               v[None, port_cols] if surface else None,
-                               stance[None, :] if stances else None,
-                               dock=dock if cart else None, floor=tables.poses.floor if cart else None,
-                               dock_tables=tables if cart else None,
-                               cart_searched=np.array([[pose[c] for c in searched]]) if searched else None))
-    return concat_rows(out)
-
-
-def searched_docking(cfg: PortPlaceConfig) -> bool:
-    """Whether a run's trials dock each RCM instrument in frames of their own (a [search]'s docking yaw and pitch,
-    ``robot.docking_range_deg`` > 0, or its rolls, ``docking_roll = 'search'``), not the grid's at its sites."""
-    return instruments_held(cfg).docks_in_own_frames(cfg)
-
-
-def searched_dock(model, site_ids: np.ndarray, pose: dict, rot=None):
-    """The dock tables of a design's own ports at its own searched cart pose (``pose``: the pose's dimensions,
-    ``tables.searched_values``): one pose, at which no arm docks (nothing solved) when the cart's origin would
-    stand within ``clear_of_table_mm`` of the table; ``rot``: the instruments' frames at the ports when not the
-    model's (a search's rolls)."""
-    from surgopt.kinematics.port.designs import pack_bits
-    from surgopt.studies.port_place.tables import DockTables, dock_at, floor_pose, off_table, poses_of
-
-    cfg = model.cfg
-    floor = np.array([floor_pose(cfg, *pose.values())])
-    poses = poses_of(cfg.cart, floor)
-    if off_table(cfg.cart, floor[:, 0], floor[:, 1])[0]:
-        return dock_at(model, site_ids, poses, rot)
-    n = len(site_ids)
-    margin, camera = np.full((3, n, 1), -np.inf), np.full((n, 1), -np.inf)
-    return DockTables(pack_bits(margin >= 0.0), pack_bits(camera >= 0.0), margin, camera, poses,
-                      np.full((3, n, 1, 6), np.nan), np.full((n, 1, 6), np.nan), np.full((n, 1, 2), np.nan))
-
-
-def searched_values(cart, given: dict) -> dict:
-    """A searched cart pose's three dimensions in ``floor_pose``'s order: those ``given``, the others (not
-    searched, or a design of sites alone) at the middle of their range."""
-    from surgopt.studies.port_place.tables import searched_middle
-
-    return {**searched_middle(cart), **given}
-
-
-def cart_of_sites(dock, site_ids: np.ndarray):
-    """The cart's dock tables (``tables.DockTables``, every candidate site) of a design's own ports, in its order."""
-    pick = {"joints": (slice(None), site_ids), "camera_joints": (site_ids,), "camera_aim": (site_ids,)}
-    return dock._replace(bits=dock.bits[:, site_ids], camera=dock.camera[site_ids], margin=dock.margin[:, site_ids],
-                         camera_margin=dock.camera_margin[site_ids],
-                         **{k: getattr(dock, k)[at] for k, at in pick.items() if getattr(dock, k) is not None})
 
 
 def warm_up(cfg) -> None:
