@@ -680,6 +680,22 @@ SUJ_REFERENCE = {
 }
 
 
+def suj_frame_origins_reference(cart, arm, q):
+    """(rows + fixed + 1, 3) The origins of the SUJ's frames in the cart's world frame: world->SUJ, then after each
+    modified-DH row at q (the jointed, then the fixed at their theta): the polyline its links are drawn along."""
+    trans, rot, rows, fixed, _ = SUJ_REFERENCE[(cart, arm)]
+    t = np.eye(4)
+    t[:3, :3], t[:3, 3] = rot, trans
+    out = [t[:3, 3].copy()]
+    for (alpha, a, d, offset, prismatic), v in zip(rows, q, strict=True):
+        t = t @ (dh_modified(offset, d + v, a, alpha) if prismatic else dh_modified(v + offset, d, a, alpha))
+        out.append(t[:3, 3].copy())
+    for alpha, a, theta in fixed:
+        t = t @ dh_modified(theta, 0.0, a, alpha)
+        out.append(t[:3, 3].copy())
+    return np.array(out)
+
+
 def suj_forward_reference(cart, arm, q):
     """The arm's base (RCM) frame in the cart's world frame: world->SUJ, the modified-DH products of the rows at
     q (a prismatic row: D + q; a revolute one: offset + q), the fixed rows at their theta, the tip -> tool."""

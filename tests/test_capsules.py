@@ -163,7 +163,7 @@ def test_crossed_setup_joints_are_refused_with_the_pair_named():
         # the setup joints' links alone (the arms' own, their meshes' capsules, may meet either way round)
         patient = T.row_patient_in_cart(cfg, row)
         model = M.model_of(cfg)
-        arms = [X.arm_poses(cfg, a, patient, model.targets_m[:0], model.limits.along_shaft_m) for a in docked]
+        arms = [X.arm_poses(model, a, patient, model.targets_m[:0]) for a in docked]
         keep = [np.array(["setup joint link" in n for n in a.names]) for a in arms]
         value, i, j = C.least_pair_clearance(arms[0].segments[0][keep[0]], arms[0].radii[keep[0]],
                                            arms[1].segments[0][keep[1]], arms[1].radii[keep[1]])

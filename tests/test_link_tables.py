@@ -1,8 +1,8 @@
 """The arms' links outside the body in every row (issue 40, ``constraints.min_link_clearance_mm``): the pruned least
-clearance against the exhaustive one, the segment distance's degenerate cases, the link tables against each
-layout's clearances placed apart from them (``clashes.layout_clearances``: the setup joints solved by the plain S2,
-the capsules by the per-pose skeleton), the rows' feasible against those clearances, and a design evaluated alone
-against its row."""
+clearance against the exhaustive one, the segment distance's degenerate cases, the link tables (factored, pruned,
+packed) against each layout's clearances computed directly (``clashes.layout_clearances``: every pair of poses,
+every point along the links), the one placement of the links both use against the reference kinematics, the rows'
+feasible against those clearances, and a design evaluated alone against its row."""
 import numpy as np
 import pytest
 
@@ -185,7 +185,7 @@ def _named_clearance(cfg, row: dict, link_a: str, link_b: str) -> float:
     patient = patient_in_cart(cfg.cart, row["cart_x_mm"], row["cart_y_mm"], row["cart_heading_deg"])
     model = model_of(cfg)
     points = pose_points(model)[0]
-    arms = {a.arm: arm_poses(cfg, a, patient, points, model.limits.along_shaft_m)
+    arms = {a.arm: arm_poses(model, a, patient, points)
             for a in docked_arms(M.model_of(cfg), row) if a.joints}
     a, b = (arms[n.split(" ")[0]] for n in (link_a, link_b))
     i, j = a.names.index(link_a), b.names.index(link_b)
@@ -576,7 +576,7 @@ def test_the_whole_target_clearance_is_the_exhaustive_least_over_every_target_po
     sampled = {c.check.split(",")[0]: c for c in layout_clearances(M.model_of(cfg), row) if c.check.endswith("over the target")}
     assert len(whole) == 3 and all(f"({len(model.targets_m):,} points)" in c.check for c in whole)
     patient = row_patient_in_cart(cfg, row)
-    arms = {a.arm: arm_poses(cfg, a, patient, model.targets_m, model.limits.along_shaft_m)
+    arms = {a.arm: arm_poses(model, a, patient, model.targets_m)
             for a in docked_arms(M.model_of(cfg), row) if a.joints}
     for c in whole:
         x, y = c.check.split(",")[0].split(" and ")
@@ -621,3 +621,49 @@ def test_the_closing_report_says_what_the_answers_links_do_over_the_whole_target
         values.clear()
         assert R.summary(parts).headline["links_whole_target"].endswith(
             f"none of the next {R.WHOLE_TARGET_SCREEN} feasible layouts by cost clears over the whole target")
+
+
+def test_one_layouts_links_are_placed_as_the_reference_kinematics_places_them(links):
+    """Issue 53: one placement of the links (``link_tables.placed_arm``) for the rows' tables and one layout's
+    clearances (``clashes.arm_poses``), held to kinematics apart from it: each arm's setup-joint links are the
+    segments between the frame origins of the reference DH products (tests/reference.py) at the layout's joints,
+    from the first link the cart does not own (``FIRST_SUJ_LINK``); each PSM's own links at each target point are
+    the skeleton's at the RCM inverse of that point (``place.rcm_inverse``, eq. P2, the kernel the DH tests hold),
+    not ``own_moving``'s own closed form; the ECM's at its docked aim."""
+    from reference import suj_frame_origins_reference
+    from surgopt.kinematics.port.place import rcm_inverse
+    from surgopt.robots.dvrk.platforms import PLATFORMS
+    from surgopt.studies.port_place.clashes import arm_poses
+    from surgopt.studies.port_place.link_tables import FIRST_SUJ_LINK
+    from surgopt.studies.port_place.tables import docked_arms, row_patient_in_cart
+
+    cfg, model, _ = links
+    cols = S.compute_task(cfg, S.n_total(cfg), 0)
+    r = int(np.flatnonzero(cols["feasible"])[0])
+    row = {k: (v[r].item() if hasattr(v[r], "item") else v[r]) for k, v in cols.items()}
+    patient = row_patient_in_cart(cfg, row)
+    to_patient = np.linalg.inv(patient)
+    points = model.targets_m[::97]
+    docked = [a for a in docked_arms(model, row) if a.joints]
+    assert [a.arm for a in docked] == ["PSM1", "PSM2", "ECM"]  # the premise: every arm docked
+    for a in docked:
+        placed = arm_poses(model, a, patient, points)
+        origins = suj_frame_origins_reference("classic", a.arm, a.joints) @ to_patient[:3, :3].T + to_patient[:3, 3]
+        n_suj = len(origins) - 1 - FIRST_SUJ_LINK
+        want = np.stack([origins[FIRST_SUJ_LINK:-1], origins[FIRST_SUJ_LINK + 1:]], axis=1)
+        for pose in placed.segments:
+            np.testing.assert_allclose(pose[:n_suj], want, atol=1e-9)
+        skeleton, capsules = PLATFORMS["classic"].own_links(a.arm)
+        mount = a.base @ np.linalg.inv(np.asarray(PLATFORMS["classic"].suj(a.arm).tip_to_tool, float))
+        if a.arm == "ECM":
+            qs = [(a.ecm[0], a.ecm[1], 0.0)]
+        else:
+            centre = model.centre_m @ patient[:3, :3].T + patient[:3, 3]
+            rho = float(np.linalg.norm(centre - a.base[:3, 3]))
+            world = points @ patient[:3, :3].T + patient[:3, 3]
+            qs = [(0.0, 0.0, rho - model.limits.along_shaft_m)] + [
+                rcm_inverse((w - a.base[:3, 3]) @ a.base[:3, :3], model.limits.along_shaft_m) for w in world]
+        assert len(qs) == len(placed.segments)
+        for q, pose in zip(qs, placed.segments):
+            own = C.capsules_at(capsules, C.skeleton(skeleton, np.asarray(q, float), a.base, mount)).segments
+            np.testing.assert_allclose(pose[n_suj:], own @ to_patient[:3, :3].T + to_patient[:3, 3], atol=1e-9)

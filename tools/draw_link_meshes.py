@@ -57,7 +57,7 @@ def main(out: str, design_id: int, overrides: list[str]) -> None:
     patient = row_patient_in_cart(cfg, row)
     points = pose_points(model)[0]
     arms = [a for a in docked_arms(model, row) if a.arm.startswith("PSM") and a.joints]
-    poses = [arm_poses(cfg, a, patient, points, model.limits.along_shaft_m) for a in arms]
+    poses = [arm_poses(model, a, patient, points) for a in arms]
     _, moving = between(poses[0], poses[1])
     psm_capsules = PLATFORMS[cfg.cart.model].own_links(arms[0].arm)[1]  # the platform's PSM links: which meshes
     skeleton_name = next(e.skeleton for e in E.ENVELOPES if any(e.mesh in c.source for c in psm_capsules))

@@ -71,36 +71,17 @@ def frame_transform(frame, q) -> np.ndarray:
 
 def skeleton(frames, q, base: np.ndarray, mount: np.ndarray | None = None) -> dict:
     """(C4) Every frame of an arm's skeleton in the world at joints q = (yaw, pitch, insertion), the arm's base
-    frame (its RCM) at ``base`` (4, 4); ``mount``: the SUJ's tip (4, 4, world), as frame "mount"."""
-    out = {"base": np.asarray(base, float)}
-    if mount is not None:
-        out["mount"] = np.asarray(mount, float)
-    for f in frames:
-        out[f.name] = out[f.parent] @ frame_transform(f, q)
-    return out
+    frame (its RCM) at ``base`` (4, 4); ``mount``: the SUJ's tip (4, 4, world), as frame "mount". One arm of
+    ``skeleton_batch`` (the one placement, issue 53)."""
+    many = skeleton_batch(frames, np.asarray(q, float)[None], np.asarray(base, float)[None],
+                          None if mount is None else np.asarray(mount, float)[None])
+    return {name: t[0] for name, t in many.items()}
 
 
 def capsules_at(capsules, frames: dict) -> Capsules:
-    """The capsules' segments in the world from the skeleton's frames."""
-    seg = np.empty((len(capsules), 2, 3))
-    for i, c in enumerate(capsules):
-        seg[i, 0] = frames[c.frame_a][:3, :3] @ c.point_a_m + frames[c.frame_a][:3, 3]
-        seg[i, 1] = frames[c.frame_b][:3, :3] @ c.point_b_m + frames[c.frame_b][:3, 3]
+    """The capsules' segments in the world from one arm's skeleton's frames (``capsules_batch`` of one)."""
+    seg = capsules_batch(capsules, {name: t[None] for name, t in frames.items()})[0]
     return Capsules(seg, np.array([c.radius_m for c in capsules]), tuple(c.name for c in capsules))
-
-
-def polyline_capsules(points: np.ndarray, radius_m: float, name: str, skip: int = 0) -> Capsules:
-    """A chain of points (a setup joint's frame origins) as capsules between successive points, the first
-    ``skip`` segments and any of zero length left out."""
-    seg = np.stack([points[:-1], points[1:]], axis=1)[skip:]
-    keep = np.linalg.norm(seg[:, 1] - seg[:, 0], axis=1) > 1e-9
-    idx = np.flatnonzero(keep) + skip
-    return Capsules(seg[keep], np.full(int(keep.sum()), radius_m), tuple(f"{name} link {i + 1}" for i in idx))
-
-
-def join(*parts: Capsules) -> Capsules:
-    return Capsules(np.concatenate([p.segments for p in parts]), np.concatenate([p.radii for p in parts]),
-                    sum((p.names for p in parts), ()))
 
 
 @njit(**EXACT)

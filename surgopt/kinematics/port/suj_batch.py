@@ -329,7 +329,8 @@ def ecm_margins(s, origins, aims, psi_steps, aim_steps, q4_steps):
 def link_segments(world, alpha, a, d, offset, prismatic, jointed, joints, to_frame, first):
     """(k, L - first, 2, 3) A chain's links (L rows, ``chain_points``) from the ``first``-th on as segments between
     successive frame origins, at each of ``joints`` (k, >= jointed; NaN rows give NaN), taken by ``to_frame``
-    (k, 4, 4) into another frame (the patient's): the setup joints' links as ``clashes.arm_poses`` places them."""
+    (k, 4, 4) into another frame (the patient's): the setup joints' links, for the rows and one layout
+    (``link_tables.placed_arm``)."""
     k, rows = joints.shape[0], alpha.shape[0]
     out = np.full((k, rows - first, 2, 3), np.nan)
     for n in range(k):

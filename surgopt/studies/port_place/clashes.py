@@ -1,6 +1,7 @@
 """A docked layout's clearances outside the body (issue 40): each arm's setup-joint links and its own links
-(``robots/dvrk/links.py``) as capsules in the cart's world frame, docked and at the joint values that reach each
-target point, checked between arms, against the patient and against the table (``kinematics.port.capsules``).
+(``robots/dvrk/links.py``) as capsules in the patient's frame, docked and at the joint values that reach each
+target point, placed as the rows place them (``link_tables.placed_arm``), checked between arms, against the patient
+and against the table (``kinematics.port.capsules``).
 
 Between two arms the least is over every pair of their poses (each instrument at any of its target points, the
 other at any of its own: they move independently), the ECM held where it docks. Against the patient and the
@@ -22,7 +23,7 @@ import numpy as np
 from surgopt.robots.dvrk.platforms import PLATFORMS
 
 from surgopt.studies.port_place.carts import cart_for
-from surgopt.studies.port_place.link_tables import PATIENT_CAP_MM, SPACING_M, pose_points, table_box
+from surgopt.studies.port_place.link_tables import PATIENT_CAP_MM, pose_points
 
 class Clearance(NamedTuple):
     """One least clearance: what against what, the value (mm, negative: they overlap), which links, and where
@@ -51,36 +52,15 @@ def _point_label(p_mm: np.ndarray) -> str:
     return f"target point ({p_mm[0]:.0f}, {p_mm[1]:.0f}, {p_mm[2]:.0f}) mm"
 
 
-def arm_poses(cfg, arm, patient: np.ndarray, targets_m: np.ndarray, along_shaft_m: float) -> ArmPoses:
-    """A docked arm's capsules (its setup joints', fixed, and its own, moving) docked and at each target point
-    (a PSM; the ECM held at its docked aim)."""
-    from surgopt.kinematics.port import capsules as C
-    from surgopt.kinematics.port import suj as S
-    from surgopt.kinematics.port.place import rcm_inverse
-    from surgopt.robots.dvrk import links as L
+def arm_poses(model, arm, patient: np.ndarray, targets_m: np.ndarray) -> ArmPoses:
+    """A docked arm's capsules (``tables.DockedArm``: its setup joints', fixed, and its own, moving) docked and at
+    each target point of ``targets_m`` (a PSM; the ECM held at its docked aim), in the patient's frame (``patient``:
+    the patient's frame in the cart's world), placed as the rows place them (``link_tables.placed_arm``)."""
+    from surgopt.studies.port_place.link_tables import placed_arm
 
-    frames = S.frames(PLATFORMS[cfg.cart.model].suj(arm.arm), arm.joints)
-    suj = C.polyline_capsules(frames[:-1, :3, 3], L.SUJ_RADIUS_M, f"{arm.arm} setup joint", L.SUJ_ON_COLUMN)
-    mount = frames[-2]
-    base = arm.base
-    skeleton, capsules = PLATFORMS[cfg.cart.model].own_links(arm.arm)
-    if arm.arm == "ECM":
-        qs = [(arm.ecm[0], arm.ecm[1], 0.0)]
-        labels = ("docked",)
-    else:
-        world = targets_m @ patient[:3, :3].T + patient[:3, 3]
-        local = (world - base[:3, 3]) @ base[:3, :3]
-        centre = np.asarray(cfg.target.centre_mm, float) / 1000 @ patient[:3, :3].T + patient[:3, 3]
-        rho = float(np.linalg.norm(centre - base[:3, 3]))
-        qs = [(0.0, 0.0, rho - along_shaft_m)] + [rcm_inverse(p, along_shaft_m) for p in local]
-        labels = ("docked",) + tuple(_point_label(p * 1000) for p in targets_m)
-    segs = []
-    for q in qs:
-        own = C.capsules_at(capsules, C.skeleton(skeleton, np.asarray(q, float), base, mount))
-        segs.append(C.join(suj, own._replace(names=tuple(f"{arm.arm} {n}" for n in own.names))))
-    through = np.array([False] * len(suj.names) + L.through_port(capsules))
-    return ArmPoses(arm.arm, np.stack([s.segments for s in segs]), segs[0].radii, segs[0].names, through,
-                    labels)
+    placed = placed_arm(model, arm.arm, arm.joints, arm.base, arm.ecm, np.linalg.inv(patient), targets_m)
+    labels = ("docked",) if arm.arm == "ECM" else ("docked",) + tuple(_point_label(p * 1000) for p in targets_m)
+    return ArmPoses(arm.arm, placed.segments, placed.radii, placed.names, placed.through_port, labels)
 
 
 def between(a: ArmPoses, b: ArmPoses) -> tuple[Clearance, Clearance]:
@@ -95,42 +75,29 @@ def between(a: ArmPoses, b: ArmPoses) -> tuple[Clearance, Clearance]:
     return docked, moving
 
 
-def against_patient(cfg, a: ArmPoses, patient: np.ndarray) -> Clearance:
-    """(C3) The least clearance of the arm's links (not the shafts) to the patient's body at any pose."""
-    from surgopt.kinematics.port.capsules import along
-    from surgopt.studies.port_place.geometry import body_distance_mm, inside_body
+def against_patient(cfg, a: ArmPoses) -> Clearance:
+    """(C3) The least clearance of the arm's links (not the shafts) to the patient's body at any pose, measured as
+    the rows measure it (``link_tables.to_patient_body``)."""
+    from surgopt.studies.port_place.link_tables import to_patient_body
 
-    fixed = np.all(a.segments == a.segments[:1], axis=(0, 2, 3))  # the setup joints' links: once, not per pose
-    keep = np.flatnonzero(~a.through_port)
-    parts = [(0, i) for i in keep if fixed[i]] + [(p, i) for p in range(len(a.poses)) for i in keep if not fixed[i]]
-    pts, owner = along(np.array([a.segments[p, i] for p, i in parts]), SPACING_M)
-    local_mm = ((pts - patient[:3, 3]) @ patient[:3, :3]) * 1000
-    d = body_distance_mm(local_mm, cfg.patient, PATIENT_CAP_MM)
-    d = np.where(inside_body(local_mm, cfg.patient), 0.0, d)
-    pose, link = np.array(parts)[owner].T
-    c = d - a.radii[link] * 1000
-    k = int(np.argmin(c))
-    note = " (inside the body)" if d[k] == 0.0 else (f" (at least: nothing within {PATIENT_CAP_MM:.0f} mm)"
-                                                       if d[k] >= PATIENT_CAP_MM else "")
-    return Clearance(f"{a.arm} and the patient", float(c[k]), a.names[link[k]], "patient's body",
-                     f"{a.arm} {a.poses[pose[k]]}{note}")
+    c = to_patient_body(cfg, a.segments, a.radii, a.through_port)
+    pose, link = np.unravel_index(int(np.argmin(c)), c.shape)
+    d_mm = (c[pose, link] + a.radii[link]) * 1000
+    note = " (inside the body)" if d_mm <= 1e-9 else (f" (at least: nothing within {PATIENT_CAP_MM:.0f} mm)"
+                                                      if d_mm >= PATIENT_CAP_MM - 1e-9 else "")
+    return Clearance(f"{a.arm} and the patient", float(c[pose, link] * 1000), a.names[link], "patient's body",
+                     f"{a.arm} {a.poses[pose]}{note}")
 
 
-def against_table(cfg, a: ArmPoses, patient: np.ndarray) -> Clearance:
-    """(C2) The least clearance of the arm's links to the table (a slab under the patient, in its frame),
-    refined on the closest link by golden-section search."""
-    from surgopt.kinematics.port.capsules import along, box_distance, segment_box_distance
+def against_table(cfg, a: ArmPoses) -> Clearance:
+    """(C2) The least clearance of the arm's links to the table (a slab under the patient, in its frame) at any
+    pose, measured as the rows measure it (``link_tables.to_table``: each link exact by golden-section search)."""
+    from surgopt.studies.port_place.link_tables import to_table
 
-    lo, hi = table_box(cfg)  # the one the link tables measure against
-    segs = (a.segments - patient[:3, 3]) @ patient[:3, :3]  # into the patient's frame
-    flat = segs.reshape(-1, 2, 3)
-    pts, owner = along(flat, SPACING_M)
-    n = segs.shape[1]
-    rough = box_distance(pts, lo, hi) - a.radii[owner % n]
-    s = int(owner[np.argmin(rough)])
-    d, _ = segment_box_distance(flat[s, 0], flat[s, 1], lo, hi)
-    return Clearance(f"{a.arm} and the table", (d - a.radii[s % n]) * 1000, a.names[s % n], "table",
-                     f"{a.arm} {a.poses[s // n]}")
+    c = to_table(cfg, a.segments, a.radii)
+    pose, link = np.unravel_index(int(np.argmin(c)), c.shape)
+    return Clearance(f"{a.arm} and the table", float(c[pose, link] * 1000), a.names[link], "table",
+                     f"{a.arm} {a.poses[pose]}")
 
 
 #: Answers (a layout's clearances, or its roll search) a process keeps: the closing report screens up to
@@ -184,13 +151,13 @@ def layout_clearances(model, row: dict, docked=None) -> list[Clearance]:
         return list(memoised("clearances", cfg, row, lambda: layout_clearances(model, row, docked_arms(model, row))))
     patient = row_patient_in_cart(cfg, row)
     points = pose_points(model)[0]
-    arms = [arm_poses(cfg, a, patient, points, model.limits.along_shaft_m) for a in docked if a.joints]
+    arms = [arm_poses(model, a, patient, points) for a in docked if a.joints]
     out = []
     for i in range(len(arms)):
         for j in range(i + 1, len(arms)):
             out += between(arms[i], arms[j])
-    out += [against_patient(cfg, a, patient) for a in arms]
-    out += [against_table(cfg, a, patient) for a in arms]
+    out += [against_patient(cfg, a) for a in arms]
+    out += [against_table(cfg, a) for a in arms]
     return out
 
 
@@ -220,7 +187,7 @@ def _whole_target(model, row: dict) -> list[Clearance]:
     first = np.concatenate([seeds, np.setdiff1d(np.arange(len(model.targets_m)), seeds)])
     points, groups = grouped(model.targets_m[first], min(WHOLE_TARGET_GROUPS, len(model.targets_m)))
     patient = row_patient_in_cart(cfg, row)
-    arms = [arm_poses(cfg, a, patient, points, model.limits.along_shaft_m) for a in docked_arms(model, row)
+    arms = [arm_poses(model, a, patient, points) for a in docked_arms(model, row)
             if a.joints]
     held = np.array([0, 1], np.int64)
     out = []
@@ -356,10 +323,9 @@ def _rolls_that_clear(model, row: dict) -> RollsThatClear:
     reached = {a: rolled_reach(model, row, a) for a in psms}
     options = {a: rolled_docks(model, row, a, patient, reached[a]) for a in psms}
     isotropy = {a: dict(zip(ROLL_GRID_DEG, reached[a][2])) for a in psms}
-    along = model.limits.along_shaft_m
     none = np.zeros((0, 3))
-    docked_pose = {(a, deg): arm_poses(cfg, d, patient, none, along) for a in psms for deg, d in options[a]}
-    ecm_pose = arm_poses(cfg, ecm[0], patient, none, along) if ecm else None
+    docked_pose = {(a, deg): arm_poses(model, d, patient, none) for a in psms for deg, d in options[a]}
+    ecm_pose = arm_poses(model, ecm[0], patient, none) if ecm else None
 
     def pair(p, q):
         return least_pair_clearance(p.segments[0], p.radii, q.segments[0], q.radii)[0]

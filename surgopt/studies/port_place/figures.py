@@ -287,15 +287,15 @@ def cart_figure(plt, model, row: dict, out, note: str = ""):
             continue
         f = setup_joint_frames(cfg, arm)
         ax.plot(*f[:-1, :3, 3].T, color=colour, lw=2.5, marker="o", ms=3, label=f"{arm.arm} setup joints")
-        links = arm_poses(cfg, arm, patient, model.targets_m[:0], model.limits.along_shaft_m)
+        links = arm_poses(model, arm, patient, model.targets_m[:0])  # in the patient's frame: drawn in the cart's
         own = [i for i, n in enumerate(links.names) if "setup joint" not in n]
         for k, i in enumerate(own):  # the arm's own links, docked (clashes.py's capsules)
-            ax.plot(*links.segments[0, i].T, color=colour, lw=1.2, alpha=0.8,
+            ax.plot(*to_cart(links.segments[0, i]).T, color=colour, lw=1.2, alpha=0.8,
                     label=f"{arm.arm} links (capsule axes)" if k == 0 else None)
         ax.plot(*np.stack([f[-1, :3, 3], centre]).T, color=colour, lw=0.8, ls="--")
         for i, n in enumerate(links.names):  # the overlapping pair, docked (it may overlap at another pose)
             if overlap is not None and n in (overlap.link_a, overlap.link_b):
-                ax.plot(*links.segments[0, i].T, color="red", lw=4, alpha=0.7,
+                ax.plot(*to_cart(links.segments[0, i]).T, color="red", lw=4, alpha=0.7,
                         label="the overlapping links (docked)" if n == overlap.link_a else None)
 
     above = PLATFORMS[cfg.cart.model].world_above_floor_m

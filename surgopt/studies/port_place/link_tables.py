@@ -13,8 +13,10 @@ joints' links and each arm's own), docked and over the target, factored as the i
 
 All in the patient's frame (the cart's pose moves the setup joints only). The tables are dense over (site, site,
 pose) where both arms dock (NaN elsewhere), with each least's link pair, and packed as the design kernel's 64-pose
-words of where the clearance is at least ``constraints.min_link_clearance_mm``. Held to ``clashes``'s
-per-layout clearances (the same capsules placed by the plain forward kinematics) in tests/test_link_tables.py.
+words of where the clearance is at least ``constraints.min_link_clearance_mm``. One layout's clearances
+(``clashes``, for the views) place its links with the same functions (``placed_arm``); the tables are held to them,
+computed directly over every pair of poses, and the placement to the reference kinematics, in
+tests/test_link_tables.py.
 
 One module of ~450 lines: each arm's links placed (static, moving), the pairs' and the surroundings' tables and
 their packing are one computation read together, for either cart; its kernels are ``kinematics.port.capsules``'.
@@ -130,25 +132,30 @@ def table_box(cfg) -> tuple[np.ndarray, np.ndarray]:
             np.array([w, cfg.cart.table_y_mm[1] / 1000, 0.0]))
 
 
-def surroundings(cfg, segs: np.ndarray, radii: np.ndarray, through: np.ndarray, valid: np.ndarray):
-    """(C2, C3) Per item of ``segs`` (K, L, 2, 3), patient frame, where ``valid``: the least clearance (m) of its
-    links to the patient's body (points along each link at most ``SPACING_M`` apart, the body distance
-    resolved to ``PATIENT_CAP_MM``; not the links that pass the port, ``through``) and to the table (the
-    slab, exact by golden-section search), and its code LINK_CODE * link + (0 patient, 1 table): (value (K,), code (K,)),
-    NaN and -1 elsewhere. As ``clashes.against_patient`` and ``against_table`` measure them."""
-    from surgopt.kinematics.port.capsules import along_many, segments_box_distance
+def to_table(cfg, segs: np.ndarray, radii: np.ndarray) -> np.ndarray:
+    """(C2) (K, L) Each link's clearance (m) to the table (the slab, exact by golden-section search) for each item of
+    ``segs`` (K, L, 2, 3), patient frame."""
+    from surgopt.kinematics.port.capsules import segments_box_distance
+
+    lo, hi = table_box(cfg)
+    k, n = segs.shape[:2]
+    return segments_box_distance(np.ascontiguousarray(segs.reshape(-1, 2, 3)), lo, hi).reshape(k, n) - radii[None]
+
+
+def to_patient_body(cfg, segs: np.ndarray, radii: np.ndarray, through: np.ndarray) -> np.ndarray:
+    """(C3) (K, L) Each link's clearance (m) to the patient's body for each item of ``segs`` (K, L, 2, 3), patient
+    frame: the least over points along the link at most ``SPACING_M`` apart, the body distance resolved to
+    ``PATIENT_CAP_MM`` (0 inside the body); inf for the links that pass the port (``through``)."""
+    from surgopt.kinematics.port.capsules import along_many
     from surgopt.studies.port_place.geometry import body_box_mm, body_distance_mm, inside_body
 
-    n_item, n_link = segs.shape[:2]
-    value, code = np.full(n_item, np.nan), np.full(n_item, -1, np.int64)
-    idx = np.flatnonzero(valid)
-    if not len(idx):
-        return value, code
-    flat = np.ascontiguousarray(segs[idx].reshape(-1, 2, 3))
-    link = np.tile(np.arange(n_link), len(idx))
-    lo, hi = table_box(cfg)
-    table = segments_box_distance(flat, lo, hi) - radii[link]
+    k, n = segs.shape[:2]
+    flat = np.ascontiguousarray(segs.reshape(-1, 2, 3))
+    link = np.tile(np.arange(n), k)
     keep = np.flatnonzero(~through[link])
+    out = np.full(len(flat), np.inf)
+    if not len(keep):
+        return out.reshape(k, n)
     pts, owner = along_many(np.ascontiguousarray(flat[keep]), SPACING_M)
     local_mm = pts * 1000
     d = np.full(len(pts), PATIENT_CAP_MM)
@@ -156,9 +163,22 @@ def surroundings(cfg, segs: np.ndarray, radii: np.ndarray, through: np.ndarray, 
     near = np.flatnonzero(np.all((local_mm >= lo_mm - PATIENT_CAP_MM) & (local_mm <= hi_mm + PATIENT_CAP_MM), axis=1))
     d[near] = np.where(inside_body(local_mm[near], cfg.patient), 0.0,
                        body_distance_mm(local_mm[near], cfg.patient, PATIENT_CAP_MM, many=True))
-    patient = np.full(len(flat), np.inf)
-    np.minimum.at(patient, keep[owner], d / 1000 - radii[link[keep[owner]]])
-    both = np.stack([patient, table], axis=1).reshape(len(idx), n_link * 2)
+    np.minimum.at(out, keep[owner], d / 1000 - radii[link[keep[owner]]])
+    return out.reshape(k, n)
+
+
+def surroundings(cfg, segs: np.ndarray, radii: np.ndarray, through: np.ndarray, valid: np.ndarray):
+    """(C2, C3) Per item of ``segs`` (K, L, 2, 3), patient frame, where ``valid``: the least clearance (m) of its
+    links to the patient's body (``to_patient_body``) and to the table (``to_table``), and its code LINK_CODE * link
+    + (0 patient, 1 table): (value (K,), code (K,)), NaN and -1 elsewhere. One layout's checks (``clashes``) read
+    the same two functions."""
+    n_item, n_link = segs.shape[:2]
+    value, code = np.full(n_item, np.nan), np.full(n_item, -1, np.int64)
+    idx = np.flatnonzero(valid)
+    if not len(idx):
+        return value, code
+    both = np.stack([to_patient_body(cfg, segs[idx], radii, through), to_table(cfg, segs[idx], radii)],
+                    axis=2).reshape(len(idx), n_link * 2)
     best = np.argmin(both, axis=1)
     value[idx] = both[np.arange(len(idx)), best]
     code[idx] = LINK_CODE * (best // 2) + best % 2
@@ -208,16 +228,17 @@ def grouped(points: np.ndarray, n_groups: int) -> tuple[np.ndarray, np.ndarray]:
     return points[order], np.concatenate([[0, 1], 1 + np.cumsum(counts)]).astype(np.int64)
 
 
-def own_moving(model, sites: np.ndarray, rot: np.ndarray, arm: str = "PSM1"
+def own_moving(model, sites: np.ndarray, rot: np.ndarray, arm: str = "PSM1", points: np.ndarray | None = None
                ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """(segments (n, P, L, 2, 3) m in the patient frame, radii (L,), the poses' groups (``pose_points``)): a
     PSM's own links (its cart's, ``Platform.own_links``) docked at each port in its docking frame ``rot`` (n, 3, 3), with
     the mount where its setup joints' tip is (SUJ_tip_to_tool_origin), docked (yaw = pitch = 0, the tip at the
-    centre's depth) and reaching each of ``pose_points`` (eq. P2), as ``clashes.arm_poses`` places them."""
+    centre's depth) and reaching each of ``pose_points`` (eq. P2), or of ``points`` (m, patient frame; groups
+    then None): the one placement of a PSM's links, for the rows and for one layout (``placed_arm``)."""
     from surgopt.kinematics.port import capsules as C
 
     along = model.limits.along_shaft_m
-    points, groups = pose_points(model)
+    points, groups = pose_points(model) if points is None else (np.asarray(points, float).reshape(-1, 3), None)
     n, k = len(sites), len(points) + 1
     base = np.zeros((n, 4, 4))
     base[:, :3, :3], base[:, :3, 3], base[:, 3, 3] = rot, sites, 1.0
@@ -287,6 +308,49 @@ def ecm_static(cfg, dock) -> np.ndarray:
     own = np.einsum("kij,klej->klei", frame[:, :3, :3], own) + frame[:, None, None, :3, 3]
     return np.concatenate([suj_static(cfg, "ECM", joints, dock).reshape(n * m, -1, 2, 3), own],
                           axis=1).reshape(n, m, -1, 2, 3)
+
+
+class PlacedArm(NamedTuple):
+    """One docked arm's links as capsules in the patient's frame (``placed_arm``): segments at each pose (p, L, 2,
+    3: docked, then at each target point asked for; the ECM docked only), radii (L,), names (``link_names``),
+    which pass the port (the shafts, not checked against the body)."""
+
+    segments: np.ndarray
+    radii: np.ndarray
+    names: tuple
+    through_port: np.ndarray
+
+
+def placed_arm(model, arm: str, joints, base: np.ndarray, ecm_aim, to_patient: np.ndarray,
+               points: np.ndarray) -> PlacedArm:
+    """One docked arm (``arm``: "PSM1" ... "ECM"; its setup joints ``joints``, m and rad; its base (RCM) frame
+    ``base`` in the cart's world frame; the ECM's yaw and pitch ``ecm_aim``) placed as the rows place it: its
+    setup-joint links by ``suj_batch.link_segments`` (``suj_static``'s), a PSM's own links docked and reaching
+    each of ``points`` (m, patient frame; ``own_moving``), the ECM's at its aim (``ecm_static``'s), all in the
+    patient's frame (``to_patient``: the cart's world frame there, 4x4). Issue 53: one placement of the links,
+    for the rows' tables and for one layout's clearances (``clashes``)."""
+    from surgopt.kinematics.port import capsules as C
+    from surgopt.kinematics.port.suj_batch import chain_ends, link_segments
+
+    cart = model.cfg.cart.model
+    suj = PLATFORMS[cart].suj(arm)
+    q = np.full((1, 6), np.nan)
+    q[0, :len(joints)] = joints
+    chain = _chain(suj)
+    setup = link_segments(*chain, q, np.ascontiguousarray(to_patient[None]), FIRST_SUJ_LINK)[0]  # (S, 2, 3)
+    skeleton, capsules = PLATFORMS[cart].own_links(arm)
+    if arm == "ECM":
+        mount = chain_ends(*chain, np.ascontiguousarray(q))
+        at = C.capsules_batch(capsules, C.skeleton_batch(skeleton, np.array([[ecm_aim[0], ecm_aim[1], 0.0]]),
+                                                          mount @ np.asarray(suj.tip_to_tool, float), mount))
+        own = (at @ to_patient[:3, :3].T + to_patient[:3, 3])  # (1, L, 2, 3)
+    else:
+        in_patient = to_patient @ base
+        own = own_moving(model, in_patient[None, :3, 3], in_patient[None, :3, :3], arm, points)[0][0]
+    segments = np.concatenate([np.broadcast_to(setup, (len(own),) + setup.shape), own], axis=1)
+    radii = np.concatenate([suj_radii(cart, arm), [c.radius_m for c in capsules]])
+    through = np.array([False] * len(setup) + through_port(capsules))
+    return PlacedArm(segments, radii, link_names(arm, cart), through)
 
 
 def suj_radii(cart: str, arm: str) -> np.ndarray:
