@@ -19,7 +19,7 @@ from reference import suj_forward_reference
 
 #: A coarse grid whose links decide feasible (``test_link_tables.LINKS``: at -45 deg some layouts keep them clear).
 LINKS = {"patient": {"port_region": {"site_spacing_mm": 36.0}}, "target": {"spacing_mm": 15.0},
-         "cart": {"model": "classic", "around_step_deg": 30.0, "distance_step_mm": 300.0},
+         "cart": {"model": "classic", "around_step_deg": 30.0, "distance_step_mm": 300.0, "clear_of_table_mm": 0.0},
          "constraints": {"min_link_clearance_mm": 0.0}, "robot": {"docking_roll_deg": -45.0}}
 SUJ_COLUMNS = ("column_mm", "j1_deg", "j2_deg", "j3_deg", "j4_deg", "j5_deg")
 

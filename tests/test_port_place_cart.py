@@ -607,7 +607,7 @@ def test_a_searched_cart_pose_docks_each_design_at_its_own_pose(tmp_path):
     assert names[-3:] == ["cart_around_deg", "cart_distance_mm", "cart_yaw_offset_deg"]
     for around, distance, offset in ((-60.0, 900.0, 20.0), (60.0, 1200.0, -20.0), (0.0, 1500.0, 0.0)):
         x_mm, y_mm, heading = T.floor_pose(cfg, around, distance, offset)
-        assert T.off_table(cfg.cart, np.array([x_mm]), np.array([y_mm]))[0]  # the cart can stand there
+        assert T.off_table(cfg.cart, np.array([[x_mm, y_mm, heading]]))[0]  # the cart can stand there
         given = validate({**SMALL, **NO_LINKS, "cart": {"model": "classic", "pose": "given", "x_mm": x_mm, "y_mm": y_mm,
                                             "heading_deg": heading}}, C.Config, "x")
         grid = S.compute_task(given, 10 ** 6, 0)
@@ -621,7 +621,7 @@ def test_a_searched_cart_pose_docks_each_design_at_its_own_pose(tmp_path):
                                        err_msg=f"{c} at {around, distance, offset}")
         assert np.all(alone["cart_around_deg"] == around) and np.all(alone["cart_distance_mm"] == distance)
     near = T.floor_pose(cfg, 0.0, 400.0, 0.0)  # the foot of the table: not clear of it
-    assert not T.off_table(cfg.cart, np.array([near[0]]), np.array([near[1]]))[0]
+    assert not T.off_table(cfg.cart, np.array([near]))[0]
     x = np.array([[float(grid["psm1_site"][pick[0]]), float(grid["psm2_site"][pick[0]]),
                    float(grid["ecm_site"][pick[0]]), 0.0, 400.0, 0.0]])
     assert S.evaluate_designs(cfg, x, np.array([0]), "t")["cart_pose"][0] == -1
@@ -900,3 +900,46 @@ def test_the_pages_reach_is_the_grids_without_building_the_grid():
     _, want_reach, want_dex = fresh.grid
     np.testing.assert_array_equal(reach, want_reach)
     np.testing.assert_array_equal(dex, want_dex)
+
+
+def test_the_carts_base_stands_clear_of_the_table_by_its_own_footprint():
+    """#54 (the cart's footprint): ``tables.footprint_gap_mm`` against brute force apart from it: both outlines
+    sampled every 5 mm along their edges and inside, the least distance between the samples (within 5 mm of the
+    exact gap, never below it by more than that), 0 where a sample of one lies inside the other; at random poses
+    around the table, some overlapping, some apart (the premises). The Classic's footprint is its mesh's extent."""
+    from surgopt.robots.dvrk.platforms import PLATFORMS
+
+    cart = C.PortPlaceConfig.model_validate({"cart": {"model": "classic"}}).cart
+    assert PLATFORMS["classic"].footprint_m == ((-0.456, -0.568), (0.456, 0.365))
+    assert "base_link.stl" in PLATFORMS["classic"].footprint_source
+    rng = np.random.default_rng(3)
+    floor = np.column_stack([rng.uniform(-1300, 1300, 40), rng.uniform(-1400, 1400, 40), rng.uniform(-180, 180, 40)])
+    gap = T.footprint_gap_mm(cart, floor)
+    w, (y0, y1) = cart.table_half_width_mm, cart.table_y_mm
+
+    def fill(lo, hi):  # a rectangle's samples: every 5 mm inside and on its edges
+        xs, ys = np.arange(lo[0], hi[0] + 1e-9, 5.0), np.arange(lo[1], hi[1] + 1e-9, 5.0)
+        return np.array(np.meshgrid(np.append(xs, hi[0]), np.append(ys, hi[1]))).reshape(2, -1).T
+
+    table = fill((-w, y0), (w, y1))
+    (fx0, fy0), (fx1, fy1) = (np.array(v) * 1000 for v in PLATFORMS["classic"].footprint_m)
+    base = fill((fx0, fy0), (fx1, fy1))
+    edges = [p for p in table if abs(abs(p[0]) - w) < 1e-9 or min(abs(p[1] - y0), abs(p[1] - y1)) < 1e-9]
+    edges = np.array(edges)
+    for (x, y, heading), g in zip(floor, gap):
+        h = math.radians(heading)
+        world = np.column_stack([x + math.cos(h) * base[:, 0] + math.sin(h) * base[:, 1],
+                                 y - math.sin(h) * base[:, 0] + math.cos(h) * base[:, 1]])
+        inside = (np.abs(world[:, 0]) <= w) & (world[:, 1] >= y0) & (world[:, 1] <= y1)
+        if inside.any():
+            assert g == 0.0
+            continue
+        rim = world[np.isin(np.arange(len(base)), np.flatnonzero(
+            (np.abs(base[:, 0] - fx0) < 1e-9) | (np.abs(base[:, 0] - fx1) < 1e-9)
+            | (np.abs(base[:, 1] - fy0) < 1e-9) | (np.abs(base[:, 1] - fy1) < 1e-9)))]
+        brute = np.sqrt(((rim[:, None, :] - edges[None, :, :]) ** 2).sum(axis=2)).min()
+        assert g <= brute + 1e-6 and brute - g < 5.0
+    assert (gap == 0.0).any() and (gap > 0.0).any()
+    # a cart squarely facing the table's side from the patient's right: its base's front 365 mm ahead of its origin
+    side = np.array([[-w - 365.0 - 100.0, 0.0, 90.0]])
+    assert T.footprint_gap_mm(cart, side)[0] == pytest.approx(100.0, abs=1e-9)

@@ -58,7 +58,9 @@ class Platform:
 
     ``suj_family``: "classic" (a prismatic column and five revolute joints: the docking frame's roll about the
     shaft is free, S2) or "si" (a column, planar joints and two fixed links: one orientation per yaw, psi*, S3-S7).
-    ``world_above_floor_m`` and its source: the files give no floor (``dvrk.suj``)."""
+    ``world_above_floor_m`` and its source: the files give no floor (``dvrk.suj``). ``footprint_m``: the cart's base
+    on the floor, ((x_lo, y_lo), (x_hi, y_hi)) m in its world frame (+y toward the patient when it faces the
+    target), with its source: what must stand clear of the table (``cart.clear_of_table_mm``)."""
 
     name: str
     title: str
@@ -69,6 +71,8 @@ class Platform:
     world_above_floor_source: str
     links: ArmLinks
     suj_family: str
+    footprint_m: tuple
+    footprint_source: str
 
     def suj(self, role: str) -> S.Suj:
         """The setup joints of the arm in ``role`` ("PSM1" ... "ECM")."""
@@ -84,13 +88,20 @@ class Platform:
         return self.suj_family == "classic"
 
 
+#: The Classic patient cart's base on the floor (m, its world frame): the extent of its own mesh's vertices
+#: (tools/cart_footprint.py). Its column above the 0.37 m base lies within it (x +-0.095, y -0.528..0.004).
+CLASSIC_FOOTPRINT_M = ((-0.456, -0.568), (0.456, 0.365))
+CLASSIC_FOOTPRINT_SOURCE = ("shashank3199/dvrk_urdf f4e68a8c, suj_description/meshes/Classic/base_link.stl (sha256 "
+                            "15cce974b843...), placed by patient_cart.classic.urdf.xacro; its x, y are the dVRK cart "
+                            "world's (the setup joints' mounts agree)")
+
 PLATFORMS: dict[str, Platform] = {
     "classic": Platform(
         "classic", "Classic", "dvrk_psm_classic", "dvrk_ecm_classic", S.CLASSIC, 0.0,
         "taken on the floor: the files' sample dockings put the RCMs 0.91-0.99 m above it, a port on an abdomen "
         "over a 0.8 m table",
         ArmLinks(L.PSM_CLASSIC_FRAMES, L.PSM_CLASSIC_CAPSULES, L.ECM_CLASSIC_FRAMES, L.ECM_CLASSIC_CAPSULES),
-        "classic"),
+        "classic", CLASSIC_FOOTPRINT_M, CLASSIC_FOOTPRINT_SOURCE),
     "si": Platform(
         "si", "Si", "dvrk_psm_si", "dvrk_ecm_si", S.SI, 0.53,
         "chosen: the Si's samples put the RCMs 0.39-0.45 m above its world frame; 0.53 m puts its four sample RCMs "
@@ -98,7 +109,8 @@ PLATFORMS: dict[str, Platform] = {
         # the Si's ECM beyond its setup joints is the Classic's line behind the RCM (its DH yaw, pitch and
         # insertion offset are the same; an assumption, the Si ECM's own description not transcribed)
         ArmLinks(L.PSM_SI_FRAMES, L.PSM_SI_CAPSULES, L.ECM_CLASSIC_FRAMES, L.ECM_CLASSIC_CAPSULES),
-        "si"),
+        "si", CLASSIC_FOOTPRINT_M, "assumed: the Classic's (" + CLASSIC_FOOTPRINT_SOURCE + "); the Si's base mesh is "
+        "not in that repository, only its tower (Si/tower.stl, 0.27 m square)"),
 }
 
 #: The platform ``cart.model = "auto"`` resolves to where the config's arms are its own.

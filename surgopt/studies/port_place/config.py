@@ -375,7 +375,7 @@ class Cart(StrictModel):
     y cranial, mm; heading 0 = its arms reach toward +y, the patient's head) at a ``given`` pose or at each pose
     of a ``grid`` around the target: around_deg from the patient's feet (0 at the foot end, +90 the patient's
     left), distance_mm from the target's centre (horizontal), facing the target turned by each of
-    yaw_offsets_deg; poses whose origin falls within ``clear_of_table_mm`` of the table are left out; or, with a
+    yaw_offsets_deg; poses whose base falls within ``clear_of_table_mm`` of the table are left out; or, with a
     [search], at a pose ``search``ed on that arc (each trial its own; one too near the table docks nothing). The
     patient's frame is on the table top (``table_height_mm`` above the floor), tilted head down by
     ``trendelenburg_deg`` and left side up by ``lateral_tilt_deg``."""
@@ -414,8 +414,10 @@ class Cart(StrictModel):
                                                                                "midline (assumption)")
     table_y_mm: list[float] = Field([-1000.0, 1000.0], min_length=2, max_length=2,
                                     description="the table's foot and head ends, cranial (assumption)")
-    clear_of_table_mm: float = Field(350.0, ge=0.0, le=2000.0, description="the cart's origin this far from the "
-                                                                             "table's outline (its base's reach)")
+    clear_of_table_mm: float = Field(50.0, ge=0.0, le=2000.0, description="the cart's base (its platform's "
+                                     "footprint, from the cart's own mesh) at least this far from the table top's "
+                                     "outline on the floor (assumed: a hand's width; the base is not let under the "
+                                     "table, whose pedestal is not modelled)")
     mount_below_table_top: Literal["refuse", "allow"] = Field(
         "refuse", description="'refuse': a PSM does not dock where its setup joints would hold its mount (their last "
                               "frame, where the arm's own links begin) below the table top: beside the table stand "

@@ -233,7 +233,7 @@ def searched_dock(model, site_ids: np.ndarray, pose: dict, rot=None):
     cfg = model.cfg
     floor = np.array([floor_pose(cfg, *pose.values())])
     poses = poses_of(cfg.cart, floor)
-    if off_table(cfg.cart, floor[:, 0], floor[:, 1])[0]:
+    if off_table(cfg.cart, floor)[0]:
         return dock_at(model, site_ids, poses, rot)
     n = len(site_ids)
     margin, camera = np.full((3, n, 1), -np.inf), np.full((n, 1), -np.inf)

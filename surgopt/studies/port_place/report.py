@@ -373,8 +373,8 @@ def cart_bound_words(parts, best: dict, cfg) -> str:
     if not said:
         return ""
     return ("the answer's cart pose lies " + "; and ".join(said) + ": a pose beyond it may do better. The grid's "
-            "bounds are the config's (the cart's footprint is not modelled, only its origin cart.clear_of_table_mm "
-            "from the table): widen them to see")
+            "bounds are the config's (the cart's base, from its mesh, is kept cart.clear_of_table_mm from the table; "
+            "the grid's rings and arc are not the robot's): widen them to see")
 
 
 def screen_of(parts, meta: dict, best: list[dict]):

@@ -21,7 +21,7 @@ from typing import TYPE_CHECKING, NamedTuple
 
 import numpy as np
 
-from surgopt.robots.dvrk.platforms import PLATFORMS
+from surgopt.robots.dvrk.platforms import PLATFORMS, platform_of
 
 from surgopt.robots import dvrk
 from surgopt.robots.dvrk.suj import INSTRUMENT_SUJS
@@ -266,11 +266,55 @@ class CartPoses(NamedTuple):
 
 
 
-def off_table(cart, x_mm: np.ndarray, y_mm: np.ndarray) -> np.ndarray:
-    """Whether a cart origin at (x, y) stands at least ``clear_of_table_mm`` from the table's outline."""
-    dx = np.maximum(np.abs(x_mm) - cart.table_half_width_mm, 0.0)
-    dy = np.maximum(np.maximum(cart.table_y_mm[0] - y_mm, y_mm - cart.table_y_mm[1]), 0.0)
-    return np.hypot(dx, dy) >= cart.clear_of_table_mm
+def footprint_corners_mm(cart, floor: np.ndarray) -> np.ndarray:
+    """(n, 4, 2) The corners of the cart's base on the floor (mm, the patient's floor frame) at each pose of ``floor``
+    (n, 3: x, y mm, heading deg from +y toward +x): its platform's ``footprint_m`` turned by the heading."""
+    (x0, y0), (x1, y1) = platform_of(cart.model).footprint_m
+    local = np.array([[x0, y0], [x1, y0], [x1, y1], [x0, y1]]) * 1000
+    h = np.radians(np.asarray(floor, float)[:, 2])
+    c, s = np.cos(h), np.sin(h)
+    # the cart's +y is the heading's direction (``patient_in_cart``: its frame is Rz(-heading) on the floor)
+    x = floor[:, None, 0] + c[:, None] * local[None, :, 0] + s[:, None] * local[None, :, 1]
+    y = floor[:, None, 1] - s[:, None] * local[None, :, 0] + c[:, None] * local[None, :, 1]
+    return np.stack([x, y], axis=2)
+
+
+def _to_box(points: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
+    """The distance of each point (..., 2) to the axis-aligned rectangle [lo, hi] (0 inside)."""
+    d = np.maximum(np.maximum(lo - points, points - hi), 0.0)
+    return np.hypot(d[..., 0], d[..., 1])
+
+
+def footprint_gap_mm(cart, floor: np.ndarray) -> np.ndarray:
+    """(n,) The least distance on the floor (mm) between the cart's base (``footprint_corners_mm``) and the table
+    top's outline (|x| <= table_half_width_mm, y within table_y_mm) at each pose; 0 where they overlap (separating
+    axes: the table's two and the base's two). Two disjoint convex outlines are nearest at a corner of one."""
+    corners = footprint_corners_mm(cart, floor)
+    lo = np.array([-cart.table_half_width_mm, cart.table_y_mm[0]])
+    hi = np.array([cart.table_half_width_mm, cart.table_y_mm[1]])
+    table = np.array([[lo[0], lo[1]], [hi[0], lo[1]], [hi[0], hi[1]], [lo[0], hi[1]]])
+    gap = _to_box(corners, lo, hi).min(axis=1)  # the base's corners to the table
+    # the table's corners to the base, in the base's own frame (an axis-aligned rectangle there)
+    (x0, y0), (x1, y1) = platform_of(cart.model).footprint_m
+    h = np.radians(np.asarray(floor, float)[:, 2])
+    c, s = np.cos(h), np.sin(h)
+    dx, dy = table[None, :, 0] - floor[:, None, 0], table[None, :, 1] - floor[:, None, 1]
+    local = np.stack([c[:, None] * dx - s[:, None] * dy, s[:, None] * dx + c[:, None] * dy], axis=2)
+    gap = np.minimum(gap, _to_box(local, np.array([x0, y0]) * 1000, np.array([x1, y1]) * 1000).min(axis=1))
+    # overlap: no separating axis among the four
+    axes = np.stack([np.broadcast_to([1.0, 0.0], (len(h), 2)), np.broadcast_to([0.0, 1.0], (len(h), 2)),
+                     np.stack([c, -s], axis=1), np.stack([s, c], axis=1)], axis=1)  # (n, 4, 2)
+    a = np.einsum("nkd,nvd->nkv", axes, corners)
+    b = np.einsum("nkd,vd->nkv", axes, table)
+    separated = (a.max(axis=2) < b.min(axis=2)) | (b.max(axis=2) < a.min(axis=2))
+    return np.where(separated.any(axis=1), gap, 0.0)
+
+
+def off_table(cart, floor: np.ndarray) -> np.ndarray:
+    """Whether the cart at each pose of ``floor`` (n, 3: x, y mm, heading deg) stands with its base at least
+    ``clear_of_table_mm`` from the table top's outline on the floor (``footprint_gap_mm``; issue 54: the base from
+    its own mesh, not its origin; the base is not let under the table, whose pedestal is not modelled)."""
+    return footprint_gap_mm(cart, np.asarray(floor, float).reshape(-1, 3)) >= cart.clear_of_table_mm
 
 
 def floor_pose(cfg: PortPlaceConfig, around_deg: float, distance_mm: float, offset_deg: float) -> list[float]:
@@ -324,7 +368,7 @@ def grid_on_floor(cfg: PortPlaceConfig) -> tuple[np.ndarray, np.ndarray]:
     place's (around deg, distance mm, heading offset deg) and its floor pose (x, y mm, heading deg)."""
     grid = grid_places(cfg)
     floor = np.array([floor_pose(cfg, *g) for g in grid])
-    clear = off_table(cfg.cart, floor[:, 0], floor[:, 1])
+    clear = off_table(cfg.cart, floor)
     return grid[clear], floor[clear]
 
 
