@@ -273,6 +273,10 @@ def cart_figure(plt, model, row: dict, out, note: str = ""):
     w, (y0, y1) = cfg.cart.table_half_width_mm / 1000, (v / 1000 for v in cfg.cart.table_y_mm)
     table = to_cart(np.array([[-w, y0, 0], [w, y0, 0], [w, y1, 0], [-w, y1, 0], [-w, y0, 0]]))
     ax.plot(*table.T, color="0.5", lw=1, label="table top")
+    (fx0, fy0), (fx1, fy1) = PLATFORMS[cfg.cart.model].footprint_m  # the cart's base on the floor, its world frame
+    floor_z = -PLATFORMS[cfg.cart.model].world_above_floor_m
+    ax.plot([fx0, fx1, fx1, fx0, fx0], [fy0, fy0, fy1, fy1, fy0], [floor_z] * 5, color="0.25", lw=1.2,
+            label=f"cart's base on the floor (its mesh's; >= {cfg.cart.clear_of_table_mm:g} mm from the table)")
     centre = to_cart(np.asarray(cfg.target.centre_mm, float) / 1000)
     ax.scatter(*centre, color="k", s=20, label="target centre")
     docked, rolls, clearances = layout.docked, layout.rolls, layout.clearances
