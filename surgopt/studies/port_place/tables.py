@@ -17,7 +17,7 @@ approach cone's test of ``instrument_tables``.
 from __future__ import annotations
 
 import math
-from typing import TYPE_CHECKING, NamedTuple
+from typing import NamedTuple
 
 import numpy as np
 
@@ -31,8 +31,7 @@ from surgopt.studies.port_place.arms import (RcmCamera, RcmInstruments, arm_limi
                                              camera_held, instrument_limits, instruments_held, reach_offsets_m)
 from surgopt.studies.port_place.config import PortPlaceConfig, Target, camera_arm_of, instrument_of
 
-if TYPE_CHECKING:
-    from surgopt.studies.port_place.model import PortModel
+#: Every ``model`` argument below is the prepared model (``model.PortModel``, built by ``model.prepare``).
 
 #: The patient's lateral axis (x): each docking frame's x is turned as near it as the shaft allows.
 
@@ -47,7 +46,7 @@ def roll_sides(sites: np.ndarray) -> np.ndarray:
     return np.where(sites[:, 0] >= 0.0, 1.0, -1.0)
 
 
-def instrument_rolls_rad(model: PortModel, sites: np.ndarray, rot: np.ndarray) -> np.ndarray:
+def instrument_rolls_rad(model, sites: np.ndarray, rot: np.ndarray) -> np.ndarray:
     """Each port's docking roll (rad, signed by ``roll_sides``): ``robot.docking_roll_deg``, or with
     ``docking_roll = 'most_reach'`` the one of ``ROLL_CHOICES_DEG`` whose frame reaches the most target points
     (``instrument_tables``; ties: the choice nearest docking_roll_deg, then the smaller)."""
@@ -72,14 +71,14 @@ def in_degrees(rolls_rad: np.ndarray) -> np.ndarray:
     return np.round(np.degrees(rolls_rad), 9) + 0.0
 
 
-def instrument_frames(model: PortModel, sites: np.ndarray, rot: np.ndarray, rolls_rad=None) -> np.ndarray:
+def instrument_frames(model, sites: np.ndarray, rot: np.ndarray, rolls_rad=None) -> np.ndarray:
     """The instrument arms' docking frames at ``sites``: the frames ``rot`` turned by each port's roll
     (``rolls_rad``, else ``instrument_rolls_rad``), or the cart's own (``carts``: the Si's at psi*)."""
     rolls = instrument_rolls_rad(model, sites, rot) if rolls_rad is None else rolls_rad
     return cart_for(model.cfg).instrument_frames(model, sites, rot, rolls)
 
 
-def third_frames(model: PortModel, sites: np.ndarray) -> np.ndarray | None:
+def third_frames(model, sites: np.ndarray) -> np.ndarray | None:
     """The third instrument's docking frames at ``sites`` where they are not PSM1's and PSM2's (the cart's:
     the Si PSM3 hangs 15 deg off the vertical, they 45); else None."""
     return cart_for(model.cfg).third_frames(model, sites)
@@ -129,7 +128,7 @@ def outside_length_m(cfg: PortPlaceConfig) -> float:
     return instruments_held(cfg).outside_length_m(cfg)
 
 
-def wrist_margin_deg(model: PortModel, sites: np.ndarray) -> np.ndarray:
+def wrist_margin_deg(model, sites: np.ndarray) -> np.ndarray:
     """Per port (``sites``, m): how far the instrument's wrist could still turn the jaws at the worst target point,
     wrist bend - cone half-angle - the angle between the shaft (port to point) and the approach direction, least
     over the target's points (deg; negative: the cone is out of the wrist's reach there by that much). Without an
@@ -144,7 +143,7 @@ def wrist_margin_deg(model: PortModel, sites: np.ndarray) -> np.ndarray:
     return bend - t.approach_half_angle_deg - np.degrees(np.arccos(cos)).max(axis=1)
 
 
-def port_tables(model: PortModel, sites: np.ndarray, rot: np.ndarray, outside=None, base_yaw_rad=None, dock=None,
+def port_tables(model, sites: np.ndarray, rot: np.ndarray, outside=None, base_yaw_rad=None, dock=None,
                 rolls_rad=None):
     """(``PortTables``, reach, isotropy) of ports ``sites`` (m) docked in frames ``rot``; ``outside``: the arms'
     external clearances when the docking is not the default (``external_clearances``); ``base_yaw_rad``: a serial
@@ -203,7 +202,7 @@ def camera_tip_tables(sites: np.ndarray, centre: np.ndarray, views, held=None) -
             "camera_tip_m": np.where(ok[:, None], tips, np.nan), "camera_axis": np.where(ok[:, None], axes, np.nan)}
 
 
-def camera_tips(model: PortModel, sites: np.ndarray) -> dict:
+def camera_tips(model, sites: np.ndarray) -> dict:
     """``camera_tip_tables`` of ports ``sites`` (m) docked as the grid docks the camera: what a view of one
     layout (its export) reads, from the kernel the rows use."""
     from surgopt.kinematics.port import place as K
@@ -218,7 +217,7 @@ def links_decide(cfg: PortPlaceConfig) -> bool:
     return cart_for(cfg).docks and cfg.constraints.link_least_mm is not None
 
 
-def with_links(model: PortModel, tables, sites: np.ndarray, rot: np.ndarray, dock, third_rot=None):
+def with_links(model, tables, sites: np.ndarray, rot: np.ndarray, dock, third_rot=None):
     """The design kernel's tables with the arms' link clearance tables (``link_tables``) of these sites
     (``third_rot``: the third PSM's frames where they are its own, ``third_frames``)."""
     from surgopt.studies.port_place.link_tables import link_tables, wanted_of
@@ -407,7 +406,7 @@ def base_pose(rot: np.ndarray, site_m: np.ndarray) -> np.ndarray:
     return t
 
 
-def dock_tables(model: PortModel) -> DockTables:
+def dock_tables(model) -> DockTables:
     """Every arm's setup joints at every site and cart pose, as bits and margins: each instrument arm's best
     solution's least margin (``kinematics.port.suj_batch``, S2 jitted over every (site, pose); its docking frame the
     rolled one, ``PortModel.instrument_rot``) and the ECM's (``camera_dock``); with no cart, one pose at which
@@ -421,7 +420,7 @@ def dock_tables(model: PortModel) -> DockTables:
     return dock_at(model, np.arange(n), cart_poses(cfg))
 
 
-def dock_at(model: PortModel, site_ids: np.ndarray, poses: CartPoses, rot=None) -> DockTables:
+def dock_at(model, site_ids: np.ndarray, poses: CartPoses, rot=None) -> DockTables:
     """``dock_tables`` of some candidate sites (``site_ids``, in that order: a design's own ports) at some cart
     poses (a searched pose: one); ``rot``: the instruments' frames at those sites when not the model's (a
     search's rolls)."""
@@ -437,7 +436,7 @@ def dock_at(model: PortModel, site_ids: np.ndarray, poses: CartPoses, rot=None) 
                       aim.reshape(m, n, 2).transpose(1, 0, 2))
 
 
-def psm_docks(model: PortModel, site_ids: np.ndarray, poses: CartPoses, rot=None) -> tuple[np.ndarray, np.ndarray]:
+def psm_docks(model, site_ids: np.ndarray, poses: CartPoses, rot=None) -> tuple[np.ndarray, np.ndarray]:
     """Each instrument arm's setup joints at each of ``site_ids`` and ``poses``, docked in the model's frames there
     or ``rot`` (one per site): (the best solution's least margin (3, n, m), -inf where none; its joints (3, n, m,
     6), the Si's four or five then NaN)."""
@@ -476,7 +475,7 @@ def mount_heights_m(cfg: PortPlaceConfig, arm: str, frames: np.ndarray, sites_m:
     return sites_m[:, 2] + frames[:, 2, :] @ back
 
 
-def redocked(model: PortModel, dock: DockTables, site_ids: np.ndarray, rot: np.ndarray) -> DockTables:
+def redocked(model, dock: DockTables, site_ids: np.ndarray, rot: np.ndarray) -> DockTables:
     """``dock`` (the dock tables of ``site_ids``) with the instruments' setup joints solved again in frames ``rot``
     (a search's rolls, one per site); the ECM's, which do not depend on them, kept."""
     from surgopt.kinematics.port.designs import pack_bits
@@ -541,7 +540,7 @@ class DockedArm(NamedTuple):
     roll_deg: float | None = None  # an instrument arm's docking roll about its neutral shaft (deg, x toward y)
 
 
-def docked_arms(model: "PortModel", row: dict) -> list[DockedArm]:
+def docked_arms(model, row: dict) -> list[DockedArm]:
     """Each arm of a layout's row (its ports, ``psm1_x_mm`` ..., and its cart pose, ``cart_x_mm`` ...) docked by
     the cart's setup joints: the best solution within the ranges (the largest least margin); the ECM's with its
     own yaw and pitch aiming the scope (``camera_dock``), in ``ecm``."""
