@@ -20,7 +20,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from surgopt.robots.dvrk.platforms import PLATFORMS
+from surgopt.robots.dvrk.platforms import PLATFORMS, role_of
 
 from surgopt.studies.port_place.carts import cart_for
 from surgopt.studies.port_place.link_tables import PATIENT_CAP_MM, pose_points
@@ -227,7 +227,7 @@ def turned_frames(cfg, site: np.ndarray, arm: str, turns_rad: np.ndarray) -> np.
     """(R, 3, 3) PSM ``arm``'s docking frames at ``site`` (m, patient frame) turned by each of ``turns_rad``
     (``turn_words``): the default frame rolled about its shaft (Classic), or the Si's at psi* + the turn, by its
     arm's own setup joints (``tables.si_frames``)."""
-    return cart_for(cfg).turned_frames(cfg, site, arm.upper(), turns_rad)
+    return cart_for(cfg).turned_frames(cfg, site, role_of(arm), turns_rad)
 
 
 def rolled_reach(model, row: dict, arm: str) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
@@ -257,16 +257,16 @@ def rolled_docks(model, row: dict, arm: str, patient: np.ndarray, reached=None) 
 
     cfg = model.cfg
     frames, full, _, site = rolled_reach(model, row, arm) if reached is None else reached
-    low = (mount_heights_m(cfg, arm.upper(), np.asarray(frames), np.repeat(np.asarray(site)[None], len(frames), 0))
+    low = (mount_heights_m(cfg, role_of(arm), np.asarray(frames), np.repeat(np.asarray(site)[None], len(frames), 0))
            < 0.0) & (cfg.cart.mount_below_table_top == "refuse")
     out = []
     for deg, rot, ok, below in zip(ROLL_GRID_DEG, frames, full, low):
         if not ok or below:  # it loses a target point, or its mount would stand below the table top
             continue
         base = patient @ base_pose(rot, site)
-        got = cart_for(cfg).psm_docking(arm.upper(), base)
+        got = cart_for(cfg).psm_docking(role_of(arm), base)
         if got.joints:
-            out.append((float(deg), DockedArm(arm.upper(), str(row[f"{arm}_site"]), got.joints, got.margin,
+            out.append((float(deg), DockedArm(role_of(arm), str(row[f"{arm}_site"]), got.joints, got.margin,
                                               got.tightest, "", tuple(site), base, (),
                                               cart_for(cfg).docked_roll_deg(deg))))
     return out
@@ -353,7 +353,7 @@ def _rolls_that_clear(model, row: dict) -> RollsThatClear:
         found = layout_clearances(model, row, arms)
         worst = least(found)
         if worst is not None and worst.clearance_mm >= 0:  # the first that clears, cheapest first
-            return RollsThatClear({a.upper(): deg for a, deg in choice}, worst, len(combos), tuple(found),
+            return RollsThatClear({role_of(a): deg for a, deg in choice}, worst, len(combos), tuple(found),
                                   tuple(arms), dexterity, cost)
     return RollsThatClear({}, None, len(combos))
 

@@ -9,7 +9,7 @@ import json
 import numpy as np
 
 from surgopt.robots.dvrk.links import LINK_MODEL_WORDS
-from surgopt.robots.dvrk.platforms import CAMERA_ROLE, INSTRUMENT_ROLES, PLATFORMS
+from surgopt.robots.dvrk.platforms import CAMERA_ROLE, INSTRUMENT_ROLES, PLATFORMS, role_of
 
 from surgopt.errors import UsageError
 from surgopt.studies.port_place.carts import has_cart
@@ -183,7 +183,7 @@ def ports_csv(cfg: PortPlaceConfig, row: dict) -> str:
 
     for arm in ("psm1", "psm2", "psm3", "ecm"):
         if f"{arm}_site" in row:
-            line("port", arm.upper(), row[f"{arm}_site"], row[f"{arm}_x_mm"], row[f"{arm}_y_mm"], row[f"{arm}_z_mm"])
+            line("port", role_of(arm), row[f"{arm}_site"], row[f"{arm}_x_mm"], row[f"{arm}_y_mm"], row[f"{arm}_z_mm"])
     for label, (x, y) in landmarks_mm(cfg.patient).items():
         z = float(wall_height_mm(np.array([x]), np.array([y]), cfg.patient)[0])
         line("landmark", label, "", x, y, z)

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from surgopt.robots.dvrk.platforms import PLATFORMS
+from surgopt.robots.dvrk.platforms import PLATFORMS, role_of
 
 from surgopt.studies.plotting import columns, pyplot, save
 from surgopt.studies.port_place.carts import has_cart
@@ -15,7 +15,7 @@ COLOURS = {"psm1": "C3", "psm2": "C1", "psm3": "C2", "ecm": "C0"}
 
 def arms(c: dict) -> list[tuple[str, str, str]]:
     """(column prefix, colour, label) of each arm in the rows: PSM1, PSM2, PSM3 when there is one, the ECM."""
-    return [(arm, colour, arm.upper()) for arm, colour in COLOURS.items() if f"{arm}_site" in c]
+    return [(arm, colour, role_of(arm)) for arm, colour in COLOURS.items() if f"{arm}_site" in c]
 
 
 def target_top_view(ax, cfg, targets: np.ndarray, colour: str) -> None:

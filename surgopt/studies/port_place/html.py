@@ -13,6 +13,7 @@ import math
 
 import numpy as np
 
+from surgopt.robots.dvrk.platforms import role_of
 from surgopt.studies.page import View, table_html
 from surgopt.studies.port_place.geometry import (FRAME_TEXT, X_LABEL, Y_LABEL, Z_LABEL, from_landmark,
                                                  reference_landmark)
@@ -191,8 +192,8 @@ def top_view_figure(cfg, model, row: dict, arms: list[str]) -> dict:
                    "marker": {"size": 4, "color": "#9aa5b1"}, "name": "candidate sites"})
     for a in arms:
         traces.append({"type": "scatter", "mode": "markers+text", "x": [row[f"{a}_x_mm"]], "y": [row[f"{a}_y_mm"]],
-                       "text": [a.upper()], "textposition": "top center",
-                       "marker": {"size": 13, "color": COLOURS[a]}, "name": f"{a.upper()} port"})
+                       "text": [role_of(a)], "textposition": "top center",
+                       "marker": {"size": 13, "color": COLOURS[a]}, "name": f"{role_of(a)} port"})
     c = cfg.target.centre_mm
     traces.append({"type": "scatter", "mode": "markers", "x": [c[0]], "y": [c[1]],
                    "marker": {"size": 11, "symbol": "x", "color": "#c0392b"}, "name": "target centre"})

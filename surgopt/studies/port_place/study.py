@@ -27,7 +27,7 @@ import math
 
 import numpy as np
 
-from surgopt.robots.dvrk.platforms import AUTO_PLATFORM, PLATFORMS
+from surgopt.robots.dvrk.platforms import AUTO_PLATFORM, PLATFORMS, role_of
 from surgopt.studies.port_place.arms import instruments_held
 from surgopt.studies.port_place.carts import has_cart
 from surgopt.studies.port_place import HELP  # the command's help, read by the CLI without importing this module
@@ -167,12 +167,12 @@ def cart_fields(config) -> list:
                    "links its setup joints' 3-6, then its own (link_tables.pair_name decodes it); -1: none"})] \
         if links_of(config) else []
     margins = [pa.field(f"{arm}_suj_{what}", pa.float64(), metadata={
-        "meaning": f"the {arm.upper()} setup joints' least margin to their ranges at the row's cart pose, "
+        "meaning": f"the {role_of(arm)} setup joints' least margin to their ranges at the row's cart pose, "
                    + ("over the revolute joints (deg)" if what.endswith("deg") else "of the column (mm)")
                    + "; negative never (the best solution within the ranges); NaN: no pose docks"})
         for arm in arms_of(config) for what in ("margin_deg", "column_margin_mm")]
     joints = [pa.field(name, pa.float64(), metadata={
-        "meaning": f"the {arm.upper()} setup joint {joint} at the row's cart pose ("
+        "meaning": f"the {role_of(arm)} setup joint {joint} at the row's cart pose ("
                    + ("the column's height, mm" if name.endswith("_mm") else "deg")
                    + "; the dVRK's simulated_position in m and rad is export --format dvrk's); the solution with "
                      "the largest least margin; NaN: no pose docks"})

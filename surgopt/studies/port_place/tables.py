@@ -21,7 +21,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from surgopt.robots.dvrk.platforms import PLATFORMS, platform_of
+from surgopt.robots.dvrk.platforms import PLATFORMS, platform_of, role_of
 
 from surgopt.robots import dvrk
 from surgopt.robots.dvrk.suj import INSTRUMENT_SUJS
@@ -574,8 +574,8 @@ def docked_arms(model, row: dict) -> list[DockedArm]:
         third = third_frames(model, site[None]) if arm == "psm3" else None  # the Si PSM3's frame is its own
         frame = instrument_frames(model, site[None], neutral, roll)[0] if third is None else third[0]
         base = patient @ base_pose(frame, site)
-        got = cart.psm_docking(arm.upper(), base)
-        out.append(DockedArm(arm.upper(), str(row[f"{arm}_site"]), got.joints, got.margin,
+        got = cart.psm_docking(role_of(arm), base)
+        out.append(DockedArm(role_of(arm), str(row[f"{arm}_site"]), got.joints, got.margin,
                              got.tightest if got.joints else "", got.reason, tuple(site), base, (),
                              float(in_degrees(roll)[0])))
     return out
