@@ -17,7 +17,8 @@ from typer.core import TyperGroup
 
 from surgopt.cli_common import (  # noqa: F401 - app and the options: the commands below register on them
     COMPLETE, RESUME, UNCHANGED, Backend, BackendOpt, ChunkOpt, DryRunOpt, ForceOpt, JobsOpt, MaxHoursOpt, MaxMemoryOpt, MultirunOpt,
-    NameOpt, PrintConfigOpt, TagOpt, QuietOpt, SchedulerOpt, StoreOpt, VerboseOpt, announced, app, guard, print_report,
+    NameOpt, PrintConfigOpt, ReportFormatOpt, SummaryFormat, TagOpt, QuietOpt, SchedulerOpt, StoreOpt, VerboseOpt,
+    announced, app, guard, print_report,
     print_table,
     set_verbosity, wide_console,
 )
@@ -48,7 +49,8 @@ def _study_command(name: str):
                for f in study.flags]
     shared = [("multirun", MultirunOpt, False), ("print_config", PrintConfigOpt, False), ("dry_run", DryRunOpt, False),
               ("store", StoreOpt, None), ("jobs", JobsOpt, 2), ("force", ForceOpt, False), ("quiet", QuietOpt, False),
-              ("name", NameOpt, None), ("tag", TagOpt, None), ("verbose", VerboseOpt, 0)]
+              ("name", NameOpt, None), ("tag", TagOpt, None), ("verbose", VerboseOpt, 0),
+              ("fmt", ReportFormatOpt, SummaryFormat.table)]
     if study.chunked:
         shared.append(("chunk_size", ChunkOpt, None))
     shared += [("backend", BackendOpt, Backend.threads), ("scheduler", SchedulerOpt, None),
@@ -166,6 +168,7 @@ class StudyCommand:
     name: str | None = None
     tag: list | None = None
     verbose: int = 0
+    fmt: object = "table"  # the closing report's format (``--format``)
 
     def run_options(self, **fields):
         """The runner's ``RunOptions`` of this command (``fields``: a run's own name or tags)."""
@@ -217,7 +220,8 @@ def _run_study_command(study, cmd: StudyCommand, flags=()):
             result = run_study(study, v.config, config_name=v.config_name, store=Store(cmd.store), options=options,
                                say=say, name=run_name, tags=tags)
             interrupts.on_stop(COMPLETE if result.run.complete else RESUME)
-            summary = _report(study, result, brief=len(todo) > 1, quiet=cmd.quiet)
+            summary = _report(study, result, brief=len(todo) > 1, quiet=cmd.quiet,
+                              fmt=getattr(cmd.fmt, "value", cmd.fmt))
             finished.append((v, result, summary))
             for f in flags:
                 if f.follow_up is None:
@@ -229,8 +233,8 @@ def _run_study_command(study, cmd: StudyCommand, flags=()):
                                    config_name=v.config_name + f.follow_up_suffix, store=Store(cmd.store),
                                    options=options, chunk=None, say=say)
                 interrupts.on_stop(COMPLETE if follow.run.complete else RESUME)
-                _report(study, follow, quiet=cmd.quiet)
-        if len(todo) > 1:
+                _report(study, follow, quiet=cmd.quiet, fmt=getattr(cmd.fmt, "value", cmd.fmt))
+        if len(todo) > 1 and getattr(cmd.fmt, "value", cmd.fmt) == "table":  # else each run's report alone
             _multirun_table(study, finished)
             _best_of(study, finished)
         elif _plain(cmd, flags) and todo == given and finished[0][1].run.complete:
@@ -435,7 +439,7 @@ def _listed_study(name: str):
 app.info.cls = _StudyCommands
 
 
-def _report(study, result, brief: bool = False, quiet: bool = False):
+def _report(study, result, brief: bool = False, quiet: bool = False, fmt: str = "table"):
     """The closing report of one run (``brief``: headline only, for each run of a --multirun; ``quiet``: no word
     while it is built)."""
     run = result.run
@@ -463,7 +467,7 @@ def _report(study, result, brief: bool = False, quiet: bool = False):
 
         Store(run.path.parent.parent).record_headline(run, summary.headline)
     print_report(study.name, run, summary, edges, front, rows=result.parts.num_rows, elapsed_s=result.elapsed_s,
-                 cache_hit=result.cache_hit, messages=result.messages, brief=brief)
+                 cache_hit=result.cache_hit, messages=result.messages, brief=brief, fmt=fmt)
     return summary
 
 

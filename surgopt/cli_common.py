@@ -68,6 +68,10 @@ class SummaryFormat(str, enum.Enum):
     markdown = "markdown"
 
 
+ReportFormatOpt = Annotated[SummaryFormat, typer.Option(
+    "--format", help="The closing report as a table (the terminal's), markdown, csv (each table under a '# title' line) or json (the headline, notes and tables as records; one document per run) on standard output; words about the run go to standard error.")]
+
+
 class FigureFormat(str, enum.Enum):
     png = "png"
     pdf = "pdf"
@@ -291,12 +295,15 @@ def print_table(console, title, header, rows) -> None:
 
 
 def print_report(study_name: str, run, summary, edges, front, *, rows: int, elapsed_s: float, cache_hit: bool,
-                 messages=(), brief: bool = False) -> None:
+                 messages=(), brief: bool = False, fmt: str = "table") -> None:
     """The closing report's text: the run's messages, the headline table, the best-on-an-edge notes and (unless
     ``brief``) the study's tables and a search's front (also what ``surgopt.hits`` prints for a recorded
     command line)."""
     from rich.table import Table
 
+    if fmt != "table":
+        return print_report_as(fmt, study_name, run, summary, edges, front, rows=rows, elapsed_s=elapsed_s,
+                               cache_hit=cache_hit, messages=messages, brief=brief)
     console = wide_console()
     for m in messages:
         console.print(m)
@@ -318,3 +325,44 @@ def print_report(study_name: str, run, summary, edges, front, *, rows: int, elap
             print_table(console, title, header, table_rows)
         if front is not None:
             print_table(console, *front)
+
+
+def report_sections(study_name: str, run, summary, edges, front, *, rows: int, elapsed_s: float,
+                    brief: bool = False) -> list:
+    """The closing report as (title, header, rows) sections, in the order ``print_report`` prints them: the
+    headline (field, value), the notes, then (unless ``brief``) the study's tables and a search's front."""
+    head = [[k, v] for k, v in summary.headline.items()] + [["rows", rows], ["time_s", round(elapsed_s, 2)],
+                                                           ["store", str(run.path)]]
+    sections = [(f"{study_name} ({run.manifest['config_name']})", ["field", "value"], head)]
+    if edges:
+        sections.append(("notes", ["note"], [[n] for n in edges]))
+    if not brief:
+        sections += [tuple(t) for t in summary.tables]
+        if front is not None:
+            sections.append(tuple(front))
+    return sections
+
+
+def print_report_as(fmt: str, study_name: str, run, summary, edges, front, *, rows: int, elapsed_s: float,
+                    cache_hit: bool, messages=(), brief: bool = False) -> None:
+    """The closing report in ``fmt`` (markdown, csv, json) on standard output, the run's messages and the cache hit
+    on standard error (so a pipe reads the report alone). JSON: {study, run_key, config_name, headline, notes,
+    tables: {title: [record, ...]}} with the headline's values as they are (numbers stay numbers)."""
+    import json
+
+    from surgopt.report import render
+
+    for m in messages:
+        typer.echo(m if isinstance(m, str) else str(m), err=True)
+    if cache_hit:
+        typer.echo(f"cache hit: {study_name} {run.key[:12]} already in {run.path}", err=True)
+    sections = report_sections(study_name, run, summary, edges, front, rows=rows, elapsed_s=elapsed_s, brief=brief)
+    if fmt == "json":
+        doc = {"study": study_name, "run_key": run.key, "config_name": run.manifest.get("config_name"),
+               "headline": {**summary.headline, "rows": rows, "time_s": round(elapsed_s, 2), "store": str(run.path)},
+               "notes": list(edges),
+               "tables": {title: [dict(zip(header, r)) for r in body] for title, header, body in sections[1:]
+                          if title != "notes"}}
+        typer.echo(json.dumps(doc, indent=1, default=str))
+        return
+    typer.echo(render(sections, fmt))

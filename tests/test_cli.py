@@ -415,3 +415,39 @@ def test_a_piped_table_honours_the_columns_a_user_set(tmp_path):
     wide = runner.invoke(app, ["summarize", "latest", "--store", str(tmp_path)], env={"COLUMNS": None}).output
     assert max(map(len, narrow.splitlines())) <= 80 and "not shown at 80 columns" in narrow
     assert max(map(len, wide.splitlines())) > 80 and "not shown" not in wide
+
+
+def test_a_study_command_prints_its_closing_report_as_json_markdown_or_csv(tmp_path):
+    """#56 item 8: a study command takes ``--format`` (table, markdown, csv, json): the closing report on standard
+    output alone (the progress and the cache hit on standard error), its headline the run's recorded one, and the
+    same numbers in every format; the table format is the terminal's as before."""
+    import csv
+    import io
+    import json
+
+    import pytest
+
+    from conftest import RCM_SMALL
+    from surgopt.store import Store
+
+    cfg = tmp_path / "c.toml"
+    cfg.write_text(RCM_SMALL)
+    first = cli("rcm-grid", cfg, "--store", tmp_path / "s", "--format", "json", cwd=tmp_path)
+    doc = json.loads(first.stdout)  # nothing else on standard output
+    assert doc["study"] == "rcm-grid" and "chunks" in first.stderr  # the progress bar went to standard error
+    (run,) = Store(tmp_path / "s").runs("rcm-grid")
+    recorded = run.manifest["headline"]
+    assert doc["run_key"] == run.key
+    for k, v in recorded.items():
+        assert doc["headline"][k] == (pytest.approx(v) if isinstance(v, float) else v), k
+    assert doc["tables"] and all(isinstance(rows, list) for rows in doc["tables"].values())
+    again = cli("rcm-grid", cfg, "--store", tmp_path / "s", "--format", "csv", cwd=tmp_path)
+    assert "cache hit" in again.stderr and "cache hit" not in again.stdout
+    head = again.stdout.split("\n# ")[0].splitlines()
+    assert head[0].startswith("# rcm-grid")
+    values = {r["field"]: r["value"] for r in csv.DictReader(io.StringIO("\n".join(head[1:])))}
+    assert float(values["feasible"]) == recorded["feasible"]
+    md = cli("rcm-grid", cfg, "--store", tmp_path / "s", "--format", "markdown", cwd=tmp_path).stdout
+    assert md.startswith("### rcm-grid") and f"| feasible | {recorded['feasible']} |" in md
+    bad = cli("rcm-grid", cfg, "--store", tmp_path / "s", "--format", "yaml", check=False, cwd=tmp_path)
+    assert bad.returncode == 2 and "yaml" in bad.stderr
