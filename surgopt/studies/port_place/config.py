@@ -476,6 +476,43 @@ def grid_count(span, step: float) -> float:
     return math.floor((hi + 1e-9 - lo) / step) + 1 if (hi - lo) / step < 1e15 else math.inf
 
 
+class GivenPort(StrictModel):
+    """One arm's port of a surgeon's own layout (``[given_layout]``): a top-view point of the patient frame (x_mm,
+    y_mm), or a landmark and offsets from it along the patient's left and toward the head (mm); taken to the nearest
+    candidate site (the report says how far that is)."""
+
+    x_mm: float | None = Field(None, ge=-2000.0, le=2000.0, description="top view, the patient's left positive")
+    y_mm: float | None = Field(None, ge=-2000.0, le=2000.0, description="top view, toward the head positive")
+    landmark: str | None = Field(None, description="a landmark of the patient (patient.landmarks_mm, or the dome's)")
+    left_mm: float = Field(0.0, ge=-1000.0, le=1000.0, description="from the landmark toward the patient's left "
+                                                                   "(negative: right)")
+    cranial_mm: float = Field(0.0, ge=-1000.0, le=1000.0, description="from the landmark toward the head "
+                                                                      "(negative: caudal)")
+
+    @model_validator(mode="after")
+    def _a_point_or_a_landmark(self):
+        point = self.x_mm is not None and self.y_mm is not None
+        if point == (self.landmark is not None) or (self.x_mm is None) != (self.y_mm is None):
+            raise ValueError("a given port is x_mm and y_mm (the patient frame, top view), or a landmark with left_mm "
+                             "and cranial_mm: one of the two")
+        if point and (self.left_mm or self.cranial_mm):
+            raise ValueError("left_mm and cranial_mm go with a landmark, not with x_mm and y_mm")
+        return self
+
+
+class GivenLayout(StrictModel):
+    """A surgeon's own layout (#57 item 3): each arm's port; the closing report scores it as the rows score a layout
+    (every check, the docking, the links, the hands), says what it fails on, its rank among the run's feasible
+    layouts and the cheapest feasible layout with every port within ``within_mm`` of it."""
+
+    psm1: GivenPort
+    psm2: GivenPort
+    psm3: GivenPort | None = None
+    ecm: GivenPort
+    within_mm: float = Field(50.0, gt=0.0, le=300.0, description="how far (3-D, each port) a better layout may move "
+                                                                   "the given ports")
+
+
 class PortPlaceConfig(StrictModel):
     patient: Patient = Patient()
     target: Target = Target()
@@ -495,6 +532,8 @@ class PortPlaceConfig(StrictModel):
         "sites", description="how a [search] places a port: 'sites', a categorical choice of candidate site, or "
                              "'surface', a top-view point (x, y mm) taken to the nearest candidate site, so that "
                              "the optimiser sees neighbouring ports as neighbours")
+    given_layout: GivenLayout | None = Field(None, description="a surgeon's own layout the closing report scores "
+                                                             "beside the answer (#57 item 3)")
 
     @model_validator(mode="after")
     def _the_cart_carries_its_arms(self):
@@ -514,6 +553,24 @@ class PortPlaceConfig(StrictModel):
             raise ValueError("cart.model: the setup joints are solved for the docking frames toward the target's "
                              "centre; a [search] that also tilts the docking (robot.docking_range_deg > 0) with the "
                              "cart is not in yet (set robot.docking_range_deg = 0, or cart.model = 'none')")
+        return self
+
+    @model_validator(mode="after")
+    def _a_given_layout_names_this_runs_arms_and_landmarks(self):
+        g = self.given_layout
+        if g is None:
+            return self
+        if (g.psm3 is not None) != (self.robot.instrument_count == 3):
+            raise ValueError(f"given_layout.psm3: {'give' if g.psm3 is None else 'leave out'} PSM3's port with "
+                             f"robot.instrument_count = {self.robot.instrument_count}")
+        from surgopt.studies.port_place.geometry import landmarks_mm
+
+        names = list(landmarks_mm(self.patient))
+        for arm in ("psm1", "psm2", "psm3", "ecm"):
+            port = getattr(g, arm)
+            if port is not None and port.landmark is not None and port.landmark not in names:
+                raise ValueError(f"given_layout.{arm}.landmark: {port.landmark!r} is not a landmark of this patient "
+                                 f"({', '.join(names)}; name it in patient.landmarks_mm)")
         return self
 
     @model_validator(mode="after")

@@ -187,6 +187,13 @@ def _stored_metadata(config) -> dict | None:
     many designs were enumerated (what the summary counts the infeasible from), when the config can be read
     again (a stored mesh config whose file moved cannot)."""
     meta = {**(cart_metadata(config) or {}), **landmark_metadata(config)} or None
+    given = (config.get("given_layout") if isinstance(config, dict)
+             else getattr(config, "given_layout", None) if config is not None else None)
+    if given is not None and "config" not in (meta or {}):  # the closing report scores it from the config
+        import json
+
+        meta = {**(meta or {}), "config": json.dumps(config if isinstance(config, dict)
+                                                     else config.model_dump(mode="json"))}
     stored = config.get("rows_stored") if isinstance(config, dict) else getattr(config, "rows_stored", "all")
     if stored != "feasible":
         return meta

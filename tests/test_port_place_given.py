@@ -1,0 +1,103 @@
+"""#57 item 3: a surgeon's own layout (``[given_layout]``) scored as the rows score a layout: its row equals the
+enumeration's row of the same ports in every column, its rank is the count of cheaper feasible rows, and the better
+layout nearby is the cheapest feasible row with every port within reach of the given one's, each held to a brute
+force over the stored rows (pandas, apart from the code under test)."""
+import numpy as np
+import pytest
+
+from surgopt.runner import run_study
+from surgopt.store import Store
+from surgopt.studies.port_place import config as C
+from surgopt.studies.port_place import given as G
+from surgopt.studies.port_place import study as S
+
+SMALL = {"patient": {"port_region": {"site_spacing_mm": 36.0}}, "target": {"spacing_mm": 15.0},
+         "cart": {"model": "none"}}
+
+
+def _given(row: dict) -> dict:
+    return {a: {"x_mm": row[f"{a}_x_mm"], "y_mm": row[f"{a}_y_mm"]} for a in ("psm1", "psm2", "ecm")}
+
+
+@pytest.fixture(scope="module")
+def small():
+    cfg = C.PortPlaceConfig.model_validate(SMALL)
+    cols = S.compute_task(cfg, S.n_total(cfg), 0)
+    return cfg, cols
+
+
+def test_a_given_layout_at_candidate_sites_is_its_enumerated_row(small):
+    cfg, cols = small
+    feasible, infeasible = np.flatnonzero(cols["feasible"]), np.flatnonzero(~cols["feasible"])
+    assert len(feasible) and len(infeasible)  # the premise: both kinds
+    for r in (int(feasible[len(feasible) // 2]), int(infeasible[len(infeasible) // 3])):
+        row = {c: v[r].item() if hasattr(v[r], "item") else v[r] for c, v in cols.items()}
+        given = C.PortPlaceConfig.model_validate({**SMALL, "given_layout": _given(row)})
+        score = G.score_given(given)
+        assert all(d < 1e-6 for d in score.moved_mm.values())  # each port on its own site
+        for c, v in row.items():
+            if c != "design_id":
+                assert score.row[c] == pytest.approx(v, abs=1e-9, nan_ok=True), c
+
+
+def test_a_given_port_by_a_landmark_is_its_offset_from_it():
+    cfg = C.PortPlaceConfig.model_validate({**SMALL, "given_layout": {
+        "psm1": {"landmark": "umbilicus", "left_mm": 72.0, "cranial_mm": -18.0},
+        "psm2": {"landmark": "xiphoid", "left_mm": -36.0}, "ecm": {"x_mm": 10.0, "y_mm": 20.0}}})
+    points = G.given_points_mm(cfg)
+    xiphoid_y = 0.85 * cfg.patient.semi_axes_mm[1]  # the dome's default landmarks (geometry.DOME_LANDMARKS)
+    assert points == {"psm1": (72.0, -18.0), "psm2": (-36.0, xiphoid_y), "ecm": (10.0, 20.0)}
+
+
+@pytest.mark.parametrize("which", ["feasible", "infeasible"])
+def test_the_closing_report_ranks_it_and_names_the_cheapest_better_layout_nearby(tmp_path, small, which):
+    cfg, cols = small
+    pick = np.flatnonzero(cols["feasible"] if which == "feasible" else ~cols["feasible"])
+    order = pick[np.argsort(cols["cost"][pick])]
+    ports = np.stack([np.column_stack([cols[f"{a}_{c}_mm"] for c in "xyz"]) for a in ("psm1", "psm2", "ecm")], 1)
+    ok_ports = ports[cols["feasible"]]
+
+    def has_neighbour(k):  # a feasible row with every port within 80 mm (the pair either way round): brute force
+        d = np.linalg.norm(ok_ports - ports[k], axis=2)
+        crossed = np.linalg.norm(ok_ports[:, [1, 0, 2]] - ports[k], axis=2)
+        return bool(((d <= 80).all(axis=1) | (crossed <= 80).all(axis=1)).sum() > (1 if which == "feasible" else 0))
+
+    r = int(next(k for k in order[len(order) // 2:] if has_neighbour(k)))
+    row = {c: v[r].item() if hasattr(v[r], "item") else v[r] for c, v in cols.items()}
+    given = C.PortPlaceConfig.model_validate({**SMALL, "given_layout": {**_given(row), "within_mm": 80.0}})
+    store = Store(tmp_path / "s")
+    run_study(S.STUDY, given, config_name="given", store=store, jobs=1, quiet=True)
+    (run,) = store.runs("port-place")
+    df = run.parts(S.STUDY.schema_for(run.manifest["config"])).table().to_pandas()
+    summary = S.STUDY.summary(run.parts(S.STUDY.schema_for(run.manifest["config"])))
+    words = summary.headline["given_layout"]
+    ok = df[df.feasible]
+    if which == "feasible":
+        assert words.startswith(f"feasible, cost {row['cost']:.4f}: rank {int((ok.cost < row['cost']).sum()) + 1:,} "
+                                f"of the run's {len(ok):,} feasible")
+    else:
+        assert words.startswith("INFEASIBLE: fails on ")
+
+    def d(a, b):
+        return np.sqrt(sum((ok[f"{a}_{c}_mm"] - row[f"{b}_{c}_mm"]) ** 2 for c in "xyz"))
+
+    near = ((d("psm1", "psm1") <= 80) & (d("psm2", "psm2") <= 80)) | ((d("psm1", "psm2") <= 80) & (d("psm2", "psm1") <= 80))
+    near &= d("ecm", "ecm") <= 80
+    if which == "feasible":
+        near &= ok.cost < row["cost"]
+    want = ok[near].sort_values("cost")
+    assert len(want)  # the premise: a better layout lies within 80 mm (the median feasible row, an infeasible one)
+    assert f"design {int(want.iloc[0].design_id)} (cost {want.iloc[0].cost:.4f})" in words
+    assert summary.tables[0][0].startswith("your layout (given_layout)")
+
+
+def test_a_given_layout_is_refused_by_name_when_it_does_not_fit_the_run():
+    with pytest.raises(ValueError, match="given_layout.psm1.landmark: 'navel'"):
+        C.PortPlaceConfig.model_validate({"given_layout": {"psm1": {"landmark": "navel"}, "psm2": {"x_mm": 0, "y_mm": 0},
+                                                           "ecm": {"x_mm": 0, "y_mm": 0}}})
+    with pytest.raises(ValueError, match="given_layout.psm3"):
+        C.PortPlaceConfig.model_validate({"robot": {"instrument_count": 3}, "given_layout": {
+            "psm1": {"x_mm": 0, "y_mm": 0}, "psm2": {"x_mm": 0, "y_mm": 0}, "ecm": {"x_mm": 0, "y_mm": 0}}})
+    with pytest.raises(ValueError, match="one of the two"):
+        C.PortPlaceConfig.model_validate({"given_layout": {"psm1": {"x_mm": 1.0}, "psm2": {"x_mm": 0, "y_mm": 0},
+                                                           "ecm": {"x_mm": 0, "y_mm": 0}}})
