@@ -189,3 +189,54 @@ def ports_csv(cfg: PortPlaceConfig, row: dict) -> str:
         line("landmark", label, "", x, y, z)
     return out.getvalue()
 
+
+
+#: The markups schema a 3D Slicer markups file names (Slicer's own writer's, vtkMRMLMarkupsJsonStorageNode.cxx;
+#: its reader accepts any 1.x.y).
+SLICER_MARKUPS_SCHEMA = ("https://raw.githubusercontent.com/slicer/slicer/master/Modules/Loadable/Markups/Resources/"
+                         "Schema/markups-schema-v1.0.3.json#")
+
+
+def to_lps_mm(cfg: PortPlaceConfig, p_mm) -> list[float]:
+    """A point of the patient frame (mm: x the patient's left, y toward the head, z anterior) in LPS (x the patient's
+    left, y posterior, z superior), the frame a CT's DICOM series and 3D Slicer's files use; for a mesh patient in the
+    mesh file's own frame (``patient.mesh_offset_mm`` taken off), so the points land on the mesh loaded beside them."""
+    x, y, z = (np.asarray(p_mm, float) - (np.asarray(cfg.patient.mesh_offset_mm, float) if cfg.patient.shape == "mesh"
+                                          else 0.0))
+    return [float(x), float(-z), float(y)]
+
+
+def slicer_markups(cfg: PortPlaceConfig, row: dict) -> str:
+    """(#57 item 5) One layout as a 3D Slicer markups file (``.mrk.json``, Slicer's markups schema v1.0.3): two point
+    lists in LPS, mm: the ports (PSM1, PSM2, (PSM3,) ECM, each with its site and its position from the reference
+    landmark in words) and the patient's landmarks (on the body's surface above their top-view points)."""
+    from surgopt.robots.dvrk.platforms import role_of
+    from surgopt.studies.port_place.columns import arms_of
+    from surgopt.studies.port_place.geometry import from_landmark, landmarks_mm, reference_landmark, wall_height_mm
+
+    mark_name, mark = reference_landmark(cfg.patient)
+
+    def point(i: int, label: str, p_mm, description: str) -> dict:
+        return {"id": str(i + 1), "label": label, "description": description, "associatedNodeID": "",
+                "position": to_lps_mm(cfg, p_mm), "orientation": [-1.0, 0.0, 0.0, 0.0, -1.0, 0.0, 0.0, 0.0, 1.0],
+                "selected": True, "locked": True, "visibility": True, "positionStatus": "defined"}
+
+    ports = [point(i, role_of(a), [row[f"{a}_{c}_mm"] for c in "xyz"],
+                   f"site {row[f'{a}_site']}; {from_landmark(row[f'{a}_x_mm'], row[f'{a}_y_mm'], mark)} of the "
+                   f"{mark_name} (mm, top view)") for i, a in enumerate(arms_of(cfg))]
+    names = list(landmarks_mm(cfg.patient).items())
+    xs, ys = np.array([p[0] for _, p in names], float), np.array([p[1] for _, p in names], float)
+    heights = np.nan_to_num(wall_height_mm(xs, ys, cfg.patient), nan=0.0)  # off the body: on the table top
+    marks = [point(i, name, (x, y, z), "a landmark (top view as given; on the body's surface)")
+             for i, ((name, _), x, y, z) in enumerate(zip(names, xs, ys, heights))]
+
+    def markup(name: str, points: list, colour: list) -> dict:
+        return {"type": "Fiducial", "name": name, "coordinateSystem": "LPS", "coordinateUnits": "mm",
+                "locked": True, "fixedNumberOfControlPoints": True, "labelFormat": "%N-%d", "controlPoints": points,
+                "display": {"visibility": True, "color": colour, "selectedColor": colour,
+                            "pointLabelsVisibility": True, "glyphType": "Sphere3D", "glyphScale": 2.0}}
+
+    doc = {"@schema": SLICER_MARKUPS_SCHEMA,
+           "markups": [markup(f"surgopt ports, design {row['design_id']}", ports, [0.9, 0.2, 0.2]),
+                       markup("surgopt landmarks", marks, [0.2, 0.5, 0.9])]}
+    return json.dumps(doc, indent=1) + "\n"
