@@ -113,3 +113,28 @@ def test_the_cart_figure_draws_each_arms_setup_joints_where_the_rows_joints_put_
         tip = (suj_forward_reference("classic", arm, _row_joints(rows[0], arm)) @ np.linalg.inv(tool))[:3, 3]
         np.testing.assert_allclose(drawn[f"{arm} setup joints"][-1], tip, atol=1e-9)
     assert math.isfinite(rows[0]["cost"])
+
+
+def test_the_console_file_loads_the_suj_fixed_file_and_keeps_the_hands_uncrossed(feasible_rows):
+    """#57 item 5: ``--format dvrk-console``, shaped as the dVRK's own console files (sawIntuitiveResearchKit
+    share/console/console-patient-cart-fixed-simulated.json: the SUJ_Fixed component reading a kinematic file, each
+    arm's base frame from its interface of the arm's name; console-full-system-simulated.json: the MTMs,
+    psm_teleops, ecm_teleop): it names the SUJ_Fixed file written beside it, places exactly the arms that file gives a
+    frame, and pairs MTMR with the PSM the dvrk export's teleop pairing names (the one on the camera image's right)."""
+    cfg, rows = feasible_rows
+    for row in rows:
+        text = E.dvrk_console(cfg, row)
+        assert text.startswith("/* surgopt port-place") and text.count("*/") == 1
+        doc = json.loads(text.split("*/", 1)[1])
+        by_name = {a["name"]: a for a in doc["arms"]}
+        assert by_name["SUJ"] == {"name": "SUJ", "type": "SUJ_Fixed", "kinematic": E.CONSOLE_SUJ_FILE}
+        fixed = json.loads(E.suj_fixed(cfg, row).split("*/", 1)[1])["arms"]
+        placed = {a["name"] for a in fixed if "measured_cp" in a}
+        assert {n for n, a in by_name.items() if "base_frame" in a} == placed == {"PSM1", "PSM2", "ECM"}
+        for name in placed:
+            assert by_name[name]["base_frame"] == {"component": "SUJ", "interface": name}
+            assert by_name[name]["type"] == ("ECM" if name == "ECM" else "PSM")
+            assert set(by_name[name]) == {"name", "type", "simulation", "arm", "base_frame"}
+        teleop = json.loads(E.dvrk_setup(cfg, row))["teleop"]
+        assert {t["mtm"]: t["psm"] for t in doc["psm_teleops"]} == teleop
+        assert doc["ecm_teleop"] == {"mtm_left": "MTML", "mtm_right": "MTMR", "ecm": "ECM"}

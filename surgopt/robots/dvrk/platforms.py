@@ -73,6 +73,9 @@ class Platform:
     suj_family: str
     footprint_m: tuple
     footprint_source: str
+    #: The dVRK console's arm files for a simulated system (sawIntuitiveResearchKit share/arm/: PSM, ECM); a real
+    #: system names its own calibrated files in their place.
+    console_arm_files: tuple = ()
 
     def suj(self, role: str) -> S.Suj:
         """The setup joints of the arm in ``role`` ("PSM1" ... "ECM")."""
@@ -101,7 +104,8 @@ PLATFORMS: dict[str, Platform] = {
         "taken on the floor: the files' sample dockings put the RCMs 0.91-0.99 m above it, a port on an abdomen "
         "over a 0.8 m table",
         ArmLinks(L.PSM_CLASSIC_FRAMES, L.PSM_CLASSIC_CAPSULES, L.ECM_CLASSIC_FRAMES, L.ECM_CLASSIC_CAPSULES),
-        "classic", CLASSIC_FOOTPRINT_M, CLASSIC_FOOTPRINT_SOURCE),
+        "classic", CLASSIC_FOOTPRINT_M, CLASSIC_FOOTPRINT_SOURCE,
+        ("arm/PSM_KIN_SIMULATED_LARGE_NEEDLE_DRIVER_400006.json", "arm/ECM_KIN_SIMULATED_STRAIGHT.json")),
     "si": Platform(
         "si", "Si", "dvrk_psm_si", "dvrk_ecm_si", S.SI, 0.53,
         "chosen: the Si's samples put the RCMs 0.39-0.45 m above its world frame; 0.53 m puts its four sample RCMs "
@@ -110,7 +114,8 @@ PLATFORMS: dict[str, Platform] = {
         # insertion offset are the same; an assumption, the Si ECM's own description not transcribed)
         ArmLinks(L.PSM_SI_FRAMES, L.PSM_SI_CAPSULES, L.ECM_CLASSIC_FRAMES, L.ECM_CLASSIC_CAPSULES),
         "si", CLASSIC_FOOTPRINT_M, "assumed: the Classic's (" + CLASSIC_FOOTPRINT_SOURCE + "); the Si's base mesh is "
-        "not in that repository, only its tower (Si/tower.stl, 0.27 m square)"),
+        "not in that repository, only its tower (Si/tower.stl, 0.27 m square)",
+        ("arm/PSM_Si_KIN_SIMULATED_LARGE_NEEDLE_DRIVER_420006.json", "arm/ECM_Si_KIN_SIMULATED_STRAIGHT.json")),
 }
 
 #: The platform ``cart.model = "auto"`` resolves to where the config's arms are its own.

@@ -161,6 +161,46 @@ def suj_fixed(cfg: PortPlaceConfig, row: dict) -> str:
     return f"/* {said.replace('*/', '* /')} */\n" + json.dumps({"arms": arms}, indent=4) + "\n"
 
 
+#: The SUJ_Fixed file the console file names, beside it (``--format dvrk-suj-fixed --out`` this name).
+CONSOLE_SUJ_FILE = "suj-fixed.json"
+
+
+def dvrk_console(cfg: PortPlaceConfig, row: dict) -> str:
+    """(#57 item 5) The dVRK console file that loads one layout's SUJ_Fixed file (as sawIntuitiveResearchKit's
+    ``share/console/console-patient-cart-fixed-simulated.json`` and ``console-full-system-simulated.json``): the
+    ``SUJ_Fixed`` component reading ``CONSOLE_SUJ_FILE`` beside it, each arm the layout places with its base frame
+    from that component's interface of its name, the two MTMs, ``psm_teleops`` with the pairing that keeps the
+    surgeon's hands uncrossed (MTMR drives the PSM on the camera image's right) and ``ecm_teleop``. The arm files are
+    the dVRK's simulated kinematics (``Platform.console_arm_files``); a real system names its own, as the comment at
+    the top says."""
+    from surgopt.studies.port_place.layout import layout_of
+    from surgopt.studies.port_place.model import model_of
+
+    refuse_undocked("dvrk-console", cfg, row)
+    frames = layout_of(model_of(cfg), row).frames_of()
+    psm_file, ecm_file = PLATFORMS[cfg.cart.model].console_arm_files
+    arms = [{"name": "MTML", "type": "MTM", "simulation": "KINEMATIC", "arm": "arm/MTML_KIN_SIMULATED.json"},
+            {"name": "MTMR", "type": "MTM", "simulation": "KINEMATIC", "arm": "arm/MTMR_KIN_SIMULATED.json"},
+            {"name": "SUJ", "type": "SUJ_Fixed", "kinematic": CONSOLE_SUJ_FILE}]
+    for name in (*INSTRUMENT_ROLES, CAMERA_ROLE):
+        if name in frames:
+            arms.append({"name": name, "type": "ECM" if name == CAMERA_ROLE else "PSM", "simulation": "KINEMATIC",
+                         "arm": ecm_file if name == CAMERA_ROLE else psm_file,
+                         "base_frame": {"component": "SUJ", "interface": name}})
+    pairing = teleop_pairing(int(row.get("image_right_psm", 0))) or {"MTMR": "PSM1", "MTML": "PSM2"}
+    doc = {"arms": arms, "psm_teleops": [{"mtm": m, "psm": p} for m, p in pairing.items() if p in frames]}
+    if CAMERA_ROLE in frames:
+        doc["ecm_teleop"] = {"mtm_left": "MTML", "mtm_right": "MTMR", "ecm": CAMERA_ROLE}
+    said = (f"surgopt port-place: run {row.get('run_key') or '?'}, design {row['design_id']}: the dVRK console for "
+            f"this layout, reading the SUJ_Fixed file {CONSOLE_SUJ_FILE} beside it (surgopt export ... --format "
+            f"dvrk-suj-fixed --out {CONSOLE_SUJ_FILE}); "
+            + ("MTMR drives the PSM on the camera image's right, so the surgeon's hands are not crossed; "
+               if teleop_pairing(int(row.get("image_right_psm", 0))) else
+               "the console's default pairing (the run did not say which PSM is on the image's right); ")
+            + "the arm files are the dVRK's simulated kinematics: a real system names its own calibrated files")
+    return f"/* {said.replace('*/', '* /')} */\n" + json.dumps(doc, indent=4) + "\n"
+
+
 def ports_csv(cfg: PortPlaceConfig, row: dict) -> str:
     """``surgopt export KEY --design ID --format ports``: the layout's ports and the patient's landmarks as CSV, one
     line each: what (port, landmark), name, site, x_mm, y_mm, z_mm (the patient frame; a landmark's z is the

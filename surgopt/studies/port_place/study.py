@@ -467,6 +467,14 @@ def suj_fixed_export(cfg, row: dict) -> str:
     return suj_fixed(cfg, row)
 
 
+def console_export(cfg, row: dict) -> str:
+    """``surgopt export KEY --design ID --format dvrk-console`` (``export.dvrk_console``: the console that loads the
+    SUJ_Fixed file)."""
+    from surgopt.studies.port_place.export import dvrk_console
+
+    return dvrk_console(cfg, row)
+
+
 def slicer_export(cfg, row: dict) -> str:
     """``surgopt export KEY --design ID --format slicer`` (``export.slicer_markups``: a 3D Slicer markups file)."""
     from surgopt.studies.port_place.export import slicer_markups
@@ -488,7 +496,7 @@ STUDY = Study(
     feasible_mask=feasible_mask, feasible_columns=("feasible",), figures=figures_in("surgopt.studies.port_place.figures"), estimate=estimate, search_plan=search_plan,
     html_views=html_views_in("surgopt.studies.port_place.html"), reported_objective=("cost", "minimize"),
     exports={"dvrk": dvrk_export, "dvrk-suj-fixed": suj_fixed_export, "ports": ports_export,
-             "slicer": slicer_export},
+             "dvrk-console": console_export, "slicer": slicer_export},
     warm_variants=(('robot.instrument_serial={model = "pa10_7c", rcm_in_base_m = [0.65, 0.0, 0.5]}',
                     "constraints.min_external_clearance_mm=150.0"),),
     warm_up_builds="the per-port tables (with the cart: its setup joints at every site and pose, the arms' links)",
