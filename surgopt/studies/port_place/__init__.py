@@ -22,8 +22,9 @@ HELP = """Port placement for the da Vinci Research Kit on a patient: two or thre
     cart pose of a grid around the table, and a design is feasible only where one pose docks every arm with its
     links clear of each other, the patient and the table. The summary ranks the feasible designs by cost.
 
-    Then: surgopt report (the run's page); surgopt export KEY --design ID --format dvrk (the set-up a dVRK
-    loads). Other arms: cart.model = si with the Si's PSMs and ECM, an RCM arm from a DH table or URDF
+    Then: surgopt report (the run's page); surgopt export KEY --design ID --format dvrk (the set-up, joint by
+    joint), dvrk-suj-fixed and dvrk-console (the files a dVRK loads), slicer (3D Slicer markups) or ports (CSV). A
+    [given_layout] (each arm's port by a landmark and offsets) is scored beside the answer. Other arms: cart.model = si with the Si's PSMs and ECM, an RCM arm from a DH table or URDF
     ([robot.instrument_file], [robot.camera_file]), a serial arm keeping the RCM in software
     ([robot.instrument_serial], [robot.camera_serial]). A 3-PSM enumeration runs to 10^8 designs:
     rows_stored = feasible keeps only the feasible rows."""
