@@ -87,6 +87,11 @@ class Patient(StrictModel):
                                   "hash, mesh_sha256, is in the store key, not its path)",
                                   json_schema_extra=NOT_IN_KEY)
     mesh_units: Literal["mm", "m"] = Field("mm", description="the mesh file's length unit")
+    mesh_is: Literal["body", "wall"] = Field(
+        "body", description="'body': the mesh closes the insufflated body (inside it is the body); 'wall': it is the "
+        "abdominal wall's shell as a CT gives it (outer skin and inner peritoneum, e.g. OpenHELP's), and the body is "
+        "everything under its outer skin above the table (the cavity too): a point is inside where a vertical ray "
+        "up from it meets the wall")
     mesh_offset_mm: Vec3 = Field([0.0, 0.0, 0.0], min_length=3, max_length=3,
                                  description="added to the mesh (after units): its base on z = 0, x lateral, y "
                                              "toward the head, z anterior, as for the dome")

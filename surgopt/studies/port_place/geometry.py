@@ -385,9 +385,15 @@ def patient_mesh(patient):
 
 
 def inside_body(p: np.ndarray, patient) -> np.ndarray:
-    """Which points (mm) lie inside the body: the dome, or the closed mesh (trimesh's containment test)."""
+    """Which points (mm) lie inside the body: the dome, the closed mesh (trimesh's containment test), or with
+    ``mesh_is = "wall"`` (a wall's shell) every point under its outer skin above the table (the highest crossing of
+    a vertical ray with the mesh above it: the cavity is the body's)."""
     if patient.shape == "dome":
         return inside_dome(p, patient.semi_axes_mm, patient.dome_exponent)
+    p = np.asarray(p, float).reshape(-1, 3)
+    if getattr(patient, "mesh_is", "body") == "wall":
+        skin = in_chunks(lambda q: _mesh_wall(q[:, 0], q[:, 1], patient_mesh(patient))[0], p)
+        return (p[:, 2] >= 0) & (p[:, 2] <= np.nan_to_num(skin, nan=-np.inf))
     return in_chunks(patient_mesh(patient).contains, p).astype(bool) & (p[:, 2] >= 0)
 
 
