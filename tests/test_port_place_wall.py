@@ -57,3 +57,21 @@ def test_openhelps_wall_takes_a_target_in_its_cavity_as_a_wall_and_refuses_it_as
     data["patient"] = {**data["patient"], "mesh_is": "body", "mesh_file": str(OPENHELP / "Abdominal_wall.stl")}
     with pytest.raises(ValueError, match="outside the body"):
         C.PortPlaceConfig.model_validate(data)
+
+
+def test_the_walls_thickness_at_a_port_is_skin_to_peritoneum_toward_the_target(tmp_path):
+    """``geometry.wall_thickness_mm`` on the ellipsoid shell: at the top, toward the centre, the two semi-axes' gap
+    (140 - 130 mm); at a port on the flank, toward the centre, the gap along that ray between the two analytic
+    ellipsoids (solved here apart from the mesh), within the facets' error (1 mm)."""
+    from surgopt.studies.port_place.geometry import wall_thickness_mm
+
+    wall = C.Patient.model_validate({"shape": "mesh", "mesh_file": str(_shell(tmp_path)), "mesh_is": "wall"})
+    flank = np.array([120.0, 60.0, 0.0])
+    flank[2] = OUTER[2] * np.sqrt(1 - ((flank[:2] / OUTER[:2]) ** 2).sum())  # on the outer skin
+    centre = np.array([0.0, 0.0, 20.0])
+    got = wall_thickness_mm(np.array([[0.0, 0.0, OUTER[2]], flank]), centre, wall)
+    d = (centre - flank) / np.linalg.norm(centre - flank)
+    # the ray p + s d meets the inner ellipsoid where sum(((p + s d) / INNER)^2) = 1: a quadratic in s
+    a, b, c = ((d / INNER) ** 2).sum(), 2 * ((flank * d) / INNER ** 2).sum(), ((flank / INNER) ** 2).sum() - 1
+    inner = (-b - np.sqrt(b * b - 4 * a * c)) / (2 * a)
+    np.testing.assert_allclose(got, [OUTER[2] - INNER[2], inner], atol=1.0)

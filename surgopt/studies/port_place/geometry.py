@@ -397,6 +397,26 @@ def inside_body(p: np.ndarray, patient) -> np.ndarray:
     return in_chunks(patient_mesh(patient).contains, p).astype(bool) & (p[:, 2] >= 0)
 
 
+def wall_thickness_mm(ports_mm: np.ndarray, toward_mm: np.ndarray, patient) -> np.ndarray:
+    """(n,) With ``mesh_is = "wall"``: the wall's thickness (mm) at each port (n, 3 mm, on the outer skin) along the
+    line from it toward ``toward_mm`` (3,: the target's centre, the shaft's docking direction): from the skin's
+    crossing to the next one, the inner surface (NaN where the line meets the wall once or not at all). Where the
+    dVRK's cannula sets its remote centre in the wall, the RCM lies up to this far below the port's skin point."""
+    mesh = patient_mesh(patient)
+    ports = np.asarray(ports_mm, float).reshape(-1, 3)
+    d = np.asarray(toward_mm, float)[None, :] - ports
+    d /= np.linalg.norm(d, axis=1)[:, None]
+    origins = ports - 5.0 * d  # from just outside the skin
+    locations, index_ray, _ = mesh.ray.intersects_location(origins, d, multiple_hits=True)
+    out = np.full(len(ports), np.nan)
+    for k in range(len(ports)):
+        s = np.sort(((locations[index_ray == k] - origins[k]) @ d[k]))
+        s = s[np.concatenate([[True], np.diff(s) > 1e-6])] if len(s) else s  # a hit on a shared edge, once
+        if len(s) >= 2:
+            out[k] = s[1] - s[0]
+    return out
+
+
 def wall_height_mm(x: np.ndarray, y: np.ndarray, patient) -> np.ndarray:
     """Height (mm) of the body's upper wall over each top-view point: the dome's, or the highest crossing of a
     vertical ray with the mesh (NaN where the ray misses it)."""

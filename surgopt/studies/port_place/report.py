@@ -143,8 +143,12 @@ def summary(parts) -> Summary:
                   f"{b[f'{arm}_z_mm']:.0f}"] + ([from_landmark(b[f"{arm}_x_mm"], b[f"{arm}_y_mm"], mark[1:])]
                                                 if mark else [])
                  for arm in ("psm1", "psm2", "psm3", "ecm") if f"{arm}_site" in b]
+        wall = wall_column(_config_or_none(meta), b)
+        if wall is not None:  # a CT's wall: its thickness at each port, toward the target (#57 item 1)
+            ports = [r + [w] for r, w in zip(ports, wall)]
         tables.append((f"best layout: ports ({FRAME_TEXT})", ["arm", "site", "x_mm", "y_mm", "z_mm"]
-                       + ([f"from the {mark[0]} (mm, top view)"] if mark else []), ports))
+                       + ([f"from the {mark[0]} (mm, top view)"] if mark else [])
+                       + (["wall_mm (skin to peritoneum, toward the target)"] if wall is not None else []), ports))
         if "cart_pose" in b:  # after the screen: the best layout's clearances and rolls are then known
             bound = cart_bound_words(parts, b, _config_or_none(meta))
             if bound:
@@ -199,6 +203,18 @@ def summary(parts) -> Summary:
     if "cart_pose" in parts.schema.names and meta.get("rows_stored") != "feasible":
         counts["infeasible only for docking (feasible without the cart)"] = only_docking
     return Summary(headline, counts, tables)
+
+
+def wall_column(cfg, row: dict) -> list[str] | None:
+    """With a wall's shell for the patient (``patient.mesh_is = "wall"``): each port's wall thickness (mm) toward the
+    target's centre (``geometry.wall_thickness_mm``), in the ports table's order; else None."""
+    if cfg is None or cfg.patient.shape != "mesh" or cfg.patient.mesh_is != "wall":
+        return None
+    from surgopt.studies.port_place.geometry import wall_thickness_mm
+
+    arms = [a for a in ("psm1", "psm2", "psm3", "ecm") if f"{a}_site" in row]
+    ports = np.array([[row[f"{a}_{c}_mm"] for c in "xyz"] for a in arms])
+    return [f"{w:.1f}" if np.isfinite(w) else "-" for w in wall_thickness_mm(ports, cfg.target.centre_mm, cfg.patient)]
 
 
 #: The feasible layouts after the answer (by cost) the closing report checks over the whole target when the
