@@ -108,6 +108,7 @@ def summary(parts) -> Summary:
         for bit in by_bit:
             by_bit[bit] += int(np.count_nonzero(bad & bit))
     meta = {k.decode(): v.decode() for k, v in (parts.schema.metadata or {}).items()}
+    cfg = _config_or_none(meta)  # once: every part of the report reads the run's config from here
     if meta.get("rows_stored") == "feasible":  # the infeasible designs were counted out, their reasons not kept
         headline = {"designs": int(meta["designs_enumerated"]) if "designs_enumerated" in meta else "not known",
                     "rows_stored": "feasible only", "feasible": feasible}
@@ -127,14 +128,14 @@ def summary(parts) -> Summary:
     best = best.slice(0, 5)
     tables = []
     if rolled is not None:  # a cheaper layout the screen clears with its PSMs rolled: advice, not the answer
-        headline["cheaper_if_rolled"] = cheaper_if_rolled_words(*rolled, _config_or_none(meta))
+        headline["cheaper_if_rolled"] = cheaper_if_rolled_words(*rolled, cfg)
     if first is not None:  # the answer is the rows' best feasible layout, docked as its row is (#54 item 2, #56 2)
         b = first
         headline.update({"best_design_id": b["design_id"], "best_cost": b["cost"]})
         checks = [[label + (" (all three instruments)" if fields == ("common_reach",) and "psm3_reach" in b else ""),
                    joiner.join(f"{b[f]:.{digits}f}" for f in fields), clinical,
                    within_band([b[f] for f in fields], band)]
-                  for label, fields, digits, joiner, clinical, band in clinical_checks(_config_or_none(meta))]
+                  for label, fields, digits, joiner, clinical, band in clinical_checks(cfg)]
         tables.append(("best layout: clinical checks", ["quantity", "value", "clinical number", "within"], checks))
         if "image_right_psm" in b:  # which hand drives which arm (#54 item 4)
             headline["hands"] = pairing_words(int(b["image_right_psm"]))
@@ -143,14 +144,14 @@ def summary(parts) -> Summary:
                   f"{b[f'{arm}_z_mm']:.0f}"] + ([from_landmark(b[f"{arm}_x_mm"], b[f"{arm}_y_mm"], mark[1:])]
                                                 if mark else [])
                  for arm in ("psm1", "psm2", "psm3", "ecm") if f"{arm}_site" in b]
-        wall = wall_column(_config_or_none(meta), b)
+        wall = wall_column(cfg, b)
         if wall is not None:  # a CT's wall: its thickness at each port, toward the target (#57 item 1)
             ports = [r + [w] for r, w in zip(ports, wall)]
         tables.append((f"best layout: ports ({FRAME_TEXT})", ["arm", "site", "x_mm", "y_mm", "z_mm"]
                        + ([f"from the {mark[0]} (mm, top view)"] if mark else [])
                        + (["wall_mm (skin to peritoneum, toward the target)"] if wall is not None else []), ports))
         if "cart_pose" in b:  # after the screen: the best layout's clearances and rolls are then known
-            bound = cart_bound_words(parts, b, _config_or_none(meta))
+            bound = cart_bound_words(parts, b, cfg)
             if bound:
                 headline["cart_on_bound"] = bound
             tables += docking_tables(b, meta)
@@ -191,7 +192,6 @@ def summary(parts) -> Summary:
         if screen is not None:  # the layouts failing only on their links, none of which a roll cleared
             headline["links_clear"], table, _ = screen
             tables.append(table)
-    cfg = _config_or_none(meta)
     if cfg is not None and cfg.given_layout is not None:  # a surgeon's own layout, scored as a row (#57 item 3)
         from surgopt.studies.port_place.given import given_report
 

@@ -190,10 +190,7 @@ def _stored_metadata(config) -> dict | None:
     given = (config.get("given_layout") if isinstance(config, dict)
              else getattr(config, "given_layout", None) if config is not None else None)
     if given is not None and "config" not in (meta or {}):  # the closing report scores it from the config
-        import json
-
-        meta = {**(meta or {}), "config": json.dumps(config if isinstance(config, dict)
-                                                     else config.model_dump(mode="json"))}
+        meta = {**(meta or {}), "config": config_json(config)}
     stored = config.get("rows_stored") if isinstance(config, dict) else getattr(config, "rows_stored", "all")
     if stored != "feasible":
         return meta
@@ -221,13 +218,18 @@ def landmark_metadata(config) -> dict:
 def cart_metadata(config) -> dict | None:
     """With the cart: the run's config (as stored) in the rows' schema metadata, so that the summary can solve the
     best layout's setup joints again from its row; without: why there is no cart (``no_cart_note``)."""
-    import json
-
     if config is None:
         return None
     if not has_cart(config):  # what the closing report says of the cart: none, and why
         return {"cart": no_cart_note(config)}
-    return {"config": json.dumps(config if isinstance(config, dict) else config.model_dump(mode="json"))}
+    return {"config": config_json(config)}
+
+
+def config_json(config) -> str:
+    """The run's config as the rows' metadata keep it (``report.stored_config`` reads it back)."""
+    import json
+
+    return json.dumps(config if isinstance(config, dict) else config.model_dump(mode="json"))
 
 
 def _feasible_metadata(config) -> dict:
