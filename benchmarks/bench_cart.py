@@ -176,7 +176,7 @@ def pruned_least() -> None:
     cfg = C.PortPlaceConfig.model_validate({"cart": {"model": "classic"}})
     model = M.prepare(cfg)
     own, radii, groups = L.own_moving(model, model.sites_m, model.instrument_rot)
-    balls = np.stack([Cap.swept_balls(own[i], radii, groups) for i in range(len(own))])
+    balls = np.stack([Cap.swept_capsules(own[i], radii, groups) for i in range(len(own))])
     rng = np.random.default_rng(0)
     pairs = np.array([p for p in rng.integers(0, len(own), (400, 2)) if p[0] != p[1]][:300])
     Cap.moving_pairs(pairs[:2], own, balls, own, balls, radii, groups, np.inf, -np.inf)  # compiled or loaded

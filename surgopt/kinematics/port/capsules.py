@@ -10,7 +10,7 @@ parent, origin, roll-pitch-yaw and joint (C4).
 The segment distance is ``kinematics.port.place.segment_distance`` (Ericson, Real-Time Collision Detection,
 5.1.9, with its degenerate cases; ``segments_distance`` takes the segments as (2, 3) arrays). The least clearance between two arms over
 every pair of their poses (each arm at each of its own target points: the instruments move independently) is one
-jitted loop (``least_over_poses``), and pruned by bounding balls for the rows' tables (``least_between``,
+jitted loop (``least_over_poses``), and pruned by bounding capsules for the rows' tables (``least_between``,
 ``pair_clearances``; ``studies/port_place/link_tables.py``), with their batch forms of C2-C4.
 
 One module of ~430 lines: the exhaustive and the pruned least, the capsules' placement and their batch forms are
@@ -152,56 +152,61 @@ def along(segments: np.ndarray, spacing_m: float) -> tuple[np.ndarray, np.ndarra
 
 # ---- the least clearance between two arms, pruned (issue 40: the links' clearance in every row)
 #
-# An arm at many poses is bounded link by link by a ball holding that link at every pose (``swept_balls``); the
-# least clearance between two arms (``least_between``) visits link pairs in the order of their balls' bound and
-# stops when a bound is no better than the least found, and within a link pair skips each pose of one arm whose
-# segment's distance to the other's ball already bounds it out. The answer is the exact least (the bounds are
-# lower bounds, never estimates): held to ``least_over_poses`` by tests/test_capsules.py.
+# An arm at many poses is bounded link by link by a capsule holding that link at every pose of a group of poses
+# (``swept_capsules``: the group's mean segment, its radius the link's plus the farthest any endpoint strays from
+# the mean's; a point at parameter t of a posed segment lies within that of the mean's point at t, the distance
+# being convex in t). A long link that turns a little is held far tighter so than by a ball about it (#54 item 3:
+# the whole target's 915 points, ~1 s a layout with balls, ~20 ms with capsules). The least clearance between two
+# arms (``least_between``) visits link pairs in the order of their bound and stops when a bound is no better than
+# the least found, and within a link pair skips each group of one arm whose capsule's distance to the other's
+# already bounds it out. The answer is the exact least (the bounds are lower bounds, never estimates): held to
+# ``least_over_poses`` by tests/test_link_tables.py.
+
+#: A swept capsule's layout: the two endpoints (6), then the radius.
+SWEPT = 7
 
 
 @njit(**EXACT)
-def swept_balls(segs, radii, groups):
-    """(L, G, 4) Per link of an arm at poses ``segs`` (P, L, 2, 3) and per group of poses (``groups`` (G + 1,):
-    group g is poses groups[g] .. groups[g + 1] - 1): a ball (centre, radius) holding the capsule at every pose of
-    the group: the centre of its endpoints' box, the radius their farthest distance from it plus the link's."""
+def swept_capsules(segs, radii, groups):
+    """(L, G, 7) Per link of an arm at poses ``segs`` (P, L, 2, 3) and per group of poses (``groups`` (G + 1,):
+    group g is poses groups[g] .. groups[g + 1] - 1): a capsule (two endpoints, radius) holding the link's capsule
+    at every pose of the group: the group's mean segment, its radius the link's plus the farthest an endpoint lies
+    from the mean's."""
     n_link, n_group = segs.shape[1], groups.shape[0] - 1
-    out = np.empty((n_link, n_group, 4))
+    out = np.empty((n_link, n_group, SWEPT))
     for k in range(n_link):
         for g in range(n_group):
-            lo = np.full(3, np.inf)
-            hi = np.full(3, -np.inf)
+            mean = np.zeros((2, 3))
             for p in range(groups[g], groups[g + 1]):
-                for e in range(2):
-                    for c in range(3):
-                        lo[c] = min(lo[c], segs[p, k, e, c])
-                        hi[c] = max(hi[c], segs[p, k, e, c])
-            centre = 0.5 * (lo + hi)
+                mean += segs[p, k]
+            mean /= max(groups[g + 1] - groups[g], 1)
             far = 0.0
             for p in range(groups[g], groups[g + 1]):
                 for e in range(2):
-                    far = max(far, math.sqrt(((segs[p, k, e] - centre) ** 2).sum()))
-            out[k, g, :3] = centre
-            out[k, g, 3] = far + radii[k]
+                    far = max(far, math.sqrt(((segs[p, k, e] - mean[e]) ** 2).sum()))
+            out[k, g, :3], out[k, g, 3:6] = mean[0], mean[1]
+            out[k, g, 6] = far + radii[k]
     return out
 
 
 @njit(**EXACT)
-def whole_balls(balls):
-    """(L, 4) One ball per link holding its groups' balls (``swept_balls``)."""
-    out = np.empty((balls.shape[0], 4))
-    for k in range(balls.shape[0]):
-        lo = np.full(3, np.inf)
-        hi = np.full(3, -np.inf)
-        for g in range(balls.shape[1]):
-            for c in range(3):
-                lo[c] = min(lo[c], balls[k, g, c] - balls[k, g, 3])
-                hi[c] = max(hi[c], balls[k, g, c] + balls[k, g, 3])
-        centre = 0.5 * (lo + hi)
+def whole_capsules(caps):
+    """(L, 7) One capsule per link holding its groups' capsules (``swept_capsules``): their mean segment, its
+    radius the farthest a group's endpoint lies from it plus that group's radius."""
+    n_link, n_group = caps.shape[0], caps.shape[1]
+    out = np.empty((n_link, SWEPT))
+    for k in range(n_link):
+        mean = np.zeros(6)
+        for g in range(n_group):
+            mean += caps[k, g, :6]
+        mean /= max(n_group, 1)
         far = 0.0
-        for g in range(balls.shape[1]):
-            far = max(far, math.sqrt(((balls[k, g, :3] - centre) ** 2).sum()) + balls[k, g, 3])
-        out[k, :3] = centre
-        out[k, 3] = far
+        for g in range(n_group):
+            stray = max(math.sqrt(((caps[k, g, :3] - mean[:3]) ** 2).sum()),
+                        math.sqrt(((caps[k, g, 3:6] - mean[3:6]) ** 2).sum()))
+            far = max(far, stray + caps[k, g, 6])
+        out[k, :6] = mean
+        out[k, 6] = far
     return out
 
 
@@ -224,21 +229,21 @@ def segments_distance(p, q):
 
 @njit(**EXACT)
 def _gap(x, y):
-    """The least clearance two balls (centre, radius) allow: a lower bound of their contents'."""
-    return math.sqrt((x[0] - y[0]) ** 2 + (x[1] - y[1]) ** 2 + (x[2] - y[2]) ** 2) - x[3] - y[3]
+    """The least clearance two swept capsules (endpoints, radius) allow: a lower bound of their contents'."""
+    return segment_distance_xyz(x[0], x[1], x[2], x[3], x[4], x[5], y[0], y[1], y[2], y[3], y[4], y[5]) - x[6] - y[6]
 
 
 @njit(**EXACT)
 def least_between(a, ra, balls_a, groups_a, b, rb, balls_b, groups_b, best, floor=-np.inf):
     """(C1, pruned) The least clearance between arm A at each of its poses ``a`` (Pa, La, 2, 3) and arm B at each
-    of ``b`` (Pb, Lb, 2, 3), radii ``ra``, ``rb``, their ``swept_balls`` over the pose groups ``groups_*``, if
-    less than ``best``: (clearance, link of A, link of B, pose of A, pose of B), or (best, -1, -1, -1, -1) when no
-    pair is closer than ``best``. Link pairs are visited in the order of their whole balls' bound, and a group of
-    poses, then a pair of groups, is skipped when its balls' bound is no better than the least found (each bound a
-    lower bound, so the answer is exact). With a ``floor``, the search stops at the first clearance below it (then
-    an upper bound of the least)."""
+    of ``b`` (Pb, Lb, 2, 3), radii ``ra``, ``rb``, their ``swept_capsules`` over the pose groups ``groups_*``
+    (``balls_*``), if less than ``best``: (clearance, link of A, link of B, pose of A, pose of B), or (best, -1, -1,
+    -1, -1) when no pair is closer than ``best``. Link pairs are visited in the order of their whole capsules'
+    bound, and a group of poses, then a pair of groups, is skipped when its capsules' bound is no better than the
+    least found (each bound a lower bound, so the answer is exact). With a ``floor``, the search stops at the first
+    clearance below it (then an upper bound of the least)."""
     la, lb = a.shape[1], b.shape[1]
-    wa, wb = whole_balls(balls_a), whole_balls(balls_b)
+    wa, wb = whole_capsules(balls_a), whole_capsules(balls_b)
     bound = np.empty(la * lb)
     for i in range(la):
         for j in range(lb):
@@ -272,7 +277,7 @@ def pair_clearances(tasks, static_x, moving_x, r_sx, r_mx, balls_mx, static_y, m
     """The least clearance between arm X at site i and arm Y at site j, cart pose p, for each task (i, j, p) of
     ``tasks`` (T, 3): each arm is its links fixed at that pose (``static_*`` (sites, poses, Ls, 2, 3): the setup
     joints' links, or all of an arm held docked) and its links that move over the target (``moving_*`` (sites,
-    P, Lm, 2, 3), ``balls_m*`` their ``swept_balls`` over the pose ``groups`` per site; Lm may be 0), the least of fixed to fixed, fixed
+    P, Lm, 2, 3), ``balls_m*`` their ``swept_capsules`` over the pose ``groups`` per site; Lm may be 0), the least of fixed to fixed, fixed
     to moving and moving to fixed, below ``start`` (T,: moving to moving, which does not depend on the cart's
     pose, given by the caller; the cap when none) with its ``start_code``, stopping at the first below ``floor``
     (``least_between``). Returns the clearance (m) and the link pair, LINK_CODE * (X's link) + (Y's link), each arm's
@@ -285,7 +290,7 @@ def pair_clearances(tasks, static_x, moving_x, r_sx, r_mx, balls_mx, static_y, m
     for t in range(n_task):
         i, j, p = tasks[t, 0], tasks[t, 1], tasks[t, 2]
         sx, sy = static_x[i, p:p + 1], static_y[j, p:p + 1]
-        bx, by = swept_balls(sx, r_sx, one), swept_balls(sy, r_sy, one)
+        bx, by = swept_capsules(sx, r_sx, one), swept_capsules(sy, r_sy, one)
         best, c = start[t], start_code[t]
         v, a, b, _, _ = least_between(sx, r_sx, bx, one, sy, r_sy, by, one, best, floor)
         if a >= 0:

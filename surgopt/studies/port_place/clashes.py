@@ -161,42 +161,78 @@ def layout_clearances(model, row: dict, docked=None) -> list[Clearance]:
     return out
 
 
-#: The whole target's points are checked in this many groups of neighbours (each bounded by its own balls).
-WHOLE_TARGET_GROUPS = 16
+#: The whole target's points are checked in this many groups of neighbours (each bounded by its own swept capsules).
+WHOLE_TARGET_GROUPS = 64
 
 
 def whole_target_clearances(model, row: dict) -> list[Clearance]:
     """(#54 item 3) Between each pair of a layout's docked arms (docked as its row is), the least clearance over
     **every** target point (each PSM at any of them and docked, the other at any of its own; the ECM held docked),
-    exact: ``capsules.least_between`` over all pose pairs, pruned only by lower bounds. The rows and
-    ``layout_clearances`` sample ``link_tables.POSE_POINTS`` of them; the least over the whole target is no more
-    than theirs and may be less. Kept for the process (``memoised``)."""
+    exact: ``least_fixed_and_moving`` over all pose pairs, pruned only by lower bounds. The rows' link tables
+    sample ``link_tables.POSE_POINTS`` of them and the rows then decide their feasible layouts with this
+    (``designs.decided_over_the_whole_target``). Kept for the process (``memoised``)."""
     if not links_modelled(model.cfg):
         return []
-    return list(memoised("whole target", model.cfg, row, lambda: _whole_target(model, row)))
+    return list(memoised("whole target", model.cfg, row, lambda: over_the_whole_target(model, row)))
 
 
-def _whole_target(model, row: dict) -> list[Clearance]:
-    from surgopt.kinematics.port.capsules import least_between, swept_balls
+def whole_target_points(model) -> tuple[np.ndarray, np.ndarray]:
+    """Every target point, ordered into WHOLE_TARGET_GROUPS groups of neighbours (``link_tables.grouped``,
+    spread first), and the groups' offsets among an arm's poses (docked first)."""
     from surgopt.studies.port_place.link_tables import grouped, spread_points
-    from surgopt.studies.port_place.tables import docked_arms, row_patient_in_cart
 
-    cfg = model.cfg
     start = int(np.argmin(np.linalg.norm(model.targets_m - model.centre_m, axis=1)))
     seeds = spread_points(model.targets_m, WHOLE_TARGET_GROUPS, start)[0]  # spread first, then every other point
     first = np.concatenate([seeds, np.setdiff1d(np.arange(len(model.targets_m)), seeds)])
-    points, groups = grouped(model.targets_m[first], min(WHOLE_TARGET_GROUPS, len(model.targets_m)))
-    patient = row_patient_in_cart(cfg, row)
-    arms = [arm_poses(model, a, patient, points) for a in docked_arms(model, row)
-            if a.joints]
+    return grouped(model.targets_m[first], min(WHOLE_TARGET_GROUPS, len(model.targets_m)))
+
+
+def fixed_links(segments: np.ndarray) -> np.ndarray:
+    """(links,) bool: the links an arm holds still over all its poses (its setup joints', the ECM's), the same
+    segment at every pose."""
+    return np.all(segments == segments[:1], axis=(0, 2, 3))
+
+
+def least_fixed_and_moving(a: ArmPoses, b: ArmPoses, groups: np.ndarray, best: float = np.inf,
+                           floor: float = -np.inf) -> tuple[float, int, int, int, int]:
+    """``capsules.least_between`` of two arms over every pair of their poses (``groups``: an arm's pose groups
+    when it moves), each arm's fixed links (``fixed_links``) taken once, not at every pose: (clearance m, link of
+    a, link of b, pose of a, pose of b), -1s when nothing is below ``best``; with a ``floor``, stopped at the first
+    below it."""
+    from surgopt.kinematics.port.capsules import least_between, swept_capsules
+
     held = np.array([0, 1], np.int64)
+    parts = []
+    for arm in (a, b):
+        still = fixed_links(arm.segments)
+        links = [(np.flatnonzero(still), held, arm.segments[:1])]
+        if len(arm.poses) > 1 and not still.all():
+            links.append((np.flatnonzero(~still), groups, arm.segments))
+        parts.append([(i, g, np.ascontiguousarray(seg[:, i]), arm.radii[i]) for i, g, seg in links if len(i)])
+    out = (best, -1, -1, -1, -1)
+    for ia, ga, sa, ra in parts[0]:
+        for ib, gb, sb, rb in parts[1]:
+            v, i, j, p, q = least_between(sa, ra, swept_capsules(sa, ra, ga), ga, sb, rb, swept_capsules(sb, rb, gb),
+                                          gb, out[0], floor)
+            if i >= 0:
+                out = (v, int(ia[i]), int(ib[j]), p, q)
+                if v < floor:
+                    return out
+    return out
+
+
+def over_the_whole_target(model, row: dict) -> list[Clearance]:
+    """``whole_target_clearances`` computed (not kept: the rows ask it of each feasible layout, from threads)."""
+    from surgopt.studies.port_place.tables import docked_arms, row_patient_in_cart
+
+    points, groups = whole_target_points(model)
+    patient = row_patient_in_cart(model.cfg, row)
+    arms = [arm_poses(model, a, patient, points) for a in docked_arms(model, row) if a.joints]
     out = []
     for x in range(len(arms)):
         for y in range(x + 1, len(arms)):
             a, b = arms[x], arms[y]
-            ga, gb = (groups if len(p.poses) > 1 else held for p in (a, b))
-            v, i, j, p, s = least_between(a.segments, a.radii, swept_balls(a.segments, a.radii, ga), ga,
-                                          b.segments, b.radii, swept_balls(b.segments, b.radii, gb), gb, np.inf)
+            v, i, j, p, s = least_fixed_and_moving(a, b, groups)
             out.append(Clearance(f"{a.arm} and {b.arm}, over the whole target ({len(points):,} points)", v * 1000,
                                  a.names[i], b.names[j], f"{a.arm} {a.poses[p]}; {b.arm} {b.poses[s]}"))
     return out

@@ -3,7 +3,7 @@ each cart pose at which both dock, the least clearance between their links (``cl
 joints' links and each arm's own), docked and over the target, factored as the issue asks:
 
 - per site, each PSM's own links at the poses that reach the target (``own_moving``: its docked frame at the port
-  does not depend on the cart's pose, so neither do they), bounded per link by a ball (``capsules.swept_balls``);
+  does not depend on the cart's pose, so neither do they), bounded per link by a capsule (``capsules.swept_capsules``);
 - per (arm, site, pose), its setup joints' links from the dock tables' best solution (``suj_static``), and the
   ECM held docked (its setup joints and its own links, ``ecm_static``);
 - per (site pair), the two PSMs' own links over every pair of their poses (``capsules.moving_pairs``), once
@@ -204,7 +204,7 @@ def spread_points(points: np.ndarray, k: int, start: int = 0) -> tuple[np.ndarra
     return np.array(chosen), float(d.max())
 
 
-#: The target points are checked in this many groups of neighbours (each bounded by its own balls).
+#: The target points are checked in this many groups of neighbours (each bounded by its own swept capsules).
 POSE_GROUPS = 8
 
 
@@ -405,8 +405,8 @@ def link_tables(model, sites: np.ndarray, rot: np.ndarray, dock, wanted: Wanted,
     own, r_own, groups = own_moving(model, sites, rot)
 
     def balls_of(segs):
-        return (np.stack([C.swept_balls(segs[i], r_own, groups) for i in range(n)]) if n
-                else np.zeros((0, len(r_own), len(groups) - 1, 4)))
+        return (np.stack([C.swept_capsules(segs[i], r_own, groups) for i in range(n)]) if n
+                else np.zeros((0, len(r_own), len(groups) - 1, C.SWEPT)))
 
     moving = {a: own for a in psms}
     if third_rot is not None and "PSM3" in psms:
@@ -418,7 +418,7 @@ def link_tables(model, sites: np.ndarray, rot: np.ndarray, dock, wanted: Wanted,
     static["ECM"], docks["ECM"] = ecm_static(cfg, dock), dock.camera_margin >= 0.0
     r_static = {a: ecm_radii(cart) if a == "ECM" else suj_radii(cart, a) for a in static}
     none = np.zeros((n, 1, 0, 2, 3))
-    no_balls = np.zeros((n, 0, len(groups) - 1, 4))
+    no_balls = np.zeros((n, 0, len(groups) - 1, C.SWEPT))
     least = cfg.constraints.link_least_mm / 1000
     cap = least + CAP_M
     value, code, words = {}, {}, {}
