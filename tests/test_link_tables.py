@@ -65,13 +65,13 @@ def test_the_pruned_least_is_the_exhaustive_least():
         ra, rb = rng.uniform(0.005, 0.05, la), rng.uniform(0.005, 0.05, lb)
         ga, gb = _groups(pa, rng), _groups(pb, rng)
         want = C.least_over_poses(a, ra, b, rb)[0]
-        v, i, j, p, s = C.least_between(a, ra, C.swept_balls(a, ra, ga), ga, b, rb, C.swept_balls(b, rb, gb), gb,
+        v, i, j, p, s = C.least_between(a, ra, C.swept_capsules(a, ra, ga), ga, b, rb, C.swept_capsules(b, rb, gb), gb,
                                         np.inf)
         assert v == pytest.approx(want, abs=1e-12)
         assert C.segments_distance(a[p, i], b[s, j]) - ra[i] - rb[j] == pytest.approx(want, abs=1e-12)
-        assert C.least_between(a, ra, C.swept_balls(a, ra, ga), ga, b, rb, C.swept_balls(b, rb, gb), gb,
+        assert C.least_between(a, ra, C.swept_capsules(a, ra, ga), ga, b, rb, C.swept_capsules(b, rb, gb), gb,
                                want - 1e-9)[1] == -1
-        floored = C.least_between(a, ra, C.swept_balls(a, ra, ga), ga, b, rb, C.swept_balls(b, rb, gb), gb,
+        floored = C.least_between(a, ra, C.swept_capsules(a, ra, ga), ga, b, rb, C.swept_capsules(b, rb, gb), gb,
                                   np.inf, want + 0.01)[0]
         assert want - 1e-12 <= floored < want + 0.01
         seen["overlap" if want < 0 else "clear"] += 1
@@ -586,6 +586,38 @@ def test_the_whole_target_clearance_is_the_exhaustive_least_over_every_target_po
         assert c.clearance_mm == pytest.approx(want, abs=1e-9)
         assert c.clearance_mm <= sampled[f"{x} and {y}"].clearance_mm + 1e-9
         assert c.link_a.startswith(f"{x} ") and c.link_b.startswith(f"{y} ")
+
+
+def test_the_rows_decide_their_links_over_every_target_point():
+    """#54 item 3: a layout feasible on the link tables' sampled points is measured again over every target point
+    (``designs.decided_over_the_whole_target``) and fails on its links where that least is below the floor. Held
+    to ``capsules.least_over_poses`` over every pose pair of the arms docked as the row is (no pruning, no
+    sample): the column's value, and which rows fail. A 10 mm target grid (209 points, 64 sampled), where the
+    sample passes two layouts whose links overlap elsewhere on the target (the premise)."""
+    from surgopt.kinematics.port.reasons import OUTSIDE
+    from surgopt.studies.port_place.clashes import arm_poses
+    from surgopt.studies.port_place.columns import WHOLE_TARGET_COLUMN
+    from surgopt.studies.port_place.tables import docked_arms, row_patient_in_cart
+
+    cfg = PC.PortPlaceConfig.model_validate({**LINKS, "target": {"spacing_mm": 10.0}})
+    model = M.model_of(cfg)
+    cols = S.compute_task(cfg, S.n_total(cfg), 0)
+    value = cols[WHOLE_TARGET_COLUMN]
+    measured = np.flatnonzero(np.isfinite(value))
+    demoted = measured[cols["infeasible"][measured] == OUTSIDE]
+    feasible = np.flatnonzero(cols["feasible"])
+    assert len(model.targets_m) > 64 and len(demoted) >= 1 and len(feasible) >= 2  # the premise
+    assert set(measured) == set(demoted) | set(feasible)  # only the layouts feasible on the sample are measured
+    assert np.all(cols["external_clearance_mm"][demoted] >= 0.0)  # the sample passed them
+    assert np.all(value[feasible] >= 0.0) and np.all(value[demoted] < 0.0)
+    for r in [*demoted[:2], *feasible[:2]]:
+        row = {k: (v[r].item() if hasattr(v[r], "item") else v[r]) for k, v in cols.items()}
+        patient = row_patient_in_cart(cfg, row)
+        arms = [arm_poses(model, a, patient, model.targets_m) for a in docked_arms(model, row) if a.joints]
+        want = min(C.least_over_poses(a.segments, a.radii, b.segments, b.radii)[0]
+                   for k, a in enumerate(arms) for b in arms[k + 1:]) * 1000
+        assert value[r] == pytest.approx(want, abs=1e-9)
+        assert bool(cols["feasible"][r]) == (want >= 0.0)
 
 
 def test_the_closing_report_says_what_the_answers_links_do_over_the_whole_target(tmp_path):

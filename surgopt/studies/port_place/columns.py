@@ -108,6 +108,11 @@ def stance_columns(config=None) -> tuple[str, ...]:
                  if (robot.get(f"{role}_serial") or {}).get("stance_range_m", 0.0) > 0 for d in ("out", "up"))
 
 
+#: (#54 item 3) Each layout's least clearance between its arms over every target point (mm; measured for the
+#: layouts feasible on the link tables' sampled points, NaN elsewhere): ``designs.decided_over_the_whole_target``.
+WHOLE_TARGET_COLUMN = "links_whole_target_mm"
+
+
 #: A searched docking roll's range (deg): each PSM's frame turned about its neutral shaft, x toward y.
 ROLL_RANGE_DEG = (-90.0, 90.0)
 

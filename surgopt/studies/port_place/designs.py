@@ -20,7 +20,7 @@ from surgopt.studies.port_place.carts import has_cart
 from surgopt.studies.port_place.columns import (CART_COLUMNS, ROLL_RANGE_DEG, aim_columns, arms_of,
                                                 cart_search_columns, docking_columns, float_columns,
                                                 free_docking_columns, links_of, roll_columns, searched_roll_columns,
-                                                stance_columns, suj_joint_columns)
+                                                stance_columns, suj_joint_columns, WHOLE_TARGET_COLUMN)
 from surgopt.studies.port_place.config import PortPlaceConfig
 from surgopt.studies.port_place.geometry import sites_mm
 from surgopt.studies.port_place.hands import image_right_psm
@@ -105,12 +105,38 @@ def design_rows(cfg, sites, t, ids, site_ids, f, bad, cost, design_ids, docking_
                     cols[name] = np.where(pose >= 0, value, np.nan)
     for c, name in enumerate(cart_search_columns(cfg)):  # the searched pose, docked there or not
         cols[name] = np.asarray(cart_searched[:, c], float)
+    if links_of(cfg):
+        cols[WHOLE_TARGET_COLUMN], bad = decided_over_the_whole_target(cfg, cols, bad)
     cols["cost"] = cost
     failed = sum((bad >> bit) & 1 for bit in range(len(reasons())))
     cols["score"] = -cost - INFEASIBLE_PENALTY * failed
     cols["feasible"] = bad == 0
     cols["infeasible"] = bad
     return cols
+
+
+def decided_over_the_whole_target(cfg, cols: dict, bad: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(#54 item 3) The link tables sample ``link_tables.POSE_POINTS`` target points; each layout feasible on them
+    is measured again over every target point, docked as its row is (``clashes.whole_target_clearances``: the
+    least between each pair of its arms, exact), and fails on its links (``reasons.OUTSIDE``) when that is below
+    ``constraints.min_link_clearance_mm``: (the least over the whole target (mm, NaN where not measured), the
+    reasons updated). ~30 ms a layout on the default's 915 points."""
+    from surgopt.kinematics.port.reasons import OUTSIDE
+    from surgopt.studies.port_place.clashes import least, over_the_whole_target
+
+    value = np.full(len(bad), np.nan)
+    floor = cfg.constraints.link_least_mm
+    if floor is None:
+        return value, bad
+    bad = np.array(bad, copy=True)
+    model = model_of(cfg)
+    for r in np.flatnonzero(bad == 0):
+        row = {name: column[r] for name, column in cols.items()}
+        worst = least(over_the_whole_target(model, row))
+        value[r] = worst.clearance_mm if worst is not None else np.nan
+        if worst is not None and worst.clearance_mm < floor:
+            bad[r] |= OUTSIDE
+    return value, bad
 
 
 def with_stance(cfg: PortPlaceConfig, moves: dict) -> PortPlaceConfig:

@@ -224,9 +224,11 @@ WHOLE_TARGET_SCREEN = 5
 
 def whole_target_words(parts, meta: dict, answer: dict) -> str | None:
     """(#54 item 3) What the answer's links do over every target point (``clashes.whole_target_clearances``),
-    in words: clear by how much, or the overlap the rows' sample missed, its pair and where, and the first of the
-    next WHOLE_TARGET_SCREEN feasible layouts by cost whose links clear over the whole target."""
+    in words: clear by how much; or, in a run stored before the rows measured their feasible layouts so (no
+    ``links_whole_target_mm``) or without a floor, the overlap the rows' sample missed, its pair and where, and the
+    first of the next WHOLE_TARGET_SCREEN feasible layouts by cost whose links clear over the whole target."""
     from surgopt.studies.port_place.clashes import least, links_modelled, whole_target_clearances
+    from surgopt.studies.port_place.columns import WHOLE_TARGET_COLUMN
     from surgopt.studies.port_place.link_tables import POSE_POINTS
     from surgopt.studies.port_place.model import model_of
 
@@ -239,8 +241,11 @@ def whole_target_words(parts, meta: dict, answer: dict) -> str | None:
         return None
     points = worst.check.split("(")[-1].rstrip(")")
     if worst.clearance_mm >= floor:
+        decided = ("every feasible layout is measured so: the link tables sample "
+                   f"{POSE_POINTS} of them, then each layout feasible there is measured again over every point"
+                   if answer.get(WHOLE_TARGET_COLUMN) is not None else f"the rows check {POSE_POINTS} of them")
         return (f"clear by {worst.clearance_mm:.0f} mm between arms over every one of the {points} ({worst.link_a} / "
-                f"{worst.link_b}; the rows check {POSE_POINTS} of them)")
+                f"{worst.link_b}; {decided})")
     words = (f"OVERLAP: over the whole target ({points}) the answer's links overlap by {-worst.clearance_mm:.0f} mm "
              f"({worst.link_a} / {worst.link_b}; {worst.where}), which the rows' check of {POSE_POINTS} points "
              f"passed")

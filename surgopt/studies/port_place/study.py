@@ -38,7 +38,7 @@ from surgopt.studies.port_place.columns import (CART_COLUMNS, DOCKING_COLUMNS, F
                                                 SITE_COLUMNS, THIRD_COLUMNS, aim_columns, arms_of,
                                                 cart_search_columns, docking_columns, float_columns,
                                                 instruments_of, links_of, roll_columns, stance_columns,
-                                                suj_joint_columns)
+                                                suj_joint_columns, WHOLE_TARGET_COLUMN)
 from surgopt.studies.port_place.designs import (design_dims, design_rows, evaluate_designs,  # noqa: F401 (theirs)
                                                 nearest_sites, reasons, searched_docking)
 from surgopt.studies.port_place.model import model_of
@@ -164,7 +164,13 @@ def cart_fields(config) -> list:
                    f"PSM2-ECM, 3 PSM1-PSM3, 4 PSM2-PSM3, 5 PSM3-ECM) + {LINK_CODE} x the first arm's link + the "
                    f"second's, or {PAIR_CODE} x (6 + arm: PSM1, PSM2, PSM3, ECM) + {LINK_CODE} x its link + (0 the "
                    "patient's body, 1 the table); each arm's "
-                   "links its setup joints' 3-6, then its own (link_tables.pair_name decodes it); -1: none"})] \
+                   "links its setup joints' 3-6, then its own (link_tables.pair_name decodes it); -1: none"}),
+             pa.field(WHOLE_TARGET_COLUMN, pa.float64(), metadata={
+                 "meaning": "the least clearance between the layout's arms over every target point (each PSM at any "
+                            "of them, the other at any of its own; exact, clashes.whole_target_clearances), measured "
+                            "for the layouts feasible on the sampled points; below min_link_clearance_mm the layout "
+                            "is infeasible for its links (#54 item 3); NaN: not measured (the layout fails "
+                            "elsewhere)"})] \
         if links_of(config) else []
     margins = [pa.field(f"{arm}_suj_{what}", pa.float64(), metadata={
         "meaning": f"the {role_of(arm)} setup joints' least margin to their ranges at the row's cart pose, "
