@@ -626,6 +626,16 @@ def segment_distance_sampled(p0, p1, q0, q1, n=401):
     return float(np.min(np.linalg.norm(a[:, None, :] - b[None, :, :], axis=2)))
 
 
+def segment_box_distance_sampled(p0, p1, lo, hi, n=2001):
+    """The least distance from a segment to an axis-aligned box (0 inside it), sampling the segment at n points:
+    each point's distance is the norm of how far it lies outside the box's slab on each axis (an upper bound
+    within half the sampling step of the true distance)."""
+    s = np.linspace(0.0, 1.0, n)[:, None]
+    pts = np.asarray(p0, float) + s * (np.asarray(p1, float) - np.asarray(p0, float))
+    outside = np.maximum(np.asarray(lo, float) - pts, 0.0) + np.maximum(pts - np.asarray(hi, float), 0.0)
+    return float(np.min(np.linalg.norm(outside, axis=1)))
+
+
 def ellipsoid_distance(p, semi_axes):
     """Distance from a point outside an ellipsoid (centred, axis-aligned) to it (Eberly, "Distance from a point
     to an ellipse, an ellipsoid, or a hyperellipsoid"): the root t > 0 of sum (a_i p_i / (t + a_i^2))^2 = 1 by

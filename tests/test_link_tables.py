@@ -153,7 +153,7 @@ def _tables_equal_layouts(cfg, model, t, pairs, per_pair: int = 8) -> dict:
             found = layout_clearances(M.model_of(cfg), row)
             got = next(c for c in found if c.check == name)
             for arm, at in ((x.upper(), i), (y.upper(), j)):  # each arm against the patient and the table
-                around = min((c for c in found if c.check in (f"{arm} and the patient", f"{arm} and the table")),
+                around = min((c for c in found if c.check in (f"{arm} and the patient", f"{arm} and the bedside")),
                              key=lambda c: c.clearance_mm)
                 a = ("PSM1", "PSM2", "PSM3", "ECM").index(arm)
                 assert float(t.arm_value[a, at, p]) == pytest.approx(around.clearance_mm / 1000, abs=1e-6)

@@ -113,7 +113,8 @@ def test_the_dvrk_export_puts_each_psm_rcm_on_its_port_by_the_reference_kinemati
     (tmp_path / "c.toml").write_text(
         "[patient.port_region]\nsite_spacing_mm = 36.0\n[target]\nspacing_mm = 15.0\n"
         "[cart]\nmodel = \"classic\"\naround_step_deg = 30.0\ndistance_step_mm = 300.0\n"
-        "[robot]\ndocking_roll_deg = -45.0\n")  # at roll 0 no layout of this grid keeps its links clear
+        "[robot]\ndocking_roll_deg = -45.0\n"  # at roll 0 no layout of this grid keeps its links clear
+        "[bedside]\narms = \"none\"\n")  # out on their boards, the arms leave none of its 2 (test_bedside's ground)
     r = cli("port-place", "c.toml", "--store", tmp_path / "s", cwd=tmp_path)
     assert "Classic cart" in r.stdout and "setup joints" in r.stdout and "PSM1" in r.stdout
     assert "least clearance outside the body" in r.stdout and "PSM1 and PSM2, over the target" in r.stdout
@@ -343,7 +344,7 @@ def test_the_best_layouts_are_screened_for_their_links_clearance(monkeypatch):
         seen.append(row["design_id"])
         v = least_mm.get(row["design_id"], -50.0)
         return [clashes.Clearance("PSM1 and PSM2, docked", v, "a", "b", "docked"),
-                clashes.Clearance("PSM1 and the table", v + 10, "c", "table", "docked")]
+                clashes.Clearance("PSM1 and the bedside", v + 10, "c", "table", "docked")]
 
     rolled = {}  # design -> (rolls, least clearance) that the roll search finds
 

@@ -77,6 +77,7 @@ def test_three_psm_port_placement_on_dask_equals_threads_and_its_feasible_rows(t
     # two PSMs with the arms' links in feasible (the default's 0 mm): each worker builds the link tables itself
     links = study.config_model.model_validate({**small, "robot": {"instrument_count": 2, "docking_roll_deg": -45.0},
                                                "constraints": {},  # at roll 0 none keeps its links clear
+                                               "bedside": {"arms": "none"},  # out on boards they leave none
                                                "patient": {"port_region": {"site_spacing_mm": 36.0}}})
     threads = run("links-threads", links, jobs=2, chunk=20_000)
     dask = run("links-dask", links, jobs=2, backend="dask", scheduler=dask_cluster.scheduler_address, chunk=20_000)

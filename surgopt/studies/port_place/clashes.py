@@ -1,17 +1,18 @@
 """A docked layout's clearances outside the body (issue 40): each arm's setup-joint links and its own links
 (``robots/dvrk/links.py``) as capsules in the patient's frame, docked and at the joint values that reach each
 target point, placed as the rows place them (``link_tables.placed_arm``), checked between arms, against the patient
-and against the table (``kinematics.port.capsules``).
+and against the bedside (``kinematics.port.capsules``).
 
 Between two arms the least is over every pair of their poses (each instrument at any of its target points, the
 other at any of its own: they move independently), the ECM held where it docks. Against the patient and the
 table, every link but those that pass through the port (the shafts) at every pose, at points along the link at
 most ``SPACING_M`` apart (the least over-reads by at most half that, and on a dome by the surface samples' gap);
-the table as a slab under the patient frame's z = 0 of ``TABLE_THICKNESS_M`` (an assumption), tilted with it.
+the bedside as boxes in the patient frame, tilted with the table (``bedside.py``: the table's slab, its rails, the
+patient's arms and legs).
 The answer is also checked over every target point (``whole_target_clearances``, #54 item 3).
 
 One module of ~450 lines: one layout's clearances as the report, the figures and the export ask for them (the
-arms placed per pose, between arms, against the patient and the table, over the whole target, the docking roll
+arms placed per pose, between arms, against the patient and the bedside, over the whole target, the docking roll
 that clears), all sharing ``ArmPoses`` and one memo of answers; the rows' tables are ``link_tables``.
 """
 from __future__ import annotations
@@ -89,15 +90,17 @@ def against_patient(cfg, a: ArmPoses) -> Clearance:
                      f"{a.arm} {a.poses[pose]}{note}")
 
 
-def against_table(cfg, a: ArmPoses) -> Clearance:
-    """(C2) The least clearance of the arm's links to the table (a slab under the patient, in its frame) at any
-    pose, measured as the rows measure it (``link_tables.to_table``: each link exact by golden-section search)."""
-    from surgopt.studies.port_place.link_tables import to_table
+def against_bedside(cfg, a: ArmPoses) -> Clearance:
+    """(C2) The least clearance of the arm's links to the bedside (the table's slab, its rails, the patient's arms
+    and legs: ``bedside.bedside_boxes``, in the patient's frame) at any pose, and which, measured as the rows
+    measure it (``link_tables.to_bedside``: each link exact by golden-section search)."""
+    from surgopt.studies.port_place.bedside import BEDSIDE
+    from surgopt.studies.port_place.link_tables import to_bedside
 
-    c = to_table(cfg, a.segments, a.radii)
+    c, which = to_bedside(cfg, a.segments, a.radii)
     pose, link = np.unravel_index(int(np.argmin(c)), c.shape)
-    return Clearance(f"{a.arm} and the table", float(c[pose, link] * 1000), a.names[link], "table",
-                     f"{a.arm} {a.poses[pose]}")
+    return Clearance(f"{a.arm} and the bedside", float(c[pose, link] * 1000), a.names[link],
+                     BEDSIDE[which[pose, link]], f"{a.arm} {a.poses[pose]}")
 
 
 #: Answers (a layout's clearances, or its roll search) a process keeps: the closing report screens up to
@@ -139,7 +142,7 @@ def in_feasible(cfg) -> str:
 
 def layout_clearances(model, row: dict, docked=None) -> list[Clearance]:
     """Every least clearance of a layout's row on the cart (its ports and cart pose): each pair of docked arms
-    (docked and over the target), each arm against the patient and the table. Arms that do not dock are left
+    (docked and over the target), each arm against the patient and the bedside. Arms that do not dock are left
     out (their setup joints have no solution to place links at). ``docked``: the arms docked otherwise than the
     row's own docking (rolled); without it the answer is kept for the process (``memoised``)."""
     from surgopt.studies.port_place.tables import docked_arms, row_patient_in_cart
@@ -157,7 +160,7 @@ def layout_clearances(model, row: dict, docked=None) -> list[Clearance]:
         for j in range(i + 1, len(arms)):
             out += between(arms[i], arms[j])
     out += [against_patient(cfg, a) for a in arms]
-    out += [against_table(cfg, a) for a in arms]
+    out += [against_bedside(cfg, a) for a in arms]
     return out
 
 
@@ -396,8 +399,8 @@ def _rolls_that_clear(model, row: dict) -> RollsThatClear:
 
 def mounts_below_table_top(cfg, row: dict, docked) -> dict:
     """Each docked arm whose mount (the setup joints' last frame, where the arm's own links begin) lies below the
-    table top: its depth there (mm). Clear of the table slab the model has, such an arm still rises from beside the
-    table, where the patient's arms, the arm boards and the rails stand (not modelled): a docking to check."""
+    table top: its depth there (mm). Clear of the bedside the model has (``bedside.py``), such an arm still rises from
+    beside the table, where the model's boxes are only assumed sizes: a docking to check."""
     from surgopt.kinematics.port import suj as S
     from surgopt.studies.port_place.tables import row_patient_in_cart
 
@@ -450,4 +453,4 @@ def below_table_note(cfg, row: dict, docked) -> str:
     if not low:
         return ""
     return ("; " + ", ".join(f"{a}'s mount {d:.0f} mm below the table top" for a, d in low.items())
-            + " (beside the table: the patient's arms, arm boards and rails there are not modelled; check that side)")
+            + " (beside the table: clear of the bedside's boxes, whose sizes are assumptions; check that side)")

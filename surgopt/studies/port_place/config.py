@@ -426,7 +426,8 @@ class Cart(StrictModel):
     mount_below_table_top: Literal["refuse", "allow"] = Field(
         "refuse", description="'refuse': a PSM does not dock where its setup joints would hold its mount (their last "
                               "frame, where the arm's own links begin) below the table top: beside the table stand "
-                              "the patient's arms, the arm boards and the rails (issue 54); 'allow': it may")
+                              "the patient's arms, the arm boards and the rails (issue 54; the bedside's boxes hold them at "
+                              "assumed sizes, [bedside]); 'allow': it may")
     trendelenburg_deg: float = Field(0.0, ge=-40.0, le=40.0, description="head down (positive) or up")
     lateral_tilt_deg: float = Field(0.0, ge=-40.0, le=40.0, description="the patient's left side up (positive)")
 
@@ -481,6 +482,36 @@ def grid_count(span, step: float) -> float:
     return math.floor((hi + 1e-9 - lo) / step) + 1 if (hi - lo) / step < 1e15 else math.inf
 
 
+class Bedside(StrictModel):
+    """What stands on and beside the table, as boxes the arms' links must clear (``bedside.py``, #54): the side
+    rails, the patient's arms and legs. With the cart's links only."""
+
+    rails: bool = Field(True, description="the table's side rails along both long sides (ISO 19054's 25 x 10 mm "
+                                          "profile; its stand-off 20 mm, an assumption)")
+    arms: Literal["tucked", "out", "none"] = Field(
+        "out", description="the patient's arms: 'out' on arm boards at 90 deg at the shoulders (a board 150 x 660 mm, "
+                           "the arm 120 mm above it), 'tucked' at the sides on the table's edge (110 mm wide, 120 mm "
+                           "high, 750 mm from the shoulder), or 'none' (sizes: assumptions)")
+    legs: Literal["flat", "lithotomy", "none"] = Field(
+        "none", description="the patient's legs: 'none' (not modelled: the default cart docks from the side), 'flat' "
+                            "on the table from the hips to its foot end (each 180 mm wide, 170 mm high), or "
+                            "'lithotomy' up in stirrups (each a box 450 mm from the hip, 100-500 mm off the midline, "
+                            "800 mm high: docking from the foot between them) (sizes: assumptions)")
+    shoulder_y_mm: float = Field(420.0, ge=-3000.0, le=3000.0, allow_inf_nan=False,
+                                 description="the shoulders' level, cranial in the patient frame (assumption: 420 mm "
+                                             "above the umbilicus, the dome's origin)")
+    hip_y_mm: float = Field(-220.0, ge=-3000.0, le=3000.0, allow_inf_nan=False,
+                            description="the hips' level, cranial in the patient frame (assumption: 220 mm below the "
+                                        "umbilicus)")
+
+    @model_validator(mode="after")
+    def _shoulders_above_hips(self):
+        if self.shoulder_y_mm <= self.hip_y_mm:
+            raise ValueError(f"bedside.shoulder_y_mm ({self.shoulder_y_mm:g}) must lie cranial of bedside.hip_y_mm "
+                             f"({self.hip_y_mm:g})")
+        return self
+
+
 class GivenPort(StrictModel):
     """One arm's port of a surgeon's own layout (``[given_layout]``): a top-view point of the patient frame (x_mm,
     y_mm), or a landmark and offsets from it along the patient's left and toward the head (mm); taken to the nearest
@@ -525,6 +556,7 @@ class PortPlaceConfig(StrictModel):
     constraints: Constraints = Constraints()
     objective: Objective = Objective()
     cart: Cart = Cart()
+    bedside: Bedside = Bedside()
     rows_stored: Literal["all", "feasible"] = Field("all", description="'feasible': store only the feasible "
                                                     "designs' rows (the 3-PSM enumeration's 3.5 x 10^8 designs "
                                                     "would fill ~15 GB on disk at the 44 bytes a row measured for "

@@ -246,6 +246,12 @@ def reach_maps(plt, cfg, sites, t, dex, out):
     return save(fig, out / "port_place_reach_top.png")
 
 
+def box_edges(lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
+    """(12, 2, 3) A box's edges from its corners."""
+    corners = np.array([[hi[i] if (c >> i) & 1 else lo[i] for i in range(3)] for c in range(8)])
+    return np.array([[corners[a], corners[a | 1 << i]] for a in range(8) for i in range(3) if not (a >> i) & 1])
+
+
 def cart_figure(plt, model, row: dict, out, note: str = ""):
     """The layout on the cart, in the cart's world frame (m; the floor at z = 0): the patient's surface and the
     table, each arm's setup joints as the polyline of their frames (base, each link, the SUJ's tip), the arm's
@@ -270,9 +276,12 @@ def cart_figure(plt, model, row: dict, out, note: str = ""):
         x, y, z = dome_surface_mm((a, b, h), cfg.patient.dome_exponent, u, v)
         pts = to_cart(np.stack([x, y, z], -1).reshape(-1, 3) / 1000).reshape(x.shape + (3,))
         ax.plot_wireframe(pts[..., 0], pts[..., 1], pts[..., 2], color="0.75", lw=0.4)
-    w, (y0, y1) = cfg.cart.table_half_width_mm / 1000, (v / 1000 for v in cfg.cart.table_y_mm)
-    table = to_cart(np.array([[-w, y0, 0], [w, y0, 0], [w, y1, 0], [-w, y1, 0], [-w, y0, 0]]))
-    ax.plot(*table.T, color="0.5", lw=1, label="table top")
+    from surgopt.studies.port_place.bedside import bedside_boxes
+
+    for k, box in enumerate(bedside_boxes(cfg)):  # the table's slab, its rails, the patient's arms and legs
+        for e, edge in enumerate(box_edges(box.lo, box.hi)):
+            label = None if e else "table" if k == 0 else "the bedside: rails, the patient's arms, legs" if k == 1 else None
+            ax.plot(*to_cart(edge).T, color="0.5" if k == 0 else "tab:brown", lw=0.8, label=label)
     (fx0, fy0), (fx1, fy1) = PLATFORMS[cfg.cart.model].footprint_m  # the cart's base on the floor, its world frame
     floor_z = -PLATFORMS[cfg.cart.model].world_above_floor_m
     ax.plot([fx0, fx1, fx1, fx0, fx0], [fy0, fy0, fy1, fy1, fy0], [floor_z] * 5, color="0.25", lw=1.2,

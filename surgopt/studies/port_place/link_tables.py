@@ -8,7 +8,7 @@ joints' links and each arm's own), docked and over the target, factored as the i
   ECM held docked (its setup joints and its own links, ``ecm_static``);
 - per (site pair), the two PSMs' own links over every pair of their poses (``capsules.moving_pairs``), once
   for every cart pose; per (site pair, pose) the rest (``capsules.pair_clearances``);
-- per (arm, site, pose), each arm against the patient's body and the table (``arm_surroundings``: a PSM's own
+- per (arm, site, pose), each arm against the patient's body and the bedside (``arm_surroundings``: a PSM's own
   links once per site).
 
 All in the patient's frame (the cart's pose moves the setup joints only). The tables are dense over (site, site,
@@ -32,16 +32,15 @@ import numpy as np
 from surgopt.kinematics.port.capsules import LINK_CODE, PAIR_CODE
 from surgopt.robots.dvrk.links import SUJ_ON_COLUMN as FIRST_SUJ_LINK, through_port
 from surgopt.robots.dvrk.platforms import PLATFORMS
+from surgopt.studies.port_place.bedside import BEDSIDE
 from surgopt.studies.port_place.geometry import TABLE_THREADS
 
 #: The arm pairs whose links are checked, in the order of the rows' ``external_link_pair`` code (PAIR_CODE * pair +
 #: LINK_CODE * link of the first + link of the second: ``kinematics.port.capsules``).
 ARM_PAIRS = (("PSM1", "PSM2"), ("PSM1", "ECM"), ("PSM2", "ECM"), ("PSM1", "PSM3"), ("PSM2", "PSM3"),
              ("PSM3", "ECM"))
-#: Points along a link at most this far apart (m) where its clearance to the patient is measured, and the table's
-#: thickness as a slab under the patient frame's z = 0 (m, an assumption).
+#: Points along a link at most this far apart (m) where its clearance to the patient is measured.
 SPACING_M = 0.01
-TABLE_THICKNESS_M = 0.10
 #: Against the patient, clearances are resolved up to this (mm); a link farther off reads as this much.
 PATIENT_CAP_MM = 150.0
 #: Clearances are resolved up to this much above the config's least (m): a pair farther apart reads as that much
@@ -110,7 +109,7 @@ def link_names(arm: str, cart: str = "classic") -> tuple[str, ...]:
 #: The arms checked against their surroundings, in the order of the rows' codes PAIR_CODE * (6 + arm) + LINK_CODE * link +
 #: what (``SURROUNDINGS``).
 ARMS = ("PSM1", "PSM2", "PSM3", "ECM")
-SURROUNDINGS = ("patient's body", "table")
+SURROUNDINGS = ("patient's body", *BEDSIDE)
 
 
 def pair_name(code: int, cart: str = "classic") -> str:
@@ -125,21 +124,21 @@ def pair_name(code: int, cart: str = "classic") -> str:
     return f"{link_names(a, cart)[link]} / {link_names(b, cart)[other]}"
 
 
-def table_box(cfg) -> tuple[np.ndarray, np.ndarray]:
-    """The table as a slab under the patient frame's z = 0 (``clashes.against_table``'s): (lo, hi), m."""
-    w = cfg.cart.table_half_width_mm / 1000
-    return (np.array([-w, cfg.cart.table_y_mm[0] / 1000, -TABLE_THICKNESS_M]),
-            np.array([w, cfg.cart.table_y_mm[1] / 1000, 0.0]))
-
-
-def to_table(cfg, segs: np.ndarray, radii: np.ndarray) -> np.ndarray:
-    """(C2) (K, L) Each link's clearance (m) to the table (the slab, exact by golden-section search) for each item of
-    ``segs`` (K, L, 2, 3), patient frame."""
+def to_bedside(cfg, segs: np.ndarray, radii: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(C2) Each link's clearance (m) to the bedside (``bedside.bedside_boxes``: the table's slab, its rails, the
+    patient's arms and legs; each box exact by golden-section search) for each item of ``segs`` (K, L, 2, 3),
+    patient frame, and the nearest box's index in ``bedside.BEDSIDE``: ((K, L), (K, L))."""
     from surgopt.kinematics.port.capsules import segments_box_distance
+    from surgopt.studies.port_place.bedside import BEDSIDE, bedside_boxes
 
-    lo, hi = table_box(cfg)
     k, n = segs.shape[:2]
-    return segments_box_distance(np.ascontiguousarray(segs.reshape(-1, 2, 3)), lo, hi).reshape(k, n) - radii[None]
+    flat = np.ascontiguousarray(segs.reshape(-1, 2, 3))
+    value, which = np.full(len(flat), np.inf), np.zeros(len(flat), np.int64)
+    for box in bedside_boxes(cfg):
+        d = segments_box_distance(flat, box.lo, box.hi)
+        nearer = d < value
+        value, which = np.where(nearer, d, value), np.where(nearer, BEDSIDE.index(box.name), which)
+    return value.reshape(k, n) - radii[None], which.reshape(k, n)
 
 
 def to_patient_body(cfg, segs: np.ndarray, radii: np.ndarray, through: np.ndarray) -> np.ndarray:
@@ -169,19 +168,20 @@ def to_patient_body(cfg, segs: np.ndarray, radii: np.ndarray, through: np.ndarra
 
 def surroundings(cfg, segs: np.ndarray, radii: np.ndarray, through: np.ndarray, valid: np.ndarray):
     """(C2, C3) Per item of ``segs`` (K, L, 2, 3), patient frame, where ``valid``: the least clearance (m) of its
-    links to the patient's body (``to_patient_body``) and to the table (``to_table``), and its code LINK_CODE * link
-    + (0 patient, 1 table): (value (K,), code (K,)), NaN and -1 elsewhere. One layout's checks (``clashes``) read
-    the same two functions."""
+    links to the patient's body (``to_patient_body``) and to the bedside (``to_bedside``), and its code LINK_CODE *
+    link + (0 the patient, 1 + the box's index in ``bedside.BEDSIDE``: ``SURROUNDINGS``): (value (K,), code (K,)),
+    NaN and -1 elsewhere. One layout's checks (``clashes``) read the same two functions."""
     n_item, n_link = segs.shape[:2]
     value, code = np.full(n_item, np.nan), np.full(n_item, -1, np.int64)
     idx = np.flatnonzero(valid)
     if not len(idx):
         return value, code
-    both = np.stack([to_patient_body(cfg, segs[idx], radii, through), to_table(cfg, segs[idx], radii)],
-                    axis=2).reshape(len(idx), n_link * 2)
+    bedside, which = to_bedside(cfg, segs[idx], radii)
+    both = np.stack([to_patient_body(cfg, segs[idx], radii, through), bedside], axis=2).reshape(len(idx), n_link * 2)
     best = np.argmin(both, axis=1)
     value[idx] = both[np.arange(len(idx)), best]
-    code[idx] = LINK_CODE * (best // 2) + best % 2
+    on_bedside = best % 2 == 1
+    code[idx] = LINK_CODE * (best // 2) + np.where(on_bedside, 1 + which[np.arange(len(idx)), best // 2], 0)
     return value, code
 
 
@@ -473,7 +473,7 @@ def moving_starts(tasks, n, moving_x, balls_x, moving_y, balls_y, radii, groups,
 
 
 def arm_surroundings(cfg, moving, r_own, static, docks):
-    """Each arm against the patient and the table at each (site, pose) where it docks (``surroundings``): a PSM's
+    """Each arm against the patient and the bedside at each (site, pose) where it docks (``surroundings``): a PSM's
     own links (``moving``, per PSM) once per site over its poses (its docked frame does not depend on the cart),
     the least of those and its setup joints' at the pose; the ECM held docked. (value (4, n, m) m, NaN where it
     does not dock; code (4, n, m): LINK_CODE * link + what, the links numbered as ``link_names``.)"""

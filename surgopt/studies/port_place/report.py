@@ -89,9 +89,9 @@ def within_band(values, band) -> str:
 #: What every answer leaves out (docs/port_placement.md, "What the model leaves out"), said in the closing report.
 NOT_MODELLED = ("the Xi's setup joints, each PSM's docking turn as a dimension of the rows (the Classic's roll, the "
                 "Si's yaw off psi*: the rows take the run's; the report tries them on cheaper layouts as advice, never as the answer), tissue "
-                "and the body wall's thickness (a port is a point), the assistant's port, the table's rails and arm "
-                "boards and the patient's arms; the setup joints' and the ECM's link radii are assumptions, the PSMs' "
-                "are capsules about their meshes (docs/port_placement.md, what the model leaves out)")
+                "and the body wall's thickness (a port is a point), the assistant's port, the table's pedestal and "
+                "the staff; the bedside (rails, the patient's arms and legs) is boxes of assumed size (bedside.py); "
+                "the setup joints' and the ECM's link radii are assumptions, the PSMs' are capsules about their meshes (docs/port_placement.md, what the model leaves out)")
 
 
 def summary(parts) -> Summary:
@@ -199,6 +199,10 @@ def summary(parts) -> Summary:
         tables = given_tables + tables
     if "cart" in meta:
         headline["cart"] = meta["cart"]
+    if cfg is not None and "external_link_pair" in parts.schema.names:  # what the links clear beside the table
+        from surgopt.studies.port_place.bedside import bedside_words
+
+        headline["bedside"] = bedside_words(cfg)
     headline["not_modelled"] = NOT_MODELLED
     if "cart_pose" in parts.schema.names and meta.get("rows_stored") != "feasible":
         counts["infeasible only for docking (feasible without the cart)"] = only_docking
