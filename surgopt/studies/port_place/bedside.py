@@ -117,6 +117,6 @@ def bedside_words(cfg) -> str:
             "none": "not the patient's arms (bedside.arms = 'none')"}[bed.arms]
     legs = {"flat": "the legs flat on the table", "lithotomy": "the legs up in lithotomy stirrups",
             "none": "not the legs (bedside.legs = 'none')"}[bed.legs]
-    return (f"the arms' links clear the table's slab" + (", its ISO 19054 side rails" if bed.rails else "")
+    return ("the arms' links clear the table's slab" + (", its ISO 19054 side rails" if bed.rails else "")
             + f", {arms} and {legs}; shoulders at y = {bed.shoulder_y_mm:g} mm, hips at {bed.hip_y_mm:g} mm; the "
             "rails' profile is ISO 19054's, every other size an assumption (bedside.py)")

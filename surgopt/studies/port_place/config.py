@@ -290,6 +290,13 @@ class Robot(StrictModel):
         "angle after docking: 0, its yaw swings the shaft across the patient; 90, head to foot. Ports on the "
         "patient's left (x >= 0) turn the frame's x toward the head, on the right toward the feet (mirror "
         "images, so a symmetric patient gives a symmetric answer); a negative angle turns each the other way")
+    docking_rolls_deg: list[Annotated[float, Field(ge=-90.0, le=90.0, allow_inf_nan=False)]] | None = Field(
+        None, min_length=1, max_length=12,
+        description="the docking roll as a dimension of the enumeration (#54): every layout docked at each of these "
+                    "rolls (each as docking_roll_deg, mirrored by the port's side), one block of designs per roll in "
+                    "this order (design_id's block says its roll; the rows' psm1_roll_deg ... the signed roll), the "
+                    "answer the cheapest feasible row over all; unset: docking_roll_deg alone. With docking_roll = "
+                    "'given' and the Classic's rolls; the time and the tables' memory grow with the count")
     docking_roll: Literal["given", "most_reach", "search"] = Field(
         "given", description="'given': docking_roll_deg at every port; 'most_reach': at each port the roll of "
                              "0, 15, ..., 90 deg (mirrored as docking_roll_deg) that reaches the most target "
@@ -301,10 +308,25 @@ class Robot(StrictModel):
     def _rcm_instrument_choices(self):
         if self.instrument_serial is None:
             return self
-        for name in ("tip_beyond_wrist_mm", "min_wrist_depth_mm", "docking_roll_deg", "docking_roll"):
+        for name in ("tip_beyond_wrist_mm", "min_wrist_depth_mm", "docking_roll_deg", "docking_roll",
+                     "docking_rolls_deg"):
             if getattr(self, name) != type(self).model_fields[name].default:  # a stored config lists every field
                 raise ValueError(f"{name} goes with an RCM instrument arm (instrument_arm or instrument_file); a "
                                  f"serial arm's tool is its own tool_m, its base turns by docking_range_deg")
+        return self
+
+    @model_validator(mode="after")
+    def _rolls_enumerated_once_each(self):
+        rolls = self.docking_rolls_deg
+        if rolls is None:
+            return self
+        if self.docking_roll != "given":
+            raise ValueError(f"docking_rolls_deg enumerates the rolls itself: docking_roll must be 'given' (not "
+                             f"{self.docking_roll!r})")
+        if len(set(rolls)) != len(rolls):
+            raise ValueError(f"docking_rolls_deg lists a roll twice ({rolls}): each is a block of the enumeration")
+        if self.docking_roll_deg != 0.0:
+            raise ValueError("give docking_rolls_deg (every roll enumerated) or docking_roll_deg (one roll), not both")
         return self
 
     @model_validator(mode="after")
@@ -608,6 +630,13 @@ class PortPlaceConfig(StrictModel):
             if port is not None and port.landmark is not None and port.landmark not in names:
                 raise ValueError(f"given_layout.{arm}.landmark: {port.landmark!r} is not a landmark of this patient "
                                  f"({', '.join(names)}; name it in patient.landmarks_mm)")
+        return self
+
+    @model_validator(mode="after")
+    def _enumerated_rolls_on_the_grid(self):
+        if self.robot.docking_rolls_deg and self.search != "grid":
+            raise ValueError("robot.docking_rolls_deg enumerates the rolls on the grid: a [search] takes each PSM's "
+                             "roll as its own dimension (docking_roll = 'search')")
         return self
 
     @model_validator(mode="after")

@@ -63,12 +63,12 @@ def dvrk_setup(cfg: PortPlaceConfig, row: dict) -> str:
     ``suj_tip_to_tool_origin`` as used, its port (mm, patient frame), its base (RCM) frame in the cart's world
     frame, and its own joints at the target's centre."""
     from surgopt.studies.port_place.layout import arm_joints_at_centre, layout_of
-    from surgopt.studies.port_place.model import model_of
+    from surgopt.studies.port_place.rolls import model_for
     from surgopt.studies.port_place.tables import camera_tips
 
     refuse_undocked("dvrk", cfg, row)
     centre = np.asarray(cfg.target.centre_mm, float) / 1000
-    model = model_of(cfg)
+    model = model_for(cfg, row)  # (with rolls enumerated: its roll's)
     layout = layout_of(model, row)
     patient = layout.patient_in_cart
     arms = []
@@ -140,10 +140,10 @@ def suj_fixed(cfg: PortPlaceConfig, row: dict) -> str:
     invalid, rather than holding a frame no one chose. A comment at the top (the dVRK's JSON reader takes them)
     names the run, the design and the teleoperation pairing that keeps the surgeon's hands uncrossed."""
     from surgopt.studies.port_place.layout import layout_of
-    from surgopt.studies.port_place.model import model_of
+    from surgopt.studies.port_place.rolls import model_for
 
     refuse_undocked("dvrk-suj-fixed", cfg, row)
-    layout = layout_of(model_of(cfg), row)
+    layout = layout_of(model_for(cfg, row), row)
     docking, frames = layout.docking, layout.frames_of()
     arms = []
     for name in SUJ_FIXED_ARMS:
@@ -174,10 +174,10 @@ def dvrk_console(cfg: PortPlaceConfig, row: dict) -> str:
     the dVRK's simulated kinematics (``Platform.console_arm_files``); a real system names its own, as the comment at
     the top says."""
     from surgopt.studies.port_place.layout import layout_of
-    from surgopt.studies.port_place.model import model_of
+    from surgopt.studies.port_place.rolls import model_for
 
     refuse_undocked("dvrk-console", cfg, row)
-    frames = layout_of(model_of(cfg), row).frames_of()
+    frames = layout_of(model_for(cfg, row), row).frames_of()
     psm_file, ecm_file = PLATFORMS[cfg.cart.model].console_arm_files
     arms = [{"name": "MTML", "type": "MTM", "simulation": "KINEMATIC", "arm": "arm/MTML_KIN_SIMULATED.json"},
             {"name": "MTMR", "type": "MTM", "simulation": "KINEMATIC", "arm": "arm/MTMR_KIN_SIMULATED.json"},

@@ -90,15 +90,17 @@ def held_arms(ax, model, sites_m: np.ndarray, ports: list) -> bool:
 
 def figures(cfg, table, out, design_id=None):
     from surgopt.studies.port_place.model import model_of
+    from surgopt.studies.port_place.rolls import at_roll, docking_rolls, model_for
 
     plt = pyplot()
     c = columns(table)
-    model = model_of(cfg)
+    row = chosen(c, design_id, cfg)
+    # the drawn layout's roll's tables (with rolls enumerated; the sites are every roll's)
+    model = (model_of(at_roll(cfg, docking_rolls(cfg)[0])) if row is None else model_for(cfg, row_of(c, row)))
     sites_m, (port_tables, _, dex) = model.sites_m, model.grid
     sites = sites_m * 1000
     targets = model.targets_m * 1000
     per_site = best_per_site(c, len(sites))
-    row = chosen(c, design_id, cfg)
     paths = []
 
     # 3-D: the dome, the candidate sites, the chosen ports with their shafts, the target by dexterity
@@ -175,8 +177,9 @@ def figures(cfg, table, out, design_id=None):
     if has_cart(cfg) and row is not None and c["cart_pose"][row] >= 0:
         paths.append(cart_figure(plt, model, row_of(c, row), out))
     elif has_cart(cfg) and design_id is None and (clash := cheapest_clash(c)) is not None:
-        paths.append(cart_figure(plt, model, row_of(c, clash), out, "no layout's links clear: the cheapest that "
-                                 "fails on them alone"))
+        drawn = row_of(c, clash)
+        paths.append(cart_figure(plt, model_for(cfg, drawn), drawn, out, "no layout's links clear: the cheapest "
+                                 "that fails on them alone"))
 
     # why designs fail
     from surgopt.kinematics.port.reasons import REASONS

@@ -56,18 +56,23 @@ def given_points_mm(cfg) -> dict:
 
 def score_given(cfg) -> GivenScore:
     """The given layout evaluated as the enumeration evaluates its rows (``evaluate_designs``), at the candidate
-    sites nearest its ports (top view)."""
+    sites nearest its ports (top view); with the docking rolls enumerated, at each of them, the cheapest feasible
+    docking taken (else the cheapest), as a team would choose its roll."""
     from surgopt.studies.port_place.designs import evaluate_designs, nearest_sites
     from surgopt.studies.port_place.model import model_of
+    from surgopt.studies.port_place.rolls import at_roll, docking_rolls
 
-    model = model_of(cfg)
+    model = model_of(at_roll(cfg, docking_rolls(cfg)[0]))
     points = given_points_mm(cfg)
     arms = arms_of(cfg)
     xy = np.array([points[a] for a in arms], float)
     sites = nearest_sites(model.sites_m[:, :2] * 1000, xy)
     moved = {a: float(np.hypot(*(model.sites_m[s, :2] * 1000 - xy[k]))) for k, (a, s) in enumerate(zip(arms, sites))}
-    cols = evaluate_designs(cfg, sites[None].astype(float), np.array([-1]), "given")
-    row = {c: (v[0].item() if hasattr(v[0], "item") else v[0]) for c, v in cols.items()}
+    rows = []
+    for roll in docking_rolls(cfg):
+        cols = evaluate_designs(at_roll(cfg, roll), sites[None].astype(float), np.array([-1]), "given")
+        rows.append({c: (v[0].item() if hasattr(v[0], "item") else v[0]) for c, v in cols.items()})
+    row = min(rows, key=lambda r: (not r["feasible"], r["cost"]))
     return GivenScore(row, points, {a: int(s) for a, s in zip(arms, sites)}, moved)
 
 

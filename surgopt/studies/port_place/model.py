@@ -112,6 +112,9 @@ def prepare(cfg: PortPlaceConfig) -> PortModel:
     """Build the model of a validated config (the grid's tables on first use of ``PortModel.grid``)."""
     from surgopt.kinematics.port import place as K
 
+    if cfg.robot.docking_rolls_deg:  # a caller's slip, not a user's: each roll's block has a model of its own
+        raise RuntimeError("a port-place model is of one docking roll: ask for rolls.at_roll(cfg, roll)'s, or a "
+                           "row's (rolls.model_for)")
     sites = sites_mm(cfg) / 1000
     centre = np.asarray(cfg.target.centre_mm, float) / 1000
     instruments, endoscope = instruments_held(cfg).prepare(cfg, centre), camera_held(cfg).prepare(cfg)
@@ -122,15 +125,22 @@ def prepare(cfg: PortPlaceConfig) -> PortModel:
         instruments=instruments, endoscope=endoscope)
 
 
-_held: list = [None, None]  # [the canonical JSON of the config, its model]
+#: The models a process keeps, the latest last: two, so that the threads working across a boundary between two
+#: docking rolls' blocks (``rolls.py``) do not rebuild each other's.
+HELD_MODELS = 2
+_held: dict = {}  # the canonical JSON of a config -> its model
 _held_lock = threading.Lock()
 
 
 def model_of(cfg: PortPlaceConfig) -> PortModel:
-    """The model of ``cfg``, built once per process and kept while the process runs that config (one at a time:
-    a second config replaces the first)."""
+    """The model of ``cfg``, built once per process and kept while the process runs that config (the
+    HELD_MODELS latest configs: another replaces the oldest)."""
     key = cfg.model_dump_json()
     with _held_lock:
-        if _held[0] != key:
-            _held[:] = [key, prepare(cfg)]
-        return _held[1]
+        if key not in _held:
+            while len(_held) >= HELD_MODELS:
+                _held.pop(next(iter(_held)))
+            _held[key] = prepare(cfg)
+        else:
+            _held[key] = _held.pop(key)  # the latest last
+        return _held[key]

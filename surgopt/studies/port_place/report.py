@@ -25,6 +25,7 @@ from surgopt.robots.dvrk.platforms import PLATFORMS
 from surgopt.studies.port_place.config import PortPlaceConfig
 from surgopt.studies.port_place.geometry import FRAME_TEXT, from_landmark
 from surgopt.studies.port_place.hands import pairing_words
+from surgopt.studies.port_place.rolls import config_of_design, config_of_row, model_for, per_roll
 from surgopt.studies.port_place.columns import links_of
 
 
@@ -87,8 +88,10 @@ def within_band(values, band) -> str:
 
 
 #: What every answer leaves out (docs/port_placement.md, "What the model leaves out"), said in the closing report.
-NOT_MODELLED = ("the Xi's setup joints, each PSM's docking turn as a dimension of the rows (the Classic's roll, the "
-                "Si's yaw off psi*: the rows take the run's; the report tries them on cheaper layouts as advice, never as the answer), tissue "
+NOT_MODELLED = ("the Xi's setup joints, each PSM's own docking turn (the rows dock both PSMs at one roll, mirrored by "
+                "their ports' sides: robot.docking_roll_deg, or each of robot.docking_rolls_deg enumerated; the Si's "
+                "yaw off psi* is the run's; the report tries each PSM's own on cheaper layouts as advice, never as "
+                "the answer), tissue "
                 "and the body wall's thickness (a port is a point), the assistant's port, the table's pedestal and "
                 "the staff; the bedside (rails, the patient's arms and legs) is boxes of assumed size (bedside.py); "
                 "the setup joints' and the ECM's link radii are assumptions, the PSMs' are capsules about their meshes (docs/port_placement.md, what the model leaves out)")
@@ -137,6 +140,8 @@ def summary(parts) -> Summary:
                    within_band([b[f] for f in fields], band)]
                   for label, fields, digits, joiner, clinical, band in clinical_checks(cfg)]
         tables.append(("best layout: clinical checks", ["quantity", "value", "clinical number", "within"], checks))
+        if cfg is not None and cfg.robot.docking_rolls_deg:  # the roll a dimension of the rows (#54 item 2)
+            headline["docking_roll"] = docking_roll_words(cfg, b)
         if "image_right_psm" in b:  # which hand drives which arm (#54 item 4)
             headline["hands"] = pairing_words(int(b["image_right_psm"]))
         mark = json.loads(meta["landmark"]) if "landmark" in meta else None
@@ -234,13 +239,12 @@ def whole_target_words(parts, meta: dict, answer: dict) -> str | None:
     from surgopt.studies.port_place.clashes import least, links_modelled, whole_target_clearances
     from surgopt.studies.port_place.columns import WHOLE_TARGET_COLUMN
     from surgopt.studies.port_place.link_tables import POSE_POINTS
-    from surgopt.studies.port_place.model import model_of
 
     cfg = _config_or_none(meta)
     if cfg is None or not links_modelled(cfg) or cfg.constraints.link_least_mm is None:
         return None
-    floor, model = cfg.constraints.link_least_mm, model_of(cfg)
-    worst = least(whole_target_clearances(model, answer))
+    floor = cfg.constraints.link_least_mm
+    worst = least(whole_target_clearances(model_for(cfg, answer), answer))
     if worst is None:
         return None
     points = worst.check.split("(")[-1].rstrip(")")
@@ -254,11 +258,20 @@ def whole_target_words(parts, meta: dict, answer: dict) -> str | None:
              f"({worst.link_a} / {worst.link_b}; {worst.where}), which the rows' check of {POSE_POINTS} points "
              f"passed")
     for row in least_cost_layouts(parts, WHOLE_TARGET_SCREEN + 1).to_pylist()[1:]:
-        other = least(whole_target_clearances(model, row))
+        other = least(whole_target_clearances(model_for(cfg, row), row))
         if other is not None and other.clearance_mm >= floor:
             return words + (f"; design {row['design_id']} (cost {row['cost']:.4g}), the next feasible layout by cost "
                             f"whose links clear over the whole target (by {other.clearance_mm:.0f} mm)")
     return words + f"; none of the next {WHOLE_TARGET_SCREEN} feasible layouts by cost clears over the whole target"
+
+
+def docking_roll_words(cfg, row: dict) -> str:
+    """The answer's docking roll among those the rows enumerated (``rolls.py``), each PSM's signed by its side."""
+    roll = config_of_row(cfg, row).robot.docking_roll_deg
+    signed = ", ".join(f"{a.upper()} {row[f'{a}_roll_deg']:+.0f}" for a in ("psm1", "psm2", "psm3")
+                       if f"{a}_roll_deg" in row)
+    return (f"{roll:g} deg ({signed} by their ports' sides), the cheapest feasible row over the rolls the rows "
+            f"enumerated: {', '.join(f'{r:g}' for r in cfg.robot.docking_rolls_deg)} deg (robot.docking_rolls_deg)")
 
 
 def suj_margin_words(cfg, arm) -> tuple[str, str]:
@@ -280,14 +293,13 @@ def docking_tables(best: dict, meta: dict) -> list:
     and the links' clearances so docked."""
     from surgopt.studies.port_place.clashes import turn_words
     from surgopt.studies.port_place.layout import layout_of
-    from surgopt.studies.port_place.model import model_of
 
     try:
         cfg = stored_config(meta)
     except STORED_ERRORS as exc:
         return [("best layout: the cart", ["note"], [[f"the run's config cannot be read again ({exc}); the cart "
                                                        f"pose is in the row's cart_* columns"]])]
-    model = model_of(cfg)
+    model = model_for(cfg, best)  # (with rolls enumerated: its roll's)
     layout = layout_of(model, best)  # as the export docks it
     docked, rolls, clearances = layout.docked, layout.rolls, layout.clearances
     turned = {arm: deg for arm, deg in rolls.items() if deg}
@@ -349,8 +361,12 @@ def undocked_table(parts, meta: dict) -> list:
     if cfg.cart.pose == "search":  # each trial docked at its own pose, not at the grid's
         return []
     sites = np.column_stack([got[f"{a}_site"][undocked] for a in arms]).astype(np.int64)
-    why = np.where(got["infeasible"][undocked] == OUTSIDE, len(UNDOCKED_WHY) - 1, why_undocked(model_of(cfg).dock,
-                                                                                                sites))
+    ids = got["design_id"][undocked]
+    undocked_why = np.empty(len(ids), np.int64)
+    for block in np.unique(ids // per_roll(cfg)):  # each roll's block by its own roll's dock tables
+        at = np.flatnonzero(ids // per_roll(cfg) == block)
+        undocked_why[at] = why_undocked(model_of(config_of_design(cfg, int(ids[at[0]]))).dock, sites[at])
+    why = np.where(got["infeasible"][undocked] == OUTSIDE, len(UNDOCKED_WHY) - 1, undocked_why)
     rows = [[w, f"{int(np.sum(why == k)):,}"] for k, w in enumerate(UNDOCKED_WHY) if np.any(why == k)]
     return [(f"the {len(best):,} layouts of least cost feasible without the cart: {len(undocked):,} the "
              f"{PLATFORMS[cfg.cart.model].title} cart's setup joints cannot dock at any pose of its grid"
@@ -471,13 +487,11 @@ def clearance_screen(rows: list[dict], meta: dict):
     reach and the setup joints' ranges kept). The word names the first layout that clears docked as its row is
     (the answer's check); a rolled one is advice (``cheaper_if_rolled_words``), never the answer."""
     from surgopt.studies.port_place.clashes import layout_clearances, least, rolls_that_clear, turn_words
-    from surgopt.studies.port_place.model import model_of
 
     try:
         cfg = stored_config(meta)
     except STORED_ERRORS:
         return None
-    model = model_of(cfg)
     out, clear, chosen = [], None, None
     cheaper, feasible = [r for r in rows if not r["feasible"]], [r for r in rows if r["feasible"]]
     # the cheaper layouts that fail only on their links, until one clears rolled (advice), then the feasible rows
@@ -485,6 +499,7 @@ def clearance_screen(rows: list[dict], meta: dict):
     for r in cheaper[:SCREEN_LAYOUTS] + feasible[:SCREEN_LAYOUTS]:
         if chosen is not None and not r["feasible"]:
             continue
+        model = model_for(cfg, r)  # (with rolls enumerated: its roll's)
         c = least(layout_clearances(model, r))
         if c is None:
             continue

@@ -42,22 +42,16 @@ from surgopt.studies.port_place.columns import (CART_COLUMNS, DOCKING_COLUMNS, F
 from surgopt.studies.port_place.designs import (design_dims, design_rows, evaluate_designs,  # noqa: F401 (theirs)
                                                 nearest_sites, reasons, searched_docking)
 from surgopt.studies.port_place.model import model_of
+from surgopt.studies.port_place.rolls import docking_rolls, n_designs, per_roll  # noqa: F401 (n_designs: theirs)
 
 NAME = "port-place"
 KERNEL_VERSION = "port-place-1"
 DEFAULT_CONFIG = "port_place_dvrk.toml"
 CONFIG_HELP = "TOML or YAML config ([patient], [target], [robot], [constraints], [objective]); default: the dVRK example."
 
-def n_designs(n_sites: int, instruments: int = 2) -> int:
-    """Designs of ``n_sites`` candidates (``designs.design_columns``'s enumeration): an unordered working
-    pair of instruments, then (three instruments) the third's port, then the camera's, all distinct:
-    C(n, 2) (n - 2), times (n - 3) with a third instrument."""
-    d = n_sites * (n_sites - 1) // 2 * max(0, n_sites - 2)
-    return d * max(0, n_sites - 3) if instruments == 3 else d
-
-
 def n_total(cfg: PortPlaceConfig) -> int:
-    return n_designs(len(sites_mm(cfg)), cfg.robot.instrument_count)
+    """Every design of the enumeration: the sites' designs at each docking roll (``rolls.docking_rolls``)."""
+    return per_roll(cfg) * len(docking_rolls(cfg))
 
 
 def design_identity(config=None) -> tuple[tuple[str, ...], tuple[str, ...]]:
@@ -249,16 +243,27 @@ def _feasible_metadata(config) -> dict:
 
 def compute_task(cfg, chunk: int, index: int) -> dict:
     """Designs [index*chunk, (index+1)*chunk) of the enumeration, every port docked toward the target's centre
-    (only the feasible ones' rows when ``rows_stored`` is 'feasible')."""
+    (only the feasible ones' rows when ``rows_stored`` is 'feasible'), each roll's block at its own roll
+    (``rolls.blocks``)."""
+    from surgopt.parts import concat_rows
+    from surgopt.studies.port_place.rolls import blocks
+
+    start = index * chunk
+    parts = [block_rows(block, lo, hi, offset)
+             for block, lo, hi, offset in blocks(cfg, start, min(n_total(cfg), start + chunk))]
+    return parts[0] if len(parts) == 1 else concat_rows(parts)
+
+
+def block_rows(cfg, start: int, stop: int, offset: int = 0) -> dict:
+    """The rows of designs ``start`` .. ``stop`` - 1 of one docking roll's enumeration (``cfg`` at that roll),
+    numbered from ``offset``."""
     from surgopt.kinematics.port.designs import design_columns
 
     model = model_of(cfg)
     sites, (t, _, _), crit = model.sites_m, model.grid, model.criteria
-    start = index * chunk
-    stop = min(n_designs(len(sites), cfg.robot.instrument_count), start + chunk)
     ids, f, bad, cost, design_ids, dock = design_columns(t, crit, start, stop, cfg.robot.instrument_count,
                                                          cfg.rows_stored == "feasible")
-    return design_rows(cfg, sites, t, ids, ids, f, bad, cost, design_ids,
+    return design_rows(cfg, sites, t, ids, ids, f, bad, cost, design_ids + offset,
                        np.zeros((len(design_ids), len(docking_columns(cfg)))), dock=dock,
                        floor=model.dock.poses.floor if has_cart(cfg) else None,
                        dock_tables=model.dock if has_cart(cfg) else None)
@@ -281,7 +286,9 @@ def warm_up(cfg) -> None:
     chunks (``compute_task``), or a search's one design at a time (``evaluate_designs``)."""
     from surgopt.kinematics.port.designs import design_columns
     from surgopt.plans.search import optimiser_of
+    from surgopt.studies.port_place.rolls import at_roll
 
+    cfg = at_roll(cfg, docking_rolls(cfg)[0])  # the first roll's block: the others build their own tables
     model = model_of(cfg)
     if optimiser_of(cfg) is None:
         reach, _ = model.site_reach
@@ -301,7 +308,9 @@ def preflight(cfg) -> None:
 
     if optimiser_of(cfg) is not None:
         return
-    model = model_of(cfg)
+    from surgopt.studies.port_place.rolls import at_roll
+
+    model = model_of(at_roll(cfg, docking_rolls(cfg)[0]))  # (with rolls enumerated: at the first)
     reach, _ = model.site_reach  # the instruments' reach alone: a refused target builds no cart or link tables
     best, n_points = int(reach.sum(axis=1).max()), reach.shape[1]
     if best < n_points:
@@ -389,17 +398,18 @@ def estimate(cfg) -> Estimate:
         return Estimate(spec.trials, f"{spec.method} trials", spec.trials,
                         spec.trials * m * NS_PER_SEARCHED_DESIGN_POINT * 1e-9, peak_bytes(spec.trials, 220))
     arms = cfg.robot.instrument_count
-    d = n_designs(n, arms)
+    rolls = len(docking_rolls(cfg))  # each roll its own tables and designs; two rolls' models held at a time
+    d = n_designs(n, arms) * rolls
     per_design = NS_PER_DESIGN if arms == 2 else NS_PER_DESIGN_3
     per_site_point = instruments_held(cfg).ns_per_site_point
-    seconds = (d * per_design + n * m * per_site_point + n * n / 2 * m * NS_PER_PAIR_POINT) * 1e-9
+    seconds = (d * per_design + rolls * (n * m * per_site_point + n * n / 2 * m * NS_PER_PAIR_POINT)) * 1e-9
     if has_cart(cfg):  # each instrument arm's setup joints at each site and cart pose
         from surgopt.studies.port_place.tables import cart_poses
 
         poses = len(cart_poses(cfg).floor)
-        seconds += n * poses * (arms * NS_PER_SUJ_SOLVE + NS_PER_ECM_DOCK) * 1e-9
+        seconds += rolls * n * poses * (arms * NS_PER_SUJ_SOLVE + NS_PER_ECM_DOCK) * 1e-9
         if links_of(cfg):  # the links' clearance tables, each arm pair's (site, site, pose) entries
-            seconds += link_pairs(arms) * n * n * poses * NS_PER_LINK_ENTRY * 1e-9
+            seconds += rolls * link_pairs(arms) * n * n * poses * NS_PER_LINK_ENTRY * 1e-9
     row = (ROW_BYTES if arms == 2 else ROW_BYTES_3) + 8 * len(roll_columns(cfg)) + (
         CART_ROW_BYTES + (arms + 1) * (SUJ_MARGIN_ROW_BYTES + SUJ_JOINTS_ROW_BYTES) if has_cart(cfg) else 0)
     working = n * n * 8 * 12 + n * m * 9 + LIBRARY_BYTES + (CART_LIBRARY_BYTES if has_cart(cfg) else 0)
@@ -407,6 +417,14 @@ def estimate(cfg) -> Estimate:
         working += n * poses * DOCK_ENTRY_BYTES
     if links_of(cfg):  # float32 values, int16 pairs and the float work arrays of each arm pair's dense tables
         working += link_pairs(arms) * n * n * poses * LINK_ENTRY_BYTES
+    if rolls > 1:  # the rolls' models: HELD_MODELS kept (``model.model_of``) and, across a block's boundary, one
+        # dropped from the cache that a thread still reads, with the next one's build temporaries beside them; the
+        # libraries once (measured on the default: 845 MB at one roll against 938 estimated; at three rolls 1,597 MB,
+        # against 1,514 with only the models held counted, so the build's temporaries as one model more)
+        from surgopt.studies.port_place.model import HELD_MODELS
+
+        models = min(rolls, HELD_MODELS + 1)
+        working += models * (working - LIBRARY_BYTES - (CART_LIBRARY_BYTES if has_cart(cfg) else 0))
     if cfg.rows_stored == "feasible":  # 8 bytes of each stored row in the parent and, in flight, tasks holding
         # their feasible rows only (2 per worker, ~4 on this scale of machine): at FEASIBLE_SHARE_MEMORY of the
         # designs, and the bound were every design feasible (what the dry run shows beside it)
