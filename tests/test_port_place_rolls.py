@@ -10,7 +10,7 @@ from surgopt.studies.port_place import config as PC
 from surgopt.studies.port_place import model as M
 from surgopt.studies.port_place import study as S
 from surgopt.studies.port_place.layout import layout_of
-from surgopt.studies.port_place.rolls import at_roll, config_of_row, docking_rolls, model_for, per_roll
+from surgopt.studies.port_place.rolls import at_docking, config_of_row, dockings, model_for, per_roll
 
 from test_link_tables import LINKS
 
@@ -31,11 +31,11 @@ def test_each_rolls_block_is_the_enumeration_at_that_roll():
     signed roll. The premise: the blocks differ, both with feasible layouts (13 at -45, 2 at 0)."""
     cfg = PC.PortPlaceConfig.model_validate(ROLLS)
     per = per_roll(cfg)
-    assert docking_rolls(cfg) == (-45.0, 0.0) and S.n_total(cfg) == 2 * per
+    assert dockings(cfg) == ((-45.0, -45.0), (0.0, 0.0)) and S.n_total(cfg) == 2 * per
     rows = _rows(cfg, chunk=per + 777)  # the first chunk crosses into the second block
     assert np.array_equal(rows["design_id"], np.arange(2 * per))
     feasible_by_block = []
-    for b, roll in enumerate(docking_rolls(cfg)):
+    for b, (roll, _) in enumerate(dockings(cfg)):
         alone = PC.PortPlaceConfig.model_validate({**ROLLS, "robot": {"docking_roll_deg": roll}})
         want = _rows(alone)
         for c, v in want.items():
@@ -45,6 +45,32 @@ def test_each_rolls_block_is_the_enumeration_at_that_roll():
         np.testing.assert_allclose(rows["psm1_roll_deg"][b * per:(b + 1) * per], roll * side + 0.0)
         feasible_by_block.append(int(want["feasible"].sum()))
     assert feasible_by_block[0] != feasible_by_block[1] and min(feasible_by_block) > 0  # the premise
+
+
+def test_per_side_each_pair_of_rolls_is_a_block_and_each_side_takes_its_own():
+    """``docking_rolls_per_side``: a block per (left, right) pair of the list, the left's roll major; each block equals
+    the single docking ``docking_roll_deg`` = left, ``docking_roll_right_deg`` = right, column by column; a port on
+    the patient's left rolls by the left's roll, one on the right by the mirror of the right's; the diagonal blocks
+    are the mirrored rolls' (the blocks of the list without per_side). The premise: a block whose two PSMs sit on
+    either side with rolls of different size."""
+    cfg = PC.PortPlaceConfig.model_validate({**ROLLS, "robot": {"docking_rolls_deg": [-45.0, 0.0],
+                                                                 "docking_rolls_per_side": True}})
+    per = per_roll(cfg)
+    assert dockings(cfg) == ((-45.0, -45.0), (-45.0, 0.0), (0.0, -45.0), (0.0, 0.0)) and S.n_total(cfg) == 4 * per
+    rows = _rows(cfg, chunk=per * 2 + 1000)
+    mixed = 0
+    for b, (left, right) in enumerate(dockings(cfg)):
+        block = {c: v[b * per:(b + 1) * per] for c, v in rows.items()}
+        alone = PC.PortPlaceConfig.model_validate({**ROLLS, "robot": {
+            "docking_roll_deg": left, **({"docking_roll_right_deg": right} if right != left else {})}})
+        for c, v in _rows(alone).items():
+            np.testing.assert_array_equal(block[c] - (b * per if c == "design_id" else 0), v, err_msg=c)
+        for arm in ("psm1", "psm2"):
+            on_left = block[f"{arm}_x_mm"] >= 0
+            np.testing.assert_allclose(block[f"{arm}_roll_deg"], np.where(on_left, left, -right) + 0.0)
+        apart = (block["psm1_x_mm"] >= 0) != (block["psm2_x_mm"] >= 0)
+        mixed += int(left != right and np.any(apart & (np.abs(block["psm1_roll_deg"]) != np.abs(block["psm2_roll_deg"]))))
+    assert mixed == 2  # the premise: the off-diagonal blocks roll the two sides' PSMs differently
 
 
 def test_a_rows_view_reads_the_model_of_its_own_roll():
@@ -57,7 +83,7 @@ def test_a_rows_view_reads_the_model_of_its_own_roll():
     r = int(np.flatnonzero(rows["feasible"])[0])
     row = {k: (v[r].item() if hasattr(v[r], "item") else v[r]) for k, v in rows.items()}
     alone = PC.PortPlaceConfig.model_validate({**ROLLS, "robot": {"docking_roll_deg": -45.0}})
-    assert config_of_row(cfg, row).model_dump_json() == at_roll(cfg, -45.0).model_dump_json()
+    assert config_of_row(cfg, row).model_dump_json() == at_docking(cfg, (-45.0, -45.0)).model_dump_json()
     got, want = layout_of(model_for(cfg, row), row), layout_of(M.model_of(alone), {**row, "design_id": r % per})
     assert [a.joints for a in got.docked] == [a.joints for a in want.docked] and any(a.joints for a in got.docked)
     own = {**row, "design_id": -1}
@@ -71,6 +97,9 @@ def test_a_rows_view_reads_the_model_of_its_own_roll():
     ({"docking_rolls_deg": [0.0, -45.0], "docking_roll_deg": 30.0}, "not both"),
     ({"docking_rolls_deg": [0.0, -45.0], "docking_roll": "most_reach"}, "must be 'given'"),
     ({"docking_rolls_deg": [0.0, 120.0]}, "docking_rolls_deg"),
+    ({"docking_rolls_deg": [0.0, -45.0], "docking_roll_right_deg": 30.0}, "not both"),
+    ({"docking_rolls_per_side": True}, "give the list"),
+    ({"docking_roll_right_deg": 30.0, "docking_roll": "most_reach"}, "docking_roll_right_deg"),
 ])
 def test_a_roll_list_that_cannot_be_enumerated_is_refused_by_field(robot, match):
     with pytest.raises(ConfigError, match=match):

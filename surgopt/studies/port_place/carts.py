@@ -240,7 +240,8 @@ class SiCart(ClassicCart):
     def check(self, cfg):
         """Its setup joints fix each arm's roll about its shaft: a roll is refused by name."""
         r = cfg.robot
-        if r.docking_roll != "given" or r.docking_roll_deg != 0.0 or r.docking_rolls_deg:
+        if (r.docking_roll != "given" or r.docking_roll_deg != 0.0 or r.docking_rolls_deg
+                or r.docking_roll_right_deg is not None):
             raise ValueError("robot.docking_roll_deg: the Si's setup joints give each arm one orientation at each "
                              "yaw (no roll about the shaft to choose): docking_roll = 'given', docking_roll_deg = 0")
 

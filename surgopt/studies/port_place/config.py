@@ -290,6 +290,14 @@ class Robot(StrictModel):
         "angle after docking: 0, its yaw swings the shaft across the patient; 90, head to foot. Ports on the "
         "patient's left (x >= 0) turn the frame's x toward the head, on the right toward the feet (mirror "
         "images, so a symmetric patient gives a symmetric answer); a negative angle turns each the other way")
+    docking_roll_right_deg: float | None = Field(
+        None, ge=-90.0, le=90.0, description="the ports on the patient's right (x < 0) rolled by this instead of "
+        "docking_roll_deg (read as its mirror image, as docking_roll_deg is there): the two sides' PSMs docked at "
+        "rolls of their own; unset: docking_roll_deg on both sides")
+    docking_rolls_per_side: bool = Field(
+        False, description="with docking_rolls_deg: a block of the enumeration per pair of rolls, one for the ports "
+                           "on the patient's left and one for those on the right (the list's length squared), so "
+                           "that two PSMs on either side of the midline take rolls of their own")
     docking_rolls_deg: list[Annotated[float, Field(ge=-90.0, le=90.0, allow_inf_nan=False)]] | None = Field(
         None, min_length=1, max_length=12,
         description="the docking roll as a dimension of the enumeration (#54): every layout docked at each of these "
@@ -309,7 +317,7 @@ class Robot(StrictModel):
         if self.instrument_serial is None:
             return self
         for name in ("tip_beyond_wrist_mm", "min_wrist_depth_mm", "docking_roll_deg", "docking_roll",
-                     "docking_rolls_deg"):
+                     "docking_rolls_deg", "docking_roll_right_deg", "docking_rolls_per_side"):
             if getattr(self, name) != type(self).model_fields[name].default:  # a stored config lists every field
                 raise ValueError(f"{name} goes with an RCM instrument arm (instrument_arm or instrument_file); a "
                                  f"serial arm's tool is its own tool_m, its base turns by docking_range_deg")
@@ -325,8 +333,17 @@ class Robot(StrictModel):
                              f"{self.docking_roll!r})")
         if len(set(rolls)) != len(rolls):
             raise ValueError(f"docking_rolls_deg lists a roll twice ({rolls}): each is a block of the enumeration")
-        if self.docking_roll_deg != 0.0:
-            raise ValueError("give docking_rolls_deg (every roll enumerated) or docking_roll_deg (one roll), not both")
+        if self.docking_roll_deg != 0.0 or self.docking_roll_right_deg is not None:
+            raise ValueError("give docking_rolls_deg (every roll enumerated) or docking_roll_deg and "
+                             "docking_roll_right_deg (one docking), not both")
+        return self
+
+    @model_validator(mode="after")
+    def _a_sides_roll_is_given(self):
+        if self.docking_roll_right_deg is not None and self.docking_roll != "given":
+            raise ValueError(f"docking_roll_right_deg goes with docking_roll = 'given' (not {self.docking_roll!r})")
+        if self.docking_rolls_per_side and not self.docking_rolls_deg:
+            raise ValueError("docking_rolls_per_side pairs the rolls of docking_rolls_deg: give the list")
         return self
 
     @model_validator(mode="after")

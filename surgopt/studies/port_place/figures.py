@@ -90,13 +90,13 @@ def held_arms(ax, model, sites_m: np.ndarray, ports: list) -> bool:
 
 def figures(cfg, table, out, design_id=None):
     from surgopt.studies.port_place.model import model_of
-    from surgopt.studies.port_place.rolls import at_roll, docking_rolls, model_for
+    from surgopt.studies.port_place.rolls import first_docking, model_for
 
     plt = pyplot()
     c = columns(table)
     row = chosen(c, design_id, cfg)
     # the drawn layout's roll's tables (with rolls enumerated; the sites are every roll's)
-    model = (model_of(at_roll(cfg, docking_rolls(cfg)[0])) if row is None else model_for(cfg, row_of(c, row)))
+    model = model_of(first_docking(cfg)) if row is None else model_for(cfg, row_of(c, row))
     sites_m, (port_tables, _, dex) = model.sites_m, model.grid
     sites = sites_m * 1000
     targets = model.targets_m * 1000

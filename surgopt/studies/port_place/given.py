@@ -60,17 +60,17 @@ def score_given(cfg) -> GivenScore:
     docking taken (else the cheapest), as a team would choose its roll."""
     from surgopt.studies.port_place.designs import evaluate_designs, nearest_sites
     from surgopt.studies.port_place.model import model_of
-    from surgopt.studies.port_place.rolls import at_roll, docking_rolls
+    from surgopt.studies.port_place.rolls import at_docking, dockings, first_docking
 
-    model = model_of(at_roll(cfg, docking_rolls(cfg)[0]))
+    model = model_of(first_docking(cfg))
     points = given_points_mm(cfg)
     arms = arms_of(cfg)
     xy = np.array([points[a] for a in arms], float)
     sites = nearest_sites(model.sites_m[:, :2] * 1000, xy)
     moved = {a: float(np.hypot(*(model.sites_m[s, :2] * 1000 - xy[k]))) for k, (a, s) in enumerate(zip(arms, sites))}
     rows = []
-    for roll in docking_rolls(cfg):
-        cols = evaluate_designs(at_roll(cfg, roll), sites[None].astype(float), np.array([-1]), "given")
+    for docking in dockings(cfg):
+        cols = evaluate_designs(at_docking(cfg, docking), sites[None].astype(float), np.array([-1]), "given")
         rows.append({c: (v[0].item() if hasattr(v[0], "item") else v[0]) for c, v in cols.items()})
     row = min(rows, key=lambda r: (not r["feasible"], r["cost"]))
     return GivenScore(row, points, {a: int(s) for a, s in zip(arms, sites)}, moved)

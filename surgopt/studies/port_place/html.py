@@ -66,10 +66,10 @@ def views(run, cfg, parts) -> list[View]:
     from surgopt.studies.port_place.model import model_of
     from surgopt.studies.port_place.tables import outside_length_m
 
-    from surgopt.studies.port_place.rolls import at_roll, docking_rolls
+    from surgopt.studies.port_place.rolls import first_docking
 
     arms = list(arms_of(cfg))
-    model = model_of(at_roll(cfg, docking_rolls(cfg)[0]))  # the sites' reach at the (first) docking roll
+    model = model_of(first_docking(cfg))  # the sites' reach at the (first) docking
     sites_m, (reach, dex) = model.sites_m, model.site_reach
     sites = sites_m * 1000
     targets = model.targets_m * 1000

@@ -113,7 +113,7 @@ def prepare(cfg: PortPlaceConfig) -> PortModel:
     from surgopt.kinematics.port import place as K
 
     if cfg.robot.docking_rolls_deg:  # a caller's slip, not a user's: each roll's block has a model of its own
-        raise RuntimeError("a port-place model is of one docking roll: ask for rolls.at_roll(cfg, roll)'s, or a "
+        raise RuntimeError("a port-place model is of one docking roll: ask for rolls.at_docking(cfg, docking)'s, or a "
                            "row's (rolls.model_for)")
     sites = sites_mm(cfg) / 1000
     centre = np.asarray(cfg.target.centre_mm, float) / 1000

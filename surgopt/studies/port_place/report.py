@@ -25,7 +25,7 @@ from surgopt.robots.dvrk.platforms import PLATFORMS
 from surgopt.studies.port_place.config import PortPlaceConfig
 from surgopt.studies.port_place.geometry import FRAME_TEXT, from_landmark
 from surgopt.studies.port_place.hands import pairing_words
-from surgopt.studies.port_place.rolls import config_of_design, config_of_row, model_for, per_roll
+from surgopt.studies.port_place.rolls import at_docking, dockings, docking_words, model_for, per_roll
 from surgopt.studies.port_place.columns import links_of
 
 
@@ -141,7 +141,7 @@ def summary(parts) -> Summary:
                   for label, fields, digits, joiner, clinical, band in clinical_checks(cfg)]
         tables.append(("best layout: clinical checks", ["quantity", "value", "clinical number", "within"], checks))
         if cfg is not None and cfg.robot.docking_rolls_deg:  # the roll a dimension of the rows (#54 item 2)
-            headline["docking_roll"] = docking_roll_words(cfg, b)
+            headline["docking_roll"] = docking_words(cfg, b)
         if "image_right_psm" in b:  # which hand drives which arm (#54 item 4)
             headline["hands"] = pairing_words(int(b["image_right_psm"]))
         mark = json.loads(meta["landmark"]) if "landmark" in meta else None
@@ -265,15 +265,6 @@ def whole_target_words(parts, meta: dict, answer: dict) -> str | None:
     return words + f"; none of the next {WHOLE_TARGET_SCREEN} feasible layouts by cost clears over the whole target"
 
 
-def docking_roll_words(cfg, row: dict) -> str:
-    """The answer's docking roll among those the rows enumerated (``rolls.py``), each PSM's signed by its side."""
-    roll = config_of_row(cfg, row).robot.docking_roll_deg
-    signed = ", ".join(f"{a.upper()} {row[f'{a}_roll_deg']:+.0f}" for a in ("psm1", "psm2", "psm3")
-                       if f"{a}_roll_deg" in row)
-    return (f"{roll:g} deg ({signed} by their ports' sides), the cheapest feasible row over the rolls the rows "
-            f"enumerated: {', '.join(f'{r:g}' for r in cfg.robot.docking_rolls_deg)} deg (robot.docking_rolls_deg)")
-
-
 def suj_margin_words(cfg, arm) -> tuple[str, str]:
     """A docked arm's least margin to its setup joints' ranges, the revolute joints' (deg, and which) and the
     column's (mm) apart: one column of rad and m mixed read as one number (issue 56 item 10)."""
@@ -365,7 +356,7 @@ def undocked_table(parts, meta: dict) -> list:
     undocked_why = np.empty(len(ids), np.int64)
     for block in np.unique(ids // per_roll(cfg)):  # each roll's block by its own roll's dock tables
         at = np.flatnonzero(ids // per_roll(cfg) == block)
-        undocked_why[at] = why_undocked(model_of(config_of_design(cfg, int(ids[at[0]]))).dock, sites[at])
+        undocked_why[at] = why_undocked(model_of(at_docking(cfg, dockings(cfg)[block])).dock, sites[at])
     why = np.where(got["infeasible"][undocked] == OUTSIDE, len(UNDOCKED_WHY) - 1, undocked_why)
     rows = [[w, f"{int(np.sum(why == k)):,}"] for k, w in enumerate(UNDOCKED_WHY) if np.any(why == k)]
     return [(f"the {len(best):,} layouts of least cost feasible without the cart: {len(undocked):,} the "

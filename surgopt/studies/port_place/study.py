@@ -42,7 +42,7 @@ from surgopt.studies.port_place.columns import (CART_COLUMNS, DOCKING_COLUMNS, F
 from surgopt.studies.port_place.designs import (design_dims, design_rows, evaluate_designs,  # noqa: F401 (theirs)
                                                 nearest_sites, reasons, searched_docking)
 from surgopt.studies.port_place.model import model_of
-from surgopt.studies.port_place.rolls import docking_rolls, n_designs, per_roll  # noqa: F401 (n_designs: theirs)
+from surgopt.studies.port_place.rolls import dockings, n_designs, per_roll  # noqa: F401 (n_designs: theirs)
 
 NAME = "port-place"
 KERNEL_VERSION = "port-place-1"
@@ -50,8 +50,8 @@ DEFAULT_CONFIG = "port_place_dvrk.toml"
 CONFIG_HELP = "TOML or YAML config ([patient], [target], [robot], [constraints], [objective]); default: the dVRK example."
 
 def n_total(cfg: PortPlaceConfig) -> int:
-    """Every design of the enumeration: the sites' designs at each docking roll (``rolls.docking_rolls``)."""
-    return per_roll(cfg) * len(docking_rolls(cfg))
+    """Every design of the enumeration: the sites' designs at each docking (``rolls.dockings``)."""
+    return per_roll(cfg) * len(dockings(cfg))
 
 
 def design_identity(config=None) -> tuple[tuple[str, ...], tuple[str, ...]]:
@@ -286,9 +286,9 @@ def warm_up(cfg) -> None:
     chunks (``compute_task``), or a search's one design at a time (``evaluate_designs``)."""
     from surgopt.kinematics.port.designs import design_columns
     from surgopt.plans.search import optimiser_of
-    from surgopt.studies.port_place.rolls import at_roll
+    from surgopt.studies.port_place.rolls import first_docking
 
-    cfg = at_roll(cfg, docking_rolls(cfg)[0])  # the first roll's block: the others build their own tables
+    cfg = first_docking(cfg)  # the first block's: the others build their own tables
     model = model_of(cfg)
     if optimiser_of(cfg) is None:
         reach, _ = model.site_reach
@@ -308,9 +308,9 @@ def preflight(cfg) -> None:
 
     if optimiser_of(cfg) is not None:
         return
-    from surgopt.studies.port_place.rolls import at_roll
+    from surgopt.studies.port_place.rolls import first_docking
 
-    model = model_of(at_roll(cfg, docking_rolls(cfg)[0]))  # (with rolls enumerated: at the first)
+    model = model_of(first_docking(cfg))  # (with rolls enumerated: at the first docking)
     reach, _ = model.site_reach  # the instruments' reach alone: a refused target builds no cart or link tables
     best, n_points = int(reach.sum(axis=1).max()), reach.shape[1]
     if best < n_points:
@@ -398,7 +398,7 @@ def estimate(cfg) -> Estimate:
         return Estimate(spec.trials, f"{spec.method} trials", spec.trials,
                         spec.trials * m * NS_PER_SEARCHED_DESIGN_POINT * 1e-9, peak_bytes(spec.trials, 220))
     arms = cfg.robot.instrument_count
-    rolls = len(docking_rolls(cfg))  # each roll its own tables and designs; two rolls' models held at a time
+    rolls = len(dockings(cfg))  # each docking its own tables and designs; two dockings' models held at a time
     d = n_designs(n, arms) * rolls
     per_design = NS_PER_DESIGN if arms == 2 else NS_PER_DESIGN_3
     per_site_point = instruments_held(cfg).ns_per_site_point

@@ -47,7 +47,8 @@ def roll_sides(sites: np.ndarray) -> np.ndarray:
 
 
 def instrument_rolls_rad(model, sites: np.ndarray, rot: np.ndarray) -> np.ndarray:
-    """Each port's docking roll (rad, signed by ``roll_sides``): ``robot.docking_roll_deg``, or with
+    """Each port's docking roll (rad, signed by ``roll_sides``): ``robot.docking_roll_deg`` (on the patient's right
+    ``docking_roll_right_deg`` when given), or with
     ``docking_roll = 'most_reach'`` the one of ``ROLL_CHOICES_DEG`` whose frame reaches the most target points
     (``instrument_tables``; ties: the choice nearest docking_roll_deg, then the smaller)."""
     from surgopt.kinematics.port import place as K
@@ -57,7 +58,8 @@ def instrument_rolls_rad(model, sites: np.ndarray, rot: np.ndarray) -> np.ndarra
     if not cart_for(model.cfg).roll_is_free:  # the Si's setup joints give each arm one orientation (S5)
         return np.zeros(len(sites))
     if r.docking_roll in ("given", "search") or not model.instruments.rolls:  # a search's trials give their own
-        return np.radians(r.docking_roll_deg) * side
+        right = r.docking_roll_deg if r.docking_roll_right_deg is None else r.docking_roll_right_deg
+        return np.radians(np.where(side > 0, r.docking_roll_deg, right)) * side
     choices = np.array(ROLL_CHOICES_DEG)
     counts = np.stack([K.instrument_tables(sites, rolled(rot, np.radians(c) * side), model.targets_m, model.limits,
                                            model.criteria.dexterity_length_m, model.cone)[0].sum(axis=1)
