@@ -39,18 +39,32 @@ class Clearance(NamedTuple):
 
 class ArmPoses(NamedTuple):
     """One docked arm: its name, capsules at each pose (p, n, 2, 3), radii, link names, which links pass the
-    port, and each pose's label."""
+    port, and each pose's label (``PoseLabels``, or ("docked",) for an arm held docked)."""
 
     arm: str
     segments: np.ndarray
     radii: np.ndarray
     names: tuple
     through_port: np.ndarray
-    poses: tuple
+    poses: object
 
 
 def _point_label(p_mm: np.ndarray) -> str:
     return f"target point ({p_mm[0]:.0f}, {p_mm[1]:.0f}, {p_mm[2]:.0f}) mm"
+
+
+class PoseLabels:
+    """Each pose's label, "docked" then "target point (x, y, z) mm" for each of ``points_m``, worded when read (the
+    rows ask ~900 poses of each feasible layout and read the labels of one or two)."""
+
+    def __init__(self, points_m: np.ndarray):
+        self.points_m = points_m
+
+    def __len__(self) -> int:
+        return 1 + len(self.points_m)
+
+    def __getitem__(self, k: int) -> str:
+        return "docked" if k == 0 else _point_label(self.points_m[k - 1] * 1000)
 
 
 def arm_poses(model, arm, patient: np.ndarray, targets_m: np.ndarray) -> ArmPoses:
@@ -60,7 +74,7 @@ def arm_poses(model, arm, patient: np.ndarray, targets_m: np.ndarray) -> ArmPose
     from surgopt.studies.port_place.link_tables import placed_arm
 
     placed = placed_arm(model, arm.arm, arm.joints, arm.base, arm.ecm, np.linalg.inv(patient), targets_m)
-    labels = ("docked",) if arm.arm == "ECM" else ("docked",) + tuple(_point_label(p * 1000) for p in targets_m)
+    labels = ("docked",) if arm.arm == "ECM" else PoseLabels(np.asarray(targets_m, float).reshape(-1, 3))
     return ArmPoses(arm.arm, placed.segments, placed.radii, placed.names, placed.through_port, labels)
 
 
@@ -196,27 +210,36 @@ def fixed_links(segments: np.ndarray) -> np.ndarray:
     return np.all(segments == segments[:1], axis=(0, 2, 3))
 
 
-def least_fixed_and_moving(a: ArmPoses, b: ArmPoses, groups: np.ndarray, best: float = np.inf,
-                           floor: float = -np.inf) -> tuple[float, int, int, int, int]:
-    """``capsules.least_between`` of two arms over every pair of their poses (``groups``: an arm's pose groups
-    when it moves), each arm's fixed links (``fixed_links``) taken once, not at every pose: (clearance m, link of
-    a, link of b, pose of a, pose of b), -1s when nothing is below ``best``; with a ``floor``, stopped at the first
-    below it."""
-    from surgopt.kinematics.port.capsules import least_between, swept_capsules
+def fixed_and_moving(arm: ArmPoses, groups: np.ndarray) -> list:
+    """An arm's links as the pruned least takes them: its fixed links (``fixed_links``) at one pose, and the others
+    at every pose in ``groups`` (an arm held docked: all fixed), each with its swept capsules: [(the links' indices,
+    their pose groups, segments, radii, swept capsules)]."""
+    from surgopt.kinematics.port.capsules import swept_capsules
 
     held = np.array([0, 1], np.int64)
-    parts = []
-    for arm in (a, b):
-        still = fixed_links(arm.segments)
-        links = [(np.flatnonzero(still), held, arm.segments[:1])]
-        if len(arm.poses) > 1 and not still.all():
-            links.append((np.flatnonzero(~still), groups, arm.segments))
-        parts.append([(i, g, np.ascontiguousarray(seg[:, i]), arm.radii[i]) for i, g, seg in links if len(i)])
+    still = fixed_links(arm.segments)
+    links = [(np.flatnonzero(still), held, arm.segments[:1])]
+    if len(arm.poses) > 1 and not still.all():
+        links.append((np.flatnonzero(~still), groups, arm.segments))
+    out = []
+    for i, g, seg in links:
+        if len(i):
+            s, r = np.ascontiguousarray(seg[:, i]), arm.radii[i]
+            out.append((i, g, s, r, swept_capsules(s, r, g)))
+    return out
+
+
+def least_fixed_and_moving(a: list, b: list, best: float = np.inf,
+                           floor: float = -np.inf) -> tuple[float, int, int, int, int]:
+    """``capsules.least_between`` of two arms over every pair of their poses, each arm as ``fixed_and_moving``
+    gives it (its fixed links taken once, not at every pose): (clearance m, link of a, link of b, pose of a, pose of
+    b), -1s when nothing is below ``best``; with a ``floor``, stopped at the first below it."""
+    from surgopt.kinematics.port.capsules import least_between
+
     out = (best, -1, -1, -1, -1)
-    for ia, ga, sa, ra in parts[0]:
-        for ib, gb, sb, rb in parts[1]:
-            v, i, j, p, q = least_between(sa, ra, swept_capsules(sa, ra, ga), ga, sb, rb, swept_capsules(sb, rb, gb),
-                                          gb, out[0], floor)
+    for ia, ga, sa, ra, ca in a:
+        for ib, gb, sb, rb, cb in b:
+            v, i, j, p, q = least_between(sa, ra, ca, ga, sb, rb, cb, gb, out[0], floor)
             if i >= 0:
                 out = (v, int(ia[i]), int(ib[j]), p, q)
                 if v < floor:
@@ -228,14 +251,15 @@ def over_the_whole_target(model, row: dict) -> list[Clearance]:
     """``whole_target_clearances`` computed (not kept: the rows ask it of each feasible layout, from threads)."""
     from surgopt.studies.port_place.tables import docked_arms, row_patient_in_cart
 
-    points, groups = whole_target_points(model)
+    points, groups = model.whole_target
     patient = row_patient_in_cart(model.cfg, row)
     arms = [arm_poses(model, a, patient, points) for a in docked_arms(model, row) if a.joints]
+    parts = [fixed_and_moving(a, groups) for a in arms]
     out = []
     for x in range(len(arms)):
         for y in range(x + 1, len(arms)):
             a, b = arms[x], arms[y]
-            v, i, j, p, s = least_fixed_and_moving(a, b, groups)
+            v, i, j, p, s = least_fixed_and_moving(parts[x], parts[y])
             out.append(Clearance(f"{a.arm} and {b.arm}, over the whole target ({len(points):,} points)", v * 1000,
                                  a.names[i], b.names[j], f"{a.arm} {a.poses[p]}; {b.arm} {b.poses[s]}"))
     return out

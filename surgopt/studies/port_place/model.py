@@ -98,6 +98,14 @@ class PortModel:
                                    self.criteria.dexterity_length_m, self.cone)
 
     @cached_property
+    def whole_target(self) -> tuple[np.ndarray, np.ndarray]:
+        """Every target point in groups of neighbours, and the groups' offsets (``clashes.whole_target_points``):
+        what each layout's links are measured over (#54 item 3), ordered once."""
+        from surgopt.studies.port_place.clashes import whole_target_points
+
+        return whole_target_points(self)
+
+    @cached_property
     def dock(self) -> "DockTables":
         """Which of the cart's setup joints dock which arm at which site and cart pose (``dock_tables``)."""
         return dock_tables(self)
