@@ -142,3 +142,48 @@ def test_the_scene_marks_the_landmarks_the_region_and_the_sides_on_the_wall():
     assert [s[0] for s in m["sides"]] == ["patient's left", "patient's right", "head", "feet"]
     own = C.PortPlaceConfig.model_validate({**COARSE, "patient": {"landmarks_mm": {"umbilicus": [0.0, 0.0]}}})
     assert not scene_marks(own)["landmarks_assumed"]
+
+
+def _ellipse_arc_mm(a: float, c: float, x0: float, x1: float) -> float:
+    """The length of the ellipse z = c sqrt(1 - (x / a)^2) between x0 and x1, by quadrature of its parametric speed
+    (x = a sin t, z = c cos t: sqrt(a^2 cos^2 t + c^2 sin^2 t)), scipy's quad: no sampling shared with the code."""
+    from scipy.integrate import quad
+
+    t0, t1 = np.arcsin(np.clip([x0 / a, x1 / a], -1.0, 1.0))
+    return abs(quad(lambda t: np.hypot(a * np.cos(t), c * np.sin(t)), t0, t1, epsabs=1e-10)[0])
+
+
+@pytest.mark.parametrize("mark, x, y", [((0.0, 0.0), 72.0, -90.0), ((0.0, 0.0), -126.0, 36.0),
+                                        ((0.0, -178.5), 54.0, -108.0), ((20.0, 30.0), -40.0, 150.0)])
+def test_a_ports_distance_along_the_skin_is_the_domes_arc_across_then_along(mark, x, y):
+    """#57 item 2: ``geometry.along_skin_mm`` on the default dome (a half-ellipsoid) against the two ellipse arcs a
+    tape follows, across at the landmark's level (semi-axes a k, c k, k = sqrt(1 - (y0 / b)^2)) then along at the
+    port's x, by quadrature (0.05 mm: the 1 mm polyline's chords); each at least the top view's offset, signed as
+    it; in words in cm."""
+    cfg = C.PortPlaceConfig()
+    a, b, c = cfg.patient.semi_axes_mm
+    across, along = G.along_skin_mm(cfg.patient, mark, x, y)
+    k1, k2 = np.sqrt(1 - (mark[1] / b) ** 2), np.sqrt(1 - (x / a) ** 2)
+    want_across = _ellipse_arc_mm(a * k1, c * k1, mark[0], x)
+    want_along = _ellipse_arc_mm(b * k2, c * k2, mark[1], y)
+    assert abs(across) == pytest.approx(want_across, abs=0.05) and abs(along) == pytest.approx(want_along, abs=0.05)
+    assert np.sign(across) == np.sign(x - mark[0]) and np.sign(along) == np.sign(y - mark[1])
+    assert abs(across) >= abs(x - mark[0]) - 1e-9 and abs(along) >= abs(y - mark[1]) - 1e-9
+    assert abs(across) + abs(along) > abs(x - mark[0]) + abs(y - mark[1]) + 1.0  # the premise: the skin is curved
+    words = G.skin_words(cfg.patient, mark, x, y)
+    assert words.split(", ")[0].endswith("left" if x > mark[0] else "right") and " cm " in words
+
+
+def test_the_ports_csv_and_the_report_give_the_distances_along_the_skin(tmp_path):
+    """The ports CSV carries the along-the-skin offsets (``along_skin_mm``) and words beside the top view's; the
+    closing report's ports table the words."""
+    cfg = C.PortPlaceConfig.model_validate(COARSE)
+    cols = S.compute_task(cfg, S.n_total(cfg), 0)
+    i = int(np.argmax(cols["feasible"]))
+    row = {k: (v[i].item() if hasattr(v[i], "item") else v[i]) for k, v in cols.items()}
+    for r in csv.DictReader(io.StringIO(S.ports_export(cfg, row))):
+        x, y = float(r["x_mm"]), float(r["y_mm"])
+        across, along = G.along_skin_mm(cfg.patient, (0.0, 0.0), x, y)
+        assert float(r["left_of_umbilicus_along_skin_mm"]) == pytest.approx(across, abs=0.051)
+        assert float(r["cranial_of_umbilicus_along_skin_mm"]) == pytest.approx(along, abs=0.051)
+        assert r["from_umbilicus_along_skin"] == G.skin_words(cfg.patient, (0.0, 0.0), x, y)

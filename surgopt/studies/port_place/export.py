@@ -205,21 +205,26 @@ def ports_csv(cfg: PortPlaceConfig, row: dict) -> str:
     """``surgopt export KEY --design ID --format ports``: the layout's ports and the patient's landmarks as CSV, one
     line each: what (port, landmark), name, site, x_mm, y_mm, z_mm (the patient frame; a landmark's z is the
     body's wall over it, blank where there is none), and each one's top-view offset from the reference landmark,
-    left_mm (the patient's left +) and cranial_mm (toward the head +), with the same in words."""
+    left_mm (the patient's left +) and cranial_mm (toward the head +), with the same in words; and the same along
+    the skin (``geometry.along_skin_mm``: across at the landmark's level, then along the body, as a tape measures)."""
     import csv
     import io
 
-    from surgopt.studies.port_place.geometry import from_landmark, landmarks_mm, reference_landmark, wall_height_mm
+    from surgopt.studies.port_place.geometry import (along_skin_mm, from_landmark, landmarks_mm, reference_landmark,
+                                                     skin_words, wall_height_mm)
 
     name, mark = reference_landmark(cfg.patient)
     out = io.StringIO()
     w = csv.writer(out, lineterminator="\n")
     w.writerow(["what", "name", "site", "x_mm", "y_mm", "z_mm", f"left_of_{name}_mm", f"cranial_of_{name}_mm",
-                f"from_{name}"])
+                f"from_{name}", f"left_of_{name}_along_skin_mm", f"cranial_of_{name}_along_skin_mm",
+                f"from_{name}_along_skin"])
 
     def line(what, label, site, x, y, z):
+        across, along = along_skin_mm(cfg.patient, mark, x, y)
         w.writerow([what, label, site, f"{x:.1f}", f"{y:.1f}", "" if not np.isfinite(z) else f"{z:.1f}",
-                    f"{x - mark[0]:.1f}", f"{y - mark[1]:.1f}", from_landmark(x, y, mark)])
+                    f"{x - mark[0]:.1f}", f"{y - mark[1]:.1f}", from_landmark(x, y, mark), f"{across:.1f}",
+                    f"{along:.1f}", skin_words(cfg.patient, mark, x, y)])
 
     for arm in ("psm1", "psm2", "psm3", "ecm"):
         if f"{arm}_site" in row:

@@ -61,6 +61,37 @@ def from_landmark(x_mm: float, y_mm: float, mark: tuple[float, float]) -> str:
     return f"{across}, {along}"
 
 
+#: The step (mm) at which a path along the skin is sampled.
+SKIN_STEP_MM = 1.0
+
+
+def along_skin_mm(patient, mark: tuple[float, float], x_mm: float, y_mm: float) -> tuple[float, float]:
+    """(#57 item 2) How far a port lies from a landmark along the skin, as a surgeon measures it with a tape: first
+    across (at the landmark's level, to the port's x), then along the body (at the port's x, to its y); each leg's
+    length over the body's upper wall (``wall_height_mm``), sampled every SKIN_STEP_MM: (across, along) mm, signed
+    as the top view's (left +, cranial +). Where the wall is missing under a leg (a mesh's ray misses), that leg's
+    top-view length."""
+    def leg(x0, y0, x1, y1) -> float:
+        n = max(2, int(math.ceil(math.hypot(x1 - x0, y1 - y0) / SKIN_STEP_MM)) + 1)
+        x, y = np.linspace(x0, x1, n), np.linspace(y0, y1, n)
+        z = wall_height_mm(x, y, patient)
+        if not np.all(np.isfinite(z)):
+            return math.hypot(x1 - x0, y1 - y0)
+        return float(np.sum(np.sqrt(np.diff(x) ** 2 + np.diff(y) ** 2 + np.diff(z) ** 2)))
+
+    across = leg(mark[0], mark[1], x_mm, mark[1])
+    along = leg(x_mm, mark[1], x_mm, y_mm)
+    return math.copysign(across, x_mm - mark[0]), math.copysign(along, y_mm - mark[1])
+
+
+def skin_words(patient, mark: tuple[float, float], x_mm: float, y_mm: float) -> str:
+    """``along_skin_mm`` in words, cm: "8.1 cm left, 9.4 cm caudal" ("midline" or "level" within 0.5 mm)."""
+    across, along = along_skin_mm(patient, mark, x_mm, y_mm)
+    a = "midline" if abs(across) < 0.5 else f"{abs(across) / 10:.1f} cm {'left' if across > 0 else 'right'}"
+    b = "level" if abs(along) < 0.5 else f"{abs(along) / 10:.1f} cm {'cranial' if along > 0 else 'caudal'}"
+    return f"{a}, {b}"
+
+
 def polygon_area_mm2(poly: np.ndarray) -> float:
     """|Shoelace area| of a polygon's vertices (N, 2), in order."""
     x, y = poly[:, 0], poly[:, 1]

@@ -23,7 +23,7 @@ from surgopt.studies.port_place.clashes import in_feasible
 from surgopt.robots.dvrk.links import LINK_MODEL_WORDS
 from surgopt.robots.dvrk.platforms import PLATFORMS
 from surgopt.studies.port_place.config import PortPlaceConfig
-from surgopt.studies.port_place.geometry import FRAME_TEXT, from_landmark
+from surgopt.studies.port_place.geometry import FRAME_TEXT, from_landmark, skin_words
 from surgopt.studies.port_place.hands import pairing_words
 from surgopt.studies.port_place.rolls import at_docking, dockings, docking_words, model_for, per_roll
 from surgopt.studies.port_place.columns import links_of
@@ -145,15 +145,18 @@ def summary(parts) -> Summary:
         if "image_right_psm" in b:  # which hand drives which arm (#54 item 4)
             headline["hands"] = pairing_words(int(b["image_right_psm"]))
         mark = json.loads(meta["landmark"]) if "landmark" in meta else None
+        skin = cfg is not None and mark is not None  # the tape's distances need the patient (#57 item 2)
         ports = [[arm, str(b[f"{arm}_site"]), f"{b[f'{arm}_x_mm']:.0f}", f"{b[f'{arm}_y_mm']:.0f}",
                   f"{b[f'{arm}_z_mm']:.0f}"] + ([from_landmark(b[f"{arm}_x_mm"], b[f"{arm}_y_mm"], mark[1:])]
                                                 if mark else [])
+                 + ([skin_words(cfg.patient, mark[1:], b[f"{arm}_x_mm"], b[f"{arm}_y_mm"])] if skin else [])
                  for arm in ("psm1", "psm2", "psm3", "ecm") if f"{arm}_site" in b]
         wall = wall_column(cfg, b)
         if wall is not None:  # a CT's wall: its thickness at each port, toward the target (#57 item 1)
             ports = [r + [w] for r, w in zip(ports, wall)]
         tables.append((f"best layout: ports ({FRAME_TEXT})", ["arm", "site", "x_mm", "y_mm", "z_mm"]
                        + ([f"from the {mark[0]} (mm, top view)"] if mark else [])
+                       + ([f"from the {mark[0]} along the skin (across, then along)"] if skin else [])
                        + (["wall_mm (skin to peritoneum, toward the target)"] if wall is not None else []), ports))
         if "cart_pose" in b:  # after the screen: the best layout's clearances and rolls are then known
             bound = cart_bound_words(parts, b, cfg)
