@@ -18,7 +18,7 @@ lives beside it (issue 53): the config models in ``config``, the geometry they i
 ``geometry``, the prepared model in ``model``, the per-port, per-pair and dock tables in ``tables`` and
 ``link_tables``, the design evaluator in ``designs`` (kernel: ``kinematics.port.designs``), the rows' column
 vocabulary in ``columns``, one row re-solved for the views in ``layout``, the closing report in ``report`` (named
-here by module, imported when a report is made). One module of ~480 lines: the schema, the estimate and the task
+here by module, imported when a report is made). One module of ~530 lines: the schema, the estimate and the task
 entry are read together (the estimate counts what the schema stores and the tasks build).
 """
 from __future__ import annotations
