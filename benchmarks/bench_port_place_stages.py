@@ -45,7 +45,8 @@ def stages(cfg) -> dict:
         t2 = time.perf_counter()
         model.grid
         t3 = time.perf_counter()
-        M._held[:] = [cfg.model_dump_json(), model]  # the tasks read this model (``model_of``)
+        M._held.clear()
+        M._held[cfg.model_dump_json()] = model  # the tasks read this model (``model_of``)
         n = S.n_total(cfg)
         chunk = S.auto_chunk(cfg)
         for task in range(math.ceil(n / chunk)):
