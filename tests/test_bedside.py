@@ -91,3 +91,19 @@ def test_the_rows_fail_a_layout_on_the_patients_tucked_arm_and_name_it():
     assert np.all(a["external_clearance_mm"][on_arm] <= np.nan_to_num(b["external_clearance_mm"][on_arm], nan=np.inf)
                   + 1e-9)
     assert a["feasible"].sum() <= b["feasible"].sum()
+
+
+def test_the_pages_scene_draws_the_bedside_near_the_body():
+    """#56 item 4 / #54: the scene's bedside lines are the boxes' edges cut to twice the body's extent (the scene
+    keeps the body's scale): every point within that window and on a box's surface; none without the links."""
+    from surgopt.studies.port_place.geometry import body_extent_mm
+    from surgopt.studies.port_place.html import scene_marks
+
+    cfg = _cfg(arms="tucked", legs="flat")
+    a, b, _ = body_extent_mm(cfg.patient)
+    points = np.array([p for p in scene_marks(cfg)["bedside"] if p is not None]) / 1000
+    assert len(points) > 0 and np.all(np.abs(points[:, 0]) <= 2 * a / 1000 + 1e-9)
+    assert np.all(np.abs(points[:, 1]) <= 2 * b / 1000 + 1e-9)
+    on_a_box = [any(np.all((p >= box.lo - 1e-6) & (p <= box.hi + 1e-6)) for box in bedside_boxes(cfg)) for p in points]
+    assert all(on_a_box)
+    assert scene_marks(PC.PortPlaceConfig.model_validate({"cart": {"model": "none"}}))["bedside"] == []

@@ -110,6 +110,31 @@ def bedside_boxes(cfg) -> list[Box]:
     return [b for b in boxes if np.all(b.hi > b.lo)]
 
 
+def box_edges(lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
+    """(12, 2, 3) A box's edges from its corners (for drawing)."""
+    corners = np.array([[hi[i] if (c >> i) & 1 else lo[i] for i in range(3)] for c in range(8)])
+    return np.array([[corners[a], corners[a | 1 << i]] for a in range(8) for i in range(3) if not (a >> i) & 1])
+
+
+def bedside_lines_mm(cfg, near_mm: tuple[float, float]) -> list:
+    """Every bedside box's edges, each box cut to within ``near_mm`` (half widths, x and y) of the patient frame's
+    origin so that a scene keeps the body's scale, as one polyline for a 3-D scene (mm, patient frame; None between
+    edges, as plotly breaks a line); [] without the cart's links (nothing is checked against them then)."""
+    from surgopt.studies.port_place.columns import links_of
+
+    if not links_of(cfg):
+        return []
+    window = np.array([near_mm[0], near_mm[1], np.inf]) / 1000
+    out = []
+    for box in bedside_boxes(cfg):
+        lo, hi = np.maximum(box.lo, -window), np.minimum(box.hi, window)
+        if np.any(hi <= lo):
+            continue
+        for a, b in box_edges(lo, hi) * 1000:
+            out += [[round(float(v), 1) for v in a], [round(float(v), 1) for v in b], None]
+    return out
+
+
 def bedside_words(cfg) -> str:
     """What the links clear beside the table, in words, its sizes' status said (the closing report's ``bedside``)."""
     bed = cfg.bedside

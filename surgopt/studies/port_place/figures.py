@@ -249,12 +249,6 @@ def reach_maps(plt, cfg, sites, t, dex, out):
     return save(fig, out / "port_place_reach_top.png")
 
 
-def box_edges(lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
-    """(12, 2, 3) A box's edges from its corners."""
-    corners = np.array([[hi[i] if (c >> i) & 1 else lo[i] for i in range(3)] for c in range(8)])
-    return np.array([[corners[a], corners[a | 1 << i]] for a in range(8) for i in range(3) if not (a >> i) & 1])
-
-
 def cart_figure(plt, model, row: dict, out, note: str = ""):
     """The layout on the cart, in the cart's world frame (m; the floor at z = 0): the patient's surface and the
     table, each arm's setup joints as the polyline of their frames (base, each link, the SUJ's tip), the arm's
@@ -279,7 +273,7 @@ def cart_figure(plt, model, row: dict, out, note: str = ""):
         x, y, z = dome_surface_mm((a, b, h), cfg.patient.dome_exponent, u, v)
         pts = to_cart(np.stack([x, y, z], -1).reshape(-1, 3) / 1000).reshape(x.shape + (3,))
         ax.plot_wireframe(pts[..., 0], pts[..., 1], pts[..., 2], color="0.75", lw=0.4)
-    from surgopt.studies.port_place.bedside import bedside_boxes
+    from surgopt.studies.port_place.bedside import bedside_boxes, box_edges
 
     for k, box in enumerate(bedside_boxes(cfg)):  # the table's slab, its rails, the patient's arms and legs
         for e, edge in enumerate(box_edges(box.lo, box.hi)):

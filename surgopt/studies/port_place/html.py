@@ -211,8 +211,8 @@ def top_view_figure(cfg, model, row: dict, arms: list[str]) -> dict:
 
 def scene_marks(cfg) -> dict:
     """What the scene marks on the patient (issue 56 item 4): the landmarks on the wall (name, x, y, z mm; the
-    dome's own said to be assumed), the marked region's outline lifted onto the wall, and the sides (the patient's
-    left and right, head and feet) just past the body."""
+    dome's own said to be assumed), the marked region's outline lifted onto the wall, the sides (the patient's
+    left and right, head and feet) just past the body, and the bedside's boxes the links clear (#54)."""
     from surgopt.studies.port_place.geometry import body_extent_mm, landmarks_mm, wall_height_mm
 
     marks = landmarks_mm(cfg.patient)
@@ -230,8 +230,10 @@ def scene_marks(cfg) -> dict:
     a, b, _ = body_extent_mm(cfg.patient)
     sides = [["patient's left", 1.15 * a, 0.0, 0.0], ["patient's right", -1.15 * a, 0.0, 0.0],
              ["head", 0.0, 1.1 * b, 0.0], ["feet", 0.0, -1.1 * b, 0.0]]
+    from surgopt.studies.port_place.bedside import bedside_lines_mm
+
     return {"landmarks": landmarks, "landmarks_assumed": not cfg.patient.landmarks_mm, "region": region,
-            "sides": sides}
+            "sides": sides, "bedside": bedside_lines_mm(cfg, (2.0 * a, 2.0 * b))}
 
 
 def headline_rolled(cfg, parts):
@@ -289,7 +291,11 @@ function base(){
     z:D.region.map(p=>p[2]), line:{color:'#d9822b', width:5}, name:'marked region', hoverinfo:'skip'}] : [];
   const sides = {type:'scatter3d', mode:'text', x:D.sides.map(s=>s[1]), y:D.sides.map(s=>s[2]), z:D.sides.map(s=>s[3]),
     text:D.sides.map(s=>s[0]), textfont:{size:12, color:'#52606d'}, name:'sides', showlegend:false, hoverinfo:'skip'};
-  return [body, sites, none, ...marks, ...region, sides];
+  const pt = (k) => D.bedside.map(p => p === null ? null : p[k]);
+  const bedside = D.bedside.length ? [{type:'scatter3d', mode:'lines', x:pt(0), y:pt(1), z:pt(2),
+    line:{color:'#8d6e63', width:2}, name:"the bedside the links clear, near the body (table, rails, the patient's arms and legs)",
+    hoverinfo:'skip', connectgaps:false}] : [];
+  return [body, sites, none, ...marks, ...region, sides, ...bedside];
 }
 function draw(i){
   // the checks, ports and title at once; the scene on the next frame, once they are painted (software WebGL takes
