@@ -17,7 +17,7 @@ from surgopt.studies.port_place import study as S
 from surgopt.studies.port_place import tables as T
 from surgopt.studies.port_place import model as M
 
-from conftest import cli
+from conftest import cli, invoke
 import reference as REF
 from reference import suj_forward_reference
 
@@ -115,14 +115,17 @@ def test_the_dvrk_export_puts_each_psm_rcm_on_its_port_by_the_reference_kinemati
         "[cart]\nmodel = \"classic\"\naround_step_deg = 30.0\ndistance_step_mm = 300.0\n"
         "[robot]\ndocking_roll_deg = -45.0\n"  # at roll 0 no layout of this grid keeps its links clear
         "[bedside]\narms = \"none\"\n")  # out on their boards, the arms leave none of its 2 (test_bedside's ground)
-    r = cli("port-place", "c.toml", "--store", tmp_path / "s", cwd=tmp_path)
-    assert "Classic cart" in r.stdout and "setup joints" in r.stdout and "PSM1" in r.stdout
-    assert "least clearance outside the body" in r.stdout and "PSM1 and PSM2, over the target" in r.stdout
-    checks = r.stdout.split("best layout: clinical checks")[1].split("best layout: ports")[0]
+    # in this process (the CLI's own start-up is another test's): the run, then its exports on the run's model
+    code, out = invoke("port-place", tmp_path / "c.toml", "--store", tmp_path / "s")
+    assert code == 0, out
+    assert "Classic cart" in out and "setup joints" in out and "PSM1" in out
+    assert "least clearance outside the body" in out and "PSM1 and PSM2, over the target" in out
+    checks = out.split("best layout: clinical checks")[1].split("best layout: ports")[0]
     assert "within" in checks and ("yes" in checks or "OUTSIDE" in checks)
-    best = int(r.stdout.split("best_design_id")[1].split()[1])
-    r = cli("export", "latest", "--store", tmp_path / "s", "--design", str(best), "--format", "dvrk", "--out",
-            tmp_path / "setup.json", cwd=tmp_path)
+    best = int(out.split("best_design_id")[1].split()[1])
+    code, out = invoke("export", "latest", "--store", tmp_path / "s", "--design", str(best), "--format", "dvrk",
+                       "--out", tmp_path / "setup.json")
+    assert code == 0, out
     setup = json.loads((tmp_path / "setup.json").read_text())
     patient = np.array(setup["cart_to_patient"])
     centre = np.array(C.Target().centre_mm) / 1000
@@ -137,8 +140,9 @@ def test_the_dvrk_export_puts_each_psm_rcm_on_its_port_by_the_reference_kinemati
     # #57 item 5: the dVRK's own SUJ_Fixed file: a comment (the dVRK's reader takes it), then the four arms it
     # expects, each placed arm's measured_cp the base frame its setup joints give (the reference FK of the joints
     # the dvrk export writes), PSM3 (not in this layout) left without one, the pairing named in the comment
-    cli("export", "latest", "--store", tmp_path / "s", "--design", str(best), "--format", "dvrk-suj-fixed",
-        "--out", tmp_path / "suj-fixed.json", cwd=tmp_path)
+    code, out = invoke("export", "latest", "--store", tmp_path / "s", "--design", str(best), "--format",
+                       "dvrk-suj-fixed", "--out", tmp_path / "suj-fixed.json")
+    assert code == 0, out
     text = (tmp_path / "suj-fixed.json").read_text()
     assert text.startswith("/* surgopt port-place") and text.count("*/") == 1
     comment, body = text.split("*/")
@@ -196,7 +200,7 @@ def test_the_dvrk_export_puts_each_psm_rcm_on_its_port_by_the_reference_kinemati
         assert not (tmp_path / f"never-{fmt}.json").exists()
     plain = tmp_path / "p.toml"
     plain.write_text("[patient.port_region]\nsite_spacing_mm = 72.0\n[target]\nspacing_mm = 20.0\n")
-    cli("port-place", "p.toml", "--store", tmp_path / "s2", cwd=tmp_path)
+    assert invoke("port-place", plain, "--store", tmp_path / "s2")[0] == 0
     for fmt in ("dvrk", "dvrk-suj-fixed"):
         bad = cli("export", "latest", "--store", tmp_path / "s2", "--design", "0", "--format", fmt, cwd=tmp_path,
                   check=False)

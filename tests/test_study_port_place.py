@@ -16,7 +16,7 @@ from surgopt.studies.port_place import tables as T
 from surgopt.studies.port_place import model as M
 from surgopt.studies.port_place import study as S
 
-from conftest import cli, fault_lines
+from conftest import cli, fault_lines, invoke
 from reference import finite_difference_jacobian
 
 ANY_APPROACH = K.Approach(0.0, 0.0, -1.0, -2.0)  # no approach cone
@@ -79,13 +79,13 @@ def test_three_psms_from_the_cli_store_only_feasible_rows_and_say_so(tmp_path):
 
     overrides = ["patient.port_region.site_spacing_mm=50", "target.spacing_mm=15", "robot.instrument_count=3",
                  "rows_stored=feasible", "cart.model=none"]  # three PSMs on the cart: tests/test_runner.py
-    r = cli("port-place", *overrides, "--store", tmp_path / "s")
-    assert "feasible only" in r.stdout and "psm3" in r.stdout and "all three instruments" in r.stdout
+    code, out = invoke("port-place", *overrides, "--store", tmp_path / "s")  # in this process: no start-up
+    assert code == 0 and "feasible only" in out and "psm3" in out and "all three instruments" in out
     rec = json.loads(cli("summarize", "--store", tmp_path / "s", "--format", "json").stdout)
     assert rec["headline"]["designs"] == 36_720 and rec["rows"] == rec["headline"]["feasible"] > 0
     assert rec["top"][0]["psm3_reach"] == 1.0 and rec["top"][0]["common_reach"] == 1.0
-    out = cli("plot", "--store", tmp_path / "s", "--out", tmp_path / "fig").stdout
-    assert "port_place_layout_3d.png" in out and "port_place_reasons.png" not in out
+    code, out = invoke("plot", "--store", tmp_path / "s", "--out", tmp_path / "fig")
+    assert code == 0 and "port_place_layout_3d.png" in out and "port_place_reasons.png" not in out
     # none feasible: the run kept no reasons, and says how to see them (not "the reasons below")
     import os
 

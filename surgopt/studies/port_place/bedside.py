@@ -119,11 +119,7 @@ def box_edges(lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
 def bedside_lines_mm(cfg, near_mm: tuple[float, float]) -> list:
     """Every bedside box's edges, each box cut to within ``near_mm`` (half widths, x and y) of the patient frame's
     origin so that a scene keeps the body's scale, as one polyline for a 3-D scene (mm, patient frame; None between
-    edges, as plotly breaks a line); [] without the cart's links (nothing is checked against them then)."""
-    from surgopt.studies.port_place.columns import links_of
-
-    if not links_of(cfg):
-        return []
+    edges, as plotly breaks a line)."""
     window = np.array([near_mm[0], near_mm[1], np.inf]) / 1000
     out = []
     for box in bedside_boxes(cfg):

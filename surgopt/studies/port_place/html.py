@@ -231,9 +231,11 @@ def scene_marks(cfg) -> dict:
     sides = [["patient's left", 1.15 * a, 0.0, 0.0], ["patient's right", -1.15 * a, 0.0, 0.0],
              ["head", 0.0, 1.1 * b, 0.0], ["feet", 0.0, -1.1 * b, 0.0]]
     from surgopt.studies.port_place.bedside import bedside_lines_mm
+    from surgopt.studies.port_place.columns import links_of
 
+    bedside = bedside_lines_mm(cfg, (2.0 * a, 2.0 * b)) if links_of(cfg) else []  # what the links are checked against
     return {"landmarks": landmarks, "landmarks_assumed": not cfg.patient.landmarks_mm, "region": region,
-            "sides": sides, "bedside": bedside_lines_mm(cfg, (2.0 * a, 2.0 * b))}
+            "sides": sides, "bedside": bedside}
 
 
 def headline_rolled(cfg, parts):
