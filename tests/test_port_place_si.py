@@ -18,7 +18,7 @@ from surgopt.studies.port_place import study as S
 from surgopt.studies.port_place import tables as T
 from surgopt.studies.port_place import model as M
 
-from conftest import cli
+from conftest import cli, invoke
 import reference as REF
 from reference import suj_forward_reference
 
@@ -184,13 +184,13 @@ def test_the_si_export_lands_each_rcm_on_its_port_and_its_own_joints_aim_the_sha
         "[robot]\ninstrument_arm = \"dvrk_psm_si\"\ncamera_arm = \"dvrk_ecm_si\"\n"
         "[cart]\nmodel = \"si\"\naround_step_deg = 30.0\ndistance_step_mm = 300.0\n"
         "[constraints]\nmin_link_clearance_mm = \"off\"\n")  # the links: tests/test_link_tables.py
-    r = cli("port-place", "si.toml", "--store", tmp_path / "s", cwd=tmp_path)
-    assert "Si cart" in r.stdout and "not part of feasible" in r.stdout
-    best = int(r.stdout.split("best_design_id")[1].split()[1])
-    r = cli("export", "latest", "--store", tmp_path / "s", "--design", str(best), "--format", "dvrk", "--out",
-            tmp_path / "setup.json", cwd=tmp_path)
+    code, out = invoke("port-place", tmp_path / "si.toml", "--store", tmp_path / "s")  # in this process
+    assert code == 0 and "Si cart" in out and "not part of feasible" in out, out
+    best = int(out.split("best_design_id")[1].split()[1])
+    code, out = invoke("export", "latest", "--store", tmp_path / "s", "--design", str(best), "--format", "dvrk",
+                       "--out", tmp_path / "setup.json")
     setup = json.loads((tmp_path / "setup.json").read_text())
-    assert setup["feasible"] is True and setup["fails_on"] == [] and "not feasible" not in r.stderr
+    assert code == 0 and setup["feasible"] is True and setup["fails_on"] == [] and "not feasible" not in out
     _a_docked_infeasible_design_is_written_with_its_reasons_and_a_note(tmp_path)
     clear = setup["clearances_outside_body"]
     assert len(clear["checks"]) == 3 * 2 + 3 * 2 and clear["least_mm"] == min(c["clearance_mm"] for c in clear["checks"])
@@ -254,8 +254,8 @@ def test_the_page_colours_the_target_by_the_si_psm3s_own_isotropy(tmp_path, page
         "[robot]\ninstrument_arm = \"dvrk_psm_si\"\ncamera_arm = \"dvrk_ecm_si\"\ninstrument_count = 3\n"
         "[cart]\nmodel = \"si\"\naround_step_deg = 30.0\ndistance_step_mm = 300.0\n"
         "[constraints]\nmin_link_clearance_mm = \"off\"\n")  # the links: tests/test_link_tables.py
-    cli("port-place", "si3.toml", "--store", tmp_path / "s", "--quiet", cwd=tmp_path)
-    cli("report", "latest", "--store", tmp_path / "s", "--out", tmp_path / "si3.html", cwd=tmp_path)
+    assert invoke("port-place", tmp_path / "si3.toml", "--store", tmp_path / "s", "--quiet")[0] == 0
+    assert invoke("report", "latest", "--store", tmp_path / "s", "--out", tmp_path / "si3.html")[0] == 0
     errors = []
     page.on("pageerror", lambda e: errors.append(str(e)))
     page.on("console", lambda m: errors.append(m.text) if m.type == "error" else None)
