@@ -357,8 +357,9 @@ def undocked_table(parts, meta: dict) -> list:
     sites = np.column_stack([got[f"{a}_site"][undocked] for a in arms]).astype(np.int64)
     ids = got["design_id"][undocked]
     undocked_why = np.empty(len(ids), np.int64)
-    for block in np.unique(ids // per_roll(cfg)):  # each roll's block by its own roll's dock tables
-        at = np.flatnonzero(ids // per_roll(cfg) == block)
+    block_of = ids // per_roll(cfg)
+    for block in np.unique(block_of):  # each docking's block by its own docking's dock tables
+        at = np.flatnonzero(block_of == block)
         undocked_why[at] = why_undocked(model_of(at_docking(cfg, dockings(cfg)[block])).dock, sites[at])
     why = np.where(got["infeasible"][undocked] == OUTSIDE, len(UNDOCKED_WHY) - 1, undocked_why)
     rows = [[w, f"{int(np.sum(why == k)):,}"] for k, w in enumerate(UNDOCKED_WHY) if np.any(why == k)]

@@ -61,11 +61,10 @@ def per_roll(cfg: PortPlaceConfig) -> int:
 
 
 def blocks(cfg: PortPlaceConfig, start: int, stop: int) -> list[tuple[PortPlaceConfig, int, int, int]]:
-    """Designs ``start`` .. ``stop`` - 1 of the enumeration as (the block's config, its first and past-last local
-    design, the block's offset), one entry per block they span."""
+    """Designs ``start`` .. ``stop`` - 1 of the enumeration (``stop`` clamped to its end) as (the block's config,
+    its first and past-last local design, the block's offset), one entry per block they span."""
     docks, per = dockings(cfg), per_roll(cfg)
-    if len(docks) == 1:
-        return [(cfg, start, stop, 0)]
+    stop = min(stop, per * len(docks))
     out = []
     for b in range(start // per, (max(stop, start + 1) - 1) // per + 1):
         lo, hi = max(start, b * per), min(stop, (b + 1) * per)

@@ -157,7 +157,7 @@ def cart_fields(config) -> list:
         "meaning": f"the two links of external_clearance_mm: {PAIR_CODE} x arm pair (0 PSM1-PSM2, 1 PSM1-ECM, 2 "
                    f"PSM2-ECM, 3 PSM1-PSM3, 4 PSM2-PSM3, 5 PSM3-ECM) + {LINK_CODE} x the first arm's link + the "
                    f"second's, or {PAIR_CODE} x (6 + arm: PSM1, PSM2, PSM3, ECM) + {LINK_CODE} x its link + (0 the "
-                   "patient's body, 1 the table); each arm's "
+                   "patient's body, 1 + the bedside's box in bedside.BEDSIDE: 1 the table); each arm's "
                    "links its setup joints' 3-6, then its own (link_tables.pair_name decodes it); -1: none"}),
              pa.field(WHOLE_TARGET_COLUMN, pa.float64(), metadata={
                  "meaning": "the least clearance between the layout's arms over every target point (each PSM at any "
@@ -249,8 +249,9 @@ def compute_task(cfg, chunk: int, index: int) -> dict:
     from surgopt.studies.port_place.rolls import blocks
 
     start = index * chunk
-    parts = [block_rows(block, lo, hi, offset)
-             for block, lo, hi, offset in blocks(cfg, start, min(n_total(cfg), start + chunk))]
+    if len(dockings(cfg)) == 1:  # one docking: its model's sites bound the task (no sites computed again)
+        return block_rows(cfg, start, start + chunk)
+    parts = [block_rows(block, lo, hi, offset) for block, lo, hi, offset in blocks(cfg, start, start + chunk)]
     return parts[0] if len(parts) == 1 else concat_rows(parts)
 
 
@@ -261,6 +262,7 @@ def block_rows(cfg, start: int, stop: int, offset: int = 0) -> dict:
 
     model = model_of(cfg)
     sites, (t, _, _), crit = model.sites_m, model.grid, model.criteria
+    stop = min(n_designs(len(sites), cfg.robot.instrument_count), stop)
     ids, f, bad, cost, design_ids, dock = design_columns(t, crit, start, stop, cfg.robot.instrument_count,
                                                          cfg.rows_stored == "feasible")
     return design_rows(cfg, sites, t, ids, ids, f, bad, cost, design_ids + offset,
