@@ -253,6 +253,15 @@ def columns_env() -> int | None:
 
 #: The narrowest a table's first column (its labels) is folded to when the table must fit a terminal.
 LABEL_MIN = 24
+#: The narrowest a column of words (a clinical number and its source, a port "in words") is folded to: such a
+#: column wraps rather than being left out (issue 56 item 8: the clinical number beside each check was dropped).
+WORDS_MIN = 16
+
+
+def words_column(values: list[str]) -> bool:
+    """A column of words, which may wrap: some cell holds a letter and a space ("54 right, 36 cranial"); numbers,
+    ranges of numbers and one-word flags ("yes", "OUTSIDE") never wrap."""
+    return any(" " in v and any(ch.isalpha() for ch in v) for v in values)
 
 
 def print_table(console, title, header, rows) -> None:
@@ -264,28 +273,39 @@ def print_table(console, title, header, rows) -> None:
 
     header = [str(h) for h in header]
     rows = [[str(v) for v in row] for row in rows]
-    widths = [max([len(header[i])] + [len(r[i]) for r in rows if i < len(r)]) for i in range(len(header))]
+    def shape():  # each column's width, whether it is words, and the least width the whole table folds to
+        widths = [max([len(header[i])] + [len(r[i]) for r in rows if i < len(r)]) for i in range(len(header))]
+        words = [i > 0 and words_column([r[i] for r in rows if i < len(r)]) for i in range(len(header))]
+        least = sum((min(w, LABEL_MIN) if i == 0 else min(w, WORDS_MIN) if words[i] else w) + 3
+                    for i, w in enumerate(widths)) + 1
+        return widths, words, least
+
+    widths, words, least = shape()
     need = sum(w + 3 for w in widths) + 1
     if not console.is_terminal:  # a pipe or a file: its own width, or the COLUMNS a user set (issue 56 item 8)
         console = Console(width=columns_env() or max(need, len(title or "") + 4, 80), file=console.file,
                           force_terminal=False)
     omitted = []
-    if need > console.width and 1 <= len(rows) <= 2 and len(header) > 2:
+    if least > console.width and 1 <= len(rows) <= 2 and len(header) > 2:
         header, rows = ["field", *(["value"] if len(rows) == 1 else ["row 1", "row 2"])], \
             [[h, *[r[i] for r in rows]] for i, h in enumerate(header)]
-    elif need > console.width:  # the first column (a label) may wrap down to LABEL_MIN; numbers never wrap
-        keep, used = [0], min(widths[0], LABEL_MIN) + 4
+        widths, words, least = shape()
+    elif least > console.width:  # the first column (a label) may wrap down to LABEL_MIN, words down to WORDS_MIN;
+        keep, used = [0], min(widths[0], LABEL_MIN) + 4  # numbers never wrap
         for i in range(1, len(header)):
-            if used + widths[i] + 3 <= console.width:
+            least = min(widths[i], WORDS_MIN) if words[i] else widths[i]
+            if used + least + 3 <= console.width:
                 keep.append(i)
-                used += widths[i] + 3
+                used += least + 3
             else:
                 omitted.append(header[i])
-        header, rows = [header[i] for i in keep], [[r[i] for i in keep] for r in rows]
+        header, rows, widths, words = ([header[i] for i in keep], [[r[i] for i in keep] for r in rows],
+                                       [widths[i] for i in keep], [words[i] for i in keep])
     t = Table(title=title)
     for i, h in enumerate(header):
-        t.add_column(h, justify="left" if i == 0 else "right", no_wrap=i > 0, overflow="fold",
-                     min_width=min(widths[0], LABEL_MIN) if i == 0 and len(widths) else None)
+        least = min(widths[0], LABEL_MIN) if i == 0 else min(widths[i], WORDS_MIN) if words[i] else None
+        t.add_column(h, justify="left" if i == 0 or words[i] else "right", no_wrap=i > 0 and not words[i], overflow="fold",
+                     min_width=least)
     for row in rows:
         t.add_row(*row)
     console.print(t)

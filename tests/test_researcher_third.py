@@ -29,6 +29,26 @@ def test_a_wide_table_fits_an_80_column_terminal_and_says_what_it_left_out():
     assert re.search(r"\d+ more column\(s\) not shown at 80 columns: .*a_long_column_name_9_mm", text, re.S)
 
 
+def test_a_column_of_words_wraps_at_80_columns_instead_of_being_left_out():
+    """#56 item 8: the closing report's clinical checks at 80 columns dropped the clinical number beside each check
+    (a column of words); it now wraps, while the numbers beside it stay whole."""
+    from rich.console import Console
+
+    from surgopt.cli_common import print_table, words_column
+
+    out = io.StringIO()
+    header = ["quantity", "value", "clinical number", "within"]
+    rows = [["instrument port to target centre, 3-D (mm)", "172.123",
+             "80-180 (constraints.port_to_target_mm; <= 180: J Endourol 2004, port to pubis)", "yes"],
+            ["manipulation angle over the target (deg)", "37.3 - 69.3", "45-75", "OUTSIDE"]]
+    assert words_column([r[2] for r in rows]) and not words_column([r[1] for r in rows])  # the premise
+    assert not words_column([r[3] for r in rows])
+    print_table(Console(file=out, width=80, force_terminal=True, color_system=None), "clinical checks", header, rows)
+    text = out.getvalue()
+    assert max(map(len, text.splitlines())) <= 80 and "not shown" not in text
+    assert "clinical number" in text and "Endourol" in text and "172.123" in text and "37.3 - 69.3" in text
+
+
 def test_a_wide_table_to_a_pipe_keeps_every_column_whole():
     text = "\n".join(_table(80, terminal=False))
     assert "a_long_column_name_9_mm" in text and "not shown" not in text
