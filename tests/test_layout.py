@@ -138,3 +138,48 @@ def test_the_console_file_loads_the_suj_fixed_file_and_keeps_the_hands_uncrossed
         teleop = json.loads(E.dvrk_setup(cfg, row))["teleop"]
         assert {t["mtm"]: t["psm"] for t in doc["psm_teleops"]} == teleop
         assert doc["ecm_teleop"] == {"mtm_left": "MTML", "mtm_right": "MTMR", "ecm": "ECM"}
+
+
+def _in_patient_mm(p_world_m: np.ndarray, row: dict, cfg) -> np.ndarray:
+    """A point of the cart's world frame (m) in the patient's frame (mm), written out from the cart pose's
+    definition (``carts.patient_in_cart``'s docstring): the cart's world turned by -heading about the vertical and
+    moved to (x, y, its height above the floor - the table's height) in the untilted frame, then the tilt undone."""
+    from surgopt.robots.dvrk.platforms import PLATFORMS
+
+    h = math.radians(row["cart_heading_deg"])
+    turn = np.array([[math.cos(h), math.sin(h), 0.0], [-math.sin(h), math.cos(h), 0.0], [0.0, 0.0, 1.0]])
+    at = np.array([row["cart_x_mm"] / 1000, row["cart_y_mm"] / 1000,
+                   PLATFORMS["classic"].world_above_floor_m - cfg.cart.table_height_mm / 1000])
+    t, lat = math.radians(cfg.cart.trendelenburg_deg), math.radians(cfg.cart.lateral_tilt_deg)
+    rx = np.array([[1.0, 0.0, 0.0], [0.0, math.cos(-t), -math.sin(-t)], [0.0, math.sin(-t), math.cos(-t)]])
+    ry = np.array([[math.cos(-lat), 0.0, math.sin(-lat)], [0.0, 1.0, 0.0], [-math.sin(-lat), 0.0, math.cos(-lat)]])
+    return (rx @ ry).T @ (turn @ p_world_m + at) * 1000
+
+
+def test_the_pages_scene_draws_each_arm_docked_where_the_rows_joints_put_it(feasible_rows):
+    """#56 item 4: the page's scene draws the cart and its arms as the row docks them (``layout.docked_lines_mm``,
+    patient frame, mm). Each PSM's setup-joint polyline reaches the SUJ's tip that the row's own joints give
+    (reference forward kinematics, put in the patient's frame by the row's cart pose written out here), each
+    arm's lines pass through its port (its shaft's capsule starts there), and the cart's column stands on the
+    row's cart origin, as high as the cart's world frame above the floor."""
+    from reference import SUJ_TIP_ROTATION
+    from surgopt.robots.dvrk.platforms import PLATFORMS
+    from surgopt.studies.port_place.layout import docked_lines_mm
+
+    cfg, rows = feasible_rows
+    tool = np.eye(4)
+    tool[:3, :3], tool[:3, 3] = SUJ_TIP_ROTATION, (0.4864, 0.0, 0.1524)  # dvrk-kinematics.md, every PSM
+    for row in rows:
+        drawn = docked_lines_mm(model_of(cfg), row)
+        lines = {role: np.array([p for p in line if p is not None]) for role, line in drawn["arms"]}
+        assert sorted(lines) == ["ECM", "PSM1", "PSM2"]
+        for role, pts in lines.items():
+            port = np.array([row[f"{role.lower()}_{c}_mm"] for c in "xyz"])
+            assert np.linalg.norm(pts - port, axis=1).min() < 0.087  # through its port (drawn to 0.1 mm: 0.05 mm a coordinate)
+        column = np.array([p for p in drawn["cart"] if p is not None])[-2:]  # from the floor to the world's origin
+        np.testing.assert_allclose(column, [_in_patient_mm(np.array([0.0, 0.0, z]), row, cfg) for z in
+                                            (-PLATFORMS["classic"].world_above_floor_m, 0.0)], atol=0.051)
+        for arm in ("PSM1", "PSM2"):
+            tip = (suj_forward_reference("classic", arm, _row_joints(row, arm)) @ np.linalg.inv(tool))[:3, 3]
+            assert np.linalg.norm(lines[arm] - _in_patient_mm(tip, row, cfg), axis=1).min() < 0.087
+    assert docked_lines_mm(model_of(PC.PortPlaceConfig.model_validate({"cart": {"model": "none"}})), rows[0]) is None

@@ -4,6 +4,7 @@ against the plain one, each port's Si docking frame against a brute-force search
 against the plain inverse at every cart pose, and the dvrk export's setup joints through the reference forward
 kinematics (tests/reference.py, typed from the dVRK's files apart from the package)."""
 import json
+import re
 import math
 
 import numpy as np
@@ -270,6 +271,19 @@ def test_the_page_colours_the_target_by_the_si_psm3s_own_isotropy(tmp_path, page
     assert data["reach3"] is not None and data["dex3"] is not None
     iso = page.evaluate("document.getElementById('pp-scene').data.find(t => t.name === 'target (isotropy)')"
                         ".marker.color")
+    # #56 item 4: the cart and its arms as the clicked layout's row docks them (read back from the scene's traces:
+    # each arm's lines through its port), and each port from the landmark along the skin
+    names = page.evaluate("document.getElementById('pp-scene').data.map(t => t.name)")
+    assert {f"{a} setup joints and links (docked)" for a in ("PSM1", "PSM2", "PSM3", "ECM")} <= set(names)
+    assert "the cart (its base on the floor, its column) and its arms as docked: click to hide or show" in names
+    for a in ("PSM1", "PSM2", "PSM3", "ECM"):
+        drawn = page.evaluate(f"(() => {{ const t = document.getElementById('pp-scene').data.find(t => t.name === "
+                              f"'{a} setup joints and links (docked)'); return [t.x, t.y, t.z]; }})()")
+        pts = np.array([[x, y, z] for x, y, z in zip(*drawn) if x is not None], float)
+        port = np.array([data["layouts"][f"{a.lower()}_{c}_mm"][row] for c in "xyz"])
+        assert np.linalg.norm(pts - port, axis=1).min() < 0.087  # through its port (to 0.1 mm)
+    cells = page.locator("#pp-ports tbody tr").first.locator("td").all_inner_texts()
+    assert re.fullmatch(r"(\d+\.\d cm (left|right)|midline), (\d+\.\d cm (cranial|caudal)|level)", cells[-1]), cells
     cfg = C.PortPlaceConfig.model_validate({"rows_stored": "feasible", "patient": SI["patient"],
                                             "target": SI["target"], "robot": {**SI_ARMS, "instrument_count": 3},
                                             "cart": {k: v for k, v in SI["cart"].items() if k != "trendelenburg_deg"},

@@ -9,6 +9,8 @@ reach and isotropy tables (n_sites x n_points, from the config), the reasons' co
 feasible layouts' metrics."""
 from __future__ import annotations
 
+from html import escape
+
 import math
 
 import numpy as np
@@ -16,7 +18,7 @@ import numpy as np
 from surgopt.robots.dvrk.platforms import role_of
 from surgopt.studies.page import View, table_html
 from surgopt.studies.port_place.geometry import (FRAME_TEXT, X_LABEL, Y_LABEL, Z_LABEL, from_landmark,
-                                                 reference_landmark)
+                                                 reference_landmark, skin_words)
 
 TOP_FEASIBLE = 300
 TOP_INFEASIBLE = 100
@@ -62,7 +64,7 @@ def _body(cfg) -> dict:
 def views(run, cfg, parts) -> list[View]:
     """The run's sections (``cfg``: its validated config), aggregates streamed from ``parts``."""
     from surgopt.studies.port_place.report import CLINICAL_COLUMNS, clinical_checks, least_cost_layouts
-    from surgopt.studies.port_place.columns import arms_of, docking_columns, roll_columns
+    from surgopt.studies.port_place.columns import CART_COLUMNS, arms_of, docking_columns, roll_columns
     from surgopt.studies.port_place.model import model_of
     from surgopt.studies.port_place.tables import outside_length_m
 
@@ -77,7 +79,7 @@ def views(run, cfg, parts) -> list[View]:
     wanted = sorted({*LAYOUT_COLUMNS, *[f"{a}_{s}" for a in arms for s in ("site", "x_mm", "y_mm", "z_mm")],
                      *CLINICAL_COLUMNS, "infeasible",
                      *[f"{a}_elevation_deg" for a in arms[:-1]], *PARALLEL_COLUMNS,
-                     *roll_columns(cfg), *docking_columns(cfg)} & set(parts.schema.names))
+                     *roll_columns(cfg), *docking_columns(cfg), *CART_COLUMNS} & set(parts.schema.names))
     best = least_cost_layouts(parts, max(PARALLEL, TOP_FEASIBLE), True, wanted)  # the table's and the lines'
     feasible = best.slice(0, TOP_FEASIBLE)
     infeasible = least_cost_layouts(parts, TOP_INFEASIBLE, False, wanted) if cfg.rows_stored == "all" else None
@@ -85,12 +87,17 @@ def views(run, cfg, parts) -> list[View]:
 
     top = pa.concat_tables([t for t in (feasible, infeasible) if t is not None and t.num_rows]) \
         if (feasible.num_rows or (infeasible is not None and infeasible.num_rows)) else feasible
-    found = headline_rolled(cfg, parts)  # a cheaper layout that clears only rolled: said, never listed as the answer
+    advice = rolled_advice(run, cfg, parts)  # a cheaper layout that clears only rolled: said, never listed as the answer
     layouts = {c: top[c].to_numpy(zero_copy_only=False) for c in wanted}
     mark_name, mark = reference_landmark(cfg.patient)
-    for a in arms:  # each port from the reference landmark, in words (the closing report's)
+    skin = {}  # a site's distance along the skin, once per site (a mesh's wall is ray-cast along each leg)
+    for a in arms:  # each port from the reference landmark, in words (the closing report's): top view, along the skin
         layouts[f"{a}_from"] = np.array([from_landmark(x, y, mark) for x, y in zip(layouts[f"{a}_x_mm"],
                                                                                   layouts[f"{a}_y_mm"])])
+        for s, x, y in zip(layouts[f"{a}_site"], layouts[f"{a}_x_mm"], layouts[f"{a}_y_mm"]):
+            if s not in skin:  # the sites are one grid for every arm
+                skin[s] = skin_words(cfg.patient, mark, x, y)
+        layouts[f"{a}_skin"] = np.array([skin[s] for s in layouts[f"{a}_site"]], dtype=object)
     from surgopt.kinematics.port.reasons import REASONS
 
     arm_lines, cam_lines = (None if lines is None else lines * 1000  # a serial arm's centre lines, every site
@@ -108,6 +115,7 @@ def views(run, cfg, parts) -> list[View]:
         rows = top.to_pylist()
         layout_iso = [[None if np.isnan(v) else round(float(v), 4) for v in layout_isotropy(model, r)] for r in rows]
     data = {
+        "docked": docked_scene(cfg, top.to_pylist()),
         "layout_iso": layout_iso,
         "arm_lines": arm_lines, "cam_lines": cam_lines, "outside_mm": outside_length_m(cfg) * 1000,
         "arms": arms, "colours": [COLOURS[a] for a in arms], "sites": sites, "site_best": site_best,
@@ -148,10 +156,11 @@ def views(run, cfg, parts) -> list[View]:
             '<div style="flex:0 1 460px"><h3 id="pp-title"></h3><table id="pp-checks"><thead><tr><th>check</th>'
             '<th>this layout</th><th>clinical number</th><th>within</th></tr></thead><tbody></tbody></table>'
             '<table id="pp-ports"><thead><tr><th>arm</th><th>site</th><th>x_mm</th><th>y_mm</th><th>z_mm</th>'
-            f'<th>from the {mark_name} (mm)</th></tr></thead><tbody></tbody></table></div></div>'
+            f'<th>from the {mark_name} (mm, top view)</th><th>from the {mark_name} along the skin (across, then '
+            'along)</th></tr></thead><tbody></tbody></table></div></div>'
             f"<h3>Top layouts: the {feasible.num_rows} feasible of least cost"
             + (f" and the {infeasible.num_rows} infeasible of least cost" if infeasible is not None else "")
-            + f" (of {parts.num_rows:,} rows)</h3>{rolled_note(found)}{filters}"
+            + f" (of {parts.num_rows:,} rows)</h3>{rolled_note(advice)}{filters}"
             + f"<div class=\"scroll\">{table}</div>",
         data, "pp-data", SCENE_SCRIPT)]
     if feasible.num_rows:
@@ -177,6 +186,22 @@ def views(run, cfg, parts) -> list[View]:
                                                                   "colorscale": "Viridis", "reversescale": True}}],
                                                "layout": {"height": 460, "margin": {"l": 80, "r": 80}}}}))
     return views_out
+
+
+def docked_scene(cfg, rows: list[dict]) -> list | None:
+    """Each listed layout's cart and arms as its row docks them (``layout.docked_lines_mm``, patient frame, mm),
+    drawn in the scene when the layout is clicked (#56 item 4); None without a cart. Rows are taken in design order,
+    so that a run of several docking rolls builds each roll's model once (``rolls.model_for``)."""
+    from surgopt.studies.port_place.carts import has_cart
+    from surgopt.studies.port_place.layout import docked_lines_mm
+    from surgopt.studies.port_place.rolls import model_for
+
+    if not has_cart(cfg):
+        return None
+    out = [None] * len(rows)
+    for i in sorted(range(len(rows)), key=lambda i: rows[i]["design_id"]):
+        out[i] = docked_lines_mm(model_for(cfg, rows[i]), rows[i])
+    return out
 
 
 def top_view_figure(cfg, model, row: dict, arms: list[str]) -> dict:
@@ -238,33 +263,31 @@ def scene_marks(cfg) -> dict:
             "sides": sides, "bedside": bedside}
 
 
-def headline_rolled(cfg, parts):
-    """(row, ``RollsThatClear``) of a layout cheaper than the answer that clears only with its PSMs rolled
-    (``report.headline_layout``: the summary's screen, memoised), else None."""
-    from surgopt.studies.port_place.report import headline_layout
+def rolled_advice(run, cfg, parts) -> str | None:
+    """The closing report's advice that a layout cheaper than the answer clears only with its PSMs rolled
+    (``report.cheaper_if_rolled_words``): its headline's, as kept beside the run (``surgopt.derived``), else
+    screened now (``report.headline_layout``, memoised: ~4 s of the default's page when the report was not kept);
+    None when there is none."""
+    from surgopt.derived import kept
     from surgopt.studies.port_place.columns import links_of
+    from surgopt.studies.port_place.report import cheaper_if_rolled_words, headline_layout
 
     if not links_of(cfg):
         return None
-    return headline_layout(parts, {k.decode(): v.decode() for k, v in (parts.schema.metadata or {}).items()})
+    summary = kept(run, "summary") if run is not None else None
+    if summary is not None:
+        return summary[0]["headline"].get("cheaper_if_rolled")
+    found = headline_layout(parts, {k.decode(): v.decode() for k, v in (parts.schema.metadata or {}).items()})
+    return None if found is None else cheaper_if_rolled_words(*found, cfg)
 
 
-def rolled_words(rolled) -> str:
-    """"PSM2 -75 deg, clear by 14 mm": each PSM's roll that clears a layout's links, and by how much."""
-    turned = ", ".join(f"{a} {d:+.0f} deg" for a, d in rolled.rolls.items() if d)
-    return f"{turned}, clear by {rolled.least.clearance_mm:.0f} mm"
-
-
-def rolled_note(found) -> str:
+def rolled_note(advice: str | None) -> str:
     """A line saying that a layout cheaper than the first in the table clears only with its PSMs rolled
-    (``headline_rolled``): not a row, so not listed as the answer; "" otherwise."""
-    if found is None:
+    (``rolled_advice``): not a row, so not listed as the answer; "" otherwise."""
+    if not advice:
         return ""
-    row, rolled = found
-    return (f'<p class="note" id="pp-rolled">Not listed: layout {row["design_id"]} (cost {rolled.cost:.4f} so '
-            f"docked) would be cheaper, but its links clear only with its PSMs docked rolled about their shafts "
-            f"({rolled_words(rolled)}), checked for it alone; its row, at the run's docking roll, fails on them "
-            f"(reason 16). The answer is the best feasible row, first below.</p>")
+    return (f'<p class="note" id="pp-rolled">Not listed: {escape(advice)}. The answer is the best feasible row, '
+            "first below.</p>")
 
 
 SCENE_SCRIPT = r"""
@@ -280,7 +303,7 @@ function base(){
   const pick = (idx, k) => idx.map(i => D.sites[i][k]);
   const sites = {type:'scatter3d', mode:'markers', x:pick(used, 0), y:pick(used, 1), z:pick(used, 2),
     marker:{size:3.5, color:used.map(i => D.site_best[i]), colorscale:'Viridis', reversescale:true, showscale:true,
-            colorbar:{title:{text:'least feasible cost'}, x:-0.02, len:0.55}}, name:'candidate sites',
+            colorbar:{title:{text:'least feasible cost'}, x:1.0, y:0.25, len:0.45}}, name:'candidate sites',
     text:used.map(i => 'site '+i+'<br>least feasible cost '+fmt(D.site_best[i],4)), hoverinfo:'text'};
   const none = {type:'scatter3d', mode:'markers', x:pick(unused, 0), y:pick(unused, 1), z:pick(unused, 2),
     marker:{size:2.5, color:'#9aa5b1'}, name:'sites no feasible layout uses',
@@ -322,7 +345,7 @@ function sceneTraces(i){
     : D.targets.map((p, k) => reachAll[k] ? Math.min.apply(null, X.map(x => x[k])) : null);
   traces.push({type:'scatter3d', mode:'markers', x:D.targets.map(p=>p[0]), y:D.targets.map(p=>p[1]), z:D.targets.map(p=>p[2]),
     marker:{size:2.5, color:iso.map(v=>v===null?NaN:v), colorscale:'Magma', showscale:true,
-            colorbar:{title:{text:'isotropy'}, x:1.0, len:0.55}}, name:'target (isotropy)',
+            colorbar:{title:{text:'isotropy'}, x:1.0, y:0.75, len:0.45}}, name:'target (isotropy)',
     text:iso.map(v=>v===null?'not reached by every instrument':'smaller isotropy '+v.toFixed(3)), hoverinfo:'text'});
   arms.forEach((a, j) => {
     const p = [col(a+'_x_mm', i), col(a+'_y_mm', i), col(a+'_z_mm', i)];
@@ -343,10 +366,23 @@ function sceneTraces(i){
         hoverinfo:'name'});
     }
   });
+  const dock = D.docked ? D.docked[i] : null;  // the cart and its arms as this layout's row docks them
+  if (dock) {
+    const xyz = (l, k) => l.map(q => q === null ? null : q[k]);
+    // one legend entry for them all: a click on it hides the cart and its arms (the scene back to the body's scale)
+    const group = {legendgroup:'docked'};
+    dock.arms.forEach(([role, l], k) => { const j = arms.indexOf(role.toLowerCase());
+      traces.push({type:'scatter3d', mode:'lines', x:xyz(l, 0), y:xyz(l, 1), z:xyz(l, 2), connectgaps:false,
+        line:{color:j >= 0 ? D.colours[j] : '#333', width:4}, name:role+' setup joints and links (docked)',
+        showlegend:false, hoverinfo:'name', ...group}); });
+    traces.push({type:'scatter3d', mode:'lines', x:xyz(dock.cart, 0), y:xyz(dock.cart, 1), z:xyz(dock.cart, 2),
+      connectgaps:false, line:{color:'#333', width:3}, hoverinfo:'name', ...group,
+      name:"the cart (its base on the floor, its column) and its arms as docked: click to hide or show"});
+  }
   return traces;
 }
 function sceneLayout(i){
-  return {uirevision:'keep', height:620, margin:{l:0, r:0, t:30, b:0}, showlegend:true, legend:{orientation:'h', x:0, y:0, bgcolor:'rgba(255,255,255,0.7)'},
+  return {uirevision:'keep', height:620, margin:{l:0, r:0, t:30, b:0}, showlegend:true, legend:{orientation:'v', x:0, y:1, font:{size:10}, bgcolor:'rgba(255,255,255,0.7)'},
     title:{text:'layout '+col('design_id', i)+' · cost '+fmt(col('cost', i), 4)+(col('feasible', i)?'':' · INFEASIBLE'), font:{size:13}},
     scene:{aspectmode:'data', xaxis:{title:{text:D.axes[0]}}, yaxis:{title:{text:D.axes[1]}},
            zaxis:{title:{text:D.axes[2]}}, camera:{eye:{x:-1.2, y:-1.6, z:1.0}}}};
@@ -367,7 +403,7 @@ function showLayout(i){
   const ports = document.querySelector('#pp-ports tbody'); ports.innerHTML = '';
   arms.forEach(a => { const tr = document.createElement('tr');
     [a.toUpperCase(), col(a+'_site', i), fmt(col(a+'_x_mm', i), 0), fmt(col(a+'_y_mm', i), 0), fmt(col(a+'_z_mm', i), 0),
-     col(a+'_from', i)]
+     col(a+'_from', i), col(a+'_skin', i)]
       .forEach(t => { const td = document.createElement('td'); td.textContent = t; tr.appendChild(td); });
     ports.appendChild(tr); });
   document.querySelectorAll('#pp-layouts tbody tr').forEach(tr => tr.classList.toggle('selected', +tr.dataset.i === i));

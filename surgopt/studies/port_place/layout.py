@@ -71,6 +71,48 @@ def arm_joints_at_centre(limits, base_in_patient: np.ndarray, centre_m: np.ndarr
     return [float(v) for v in rcm_inverse(p, limits.along_shaft_m)]
 
 
+def docked_lines_mm(model, row: dict) -> dict | None:
+    """(#56 item 4) The cart and its arms as a layout's row docks them, for a scene in the patient's frame (mm):
+    ``arms``: per docked arm, its role and one polyline (rows of x, y, z; None between pieces) of its setup joints'
+    frames (``setup_joint_frames``) and its own links' capsule axes (``clashes.arm_poses``, as the rows place them);
+    ``cart``: the outline of the cart's base on the floor (``Platform.footprint_m``) and its column from the floor
+    to its origin. None without a cart. The run's own docking (``tables.docked_arms``), as the row was decided."""
+    from surgopt.studies.port_place.carts import has_cart
+    from surgopt.studies.port_place.clashes import arm_poses
+    from surgopt.studies.port_place.tables import docked_arms, row_patient_in_cart
+
+    cfg = model.cfg
+    if not has_cart(cfg):
+        return None
+    patient = row_patient_in_cart(cfg, row)
+    to_patient = np.linalg.inv(patient)
+    in_patient = lambda p: p @ to_patient[:3, :3].T + to_patient[:3, 3]  # noqa: E731 - cart world (m) -> patient (m)
+    arms = []
+    for arm in docked_arms(model, row):
+        if not arm.joints:
+            continue
+        pieces = [in_patient(setup_joint_frames(cfg, arm)[:-1, :3, 3])]
+        links = arm_poses(model, arm, patient, model.targets_m[:0])
+        pieces += [links.segments[0, i] for i, n in enumerate(links.names) if "setup joint" not in n]
+        arms.append([arm.arm, _polyline_mm(pieces)])
+    platform = PLATFORMS[cfg.cart.model]
+    (x0, y0), (x1, y1) = platform.footprint_m
+    floor = -platform.world_above_floor_m
+    base = np.array([[x0, y0, floor], [x1, y0, floor], [x1, y1, floor], [x0, y1, floor], [x0, y0, floor]])
+    column = np.array([[0.0, 0.0, floor], [0.0, 0.0, 0.0]])
+    return {"arms": arms, "cart": _polyline_mm([in_patient(base), in_patient(column)])}
+
+
+def _polyline_mm(pieces) -> list:
+    """Pieces of polylines (each (k, 3), m) as one list of [x, y, z] mm rounded to 0.1 mm, None between pieces."""
+    out = []
+    for p in pieces:
+        if out:
+            out.append(None)
+        out += [[round(float(v) * 1000, 1) for v in q] for q in np.asarray(p, float)]
+    return out
+
+
 def layout_isotropy(model, row: dict) -> np.ndarray:
     """(target points,) The instruments' smaller isotropy (eq. P5) at each target point, docked as the layout's
     row says (its docking yaw and pitch, eq. P3, then its rolls: a searched trial's own frames), NaN where one of
