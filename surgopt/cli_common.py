@@ -56,11 +56,6 @@ def _backend_choices() -> enum.Enum:
 Backend = _backend_choices()
 
 
-class ListFormat(str, enum.Enum):
-    table = "table"
-    json = "json"
-
-
 class SummaryFormat(str, enum.Enum):
     table = "table"
     csv = "csv"
@@ -312,6 +307,27 @@ def print_table(console, title, header, rows) -> None:
     if omitted:
         console.print(f"({len(omitted)} more column(s) not shown at {console.width} columns: {', '.join(omitted)}; "
                       f"widen the terminal, or use --format csv / json)", highlight=False)
+
+
+def emit_tables(fmt: str, items) -> None:
+    """What a command prints: ``items``, each a table (title, header, rows) or a line of words, in ``fmt`` (issue 56
+    item 8: every command that prints a table takes --format): ``table`` as the terminal's (``print_table``), the
+    words between them; ``csv`` (each table under a '# title' line) or ``markdown`` on standard output with the
+    words on standard error, so that a pipe reads the tables alone."""
+    from surgopt.report import render
+
+    if fmt == "table":
+        console = wide_console(0)
+        for item in items:
+            if isinstance(item, str):
+                typer.echo(item)
+            else:
+                print_table(console, *item)
+        return
+    for item in items:
+        if isinstance(item, str):
+            typer.echo(item, err=True)
+    typer.echo(render([item for item in items if not isinstance(item, str)], fmt))
 
 
 def print_report(study_name: str, run, summary, edges, front, *, rows: int, elapsed_s: float, cache_hit: bool,

@@ -17,7 +17,6 @@ from surgopt.cli_common import (
     ExportFormat,
     FigureFormat,
     JobsOpt,
-    ListFormat,
     QuietOpt,
     StoreOpt,
     SummaryFormat,
@@ -25,6 +24,7 @@ from surgopt.cli_common import (
     wide_console,
     fail,
     guard,
+    emit_tables,
     print_table,
 )
 
@@ -37,8 +37,8 @@ def runs(
     ctx: typer.Context,
     store: StoreOpt = None,
     study: Annotated[Optional[str], typer.Option("--study", help="Only this study.")] = None,
-    fmt: Annotated[ListFormat, typer.Option("--format", help="table, or json (every run's manifest facts, "
-                                                              "snake_case keys).")] = ListFormat.table,
+    fmt: Annotated[SummaryFormat, typer.Option("--format", help="table, csv, json (every run's manifest facts, "
+                                                                 "snake_case keys) or markdown.")] = SummaryFormat.table,
     compare: Annotated[bool, typer.Option("--compare", metavar="", help="The complete runs of --study side by side: the config "
                                                             "values that differ between them and the study's headline "
                                                             "metrics (as dvc exp show).")] = False,
@@ -65,19 +65,26 @@ def runs(
             _compare(s, study, fmt)
             return
         records = run_records(s, study)
-    if fmt == ListFormat.json:
+    if fmt == SummaryFormat.json:
         typer.echo(json.dumps(records, indent=1))
         return
     if not records:
-        typer.echo(f"no runs in {s.root}")
+        typer.echo(f"no runs in {s.root}", err=fmt != SummaryFormat.table)
         return
-    t = Table(title=f"runs in {s.root}")
-    for col in ("study", "key", "name, tags", "config", "plan", "rows", "state", "created"):
-        t.add_column(col, overflow="fold")
+    header = ["study", "key", "name, tags", "config", "plan", "rows", "state", "created"]
+    rows = []
     for r in records:
         label = " ".join([r.get("name") or ""] + [f"{k}={v}" for k, v in (r.get("tags") or {}).items()]).strip()
-        t.add_row(r["study"], r["key"][:12], label, r["config_name"] or "?", r.get("plan") or "?",
-                  str(r["rows"] if r["rows"] is not None else "?"), r["state"], r.get("created") or "?")
+        rows.append([r["study"], r["key"][:12], label, r["config_name"] or "?", r.get("plan") or "?",
+                     str(r["rows"] if r["rows"] is not None else "?"), r["state"], r.get("created") or "?"])
+    if fmt != SummaryFormat.table:
+        emit_tables(fmt.value, [(f"runs in {s.root}", header, rows)])
+        return
+    t = Table(title=f"runs in {s.root}")
+    for col in header:
+        t.add_column(col, overflow="fold")
+    for row in rows:
+        t.add_row(*row)
     wide_console(170).print(t)
 
 
@@ -91,14 +98,14 @@ def _compare(s, study: str | None, fmt) -> None:
     if study is None:
         fail("--compare needs --study (the runs of one study are compared)", 2)
     varying, metrics, records = compare_records(s, get_study(study))
-    if fmt == ListFormat.json:
+    if fmt == SummaryFormat.json:
         typer.echo(json.dumps([{"key": r["key"], "name": r["name"], "plan": r["plan"],
                                 "params": {k: r["config"].get(k) for k in varying},
                                 "metrics": {k: r["headline"][k] for k in metrics}} for r in records], indent=1,
                               default=str))
         return
     if not records:
-        typer.echo(f"no complete {study} runs in {s.root}")
+        typer.echo(f"no complete {study} runs in {s.root}", err=fmt != SummaryFormat.table)
         return
     # the headline first, then the config values that differ (a narrow terminal keeps the columns from the left:
     # best_cost and feasible, not a landmark's coordinates; issue 56 item 8); paths by their file name and hashes
@@ -106,8 +113,8 @@ def _compare(s, study: str | None, fmt) -> None:
     rows = [[r["key"][:12], r["name"], r["plan"]]
             + [f"{r['headline'][k]:.6g}" if isinstance(r["headline"][k], float) else str(r["headline"][k])
                for k in metrics] + [_short(r["config"].get(k)) for k in varying] for r in records]
-    print_table(wide_console(), f"{study} runs in {s.root}: the headline, and the config values that differ",
-                ["key", "name", "plan"] + metrics + varying, rows)
+    emit_tables(fmt.value, [(f"{study} runs in {s.root}: the headline, and the config values that differ",
+                             ["key", "name", "plan"] + metrics + varying, rows)])
 
 
 def _short(value) -> str:
@@ -489,7 +496,8 @@ def export(
 def diff(
     run_a: Annotated[str, typer.Argument(help="Key prefix (or config) of the first run.")],
     run_b: Annotated[str, typer.Argument(help="Key prefix (or config) of the second run.")],
-    fmt: Annotated[ListFormat, typer.Option("--format", help="table or json.")] = ListFormat.table,
+    fmt: Annotated[SummaryFormat, typer.Option("--format", help="table, csv (each table under a '# title' line), "
+                                                                 "json or markdown.")] = SummaryFormat.table,
     store: StoreOpt = None,
     study: StudyOpt = None,
     top: Annotated[int, typer.Option("--top", min=1, help="How many of the most changed rows to list.")] = 5,
@@ -503,34 +511,34 @@ def diff(
         from surgopt.store import Store
 
         d = diff_runs(Store(store), run_a, run_b, study, top)
-    if fmt == ListFormat.json:
+    if fmt == SummaryFormat.json:
         typer.echo(json.dumps(d, indent=1, default=str))
         return
-    console = wide_console(0)
-    print_table(console, f"config: {d['a']['key'][:12]} vs {d['b']['key'][:12]}", ["field", "a", "b"],
-                 [[k, str(a), str(b)] for k, (a, b) in d["config"].items()] or [["(identical configs)", "", ""]])
+    out = [(f"config: {d['a']['key'][:12]} vs {d['b']['key'][:12]}", ["field", "a", "b"],
+            [[k, str(a), str(b)] for k, (a, b) in d["config"].items()] or [["(identical configs)", "", ""]])]
     if d["rows_joined"]:
-        print_table(console, f"metrics over {d['rows_joined']} rows joined on {', '.join(d['key_columns'])} "
-                              f"({d['rows_only_a']} only in a, {d['rows_only_b']} only in b)",
-                     ["column", "rows changed", "max |b - a|", "mean b - a"],
-                     [[c, m["changed"], f"{m['max_abs']:.6g}", f"{m['mean']:.6g}"] for c, m in d["metrics"].items()])
+        out.append((f"metrics over {d['rows_joined']} rows joined on {', '.join(d['key_columns'])} "
+                    f"({d['rows_only_a']} only in a, {d['rows_only_b']} only in b)",
+                    ["column", "rows changed", "max |b - a|", "mean b - a"],
+                    [[c, m["changed"], f"{m['max_abs']:.6g}", f"{m['mean']:.6g}"] for c, m in d["metrics"].items()]))
     else:  # issue 56 item 9: 29 rows of zeros said nothing
-        typer.echo(f"no layout in common: no row of a ({d['rows_only_a']:,}) has the {', '.join(d['key_columns'])} "
+        out.append(f"no layout in common: no row of a ({d['rows_only_a']:,}) has the {', '.join(d['key_columns'])} "
                    f"of a row of b ({d['rows_only_b']:,})"
                    + ("; the best of each is compared below" if d["best"] and (d["best"]["a"] or d["best"]["b"])
                       else ""))
     if d["worst"]:
         cols = list(d["worst"][0])
-        print_table(console, f"most changed rows (by |b - a| of {d['objective']})", cols,
-                     [[_cell(r[c]) for c in cols] for r in d["worst"]])
+        out.append((f"most changed rows (by |b - a| of {d['objective']})", cols,
+                    [[_cell(r[c]) for c in cols] for r in d["worst"]]))
     if d["best"] is not None and d["best"] and not (d["best"]["a"] or d["best"]["b"]):
-        typer.echo(f"neither run has a {'feasible ' if d.get('best_among') == 'feasible' else ''}design to compare "
+        out.append(f"neither run has a {'feasible ' if d.get('best_among') == 'feasible' else ''}design to compare "
                    f"by {d['objective']}")
     if d["best"] and (d["best"]["a"] or d["best"]["b"]):
         header = list(d["best"]["a"] or d["best"]["b"])
-        print_table(console, f"best design of each by {d['objective']}" + (" (feasible, least first)" if
+        out.append((f"best design of each by {d['objective']}" + (" (feasible, least first)" if
                     d.get("best_among") == "feasible" else ""), ["run", *header],
-                    [[run, *(_cell(d["best"][run][c]) if d["best"][run] else "-" for c in header)] for run in "ab"])
+                    [[run, *(_cell(d["best"][run][c]) if d["best"][run] else "-" for c in header)] for run in "ab"]))
+    emit_tables(fmt.value, out)
 
 
 def _cell(v) -> str:

@@ -13,7 +13,7 @@ import json
 
 import numpy as np
 from surgopt.results import config_of
-from surgopt.studies.page import View, esc, table_html
+from surgopt.studies.page import View, esc, headline_cell, table_html
 
 #: What every page says about what it embeds.
 AGGREGATE_NOTE = ("This page embeds aggregates of the run's rows (computed from its Parquet parts), not the rows "
@@ -271,7 +271,7 @@ def run_sections(study, run, parts) -> tuple[list[str], list[str], dict[str, str
     state = ("complete" if complete else
              f'<span class="flag">PARTIAL: {len(run.manifest["parts"])} of {run.manifest["n_tasks"]} chunks '
              f"stored; rerun the study to finish it</span>")
-    head = [[k, v] for k, v in headline.items()] + [["rows", parts.num_rows]]
+    head = [[k, headline_cell(k, v)] for k, v in headline.items()] + [["rows", parts.num_rows]]
     if summary:
         head += [[k, v] for k, v in summary.feasibility.items() if k not in headline]
     sections.append(f'<section id="headline"><h2>Headline</h2><p class="note">State: {state}. '
@@ -353,7 +353,7 @@ def comparison_page(items) -> str:
         configs.append(flat_config(run.manifest["config"]))
     labels = [run.manifest.get("name") or f"{run.key[:8]} {run.manifest.get('config_name', '')}" for _, run, _ in items]
     keys = list(dict.fromkeys(k for h in heads for k in h))
-    rows = [[k, *[h.get(k, "") for h in heads]] for k in keys]
+    rows = [[k, *[headline_cell(k, h.get(k, "")) for h in heads]] for k in keys]
     sections = [f'<section id="headline"><h2>Headlines</h2>{table_html(["quantity", *labels], rows, sortable=False)}'
                 f"</section>"]
     fields = sorted({k for c in configs for k in c})
@@ -400,7 +400,7 @@ def feasibility_section(labels: list[str], feasibility: list[dict]) -> str:
             change = values[1] - values[0]
             row.append("no change" if change == 0 else
                        f"{abs(change):,} {'more' if change > 0 else 'fewer'} layouts fail it"
-                       if k.startswith("infeasible:") else f"{change:+,}")
+                       if k.startswith("infeasible:") else f"{abs(change):,} {'more' if change > 0 else 'fewer'}")
         rows.append(row)
     header = ["count", *labels] + (["second against first"] if len(labels) == 2 else [])
     return (f'<section id="feasibility"><h2>Why the feasible counts differ</h2><p class="note">Each check\'s count of '

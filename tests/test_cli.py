@@ -451,3 +451,41 @@ def test_a_study_command_prints_its_closing_report_as_json_markdown_or_csv(tmp_p
     assert md.startswith("### rcm-grid") and f"| feasible | {recorded['feasible']} |" in md
     bad = cli("rcm-grid", cfg, "--store", tmp_path / "s", "--format", "yaml", check=False, cwd=tmp_path)
     assert bad.returncode == 2 and "yaml" in bad.stderr
+
+
+def test_diff_and_runs_print_their_tables_as_csv_or_markdown(tmp_path):
+    """#56 item 8: every command that prints a table takes --format table|csv|json|markdown; diff and runs took
+    table or json only. CSV: each table under a '# title' line, the same numbers as the table and the JSON; words
+    between the tables go to standard error, so the pipe reads tables alone."""
+    import csv
+    import io
+    import json
+
+    from typer.testing import CliRunner
+
+    from conftest import RCM_SMALL
+    from surgopt.cli import app
+
+    cfg = tmp_path / "c.toml"
+    cfg.write_text(RCM_SMALL)
+    runner = CliRunner()
+    store = str(tmp_path / "s")
+    for extra in ([], ["candidates.grid.x_count=7"]):
+        r = runner.invoke(app, ["rcm-grid", str(cfg), *extra, "--store", store, "--quiet"])
+        assert r.exit_code == 0, r.output
+    keys = [run["key"][:12] for run in json.loads(runner.invoke(app, ["runs", "--store", store, "--format", "json"]).stdout)]
+    assert len(keys) == 2  # the premise: two runs that differ
+    doc = json.loads(runner.invoke(app, ["diff", *keys, "--store", store, "--format", "json"]).stdout)
+    text = runner.invoke(app, ["diff", *keys, "--store", store, "--format", "csv"]).stdout
+    blocks = [b for b in text.split("# ") if b.strip()]
+    assert blocks[0].startswith("config:")
+    config = list(csv.DictReader(io.StringIO(blocks[0].split("\n", 1)[1])))
+    assert {row["field"] for row in config} == set(doc["config"])
+    md = runner.invoke(app, ["diff", *keys, "--store", store, "--format", "markdown"]).stdout
+    assert md.startswith("### config:") and "| field | a | b |" in md
+    listed = runner.invoke(app, ["runs", "--store", store, "--format", "csv"]).stdout
+    rows = list(csv.DictReader(io.StringIO(listed.split("\n", 1)[1])))
+    assert listed.startswith("# runs in") and sorted(r["key"] for r in rows) == sorted(keys)
+    compared = runner.invoke(app, ["runs", "--compare", "--study", "rcm-grid", "--store", store, "--format",
+                                   "markdown"]).stdout
+    assert compared.startswith("### rcm-grid runs in") and all(k in compared for k in keys)

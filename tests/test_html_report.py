@@ -435,3 +435,15 @@ def test_a_comparison_of_port_layouts_draws_each_runs_best_layout_and_says_why_t
     except AssertionError:
         print("screenshot:", _kept_on_failure(page, tmp_path, "report-compare-ports"))
         raise
+
+
+def test_a_headlines_design_id_is_written_without_thousands_separators():
+    """#56 item 4: the comparison page's and a run page's headline wrote best_design_id 548211 as "548,211" (an id
+    is a name, not a quantity); counts keep their separators."""
+    from surgopt.studies.page import headline_cell, table_html
+
+    rows = [[k, headline_cell(k, v)] for k, v in (("best_design_id", 548211), ("designs", 2165292),
+                                                  ("feasible", 1061519))]
+    html = table_html(["quantity", "value"], rows, sortable=False)
+    assert ">548211<" in html and "548,211" not in html
+    assert ">2,165,292<" in html and ">1,061,519<" in html  # counts as before

@@ -38,6 +38,14 @@ def fmt(x) -> str:
     return str(x)
 
 
+def headline_cell(key: str, value):
+    """A headline's value as a page shows it: an id (``best_design_id``, a key ending in ``_id``) is a name, not a
+    quantity, so it is written without thousands separators (issue 56 item 4); every other value as ``fmt``."""
+    if key.endswith("_id") and isinstance(value, (int, np.integer)) and not isinstance(value, (bool, np.bool_)):
+        return str(int(value))
+    return value
+
+
 def table_html(header, rows, table_id: str = "", sortable: bool = True, row_attrs=None) -> str:
     """A table; ``sortable``: clicking a header sorts by it (numbers as numbers); ``row_attrs(i)``: attributes of
     row i (e.g. a data index a script reads)."""

@@ -9,8 +9,6 @@ reach and isotropy tables (n_sites x n_points, from the config), the reasons' co
 feasible layouts' metrics."""
 from __future__ import annotations
 
-from html import escape
-
 import math
 
 import numpy as np
@@ -87,7 +85,6 @@ def views(run, cfg, parts) -> list[View]:
 
     top = pa.concat_tables([t for t in (feasible, infeasible) if t is not None and t.num_rows]) \
         if (feasible.num_rows or (infeasible is not None and infeasible.num_rows)) else feasible
-    advice = rolled_advice(run, cfg, parts)  # a cheaper layout that clears only rolled: said, never listed as the answer
     layouts = {c: top[c].to_numpy(zero_copy_only=False) for c in wanted}
     mark_name, mark = reference_landmark(cfg.patient)
     skin = {}  # a site's distance along the skin, once per site (a mesh's wall is ray-cast along each leg)
@@ -160,7 +157,7 @@ def views(run, cfg, parts) -> list[View]:
             'along)</th></tr></thead><tbody></tbody></table></div></div>'
             f"<h3>Top layouts: the {feasible.num_rows} feasible of least cost"
             + (f" and the {infeasible.num_rows} infeasible of least cost" if infeasible is not None else "")
-            + f" (of {parts.num_rows:,} rows)</h3>{rolled_note(advice)}{filters}"
+            + f" (of {parts.num_rows:,} rows)</h3>{filters}"
             + f"<div class=\"scroll\">{table}</div>",
         data, "pp-data", SCENE_SCRIPT)]
     if feasible.num_rows:
@@ -261,33 +258,6 @@ def scene_marks(cfg) -> dict:
     bedside = bedside_lines_mm(cfg, (2.0 * a, 2.0 * b)) if links_of(cfg) else []  # what the links are checked against
     return {"landmarks": landmarks, "landmarks_assumed": not cfg.patient.landmarks_mm, "region": region,
             "sides": sides, "bedside": bedside}
-
-
-def rolled_advice(run, cfg, parts) -> str | None:
-    """The closing report's advice that a layout cheaper than the answer clears only with its PSMs rolled
-    (``report.cheaper_if_rolled_words``): its headline's, as kept beside the run (``surgopt.derived``), else
-    screened now (``report.headline_layout``, memoised: ~4 s of the default's page when the report was not kept);
-    None when there is none."""
-    from surgopt.derived import kept
-    from surgopt.studies.port_place.columns import links_of
-    from surgopt.studies.port_place.report import cheaper_if_rolled_words, headline_layout
-
-    if not links_of(cfg):
-        return None
-    summary = kept(run, "summary") if run is not None else None
-    if summary is not None:
-        return summary[0]["headline"].get("cheaper_if_rolled")
-    found = headline_layout(parts, {k.decode(): v.decode() for k, v in (parts.schema.metadata or {}).items()})
-    return None if found is None else cheaper_if_rolled_words(*found, cfg)
-
-
-def rolled_note(advice: str | None) -> str:
-    """A line saying that a layout cheaper than the first in the table clears only with its PSMs rolled
-    (``rolled_advice``): not a row, so not listed as the answer; "" otherwise."""
-    if not advice:
-        return ""
-    return (f'<p class="note" id="pp-rolled">Not listed: {escape(advice)}. The answer is the best feasible row, '
-            "first below.</p>")
 
 
 SCENE_SCRIPT = r"""

@@ -7,14 +7,12 @@ is said beside it as advice), and the least-cost layouts the report and the page
 Read from the stored rows and the run's config in their metadata (a report of an old run is the run's); the
 study (``study.STUDY``) names ``summary`` here by module, imported when a report is made. One module of ~450
 lines: the tables of one report, which read one another's rows (the screen's rows are the least-cost layouts',
-the headline's layout is the screen's, the docking tables show its docking; the page and the figures ask the
-same screen, ``headline_layout``).
+the headline's layout is the screen's, the docking tables show its docking).
 """
 from __future__ import annotations
 
 import json
 import math
-import weakref
 
 import numpy as np
 
@@ -126,7 +124,6 @@ def summary(parts) -> Summary:
     rows = best.to_pylist()
     screen = screen_of(parts, meta, rows)
     rolled = rolled_of(screen)
-    _headlines[parts] = rolled  # the page asks for it next (``headline_layout``): not screened again
     first = rows[0] if rows else None
     best = best.slice(0, 5)
     tables = []
@@ -446,20 +443,6 @@ def rolled_of(screen) -> tuple | None:
     rolled (``screen_of``); else None (the best feasible row is the best)."""
     chosen = screen[2] if screen is not None else None
     return chosen if chosen is not None and not chosen[0]["feasible"] else None
-
-
-#: The headline's layout (``rolled_of``) of each run's rows the summary has screened in this process, by its
-#: ``Parts``: the page asks for it after the summary, which would read the rows twice more (~2.5 s on the default).
-_headlines: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
-
-
-def headline_layout(parts, meta: dict) -> tuple | None:
-    """``rolled_of`` the run's screen, as the summary found it (kept), or screened now: advice beside the
-    answer (``cheaper_if_rolled_words``), never the answer."""
-    if parts not in _headlines:
-        rows = least_cost_layouts(parts, max(5, SCREEN_LAYOUTS)).to_pylist()
-        _headlines[parts] = rolled_of(screen_of(parts, meta, rows))
-    return _headlines[parts]
 
 
 def with_cheaper_overlapping(parts, feasible: list[dict]) -> list[dict]:
