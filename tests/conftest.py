@@ -1,6 +1,7 @@
 import os
 import sys
 from pathlib import Path
+from typing import NamedTuple
 
 import pytest
 
@@ -123,14 +124,48 @@ def wait_for_parts(store, study, n, proc, timeout=120):
     raise AssertionError("no parts appeared")
 
 
-def cli(*args, check=True, **kw):
-    """Run ``python -m surgopt ARGS`` in a subprocess; with ``check``, fail on a non-zero exit."""
+class Ran(NamedTuple):
+    """What ``cli`` gives back: a finished ``subprocess.run``'s three fields."""
+
+    returncode: int
+    stdout: str
+    stderr: str
+
+
+def cli(*args, check=True, process=False, **kw):
+    """``surgopt ARGS`` as a user types it; with ``check``, fail on a non-zero exit. In this process (Typer's
+    runner: the exit code, standard output and standard error apart, ``cwd`` by a chdir) unless ``process`` or a
+    subprocess's own keyword (``env``, ``timeout`` ...) asks for ``python -m surgopt`` in a process of its own:
+    a process's start-up and kernel loading cost ~1 s a call, ~200 calls (the suite's time, issue 56)."""
     import subprocess
 
-    r = subprocess.run([sys.executable, "-m", "surgopt", *map(str, args)], capture_output=True, text=True, **kw)
+    if process or set(kw) - {"cwd"}:
+        r = subprocess.run([sys.executable, "-m", "surgopt", *map(str, args)], capture_output=True, text=True, **kw)
+    else:
+        r = _in_process([str(a) for a in args], kw.get("cwd"))
     if check and r.returncode != 0:
         raise AssertionError(f"exit {r.returncode}\n{r.stdout}\n{r.stderr}")
     return r
+
+
+def _in_process(args: list[str], cwd) -> Ran:
+    import traceback
+
+    from typer.testing import CliRunner
+
+    from surgopt.cli import app
+
+    here = os.getcwd()
+    try:
+        if cwd is not None:
+            os.chdir(cwd)
+        r = CliRunner().invoke(app, args)
+    finally:
+        os.chdir(here)
+    err = r.stderr
+    if r.exception is not None and not isinstance(r.exception, SystemExit):  # a traceback, as a process prints it
+        err += "".join(traceback.format_exception(r.exception))
+    return Ran(r.exit_code, r.stdout, err)
 
 
 def invoke(*args):
