@@ -48,10 +48,14 @@ def test_a_walls_body_is_everything_under_its_outer_skin(tmp_path):
 
 @pytest.mark.skipif(not (OPENHELP / "Abdominal_wall.stl").is_file(), reason="../shared/patients/openhelp not beside")
 def test_openhelps_wall_takes_a_target_in_its_cavity_as_a_wall_and_refuses_it_as_a_body():
-    cfg = Path(__file__).resolve().parents[1] / "configs" / "openhelp_cholecystectomy.toml"
-    from surgopt.config import load_config
+    configs = Path(__file__).resolve().parents[1] / "configs"
+    from surgopt.compose import variants
+    from surgopt.studies import get_study
 
-    ok = load_config(cfg, C.PortPlaceConfig)
+    (v,) = variants(get_study("port-place"), [configs / "patients" / "openhelp.toml",
+                                              configs / "openhelp_cholecystectomy.toml"], [])
+    ok = v.config  # the case composed over the patient's file (#57 item 1)
+    assert not ok.patient.organs["liver"].obstacle and ok.patient.organs["stomach"].obstacle
     assert ok.patient.mesh_is == "wall"
     data = ok.model_dump(mode="json")
     data["patient"] = {**data["patient"], "mesh_is": "body", "mesh_file": str(OPENHELP / "Abdominal_wall.stl")}

@@ -105,6 +105,18 @@ def instrument_limits(cfg: PortPlaceConfig, arm):
     return limits._replace(along_shaft_m=wrist + tip, insertion_lo=max(limits.insertion_lo, depth - wrist))
 
 
+def instrument_reach(model, sites: np.ndarray, frames: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """[site, point] (reach, isotropy) of an RCM arm's instrument at ports ``sites`` (m) docked in ``frames``: eq.
+    P1's inverse within the limits, the approach cone, eq. P5 (``instrument_tables``), and no shaft through an organ
+    (``organs.clear_reach``). Every RCM instrument's reach is taken here."""
+    from surgopt.kinematics.port import place as K
+    from surgopt.studies.port_place.organs import clear_reach
+
+    reach, dex = K.instrument_tables(sites, frames, model.targets_m, model.limits, model.criteria.dexterity_length_m,
+                                     model.cone)
+    return clear_reach(model, sites, reach, dex)
+
+
 def approach_mask(sites: np.ndarray, targets: np.ndarray, cone) -> np.ndarray:
     """[site, point]: whether the shaft from the port to the point lies within the approach cone's reach of the
     wrist (``instrument_tables``' test, for arms whose reach is computed elsewhere)."""
@@ -135,10 +147,7 @@ class RcmInstruments:
     def reach(self, model, sites: np.ndarray, frames: np.ndarray, base_yaw_rad=None) -> Reached:
         """Reach and isotropy of each port's instrument docked in ``frames`` (``instrument_tables``: eq. P1's
         inverse within the limits, the approach cone, eq. P5)."""
-        from surgopt.kinematics.port import place as K
-
-        reach, dex = K.instrument_tables(sites, frames, model.targets_m, model.limits,
-                                         model.criteria.dexterity_length_m, model.cone)
+        reach, dex = instrument_reach(model, sites, frames)
         return Reached(reach, dex, None, None)
 
     def turned(self, frames: np.ndarray, docking_deg: np.ndarray) -> tuple[np.ndarray, None]:
@@ -193,9 +202,12 @@ class SerialInstruments(RcmInstruments):
         ``base_yaw_rad``; reach within the approach cone, and its links' clearance outside."""
         from surgopt.studies.port_place.serial_arms import serial_tables
 
+        from surgopt.studies.port_place.organs import clear_reach
+
         serial = serial_tables(model, sites, base_yaw_rad)
         reach = serial.reach & approach_mask(sites, model.targets_m, model.cone)
-        return Reached(reach, np.where(reach, serial.dexterity, 0.0), serial.outside_m, serial)
+        reach, dex = clear_reach(model, sites, reach, np.where(reach, serial.dexterity, 0.0))  # the organs
+        return Reached(reach, dex, serial.outside_m, serial)
 
     def turned(self, frames: np.ndarray, docking_deg: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """The default docking frames (the camera's RCM mechanism), each serial base turned by its yaw."""

@@ -298,13 +298,12 @@ def rolled_reach(model, row: dict, arm: str) -> tuple[np.ndarray, np.ndarray, np
     a roll about its neutral shaft, or on the Si a yaw off psi*): (its frames (R, 3, 3), full reach (R,), the
     isotropy at each target point (R, points; eq. P5, 0 where it does not reach), the port (3,) m), by the
     kernel's own tables in the turned frames."""
-    from surgopt.kinematics.port import place as K
+    from surgopt.studies.port_place.arms import instrument_reach
 
     site = np.array([row[f"{arm}_{c}_mm"] for c in "xyz"]) / 1000
     rolls = np.radians(np.array(ROLL_GRID_DEG, float))
     frames = turned_frames(model.cfg, site, arm, rolls)
-    reach, dex = K.instrument_tables(np.repeat(site[None], len(rolls), axis=0), frames, model.targets_m,
-                                     model.limits, model.criteria.dexterity_length_m, model.cone)
+    reach, dex = instrument_reach(model, np.repeat(site[None], len(rolls), axis=0), frames)
     return frames, reach.all(axis=1), dex, site
 
 

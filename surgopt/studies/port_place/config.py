@@ -72,6 +72,27 @@ class PortRegion(StrictModel):
         return self
 
 
+class Organ(StrictModel):
+    """An organ the instruments' shafts must not cross on their way to the target (#57 item 1; ``organs.py``): a
+    closed triangle mesh in the patient mesh's frame (its ``mesh_units`` and ``mesh_offset_mm``: a CT's organs share
+    its frame)."""
+
+    mesh_file: str = Field(min_length=1, description="a closed STL, OBJ or PLY mesh of the organ, relative to the "
+                           "config file (its content hash, mesh_sha256, is in the store key, not its path)",
+                           json_schema_extra=NOT_IN_KEY)
+    mesh_sha256: str | None = Field(None, description="filled in: the mesh file's content hash (in the store key)")
+    obstacle: bool = Field(True, description="whether the shafts must not cross it; false for the organ the target "
+                                             "is in (a patient file lists every organ, a case sets its target's "
+                                             "organ's obstacle = false)")
+
+    @model_validator(mode="after")
+    def _read(self, info: ValidationInfo):
+        from surgopt.files import resolve_and_hash
+
+        resolve_and_hash(self, "mesh_file", "mesh_sha256", MAX_MESH_BYTES, info.context or {})
+        return self
+
+
 class Patient(StrictModel):
     """The insufflated abdomen: a half-ellipsoid dome over the plane z = 0 (x lateral, patient's left +x; y
     toward the head; z anterior), semi-axes in mm. Default 170 x 210 x 140 mm: an assumption (an adult
@@ -97,6 +118,10 @@ class Patient(StrictModel):
                                              "toward the head, z anterior, as for the dome")
     mesh_sha256: str | None = Field(None, description="filled in: the mesh file's content hash (in the store key)")
     port_region: PortRegion = PortRegion()
+    organs: dict[Annotated[str, Field(min_length=1, max_length=40, pattern=r"^[A-Za-z][\w -]*$")], Organ] = Field(
+        {}, max_length=30, description="organs as obstacles ({name = {mesh_file = ...}}): no instrument's shaft may "
+        "cross one on its way to a target point (each taken as its 2 mm voxels, so a little larger than itself); "
+        "in the patient mesh's frame, units and offset; the organ the target is in: obstacle = false")
     landmarks_mm: dict[Annotated[str, Field(min_length=1, max_length=40, pattern=r"^[A-Za-z][\w -]*$")],
                        Annotated[list[Annotated[float, Field(ge=-2000.0, le=2000.0, allow_inf_nan=False)]],
                                  Field(min_length=2, max_length=2)]] | None = Field(
@@ -706,6 +731,22 @@ class PortPlaceConfig(StrictModel):
                              f"the scope")
         return self
 
+    def _target_clear_of_organs(self, pts: np.ndarray) -> None:
+        """No target point in an obstacle's voxels: every shaft to it would cross that organ."""
+        if not any(o.obstacle for o in self.patient.organs.values()) or not all(
+                o.mesh_sha256 for o in self.patient.organs.values()):
+            return  # none, or a stored config read as stored (its files not read again)
+        from surgopt.studies.port_place.organs import organ_at, organ_grids
+
+        grids = organ_grids(self.patient)
+        at = organ_at(pts, grids)
+        if (at >= 0).any():
+            g = int(at[np.argmax(at >= 0)])
+            raise ValueError(f"patient.organs.{grids[g].name}: {int(np.count_nonzero(at == g)):,} of the target's "
+                             f"{len(pts):,} points lie in it (its 2 mm voxels), so every shaft to them would cross it: "
+                             f"if the target is in it, set patient.organs.{grids[g].name}.obstacle = false; else "
+                             f"move the target")
+
     @model_validator(mode="after")
     def _target_inside_and_ranges_ordered(self):
         for name, (lo, hi) in (("robot.camera_range_mm", self.robot.camera_range_mm),
@@ -732,6 +773,7 @@ class PortPlaceConfig(StrictModel):
                     else f"the mesh {self.patient.mesh_file}")
             raise ValueError(f"target: the point ({p[0]:.0f}, {p[1]:.0f}, {p[2]:.0f}) mm is outside the body "
                              f"({body})")
+        self._target_clear_of_organs(pts)
         sites, stages = site_stages(self)
         n, ports = len(sites), self.robot.instrument_count + 1
         if n < ports:

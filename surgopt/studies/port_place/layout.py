@@ -118,6 +118,7 @@ def layout_isotropy(model, row: dict) -> np.ndarray:
     row says (its docking yaw and pitch, eq. P3, then its rolls: a searched trial's own frames), NaN where one of
     them does not reach it: what the figures and the page colour a searched layout's target by."""
     from surgopt.kinematics.port import place as K
+    from surgopt.studies.port_place.arms import instrument_reach
     from surgopt.studies.port_place.carts import LATERAL, rolled
     from surgopt.studies.port_place.columns import arms_of
 
@@ -126,6 +127,5 @@ def layout_isotropy(model, row: dict) -> np.ndarray:
     turn = {angle: np.radians([row.get(f"{a}_docking_{angle}_deg", 0.0) for a in arms]) for angle in ("yaw", "pitch")}
     rot = K.tilted_frames(K.docking_frames(sites, model.centre_m, LATERAL), turn["yaw"], turn["pitch"])
     frames = rolled(rot, np.radians([row[f"{a}_roll_deg"] for a in arms]))
-    reach, dex = K.instrument_tables(sites, frames, model.targets_m, model.limits, model.criteria.dexterity_length_m,
-                                     model.cone)
+    reach, dex = instrument_reach(model, sites, frames)
     return np.where(reach.all(axis=0), dex.min(axis=0), np.nan)

@@ -90,12 +90,19 @@ class PortModel:
     def third_site_reach(self) -> tuple[np.ndarray, np.ndarray] | None:
         """(reach, isotropy) of the third instrument at every candidate site and target point where it docks in
         frames of its own (the Si PSM3, ``third_rot``), else None: what the page colours its target by."""
-        from surgopt.kinematics.port import place as K
+        from surgopt.studies.port_place.arms import instrument_reach
 
         if self.third_rot is None:
             return None
-        return K.instrument_tables(self.sites_m, self.third_rot, self.targets_m, self.limits,
-                                   self.criteria.dexterity_length_m, self.cone)
+        return instrument_reach(self, self.sites_m, self.third_rot)
+
+    @cached_property
+    def shafts_clear_at_sites(self) -> np.ndarray | None:
+        """[site, point] Whether the shaft from each candidate site to each target point crosses no organ
+        (``organs.shafts_clear``), once; None without organs."""
+        from surgopt.studies.port_place.organs import shafts_clear
+
+        return shafts_clear(self, self.sites_m)
 
     @cached_property
     def whole_target(self) -> tuple[np.ndarray, np.ndarray]:

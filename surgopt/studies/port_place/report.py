@@ -208,6 +208,12 @@ def summary(parts) -> Summary:
         from surgopt.studies.port_place.bedside import bedside_words
 
         headline["bedside"] = bedside_words(cfg)
+    if cfg is not None and any(o.obstacle for o in cfg.patient.organs.values()):  # the shafts' obstacles (#57 item 1)
+        from surgopt.studies.port_place.organs import organs_words
+        from surgopt.studies.port_place.rolls import first_docking
+        from surgopt.studies.port_place.model import model_of
+
+        headline["organs"] = organs_words(model_of(first_docking(cfg)))
     headline["not_modelled"] = NOT_MODELLED
     if "cart_pose" in parts.schema.names and meta.get("rows_stored") != "feasible":
         counts["infeasible only for docking (feasible without the cart)"] = only_docking

@@ -28,7 +28,8 @@ from surgopt.robots.dvrk.suj import INSTRUMENT_SUJS
 from surgopt.studies.port_place.carts import (LATERAL, cart_for, patient_in_cart, rolled,  # noqa: F401 (theirs)
                                               row_patient_in_cart, si_frames)
 from surgopt.studies.port_place.arms import (RcmCamera, RcmInstruments, arm_limits,  # noqa: F401 (theirs)
-                                             camera_held, instrument_limits, instruments_held, reach_offsets_m)
+                                             camera_held, instrument_limits, instrument_reach, instruments_held,
+                                             reach_offsets_m)
 from surgopt.studies.port_place.config import PortPlaceConfig, Target, camera_arm_of, instrument_of
 
 #: Every ``model`` argument below is the prepared model (``model.PortModel``, built by ``model.prepare``).
@@ -51,8 +52,6 @@ def instrument_rolls_rad(model, sites: np.ndarray, rot: np.ndarray) -> np.ndarra
     ``docking_roll_right_deg`` when given), or with
     ``docking_roll = 'most_reach'`` the one of ``ROLL_CHOICES_DEG`` whose frame reaches the most target points
     (``instrument_tables``; ties: the choice nearest docking_roll_deg, then the smaller)."""
-    from surgopt.kinematics.port import place as K
-
     r = model.cfg.robot
     side = roll_sides(sites)
     if not cart_for(model.cfg).roll_is_free:  # the Si's setup joints give each arm one orientation (S5)
@@ -61,8 +60,7 @@ def instrument_rolls_rad(model, sites: np.ndarray, rot: np.ndarray) -> np.ndarra
         right = r.docking_roll_deg if r.docking_roll_right_deg is None else r.docking_roll_right_deg
         return np.radians(np.where(side > 0, r.docking_roll_deg, right)) * side
     choices = np.array(ROLL_CHOICES_DEG)
-    counts = np.stack([K.instrument_tables(sites, rolled(rot, np.radians(c) * side), model.targets_m, model.limits,
-                                           model.criteria.dexterity_length_m, model.cone)[0].sum(axis=1)
+    counts = np.stack([instrument_reach(model, sites, rolled(rot, np.radians(c) * side))[0].sum(axis=1)
                        for c in choices], axis=1)
     order = np.argsort(np.abs(choices - r.docking_roll_deg), kind="stable")
     return np.radians(choices[order[np.argmax(counts[:, order], axis=1)]]) * side
@@ -183,7 +181,7 @@ def port_tables(model, sites: np.ndarray, rot: np.ndarray, outside=None, base_ya
                           roll_deg=in_degrees(rolls), **camera_tip_tables(sites, centre, views, held))
     third = third_frames(model, sites)
     if third is not None:  # the third instrument's reach in frames of its own (the Si PSM3)
-        reach3, dex3 = K.instrument_tables(sites, third, targets, model.limits, crit.dexterity_length_m, model.cone)
+        reach3, dex3 = instrument_reach(model, sites, third)
         tables = tables._replace(third_reach_count=reach3.sum(axis=1).astype(np.int64),
                                  third_reach_bits=D.reach_bits(reach3), third_dex_site=D.site_dexterity(reach3, dex3))
     if links_decide(cfg) and dock is not None and dock.joints is not None:
