@@ -291,7 +291,9 @@ def test_port_place_memory_estimate_is_above_its_measured_peak(tmp_path):
     (v,) = variants(study, None, [grid])
     assert v.config.cart.model != "none" and v.config.constraints.link_least_mm is not None  # the premise
     est = study.estimate(v.config).peak_bytes
-    assert invoke("port-place", grid, "--store", tmp_path / "w", "--quiet")[0] == 0  # every kernel it calls compiled or loaded
+    # every kernel the measured run calls, compiled into (or loaded from) the cache by the same command in a process
+    # of its own (a run in this process had not compiled some of them: 692 MB against 677 MB once, a fresh clone)
+    cli("port-place", grid, "--store", tmp_path / "w", "--quiet", process=True)
     p = subprocess.Popen([sys.executable, "-m", "surgopt", "port-place", grid, "--store", str(tmp_path / "s"),
                           "--quiet", "--force"], stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
     _, status, usage = os.wait4(p.pid, 0)
