@@ -388,6 +388,17 @@ CART_LIBRARY_BYTES = 150 * 2 ** 20
 #: The dock tables per (site, cart pose): 3 PSMs' and the ECM's margins (float64) and best joints (6 float64),
 #: the ECM's aim (2), with the solver's copies of the joints (x2).
 DOCK_ENTRY_BYTES = (4 + 2 * 4 * 6 + 2) * 8
+#: What a mesh patient adds (#57 item 0): the mesh, the k-d tree over it subdivided for the links' distances,
+#: trimesh's ray and containment caches and the report's exact queries, and the time its ray casts take. Measured
+#: (this machine, warm): the 10,494-face dome with the cart 969 MB against 938 MB estimated without this (the
+#: closed-form dome: 845 MB), 22 s against 14 s; OpenHELP's 31,934-face wall 749 MB and 24 s against 852 MB and
+#: 9.6 s. Each a measured constant, not a model of the mesh's size.
+MESH_BYTES = 128 * 2 ** 20
+MESH_SECONDS = 12.0
+#: What the organs add (``organs.py``): each organ's voxels and mesh, the shafts' samples per site (measured on
+#: OpenHELP's nine obstacles: 66 MB and 4.8 s more than the same run without them).
+ORGANS_BYTES = 96 * 2 ** 20
+SECONDS_PER_ORGAN = 0.8
 
 
 def estimate(cfg) -> Estimate:
@@ -412,9 +423,14 @@ def estimate(cfg) -> Estimate:
         seconds += rolls * n * poses * (arms * NS_PER_SUJ_SOLVE + NS_PER_ECM_DOCK) * 1e-9
         if links_of(cfg):  # the links' clearance tables, each arm pair's (site, site, pose) entries
             seconds += rolls * link_pairs(arms) * n * n * poses * NS_PER_LINK_ENTRY * 1e-9
+    obstacles = sum(o.obstacle for o in cfg.patient.organs.values())
+    if cfg.patient.shape == "mesh":
+        seconds += MESH_SECONDS
+    seconds += obstacles * SECONDS_PER_ORGAN
     row = (ROW_BYTES if arms == 2 else ROW_BYTES_3) + 8 * len(roll_columns(cfg)) + (
         CART_ROW_BYTES + (arms + 1) * (SUJ_MARGIN_ROW_BYTES + SUJ_JOINTS_ROW_BYTES) if has_cart(cfg) else 0)
     working = n * n * 8 * 12 + n * m * 9 + LIBRARY_BYTES + (CART_LIBRARY_BYTES if has_cart(cfg) else 0)
+    working += (MESH_BYTES if cfg.patient.shape == "mesh" else 0) + (ORGANS_BYTES if obstacles else 0)
     if has_cart(cfg):  # the dock tables: each arm's margins, best joints and the ECM's aim per (site, pose)
         working += n * poses * DOCK_ENTRY_BYTES
     if links_of(cfg):  # float32 values, int16 pairs and the float work arrays of each arm pair's dense tables
