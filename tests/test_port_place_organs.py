@@ -55,6 +55,18 @@ def test_a_shaft_through_the_organ_is_blocked_and_one_clear_of_its_voxels_is_not
     assert np.all(crossed[through] == 0) and np.all(crossed[outside] == -1)
 
 
+def test_an_organ_touching_the_target_point_is_not_crossed_but_one_passed_through_on_the_way_is(tmp_path):
+    """The shaft's last ORGAN_REACH_MM before its tip is not checked: a target point 1 mm off the organ (the stomach
+    on the pancreas), reached from outside, is clear; the same point reached through the organ is not."""
+    grid = O.organ_grid("bowel", str(_sphere(tmp_path)), "x", "mm", (0.0, 0.0, 0.0))
+    tip = CENTRE + [RADIUS + 1.0, 0.0, 0.0]
+    assert O.organ_at(tip[None], [grid])[0] == 0  # the premise: the tip lies in the organ's voxels
+    outside = CENTRE + [RADIUS + 80.0, 0.0, 10.0]  # from the tip's side
+    through = CENTRE - [RADIUS + 80.0, 0.0, 0.0]  # from the far side, through the organ
+    assert O.shafts_crossing(outside[None] / 1000, tip[None] / 1000, [grid])[0, 0] == -1
+    assert O.shafts_crossing(through[None] / 1000, tip[None] / 1000, [grid])[0, 0] == 0
+
+
 def test_the_reach_tables_lose_exactly_the_shafts_through_an_organ(tmp_path):
     """The instruments' reach at every candidate site and target point with the organ equals the reach without it
     and with every blocked pair taken out, the blocked pairs being the voxel rule's; and some reached pairs are
@@ -78,7 +90,7 @@ def test_the_reach_tables_lose_exactly_the_shafts_through_an_organ(tmp_path):
 def test_a_target_in_an_organ_is_refused_by_name_and_the_organs_content_is_in_the_key(tmp_path):
     from surgopt.config import study_key
 
-    with pytest.raises(ValueError, match=r"patient.organs.bowel: \d+ of the target.s \d+ points lie in it.*obstacle = false"):
+    with pytest.raises(ValueError, match=r"patient.organs.bowel: \d+ of the target.s \d+ points lie in it, .*obstacle = false"):
         _with_organ(tmp_path, target={"centre_mm": CENTRE.tolist(), "radii_mm": [10.0, 10.0, 10.0],
                                       "spacing_mm": 8.0})
     inside = {"centre_mm": CENTRE.tolist(), "radii_mm": [10.0, 10.0, 10.0], "spacing_mm": 8.0}
@@ -112,3 +124,25 @@ def test_openhelps_stomach_blocks_shafts_to_the_pancreas_behind_it():
     blocked = (crossing == 0).any(axis=1)  # ports some of whose shafts cross the stomach
     assert 0 < blocked.sum() < len(blocked)  # some do, others reach the pancreas clear of it
     assert np.median(model.sites_m[blocked, 1]) > np.median(model.sites_m[~blocked, 1])  # from above it (cranial)
+
+
+def test_a_target_is_a_region_of_an_organs_mesh(tmp_path):
+    """#57 item 1: the target as a region of an organ (``target.region_box_mm`` over ``shape = "mesh"``): its points
+    are the grid points inside the organ (a sphere, analytic: away from its facets by 0.5 mm) and inside the box,
+    every one of them; its centre and extent are the region's. A box holding no point is refused by field."""
+    path = _sphere(tmp_path, centre=np.array([0.0, 0.0, 60.0]), radius=30.0)
+    box = [[0.0, -40.0, 20.0], [40.0, 40.0, 100.0]]  # the sphere's left half
+    t = C.Target.model_validate({"shape": "mesh", "mesh_file": str(path), "region_box_mm": box, "spacing_mm": 4.0})
+    from surgopt.studies.port_place.geometry import target_points_mm
+
+    pts = target_points_mm(t)
+    r = np.linalg.norm(pts - [0.0, 0.0, 60.0], axis=1)
+    assert len(pts) > 100 and np.all(r <= 30.0) and np.all(pts[:, 0] >= 0.0)
+    whole = target_points_mm(C.Target.model_validate({"shape": "mesh", "mesh_file": str(path), "spacing_mm": 4.0}))
+    clear = whole[np.linalg.norm(whole - [0.0, 0.0, 60.0], axis=1) < 29.5]
+    want = clear[np.all((clear >= box[0]) & (clear <= box[1]), axis=1)]
+    assert {tuple(p) for p in want} <= {tuple(p) for p in pts}  # every point of the region, none outside it
+    np.testing.assert_allclose(t.centre_mm, pts.mean(axis=0), atol=1e-6)
+    assert len(whole) > 1.8 * len(pts)  # the premise: the box cut the organ
+    with pytest.raises(ValueError, match="region_box_mm: no point of"):
+        C.Target.model_validate({"shape": "mesh", "mesh_file": str(path), "region_box_mm": [[50, 50, 50], [60, 60, 60]]})

@@ -184,6 +184,10 @@ class Target(StrictModel):
     mesh_units: Literal["mm", "m"] = "mm"
     mesh_offset_mm: Vec3 = Field([0.0, 0.0, 0.0], min_length=3, max_length=3,
                                  description="added to the target mesh (after units), into the patient frame")
+    region_box_mm: list[Vec3] | None = Field(
+        None, min_length=2, max_length=2, description="shape = 'mesh': only the organ's points within this box "
+        "([[x, y, z] low, [x, y, z] high], patient frame): a region of the organ (a pancreas's tail, a liver's "
+        "segment)")
     points_file: str | None = Field(None, min_length=1, description="shape = 'points': a text file of x y z rows "
                                     "(commas or spaces; '#' comments) or a .npy array, in the patient frame, "
                                     "relative to the config file; its sha256 is in the store key",
@@ -206,6 +210,10 @@ class Target(StrictModel):
         the points' centroid and radii_mm their half extents (what the figures outline)."""
         if self.shape != "mesh" and self.mesh_file is not None:
             raise ValueError("mesh_file is given but shape is not 'mesh': set shape = 'mesh' to use it")
+        if self.region_box_mm is not None and (self.shape != "mesh" or not all(
+                lo < hi for lo, hi in zip(*self.region_box_mm))):
+            raise ValueError("region_box_mm: a box ([[x, y, z] low, [x, y, z] high], each low below its high) "
+                             "of a target mesh (shape = 'mesh')")
         if self.shape == "mesh":
             return self._resolve_mesh(info.context or {})
         if self.shape != "points":
@@ -238,8 +246,10 @@ class Target(StrictModel):
             return self
         check_mesh_scale(body_mesh(str(path), sha, self.mesh_units, tuple(self.mesh_offset_mm)), str(path),
                          self.mesh_units, 1.0, 300.0, "a target region's")
-        return self._centre_and_extent(mesh_points_mm(str(path), sha, self.mesh_units, tuple(self.mesh_offset_mm),
-                                                      self.spacing_mm))
+        pts = target_points_mm(self)  # the organ's points, within region_box_mm when given
+        if not len(pts):
+            raise ValueError(f"region_box_mm: no point of {path} (on the {self.spacing_mm:g} mm grid) lies in the box")
+        return self._centre_and_extent(pts)
 
     def _centre_and_extent(self, pts: np.ndarray):
         """centre_mm, when not given, the points' centroid, and radii_mm their half extents (what the figures
@@ -732,20 +742,19 @@ class PortPlaceConfig(StrictModel):
         return self
 
     def _target_clear_of_organs(self, pts: np.ndarray) -> None:
-        """No target point in an obstacle's voxels: every shaft to it would cross that organ."""
+        """No target point inside an obstacle (its own mesh): every shaft to it would cross that organ."""
         if not any(o.obstacle for o in self.patient.organs.values()) or not all(
                 o.mesh_sha256 for o in self.patient.organs.values()):
             return  # none, or a stored config read as stored (its files not read again)
-        from surgopt.studies.port_place.organs import organ_at, organ_grids
-
-        grids = organ_grids(self.patient)
-        at = organ_at(pts, grids)
-        if (at >= 0).any():
-            g = int(at[np.argmax(at >= 0)])
-            raise ValueError(f"patient.organs.{grids[g].name}: {int(np.count_nonzero(at == g)):,} of the target's "
-                             f"{len(pts):,} points lie in it (its 2 mm voxels), so every shaft to them would cross it: "
-                             f"if the target is in it, set patient.organs.{grids[g].name}.obstacle = false; else "
-                             f"move the target")
+        p = self.patient
+        for name, organ in p.organs.items():
+            if not organ.obstacle:
+                continue
+            inside = body_mesh(organ.mesh_file, organ.mesh_sha256, p.mesh_units, tuple(p.mesh_offset_mm)).contains(pts)
+            if inside.any():
+                raise ValueError(f"patient.organs.{name}: {int(np.count_nonzero(inside)):,} of the target's "
+                                 f"{len(pts):,} points lie in it, so every shaft to them would cross it: if the target "
+                                 f"is in it, set patient.organs.{name}.obstacle = false; else move the target")
 
     @model_validator(mode="after")
     def _target_inside_and_ranges_ordered(self):

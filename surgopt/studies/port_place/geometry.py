@@ -197,7 +197,11 @@ def target_points_mm(t) -> np.ndarray:
     if t.shape == "points":
         return file_points_mm(t.points_file, t.points_sha256, t.points_units)
     if t.shape == "mesh":
-        return mesh_points_mm(t.mesh_file, t.mesh_sha256, t.mesh_units, tuple(t.mesh_offset_mm), t.spacing_mm)
+        pts = mesh_points_mm(t.mesh_file, t.mesh_sha256, t.mesh_units, tuple(t.mesh_offset_mm), t.spacing_mm)
+        if t.region_box_mm is not None:  # a region of the organ (#57 item 1): its points within the box
+            lo, hi = np.asarray(t.region_box_mm, float)
+            pts = pts[np.all((pts >= lo) & (pts <= hi), axis=1)]
+        return pts
     gx, gy, gz = (grid_1d(r, t.spacing_mm) for r in t.radii_mm)
     x, y, z = np.meshgrid(gx, gy, gz, indexing="ij")
     pts = np.stack([x.ravel(), y.ravel(), z.ravel()], axis=1)

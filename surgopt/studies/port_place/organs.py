@@ -8,9 +8,11 @@ conservative obstacle (a shaft grazing an organ within that band counts as cross
 
 A shaft runs from its port to the target point its tip reaches (the instrument's shaft and wrist, taken as one
 segment). It crosses an organ when one of its points sampled every half voxel (the segment cut into equal steps no
-longer than ``ORGAN_PITCH_MM / 2``, each step's middle) lies in one of the organ's voxels. The port lies on the skin
-and the target point outside every organ's voxels (a config whose target does is refused, naming the organ), so the
-samples between them are what decides.
+longer than ``ORGAN_PITCH_MM / 2``, each step's middle) lies in one of the organ's voxels, farther from the target
+point than the voxels reach past a surface (``ORGAN_REACH_MM``): organs touch the target (the stomach lies on the
+pancreas), and the tip works there, so an organ within that reach of the point is not one the shaft crosses on its
+way. The port lies on the skin and no target point lies inside an obstacle's own mesh (a config whose target does is
+refused, naming the organ).
 
 What this leaves out: the organs do not move (no retraction, no insufflation of the bowel), the camera's line of
 sight and the scope's shaft are not checked against them, and the links outside the body never meet them.
@@ -24,6 +26,9 @@ import numpy as np
 
 #: The side of an organ's voxels (mm): the obstacle reaches at most sqrt(3) of it past the organ's surface.
 ORGAN_PITCH_MM = 2.0
+#: How far the voxels reach past an organ's surface at most (a voxel's diagonal, mm): the last stretch of a shaft,
+#: this close to its target point, is not checked (the module's rule).
+ORGAN_REACH_MM = float(np.sqrt(3) * ORGAN_PITCH_MM)
 
 
 class OrganGrid(NamedTuple):
@@ -77,10 +82,11 @@ def shafts_crossing(sites_m: np.ndarray, targets_m: np.ndarray, grids: list[Orga
     step = min(g.pitch_mm for g in grids) / 2
     for i, site in enumerate(sites):
         d = targets - site
-        k = max(2, int(np.ceil(np.linalg.norm(d, axis=1).max() / step)))
+        length = np.linalg.norm(d, axis=1)
+        k = max(2, int(np.ceil(length.max() / step)))
         t = (np.arange(k) + 0.5) / k  # each step's middle, port to point
         at = organ_at(site + t[None, :, None] * d[:, None, :], grids)  # (points, k)
-        crossed = at >= 0
+        crossed = (at >= 0) & ((1.0 - t[None, :]) * length[:, None] > ORGAN_REACH_MM)  # on the way, not at the tip
         first = np.argmax(crossed, axis=1)
         out[i] = np.where(crossed.any(axis=1), at[np.arange(len(targets)), first], -1)
     return out
@@ -103,7 +109,8 @@ def organs_words(model) -> str:
     crossing = shafts_crossing(model.sites_m, model.targets_m, grids)
     each = ", ".join(f"{g.name} {int(np.count_nonzero(crossing == k)):,}" for k, g in enumerate(grids))
     return (f"no instrument's shaft crosses {', '.join(g.name for g in grids)} on its way to the target (each taken "
-            f"as its {ORGAN_PITCH_MM:g} mm voxels: at most {np.sqrt(3) * ORGAN_PITCH_MM:.1f} mm past its surface); of "
+            f"as its {ORGAN_PITCH_MM:g} mm voxels, at most {ORGAN_REACH_MM:.1f} mm past its surface, up to that far from "
+            f"the tip); of "
             f"the {crossing.size:,} shafts from the candidate sites to the target's points, these cross one and are "
             f"out of reach: {each}. The organs do not move (no retraction)")
 
