@@ -2,6 +2,8 @@
 equal the rows' for the same layout: the robot files (``export --format dvrk`` and ``dvrk-suj-fixed``), the closing
 report's docking tables and the cart figure, each read against the stored row's own columns and the reference
 forward kinematics of the setup joints (``tests/reference.py``, no code shared with the solvers)."""
+import csv
+import io
 import json
 import math
 
@@ -74,6 +76,16 @@ def test_the_robot_files_write_the_rows_layout(feasible_rows):
             np.testing.assert_allclose(arm["base_in_cart"], reference, atol=1e-9)
             np.testing.assert_allclose(measured[name], reference, atol=1e-9)  # SUJ_Fixed: the same frame
         assert measured["PSM3"] is None  # a two-PSM layout places no PSM3
+        ports_csv = {r["name"]: r for r in csv.DictReader(io.StringIO(E.ports_csv(cfg, row))) if r["what"] == "port"}
+        for arm in setup["arms"]:  # #57 item 2: each port from the landmark, as the ports CSV gives it
+            mark, port = arm["port_from_landmark"], arm["port_mm"]
+            theirs = ports_csv[arm["name"]]
+            assert mark["landmark"] == "umbilicus" and mark["top_view"] == theirs["from_umbilicus"]
+            assert (mark["left_mm"], mark["cranial_mm"]) == pytest.approx((port[0], port[1]), abs=0.051)  # at (0, 0)
+            assert mark["left_along_skin_mm"] == pytest.approx(float(theirs["left_of_umbilicus_along_skin_mm"]), abs=0.051)
+            assert mark["cranial_along_skin_mm"] == pytest.approx(float(theirs["cranial_of_umbilicus_along_skin_mm"]),
+                                                                  abs=0.051)
+            assert abs(mark["left_along_skin_mm"]) >= abs(mark["left_mm"]) - 0.1  # an arc is no shorter than its chord
         least = setup["clearances_outside_body"]["least_mm"]
         assert least == pytest.approx(row["external_clearance_mm"], abs=0.051)  # written to 0.1 mm
 

@@ -89,6 +89,7 @@ def dvrk_setup(cfg: PortPlaceConfig, row: dict) -> str:
             "suj_least_range_margin": a.margin, "suj_tightest_joint": a.tightest or None, "note": a.note or None,
             "world_origin_to_suj": _matrix(suj.world_to_suj), "suj_tip_to_tool_origin": _matrix(suj.tip_to_tool),
             "port_mm": [float(v) * 1000 for v in port],
+            "port_from_landmark": port_from_landmark(cfg, port * 1000),
             "base_in_cart": None if a.base is None else _matrix(a.base),
             "docking_roll_deg": a.roll_deg,
             "arm": holder.name,
@@ -251,13 +252,28 @@ def to_lps_mm(cfg: PortPlaceConfig, p_mm) -> list[float]:
     return [float(x), float(-z), float(y)]
 
 
+def port_from_landmark(cfg: PortPlaceConfig, port_mm) -> dict:
+    """(#57 item 2) Where a port lies from the reference landmark, as a surgeon marks it: the top view's offsets and
+    the distances along the skin (``geometry.along_skin_mm``: across at the landmark's level, then along the body),
+    mm, signed left + and cranial +, with both in words."""
+    from surgopt.studies.port_place.geometry import along_skin_mm, from_landmark, reference_landmark, skin_words
+
+    name, mark = reference_landmark(cfg.patient)
+    x, y = float(port_mm[0]), float(port_mm[1])
+    across, along = along_skin_mm(cfg.patient, mark, x, y)
+    return {"landmark": name, "left_mm": round(x - mark[0], 1), "cranial_mm": round(y - mark[1], 1),
+            "top_view": from_landmark(x, y, mark), "left_along_skin_mm": round(across, 1),
+            "cranial_along_skin_mm": round(along, 1), "along_skin": skin_words(cfg.patient, mark, x, y)}
+
+
 def slicer_markups(cfg: PortPlaceConfig, row: dict) -> str:
     """(#57 item 5) One layout as a 3D Slicer markups file (``.mrk.json``, Slicer's markups schema v1.0.3): two point
     lists in LPS, mm: the ports (PSM1, PSM2, (PSM3,) ECM, each with its site and its position from the reference
     landmark in words) and the patient's landmarks (on the body's surface above their top-view points)."""
     from surgopt.robots.dvrk.platforms import role_of
     from surgopt.studies.port_place.columns import arms_of
-    from surgopt.studies.port_place.geometry import from_landmark, landmarks_mm, reference_landmark, wall_height_mm
+    from surgopt.studies.port_place.geometry import (from_landmark, landmarks_mm, reference_landmark, skin_words,
+                                                     wall_height_mm)
 
     mark_name, mark = reference_landmark(cfg.patient)
 
@@ -268,7 +284,9 @@ def slicer_markups(cfg: PortPlaceConfig, row: dict) -> str:
 
     ports = [point(i, role_of(a), [row[f"{a}_{c}_mm"] for c in "xyz"],
                    f"site {row[f'{a}_site']}; {from_landmark(row[f'{a}_x_mm'], row[f'{a}_y_mm'], mark)} of the "
-                   f"{mark_name} (mm, top view)") for i, a in enumerate(arms_of(cfg))]
+                   f"{mark_name} (mm, top view); "
+                   f"{skin_words(cfg.patient, mark, row[f'{a}_x_mm'], row[f'{a}_y_mm'])} along the skin")
+             for i, a in enumerate(arms_of(cfg))]
     names = list(landmarks_mm(cfg.patient).items())
     xs, ys = np.array([p[0] for _, p in names], float), np.array([p[1] for _, p in names], float)
     heights = np.nan_to_num(wall_height_mm(xs, ys, cfg.patient), nan=0.0)  # off the body: on the table top
