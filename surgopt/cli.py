@@ -213,7 +213,7 @@ def _run_study_command(study, cmd: StudyCommand, flags=()):
             _dry_run(study, todo, Store(cmd.store), options)
             return
         say = lambda m: typer.echo(m, err=True)  # noqa: E731
-        finished = []
+        finished, added = [], False  # added: a closing report said more than the run's kept summary
         for v in todo:
             run_name = cmd.name if cmd.name is None or len(todo) == 1 else f"{cmd.name}[{len(finished)}]"
             interrupts.on_stop(RESUME)
@@ -221,7 +221,8 @@ def _run_study_command(study, cmd: StudyCommand, flags=()):
                                say=say, name=run_name, tags=tags)
             interrupts.on_stop(COMPLETE if result.run.complete else RESUME)
             summary = _report(study, result, brief=len(todo) > 1, quiet=cmd.quiet,
-                              fmt=getattr(cmd.fmt, "value", cmd.fmt))
+                              fmt=getattr(cmd.fmt, "value", cmd.fmt), cfg=v.config)
+            added = added or summary.added
             finished.append((v, result, summary))
             for f in flags:
                 if f.follow_up is None:
@@ -237,7 +238,7 @@ def _run_study_command(study, cmd: StudyCommand, flags=()):
         if len(todo) > 1 and getattr(cmd.fmt, "value", cmd.fmt) == "table":  # else each run's report alone
             _multirun_table(study, finished)
             _best_of(study, finished)
-        elif _plain(cmd, flags) and todo == given and finished[0][1].run.complete:
+        elif _plain(cmd, flags) and todo == given and finished[0][1].run.complete and not added:
             from surgopt.hits import record
 
             record(Store(cmd.store), study.name, list(cmd.args or []), finished[0][1].run, files_read,
@@ -439,9 +440,10 @@ def _listed_study(name: str):
 app.info.cls = _StudyCommands
 
 
-def _report(study, result, brief: bool = False, quiet: bool = False, fmt: str = "table"):
+def _report(study, result, brief: bool = False, quiet: bool = False, fmt: str = "table", cfg=None):
     """The closing report of one run (``brief``: headline only, for each run of a --multirun; ``quiet``: no word
-    while it is built)."""
+    while it is built; ``cfg``: the config the user gave, for ``Study.config_report``'s additions, which are shown,
+    not kept beside the run)."""
     run = result.run
     from surgopt.errors import StoreError
 
@@ -466,6 +468,12 @@ def _report(study, result, brief: bool = False, quiet: bool = False, fmt: str = 
         from surgopt.store import Store
 
         Store(run.path.parent.parent).record_headline(run, summary.headline)
+    added = study.config_report(cfg, result.parts) if study.config_report is not None and cfg is not None else None
+    if added is not None:  # ahead of the run's own tables; not kept
+        from surgopt.studies import Summary
+
+        summary = Summary({**summary.headline, **added[0]}, summary.feasibility, [*added[1], *summary.tables],
+                          added=True)  # shown, not kept: the command is not answered from ``_hits``
     print_report(study.name, run, summary, edges, front, rows=result.parts.num_rows, elapsed_s=result.elapsed_s,
                  cache_hit=result.cache_hit, messages=result.messages, brief=brief, fmt=fmt)
     return summary

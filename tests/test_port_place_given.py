@@ -69,8 +69,8 @@ def test_the_closing_report_ranks_it_and_names_the_cheapest_better_layout_nearby
     run_study(S.STUDY, given, config_name="given", store=store, jobs=1, quiet=True)
     (run,) = store.runs("port-place")
     df = run.parts(S.STUDY.schema_for(run.manifest["config"])).table().to_pandas()
-    summary = S.STUDY.summary(run.parts(S.STUDY.schema_for(run.manifest["config"])))
-    words = summary.headline["given_layout"]
+    head, tables = S.STUDY.config_report(given, run.parts(S.STUDY.schema_for(run.manifest["config"])))
+    words = head["given_layout"]
     ok = df[df.feasible]
     if which == "feasible":
         assert words.startswith(f"feasible, cost {row['cost']:.4f}: rank {int((ok.cost < row['cost']).sum()) + 1:,} "
@@ -88,7 +88,7 @@ def test_the_closing_report_ranks_it_and_names_the_cheapest_better_layout_nearby
     want = ok[near].sort_values("cost")
     assert len(want)  # the premise: a better layout lies within 80 mm (the median feasible row, an infeasible one)
     assert f"design {int(want.iloc[0].design_id)} (cost {want.iloc[0].cost:.4f})" in words
-    assert summary.tables[0][0].startswith("your layout (given_layout)")
+    assert tables[0][0].startswith("your layout (given_layout)")
 
 
 def test_a_given_layout_is_refused_by_name_when_it_does_not_fit_the_run():
@@ -101,3 +101,35 @@ def test_a_given_layout_is_refused_by_name_when_it_does_not_fit_the_run():
     with pytest.raises(ValueError, match="one of the two"):
         C.PortPlaceConfig.model_validate({"given_layout": {"psm1": {"x_mm": 1.0}, "psm2": {"x_mm": 0, "y_mm": 0},
                                                            "ecm": {"x_mm": 0, "y_mm": 0}}})
+
+
+def test_a_given_layout_is_scored_against_the_stored_run_without_running_it_again(tmp_path):
+    """#57 item 3: "surgopt port-place CONFIG with a [given_layout] answers in seconds": the given layout is not in
+    the run's key, so a config that only adds one reuses the stored rows (a cache hit), and the closing report
+    scores it there (its table first); the run's kept summary never holds it, and such a command line is not
+    answered from ``_hits`` (which replays a kept report)."""
+    from conftest import cli
+    from surgopt.config import study_key
+
+    plain = C.PortPlaceConfig.model_validate(SMALL)
+    given = C.PortPlaceConfig.model_validate({**SMALL, "given_layout": {"psm1": {"landmark": "umbilicus", "left_mm": 60},
+                                                                        "psm2": {"landmark": "umbilicus", "left_mm": -60},
+                                                                        "ecm": {"landmark": "umbilicus", "cranial_mm": 60}}})
+    assert study_key("port-place", plain, S.KERNEL_VERSION) == study_key("port-place", given, S.KERNEL_VERSION)
+    import yaml
+
+    (tmp_path / "plain.yaml").write_text(yaml.safe_dump(SMALL))
+    (tmp_path / "given.yaml").write_text(yaml.safe_dump({**SMALL, "given_layout": given.given_layout.model_dump(
+        exclude_none=True)}))
+    hits = tmp_path / "s" / "_hits"
+    first = cli("port-place", tmp_path / "plain.yaml", "--store", tmp_path / "s")
+    recorded = sorted(p for p in hits.rglob("*") if p.is_file())
+    assert recorded  # the premise: a plain command line is recorded
+    assert "your layout" not in first.stdout and "│ given_layout" not in first.stdout
+    again = cli("port-place", tmp_path / "given.yaml", "--store", tmp_path / "s")
+    assert "cache hit" in again.stderr + again.stdout  # the stored rows, not a second enumeration
+    assert "your layout (given_layout)" in again.stdout and "│ given_layout" in again.stdout
+    store = Store(tmp_path / "s")
+    (run,) = store.runs("port-place")
+    assert "given_layout" not in run.manifest.get("headline", {})
+    assert sorted(p for p in hits.rglob("*") if p.is_file()) == recorded  # the given layout's line is not

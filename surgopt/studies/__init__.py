@@ -33,6 +33,9 @@ class Summary:
     headline: dict[str, Any]
     feasibility: dict[str, int]
     tables: list[tuple[str, list[str], list[list]]] = field(default_factory=list)
+    #: whether the closing report added to the run's own summary for the config the user gave
+    #: (``Study.config_report``): shown, never kept beside the run
+    added: bool = False
 
 
 @dataclass(frozen=True)
@@ -153,6 +156,11 @@ class Study:
     #: The sections of the run's HTML page (``surgopt report``): ``html_views(run, cfg, parts)`` ->
     #: [``studies.page.View``] (``cfg``: the run's validated config)
     html_views: Callable[[Any, Any, Any], list] | None = None
+    #: ``config_report(cfg, parts)``: what the closing report adds for the config the user gave beyond the run's
+    #: own summary, from fields left out of the run's key (port-place: a surgeon's own layout scored against the
+    #: stored run, so that another layout reuses the run's rows): (headline items, tables), or None for nothing.
+    #: Never kept beside the run; a command whose report it adds to is not answered from ``_hits``.
+    config_report: Callable[[Any, Any], tuple[dict, list] | None] | None = None
     #: Override sets (KEY=VALUE strings) whose kernels the embedded default does not compile: ``surgopt warm``
     #: compiles them too (another metric, a generic arm, a serial arm in port-place)
     warm_variants: tuple[tuple[str, ...], ...] = ()

@@ -643,8 +643,9 @@ class PortPlaceConfig(StrictModel):
         "sites", description="how a [search] places a port: 'sites', a categorical choice of candidate site, or "
                              "'surface', a top-view point (x, y mm) taken to the nearest candidate site, so that "
                              "the optimiser sees neighbouring ports as neighbours")
-    given_layout: GivenLayout | None = Field(None, description="a surgeon's own layout the closing report scores "
-                                                             "beside the answer (#57 item 3)")
+    given_layout: GivenLayout | None = Field(
+        None, description="a surgeon's own layout the closing report scores beside the answer (#57 item 3); not in the "
+        "run's key: another layout is scored against the same stored rows, in seconds", json_schema_extra=NOT_IN_KEY)
 
     @model_validator(mode="after")
     def _the_cart_carries_its_arms(self):

@@ -197,11 +197,6 @@ def summary(parts) -> Summary:
         if screen is not None:  # the layouts failing only on their links, none of which a roll cleared
             headline["links_clear"], table, _ = screen
             tables.append(table)
-    if cfg is not None and cfg.given_layout is not None:  # a surgeon's own layout, scored as a row (#57 item 3)
-        from surgopt.studies.port_place.given import given_report
-
-        headline["given_layout"], given_tables = given_report(parts, cfg)
-        tables = given_tables + tables
     if "cart" in meta:
         headline["cart"] = meta["cart"]
     if cfg is not None and "external_link_pair" in parts.schema.names:  # what the links clear beside the table

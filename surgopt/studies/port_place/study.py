@@ -533,6 +533,17 @@ def dvrk_export(cfg, row: dict) -> str:
     return dvrk_setup(cfg, row)
 
 
+def given_config_report(cfg, parts):
+    """(#57 item 3) A surgeon's own layout (``[given_layout]``, left out of the run's key) scored against the run's
+    rows: ({"given_layout": words}, [its table]), or None without one (``given.given_report``)."""
+    if cfg.given_layout is None:
+        return None
+    from surgopt.studies.port_place.given import given_report
+
+    words, tables = given_report(parts, cfg)
+    return {"given_layout": words}, tables
+
+
 STUDY = Study(
     name=NAME, kernel_version=KERNEL_VERSION, config_model=PortPlaceConfig, default_config=DEFAULT_CONFIG,
     help=HELP, config_help=CONFIG_HELP, schema=schema, key_columns=("design_id",), objective=OBJECTIVE,
@@ -545,4 +556,4 @@ STUDY = Study(
                     "constraints.min_external_clearance_mm=150.0"),),
     warm_up_builds="the per-port tables (with the cart: its setup joints at every site and pose, the arms' links)",
     evaluate=evaluate_designs, figure_columns=figure_columns, preflight=preflight, top_columns=top_columns,
-    design_identity=design_identity)
+    design_identity=design_identity, config_report=given_config_report)
