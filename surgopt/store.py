@@ -734,8 +734,10 @@ class Store:
         out = []
         for mpath in self._manifests(study):
             with contextlib.suppress(OSError, ValueError, StoreError):
-                out.append(Run(mpath.parent, load_manifest(mpath)))
-        return sorted(out, key=lambda r: r.manifest.get("created", ""))
+                out.append((Run(mpath.parent, load_manifest(mpath)), mpath.stat().st_mtime_ns))
+        # by creation (to the second), then by when the manifest was last written: two runs created within one
+        # second (a script's, a test's) were in the order the folder listed them, so "latest" was either
+        return [run for run, _ in sorted(out, key=lambda r: (r[0].manifest.get("created", ""), r[1]))]
 
     def unreadable(self, study: str | None = None) -> list[tuple[Path, str]]:
         """(run folder, why) of run folders whose manifest cannot be used."""

@@ -223,3 +223,32 @@ def test_a_part_written_without_a_column_the_study_now_has_is_said_not_read_as_n
     with pytest.raises(StoreError, match="without the column 'added_later_m'; run the study again"):
         run.part_table(0, newer)
     assert run.part_table(0, newer, ["gii"]).num_rows > 0  # columns it has still read
+
+
+def test_of_two_runs_created_within_one_second_the_latest_is_the_one_written_last(tmp_path):
+    """`latest` took the last of the runs sorted by their creation time, written to the second: two runs of one
+    second (a script's, in-process tests') came in the order the folders were listed. The manifest written last
+    now decides; both orders are tried, so the folders' listing order cannot be what passes it."""
+    import json
+    import os
+
+    from conftest import RCM_SMALL
+    from surgopt.results import resolve_run
+    from surgopt.store import Store, manifest_of
+
+    cfg = tmp_path / "c.toml"
+    cfg.write_text(RCM_SMALL)
+    for extra in ([], ["candidates.grid.x_count=7"]):
+        cli("rcm-grid", cfg, *extra, "--store", tmp_path / "s", "--quiet")
+    store = Store(tmp_path / "s")
+    runs = store.runs()
+    paths = [manifest_of(r.path) for r in runs]
+    for path in paths:  # one second for both
+        doc = json.loads(path.read_text())
+        doc["created"] = "2026-12-05T12:00:00+00:00"
+        path.write_text(json.dumps(doc))
+    for newer in (paths[0], paths[1]):
+        older = paths[1] if newer == paths[0] else paths[0]
+        os.utime(older, ns=(1_000_000_000_000_000_000, 1_000_000_000_000_000_000))
+        os.utime(newer, ns=(1_000_000_000_500_000_000, 1_000_000_000_500_000_000))
+        assert manifest_of(resolve_run(store, "latest")[1].path) == newer
