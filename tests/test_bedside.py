@@ -97,7 +97,7 @@ def test_the_pages_scene_draws_the_bedside_near_the_body():
     """#56 item 4 / #54: the scene's bedside lines are the boxes' edges cut to twice the body's extent (the scene
     keeps the body's scale): every point within that window and on a box's surface; none without the links."""
     from surgopt.studies.port_place.geometry import body_extent_mm
-    from surgopt.studies.port_place.html import scene_marks
+    from surgopt.studies.port_place.scene import scene_marks
 
     cfg = _cfg(arms="tucked", legs="flat")
     a, b, _ = body_extent_mm(cfg.patient)

@@ -126,7 +126,7 @@ def test_the_scene_marks_the_landmarks_the_region_and_the_sides_on_the_wall():
     """#56 item 4: the page's scene gets the landmarks on the wall (the dome's said to be assumed; a config's not),
     the marked region's outline closed and lifted 2 mm above the wall, and the four sides past the body."""
     from surgopt.studies.port_place.geometry import wall_height_mm
-    from surgopt.studies.port_place.html import scene_marks
+    from surgopt.studies.port_place.scene import scene_marks
 
     poly = [[-150.0, -150.0], [150.0, -150.0], [150.0, 100.0], [-150.0, 100.0]]
     cfg = C.PortPlaceConfig.model_validate({**COARSE, "patient": {"port_region": {"site_spacing_mm": 72.0,

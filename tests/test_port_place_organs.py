@@ -146,3 +146,38 @@ def test_a_target_is_a_region_of_an_organs_mesh(tmp_path):
     assert len(whole) > 1.8 * len(pts)  # the premise: the box cut the organ
     with pytest.raises(ValueError, match="region_box_mm: no point of"):
         C.Target.model_validate({"shape": "mesh", "mesh_file": str(path), "region_box_mm": [[50, 50, 50], [60, 60, 60]]})
+
+
+def test_a_mesh_is_drawn_decimated_within_a_cell_of_its_surface(tmp_path):
+    """The page draws a mesh (the body, each organ) decimated by vertex clustering: within its budget of triangles,
+    every drawn vertex within a cell's diagonal of the true sphere, and every point of the sphere's mesh within
+    two cells of a drawn vertex (nothing cut away); a mesh within its budget is drawn as it is."""
+    from surgopt.studies.port_place.scene import decimated
+
+    sphere = trimesh.creation.icosphere(subdivisions=5, radius=50.0)  # 20,480 triangles
+    v, f, cell = decimated(sphere.vertices, sphere.faces, 2000)
+    assert 0 < len(f) <= 2000 and cell > 0  # the premise: it had to be decimated
+    assert np.all(np.abs(np.linalg.norm(v, axis=1) - 50.0) <= np.sqrt(3) * cell + 0.2)
+    from scipy.spatial import cKDTree
+
+    assert cKDTree(v).query(sphere.vertices)[0].max() <= 2 * cell
+    assert f.min() >= 0 and f.max() < len(v) and np.all((f[:, 0] != f[:, 1]) & (f[:, 1] != f[:, 2]))
+    same_v, same_f, none = decimated(sphere.vertices, sphere.faces, 30_000)
+    assert none == 0.0 and len(same_f) == len(sphere.faces)
+
+
+def test_the_scene_draws_each_organ_with_its_role(tmp_path):
+    """The page's scene draws the organs: an obstacle and the target's organ, each named with its role, within the
+    drawing's budget of triangles."""
+    from surgopt.studies.port_place.scene import ORGAN_FACES, organ_traces
+
+    big = _sphere(tmp_path, name="big.stl")
+    patient = {**SMALL["patient"], "organs": {"bowel": {"mesh_file": str(big)},
+                                              "spleen": {"mesh_file": str(_sphere(tmp_path, centre=np.array(
+                                                  [120.0, 0.0, 60.0]), radius=10.0, name="s.stl")),
+                                                         "obstacle": False}}}
+    traces = organ_traces(C.PortPlaceConfig.model_validate({**SMALL, "patient": patient}))
+    assert [t["text"].split(" (")[0] for t in traces] == ["bowel", "spleen"]  # each organ's hover text
+    assert "an obstacle" in traces[0]["text"] and "the target's organ" in traces[1]["text"]
+    assert [t["showlegend"] for t in traces] == [True, False]  # one legend entry for them all
+    assert all(len(t["i"]) <= ORGAN_FACES for t in traces)

@@ -15,6 +15,7 @@ import numpy as np
 
 from surgopt.robots.dvrk.platforms import role_of
 from surgopt.studies.page import View, table_html
+from surgopt.studies.port_place.scene import body_trace, docked_scene, organ_traces, scene_marks
 from surgopt.studies.port_place.geometry import (FRAME_TEXT, X_LABEL, Y_LABEL, Z_LABEL, from_landmark,
                                                  reference_landmark, skin_words)
 
@@ -41,22 +42,6 @@ def _site_best(parts, arms, n_sites: int) -> np.ndarray:
             np.minimum.at(best, t[f"{a}_site"].to_numpy()[ok], cost)
     best[~np.isfinite(best)] = np.nan
     return best
-
-
-def _body(cfg) -> dict:
-    """The patient's surface as a Plotly trace: the dome's, or the mesh's triangles (at most ~6,000)."""
-    from surgopt.studies.port_place.geometry import body_extent_mm, dome_surface_mm, patient_mesh
-
-    if cfg.patient.shape == "dome":
-        u, v = np.meshgrid(np.linspace(0, 2 * np.pi, 61), np.linspace(0, np.pi / 2, 17))
-        x, y, z = dome_surface_mm(body_extent_mm(cfg.patient), cfg.patient.dome_exponent, u, v)
-        return {"type": "surface", "x": x, "y": y, "z": z, "opacity": 0.18, "showscale": False,
-                "colorscale": [[0, "#c9b8a6"], [1, "#c9b8a6"]], "hoverinfo": "skip", "name": "abdomen"}
-    mesh = patient_mesh(cfg.patient)
-    faces = np.asarray(mesh.faces)[:: max(1, len(mesh.faces) // 6000)]
-    v = np.asarray(mesh.vertices)
-    return {"type": "mesh3d", "x": v[:, 0], "y": v[:, 1], "z": v[:, 2], "i": faces[:, 0], "j": faces[:, 1],
-            "k": faces[:, 2], "opacity": 0.18, "color": "#c9b8a6", "hoverinfo": "skip", "name": "body mesh"}
 
 
 def views(run, cfg, parts) -> list[View]:
@@ -119,7 +104,7 @@ def views(run, cfg, parts) -> list[View]:
         "targets": targets, "centre": np.asarray(cfg.target.centre_mm, float),
         "reach": np.asarray(reach, bool).astype(np.int8), "dex": np.round(np.asarray(dex, float), 4),
         "reach3": reach3, "dex3": dex3,
-        "layouts": layouts, "n_layouts": top.num_rows, "body": _body(cfg),
+        "layouts": layouts, "n_layouts": top.num_rows, "body": body_trace(cfg), "organs": organ_traces(cfg),
         "checks": [[label, list(fields), digits, joiner, clinical,
                     None if band is None else [band[0], band[1] if math.isfinite(band[1]) else None]]
                    for label, fields, digits, joiner, clinical, band in clinical_checks(cfg)],
@@ -185,22 +170,6 @@ def views(run, cfg, parts) -> list[View]:
     return views_out
 
 
-def docked_scene(cfg, rows: list[dict]) -> list | None:
-    """Each listed layout's cart and arms as its row docks them (``layout.docked_lines_mm``, patient frame, mm),
-    drawn in the scene when the layout is clicked (#56 item 4); None without a cart. Rows are taken in design order,
-    so that a run of several docking rolls builds each roll's model once (``rolls.model_for``)."""
-    from surgopt.studies.port_place.carts import has_cart
-    from surgopt.studies.port_place.layout import docked_lines_mm
-    from surgopt.studies.port_place.rolls import model_for
-
-    if not has_cart(cfg):
-        return None
-    out = [None] * len(rows)
-    for i in sorted(range(len(rows)), key=lambda i: rows[i]["design_id"]):
-        out[i] = docked_lines_mm(model_for(cfg, rows[i]), rows[i])
-    return out
-
-
 def top_view_figure(cfg, model, row: dict, arms: list[str]) -> dict:
     """A layout seen from above (x lateral, y toward the head, mm): the body's outline (a dome's base ellipse; a
     mesh's candidate sites alone), the candidate sites, the layout's ports by arm, the target's centre and the
@@ -229,35 +198,6 @@ def top_view_figure(cfg, model, row: dict, arms: list[str]) -> dict:
     return {"data": traces, "layout": {
         "height": 460, "title": {"text": f"layout {row['design_id']} · cost {row['cost']:.4f}", "font": {"size": 13}},
         "xaxis": {"title": {"text": X_LABEL}}, "yaxis": {"title": {"text": Y_LABEL}, "scaleanchor": "x"}}}
-
-
-def scene_marks(cfg) -> dict:
-    """What the scene marks on the patient (issue 56 item 4): the landmarks on the wall (name, x, y, z mm; the
-    dome's own said to be assumed), the marked region's outline lifted onto the wall, the sides (the patient's
-    left and right, head and feet) just past the body, and the bedside's boxes the links clear (#54)."""
-    from surgopt.studies.port_place.geometry import body_extent_mm, landmarks_mm, wall_height_mm
-
-    marks = landmarks_mm(cfg.patient)
-    names = list(marks)
-    xy = np.array([marks[n] for n in names], float).reshape(-1, 2)
-    z = wall_height_mm(xy[:, 0], xy[:, 1], cfg.patient) if len(xy) else np.zeros(0)
-    landmarks = [[n, float(x), float(y), float(np.nan_to_num(h, nan=0.0))] for n, (x, y), h in zip(names, xy, z)]
-    region = None
-    if cfg.patient.port_region.polygon_mm is not None:
-        poly = np.asarray(cfg.patient.port_region.polygon_mm, float)
-        edge = np.concatenate([np.linspace(p, q, 12, endpoint=False) for p, q in zip(poly, np.roll(poly, -1, 0))])
-        edge = np.vstack([edge, edge[:1]])
-        h = np.nan_to_num(wall_height_mm(edge[:, 0], edge[:, 1], cfg.patient), nan=0.0)
-        region = np.column_stack([edge, h + 2.0]).round(1)  # 2 mm above the wall, drawn over it
-    a, b, _ = body_extent_mm(cfg.patient)
-    sides = [["patient's left", 1.15 * a, 0.0, 0.0], ["patient's right", -1.15 * a, 0.0, 0.0],
-             ["head", 0.0, 1.1 * b, 0.0], ["feet", 0.0, -1.1 * b, 0.0]]
-    from surgopt.studies.port_place.bedside import bedside_lines_mm
-    from surgopt.studies.port_place.columns import links_of
-
-    bedside = bedside_lines_mm(cfg, (2.0 * a, 2.0 * b)) if links_of(cfg) else []  # what the links are checked against
-    return {"landmarks": landmarks, "landmarks_assumed": not cfg.patient.landmarks_mm, "region": region,
-            "sides": sides, "bedside": bedside}
 
 
 SCENE_SCRIPT = r"""
@@ -290,7 +230,7 @@ function base(){
   const bedside = D.bedside.length ? [{type:'scatter3d', mode:'lines', x:pt(0), y:pt(1), z:pt(2),
     line:{color:'#8d6e63', width:2}, name:"the bedside the links clear, near the body (table, rails, the patient's arms and legs)",
     hoverinfo:'skip', connectgaps:false}] : [];
-  return [body, sites, none, ...marks, ...region, sides, ...bedside];
+  return [body, ...(D.organs || []), sites, none, ...marks, ...region, sides, ...bedside];
 }
 function draw(i){
   // the checks, ports and title at once; the scene on the next frame, once they are painted (software WebGL takes
