@@ -235,7 +235,7 @@ def test_no_module_reads_an_arms_kind_outside_the_arm_classes():
 
 #: port-place's views (issue 53: "the views import no kernel and never rebuild a pose themselves: they read a
 #: ``Layout`` from ``layout.py``"): the closing report, the figures, the page, the robot files.
-VIEWS = tuple(f"surgopt.studies.port_place.{m}" for m in ("report", "figures", "html", "export"))
+VIEWS = tuple(f"surgopt.studies.port_place.{m}" for m in ("report", "figures", "html", "scene", "export"))
 
 
 def kernels() -> set[str]:
