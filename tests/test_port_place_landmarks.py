@@ -187,3 +187,47 @@ def test_the_ports_csv_and_the_report_give_the_distances_along_the_skin(tmp_path
         assert float(r["left_of_umbilicus_along_skin_mm"]) == pytest.approx(across, abs=0.051)
         assert float(r["cranial_of_umbilicus_along_skin_mm"]) == pytest.approx(along, abs=0.051)
         assert r["from_umbilicus_along_skin"] == G.skin_words(cfg.patient, (0.0, 0.0), x, y)
+
+
+def test_a_ports_distance_along_a_mesh_patients_skin_against_a_geodesic_computed_apart(tmp_path):
+    """#57's check "landmark distances along the skin against a geodesic computed apart": on a mesh patient (the
+    default dome as 41,984 triangles), the shortest path over a dense graph of points sampled on its upper surface
+    (scipy's Dijkstra over 25,000 points joined within 9 mm: a geodesic's stand-in, no code shared with
+    ``along_skin_mm``). A tape across at the landmark's level is the geodesic where that level is a plane of
+    symmetry (the umbilicus's, y = 0): equal within 3 %; elsewhere the tape's two legs are never shorter than it."""
+    import trimesh
+    from scipy.sparse import coo_matrix
+    from scipy.sparse.csgraph import dijkstra
+    from scipy.spatial import cKDTree
+
+    from surgopt.config import validate
+
+    sphere = trimesh.creation.icosphere(subdivisions=6)
+    sphere.apply_scale([170.0, 210.0, 140.0])
+    half = trimesh.intersections.slice_mesh_plane(sphere, plane_normal=[0, 0, 1], plane_origin=[0, 0, 0], cap=True)
+    half.export(tmp_path / "dome.stl")
+    cfg = validate({"patient": {"shape": "mesh", "mesh_file": "dome.stl"}, "cart": {"model": "none"}}, C.Config, "m",
+                   {"config_dir": str(tmp_path)})
+    rng = np.random.default_rng(5)
+    u = rng.uniform(-1, 1, (25_000, 2)) * [170.0, 210.0]
+    u = u[((u / [170.0, 210.0]) ** 2).sum(axis=1) < 0.9]
+    z = 140.0 * np.sqrt(1 - ((u / [170.0, 210.0]) ** 2).sum(axis=1))  # on the ellipsoid itself
+    cloud = np.column_stack([u, z])
+
+    def geodesic(p, q):
+        pts = np.vstack([cloud, p, q])
+        pairs = cKDTree(pts).query_pairs(9.0, output_type="ndarray")
+        w = np.linalg.norm(pts[pairs[:, 0]] - pts[pairs[:, 1]], axis=1)
+        graph = coo_matrix((w, (pairs[:, 0], pairs[:, 1])), shape=(len(pts), len(pts)))
+        return dijkstra(graph, directed=False, indices=len(pts) - 2)[len(pts) - 1]
+
+    def on_skin(x, y):
+        return np.array([x, y, 140.0 * np.sqrt(1 - (x / 170.0) ** 2 - (y / 210.0) ** 2)])
+
+    mark = (0.0, 0.0)
+    for x in (-120.0, 90.0):  # across at the umbilicus's level: the section y = 0 is a geodesic of the dome
+        across, along = G.along_skin_mm(cfg.patient, mark, x, 0.0)
+        assert along == 0.0 and abs(across) == pytest.approx(geodesic(on_skin(*mark), on_skin(x, 0.0)), rel=0.03)
+    for x, y in ((72.0, -90.0), (-60.0, 120.0)):  # across, then along: no shorter than the geodesic
+        across, along = G.along_skin_mm(cfg.patient, mark, x, y)
+        assert abs(across) + abs(along) >= 0.97 * geodesic(on_skin(*mark), on_skin(x, y))
