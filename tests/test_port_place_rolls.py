@@ -105,10 +105,13 @@ def test_a_roll_list_that_cannot_be_enumerated_is_refused_by_field(robot, match)
         validate({"robot": robot}, PC.Config, "x.toml")
 
 
-def test_a_search_or_the_si_cart_refuses_a_roll_list():
+def test_a_search_refuses_a_roll_list_and_the_si_takes_it_as_yaws_off_psi_star():
     with pytest.raises(ConfigError, match="docking_rolls_deg"):
         validate({"robot": {"docking_rolls_deg": [0.0, -45.0]},
                   "search": {"method": "tpe", "trials": 8, "batch": 4}}, PC.Config, "x.toml")
-    with pytest.raises(ConfigError, match="docking_roll"):
-        validate({"robot": {"docking_rolls_deg": [0.0, -45.0], "instrument_arm": "dvrk_psm_si",
-                            "camera_arm": "dvrk_ecm_si"}, "cart": {"model": "si"}}, PC.Config, "x.toml")
+    si = {"robot": {"docking_rolls_deg": [0.0, -45.0], "instrument_arm": "dvrk_psm_si", "camera_arm": "dvrk_ecm_si"},
+          "cart": {"model": "si"}}
+    assert validate(si, PC.Config, "x.toml").robot.docking_rolls_deg == [0.0, -45.0]  # #54: the Si's yaws off psi*
+    with pytest.raises(ConfigError, match="no roll about the shaft to choose"):
+        validate({**si, "robot": {**si["robot"], "docking_rolls_deg": None, "docking_roll": "most_reach"}}, PC.Config,
+                 "x.toml")

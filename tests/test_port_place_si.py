@@ -233,7 +233,7 @@ def _a_docked_infeasible_design_is_written_with_its_reasons_and_a_note(tmp_path)
 
 
 @pytest.mark.parametrize("change, words", [
-    ({"robot": {**SI_ARMS, "docking_roll_deg": 30.0}}, "no roll about the shaft"),
+    ({"robot": {**SI_ARMS, "docking_roll": "most_reach"}}, "no roll about the shaft"),
     ({"robot": {}}, "carries the Si PSMs and ECM"),
 ])
 def test_what_the_si_cart_does_not_do_is_refused_by_name(change, words):
@@ -370,3 +370,40 @@ def test_each_arms_shaft_outside_is_its_own_length():
         for j in range(i + 1, len(sites), 4):
             assert outside[i, j] == pytest.approx(segment_distance_sampled(back(i), sites[i], back(j), sites[j],
                                                                            n=801), abs=1e-3)
+
+
+def test_the_si_yaw_off_psi_star_is_a_dimension_of_the_enumeration():
+    """#54: "the yaw off psi* (Si) as a dimension of the enumeration itself". ``docking_rolls_deg`` on the Si is a
+    list of yaws of the setup joints off psi*, one block of layouts each: every docked PSM of a block's rows is
+    docked by setup joints whose base (reference forward kinematics) holds its RCM on its port with the neutral
+    shaft heading the psi* heading turned by the block's yaw (signed by the port's side, as the Classic's roll),
+    the rows' roll columns carry that yaw, and yaw 0's block is the run at psi* (every column). The premise: each
+    block has docked layouts, and the yawed block's rows differ from psi*'s."""
+    from surgopt.studies.port_place.rolls import dockings, per_roll
+
+    yawed = {**SI, "robot": {**SI_ARMS, "docking_rolls_deg": [0.0, 20.0]}}
+    cfg = C.PortPlaceConfig.model_validate(yawed)
+    per = per_roll(cfg)
+    assert dockings(cfg) == ((0.0, 0.0), (20.0, 20.0))
+    at_psi = S.compute_task(C.PortPlaceConfig.model_validate(SI), per, 0)
+    first = S.compute_task(cfg, per, 0)
+    for c, v in at_psi.items():
+        np.testing.assert_array_equal(first[c], v, err_msg=c)
+    block = S.compute_task(cfg, per, 1)  # the 20 deg block (task 1 of chunks of one block)
+    docked = np.flatnonzero(block["cart_pose"] >= 0)
+    assert len(docked) > 0 and not np.array_equal(block["cart_pose"], first["cart_pose"])
+    row = {c: v[docked[0]].item() for c, v in block.items()}
+    model = M.model_of(C.PortPlaceConfig.model_validate({**SI, "robot": {**SI_ARMS, "docking_roll_deg": 20.0}}))
+    patient = T.patient_in_cart(cfg.cart, row["cart_x_mm"], row["cart_y_mm"], row["cart_heading_deg"])
+    for arm in T.docked_arms(model, row):
+        if arm.arm == "ECM":
+            continue
+        side = 1.0 if row[f"{arm.arm.lower()}_x_mm"] >= 0 else -1.0
+        assert row[f"{arm.arm.lower()}_roll_deg"] == pytest.approx(20.0 * side)
+        base = suj_forward_reference("si", arm.arm, np.asarray(arm.joints))
+        port = np.array([row[f"{arm.arm.lower()}_{c}_mm"] for c in "xyz"]) / 1000
+        np.testing.assert_allclose((np.linalg.inv(patient) @ base)[:3, 3], port, atol=1e-9)  # the RCM on its port
+        aim = patient[:3, :3] @ (model.centre_m - port)
+        shaft = -base[:3, 2]
+        turn = math.degrees(math.atan2(shaft[1], shaft[0]) - math.atan2(aim[1], aim[0]))
+        assert (turn - 20.0 * side + 180) % 360 - 180 == pytest.approx(0.0, abs=1e-6)

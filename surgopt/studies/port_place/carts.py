@@ -81,6 +81,31 @@ def si_frames(cfg, suj, sites: np.ndarray, aims: np.ndarray, turn_rad: float = 0
     return np.array([p.T @ si_frame(suj, p @ a, turn_rad) for a in aims]).reshape(len(sites), 3, 3)
 
 
+def roll_sides(sites: np.ndarray) -> np.ndarray:
+    """+1 for a port on the patient's left (x >= 0), -1 on the right: a docking turn's sense, mirrored about the
+    midline."""
+    return np.where(sites[:, 0] >= 0.0, 1.0, -1.0)
+
+
+def given_turns_rad(cfg, sites: np.ndarray) -> np.ndarray:
+    """Each port's docking turn as the config gives it (rad, signed by ``roll_sides``): ``robot.docking_roll_deg``,
+    on the patient's right ``docking_roll_right_deg`` when given: a roll about the neutral shaft on the Classic, a
+    yaw of the setup joints off psi* on the Si (#54)."""
+    r = cfg.robot
+    side = roll_sides(sites)
+    right = r.docking_roll_deg if r.docking_roll_right_deg is None else r.docking_roll_right_deg
+    return np.radians(np.where(side > 0, r.docking_roll_deg, right)) * side
+
+
+def _turned_si_frames(cfg, suj, sites: np.ndarray, aims: np.ndarray, turns_rad: np.ndarray) -> np.ndarray:
+    """``si_frames`` of each port at its own turn off psi* (a few distinct turns: one call each)."""
+    out = np.empty((len(sites), 3, 3))
+    for t in np.unique(turns_rad):
+        at = turns_rad == t
+        out[at] = si_frames(cfg, suj, sites[at], aims[at], float(t))
+    return out
+
+
 def _unit_aims(centre_m: np.ndarray, sites: np.ndarray) -> np.ndarray:
     aims = centre_m - sites
     return aims / np.linalg.norm(aims, axis=1)[:, None]
@@ -188,14 +213,19 @@ class SiCart(ClassicCart):
     own_docking = "the Si's docking frames (each PSM at psi*, S6)"
 
     def instrument_frames(self, model, sites, rot, rolls_rad):
-        """PSM1's and PSM2's frames at psi* (the same for both; ``si_frames``)."""
-        return si_frames(model.cfg, self.platform.suj("PSM1"), sites, _unit_aims(model.centre_m, sites))
+        """PSM1's and PSM2's frames at psi* (the same for both; ``si_frames``), each yawed off it by its port's
+        docking turn (``rolls_rad``: the config's, ``given_turns_rad``; 0 at psi*)."""
+        return _turned_si_frames(model.cfg, self.platform.suj("PSM1"), sites, _unit_aims(model.centre_m, sites),
+                                 np.asarray(rolls_rad, float) if rolls_rad is not None
+                                 else given_turns_rad(model.cfg, sites))
 
     def third_frames(self, model, sites):
-        """PSM3's own frames at psi* (it hangs 15 deg off the vertical) with three instruments."""
+        """PSM3's own frames at psi* (it hangs 15 deg off the vertical) with three instruments, yawed off it by the
+        config's docking turn as the others are."""
         if model.cfg.robot.instrument_count != 3:
             return None
-        return si_frames(model.cfg, self.platform.suj("PSM3"), sites, _unit_aims(model.centre_m, sites))
+        return _turned_si_frames(model.cfg, self.platform.suj("PSM3"), sites, _unit_aims(model.centre_m, sites),
+                                 given_turns_rad(model.cfg, sites))
 
     def turned_frames(self, cfg, site, role, turns_rad):
         """The Si's frames at psi* + each turn, by the arm's own setup joints."""
@@ -238,12 +268,13 @@ class SiCart(ClassicCart):
         return margin, np.concatenate([q, np.full((m * n, 2), np.nan)], axis=1), np.tile(own, (m, 1))
 
     def check(self, cfg):
-        """Its setup joints fix each arm's roll about its shaft: a roll is refused by name."""
-        r = cfg.robot
-        if (r.docking_roll != "given" or r.docking_roll_deg != 0.0 or r.docking_rolls_deg
-                or r.docking_roll_right_deg is not None):
-            raise ValueError("robot.docking_roll_deg: the Si's setup joints give each arm one orientation at each "
-                             "yaw (no roll about the shaft to choose): docking_roll = 'given', docking_roll_deg = 0")
+        """Its setup joints fix each arm's roll about its shaft; the docking turn is a yaw of the planar chain off
+        psi* (#54), given (docking_roll_deg, docking_roll_right_deg) or enumerated (docking_rolls_deg): a roll
+        chosen per port or searched is refused by name."""
+        if cfg.robot.docking_roll != "given":
+            raise ValueError("robot.docking_roll: on the Si the docking turn is a yaw of the setup joints off psi* "
+                             "(no roll about the shaft to choose): docking_roll = 'given', with docking_roll_deg "
+                             "(or docking_rolls_deg to enumerate several) the yaw in deg")
 
 
 #: Each family of setup joints (``Platform.suj_family``) and the class that docks its arms.

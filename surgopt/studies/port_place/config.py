@@ -324,7 +324,8 @@ class Robot(StrictModel):
         0.0, ge=-90.0, le=90.0, description="each instrument arm's base turned about its neutral shaft by this "
         "angle after docking: 0, its yaw swings the shaft across the patient; 90, head to foot. Ports on the "
         "patient's left (x >= 0) turn the frame's x toward the head, on the right toward the feet (mirror "
-        "images, so a symmetric patient gives a symmetric answer); a negative angle turns each the other way")
+        "images, so a symmetric patient gives a symmetric answer); a negative angle turns each the other way. On "
+        "the Si (whose setup joints fix the roll) the base's yaw off psi*, mirrored the same way")
     docking_roll_right_deg: float | None = Field(
         None, ge=-90.0, le=90.0, description="the ports on the patient's right (x < 0) rolled by this instead of "
         "docking_roll_deg (read as its mirror image, as docking_roll_deg is there): the two sides' PSMs docked at "
@@ -339,7 +340,8 @@ class Robot(StrictModel):
                     "rolls (each as docking_roll_deg, mirrored by the port's side), one block of designs per roll in "
                     "this order (design_id's block says its roll; the rows' psm1_roll_deg ... the signed roll), the "
                     "answer the cheapest feasible row over all; unset: docking_roll_deg alone. With docking_roll = "
-                    "'given' and the Classic's rolls; the time and the tables' memory grow with the count")
+                    "'given'; on the Si each is a yaw of the setup joints off psi*, not a roll; the time and the "
+                    "tables' memory grow with the count")
     docking_roll: Literal["given", "most_reach", "search"] = Field(
         "given", description="'given': docking_roll_deg at every port; 'most_reach': at each port the roll of "
                              "0, 15, ..., 90 deg (mirrored as docking_roll_deg) that reaches the most target "

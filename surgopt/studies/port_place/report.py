@@ -86,10 +86,10 @@ def within_band(values, band) -> str:
 
 
 #: What every answer leaves out (docs/port_placement.md, "What the model leaves out"), said in the closing report.
-NOT_MODELLED = ("the Xi's setup joints, each PSM's own docking turn (the rows dock both PSMs at one roll, mirrored by "
-                "their ports' sides: robot.docking_roll_deg, or each of robot.docking_rolls_deg enumerated; the Si's "
-                "yaw off psi* is the run's; the report tries each PSM's own on cheaper layouts as advice, never as "
-                "the answer), tissue "
+NOT_MODELLED = ("the Xi's setup joints, each PSM's own docking turn (the rows dock both PSMs at one turn, mirrored by "
+                "their ports' sides, a roll about the shaft on the Classic, a yaw off psi* on the Si: "
+                "robot.docking_roll_deg, or each of robot.docking_rolls_deg enumerated; the report tries each PSM's "
+                "own on cheaper layouts as advice, never as the answer), tissue "
                 "and the body wall's thickness (a port is a point), the assistant's port, the table's pedestal and "
                 "the staff; the bedside (rails, the patient's arms and legs) is boxes of assumed size (bedside.py); "
                 "the setup joints' and the ECM's link radii are assumptions, the PSMs' are capsules about their meshes (docs/port_placement.md, what the model leaves out)")

@@ -100,7 +100,8 @@ def model_for(cfg: PortPlaceConfig, row: dict):
 
 
 def docking_words(cfg: PortPlaceConfig, row: dict) -> str:
-    """The answer's docking among those the rows enumerated, each PSM's roll signed by its port's side."""
+    """The answer's docking among those the rows enumerated, each PSM's turn (the Classic's roll, the Si's yaw off
+    psi*) signed by its port's side."""
     r = config_of_row(cfg, row).robot
     right = r.docking_roll_deg if r.docking_roll_right_deg is None else r.docking_roll_right_deg
     signed = ", ".join(f"{a.upper()} {row[f'{a}_roll_deg']:+.0f}" for a in ("psm1", "psm2", "psm3")

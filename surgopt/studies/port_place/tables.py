@@ -25,8 +25,8 @@ from surgopt.robots.dvrk.platforms import PLATFORMS, platform_of, role_of
 
 from surgopt.robots import dvrk
 from surgopt.robots.dvrk.suj import INSTRUMENT_SUJS
-from surgopt.studies.port_place.carts import (LATERAL, cart_for, patient_in_cart, rolled,  # noqa: F401 (theirs)
-                                              row_patient_in_cart, si_frames)
+from surgopt.studies.port_place.carts import (LATERAL, cart_for, given_turns_rad, patient_in_cart,  # noqa: F401
+                                              roll_sides, rolled, row_patient_in_cart, si_frames)
 from surgopt.studies.port_place.arms import (RcmCamera, RcmInstruments, arm_limits,  # noqa: F401 (theirs)
                                              camera_held, instrument_limits, instrument_reach, instruments_held,
                                              reach_offsets_m)
@@ -41,12 +41,6 @@ from surgopt.studies.port_place.config import PortPlaceConfig, Target, camera_ar
 ROLL_CHOICES_DEG = (0.0, 15.0, 30.0, 45.0, 60.0, 75.0, 90.0)
 
 
-def roll_sides(sites: np.ndarray) -> np.ndarray:
-    """+1 for a port on the patient's left (x >= 0), -1 on the right: a roll's sense, mirrored about the
-    midline."""
-    return np.where(sites[:, 0] >= 0.0, 1.0, -1.0)
-
-
 def instrument_rolls_rad(model, sites: np.ndarray, rot: np.ndarray) -> np.ndarray:
     """Each port's docking roll (rad, signed by ``roll_sides``): ``robot.docking_roll_deg`` (on the patient's right
     ``docking_roll_right_deg`` when given), or with
@@ -54,11 +48,8 @@ def instrument_rolls_rad(model, sites: np.ndarray, rot: np.ndarray) -> np.ndarra
     (``instrument_tables``; ties: the choice nearest docking_roll_deg, then the smaller)."""
     r = model.cfg.robot
     side = roll_sides(sites)
-    if not cart_for(model.cfg).roll_is_free:  # the Si's setup joints give each arm one orientation (S5)
-        return np.zeros(len(sites))
     if r.docking_roll in ("given", "search") or not model.instruments.rolls:  # a search's trials give their own
-        right = r.docking_roll_deg if r.docking_roll_right_deg is None else r.docking_roll_right_deg
-        return np.radians(np.where(side > 0, r.docking_roll_deg, right)) * side
+        return given_turns_rad(model.cfg, sites)  # on the Si, the yaw off psi* (``carts.SiCart``)
     choices = np.array(ROLL_CHOICES_DEG)
     counts = np.stack([instrument_reach(model, sites, rolled(rot, np.radians(c) * side))[0].sum(axis=1)
                        for c in choices], axis=1)
