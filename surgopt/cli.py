@@ -4,6 +4,9 @@ This module: the app, the shared options, one-line error handling (``guard``), a
 commands built from the registry (overrides, --multirun, --print-config, --dry-run). The commands
 that read the store are in ``surgopt.cli_results``. Heavy imports (numba, pyarrow) happen inside the
 commands so that ``surgopt --help`` stays fast.
+
+One module of ~600 lines because the study commands are one flow (compose, estimate, run, report, record the
+hit) that every study's command is built from; splitting it would pass that flow's state between modules.
 """
 from __future__ import annotations
 

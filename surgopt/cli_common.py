@@ -1,7 +1,8 @@
 """Command line, what every command shares: the Typer app and its global options, the option types and
 formats, one-line error handling (``guard``: exit codes 2 bad input, 1 a failed run or store, 130 / 143 /
 129 stopped) and table printing. ``surgopt.cli`` (the study commands) and ``surgopt.cli_results`` (the
-commands that read the store) both import it; neither imports the other's internals.
+commands that read the store) both import it; neither imports the other's internals. Just past 400 lines:
+what both sides share is one module so that neither side imports the other.
 """
 from __future__ import annotations
 

@@ -3,6 +3,9 @@
 Precedence: command-line flag > config file > embedded default. Every field
 name carries its unit (``_m``, ``_deg``, ``_rad_s`` ...); angles in configs
 are degrees, kernels work in radians.
+
+One module (~480 lines): reading, composing, validating and hashing a config are one contract that every study
+and the store key depend on; its parts call one another (a file's hash enters the key the validation computed).
 """
 from __future__ import annotations
 

@@ -6,6 +6,7 @@ study's views (``Study.html_views``, in ``surgopt/studies/<study>/html.py``) com
 Parquet parts (per-site bests, the top N, histograms, a Pareto front) and say so on the page; ``surgopt export``
 gets the rest. This module knows no study by name: it lays out the page (the run's headline, the study's views,
 the summary tables, the config that was hashed, provenance, notes) and the index and comparison pages.
+One module (~430 lines): the three pages share one frame (its policy, scripts and stamp).
 """
 from __future__ import annotations
 

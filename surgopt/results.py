@@ -1,6 +1,7 @@
 """Finding stored runs from a key prefix or a config, and comparing tables with baselines.
 
-Orchestration only: no kinematics. Studies are read through their ``Study`` declaration.
+Orchestration only: no kinematics. Studies are read through their ``Study`` declaration. One module (~420
+lines): finding a run and comparing its rows (diff, check, export of one design) read the same run records.
 """
 from __future__ import annotations
 

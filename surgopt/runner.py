@@ -3,7 +3,8 @@
 Knows nothing of kinematics or of how a space is explored: a ``Study`` (``surgopt.studies``) says what is
 evaluated, a plan (``surgopt.plans``) which tasks to run and which parts they make, a backend
 (``surgopt.backends``) where they run. One path for every plan: the budget with every worker counted, the cache
-hit, the lock, retries of dead workers, the compile notice, the swap of a --force rebuild.
+hit, the lock, retries of dead workers, the compile notice, the swap of a --force rebuild. One module (~530
+lines) because those steps share one run's state (its lock, its parts written, its retries) in order.
 """
 from __future__ import annotations
 

@@ -4,7 +4,8 @@ One form (``ChainSpec``): per joint a fixed origin transform (from the previous 
 this joint's frame), a unit axis in that frame, revolute / continuous / prismatic, limits and rated
 speed; then a fixed ``tail`` to the tip link. ``reduce_chain`` folds the locked joints into the fixed
 transforms, rotates each active joint's frame so that its axis is z, and appends the tool, giving the
-kernel's ``serial_chain.Chain``. Pure numpy; the URDF is parsed by ``yourdfpy`` (no meshes loaded).
+kernel's ``serial_chain.Chain``. Pure numpy; the URDF is parsed by ``yourdfpy`` (no meshes loaded). One
+module (~450 lines): the DH and URDF readers produce the one form the reduction reads.
 
 Errors are ``ChainError`` with the element (URDF joint or link, DH row, joint name) named; the config
 layer turns them into config errors on the field that brought the robot in.

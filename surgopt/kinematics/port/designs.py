@@ -1,6 +1,7 @@
 """Port placement's designs: the per-port and per-pair tables (``place``) combined into one row per
 design of two or three instrument ports and a camera port, every port distinct, at a few operations per
-design (issue #29). Numba kernels and the numpy helpers that pack their tables."""
+design (issue #29). Numba kernels and the numpy helpers that pack their tables. One module (~410 lines):
+the kernels and the packing of their bit tables share one layout of words and bits, which must not drift apart."""
 from __future__ import annotations
 
 from typing import NamedTuple

@@ -4,7 +4,8 @@ Wei, Xu & Simaan (throat slave): the 8 inputs [q1, q2, q3, q4, theta_L,
 delta, phi_L', psi] drive the 6-DoF gripper pose (eq. 30); eq. 32 resolves
 the redundancy with a diagonal weight W. Every combination of weight set,
 snake-arm length, fulcrum position, task mode, suture radius and speed is one
-run (one task); rows are the time steps of every run.
+run (one task); rows are the time steps of every run. One module (~440 lines): the declaration, its
+rows and the paper's summary read one another's columns (the study's one folder holds the rest).
 """
 from __future__ import annotations
 
