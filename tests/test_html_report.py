@@ -447,3 +447,27 @@ def test_a_headlines_design_id_is_written_without_thousands_separators():
     html = table_html(["quantity", "value"], rows, sortable=False)
     assert ">548211<" in html and "548,211" not in html
     assert ">2,165,292<" in html and ">1,061,519<" in html  # counts as before
+
+
+def test_the_scene_draws_a_marked_region_with_the_landmarks_and_sides_in_chromium(tmp_path, page):
+    """#56 item 4, read back from the drawn scene: a run with a marked port region draws its outline on the wall
+    ('marked region', every point inside the polygon's box, 2 mm over the wall), with the landmarks and the sides,
+    and no cart where none is modelled."""
+    from conftest import invoke
+
+    poly = [[-150.0, -200.0], [150.0, -200.0], [150.0, 40.0], [-150.0, 40.0]]
+    (tmp_path / "region.toml").write_text(
+        (BASE / "port_small.toml").read_text().replace(
+            "site_spacing_mm = 72.0", f"site_spacing_mm = 60.0\npolygon_mm = {poly}"))
+    assert invoke("port-place", tmp_path / "region.toml", "--store", tmp_path / "s", "--quiet")[0] == 0
+    assert invoke("report", "latest", "--store", tmp_path / "s", "--out", tmp_path / "r.html")[0] == 0
+    errors, requests = _open(page, tmp_path / "r.html", tmp_path)
+    assert not errors and not requests, (errors, requests)
+    page.wait_for_function("document.getElementById('pp-scene').dataset.layout !== undefined", timeout=60_000)
+    traces = page.evaluate("document.getElementById('pp-scene').data.map(t => [t.name, t.x || null, t.y || null])")
+    named = {name: (x, y) for name, x, y in traces}
+    x, y = named["marked region"]
+    assert len(x) > 10 and min(x) >= -150.0 - 1e-6 and max(x) <= 150.0 + 1e-6
+    assert min(y) >= -200.0 - 1e-6 and max(y) <= 40.0 + 1e-6
+    assert any(n.startswith("landmarks") for n in named) and "sides" in named
+    assert not any("cart" in n for n in named)  # docking assumed: no cart drawn
