@@ -231,3 +231,30 @@ def test_a_ports_distance_along_a_mesh_patients_skin_against_a_geodesic_computed
     for x, y in ((72.0, -90.0), (-60.0, 120.0)):  # across, then along: no shorter than the geodesic
         across, along = G.along_skin_mm(cfg.patient, mark, x, y)
         assert abs(across) + abs(along) >= 0.97 * geodesic(on_skin(*mark), on_skin(x, y))
+
+
+def test_the_lines_between_landmarks_are_measured_along_the_skin():
+    """#57 item 2, "the lines between them": by default the midline's chain, head to feet (the dome's xiphoid -
+    umbilicus - pubis); each line's length along the skin is the dome's midline ellipse arc between them (the
+    y-z section's semi-axes b, c; quadrature, 0.05 mm), longer than the top view's; the closing report's table and
+    the scene's polyline (1 mm over the wall) say so; a configured line names landmarks of the patient."""
+    cfg = C.PortPlaceConfig()
+    a, b, c = cfg.patient.semi_axes_mm
+    marks = G.landmarks_mm(cfg.patient)
+    lines = G.landmark_lines(cfg.patient)
+    assert lines == [("xiphoid", "umbilicus"), ("umbilicus", "pubis")]
+    for p, q in lines:
+        _, along = G.skin_line_mm(cfg.patient, marks[p], marks[q])
+        assert along == pytest.approx(_ellipse_arc_mm(b, c, marks[p][1], marks[q][1]), abs=0.05)
+        assert along > abs(marks[p][1] - marks[q][1]) + 1.0  # the premise: the skin is curved
+    title, header, rows = R.landmark_lines_table(cfg)
+    assert [r[0] for r in rows] == ["xiphoid - umbilicus", "umbilicus - pubis"]
+    from surgopt.studies.port_place.scene import scene_marks
+
+    pts = np.array([p for p in scene_marks(cfg)["landmark_lines"] if p is not None])
+    wall = G.wall_height_mm(pts[:, 0], pts[:, 1], cfg.patient)
+    assert len(pts) > 20 and np.all(np.abs(pts[:, 2] - wall - 1.0) <= 0.12)  # drawn to 0.1 mm, 1 mm over the wall
+    with pytest.raises(pydantic.ValidationError, match="landmark_lines: 'asis'"):
+        C.PortPlaceConfig.model_validate({"patient": {"landmark_lines": [["umbilicus", "asis"]]}})
+    own = C.PortPlaceConfig.model_validate({"patient": {"landmark_lines": [["umbilicus", "xiphoid"]]}})
+    assert G.landmark_lines(own.patient) == [("umbilicus", "xiphoid")]

@@ -131,14 +131,25 @@ class Patient(StrictModel):
         "cranio-caudal semi-axis (assumptions), for a mesh the frame's origin")
     reference_landmark: str | None = Field(None, description="the landmark ports are measured from (one of "
                                                              "landmarks_mm; none: the umbilicus, or the first)")
+    landmark_lines: list[Annotated[list[Annotated[str, Field(min_length=1, max_length=40)]],
+                                   Field(min_length=2, max_length=2)]] | None = Field(
+        None, max_length=20, description="lines between landmarks drawn on the skin and measured along it "
+        "([[a, b], ...], names of landmarks_mm: e.g. the umbilicus to an anterior superior iliac spine, Monro's "
+        "line); none: the midline's chain (the landmarks on x = 0, head to feet)")
 
     @model_validator(mode="after")
     def _a_known_reference(self):
-        if self.reference_landmark is None:
+        if self.reference_landmark is None and not self.landmark_lines:
             return self
         from surgopt.studies.port_place.geometry import landmarks_mm
 
         names = list(landmarks_mm(self))
+        for line in self.landmark_lines or []:
+            for name in line:
+                if name not in names:
+                    raise ValueError(f"landmark_lines: {name!r} is not a landmark of this patient ({', '.join(names)})")
+        if self.reference_landmark is None:
+            return self
         if self.reference_landmark not in names:
             raise ValueError(f"reference_landmark: {self.reference_landmark!r} is not a landmark of this patient "
                              f"({', '.join(names)}; name it in landmarks_mm)")

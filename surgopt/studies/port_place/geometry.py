@@ -44,6 +44,29 @@ def landmarks_mm(patient) -> dict[str, tuple[float, float]]:
     return {"origin": (0.0, 0.0)}
 
 
+def landmark_lines(patient) -> list[tuple[str, str]]:
+    """(#57 item 2) The lines between landmarks a team draws on the skin: the config's ``landmark_lines``, else
+    the midline's chain (the landmarks within 1 mm of x = 0, head to feet: xiphoid - umbilicus - pubis)."""
+    if patient.landmark_lines:
+        return [(a, b) for a, b in patient.landmark_lines]
+    marks = landmarks_mm(patient)
+    midline = sorted((n for n, (x, _) in marks.items() if abs(x) <= 1.0), key=lambda n: -marks[n][1])
+    return list(zip(midline, midline[1:]))
+
+
+def skin_line_mm(patient, a: tuple[float, float], b: tuple[float, float]) -> tuple[np.ndarray, float]:
+    """The line between two top-view points drawn on the skin: the straight top-view segment lifted onto the body's
+    upper wall (``wall_height_mm``), sampled every SKIN_STEP_MM: (its points (k, 3) mm, its length along the skin
+    mm; the top view's length where the wall is missing under it)."""
+    n = max(2, int(math.ceil(math.hypot(b[0] - a[0], b[1] - a[1]) / SKIN_STEP_MM)) + 1)
+    x, y = np.linspace(a[0], b[0], n), np.linspace(a[1], b[1], n)
+    z = wall_height_mm(x, y, patient)
+    pts = np.column_stack([x, y, np.nan_to_num(z, nan=0.0)])
+    if not np.all(np.isfinite(z)):
+        return pts, math.hypot(b[0] - a[0], b[1] - a[1])
+    return pts, float(np.linalg.norm(np.diff(pts, axis=0), axis=1).sum())
+
+
 def reference_landmark(patient) -> tuple[str, tuple[float, float]]:
     """(name, (x, y) mm) of the landmark ports are measured from: ``reference_landmark``, or the umbilicus, or the
     first landmark."""

@@ -230,7 +230,11 @@ function base(){
   const bedside = D.bedside.length ? [{type:'scatter3d', mode:'lines', x:pt(0), y:pt(1), z:pt(2),
     line:{color:'#8d6e63', width:2}, name:"the bedside the links clear, near the body (table, rails, the patient's arms and legs)",
     hoverinfo:'skip', connectgaps:false}] : [];
-  return [body, ...(D.organs || []), sites, none, ...marks, ...region, sides, ...bedside];
+  const lp = (k) => (D.landmark_lines || []).map(p => p === null ? null : p[k]);
+  const lines = (D.landmark_lines || []).length ? [{type:'scatter3d', mode:'lines', x:lp(0), y:lp(1), z:lp(2),
+    line:{color:'#7a3e9d', width:3, dash:'dot'}, name:'lines between the landmarks, on the skin', hoverinfo:'name',
+    connectgaps:false}] : [];
+  return [body, ...(D.organs || []), sites, none, ...marks, ...lines, ...region, sides, ...bedside];
 }
 function draw(i){
   // the checks, ports and title at once; the scene on the next frame, once they are painted (software WebGL takes

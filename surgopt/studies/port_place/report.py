@@ -155,6 +155,9 @@ def summary(parts) -> Summary:
                        + ([f"from the {mark[0]} (mm, top view)"] if mark else [])
                        + ([f"from the {mark[0]} along the skin (across, then along)"] if skin else [])
                        + (["wall_mm (skin to peritoneum, toward the target)"] if wall is not None else []), ports))
+        lines = landmark_lines_table(cfg) if skin else None
+        if lines is not None:  # the lines a team draws between landmarks, measured along the skin (#57 item 2)
+            tables.append(lines)
         if "cart_pose" in b:  # after the screen: the best layout's clearances and rolls are then known
             bound = cart_bound_words(parts, b, cfg)
             if bound:
@@ -213,6 +216,23 @@ def summary(parts) -> Summary:
     if "cart_pose" in parts.schema.names and meta.get("rows_stored") != "feasible":
         counts["infeasible only for docking (feasible without the cart)"] = only_docking
     return Summary(headline, counts, tables)
+
+
+def landmark_lines_table(cfg):
+    """(#57 item 2) The lines between the patient's landmarks (``geometry.landmark_lines``) with their lengths along
+    the skin and in the top view (cm), as a team marks them before placing ports; None without any line."""
+    from surgopt.studies.port_place.geometry import landmark_lines, landmarks_mm, skin_line_mm
+
+    marks = landmarks_mm(cfg.patient)
+    rows = []
+    for a, b in landmark_lines(cfg.patient):
+        _, along = skin_line_mm(cfg.patient, marks[a], marks[b])
+        top = float(np.hypot(marks[b][0] - marks[a][0], marks[b][1] - marks[a][1]))
+        rows.append([f"{a} - {b}", f"{along / 10:.1f}", f"{top / 10:.1f}"])
+    if not rows:
+        return None
+    return ("the patient's landmarks: the lines between them (drawn straight in the top view, on the skin)",
+            ["line", "along the skin (cm)", "top view (cm)"], rows)
 
 
 def wall_column(cfg, row: dict) -> list[str] | None:

@@ -84,8 +84,17 @@ def scene_marks(cfg) -> dict:
     from surgopt.studies.port_place.columns import links_of
 
     bedside = bedside_lines_mm(cfg, (2.0 * a, 2.0 * b)) if links_of(cfg) else []  # what the links are checked against
+    from surgopt.studies.port_place.geometry import landmark_lines, skin_line_mm
+
+    lines = []  # the lines between landmarks on the skin (#57 item 2), 1 mm over it, None between them
+    for a, b in landmark_lines(cfg.patient):
+        pts, along = skin_line_mm(cfg.patient, marks[a], marks[b])
+        if lines:
+            lines.append(None)
+        drawn = np.vstack([pts[:: max(1, len(pts) // 60)], pts[-1:]]) + [0.0, 0.0, 1.0]
+        lines += drawn.round(1).tolist()
     return {"landmarks": landmarks, "landmarks_assumed": not cfg.patient.landmarks_mm, "region": region,
-            "sides": sides, "bedside": bedside}
+            "sides": sides, "bedside": bedside, "landmark_lines": lines}
 
 
 def docked_scene(cfg, rows: list[dict]) -> list | None:
