@@ -566,22 +566,30 @@ def test_the_whole_target_clearance_is_the_exhaustive_least_over_every_target_po
     from surgopt.studies.port_place.clashes import arm_poses, whole_target_clearances
     from surgopt.studies.port_place.tables import docked_arms, row_patient_in_cart
 
+    from surgopt.kinematics.port.reasons import OUTSIDE
+
     cfg, model, t = links
     cols = S.compute_task(cfg, S.n_total(cfg), 0)
     r = int(np.flatnonzero(cols["feasible"])[0])  # the premise: the grid has feasible rows (11)
-    row = {k: (v[r].item() if hasattr(v[r], "item") else v[r]) for k, v in cols.items()}
-    whole = whole_target_clearances(M.model_of(cfg), row)
-    sampled = {c.check.split(",")[0]: c for c in layout_clearances(M.model_of(cfg), row) if c.check.endswith("over the target")}
-    assert len(whole) == 3 and all(f"({len(model.targets_m):,} points)" in c.check for c in whole)
-    patient = row_patient_in_cart(cfg, row)
-    arms = {a.arm: arm_poses(model, a, patient, model.targets_m)
-            for a in docked_arms(M.model_of(cfg), row) if a.joints}
-    for c in whole:
-        x, y = c.check.split(",")[0].split(" and ")
-        want = C.least_over_poses(arms[x].segments, arms[x].radii, arms[y].segments, arms[y].radii)[0] * 1000
-        assert c.clearance_mm == pytest.approx(want, abs=1e-9)
-        assert c.clearance_mm <= sampled[f"{x} and {y}"].clearance_mm + 1e-9
-        assert c.link_a.startswith(f"{x} ") and c.link_b.startswith(f"{y} ")
+    overlapping = int(np.flatnonzero(cols["infeasible"] == OUTSIDE)[0])  # and rows failing on their links alone
+    for r in (r, overlapping):  # on a failing row: the true overlap and its pair (the row holds a bound)
+        row = {k: (v[r].item() if hasattr(v[r], "item") else v[r]) for k, v in cols.items()}
+        whole = whole_target_clearances(M.model_of(cfg), row)
+        sampled = {c.check.split(",")[0]: c for c in layout_clearances(M.model_of(cfg), row)
+                   if c.check.endswith("over the target")}
+        assert len(whole) == 3 and all(f"({len(model.targets_m):,} points)" in c.check for c in whole)
+        patient = row_patient_in_cart(cfg, row)
+        arms = {a.arm: arm_poses(model, a, patient, model.targets_m)
+                for a in docked_arms(M.model_of(cfg), row) if a.joints}
+        for c in whole:
+            x, y = c.check.split(",")[0].split(" and ")
+            want = C.least_over_poses(arms[x].segments, arms[x].radii, arms[y].segments, arms[y].radii)[0] * 1000
+            assert c.clearance_mm == pytest.approx(want, abs=1e-9)
+            assert c.clearance_mm <= sampled[f"{x} and {y}"].clearance_mm + 1e-9
+            assert c.link_a.startswith(f"{x} ") and c.link_b.startswith(f"{y} ")
+        if r == overlapping:
+            true = min(c.clearance_mm for c in whole)
+            assert true < 0.0 and true <= row["external_clearance_mm"] + 1e-9  # the row's value: a bound above it
 
 
 def test_the_rows_decide_their_links_over_every_target_point():
