@@ -24,7 +24,10 @@ HELP = """Port placement for the da Vinci Research Kit on a patient: two or thre
 
     Then: surgopt report (the run's page); surgopt export KEY --design ID --format dvrk (the set-up, joint by
     joint), dvrk-suj-fixed and dvrk-console (the files a dVRK loads), slicer (3D Slicer markups) or ports (CSV). A
-    [given_layout] (each arm's port by a landmark and offsets) is scored beside the answer. Other arms: cart.model = si with the Si's PSMs and ECM, an RCM arm from a DH table or URDF
+    [given_layout] (each arm's port by a landmark and offsets) is scored beside the answer, against the stored
+    run in seconds. A CT's patient: a patient file (configs/patients/openhelp.toml: its wall, landmarks and organs,
+    the organs obstacles the shafts must not cross) with a case over it. Other arms: cart.model = si with the
+    Si's PSMs and ECM (the docking roll fields then the yaw off psi*), an RCM arm from a DH table or URDF
     ([robot.instrument_file], [robot.camera_file]), a serial arm keeping the RCM in software
     ([robot.instrument_serial], [robot.camera_serial]). A 3-PSM enumeration runs to 10^8 designs:
     rows_stored = feasible keeps only the feasible rows."""
