@@ -383,8 +383,12 @@ def report(
             items.append((st, r, r.parts(st.schema_for(r.manifest["config"]))))
         if len(items) == 1:
             st, r, _ = items[0]
+            from surgopt.results import study_of_config
+
+            ref = refs[0]  # a config names the run: what it adds beyond the run's key (a given layout) is shown too
+            given = study_of_config(Path(ref), study)[1] if ref is not None and Path(ref).is_file() else None
             path = _write_page(H, st, r, out or r.path / H.REPORT_FILE,
-                               "--out" if out else "the page beside the run (--out FILE writes it elsewhere)")
+                               "--out" if out else "the page beside the run (--out FILE writes it elsewhere)", given)
             latest = "" if runs_ else f" (the latest {study + ' ' if study else ''}run in the store)"
             typer.echo(f"{path}: {st.name} run {r.key[:12]} {r.manifest.get('config_name', '')}{latest}",
                        err=str(path) == "-")  # the page itself on standard output: the word beside it
@@ -394,11 +398,12 @@ def report(
         typer.echo(f"{path}: {len(items)} runs compared ({', '.join(r.key[:8] for _, r, _ in items)})")
 
 
-def _write_page(H, st, r, path: Path, option: str = "the page beside the run (--out FILE writes it elsewhere)") -> Path:
+def _write_page(H, st, r, path: Path, option: str = "the page beside the run (--out FILE writes it elsewhere)",
+                given=None) -> Path:
     from surgopt.cli_common import announced
 
     with announced(f"building the page of {st.name} run {r.key[:12]} ({r.rows:,} rows)"):
-        text = H.run_page(st, r, r.parts(st.schema_for(r.manifest["config"])))
+        text = H.run_page(st, r, r.parts(st.schema_for(r.manifest["config"])), given)
     _write_text(path, text, option)
     return path
 

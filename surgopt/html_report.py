@@ -257,9 +257,11 @@ def provenance_rows(run) -> list[list]:
     return rows
 
 
-def run_sections(study, run, parts) -> tuple[list[str], list[str], dict[str, str], dict]:
+def run_sections(study, run, parts, given=None) -> tuple[list[str], list[str], dict[str, str], dict]:
     """The sections of one run's page: headline, the study's views, the summary tables, notes, config,
-    provenance; with the scripts and data they need, and the headline numbers."""
+    provenance; with the scripts and data they need, and the headline numbers. ``given``: the config the user
+    named the run by, whose ``Study.config_report`` additions (port-place: a surgeon's own layout) the page shows
+    as the closing report does, ahead of the run's own tables."""
     from surgopt.config import to_toml
     from surgopt.report import best_edges
 
@@ -267,6 +269,11 @@ def run_sections(study, run, parts) -> tuple[list[str], list[str], dict[str, str
 
     sections, scripts, data = [], [], {}
     summary = run_summary(study, run, parts) if parts.num_rows else None  # the closing report's, kept
+    added = added_report(study, given, parts) if summary else None
+    if added is not None:
+        from surgopt.studies import Summary
+
+        summary = Summary({**summary.headline, **added[0]}, summary.feasibility, [*added[1], *summary.tables])
     headline = dict(summary.headline) if summary else {}
     complete = len(run.manifest["parts"]) == run.manifest["n_tasks"]
     state = ("complete" if complete else
@@ -305,18 +312,33 @@ def run_sections(study, run, parts) -> tuple[list[str], list[str], dict[str, str
     return sections, scripts, data, headline
 
 
-def run_page(study, run, parts) -> str:
-    sections, scripts, data, _ = run_sections(study, run, parts)
+def added_report(study, given, parts):
+    """``Study.config_report(given, parts)``, or None without a config or anything to add."""
+    if given is None or study.config_report is None:
+        return None
+    return study.config_report(given, parts)
+
+
+def run_page(study, run, parts, given=None) -> str:
+    """One run's page; ``given``: the config the user named it by (``run_sections``). A page that shows what such a
+    config adds is stamped apart (``page_stamp``), so that ``--store-index`` builds the run's own page again."""
+    sections, scripts, data, _ = run_sections(study, run, parts, given)
     name = run.manifest.get("name") or run.manifest.get("config_name", "")
+    extra = "" if added_report(study, given, parts) is None else "\nwith " + canonical_of(given)
     return page(f"surgopt {study.name}: {name}", f"run {run.key[:12]} · {run.manifest.get('created', '')} · "
-                f"{parts.num_rows:,} rows · {run.path}", sections, scripts, data, page_stamp(run))
+                f"{parts.num_rows:,} rows · {run.path}", sections, scripts, data, page_stamp(run, extra))
+
+
+def canonical_of(cfg) -> str:
+    """The config's whole JSON (fields out of the key included): what a page built for it differs by."""
+    return cfg.model_dump_json()
 
 
 #: What a run page's stamp is read from: the head of the file (the stamp is the page's first meta but one).
 STAMP_BYTES = 4096
 
 
-def page_stamp(run) -> str:
+def page_stamp(run, extra: str = "") -> str:
     """What a run's page was built from: the run's key, its manifest (the parts with their sha256, its name, tags
     and headline) and the source of the package that drew it. ``report --store-index`` reuses a page whose stamp
     is this one (issue 56 item 5: it rebuilt every run's page each time)."""
@@ -325,7 +347,7 @@ def page_stamp(run) -> str:
     from surgopt.derived import package_sha256
 
     manifest = json.dumps(run.manifest, sort_keys=True, default=str)
-    return hashlib.sha256(f"{run.key}\n{manifest}\n{package_sha256()}".encode()).hexdigest()
+    return hashlib.sha256(f"{run.key}\n{manifest}\n{package_sha256()}{extra}".encode()).hexdigest()
 
 
 def current_page(run, path) -> bool:

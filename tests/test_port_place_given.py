@@ -133,3 +133,12 @@ def test_a_given_layout_is_scored_against_the_stored_run_without_running_it_agai
     (run,) = store.runs("port-place")
     assert "given_layout" not in run.manifest.get("headline", {})
     assert sorted(p for p in hits.rglob("*") if p.is_file()) == recorded  # the given layout's line is not
+    # the page of the run named by the given layout's config shows it as the closing report does; the run's own
+    # page (--store-index) is built again, not taken for it
+    page = cli("report", tmp_path / "given.yaml", "--store", tmp_path / "s")
+    beside = run.path / "_report.html"
+    text = beside.read_text()
+    assert "your layout (given_layout)" in text and "given_layout" in text and "report.html" in page.stdout + page.stderr
+    index = cli("report", "--store-index", "--store", tmp_path / "s")
+    assert "1 run pages written beside them, 0 kept" in index.stdout
+    assert "your layout (given_layout)" not in beside.read_text()  # the run's own page again
