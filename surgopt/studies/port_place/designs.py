@@ -242,6 +242,36 @@ def evaluate_designs(cfg, x: np.ndarray, ids: np.ndarray, source: str) -> dict:
     return concat_rows(out)
 
 
+def evaluate_at_ports(cfg: PortPlaceConfig, ports_mm: np.ndarray, design_id: int = -1) -> dict:
+    """(#58, the engine's first part) The row of one layout whose ports are any points (``ports_mm``, (arms, 3),
+    ``arms_of``'s order, patient frame): the grid's own tables built for those ports alone, as if they were the
+    candidate sites (a ``PortModel`` whose sites are the ports: their per-port and per-pair tables, their cart's dock
+    tables at every pose of the grid and their links), combined by the design kernel as design 0 of that grid. At
+    candidate sites it is the enumeration's row (tested, every column but the site numbers, here -1). What a
+    perturbed layout (a port moved on the skin) is evaluated with; ~0.1 s a layout. Docked at the config's own
+    docking turn (one docking: a list of rolls is refused, ``model.prepare``)."""
+    import dataclasses
+
+    from surgopt.kinematics.port import place as K
+    from surgopt.kinematics.port.designs import design_columns
+    from surgopt.studies.port_place.tables import dock_tables
+
+    arms = arms_of(cfg)
+    ports = np.asarray(ports_mm, float).reshape(len(arms), 3) / 1000
+    model = model_of(cfg)
+    own = dataclasses.replace(model, sites_m=ports, rot=K.docking_frames(ports, model.centre_m, LATERAL))
+    rot, base_yaw = model.instruments.turned(own.rot, np.zeros(2 * (len(arms) - 1)))
+    outside = K.external_clearances(ports, np.ascontiguousarray(rot[:, :, 2]), outside_length_m(cfg))
+    cart = has_cart(cfg)
+    dock = dock_tables(own) if cart else None
+    t, _, _ = port_tables(own, ports, rot, outside, base_yaw_rad=base_yaw, dock=dock)
+    local, f, bad, cost, _, docked = design_columns(t, model.criteria, 0, 1, len(arms) - 1)
+    return design_rows(cfg, ports, t, local, np.full((1, len(arms)), -1, np.int64), f, bad, cost,
+                       np.array([design_id], np.int64), np.zeros((1, 2 * (len(arms) - 1))),
+                       dock=docked if cart else None, floor=dock.poses.floor if cart else None,
+                       dock_tables=dock if cart else None)
+
+
 def searched_docking(cfg: PortPlaceConfig) -> bool:
     """Whether a run's trials dock each RCM instrument in frames of their own (a [search]'s docking yaw and pitch,
     ``robot.docking_range_deg`` > 0, or its rolls, ``docking_roll = 'search'``), not the grid's at its sites."""
