@@ -257,11 +257,11 @@ def provenance_rows(run) -> list[list]:
     return rows
 
 
-def run_sections(study, run, parts, given=None) -> tuple[list[str], list[str], dict[str, str], dict]:
+def run_sections(study, run, parts, added=None) -> tuple[list[str], list[str], dict[str, str], dict]:
     """The sections of one run's page: headline, the study's views, the summary tables, notes, config,
-    provenance; with the scripts and data they need, and the headline numbers. ``given``: the config the user
-    named the run by, whose ``Study.config_report`` additions (port-place: a surgeon's own layout) the page shows
-    as the closing report does, ahead of the run's own tables."""
+    provenance; with the scripts and data they need, and the headline numbers. ``added``: what the config the
+    user named the run by adds (``added_report``: port-place's given layout), shown as the closing report shows
+    it, ahead of the run's own tables."""
     from surgopt.config import to_toml
     from surgopt.report import best_edges
 
@@ -269,8 +269,7 @@ def run_sections(study, run, parts, given=None) -> tuple[list[str], list[str], d
 
     sections, scripts, data = [], [], {}
     summary = run_summary(study, run, parts) if parts.num_rows else None  # the closing report's, kept
-    added = added_report(study, given, parts) if summary else None
-    if added is not None:
+    if summary and added is not None:
         from surgopt.studies import Summary
 
         summary = Summary({**summary.headline, **added[0]}, summary.feasibility, [*added[1], *summary.tables])
@@ -322,9 +321,10 @@ def added_report(study, given, parts):
 def run_page(study, run, parts, given=None) -> str:
     """One run's page; ``given``: the config the user named it by (``run_sections``). A page that shows what such a
     config adds is stamped apart (``page_stamp``), so that ``--store-index`` builds the run's own page again."""
-    sections, scripts, data, _ = run_sections(study, run, parts, given)
+    added = added_report(study, given, parts) if parts.num_rows else None  # once: it scores a layout
+    sections, scripts, data, _ = run_sections(study, run, parts, added)
     name = run.manifest.get("name") or run.manifest.get("config_name", "")
-    extra = "" if added_report(study, given, parts) is None else "\nwith " + canonical_of(given)
+    extra = "" if added is None else "\nwith " + canonical_of(given)
     return page(f"surgopt {study.name}: {name}", f"run {run.key[:12]} · {run.manifest.get('created', '')} · "
                 f"{parts.num_rows:,} rows · {run.path}", sections, scripts, data, page_stamp(run, extra))
 
