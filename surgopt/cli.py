@@ -471,12 +471,8 @@ def _report(study, result, brief: bool = False, quiet: bool = False, fmt: str = 
         from surgopt.store import Store
 
         Store(run.path.parent.parent).record_headline(run, summary.headline)
-    added = study.config_report(cfg, result.parts) if study.config_report is not None and cfg is not None else None
-    if added is not None:  # ahead of the run's own tables; not kept
-        from surgopt.studies import Summary
-
-        summary = Summary({**summary.headline, **added[0]}, summary.feasibility, [*added[1], *summary.tables],
-                          added=True)  # shown, not kept: the command is not answered from ``_hits``
+    if study.config_report is not None and cfg is not None:  # shown, not kept: such a command is not answered
+        summary = summary.with_added(study.config_report(cfg, result.parts))  # from ``_hits``
     print_report(study.name, run, summary, edges, front, rows=result.parts.num_rows, elapsed_s=result.elapsed_s,
                  cache_hit=result.cache_hit, messages=result.messages, brief=brief, fmt=fmt)
     return summary

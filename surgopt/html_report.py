@@ -269,10 +269,8 @@ def run_sections(study, run, parts, added=None) -> tuple[list[str], list[str], d
 
     sections, scripts, data = [], [], {}
     summary = run_summary(study, run, parts) if parts.num_rows else None  # the closing report's, kept
-    if summary and added is not None:
-        from surgopt.studies import Summary
-
-        summary = Summary({**summary.headline, **added[0]}, summary.feasibility, [*added[1], *summary.tables])
+    if summary:
+        summary = summary.with_added(added)
     headline = dict(summary.headline) if summary else {}
     complete = len(run.manifest["parts"]) == run.manifest["n_tasks"]
     state = ("complete" if complete else

@@ -37,6 +37,13 @@ class Summary:
     #: (``Study.config_report``): shown, never kept beside the run
     added: bool = False
 
+    def with_added(self, added: tuple[dict, list] | None) -> "Summary":
+        """This summary with ``Study.config_report``'s (headline items, tables) added, the tables first; itself
+        when there is nothing to add."""
+        if added is None:
+            return self
+        return Summary({**self.headline, **added[0]}, self.feasibility, [*added[1], *self.tables], added=True)
+
 
 @dataclass(frozen=True)
 class Estimate:

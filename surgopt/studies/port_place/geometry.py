@@ -94,17 +94,9 @@ def along_skin_mm(patient, mark: tuple[float, float], x_mm: float, y_mm: float) 
     across (at the landmark's level, to the port's x), then along the body (at the port's x, to its y); each leg's
     length over the body's upper wall (``wall_height_mm``), sampled every SKIN_STEP_MM: (across, along) mm, signed
     as the top view's (left +, cranial +). Where the wall is missing under a leg (a mesh's ray misses), that leg's
-    top-view length."""
-    def leg(x0, y0, x1, y1) -> float:
-        n = max(2, int(math.ceil(math.hypot(x1 - x0, y1 - y0) / SKIN_STEP_MM)) + 1)
-        x, y = np.linspace(x0, x1, n), np.linspace(y0, y1, n)
-        z = wall_height_mm(x, y, patient)
-        if not np.all(np.isfinite(z)):
-            return math.hypot(x1 - x0, y1 - y0)
-        return float(np.sum(np.sqrt(np.diff(x) ** 2 + np.diff(y) ** 2 + np.diff(z) ** 2)))
-
-    across = leg(mark[0], mark[1], x_mm, mark[1])
-    along = leg(x_mm, mark[1], x_mm, y_mm)
+    top-view length (each leg a ``skin_line_mm``)."""
+    across = skin_line_mm(patient, (mark[0], mark[1]), (x_mm, mark[1]))[1]
+    along = skin_line_mm(patient, (x_mm, mark[1]), (x_mm, y_mm))[1]
     return math.copysign(across, x_mm - mark[0]), math.copysign(along, y_mm - mark[1])
 
 

@@ -97,12 +97,19 @@ class PortModel:
         return instrument_reach(self, self.sites_m, self.third_rot)
 
     @cached_property
-    def shafts_clear_at_sites(self) -> np.ndarray | None:
-        """[site, point] Whether the shaft from each candidate site to each target point crosses no organ
-        (``organs.shafts_clear``), once; None without organs."""
-        from surgopt.studies.port_place.organs import shafts_clear
+    def organ_crossing(self) -> np.ndarray | None:
+        """[site, point] The organ the shaft from each candidate site to each target point crosses (an index of
+        ``organs.organ_grids``, -1 none; ``organs.shafts_crossing``), once: the reach tables' mask and the closing
+        report's counts; None without organs."""
+        from surgopt.studies.port_place.organs import organ_grids, shafts_crossing
 
-        return shafts_clear(self, self.sites_m)
+        grids = organ_grids(self.cfg.patient)
+        return shafts_crossing(self.sites_m, self.targets_m, grids) if grids else None
+
+    @property
+    def shafts_clear_at_sites(self) -> np.ndarray | None:
+        """[site, point] Whether that shaft crosses no organ (``organ_crossing``); None without organs."""
+        return None if self.organ_crossing is None else self.organ_crossing < 0
 
     @cached_property
     def whole_target(self) -> tuple[np.ndarray, np.ndarray]:

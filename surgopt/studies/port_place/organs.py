@@ -95,7 +95,7 @@ def shafts_crossing(sites_m: np.ndarray, targets_m: np.ndarray, grids: list[Orga
 def shafts_clear(model, sites_m: np.ndarray) -> np.ndarray | None:
     """[site, point] bool: the shaft from each site to each of the model's target points crosses no organ; None
     when the patient has no organs (nothing to mask). The model's own candidate sites are computed once
-    (``PortModel.shafts_clear_at_sites``)."""
+    (``PortModel.organ_crossing``)."""
     grids = organ_grids(model.cfg.patient)
     if not grids:
         return None
@@ -106,7 +106,7 @@ def organs_words(model) -> str:
     """The closing report's line: which organs the shafts clear, by the module's rule, and how many of the shafts
     from the candidate sites to the target's points cross each (so are out of reach)."""
     grids = organ_grids(model.cfg.patient)
-    crossing = shafts_crossing(model.sites_m, model.targets_m, grids)
+    crossing = model.organ_crossing  # the reach tables' own, once per model
     each = ", ".join(f"{g.name} {int(np.count_nonzero(crossing == k)):,}" for k, g in enumerate(grids))
     return (f"no instrument's shaft crosses {', '.join(g.name for g in grids)} on its way to the target (each taken "
             f"as its {ORGAN_PITCH_MM:g} mm voxels, at most {ORGAN_REACH_MM:.1f} mm past its surface, up to that far from "
